@@ -1,0 +1,28 @@
+# Small helpers shared by every component's CMakeLists.txt.
+
+# omnipose_add_subdirectories(): add every direct sub-folder that has a
+# CMakeLists.txt, in name order. Components register themselves this way, so
+# adding a module never edits a shared list.
+function(omnipose_add_subdirectories)
+  file(GLOB children RELATIVE ${CMAKE_CURRENT_SOURCE_DIR} ${CMAKE_CURRENT_SOURCE_DIR}/*)
+  list(SORT children)
+  foreach(child IN LISTS children)
+    if(IS_DIRECTORY ${CMAKE_CURRENT_SOURCE_DIR}/${child}
+       AND EXISTS ${CMAKE_CURRENT_SOURCE_DIR}/${child}/CMakeLists.txt)
+      add_subdirectory(${child})
+    endif()
+  endforeach()
+endfunction()
+
+# omnipose_add_test(NAME src... [LIBS lib...]): one GoogleTest binary, run by ctest.
+# Tests run with the source tree as working directory so they find tests/data.
+function(omnipose_add_test name)
+  cmake_parse_arguments(ARG "" "" "LIBS" ${ARGN})
+  add_executable(${name} ${ARG_UNPARSED_ARGUMENTS})
+  target_link_libraries(${name} PRIVATE ${ARG_LIBS} GTest::gtest GTest::gtest_main)
+  target_compile_definitions(${name} PRIVATE
+    OMNIPOSE_SOURCE_DIR="${CMAKE_SOURCE_DIR}"
+    OMNIPOSE_BINARY_DIR="${CMAKE_BINARY_DIR}")
+  set_target_properties(${name} PROPERTIES RUNTIME_OUTPUT_DIRECTORY ${CMAKE_BINARY_DIR}/tests)
+  gtest_discover_tests(${name} WORKING_DIRECTORY ${CMAKE_SOURCE_DIR} DISCOVERY_TIMEOUT 60)
+endfunction()

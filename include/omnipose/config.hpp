@@ -1,0 +1,84 @@
+#pragma once
+/// \file config.hpp
+/// The daemon configuration (daemon.yaml, DESIGN.md section 7), parsed in this one place
+/// for the daemon and for `omnipose-replay --config`. Every key is optional except
+/// `source` and `calibration` (for the daemon); unknown keys are errors; every problem is
+/// collected and reported at once. describe() gives the effective values for the start-up
+/// log.
+///
+/// ```yaml
+/// source: {type: file, path: /data/run1, realtime: true, loop: false}
+/// calibration: /etc/omnipose/calibration.yaml   # relative: to this file's folder
+/// input: omni                                    # omni | panorama
+/// pipeline: {window: 110, step: 20, huber_delta_px: 2.0, median: 5,
+///            refine_iterations: 1, use_rotation_scale: true}
+/// lcm: {url: "", pose_channel: OMNI_POSE, status_channel: OMNI_STATUS, fit_channel: "",
+///       status_hz: 1.0}
+/// ```
+
+#include <filesystem>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include "omnipose/pipeline.hpp"
+
+namespace omnipose {
+
+/// Where frames come from.
+struct SourceConfig {
+  enum class Type { kFile, kV4l2, kLibcamera };
+  Type type = Type::kFile;
+  std::filesystem::path path;       ///< file: dataset directory
+  bool realtime = true;             ///< file: pace by timestamps (false: as fast as possible)
+  bool loop = false;                ///< file: start again at the end
+  std::string device = "/dev/video0";  ///< v4l2
+  std::string camera = "0";         ///< libcamera: index or id
+  int width = 1280;                 ///< v4l2 / libcamera, pixels
+  int height = 720;
+  double fps = 30.0;
+  std::string format = "YUYV";      ///< v4l2: GREY | YUYV | MJPG; libcamera: any it offers
+};
+const char* toString(SourceConfig::Type type);
+
+/// LCM output.
+struct LcmConfig {
+  std::string url;                  ///< "" = LCM's default (udpm multicast)
+  std::string pose_channel = "OMNI_POSE";
+  std::string status_channel = "OMNI_STATUS";
+  std::string fit_channel;          ///< "" = diagnostics off
+  double status_hz = 1.0;
+};
+
+/// Thrown on an invalid configuration; what() lists every problem, one per line.
+class ConfigError : public std::runtime_error {
+ public:
+  ConfigError(const std::string& what, std::vector<std::string> problems)
+      : std::runtime_error(what), problems_(std::move(problems)) {}
+  const std::vector<std::string>& problems() const { return problems_; }
+
+ private:
+  std::vector<std::string> problems_;
+};
+
+struct DaemonConfig {
+  /// kDaemon: `source` and `calibration` are required. kReplay: both are optional (the
+  /// dataset comes from the command line).
+  enum class Use { kDaemon, kReplay };
+
+  SourceConfig source;
+  std::filesystem::path calibration;  ///< resolved against the config file's folder
+  PipelineOptions pipeline;           ///< includes the input kind (pipeline.unwrap.input)
+  LcmConfig lcm;
+
+  /// Reads and validates `path`. Throws ConfigError listing every problem, each prefixed
+  /// with the path and the key (e.g. "daemon.yaml: pipeline.step: must be > 0").
+  static DaemonConfig load(const std::filesystem::path& path, Use use = Use::kDaemon);
+  /// Parses YAML text; relative paths are resolved against `base_dir`.
+  static DaemonConfig parse(const std::string& yaml_text, const std::string& origin,
+                            const std::filesystem::path& base_dir, Use use = Use::kDaemon);
+  /// The effective configuration as YAML, for the start-up log.
+  std::string describe() const;
+};
+
+}  // namespace omnipose

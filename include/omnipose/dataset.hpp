@@ -1,0 +1,50 @@
+#pragma once
+/// \file dataset.hpp
+/// A recorded or rendered dataset directory (DESIGN.md section 6):
+///   DATASET/calibration.yaml   lens and panorama
+///   DATASET/frames/            images sorted by name: png, jpg, jpeg, pgm, ppm, bmp
+///   DATASET/timestamps.txt     optional "<file name> <seconds>" per line; else i / 30 s
+///   DATASET/groundtruth.tum    optional camera poses (TUM)
+
+#include <filesystem>
+#include <opencv2/core.hpp>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "omnipose/calibration.hpp"
+#include "omnipose/error.hpp"
+#include "omnipose/trajectory.hpp"
+
+namespace omnipose {
+
+struct DatasetFrame {
+  std::filesystem::path path;
+  double timestamp = 0.0;  ///< seconds
+};
+
+struct Dataset {
+  /// Frame rate assumed when there is no timestamps.txt.
+  static constexpr double kDefaultFps = 30.0;
+
+  std::filesystem::path root;
+  Calibration calibration;
+  std::vector<DatasetFrame> frames;
+  std::optional<std::vector<StampedPose>> groundtruth;
+
+  /// Opens `root`. `calibration_override` replaces DATASET/calibration.yaml when given.
+  /// Throws std::runtime_error naming the path on: missing directory, missing frames/
+  /// folder or no images in it, missing/invalid calibration (CalibrationError), a
+  /// malformed timestamps.txt line, or a frame without a timestamp.
+  static Dataset open(const std::filesystem::path& root,
+                      const std::optional<std::filesystem::path>& calibration_override = {});
+};
+
+/// True for the image file endings a dataset may use (case-insensitive).
+bool isImageFile(const std::filesystem::path& path);
+
+/// Reads one frame as stored (grey stays grey, colour stays BGR). kNotFound when the file
+/// is missing, kBadFrame naming the file when it cannot be decoded.
+Expected<cv::Mat> readFrame(const std::filesystem::path& path);
+
+}  // namespace omnipose

@@ -1,0 +1,72 @@
+#pragma once
+/// \file pipeline.hpp
+/// The per-frame pipeline of DESIGN.md section 1 behind one entry point: unwrap ->
+/// sliding-window iFMI against the previous frame -> robust linear fit -> exact
+/// refinement -> relative pose (R, t up to scale).
+///
+/// Exact refinement: the first-order model is exact only for small motion, and each
+/// window reports the motion averaged over 36 degrees of azimuth. After the linear fit the
+/// current panorama is warped by the estimate with the exact cylinder projection
+/// (all points at horizontal distance rho), re-registered against the same previous
+/// windows and the residual motion is fitted and composed (R <- R_res R, tau <- tau +
+/// tau_res). The residual is small, so its own first-order error is negligible.
+///
+/// Realtime: the constructor allocates everything; process() allocates nothing and never
+/// throws. Not thread-safe: one instance per processing thread.
+
+#include <Eigen/Core>
+#include <chrono>
+#include <memory>
+#include <opencv2/core.hpp>
+#include <span>
+
+#include "omnipose/calibration.hpp"
+#include "omnipose/error.hpp"
+#include "omnipose/motion_estimator.hpp"
+#include "omnipose/motion_fit.hpp"
+#include "omnipose/unwrapper.hpp"
+#include "omnipose/window_registration.hpp"
+
+namespace omnipose {
+
+struct PipelineOptions {
+  Unwrapper::Options unwrap;
+  /// Window size/step and iFMI settings; the panorama size is taken from the calibration.
+  WindowRegistration::Options registration;
+  MotionFit::Options fit;
+  /// Warp-and-refit passes after the linear fit (0 = plain first-order fit).
+  int refine_iterations = 1;
+
+  /// Every problem, one message per bad field, prefixed by its section (empty = valid).
+  std::vector<std::string> validate() const;
+};
+
+class Pipeline final : public MotionEstimator {
+ public:
+  /// Throws std::invalid_argument listing every invalid option or calibration field.
+  Pipeline(const Calibration& calibration, const PipelineOptions& options);
+  ~Pipeline();
+  Pipeline(const Pipeline&) = delete;
+  Pipeline& operator=(const Pipeline&) = delete;
+
+  /// Processes the next frame (8-bit grey/BGR/BGRA, omni or panorama per the options).
+  /// A rejected frame (kBadFrame: wrong size/type, black) leaves the state untouched, so
+  /// the next good frame is compared with the last good one.
+  Expected<FrameMotion> process(const cv::Mat& frame) override;
+  /// Forgets the previous frame: the next frame starts a new pair sequence.
+  void reset() override;
+  const char* name() const override { return "ifmi"; }
+
+  /// Window motions of the last pair, first (linear) pass: for diagnostics and plots.
+  std::span<const WindowMotion> lastWindows() const;
+  /// The last unwrapped panorama (CV_32FC1).
+  const cv::Mat& lastPanorama() const;
+  const Calibration& calibration() const;
+  const PipelineOptions& options() const;
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace omnipose

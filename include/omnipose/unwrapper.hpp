@@ -1,0 +1,57 @@
+#pragma once
+/// \file unwrapper.hpp
+/// Omni donut -> W x H cylindrical panorama through a bilinear lookup table built once
+/// from the calibration (DESIGN.md section 6). Frames that already are panoramas
+/// (`input: panorama`) pass through the same entry point and are only converted.
+
+#include <opencv2/core.hpp>
+#include <vector>
+
+#include "omnipose/calibration.hpp"
+#include "omnipose/error.hpp"
+
+namespace omnipose {
+
+/// What the frames given to the pipeline are.
+enum class InputKind { kOmni, kPanorama };
+
+class Unwrapper {
+ public:
+  struct Options {
+    InputKind input = InputKind::kOmni;
+    /// A frame whose mean grey level is below this is rejected as black (lens cap,
+    /// exposure failure). Grey levels 0..255.
+    double min_mean_intensity = 2.0;
+    /// Empty string when valid, else a message naming the bad field.
+    std::string validate() const;
+  };
+
+  /// Builds the lookup table (allocates). Throws std::invalid_argument when the options
+  /// or the calibration are invalid.
+  Unwrapper(const Calibration& calibration, const Options& options);
+
+  /// Expected frame size: the omni image size or the panorama size, by input kind.
+  cv::Size inputSize() const;
+  /// Panorama size W x H.
+  cv::Size panoramaSize() const;
+
+  /// Unwraps `frame` (CV_8UC1, CV_8UC3 BGR or CV_8UC4 BGRA, inputSize()) into `panorama`
+  /// (CV_32FC1, W x H, grey levels 0..255). `panorama` must already have that size and
+  /// type (allocate it once with makePanorama()); it is then written in place without
+  /// allocation. Errors (kBadFrame): wrong size or type, all-black frame.
+  Expected<void> unwrap(const cv::Mat& frame, cv::Mat& panorama);
+
+  /// A panorama buffer of the right size and type.
+  cv::Mat makePanorama() const;
+
+ private:
+  Calibration calibration_;
+  Options options_;
+  /// Per panorama pixel: index of the top-left source pixel and the 4 bilinear weights;
+  /// pixels whose footprint leaves the image get weight 0 (black).
+  std::vector<int> offset_;
+  std::vector<cv::Vec4f> weight_;
+  cv::Mat grey_;  ///< colour frames are converted here (allocated once)
+};
+
+}  // namespace omnipose

@@ -1,0 +1,247 @@
+#include "omnipose/motion_fit.hpp"
+
+#include <Eigen/Cholesky>
+#include <Eigen/Eigenvalues>
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <stdexcept>
+
+#include "omnipose/motion_model.hpp"
+
+namespace omnipose {
+namespace {
+
+constexpr int kDu = 0, kDv = 1, kRotation = 2, kLogScale = 3;
+constexpr double kMadToSigma = 1.4826;
+
+/// Median of a small array (modified in place).
+double medianOf(double* begin, int n) {
+  std::nth_element(begin, begin + n / 2, begin + n);
+  const double upper = begin[n / 2];
+  if (n % 2 == 1) return upper;
+  const double lower = *std::max_element(begin, begin + n / 2);
+  return 0.5 * (lower + upper);
+}
+
+}  // namespace
+
+const char* toString(FitStatus status) {
+  switch (status) {
+    case FitStatus::kOk: return "ok";
+    case FitStatus::kDegraded: return "degraded";
+    case FitStatus::kLost: return "lost";
+  }
+  return "unknown";
+}
+
+std::string MotionFit::Options::validate() const {
+  if (!(huber_delta_px > 0)) return "huber_delta_px must be > 0";
+  if (median < 0 || median > 15) return "median must be in [0, 15]";
+  if (median > 1 && median % 2 == 0) return "median must be odd (or 0/1 = off)";
+  if (!(median_reject_px > 0)) return "median_reject_px must be > 0";
+  if (max_iterations < 1) return "max_iterations must be >= 1";
+  if (!(tolerance > 0)) return "tolerance must be > 0";
+  if (!(inlier_sigmas > 0)) return "inlier_sigmas must be > 0";
+  if (!(min_window_fraction >= 0 && min_window_fraction <= 1))
+    return "min_window_fraction must be in [0, 1]";
+  if (!(max_residual_px > 0)) return "max_residual_px must be > 0";
+  if (!(max_condition > 1)) return "max_condition must be > 1";
+  if (max_windows < 6) return "max_windows must be >= 6";
+  return {};
+}
+
+MotionFit::MotionFit(const Options& options, double gamma, int window_px)
+    : options_(options), gamma_(gamma), kappa_(windowAttenuation(window_px, gamma)) {
+  if (const auto bad = options.validate(); !bad.empty())
+    throw std::invalid_argument("MotionFit::Options: " + bad);
+  if (!(gamma > 0)) throw std::invalid_argument("MotionFit: gamma must be > 0");
+  rows_.resize(4 * static_cast<std::size_t>(options.max_windows));
+  scratch_.resize(rows_.size());
+  keep_.resize(options.max_windows);
+}
+
+int MotionFit::buildTranslationRows(std::span<const WindowMotion> windows, double forward_column) {
+  const int n = static_cast<int>(windows.size());
+  for (int k = 0; k < n; ++k) keep_[k] = windows[k].valid && windows[k].confidence > 0;
+
+  // Median pre-filter over circular neighbours: drop, never replace.
+  const int half = options_.median > 1 ? options_.median / 2 : 0;
+  if (half > 0) {
+    std::array<double, 16> du_near{}, dv_near{};
+    for (int k = 0; k < n; ++k) {
+      if (!windows[k].valid || windows[k].confidence <= 0) continue;
+      int m = 0;
+      for (int j = -half; j <= half; ++j) {
+        const WindowMotion& w = windows[((k + j) % n + n) % n];
+        if (!w.valid || w.confidence <= 0) continue;
+        du_near[m] = w.du;
+        dv_near[m] = w.dv;
+        ++m;
+      }
+      if (m < 3) continue;  // too few neighbours to judge
+      const double du_med = medianOf(du_near.data(), m), dv_med = medianOf(dv_near.data(), m);
+      if (std::abs(windows[k].du - du_med) > options_.median_reject_px ||
+          std::abs(windows[k].dv - dv_med) > options_.median_reject_px) {
+        keep_[k] = 0;
+      }
+    }
+  }
+
+  int r = 0;
+  for (int k = 0; k < n; ++k) {
+    if (!keep_[k]) continue;
+    const double theta = gamma_ * (windows[k].center_u - forward_column);
+    const ModelRows m = modelRows(theta, kappa_);
+    const double conf = windows[k].confidence;
+    rows_[r] = Row{m.du, windows[k].du * gamma_, 1.0 / gamma_, conf, conf, kDu};
+    rows_[r + 1] = Row{m.dv, windows[k].dv * gamma_, 1.0 / gamma_, conf, conf, kDv};
+    r += 2;
+  }
+  return r;
+}
+
+double MotionFit::robustSigma(int kind, const Eigen::Matrix<double, 6, 1>& x, int n_rows) {
+  int m = 0;
+  for (int i = 0; i < n_rows; ++i) {
+    if (rows_[i].kind != kind) continue;
+    scratch_[m++] = std::abs(rows_[i].a.dot(x) - rows_[i].b);
+  }
+  if (m == 0) return 0.0;
+  return kMadToSigma * medianOf(scratch_.data(), m);
+}
+
+Eigen::Matrix<double, 6, 1> MotionFit::irls(int n_rows, int& iterations, bool& ok) {
+  using Mat6 = Eigen::Matrix<double, 6, 6>;
+  using Vec6 = Eigen::Matrix<double, 6, 1>;
+  Vec6 x = Vec6::Zero();
+  ok = false;
+  for (iterations = 0; iterations < options_.max_iterations;) {
+    Mat6 N = Mat6::Zero();
+    Vec6 g = Vec6::Zero();
+    for (int i = 0; i < n_rows; ++i) {
+      const Row& row = rows_[i];
+      if (row.weight <= 0) continue;
+      N.noalias() += row.weight * row.a.transpose() * row.a;
+      g.noalias() += row.weight * row.b * row.a.transpose();
+    }
+    const Eigen::LDLT<Mat6> ldlt(N);
+    if (ldlt.info() != Eigen::Success || !ldlt.isPositive()) return x;
+    const Vec6 x_new = ldlt.solve(g);
+    if (!x_new.allFinite()) return x;
+    ++iterations;
+    const double step = (x_new - x).norm();
+    x = x_new;
+    ok = true;
+    // Pseudo-Huber weights: rho'(r)/r = 1 / sqrt(1 + (r/delta)^2), r in pixels.
+    for (int i = 0; i < n_rows; ++i) {
+      Row& row = rows_[i];
+      const double r_px = (row.a.dot(x) - row.b) * row.scale / options_.huber_delta_px;
+      row.weight = row.prior_weight / std::sqrt(1.0 + r_px * r_px);
+    }
+    if (step < options_.tolerance) break;
+  }
+  return x;
+}
+
+MotionEstimate MotionFit::fit(std::span<const WindowMotion> windows, double forward_column) {
+  using Mat6 = Eigen::Matrix<double, 6, 6>;
+  using Vec6 = Eigen::Matrix<double, 6, 1>;
+  MotionEstimate est;
+  est.windows_total = static_cast<int>(windows.size());
+  if (windows.size() > static_cast<std::size_t>(options_.max_windows)) {
+    est.status = FitStatus::kLost;  // workspace too small: configuration error upstream
+    return est;
+  }
+  int n_rows = buildTranslationRows(windows, forward_column);
+  if (n_rows < 8) return est;  // fewer than 4 windows: nothing to fit
+
+  bool ok = false;
+  Vec6 x = irls(n_rows, est.iterations, ok);
+  if (!ok) return est;
+
+  // In-window rotation and scale, weighted by their own noise relative to the shifts.
+  if (options_.use_rotation_scale) {
+    const double sigma_t = std::max(
+        std::max(robustSigma(kDu, x, n_rows), robustSigma(kDv, x, n_rows)), 0.01 * gamma_);
+    const int n_trans = n_rows;
+    for (std::size_t k = 0; k < windows.size(); ++k) {
+      if (!keep_[k] || windows[k].rs_confidence <= 0 || !(windows[k].scale > 0)) continue;
+      const double theta = gamma_ * (windows[k].center_u - forward_column);
+      const ModelRows m = modelRows(theta, kappa_);
+      const double conf = windows[k].rs_confidence;
+      rows_[n_rows++] = Row{m.rotation, windows[k].rotation, 1.0, conf, conf, kRotation};
+      rows_[n_rows++] = Row{m.log_scale, std::log(windows[k].scale), 1.0, conf, conf, kLogScale};
+    }
+    if (n_rows > n_trans) {
+      const double floor_rs = 1e-4;
+      const double sigma_r = std::max(robustSigma(kRotation, x, n_rows), floor_rs);
+      const double sigma_s = std::max(robustSigma(kLogScale, x, n_rows), floor_rs);
+      for (int i = n_trans; i < n_rows; ++i) {
+        Row& row = rows_[i];
+        const double sigma = row.kind == kRotation ? sigma_r : sigma_s;
+        // Residuals expressed in "equivalent shift pixels" for the loss, weights by 1/var.
+        row.scale = sigma_t / sigma / gamma_;
+        row.prior_weight *= (sigma_t / sigma) * (sigma_t / sigma);
+        row.weight = row.prior_weight;
+      }
+      for (int i = 0; i < n_trans; ++i) rows_[i].weight = rows_[i].prior_weight;
+      int more = 0;
+      x = irls(n_rows, more, ok);
+      est.iterations += more;
+      if (!ok) return est;
+    }
+  }
+
+  // Final least-squares pass on the inliers.
+  int m = 0;
+  for (int i = 0; i < n_rows; ++i)
+    scratch_[m++] = std::abs((rows_[i].a.dot(x) - rows_[i].b) * rows_[i].scale);
+  const double sigma_px = kMadToSigma * medianOf(scratch_.data(), m);
+  const double threshold = std::max(options_.inlier_sigmas * sigma_px, 0.1);
+  Mat6 N = Mat6::Zero();
+  Vec6 g = Vec6::Zero();
+  int used_rows = 0;
+  for (int i = 0; i < n_rows; ++i) {
+    Row& row = rows_[i];
+    const double r_px = std::abs((row.a.dot(x) - row.b) * row.scale);
+    row.weight = r_px < threshold ? row.prior_weight : 0.0;
+    if (row.weight <= 0) continue;
+    N.noalias() += row.weight * row.a.transpose() * row.a;
+    g.noalias() += row.weight * row.b * row.a.transpose();
+    ++used_rows;
+  }
+  const Eigen::SelfAdjointEigenSolver<Mat6> eig(N, Eigen::EigenvaluesOnly);
+  const double lmin = eig.eigenvalues()(0), lmax = eig.eigenvalues()(5);
+  if (used_rows < 8 || !(lmin > 0) || lmax / lmin > options_.max_condition) return est;
+  const Eigen::LDLT<Mat6> ldlt(N);
+  x = ldlt.solve(g);
+  if (!x.allFinite()) return est;
+
+  // Residual statistics and covariance sigma^2 N^-1 (model units).
+  double wrr = 0.0, shift_rr = 0.0;
+  int shift_n = 0;
+  for (int i = 0; i < n_rows; ++i) {
+    const Row& row = rows_[i];
+    if (row.weight <= 0) continue;
+    const double r = row.a.dot(x) - row.b;
+    wrr += row.weight * r * r;
+    if (row.kind == kDu || row.kind == kDv) {
+      shift_rr += (r * row.scale) * (r * row.scale);
+      ++shift_n;
+    }
+  }
+  const double dof = std::max(used_rows - 6, 1);
+  est.covariance = (wrr / dof) * ldlt.solve(Mat6::Identity());
+  est.residual_rms_px = shift_n > 0 ? std::sqrt(shift_rr / shift_n) : 0.0;
+  est.windows_used = (shift_n + 1) / 2;  // du and dv rows of a window count once
+  est.omega = x.head<3>();
+  est.tau = x.tail<3>();
+
+  const bool few = est.windows_used < options_.min_window_fraction * est.windows_total;
+  est.status = (few || est.residual_rms_px > options_.max_residual_px) ? FitStatus::kDegraded
+                                                                        : FitStatus::kOk;
+  return est;
+}
+
+}  // namespace omnipose

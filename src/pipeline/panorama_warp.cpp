@@ -1,0 +1,76 @@
+#include "pipeline/panorama_warp.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <numbers>
+
+namespace omnipose {
+
+PanoramaWarp::PanoramaWarp(const PanoramaGeometry& geometry) : geometry_(geometry) {
+  grid_cols_ = geometry.width / kGridStep + 2;
+  grid_rows_ = (geometry.height - 1) / kGridStep + 2;
+  grid_du_.resize(static_cast<std::size_t>(grid_cols_) * grid_rows_);
+  grid_dv_.resize(grid_du_.size());
+  padded_.create(geometry.height, geometry.width + 2 * kPad, CV_32FC1);
+}
+
+void PanoramaWarp::warp(const cv::Mat& current, const Eigen::Matrix3d& R,
+                        const Eigen::Vector3d& tau, cv::Mat& out) {
+  const int W = geometry_.width, H = geometry_.height;
+  const double gamma = geometry_.gamma();
+  const Eigen::Matrix3d Rt = R.transpose();
+
+  // Exact displacement on the grid: X_prev on the unit cylinder -> X_cur = R^T (X - tau).
+  for (int gy = 0; gy < grid_rows_; ++gy) {
+    const double v = gy * kGridStep;
+    const double h = geometry_.cylinderHeight(v);
+    for (int gx = 0; gx < grid_cols_; ++gx) {
+      const double u = gx * kGridStep;
+      const double theta = geometry_.azimuth(u);
+      const Eigen::Vector3d X(std::cos(theta), std::sin(theta), h);
+      const Eigen::Vector3d Y = Rt * (X - tau);
+      const double rho = std::hypot(Y.x(), Y.y());
+      // Azimuth change relative to theta, wrapped to (-pi, pi].
+      double dtheta = std::atan2(Y.y(), Y.x()) - theta;
+      dtheta = std::remainder(dtheta, 2.0 * std::numbers::pi);
+      const double h_cur = rho > 1e-9 ? Y.z() / rho : 0.0;
+      const std::size_t i = static_cast<std::size_t>(gy) * grid_cols_ + gx;
+      grid_du_[i] = static_cast<float>(dtheta / gamma);
+      grid_dv_[i] = static_cast<float>(geometry_.row(h_cur) - v);
+    }
+  }
+
+  // Wrapped copy of the current panorama so that u needs no modulo per pixel.
+  current.copyTo(padded_(cv::Rect(kPad, 0, W, H)));
+  current(cv::Rect(W - kPad, 0, kPad, H)).copyTo(padded_(cv::Rect(0, 0, kPad, H)));
+  current(cv::Rect(0, 0, kPad, H)).copyTo(padded_(cv::Rect(W + kPad, 0, kPad, H)));
+
+  // Bilinear interpolation of the displacement, bilinear sampling of the image.
+  const int PW = padded_.cols;
+  for (int v = 0; v < H; ++v) {
+    const int gy = v / kGridStep;
+    const float fy = static_cast<float>(v - gy * kGridStep) / kGridStep;
+    const float* du0 = &grid_du_[static_cast<std::size_t>(gy) * grid_cols_];
+    const float* du1 = du0 + grid_cols_;
+    const float* dv0 = &grid_dv_[static_cast<std::size_t>(gy) * grid_cols_];
+    const float* dv1 = dv0 + grid_cols_;
+    float* dst = out.ptr<float>(v);
+    for (int u = 0; u < W; ++u) {
+      const int gx = u / kGridStep;
+      const float fx = static_cast<float>(u - gx * kGridStep) / kGridStep;
+      const float du = (1 - fy) * ((1 - fx) * du0[gx] + fx * du0[gx + 1]) +
+                       fy * ((1 - fx) * du1[gx] + fx * du1[gx + 1]);
+      const float dv = (1 - fy) * ((1 - fx) * dv0[gx] + fx * dv0[gx + 1]) +
+                       fy * ((1 - fx) * dv1[gx] + fx * dv1[gx + 1]);
+      const float x = std::clamp(u + du + kPad, 0.0f, static_cast<float>(PW - 1.001f));
+      const float y = std::clamp(v + dv, 0.0f, static_cast<float>(H - 1.001f));
+      const int x0 = static_cast<int>(x), y0 = static_cast<int>(y);
+      const float ax = x - x0, ay = y - y0;
+      const float* p = padded_.ptr<float>(y0) + x0;
+      const float* q = padded_.ptr<float>(y0 + 1) + x0;
+      dst[u] = (1 - ay) * ((1 - ax) * p[0] + ax * p[1]) + ay * ((1 - ax) * q[0] + ax * q[1]);
+    }
+  }
+}
+
+}  // namespace omnipose

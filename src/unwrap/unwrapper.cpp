@@ -1,0 +1,109 @@
+#include "omnipose/unwrapper.hpp"
+
+#include <cmath>
+#include <opencv2/imgproc.hpp>
+#include <stdexcept>
+
+namespace omnipose {
+
+std::string Unwrapper::Options::validate() const {
+  if (!(min_mean_intensity >= 0.0 && min_mean_intensity < 255.0))
+    return "min_mean_intensity must be in [0, 255)";
+  return {};
+}
+
+Unwrapper::Unwrapper(const Calibration& calibration, const Options& options)
+    : calibration_(calibration), options_(options) {
+  if (const auto bad = options.validate(); !bad.empty())
+    throw std::invalid_argument("Unwrapper::Options: " + bad);
+  if (const auto problems = calibration.validate(); !problems.empty())
+    throw std::invalid_argument("Unwrapper: invalid calibration: " + problems.front());
+
+  const int W = calibration.panorama.width, H = calibration.panorama.height;
+  const int iw = calibration.omni.image_width, ih = calibration.omni.image_height;
+  if (options.input == InputKind::kOmni) {
+    offset_.resize(static_cast<std::size_t>(W) * H);
+    weight_.resize(offset_.size());
+    for (int v = 0; v < H; ++v) {
+      for (int u = 0; u < W; ++u) {
+        const Eigen::Vector2d p = calibration.omniPixel(u, v);
+        const double fx = std::floor(p.x()), fy = std::floor(p.y());
+        const int x0 = static_cast<int>(fx), y0 = static_cast<int>(fy);
+        const float ax = static_cast<float>(p.x() - fx), ay = static_cast<float>(p.y() - fy);
+        const std::size_t i = static_cast<std::size_t>(v) * W + u;
+        if (x0 < 0 || y0 < 0 || x0 + 1 >= iw || y0 + 1 >= ih) {
+          offset_[i] = 0;  // outside the image: black
+          weight_[i] = cv::Vec4f(0, 0, 0, 0);
+          continue;
+        }
+        offset_[i] = y0 * iw + x0;
+        weight_[i] = cv::Vec4f((1 - ax) * (1 - ay), ax * (1 - ay), (1 - ax) * ay, ax * ay);
+      }
+    }
+  }
+  grey_.create(inputSize(), CV_8UC1);
+}
+
+cv::Size Unwrapper::inputSize() const {
+  if (options_.input == InputKind::kPanorama) return panoramaSize();
+  return {calibration_.omni.image_width, calibration_.omni.image_height};
+}
+
+cv::Size Unwrapper::panoramaSize() const {
+  return {calibration_.panorama.width, calibration_.panorama.height};
+}
+
+cv::Mat Unwrapper::makePanorama() const { return cv::Mat(panoramaSize(), CV_32FC1, 0.0f); }
+
+Expected<void> Unwrapper::unwrap(const cv::Mat& frame, cv::Mat& panorama) {
+  const cv::Size want = inputSize();
+  if (frame.empty()) return fail(ErrorCode::kBadFrame, "empty frame");
+  if (frame.size() != want) {
+    return fail(ErrorCode::kBadFrame, "frame is %dx%d, expected %dx%d", frame.cols, frame.rows,
+                want.width, want.height);
+  }
+  if (frame.depth() != CV_8U || (frame.channels() != 1 && frame.channels() != 3 &&
+                                 frame.channels() != 4)) {
+    return fail(ErrorCode::kBadFrame, "frame has type %d, expected 8-bit grey, BGR or BGRA",
+                frame.type());
+  }
+  if (panorama.size() != panoramaSize() || panorama.type() != CV_32FC1) {
+    return fail(ErrorCode::kInvalidArgument, "panorama buffer must be CV_32FC1 %dx%d",
+                panoramaSize().width, panoramaSize().height);
+  }
+  // Colour -> grey into the preallocated buffer (no allocation: grey_ has the size).
+  const cv::Mat* grey = &frame;
+  if (frame.channels() != 1) {
+    cv::cvtColor(frame, grey_, frame.channels() == 3 ? cv::COLOR_BGR2GRAY : cv::COLOR_BGRA2GRAY);
+    grey = &grey_;
+  }
+  if (cv::mean(*grey)[0] < options_.min_mean_intensity) {
+    return fail(ErrorCode::kBadFrame, "frame is black (mean grey level below %.1f)",
+                options_.min_mean_intensity);
+  }
+  if (options_.input == InputKind::kPanorama) {
+    grey->convertTo(panorama, CV_32F);
+    return {};
+  }
+  // Bilinear lookup through the precomputed table (offsets assume a continuous image).
+  const cv::Mat* src_image = grey;
+  if (!grey->isContinuous()) {
+    grey->copyTo(grey_);  // ROI views: make it continuous, grey_ already has the size
+    src_image = &grey_;
+  }
+  const int W = panorama.cols, H = panorama.rows, stride = src_image->cols;
+  const uint8_t* src = src_image->ptr<uint8_t>(0);
+  for (int v = 0; v < H; ++v) {
+    float* dst = panorama.ptr<float>(v);
+    const std::size_t row = static_cast<std::size_t>(v) * W;
+    for (int u = 0; u < W; ++u) {
+      const uint8_t* p = src + offset_[row + u];
+      const uint8_t* q = p + stride;
+      const cv::Vec4f& w = weight_[row + u];
+      dst[u] = w[0] * p[0] + w[1] * p[1] + w[2] * q[0] + w[3] * q[1];
+    }
+  }
+  return {};
+}
+
+}  // namespace omnipose

@@ -1,0 +1,109 @@
+#include "omnipose/dataset.hpp"
+
+#include <gtest/gtest.h>
+
+#include <fstream>
+#include <opencv2/imgcodecs.hpp>
+
+namespace omnipose {
+namespace {
+namespace fs = std::filesystem;
+
+class DatasetTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    root_ = fs::temp_directory_path() /
+            ("omnipose_dataset_test_" + std::to_string(::testing::UnitTest::GetInstance()->random_seed()) +
+             "_" + ::testing::UnitTest::GetInstance()->current_test_info()->name());
+    fs::remove_all(root_);
+    fs::create_directories(root_ / "frames");
+    Calibration c;
+    c.save(root_ / "calibration.yaml");
+    for (int i = 0; i < 3; ++i) {
+      cv::imwrite((root_ / "frames" / ("f" + std::to_string(2 - i) + ".png")).string(),
+                  cv::Mat(720, 720, CV_8UC1, cv::Scalar(100 + i)));
+    }
+  }
+  void TearDown() override { fs::remove_all(root_); }
+  fs::path root_;
+};
+
+TEST_F(DatasetTest, FramesAreSortedByNameWithDefaultTimestamps) {
+  const Dataset d = Dataset::open(root_);
+  ASSERT_EQ(d.frames.size(), 3u);
+  EXPECT_EQ(d.frames[0].path.filename(), "f0.png");
+  EXPECT_EQ(d.frames[2].path.filename(), "f2.png");
+  EXPECT_DOUBLE_EQ(d.frames[1].timestamp, 1.0 / 30.0);
+  EXPECT_FALSE(d.groundtruth.has_value());
+}
+
+TEST_F(DatasetTest, TimestampsFileIsUsedAndAMissingEntryIsNamed) {
+  {
+    std::ofstream out(root_ / "timestamps.txt");
+    out << "# name seconds\nf0.png 10.5\nf1.png 10.6\nf2.png 10.7\n";
+  }
+  EXPECT_DOUBLE_EQ(Dataset::open(root_).frames[2].timestamp, 10.7);
+  {
+    std::ofstream out(root_ / "timestamps.txt");
+    out << "f0.png 10.5\nf1.png 10.6\n";
+  }
+  try {
+    Dataset::open(root_);
+    FAIL();
+  } catch (const std::runtime_error& e) {
+    EXPECT_NE(std::string(e.what()).find("f2.png"), std::string::npos) << e.what();
+  }
+}
+
+TEST_F(DatasetTest, MissingPiecesAreClearErrors) {
+  EXPECT_THROW(Dataset::open(root_ / "nope"), std::runtime_error);
+  fs::remove(root_ / "calibration.yaml");
+  try {
+    Dataset::open(root_);
+    FAIL();
+  } catch (const CalibrationError& e) {
+    EXPECT_NE(std::string(e.what()).find("calibration.yaml"), std::string::npos);
+  }
+}
+
+TEST_F(DatasetTest, CorruptAndMissingImagesAreNamed) {
+  const fs::path bad = root_ / "frames" / "f9.png";
+  {
+    std::ofstream out(bad);
+    out << "this is not a png";
+  }
+  auto frame = readFrame(bad);
+  ASSERT_FALSE(frame.has_value());
+  EXPECT_EQ(frame.error().code(), ErrorCode::kBadFrame);
+  EXPECT_NE(frame.error().message().find("f9.png"), std::string_view::npos);
+  auto missing = readFrame(root_ / "frames" / "nothing.png");
+  ASSERT_FALSE(missing.has_value());
+  EXPECT_EQ(missing.error().code(), ErrorCode::kNotFound);
+}
+
+TEST(Trajectory, TumRoundTripAndMalformedLine) {
+  const fs::path path = fs::temp_directory_path() / "omnipose_traj_test.tum";
+  std::vector<StampedPose> poses(2);
+  poses[1].timestamp = 0.25;
+  poses[1].pose.linear() = rotationFromVector(Eigen::Vector3d(0.1, 0.2, -0.3));
+  poses[1].pose.translation() = Eigen::Vector3d(1, -2, 3);
+  writeTum(path, poses);
+  const auto back = readTum(path);
+  ASSERT_EQ(back.size(), 2u);
+  EXPECT_DOUBLE_EQ(back[1].timestamp, 0.25);
+  EXPECT_TRUE(back[1].pose.isApprox(poses[1].pose, 1e-8));
+  {
+    std::ofstream out(path, std::ios::app);
+    out << "0.5 1 2 3\n";
+  }
+  try {
+    readTum(path);
+    FAIL();
+  } catch (const std::runtime_error& e) {
+    EXPECT_NE(std::string(e.what()).find(":4:"), std::string::npos) << e.what();
+  }
+  fs::remove(path);
+}
+
+}  // namespace
+}  // namespace omnipose

@@ -1,0 +1,118 @@
+#include "replay.hpp"
+
+#include <algorithm>
+#include <chrono>
+#include <fstream>
+#include <stdexcept>
+
+#include "omnipose/pipeline.hpp"
+#include "omnipose/pose_chain.hpp"
+#include "omnipose/trajectory.hpp"
+
+namespace omnipose::replay {
+
+std::vector<std::string> methodNames() { return {"ifmi"}; }
+
+std::unique_ptr<MotionEstimator> makeEstimator(const std::string& method,
+                                               const Calibration& calibration,
+                                               const PipelineOptions& options) {
+  if (method == "ifmi") return std::make_unique<Pipeline>(calibration, options);
+  std::string known;
+  for (const auto& m : methodNames()) known += (known.empty() ? "" : ", ") + m;
+  throw std::invalid_argument("unknown method '" + method + "' (known: " + known + ")");
+}
+
+namespace {
+
+void writeCsvHeader(std::ofstream& csv) {
+  csv << "frame,timestamp,file,prev_frame,status,rx,ry,rz,tdir_x,tdir_y,tdir_z,tau_norm,"
+         "residual_px,windows_used,windows_total,seconds\n";
+}
+
+void writeCsvRow(std::ofstream& csv, int frame, const DatasetFrame& f, int prev,
+                 const FrameMotion& m) {
+  const MotionEstimate& e = m.estimate;
+  char buf[512];
+  std::snprintf(buf, sizeof(buf),
+                "%d,%.6f,%s,%d,%s,%.9g,%.9g,%.9g,%.9g,%.9g,%.9g,%.9g,%.4f,%d,%d,%.6f\n", frame,
+                f.timestamp, f.path.filename().c_str(), prev, toString(e.status), e.omega.x(),
+                e.omega.y(), e.omega.z(), m.translation_direction.x(),
+                m.translation_direction.y(), m.translation_direction.z(), m.tau_norm,
+                e.residual_rms_px, e.windows_used, e.windows_total, m.timing.total);
+  csv << buf;
+}
+
+}  // namespace
+
+ReplaySummary run(const ReplayOptions& options, std::FILE* log) {
+  PipelineOptions pipeline_options;
+  if (options.config) {
+    pipeline_options = DaemonConfig::load(*options.config, DaemonConfig::Use::kReplay).pipeline;
+  }
+  if (options.input) pipeline_options.unwrap.input = *options.input;
+  const Dataset dataset = Dataset::open(options.dataset, options.calibration);
+  auto estimator = makeEstimator(options.method, dataset.calibration, pipeline_options);
+
+  std::ofstream csv;
+  if (options.relative_csv) {
+    csv.open(*options.relative_csv);
+    if (!csv) throw std::runtime_error(options.relative_csv->string() + ": cannot write");
+    writeCsvHeader(csv);
+  }
+
+  ReplaySummary summary;
+  summary.frames = static_cast<int>(dataset.frames.size());
+  PoseChain chain;
+  std::vector<StampedPose> trajectory;
+  std::vector<double> seconds;
+  seconds.reserve(dataset.frames.size());
+  int prev = -1;
+  const auto start = std::chrono::steady_clock::now();
+  auto last_progress = start;
+
+  for (int i = 0; i < summary.frames; ++i) {
+    const DatasetFrame& f = dataset.frames[i];
+    auto image = readFrame(f.path);
+    Expected<FrameMotion> motion = image ? estimator->process(*image)
+                                         : Expected<FrameMotion>(std::unexpected(image.error()));
+    if (!motion) {
+      ++summary.skipped;
+      std::fprintf(log, "skipped %s: %s\n", f.path.c_str(), motion.error().c_str());
+      continue;
+    }
+    seconds.push_back(motion->timing.total);
+    if (!motion->has_motion) {
+      chain.start(f.timestamp);
+      trajectory.push_back({f.timestamp, chain.pose()});
+    } else if (motion->estimate.status == FitStatus::kLost) {
+      ++summary.lost;
+      std::fprintf(log, "lost %s: fit failed, starting a new chain segment\n", f.path.c_str());
+      chain.start(f.timestamp);  // no pose written: the link across the gap is unknown
+    } else {
+      ++summary.pairs;
+      chain.append(f.timestamp, motion->rotation,
+                   motion->translation_direction * motion->tau_norm);
+      trajectory.push_back({f.timestamp, chain.pose()});
+    }
+    if (csv.is_open() && motion->has_motion) writeCsvRow(csv, i, f, prev, *motion);
+    prev = i;
+
+    const auto now = std::chrono::steady_clock::now();
+    if (options.progress && now - last_progress > std::chrono::seconds(2)) {
+      std::fprintf(log, "\r%d/%d frames", i + 1, summary.frames);
+      std::fflush(log);
+      last_progress = now;
+    }
+  }
+  if (options.progress && std::chrono::steady_clock::now() - start > std::chrono::seconds(2))
+    std::fprintf(log, "\r%d/%d frames\n", summary.frames, summary.frames);
+
+  if (options.out_tum) writeTum(*options.out_tum, trajectory);
+  if (!seconds.empty()) {
+    std::nth_element(seconds.begin(), seconds.begin() + seconds.size() / 2, seconds.end());
+    summary.median_seconds_per_frame = seconds[seconds.size() / 2];
+  }
+  return summary;
+}
+
+}  // namespace omnipose::replay

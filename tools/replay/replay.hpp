@@ -1,0 +1,48 @@
+#pragma once
+// Headless replay of a dataset directory through a motion estimator.
+
+#include <cstdio>
+#include <filesystem>
+#include <functional>
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "omnipose/config.hpp"
+#include "omnipose/dataset.hpp"
+#include "omnipose/motion_estimator.hpp"
+
+namespace omnipose::replay {
+
+struct ReplayOptions {
+  std::filesystem::path dataset;
+  std::optional<std::filesystem::path> out_tum;
+  std::optional<std::filesystem::path> relative_csv;
+  std::optional<std::filesystem::path> config;
+  std::optional<std::filesystem::path> calibration;
+  std::optional<InputKind> input;  ///< overrides the config's input
+  std::string method = "ifmi";
+  bool progress = true;
+};
+
+struct ReplaySummary {
+  int frames = 0;   ///< frames in the dataset
+  int pairs = 0;    ///< relative poses estimated (fit not lost)
+  int skipped = 0;  ///< unreadable / wrong-size / black frames
+  int lost = 0;     ///< pairs whose fit failed (a new chain segment follows)
+  double median_seconds_per_frame = 0.0;
+};
+
+/// Builds the estimator for `method`. Throws std::invalid_argument for an unknown name
+/// (the message lists the known ones).
+std::unique_ptr<MotionEstimator> makeEstimator(const std::string& method,
+                                               const Calibration& calibration,
+                                               const PipelineOptions& options);
+/// Names makeEstimator accepts.
+std::vector<std::string> methodNames();
+
+/// Runs the replay, writes the outputs, reports skipped frames on `log`.
+ReplaySummary run(const ReplayOptions& options, std::FILE* log);
+
+}  // namespace omnipose::replay
