@@ -1,0 +1,55 @@
+#pragma once
+/// \file frame_source.hpp
+/// Where frames come from: a recorded dataset directory, a V4L2 device or a libcamera
+/// camera, behind one interface. Every source delivers 8-bit grey frames (colour and YUV
+/// are converted by the source) with a capture timestamp on the wall clock and a
+/// sequence number; every expected failure is a value, never an exception.
+///
+/// Threading: a source is driven by one thread (the capture thread). next() writes into a
+/// buffer the caller owns, so a capture thread can fill preallocated slots and hand them
+/// to the processing thread without allocating.
+
+#include <chrono>
+#include <cstdint>
+#include <opencv2/core.hpp>
+#include <string>
+
+#include "omnipose/error.hpp"
+
+namespace omnipose {
+
+/// Metadata of one delivered frame.
+struct FrameInfo {
+  std::int64_t capture_time_us = 0;  ///< capture time, wall clock (CLOCK_REALTIME), microseconds
+  std::uint64_t sequence = 0;        ///< source's frame counter (gaps = frames lost upstream)
+  double source_timestamp = 0.0;     ///< file sources: the recorded timestamp, seconds
+  int index = -1;                    ///< file sources: frame index in the dataset
+};
+
+class FrameSource {
+ public:
+  virtual ~FrameSource() = default;
+
+  /// Opens the device/directory and negotiates the format. Errors: kNotFound /
+  /// kNoDevice (nothing at the path / no camera), kBusy (in use), kUnsupportedFormat,
+  /// kIoError. The message names the device or path.
+  virtual Expected<void> open() = 0;
+
+  /// Frame size delivered by next(); valid after a successful open().
+  virtual cv::Size frameSize() const = 0;
+
+  /// Waits up to `timeout` for the next frame and writes it as CV_8UC1 into `out`, which
+  /// must already be frameSize() and CV_8UC1 (it is never reallocated). Errors:
+  /// kTimeout (nothing yet, call again), kBadFrame (this frame was unusable and dropped:
+  /// corrupt, wrong size, flagged by the driver; call again), kDisconnected (device gone:
+  /// close() and open() again, with back-off), kEndOfStream (a finite source is done).
+  virtual Expected<FrameInfo> next(cv::Mat& out, std::chrono::milliseconds timeout) = 0;
+
+  /// Stops streaming and releases the device. Safe to call twice.
+  virtual void close() = 0;
+
+  /// One line naming the source for logs and status ("v4l2 /dev/video0 1280x720 YUYV").
+  virtual std::string describe() const = 0;
+};
+
+}  // namespace omnipose
