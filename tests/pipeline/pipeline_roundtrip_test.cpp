@@ -1,0 +1,154 @@
+// Renderer round trip: every sign of DESIGN.md section 3 (roll, pitch, yaw, tx, ty, tz) is
+// recovered in sign and magnitude from rendered frames, for omni and panorama input and
+// for every lens variant (azimuth_direction cw/ccw, outer_edge top/bottom).
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <numbers>
+
+#include "omnipose/pipeline.hpp"
+#include "render_fixture.hpp"
+
+namespace omnipose {
+namespace {
+
+using testing::indoorPhoto;
+using testing::relativePose;
+
+struct Case {
+  const char* name;
+  Eigen::Vector3d omega;  ///< radians
+  Eigen::Vector3d t;      ///< metres (box room)
+};
+
+/// Renders frames at identity and at `T1` and runs them through a fresh pipeline.
+FrameMotion estimate(const synth::Renderer& renderer, const Calibration& calibration,
+                     InputKind input, const Eigen::Isometry3d& T1) {
+  PipelineOptions options;
+  options.unwrap.input = input;
+  Pipeline pipeline(calibration, options);
+  cv::Mat f0, f1;
+  renderer.render(Eigen::Isometry3d::Identity()).convertTo(f0, CV_8U);
+  renderer.render(T1).convertTo(f1, CV_8U);
+  EXPECT_TRUE(pipeline.process(f0).has_value());
+  auto m = pipeline.process(f1);
+  EXPECT_TRUE(m.has_value());
+  EXPECT_TRUE(m->has_motion);
+  return *m;
+}
+
+class RoundTrip : public ::testing::TestWithParam<InputKind> {
+ protected:
+  static void SetUpTestSuite() {
+    if (!std::filesystem::exists(indoorPhoto())) GTEST_SKIP() << "missing " << indoorPhoto();
+  }
+  synth::Renderer makeRenderer(const Calibration& c, synth::SceneKind kind) const {
+    synth::RenderOptions o;
+    o.output = GetParam() == InputKind::kOmni ? synth::OutputKind::kOmni
+                                               : synth::OutputKind::kPanorama;
+    o.supersample = 2;
+    return synth::Renderer(synth::Scene::load(indoorPhoto(), kind), c, o);
+  }
+};
+
+TEST_P(RoundTrip, RotationSignsAndMagnitudes) {
+  const Calibration c;
+  const auto renderer = makeRenderer(c, synth::SceneKind::kSphere);
+  const double a = 0.05;  // about 2.9 degrees
+  for (int axis = 0; axis < 3; ++axis) {
+    for (double sign : {1.0, -1.0}) {
+      Eigen::Vector3d omega = Eigen::Vector3d::Zero();
+      omega[axis] = sign * a;
+      const FrameMotion m = estimate(renderer, c, GetParam(), relativePose(omega, {0, 0, 0}));
+      EXPECT_EQ(m.estimate.status, FitStatus::kOk);
+      EXPECT_LT((m.estimate.omega - omega).cwiseAbs().maxCoeff(), 1e-3)
+          << "axis " << axis << " sign " << sign << ": " << m.estimate.omega.transpose();
+    }
+  }
+}
+
+TEST_P(RoundTrip, TranslationDirectionsInABoxRoom) {
+  const Calibration c;
+  const auto renderer = makeRenderer(c, synth::SceneKind::kBox);
+  for (int axis = 0; axis < 3; ++axis) {
+    for (double sign : {1.0, -1.0}) {
+      Eigen::Vector3d t = Eigen::Vector3d::Zero();
+      t[axis] = sign * (axis == 2 ? 0.05 : 0.1);
+      const FrameMotion m = estimate(renderer, c, GetParam(), relativePose({0, 0, 0}, t));
+      EXPECT_NE(m.estimate.status, FitStatus::kLost);
+      const double angle = std::acos(std::clamp(m.translation_direction.dot(t.normalized()), -1.0, 1.0));
+      EXPECT_LT(angle, 10.0 * std::numbers::pi / 180) << "axis " << axis << " sign " << sign
+                                                      << ": " << m.translation_direction.transpose();
+      EXPECT_LT(m.estimate.omega.norm(), 3e-3) << "no rotation was rendered";
+    }
+  }
+}
+
+INSTANTIATE_TEST_SUITE_P(Input, RoundTrip, ::testing::Values(InputKind::kOmni, InputKind::kPanorama),
+                         [](const auto& info) {
+                           return info.param == InputKind::kOmni ? "omni" : "panorama";
+                         });
+
+// Every lens variant must unwrap to the same panorama model: one combined motion checks
+// all six signs at once.
+TEST(RoundTripLens, EveryAzimuthDirectionAndOuterEdge) {
+  if (!std::filesystem::exists(indoorPhoto())) GTEST_SKIP() << "missing " << indoorPhoto();
+  const Eigen::Vector3d omega(0.03, -0.02, 0.04);
+  for (auto dir : {AzimuthDirection::kCw, AzimuthDirection::kCcw}) {
+    for (auto edge : {OuterEdge::kTop, OuterEdge::kBottom}) {
+      Calibration c;
+      c.omni.azimuth_direction = dir;
+      c.omni.outer_edge = edge;
+      c.omni.azimuth_zero_deg = 70.0;
+      c.omni.center_x = 352.0;
+      synth::RenderOptions o;
+      o.supersample = 2;
+      const synth::Renderer renderer(synth::Scene::load(indoorPhoto(), synth::SceneKind::kSphere),
+                                     c, o);
+      const FrameMotion m = estimate(renderer, c, InputKind::kOmni, relativePose(omega, {0, 0, 0}));
+      EXPECT_LT((m.estimate.omega - omega).cwiseAbs().maxCoeff(), 1e-3)
+          << (dir == AzimuthDirection::kCw ? "cw" : "ccw") << "/"
+          << (edge == OuterEdge::kTop ? "top" : "bottom") << ": " << m.estimate.omega.transpose();
+    }
+  }
+}
+
+TEST(Pipeline, BadFramesLeaveTheStateUntouched) {
+  const Calibration c;
+  Pipeline pipeline(c, {});
+  const cv::Mat good(720, 720, CV_8UC1, cv::Scalar(0));
+  cv::Mat textured(720, 720, CV_8UC1);
+  cv::randu(textured, 0, 255);
+  ASSERT_TRUE(pipeline.process(textured).has_value());
+  auto wrong = pipeline.process(cv::Mat(480, 640, CV_8UC1, cv::Scalar(128)));
+  ASSERT_FALSE(wrong.has_value());
+  EXPECT_EQ(wrong.error().code(), ErrorCode::kBadFrame);
+  EXPECT_NE(wrong.error().message().find("640x480"), std::string_view::npos);
+  auto black = pipeline.process(good);
+  ASSERT_FALSE(black.has_value());
+  EXPECT_NE(black.error().message().find("black"), std::string_view::npos);
+  // The next good frame is compared with the last good one: identical, so no motion.
+  auto same = pipeline.process(textured);
+  ASSERT_TRUE(same.has_value());
+  EXPECT_TRUE(same->has_motion);
+  EXPECT_LT(same->estimate.omega.norm(), 1e-4);
+}
+
+TEST(Pipeline, InvalidOptionsListEveryProblem) {
+  PipelineOptions o;
+  o.registration.window = 200;  // taller than the panorama
+  o.fit.huber_delta_px = -1;
+  o.refine_iterations = 9;
+  try {
+    Pipeline p(Calibration{}, o);
+    FAIL();
+  } catch (const std::invalid_argument& e) {
+    const std::string what = e.what();
+    EXPECT_NE(what.find("window"), std::string::npos) << what;
+    EXPECT_NE(what.find("huber_delta_px"), std::string::npos) << what;
+    EXPECT_NE(what.find("refine_iterations"), std::string::npos) << what;
+  }
+}
+
+}  // namespace
+}  // namespace omnipose

@@ -1,0 +1,107 @@
+#include "omnipose/unwrapper.hpp"
+
+#include <gtest/gtest.h>
+
+#include <opencv2/imgproc.hpp>
+
+#include "render_fixture.hpp"
+
+namespace omnipose {
+namespace {
+
+TEST(Unwrapper, OmniRenderUnwrapsToThePanoramaRender) {
+  if (!std::filesystem::exists(testing::indoorPhoto())) GTEST_SKIP() << "missing photo";
+  for (auto dir : {AzimuthDirection::kCw, AzimuthDirection::kCcw}) {
+    for (auto edge : {OuterEdge::kTop, OuterEdge::kBottom}) {
+      Calibration c;
+      c.omni.azimuth_direction = dir;
+      c.omni.outer_edge = edge;
+      c.omni.azimuth_zero_deg = -20.0;
+      const auto scene = synth::Scene::load(testing::indoorPhoto(), synth::SceneKind::kSphere);
+      synth::RenderOptions omni_options, pano_options;
+      omni_options.supersample = 3;
+      pano_options.output = synth::OutputKind::kPanorama;
+      pano_options.supersample = 3;
+      const cv::Mat omni = synth::Renderer(scene, c, omni_options).render(Eigen::Isometry3d::Identity());
+      const cv::Mat pano = synth::Renderer(scene, c, pano_options).render(Eigen::Isometry3d::Identity());
+      cv::Mat omni8;
+      omni.convertTo(omni8, CV_8U);
+      Unwrapper unwrapper(c, {});
+      cv::Mat out = unwrapper.makePanorama();
+      ASSERT_TRUE(unwrapper.unwrap(omni8, out).has_value());
+      // The omni image has fewer pixels per degree near the inner ring, so the two differ
+      // by resampling blur, not by geometry: compare after a light blur of both.
+      cv::Mat a, b;
+      cv::GaussianBlur(out, a, cv::Size(0, 0), 1.5);
+      cv::GaussianBlur(pano, b, cv::Size(0, 0), 1.5);
+      const cv::Rect inner(0, 3, c.panorama.width, c.panorama.height - 6);
+      const double mad = cv::mean(cv::abs(a(inner) - b(inner)))[0];
+      EXPECT_LT(mad, 3.0) << "mean abs difference " << mad << " grey levels";
+      // A geometric mistake (mirrored azimuth or flipped rows) would differ by far more.
+      cv::Mat flipped;
+      cv::flip(b, flipped, 0);
+      EXPECT_GT(cv::mean(cv::abs(a(inner) - flipped(inner)))[0], 3 * mad);
+    }
+  }
+}
+
+TEST(Unwrapper, RejectsWrongSizeTypeAndBlackFramesWithAClearMessage) {
+  Calibration c;
+  Unwrapper unwrapper(c, {});
+  cv::Mat out = unwrapper.makePanorama();
+  auto r = unwrapper.unwrap(cv::Mat(100, 100, CV_8UC1, cv::Scalar(50)), out);
+  ASSERT_FALSE(r.has_value());
+  EXPECT_EQ(r.error().code(), ErrorCode::kBadFrame);
+  EXPECT_NE(r.error().message().find("100x100, expected 720x720"), std::string_view::npos);
+  r = unwrapper.unwrap(cv::Mat(720, 720, CV_16UC1, cv::Scalar(50)), out);
+  ASSERT_FALSE(r.has_value());
+  r = unwrapper.unwrap(cv::Mat(720, 720, CV_8UC1, cv::Scalar(0)), out);
+  ASSERT_FALSE(r.has_value());
+  EXPECT_NE(r.error().message().find("black"), std::string_view::npos);
+  cv::Mat small_out(10, 10, CV_32FC1);
+  r = unwrapper.unwrap(cv::Mat(720, 720, CV_8UC1, cv::Scalar(50)), small_out);
+  ASSERT_FALSE(r.has_value());
+  EXPECT_EQ(r.error().code(), ErrorCode::kInvalidArgument);
+}
+
+TEST(Unwrapper, ColourAndGreyGiveTheSamePanoramaAndTableMatchesTheFormula) {
+  Calibration c;
+  cv::Mat grey(720, 720, CV_8UC1);
+  cv::randu(grey, 10, 250);
+  cv::Mat bgr;
+  cv::cvtColor(grey, bgr, cv::COLOR_GRAY2BGR);
+  Unwrapper unwrapper(c, {});
+  cv::Mat a = unwrapper.makePanorama(), b = unwrapper.makePanorama();
+  ASSERT_TRUE(unwrapper.unwrap(grey, a).has_value());
+  ASSERT_TRUE(unwrapper.unwrap(bgr, b).has_value());
+  EXPECT_LT(cv::norm(a, b, cv::NORM_INF), 1e-3);
+  // Spot-check the table against omniPixel with OpenCV's bilinear sampler.
+  cv::Mat grey_f;
+  grey.convertTo(grey_f, CV_32F);
+  for (int v : {0, 37, 109}) {
+    for (int u : {0, 275, 1099}) {
+      const Eigen::Vector2d p = c.omniPixel(u, v);
+      cv::Mat patch;
+      cv::getRectSubPix(grey_f, cv::Size(1, 1), cv::Point2f(p.x(), p.y()), patch);
+      EXPECT_NEAR(a.at<float>(v, u), patch.at<float>(0, 0), 0.05) << u << "," << v;
+    }
+  }
+}
+
+TEST(Unwrapper, PanoramaInputPassesThrough) {
+  Calibration c;
+  Unwrapper::Options o;
+  o.input = InputKind::kPanorama;
+  Unwrapper unwrapper(c, o);
+  EXPECT_EQ(unwrapper.inputSize(), cv::Size(1100, 110));
+  cv::Mat pano(110, 1100, CV_8UC1);
+  cv::randu(pano, 0, 255);
+  cv::Mat out = unwrapper.makePanorama();
+  ASSERT_TRUE(unwrapper.unwrap(pano, out).has_value());
+  cv::Mat expected;
+  pano.convertTo(expected, CV_32F);
+  EXPECT_EQ(cv::norm(out, expected, cv::NORM_INF), 0.0);
+}
+
+}  // namespace
+}  // namespace omnipose
