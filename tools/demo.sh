@@ -9,9 +9,10 @@ bash tools/build.sh
 out=${1:-build/demo}
 rm -rf "$out"
 mkdir -p "$out"
-echo "== rendering a 30-frame omni sequence (rotation 1-6 deg per frame about all axes, noise, JPEG)"
+echo "== rendering a 60-frame omni sequence in a 6 x 5 m room: yaw, roll, pitch, then"
+echo "   10 cm steps (sensor noise sigma 3, JPEG 90)"
 build/bin/omnipose-synth --texture tests/data/equirect/indoor_1024x512.jpg --out "$out/dataset" \
-  --preset demo --frames 30 --seed 1 --noise 3 --jpeg 90
+  --preset demo --seed 1 --noise 3 --jpeg 90
 echo "== replaying"
 build/bin/omnipose-replay "$out/dataset" --out "$out/estimate.tum" --relative "$out/relative.csv"
 echo "== accuracy against ground truth"

@@ -13,6 +13,11 @@
 /// rotation and scale equations join, each weighted by the inverse of its own robust noise
 /// variance measured against the translation-only fit; (4) a final least-squares pass on
 /// the inliers (|r| < inlier_sigmas robust sigmas) gives the estimate and its covariance.
+/// With per_window_depth, between (3) and (4) each window's relative inverse depth
+/// lambda_k (tau_k = lambda_k tau, prior N(1, depth_prior_sigma)) joins the unknowns: the
+/// model becomes bilinear and is solved by Gauss-Newton with the lambda eliminated through
+/// the Schur complement; the covariance is the marginal one of (omega, tau). Without
+/// translation lambda_k stays at 1 and nothing changes.
 ///
 /// Realtime: construction reserves the workspace for `max_windows`; fit() allocates
 /// nothing and never throws.
@@ -66,6 +71,11 @@ class MotionFit {
     double max_residual_px = 1.5;      ///< larger inlier RMS: degraded
     double max_condition = 1e6;        ///< larger normal-matrix condition number: lost
     int max_windows = 512;             ///< workspace size
+    /// Per-window inverse depth: every window gets its own rho_mean/rho_k (mean 1), so a
+    /// room whose walls are at different distances does not turn translation into
+    /// rotation. Solved jointly with (omega, tau) by Gauss-Newton (Schur complement).
+    bool per_window_depth = true;
+    double depth_prior_sigma = 0.5;  ///< prior spread of the relative inverse depth around 1
 
     /// Empty when valid, else a message naming the bad field.
     std::string validate() const;
@@ -83,16 +93,32 @@ class MotionFit {
 
  private:
   struct Row {
-    Eigen::Matrix<double, 1, 6> a;
+    Eigen::Matrix<double, 1, 6> a;   ///< design row; translation columns times depth_[window]
+    Eigen::Matrix<double, 1, 6> a0;  ///< design row for uniform depth
     double b = 0.0;      ///< measurement in model units (radians or ln s)
     double scale = 1.0;  ///< pixels per model unit (1/gamma for du/dv), for the loss
     double prior_weight = 1.0;  ///< confidence / noise weight
     double weight = 1.0;        ///< current IRLS weight
     int kind = 0;               ///< 0 du, 1 dv, 2 rotation, 3 log scale
+    int window = 0;             ///< index of the window the row belongs to
+    double leverage = 0.0;      ///< share of the row absorbed by its window's inverse depth
   };
   int buildTranslationRows(std::span<const WindowMotion> windows, double forward_column);
   Eigen::Matrix<double, 6, 1> irls(int n_rows, int& iterations, bool& ok);
   double robustSigma(int kind, const Eigen::Matrix<double, 6, 1>& x, int n_rows);
+  /// Leverage of every row on its window's inverse depth (0 without per-window depth).
+  void computeLeverage(std::span<const WindowMotion> windows, int n_rows,
+                       const Eigen::Matrix<double, 6, 1>& x);
+  /// |residual| in pixels divided by sqrt(1 - leverage).
+  double standardizedResidualPx(int i, const Eigen::Matrix<double, 6, 1>& x) const;
+  /// Per-window inverse depth: sets the prior weight from the noise and runs
+  /// depthGaussNewton (twice, the second time with the depth model's own noise); returns x.
+  Eigen::Matrix<double, 6, 1> fitDepth(std::span<const WindowMotion> windows, int n_rows,
+                                       Eigen::Matrix<double, 6, 1> x, int& iterations);
+  /// Joint Gauss-Newton in (omega, tau) and the per-window inverse depths (in depth_).
+  Eigen::Matrix<double, 6, 1> depthGaussNewton(std::span<const WindowMotion> windows,
+                                               int n_rows, Eigen::Matrix<double, 6, 1> x,
+                                               int& iterations);
 
   Options options_;
   double gamma_;
@@ -100,6 +126,9 @@ class MotionFit {
   std::vector<Row> rows_;
   std::vector<double> scratch_;
   std::vector<unsigned char> keep_;
+  std::vector<double> depth_;  ///< relative inverse depth per window (mean 1)
+  std::vector<Eigen::Matrix<double, 6, 1>> depth_xl_;  ///< N_x,lambda_k columns (covariance)
+  double depth_prior_weight_ = 0.0;  ///< weight of the lambda_k = 1 prior (0: depth not fitted)
 };
 
 }  // namespace omnipose

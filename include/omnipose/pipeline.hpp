@@ -4,12 +4,13 @@
 /// sliding-window iFMI against the previous frame -> robust linear fit -> exact
 /// refinement -> relative pose (R, t up to scale).
 ///
-/// Exact refinement: the first-order model is exact only for small motion, and each
+/// Exact refinement: the first-order model is exact only for small rotations, and each
 /// window reports the motion averaged over 36 degrees of azimuth. After the linear fit the
-/// current panorama is warped by the estimate with the exact cylinder projection
-/// (all points at horizontal distance rho), re-registered against the same previous
-/// windows and the residual motion is fitted and composed (R <- R_res R, tau <- tau +
-/// tau_res). The residual is small, so its own first-order error is negligible.
+/// current panorama is de-rotated by the estimated R with the exact cylinder projection,
+/// re-registered against the same previous windows, and the residual motion is fitted:
+/// R <- R_res R, and tau is the residual fit's translation (de-rotation does not move the
+/// camera centre). The residual rotation is small, so its first-order error is negligible;
+/// translation stays first order (it is small per frame), with per-window inverse depth.
 ///
 /// Realtime: the constructor allocates everything; process() allocates nothing and never
 /// throws. Not thread-safe: one instance per processing thread.

@@ -48,6 +48,7 @@ std::string MotionFit::Options::validate() const {
   if (!(max_residual_px > 0)) return "max_residual_px must be > 0";
   if (!(max_condition > 1)) return "max_condition must be > 1";
   if (max_windows < 6) return "max_windows must be >= 6";
+  if (!(depth_prior_sigma > 0)) return "depth_prior_sigma must be > 0";
   return {};
 }
 
@@ -59,6 +60,8 @@ MotionFit::MotionFit(const Options& options, double gamma, int window_px)
   rows_.resize(4 * static_cast<std::size_t>(options.max_windows));
   scratch_.resize(rows_.size());
   keep_.resize(options.max_windows);
+  depth_.resize(options.max_windows);
+  depth_xl_.resize(options.max_windows);
 }
 
 int MotionFit::buildTranslationRows(std::span<const WindowMotion> windows, double forward_column) {
@@ -94,8 +97,8 @@ int MotionFit::buildTranslationRows(std::span<const WindowMotion> windows, doubl
     const double theta = gamma_ * (windows[k].center_u - forward_column);
     const ModelRows m = modelRows(theta, kappa_);
     const double conf = windows[k].confidence;
-    rows_[r] = Row{m.du, windows[k].du * gamma_, 1.0 / gamma_, conf, conf, kDu};
-    rows_[r + 1] = Row{m.dv, windows[k].dv * gamma_, 1.0 / gamma_, conf, conf, kDv};
+    rows_[r] = Row{m.du, m.du, windows[k].du * gamma_, 1.0 / gamma_, conf, conf, kDu, k};
+    rows_[r + 1] = Row{m.dv, m.dv, windows[k].dv * gamma_, 1.0 / gamma_, conf, conf, kDv, k};
     r += 2;
   }
   return r;
@@ -144,6 +147,140 @@ Eigen::Matrix<double, 6, 1> MotionFit::irls(int n_rows, int& iterations, bool& o
   return x;
 }
 
+Eigen::Matrix<double, 6, 1> MotionFit::fitDepth(std::span<const WindowMotion> windows,
+                                                 int n_rows, Eigen::Matrix<double, 6, 1> x,
+                                                 int& iterations) {
+  const int n = static_cast<int>(windows.size());
+  // Prior lambda_k ~ N(1, sigma_lambda), expressed in the units of the shift rows
+  // (radians) so that it weighs against them by their noise. First with the uniform fit's residual scale (inflated by the depth misfit), then with
+  // the depth model's own standardized residuals, so that the prior weighs against the
+  // measurement noise and not against the misfit it is there to remove.
+  double sigma_t = std::max(
+      std::max(robustSigma(kDu, x, n_rows), robustSigma(kDv, x, n_rows)), 0.01 * gamma_);
+  for (int k = 0; k < n; ++k) depth_[k] = 1.0;
+  for (int round = 0; round < 2; ++round) {
+    if (round == 1) {
+      computeLeverage(windows, n_rows, x);
+      int m = 0;
+      for (int i = 0; i < n_rows; ++i) {
+        if (rows_[i].kind == kDu || rows_[i].kind == kDv)
+          scratch_[m++] = standardizedResidualPx(i, x) / rows_[i].scale;
+      }
+      if (m == 0) break;
+      sigma_t = std::max(kMadToSigma * medianOf(scratch_.data(), m), 0.01 * gamma_);
+    }
+    const double ratio = sigma_t / options_.depth_prior_sigma;
+    depth_prior_weight_ = ratio * ratio;
+    x = depthGaussNewton(windows, n_rows, x, iterations);
+  }
+  return x;
+}
+
+Eigen::Matrix<double, 6, 1> MotionFit::depthGaussNewton(std::span<const WindowMotion> windows,
+                                                        int n_rows,
+                                                        Eigen::Matrix<double, 6, 1> x,
+                                                        int& iterations) {
+  using Mat6 = Eigen::Matrix<double, 6, 6>;
+  using Vec6 = Eigen::Matrix<double, 6, 1>;
+  const int n = static_cast<int>(windows.size());
+
+  // Gauss-Newton on the bilinear model b = a_rot omega + lambda_k a_tr tau, jointly in
+  // (x, lambda), eliminating the lambda (diagonal block) by the Schur complement; the
+  // pseudo-Huber weights are refreshed after every step.
+  for (int pass = 0; pass < options_.max_iterations; ++pass) {
+    Mat6 N = Mat6::Zero();
+    Vec6 gx = Vec6::Zero();
+    for (int k = 0; k < n; ++k) {
+      const double prior = depth_prior_weight_ * windows[k].confidence;
+      depth_xl_[k].setZero();
+      scratch_[k] = prior;                                // h_k
+      scratch_[n + k] = prior * (1.0 - depth_[k]);        // g_lambda_k
+    }
+    for (int i = 0; i < n_rows; ++i) {
+      const Row& row = rows_[i];
+      if (row.weight <= 0) continue;
+      const int k = row.window;
+      Eigen::Matrix<double, 1, 6> Jx = row.a0;
+      Jx.tail<3>() *= depth_[k];
+      const double Jl = row.a0.tail<3>().dot(x.tail<3>());
+      const double r = row.b - Jx.dot(x);
+      N.noalias() += row.weight * Jx.transpose() * Jx;
+      gx.noalias() += row.weight * r * Jx.transpose();
+      depth_xl_[k].noalias() += row.weight * Jl * Jx.transpose();
+      scratch_[k] += row.weight * Jl * Jl;
+      scratch_[n + k] += row.weight * Jl * r;
+    }
+    // Gauge: sum_k c_k lambda_k = 1 (c_k = confidence / total), a hard constraint that
+    // keeps tau = t / (mean scene distance). Eliminating lambda and the multiplier:
+    // (N - B D^-1 B^T + v v^T / q) dx = g_x - B D^-1 g_l + v (c^T D^-1 g_l - e) / q,
+    // v = B D^-1 c, q = c^T D^-1 c, e = 1 - c^T lambda.
+    double total = 0.0;
+    for (int k = 0; k < n; ++k) total += keep_[k] ? windows[k].confidence : 0.0;
+    Mat6 S = N;
+    Vec6 rhs = gx;
+    Vec6 v = Vec6::Zero();
+    double q = 0.0, cg = 0.0, e = 1.0;
+    for (int k = 0; k < n; ++k) {
+      S.noalias() -= depth_xl_[k] * depth_xl_[k].transpose() / scratch_[k];
+      rhs.noalias() -= depth_xl_[k] * (scratch_[n + k] / scratch_[k]);
+      const double c = keep_[k] && total > 0 ? windows[k].confidence / total : 0.0;
+      v.noalias() += depth_xl_[k] * (c / scratch_[k]);
+      q += c * c / scratch_[k];
+      cg += c * scratch_[n + k] / scratch_[k];
+      e -= c * depth_[k];
+    }
+    double mu_scale = 0.0;
+    if (q > 0) {
+      S.noalias() += v * v.transpose() / q;
+      rhs.noalias() += v * ((cg - e) / q);
+      mu_scale = 1.0 / q;
+    }
+    const Eigen::LDLT<Mat6> ldlt(S);
+    if (ldlt.info() != Eigen::Success || !ldlt.isPositive()) break;
+    const Vec6 dx = ldlt.solve(rhs);
+    if (!dx.allFinite()) break;
+    x += dx;
+    const double mu = mu_scale * (cg - v.dot(dx) - e);  // Lagrange multiplier
+    for (int k = 0; k < n; ++k) {
+      const double c = keep_[k] && total > 0 ? windows[k].confidence / total : 0.0;
+      const double dl = (scratch_[n + k] - depth_xl_[k].dot(dx) - c * mu) / scratch_[k];
+      depth_[k] = std::clamp(depth_[k] + dl, 0.25, 4.0);
+    }
+    ++iterations;
+    for (int i = 0; i < n_rows; ++i) {
+      Row& row = rows_[i];
+      row.a.head<3>() = row.a0.head<3>();
+      row.a.tail<3>() = depth_[row.window] * row.a0.tail<3>();
+      const double r_px = (row.a.dot(x) - row.b) * row.scale / options_.huber_delta_px;
+      row.weight = row.prior_weight / std::sqrt(1.0 + r_px * r_px);
+    }
+    if (dx.norm() < options_.tolerance) break;
+  }
+  return x;
+}
+
+void MotionFit::computeLeverage(std::span<const WindowMotion> windows, int n_rows,
+                                const Eigen::Matrix<double, 6, 1>& x) {
+  for (int i = 0; i < n_rows; ++i) rows_[i].leverage = 0.0;
+  if (!options_.per_window_depth || depth_prior_weight_ <= 0) return;
+  const int n = static_cast<int>(windows.size());
+  for (int k = 0; k < n; ++k) scratch_[k] = depth_prior_weight_ * windows[k].confidence;
+  for (int i = 0; i < n_rows; ++i) {
+    const double J = rows_[i].a0.tail<3>().dot(x.tail<3>());
+    scratch_[rows_[i].window] += rows_[i].weight * J * J;
+  }
+  for (int i = 0; i < n_rows; ++i) {
+    const double J = rows_[i].a0.tail<3>().dot(x.tail<3>());
+    rows_[i].leverage = rows_[i].weight * J * J / scratch_[rows_[i].window];
+  }
+}
+
+double MotionFit::standardizedResidualPx(int i, const Eigen::Matrix<double, 6, 1>& x) const {
+  const Row& row = rows_[i];
+  const double r_px = std::abs((row.a.dot(x) - row.b) * row.scale);
+  return r_px / std::sqrt(std::max(1.0 - row.leverage, 0.05));
+}
+
 MotionEstimate MotionFit::fit(std::span<const WindowMotion> windows, double forward_column) {
   using Mat6 = Eigen::Matrix<double, 6, 6>;
   using Vec6 = Eigen::Matrix<double, 6, 1>;
@@ -153,6 +290,7 @@ MotionEstimate MotionFit::fit(std::span<const WindowMotion> windows, double forw
     est.status = FitStatus::kLost;  // workspace too small: configuration error upstream
     return est;
   }
+  depth_prior_weight_ = 0.0;
   int n_rows = buildTranslationRows(windows, forward_column);
   if (n_rows < 8) return est;  // fewer than 4 windows: nothing to fit
 
@@ -170,8 +308,11 @@ MotionEstimate MotionFit::fit(std::span<const WindowMotion> windows, double forw
       const double theta = gamma_ * (windows[k].center_u - forward_column);
       const ModelRows m = modelRows(theta, kappa_);
       const double conf = windows[k].rs_confidence;
-      rows_[n_rows++] = Row{m.rotation, windows[k].rotation, 1.0, conf, conf, kRotation};
-      rows_[n_rows++] = Row{m.log_scale, std::log(windows[k].scale), 1.0, conf, conf, kLogScale};
+      const int w = static_cast<int>(k);
+      rows_[n_rows++] =
+          Row{m.rotation, m.rotation, windows[k].rotation, 1.0, conf, conf, kRotation, w};
+      rows_[n_rows++] = Row{m.log_scale, m.log_scale, std::log(windows[k].scale), 1.0, conf,
+                            conf, kLogScale, w};
     }
     if (n_rows > n_trans) {
       const double floor_rs = 1e-4;
@@ -193,10 +334,14 @@ MotionEstimate MotionFit::fit(std::span<const WindowMotion> windows, double forw
     }
   }
 
-  // Final least-squares pass on the inliers.
+  if (options_.per_window_depth) x = fitDepth(windows, n_rows, x, est.iterations);
+
+  // Final least-squares pass on the inliers, judged by standardized residuals: a window's
+  // inverse depth absorbs part of its rows' residuals (leverage w J^2 / h), which would
+  // otherwise make the robust sigma too small and reject good windows.
+  computeLeverage(windows, n_rows, x);
   int m = 0;
-  for (int i = 0; i < n_rows; ++i)
-    scratch_[m++] = std::abs((rows_[i].a.dot(x) - rows_[i].b) * rows_[i].scale);
+  for (int i = 0; i < n_rows; ++i) scratch_[m++] = standardizedResidualPx(i, x);
   const double sigma_px = kMadToSigma * medianOf(scratch_.data(), m);
   const double threshold = std::max(options_.inlier_sigmas * sigma_px, 0.1);
   Mat6 N = Mat6::Zero();
@@ -204,8 +349,7 @@ MotionEstimate MotionFit::fit(std::span<const WindowMotion> windows, double forw
   int used_rows = 0;
   for (int i = 0; i < n_rows; ++i) {
     Row& row = rows_[i];
-    const double r_px = std::abs((row.a.dot(x) - row.b) * row.scale);
-    row.weight = r_px < threshold ? row.prior_weight : 0.0;
+    row.weight = standardizedResidualPx(i, x) < threshold ? row.prior_weight : 0.0;
     if (row.weight <= 0) continue;
     N.noalias() += row.weight * row.a.transpose() * row.a;
     g.noalias() += row.weight * row.b * row.a.transpose();
@@ -231,8 +375,42 @@ MotionEstimate MotionFit::fit(std::span<const WindowMotion> windows, double forw
       ++shift_n;
     }
   }
-  const double dof = std::max(used_rows - 6, 1);
-  est.covariance = (wrr / dof) * ldlt.solve(Mat6::Identity());
+  // With per-window depth, lambda are nuisance parameters: the covariance of (omega, tau)
+  // is the inverse of the Schur complement N - N_xl N_ll^-1 N_lx (N_ll diagonal: each row
+  // has one lambda) under the gauge constraint, and each lambda uses up h/(h + prior)
+  // degrees of freedom.
+  Mat6 information = N;
+  double depth_dof = 0.0;
+  if (options_.per_window_depth && depth_prior_weight_ > 0) {
+    const int n = static_cast<int>(windows.size());
+    for (int k = 0; k < n; ++k) {
+      depth_xl_[k].setZero();
+      scratch_[k] = 0.0;
+    }
+    for (int i = 0; i < n_rows; ++i) {
+      const Row& row = rows_[i];
+      if (row.weight <= 0) continue;
+      const double J = row.a0.tail<3>().dot(x.tail<3>());  // d(prediction)/d(lambda_k)
+      depth_xl_[row.window].noalias() += row.weight * J * row.a.transpose();
+      scratch_[row.window] += row.weight * J * J;
+    }
+    double total = 0.0, q = 0.0;
+    for (int k = 0; k < n; ++k) total += keep_[k] ? windows[k].confidence : 0.0;
+    Vec6 v = Vec6::Zero();
+    for (int k = 0; k < n; ++k) {
+      if (!keep_[k]) continue;
+      const double h = scratch_[k], prior = depth_prior_weight_ * windows[k].confidence;
+      information.noalias() -= depth_xl_[k] * depth_xl_[k].transpose() / (h + prior);
+      depth_dof += h / (h + prior);
+      const double c = windows[k].confidence / total;
+      v.noalias() += depth_xl_[k] * (c / (h + prior));
+      q += c * c / (h + prior);
+    }
+    if (q > 0) information.noalias() += v * v.transpose() / q;  // the gauge constraint
+  }
+  const double dof = std::max(used_rows - 6 - depth_dof, 1.0);
+  const Eigen::LDLT<Mat6> marginal(information);
+  est.covariance = (wrr / dof) * marginal.solve(Mat6::Identity());
   est.residual_rms_px = shift_n > 0 ? std::sqrt(shift_rr / shift_n) : 0.0;
   est.windows_used = (shift_n + 1) / 2;  // du and dv rows of a window count once
   est.omega = x.head<3>();

@@ -117,13 +117,14 @@ Expected<FrameMotion> Pipeline::process(const cv::Mat& frame) {
   MotionEstimate est = s.fit.fit(s.windows, u0);
   result.timing.fit = secondsSince(t_fit);
 
-  // 4. Exact refinement: warp by the estimate, fit the residual motion, compose.
+  // 4. Exact refinement: de-rotate the current panorama by the estimate (exact cylinder
+  // projection), fit what is left (residual rotation + translation), compose the rotation.
   const auto t_refine = Clock::now();
   Eigen::Matrix3d R = rotationFromVector(est.omega);
   Eigen::Vector3d tau = est.tau;
   for (int pass = 0; pass < s.options.refine_iterations && est.status != FitStatus::kLost;
        ++pass) {
-    s.warp.warp(s.panorama, R, tau, s.warped);
+    s.warp.warp(s.panorama, R, Eigen::Vector3d::Zero(), s.warped);
     s.registration.measure(s.warped, s.refine_windows, false);
     const MotionEstimate residual = s.fit.fit(s.refine_windows, u0);
     if (residual.status == FitStatus::kLost) {
@@ -131,7 +132,7 @@ Expected<FrameMotion> Pipeline::process(const cv::Mat& frame) {
       break;
     }
     R = rotationFromVector(residual.omega) * R;
-    tau += residual.tau;
+    tau = residual.tau;
     est.covariance = residual.covariance;
     est.residual_rms_px = residual.residual_rms_px;
     est.windows_used = residual.windows_used;
