@@ -1,0 +1,328 @@
+#pragma once
+/// \file synth.hpp
+/// The exact renderer: synthetic omni-image and panorama sequences with exact ground truth.
+/// It is the referee for every sign and formula of the project (DESIGN.md sections 2, 3):
+/// each output pixel looks exactly along the bearing that the calibration assigns to it.
+///
+/// World frame: x, y horizontal, z up (metres). The camera frame is x forward, y left,
+/// z up; a pose T_world_camera maps camera coordinates to world coordinates. At the
+/// identity pose the camera sits at the world origin, level, looking along world +x.
+///
+/// Equirectangular texture convention (a W_t x H_t photo, pixel centres at integers):
+///   longitude lon = atan2(d_y, d_x)  counter-clockwise seen from above, lon = 0 is world +x
+///   latitude  lat = asin(d_z)        +pi/2 straight up
+///   column x = W_t * (0.5 - lon / (2 pi)) - 0.5,   row y = H_t * (0.5 - lat / pi) - 0.5
+/// so world +x is the centre column, world +y (lon = 90 deg) a quarter of the width to the
+/// left of it, and the top row is the zenith: an ordinary, non-mirrored 360-degree photo
+/// seen from the inside. (The panorama of DESIGN.md runs the other way: theta grows with u,
+/// so a panorama is the mirror image of the photo; both follow from the conventions.)
+///
+/// Example: a 100-frame yaw sequence of omni images, written as a dataset
+/// ```
+///   auto scene = synth::Scene::load("indoor.jpg", synth::SceneKind::kSphere);
+///   synth::Renderer renderer(scene, Calibration{}, {});
+///   auto script = synth::MotionScript::preset("yaw");
+///   auto poses = synth::generateTrajectory(script);
+///   synth::DatasetWriter writer("out", Calibration{}, 0);
+///   for (std::size_t k = 0; k < poses.size(); ++k)
+///     writer.addFrame(synth::degrade(renderer.render(poses[k].pose), {}, k), poses[k]);
+///   writer.finish();
+/// ```
+
+#include <Eigen/Geometry>
+#include <cstdint>
+#include <filesystem>
+#include <optional>
+#include <opencv2/core.hpp>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include "omnipose/calibration.hpp"
+#include "omnipose/trajectory.hpp"
+
+namespace omnipose::synth {
+
+// ---------------------------------------------------------------------------------------
+// Scene
+// ---------------------------------------------------------------------------------------
+
+/// What the equirectangular texture is painted on.
+enum class SceneKind {
+  kSphere,  ///< at infinity: only the camera's rotation matters, pure rotation is exact
+  kBox,     ///< the walls, floor and ceiling of a box room: translation gives parallax
+};
+
+/// A box room, axis-aligned in the world frame, centred on the z axis. Metres.
+/// Its surfaces are textured by projecting the equirect photo from the world origin (the
+/// camera's identity position), so at the identity pose a box render equals a sphere render.
+struct Box {
+  double length = 6.0;    ///< extent along world x, walls at x = +-length/2
+  double width = 5.0;     ///< extent along world y, walls at y = +-width/2
+  double floor = -1.0;    ///< z of the floor (camera height above it: -floor)
+  double ceiling = 1.5;   ///< z of the ceiling
+
+  /// One message per bad field (empty = valid): length, width > 0, floor < 0 < ceiling
+  /// (the origin must be inside the room).
+  std::vector<std::string> validate() const;
+  /// The region a camera may move in: the room shrunk by `wall_margin` from the four walls
+  /// and by `floor_ceiling_margin` from floor and ceiling (an interval shrunk past its
+  /// middle collapses to the middle). Metres.
+  Eigen::AlignedBox3d interior(double wall_margin, double floor_ceiling_margin = 0.5) const;
+  /// Whether world point p lies inside the room.
+  bool contains(const Eigen::Vector3d& p) const;
+};
+
+/// An equirectangular texture on a sphere at infinity or on a box room.
+struct Scene {
+  cv::Mat texture;  ///< equirect, CV_32FC1, grey levels 0..255 (2:1 aspect expected)
+  SceneKind kind = SceneKind::kSphere;
+  Box box;          ///< used when kind == kBox
+
+  /// Loads a photo (any format OpenCV reads, converted to grey). Throws
+  /// std::runtime_error naming the file when it cannot be read, or an invalid box.
+  static Scene load(const std::filesystem::path& photo, SceneKind kind, const Box& box = {});
+  /// Direction from the texture's projection centre (world origin) to the surface point
+  /// seen from world point `origin` along world direction `direction` (not normalised).
+  /// Sphere: `direction` itself. Box: the point where the ray leaves the room.
+  Eigen::Vector3d textureDirection(const Eigen::Vector3d& origin,
+                                   const Eigen::Vector3d& direction) const;
+};
+
+/// "sphere" | "box"; throws std::invalid_argument naming the value otherwise.
+SceneKind parseSceneKind(const std::string& name);
+const char* toString(SceneKind kind);
+
+// ---------------------------------------------------------------------------------------
+// Renderer
+// ---------------------------------------------------------------------------------------
+
+/// What the renderer produces.
+enum class OutputKind {
+  kOmni,      ///< the donut image of the lens, calibration.omni.image_width x image_height
+  kPanorama,  ///< the unwrapped panorama, calibration.panorama.width x height
+};
+
+/// "omni" | "panorama"; throws std::invalid_argument naming the value otherwise.
+OutputKind parseOutputKind(const std::string& name);
+const char* toString(OutputKind kind);
+
+struct RenderOptions {
+  OutputKind output = OutputKind::kOmni;
+  /// Sub-pixel grid per axis: each output pixel is the box-filtered mean of
+  /// supersample x supersample rays at the centres of a regular sub-grid.
+  int supersample = 3;
+
+  /// One message per bad field (empty = valid): supersample in [1, 16].
+  std::vector<std::string> validate() const;
+};
+
+/// Renders the scene as seen by the calibrated camera at a given pose.
+///
+/// Panorama output: pixel (u, v) looks exactly along calibration.panorama.bearing(u, v).
+/// Omni output: omni pixel (x, y) looks along bearing(calibration.panoramaPixel(x, y));
+/// outside the used ring the lens body is drawn (a dark outer housing, a dark centre with a
+/// faint grey reflection of the phone camera), so a circle detector finds the ring edges.
+/// Anti-aliasing: supersampling (box filter over the pixel) over a mip pyramid of the
+/// texture whose level follows the angular footprint of one sub-sample (trilinear lookup;
+/// every level is centred on the texel grid of level 0, so filtering never shifts content).
+/// Thread safety: render() is const and may be called from several threads.
+class Renderer {
+ public:
+  /// Builds the texture pyramid. Throws std::invalid_argument listing invalid options or
+  /// calibration fields.
+  Renderer(Scene scene, Calibration calibration, RenderOptions options = {});
+
+  /// The image seen from camera pose T_world_camera: CV_32FC1, grey levels 0..255, of
+  /// outputSize(). Box scene: throws std::invalid_argument if the camera is outside the
+  /// room. Runs on all cores (cv::parallel_for_ over rows).
+  cv::Mat render(const Eigen::Isometry3d& T_world_camera) const;
+
+  /// Width x height of render()'s result, pixels.
+  cv::Size outputSize() const;
+  const Calibration& calibration() const { return calibration_; }
+  const RenderOptions& options() const { return options_; }
+  const Scene& scene() const { return scene_; }
+
+ private:
+  void renderRows(const Eigen::Isometry3d& T_world_camera, int row_begin, int row_end,
+                  cv::Mat& out) const;
+  float renderOmniPixel(const Eigen::Isometry3d& T_world_camera, int x, int y) const;
+  float renderPanoramaPixel(const Eigen::Isometry3d& T_world_camera, int u, int v) const;
+  /// Texture direction of camera-frame bearing b seen from pose T_world_camera.
+  Eigen::Vector3d textureDirection(const Eigen::Isometry3d& T_world_camera,
+                                   const Eigen::Vector3d& bearing) const;
+  /// Mip level for one sub-sample of a pixel whose centre and right/lower neighbours have
+  /// these texture directions.
+  double levelOfDetail(const Eigen::Vector3d& centre, const Eigen::Vector3d& right,
+                       const Eigen::Vector3d& below) const;
+
+  Scene scene_;
+  Calibration calibration_;
+  RenderOptions options_;
+  std::vector<cv::Mat> pyramid_;  ///< texture mip levels, level 0 = scene_.texture
+};
+
+// ---------------------------------------------------------------------------------------
+// Degradations
+// ---------------------------------------------------------------------------------------
+
+/// Sensor effects applied to a rendered float image, in this order: Gaussian blur (optics),
+/// exposure (gain, offset), Gaussian noise, rounding to 8 bit. JPEG compression is applied
+/// when the frame is written (DatasetWriter). All random draws are seeded by (seed, frame),
+/// so a frame's degradation does not depend on which other frames were rendered.
+struct DegradeOptions {
+  double noise_sigma = 0.0;          ///< sensor noise std, grey levels
+  double blur_sigma = 0.0;           ///< Gaussian blur std, pixels (0 = off)
+  double exposure_gain_std = 0.0;    ///< per-frame gain 1 + N(0, std) (e.g. 0.05)
+  double exposure_offset_std = 0.0;  ///< per-frame offset N(0, std), grey levels
+  std::uint64_t seed = 0;
+  bool periodic_columns = false;     ///< blur wraps around columns (panorama output)
+
+  /// One message per bad field (empty = valid): every std >= 0.
+  std::vector<std::string> validate() const;
+};
+
+/// Applies the degradations to a CV_32FC1 image (grey 0..255) for frame number `frame`;
+/// returns CV_8UC1 (values rounded and clamped to 0..255). Deterministic for the same
+/// options and frame. Throws std::invalid_argument on invalid options or a non-float image.
+cv::Mat degrade(const cv::Mat& image, const DegradeOptions& options, std::uint64_t frame);
+
+// ---------------------------------------------------------------------------------------
+// Motion scripts
+// ---------------------------------------------------------------------------------------
+
+/// Per-frame rotation increment omega (the relative rotation R = exp([omega]x) of DESIGN.md
+/// section 2, in the previous camera's frame).
+struct RotationStep {
+  /// x = roll, y = pitch, z = yaw (camera axes); random = direction uniform on the sphere.
+  enum class Axis { kX, kY, kZ, kRandom };
+  enum class Sign { kRandom, kAlternate, kPositive, kNegative };
+  Axis axis = Axis::kZ;
+  double min_deg = 1.0;  ///< |omega| drawn uniformly in [min_deg, max_deg], degrees
+  double max_deg = 6.0;
+  Sign sign = Sign::kRandom;  ///< sign of omega along a fixed axis (ignored for kRandom)
+  /// If > 0: when a step would turn the camera more than bound_deg away from the start
+  /// orientation (angle of the accumulated rotation), the opposite step is taken instead
+  /// if that stays closer; keeps roll/pitch sequences bounded. Degrees.
+  double bound_deg = 0.0;
+};
+
+/// Per-frame translation increment t (DESIGN.md section 2: the current camera's position in
+/// the previous camera's frame).
+struct TranslationStep {
+  double min_m = 0.05;  ///< |t| drawn uniformly in [min_m, max_m], metres
+  double max_m = 0.15;
+  /// true: a uniformly random horizontal direction in the world frame; a step that would
+  /// leave the allowed region is redrawn. false: `direction` in the camera frame; at the
+  /// region's boundary the motion bounces (reverses for the rest of the segment).
+  bool random_horizontal = true;
+  Eigen::Vector3d direction = Eigen::Vector3d::UnitX();
+};
+
+/// `frames` consecutive increments, each with an optional rotation and translation.
+struct MotionSegment {
+  int frames = 1;
+  std::optional<RotationStep> rotation;
+  std::optional<TranslationStep> translation;
+};
+
+/// Thrown by MotionScript::load/parse; what() lists every problem, each naming the
+/// file and the field (e.g. "m.yaml: segments[1].rotation.axis: 'w' is not x, y, z or random").
+class MotionError : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+/// A motion script. YAML format (every key but `segments` optional; defaults shown):
+/// ```yaml
+/// seed: 0                # random draws (steps, signs, directions)
+/// frame_rate: 30.0       # Hz: frame i has timestamp i / frame_rate seconds
+/// frames: 0              # total frames including the first; 0 = 1 + sum of segment frames,
+///                        #   else the segments are cycled (or cut) to give exactly this many
+/// wall_margin_m: 1.0     # box scene: the camera stays this far from the walls
+/// segments:
+///   - frames: 50                 # increments in this segment
+///     rotation:                  # optional
+///       axis: z                  # x (roll) | y (pitch) | z (yaw) | random
+///       step_deg: [1, 6]         # per-frame angle range, degrees (or one number)
+///       sign: random             # random | alternate | positive | negative (fixed axes)
+///       bound_deg: 0             # 0 = unbounded
+///     translation:               # optional
+///       step_m: [0.05, 0.15]     # per-frame distance range, metres (or one number)
+///       direction: random_horizontal   # or [x, y, z] in the camera frame
+/// ```
+/// The first frame is at the identity; frame k's pose is T_k = T_{k-1} * [exp(omega_k), t_k].
+struct MotionScript {
+  std::uint64_t seed = 0;
+  double frame_rate = 30.0;  ///< Hz
+  int frames = 0;            ///< total frame count, 0 = 1 + sum of segment frames
+  double wall_margin_m = 1.0;
+  std::vector<MotionSegment> segments;
+
+  /// One message per bad field (empty = valid).
+  std::vector<std::string> validate() const;
+  /// Number of frames generateTrajectory() produces.
+  int frameCount() const;
+  /// Whether any segment translates (needs a box scene to be visible).
+  bool translates() const;
+
+  /// Reads a YAML motion script; throws MotionError listing every problem with the path.
+  static MotionScript load(const std::filesystem::path& path);
+  /// Parses YAML text; `origin` names the source in error messages.
+  static MotionScript parse(const std::string& yaml_text, const std::string& origin = "<string>");
+  /// The paper's protocol: "roll", "pitch", "yaw" (100 frames, 1..6 deg per frame about
+  /// one axis, random sign, roll/pitch bounded to 15 deg), "mixed" (100 frames, up to 12 deg
+  /// per frame about a random axis, bounded to 20 deg), "translate" (100 frames, 5..15 cm
+  /// horizontal steps in random directions plus up to 1 deg of rotation, box scene),
+  /// "demo" (60 frames: yaw, roll, pitch, then translation). Throws MotionError naming
+  /// the preset when unknown.
+  static MotionScript preset(const std::string& name);
+  /// The YAML text of a preset (what preset() parses).
+  static std::string presetYaml(const std::string& name);
+  /// Names of all presets.
+  static std::vector<std::string> presetNames();
+};
+
+/// The camera poses T_world_camera of a script, first at the identity, timestamps
+/// i / frame_rate. `region`: where the camera may be (world frame); translation steps
+/// respect it (see TranslationStep). Throws MotionError if no step keeps the camera
+/// inside the region, std::invalid_argument on an invalid script.
+std::vector<StampedPose> generateTrajectory(const MotionScript& script,
+                                            const std::optional<Eigen::AlignedBox3d>& region = {});
+
+// ---------------------------------------------------------------------------------------
+// Dataset writer
+// ---------------------------------------------------------------------------------------
+
+/// Writes a dataset directory (DESIGN.md section 6):
+/// ```
+///   DIR/calibration.yaml   DIR/frames/000000.png (or .jpg)   DIR/timestamps.txt
+///   DIR/groundtruth.tum    (camera poses relative to the first frame, so it is the identity)
+/// ```
+class DatasetWriter {
+ public:
+  /// Creates DIR and DIR/frames and writes calibration.yaml. `jpeg_quality` 1..100 writes
+  /// JPEG frames of that quality, 0 lossless PNG. Throws std::runtime_error naming the path
+  /// when a directory cannot be created or written, or when DIR/frames is not empty
+  /// (stale frames of an older run would be replayed).
+  DatasetWriter(std::filesystem::path directory, const Calibration& calibration,
+                int jpeg_quality = 0);
+
+  /// Writes the next frame (CV_8UC1) with its timestamp and ground-truth pose
+  /// T_world_camera. Throws std::runtime_error naming the file when it cannot be written.
+  void addFrame(const cv::Mat& image, const StampedPose& pose);
+  /// Writes timestamps.txt and groundtruth.tum. Throws std::runtime_error naming the file.
+  void finish();
+
+  /// File name (no directory) of frame number i, e.g. "000007.png".
+  std::string frameName(std::size_t i) const;
+  const std::filesystem::path& directory() const { return directory_; }
+
+ private:
+  std::filesystem::path directory_;
+  int jpeg_quality_;
+  std::vector<StampedPose> poses_;
+};
+
+}  // namespace omnipose::synth

@@ -1,0 +1,428 @@
+#include <yaml-cpp/yaml.h>
+
+#include <cmath>
+#include <fstream>
+#include <map>
+#include <numbers>
+#include <random>
+#include <set>
+#include <sstream>
+
+#include "omnipose/synth.hpp"
+
+namespace omnipose::synth {
+namespace {
+
+constexpr double kDegToRad = std::numbers::pi / 180.0;
+
+// ------------------------------------------------------------------ presets (YAML text)
+
+const std::map<std::string, std::string>& presets() {
+  static const std::map<std::string, std::string> table = {
+      {"roll",
+       "# Roll: 1..6 deg per frame about the camera x axis, random sign, within 15 deg.\n"
+       "segments:\n"
+       "  - frames: 99\n"
+       "    rotation: {axis: x, step_deg: [1, 6], sign: random, bound_deg: 15}\n"},
+      {"pitch",
+       "# Pitch: 1..6 deg per frame about the camera y axis, random sign, within 15 deg.\n"
+       "segments:\n"
+       "  - frames: 99\n"
+       "    rotation: {axis: y, step_deg: [1, 6], sign: random, bound_deg: 15}\n"},
+      {"yaw",
+       "# Yaw: 1..6 deg per frame about the camera z axis, random sign.\n"
+       "segments:\n"
+       "  - frames: 99\n"
+       "    rotation: {axis: z, step_deg: [1, 6], sign: random}\n"},
+      {"mixed",
+       "# Roll, pitch and yaw at once: 1..12 deg per frame about a random axis, within 20 deg.\n"
+       "segments:\n"
+       "  - frames: 99\n"
+       "    rotation: {axis: random, step_deg: [1, 12], bound_deg: 20}\n"},
+      {"translate",
+       "# Box room: 5..15 cm horizontal steps in random directions, at least 1 m from the\n"
+       "# walls, with up to 1 deg of rotation per frame (within 5 deg).\n"
+       "wall_margin_m: 1.0\n"
+       "segments:\n"
+       "  - frames: 99\n"
+       "    translation: {step_m: [0.05, 0.15], direction: random_horizontal}\n"
+       "    rotation: {axis: random, step_deg: [0, 1], bound_deg: 5}\n"},
+      {"demo",
+       "# A short tour: yaw, roll, pitch, then translation.\n"
+       "segments:\n"
+       "  - frames: 15\n"
+       "    rotation: {axis: z, step_deg: [2, 4], sign: positive}\n"
+       "  - frames: 15\n"
+       "    rotation: {axis: x, step_deg: [1, 3], sign: alternate}\n"
+       "  - frames: 14\n"
+       "    rotation: {axis: y, step_deg: [1, 3], sign: alternate}\n"
+       "  - frames: 15\n"
+       "    translation: {step_m: [0.05, 0.15], direction: random_horizontal}\n"},
+  };
+  return table;
+}
+
+// ------------------------------------------------------------------ YAML reading
+
+/// Collects every problem of a motion script instead of stopping at the first.
+class Reader {
+ public:
+  explicit Reader(std::string origin) : origin_(std::move(origin)) {}
+
+  void problem(const std::string& field, const std::string& what) {
+    problems_.push_back(origin_ + ": " + field + ": " + what);
+  }
+  const std::vector<std::string>& problems() const { return problems_; }
+
+  /// Reports keys of map `node` (at `path`) that are not in `known`.
+  void checkKeys(const YAML::Node& node, const std::string& path,
+                 const std::set<std::string>& known) {
+    for (const auto& kv : node) {
+      const auto key = kv.first.as<std::string>();
+      if (!known.contains(key)) problem(prefix(path) + key, "unknown key");
+    }
+  }
+
+  /// Reads node[key] as T into value if present (or reports it missing when required).
+  template <typename T>
+  void read(const YAML::Node& node, const std::string& path, const std::string& key, T& value,
+            bool required = false) {
+    const YAML::Node child = node[key];
+    if (!child) {
+      if (required) problem(prefix(path) + key, "missing");
+      return;
+    }
+    try {
+      value = child.as<T>();
+    } catch (const YAML::Exception&) {
+      problem(prefix(path) + key, "cannot read '" + YAML::Dump(child) + "' as " + typeName<T>());
+    }
+  }
+
+  /// Reads node[key] as a range [lo, hi] or a single number (lo = hi).
+  void readRange(const YAML::Node& node, const std::string& path, const std::string& key,
+                 double& lo, double& hi) {
+    const YAML::Node child = node[key];
+    if (!child) return;
+    try {
+      if (child.IsSequence() && child.size() == 2) {
+        lo = child[0].as<double>();
+        hi = child[1].as<double>();
+      } else {
+        lo = hi = child.as<double>();
+      }
+    } catch (const YAML::Exception&) {
+      problem(prefix(path) + key, "must be a number or a list [min, max]");
+    }
+  }
+
+  static std::string prefix(const std::string& path) { return path.empty() ? "" : path + "."; }
+
+ private:
+  template <typename T>
+  static const char* typeName() {
+    if constexpr (std::is_same_v<T, int>) return "an integer";
+    if constexpr (std::is_same_v<T, std::uint64_t>) return "a non-negative integer";
+    if constexpr (std::is_same_v<T, double>) return "a number";
+    return "a string";
+  }
+
+  std::string origin_;
+  std::vector<std::string> problems_;
+};
+
+RotationStep readRotation(Reader& r, const YAML::Node& node, const std::string& path) {
+  RotationStep s;
+  if (!node.IsMap()) {
+    r.problem(path, "must be a map");
+    return s;
+  }
+  r.checkKeys(node, path, {"axis", "step_deg", "sign", "bound_deg"});
+  std::string axis, sign = "random";
+  r.read(node, path, "axis", axis, true);
+  r.readRange(node, path, "step_deg", s.min_deg, s.max_deg);
+  r.read(node, path, "sign", sign);
+  r.read(node, path, "bound_deg", s.bound_deg);
+  static const std::map<std::string, RotationStep::Axis> axes = {
+      {"x", RotationStep::Axis::kX}, {"y", RotationStep::Axis::kY},
+      {"z", RotationStep::Axis::kZ}, {"random", RotationStep::Axis::kRandom}};
+  static const std::map<std::string, RotationStep::Sign> signs = {
+      {"random", RotationStep::Sign::kRandom}, {"alternate", RotationStep::Sign::kAlternate},
+      {"positive", RotationStep::Sign::kPositive}, {"negative", RotationStep::Sign::kNegative}};
+  if (const auto it = axes.find(axis); it != axes.end()) s.axis = it->second;
+  else if (!axis.empty()) r.problem(path + ".axis", "'" + axis + "' is not x, y, z or random");
+  if (const auto it = signs.find(sign); it != signs.end()) s.sign = it->second;
+  else r.problem(path + ".sign", "'" + sign + "' is not random, alternate, positive or negative");
+  return s;
+}
+
+TranslationStep readTranslation(Reader& r, const YAML::Node& node, const std::string& path) {
+  TranslationStep s;
+  if (!node.IsMap()) {
+    r.problem(path, "must be a map");
+    return s;
+  }
+  r.checkKeys(node, path, {"step_m", "direction"});
+  r.readRange(node, path, "step_m", s.min_m, s.max_m);
+  const YAML::Node direction = node["direction"];
+  if (!direction) return s;
+  if (direction.IsScalar() && direction.as<std::string>() == "random_horizontal") return s;
+  const std::string what = "must be random_horizontal or a list [x, y, z]";
+  if (!direction.IsSequence() || direction.size() != 3) {
+    r.problem(path + ".direction", what);
+    return s;
+  }
+  try {
+    s.direction = {direction[0].as<double>(), direction[1].as<double>(),
+                   direction[2].as<double>()};
+    s.random_horizontal = false;
+  } catch (const YAML::Exception&) {
+    r.problem(path + ".direction", what);
+  }
+  return s;
+}
+
+MotionSegment readSegment(Reader& r, const YAML::Node& node, const std::string& path) {
+  MotionSegment s;
+  if (!node.IsMap()) {
+    r.problem(path, "must be a map");
+    return s;
+  }
+  r.checkKeys(node, path, {"frames", "rotation", "translation"});
+  r.read(node, path, "frames", s.frames, true);
+  if (node["rotation"]) s.rotation = readRotation(r, node["rotation"], path + ".rotation");
+  if (node["translation"]) {
+    s.translation = readTranslation(r, node["translation"], path + ".translation");
+  }
+  return s;
+}
+
+std::string joinLines(const std::vector<std::string>& lines) {
+  std::string out;
+  for (const auto& l : lines) out += "\n  " + l;
+  return out;
+}
+
+// ------------------------------------------------------------------ generation
+
+/// Random state of trajectory generation.
+struct Generator {
+  std::mt19937_64 rng;
+  double uniform(double lo, double hi) { return std::uniform_real_distribution<>(lo, hi)(rng); }
+  bool coin() { return std::bernoulli_distribution(0.5)(rng); }
+  Eigen::Vector3d randomUnit() {
+    std::normal_distribution<> n;
+    Eigen::Vector3d d;
+    do d = Eigen::Vector3d(n(rng), n(rng), n(rng));
+    while (d.norm() < 1e-9);
+    return d.normalized();
+  }
+};
+
+/// Rotation vector of one step; `step_in_segment` drives the alternating sign.
+Eigen::Vector3d drawRotation(const RotationStep& s, Generator& g, int step_in_segment,
+                             const Eigen::Matrix3d& R_prev) {
+  const double angle = g.uniform(s.min_deg, s.max_deg) * kDegToRad;
+  Eigen::Vector3d omega;
+  if (s.axis == RotationStep::Axis::kRandom) {
+    omega = angle * g.randomUnit();
+  } else {
+    const Eigen::Vector3d axis = Eigen::Matrix3d::Identity().col(static_cast<int>(s.axis));
+    double sign = 1.0;
+    switch (s.sign) {
+      case RotationStep::Sign::kRandom: sign = g.coin() ? 1.0 : -1.0; break;
+      case RotationStep::Sign::kAlternate: sign = step_in_segment % 2 == 0 ? 1.0 : -1.0; break;
+      case RotationStep::Sign::kPositive: sign = 1.0; break;
+      case RotationStep::Sign::kNegative: sign = -1.0; break;
+    }
+    omega = sign * angle * axis;
+  }
+  if (s.bound_deg > 0) {
+    // Angle from the start orientation after the step, and after the opposite step.
+    const double ahead = rotationVector(R_prev * rotationFromVector(omega)).norm();
+    const double back = rotationVector(R_prev * rotationFromVector(-omega)).norm();
+    if (ahead > s.bound_deg * kDegToRad && back < ahead) omega = -omega;
+  }
+  return omega;
+}
+
+/// Translation of one step in the previous camera frame; keeps the camera inside `region`.
+/// `direction_sign` flips when a fixed-direction step bounces off the region's boundary.
+Eigen::Vector3d drawTranslation(const TranslationStep& s, Generator& g,
+                                const Eigen::Isometry3d& T_prev,
+                                const std::optional<Eigen::AlignedBox3d>& region,
+                                double& direction_sign) {
+  constexpr int kAttempts = 100;
+  const double distance = g.uniform(s.min_m, s.max_m);
+  const Eigen::Vector3d p = T_prev.translation();
+  const Eigen::Matrix3d R = T_prev.linear();
+  const auto inside = [&](const Eigen::Vector3d& step_world) {
+    return !region || region->contains(p + step_world);
+  };
+  if (s.random_horizontal) {
+    for (int i = 0; i < kAttempts; ++i) {
+      const double phi = g.uniform(0.0, 2.0 * std::numbers::pi);
+      const Eigen::Vector3d step_world(distance * std::cos(phi), distance * std::sin(phi), 0.0);
+      if (inside(step_world)) return R.transpose() * step_world;
+    }
+  } else {
+    const Eigen::Vector3d t = distance * s.direction.normalized();
+    if (inside(R * (direction_sign * t))) return direction_sign * t;
+    direction_sign = -direction_sign;
+    if (inside(R * (direction_sign * t))) return direction_sign * t;
+  }
+  std::ostringstream where;
+  where << p.transpose();
+  throw MotionError("cannot keep the camera inside the allowed region (at " + where.str() +
+                    " m, step " + std::to_string(distance) + " m): room too small for the margin?");
+}
+
+}  // namespace
+
+std::vector<std::string> MotionScript::validate() const {
+  std::vector<std::string> p;
+  if (!(frame_rate > 0)) p.push_back("frame_rate: must be > 0");
+  if (frames < 0) p.push_back("frames: must be >= 0 (0 = from the segments)");
+  if (!(wall_margin_m >= 0)) p.push_back("wall_margin_m: must be >= 0");
+  if (segments.empty()) p.push_back("segments: at least one segment is needed");
+  for (std::size_t i = 0; i < segments.size(); ++i) {
+    const std::string at = "segments[" + std::to_string(i) + "]";
+    const MotionSegment& s = segments[i];
+    if (s.frames < 1) p.push_back(at + ".frames: must be >= 1");
+    if (const auto& r = s.rotation) {
+      if (!(r->min_deg >= 0 && r->min_deg <= r->max_deg && r->max_deg <= 180)) {
+        p.push_back(at + ".rotation.step_deg: need 0 <= min <= max <= 180");
+      }
+      if (!(r->bound_deg >= 0)) p.push_back(at + ".rotation.bound_deg: must be >= 0");
+    }
+    if (const auto& t = s.translation) {
+      if (!(t->min_m >= 0 && t->min_m <= t->max_m)) {
+        p.push_back(at + ".translation.step_m: need 0 <= min <= max");
+      }
+      if (!t->random_horizontal && !(t->direction.norm() > 0)) {
+        p.push_back(at + ".translation.direction: must not be zero");
+      }
+    }
+  }
+  return p;
+}
+
+int MotionScript::frameCount() const {
+  if (frames > 0) return frames;
+  int n = 1;
+  for (const auto& s : segments) n += s.frames;
+  return n;
+}
+
+bool MotionScript::translates() const {
+  for (const auto& s : segments) {
+    if (s.translation && s.translation->max_m > 0) return true;
+  }
+  return false;
+}
+
+MotionScript MotionScript::parse(const std::string& yaml_text, const std::string& origin) {
+  YAML::Node root;
+  try {
+    root = YAML::Load(yaml_text);
+  } catch (const YAML::Exception& e) {
+    throw MotionError(origin + ": not valid YAML: " + e.what());
+  }
+  Reader r(origin);
+  MotionScript script;
+  if (!root || !root.IsMap()) {
+    r.problem("(document)", "expected a map with a 'segments' list");
+  } else {
+    r.checkKeys(root, "", {"seed", "frame_rate", "frames", "wall_margin_m", "segments"});
+    r.read(root, "", "seed", script.seed);
+    r.read(root, "", "frame_rate", script.frame_rate);
+    r.read(root, "", "frames", script.frames);
+    r.read(root, "", "wall_margin_m", script.wall_margin_m);
+    const YAML::Node segments = root["segments"];
+    if (!segments) {
+      r.problem("segments", "missing");
+    } else if (!segments.IsSequence()) {
+      r.problem("segments", "must be a list");
+    } else {
+      for (std::size_t i = 0; i < segments.size(); ++i) {
+        script.segments.push_back(
+            readSegment(r, segments[i], "segments[" + std::to_string(i) + "]"));
+      }
+    }
+  }
+  std::vector<std::string> problems = r.problems();
+  if (problems.empty()) {
+    for (const auto& p : script.validate()) problems.push_back(origin + ": " + p);
+  }
+  if (!problems.empty()) {
+    throw MotionError(origin + ": invalid motion script:" + joinLines(problems));
+  }
+  return script;
+}
+
+MotionScript MotionScript::load(const std::filesystem::path& path) {
+  std::ifstream in(path);
+  if (!in) throw MotionError(path.string() + ": cannot open motion script");
+  std::stringstream text;
+  text << in.rdbuf();
+  return parse(text.str(), path.string());
+}
+
+std::string MotionScript::presetYaml(const std::string& name) {
+  const auto it = presets().find(name);
+  if (it == presets().end()) {
+    std::string known;
+    for (const auto& n : presetNames()) known += " " + n;
+    throw MotionError("unknown preset '" + name + "' (known:" + known + ")");
+  }
+  return it->second;
+}
+
+MotionScript MotionScript::preset(const std::string& name) {
+  return parse(presetYaml(name), "preset " + name);
+}
+
+std::vector<std::string> MotionScript::presetNames() {
+  std::vector<std::string> names;
+  for (const auto& [name, yaml] : presets()) names.push_back(name);
+  return names;
+}
+
+std::vector<StampedPose> generateTrajectory(const MotionScript& script,
+                                            const std::optional<Eigen::AlignedBox3d>& region) {
+  if (const auto problems = script.validate(); !problems.empty()) {
+    throw std::invalid_argument("generateTrajectory: invalid script:" + joinLines(problems));
+  }
+  Generator g{std::mt19937_64(script.seed)};
+  const int n = script.frameCount();
+  std::vector<StampedPose> poses(n);
+  poses[0].pose = Eigen::Isometry3d::Identity();
+  std::size_t segment = 0;
+  int step_in_segment = 0;
+  double direction_sign = 1.0;
+  for (int k = 1; k < n; ++k) {
+    // Segments in order, cycled when the script asks for more frames than they hold.
+    if (step_in_segment == script.segments[segment].frames) {
+      segment = (segment + 1) % script.segments.size();
+      step_in_segment = 0;
+      direction_sign = 1.0;
+    }
+    const MotionSegment& s = script.segments[segment];
+    const Eigen::Isometry3d& T_prev = poses[k - 1].pose;
+    Eigen::Isometry3d step = Eigen::Isometry3d::Identity();
+    if (s.rotation) {
+      step.linear() = rotationFromVector(drawRotation(*s.rotation, g, step_in_segment,
+                                                      T_prev.linear()));
+    }
+    if (s.translation) {
+      step.translation() = drawTranslation(*s.translation, g, T_prev, region, direction_sign);
+    }
+    // Relative pose (R, t) = T_{k-1}^-1 * T_k (DESIGN.md section 2).
+    poses[k].pose = T_prev * step;
+    poses[k].timestamp = k / script.frame_rate;
+    ++step_in_segment;
+  }
+  return poses;
+}
+
+}  // namespace omnipose::synth

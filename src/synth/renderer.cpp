@@ -1,0 +1,160 @@
+#include <cmath>
+#include <numbers>
+
+#include "omnipose/synth.hpp"
+#include "synth/equirect.hpp"
+
+namespace omnipose::synth {
+namespace {
+
+// Lens body outside the used ring (grey levels): a dark centre showing a faint reflection
+// of the phone camera, a dark housing just outside the ring, black beyond.
+constexpr float kCentreGrey = 14.0f;
+constexpr float kReflectionGrey = 45.0f;      ///< added at the very centre
+constexpr double kReflectionRadius = 0.3;     ///< 1/e radius, fraction of radius_inner
+constexpr float kHousingGrey = 24.0f;
+constexpr double kHousingRadius = 1.12;       ///< outer edge of the housing, x radius_outer
+constexpr float kOutsideGrey = 6.0f;
+
+std::string joinLines(const std::vector<std::string>& lines) {
+  std::string out;
+  for (const auto& l : lines) out += "\n  " + l;
+  return out;
+}
+
+/// Angle between two non-zero vectors, radians (atan2 form: accurate for small angles).
+double angleBetween(const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
+  return std::atan2(a.cross(b).norm(), a.dot(b));
+}
+
+/// Grey level of the lens body at distance r (pixels) from the mirror axis.
+float lensBody(const OmniLens& lens, double r) {
+  if (r < lens.radius_inner) {
+    const double s = r / (kReflectionRadius * lens.radius_inner);
+    return kCentreGrey + kReflectionGrey * static_cast<float>(std::exp(-s * s));
+  }
+  return r < kHousingRadius * lens.radius_outer ? kHousingGrey : kOutsideGrey;
+}
+
+}  // namespace
+
+std::vector<std::string> RenderOptions::validate() const {
+  std::vector<std::string> p;
+  if (supersample < 1 || supersample > 16) p.push_back("supersample: must be in [1, 16]");
+  return p;
+}
+
+OutputKind parseOutputKind(const std::string& name) {
+  if (name == "omni") return OutputKind::kOmni;
+  if (name == "panorama") return OutputKind::kPanorama;
+  throw std::invalid_argument("output '" + name + "' is not omni or panorama");
+}
+
+const char* toString(OutputKind kind) { return kind == OutputKind::kOmni ? "omni" : "panorama"; }
+
+Renderer::Renderer(Scene scene, Calibration calibration, RenderOptions options)
+    : scene_(std::move(scene)), calibration_(std::move(calibration)), options_(options) {
+  std::vector<std::string> problems = options_.validate();
+  for (const auto& p : calibration_.validate()) problems.push_back("calibration: " + p);
+  if (scene_.texture.empty() || scene_.texture.type() != CV_32FC1) {
+    problems.push_back("scene.texture: must be a non-empty CV_32FC1 image");
+  }
+  if (!problems.empty()) throw std::invalid_argument("Renderer:" + joinLines(problems));
+  pyramid_ = detail::buildPyramid(scene_.texture);
+}
+
+cv::Size Renderer::outputSize() const {
+  if (options_.output == OutputKind::kPanorama) {
+    return {calibration_.panorama.width, calibration_.panorama.height};
+  }
+  return {calibration_.omni.image_width, calibration_.omni.image_height};
+}
+
+cv::Mat Renderer::render(const Eigen::Isometry3d& T_world_camera) const {
+  if (scene_.kind == SceneKind::kBox && !scene_.box.contains(T_world_camera.translation())) {
+    throw std::invalid_argument("Renderer::render: the camera is outside the box room");
+  }
+  cv::Mat out(outputSize(), CV_32FC1);
+  cv::parallel_for_(cv::Range(0, out.rows), [&](const cv::Range& rows) {
+    renderRows(T_world_camera, rows.start, rows.end, out);
+  });
+  return out;
+}
+
+void Renderer::renderRows(const Eigen::Isometry3d& T, int row_begin, int row_end,
+                          cv::Mat& out) const {
+  const bool omni = options_.output == OutputKind::kOmni;
+  for (int y = row_begin; y < row_end; ++y) {
+    float* row = out.ptr<float>(y);
+    for (int x = 0; x < out.cols; ++x) {
+      row[x] = omni ? renderOmniPixel(T, x, y) : renderPanoramaPixel(T, x, y);
+    }
+  }
+}
+
+Eigen::Vector3d Renderer::textureDirection(const Eigen::Isometry3d& T,
+                                           const Eigen::Vector3d& bearing) const {
+  return scene_.textureDirection(T.translation(), T.linear() * bearing);
+}
+
+double Renderer::levelOfDetail(const Eigen::Vector3d& centre, const Eigen::Vector3d& right,
+                               const Eigen::Vector3d& below) const {
+  // Sub-sample footprint on the texture, in texels of level 0, as a mip level.
+  const double footprint = std::max(angleBetween(centre, right), angleBetween(centre, below)) /
+                           options_.supersample;
+  return std::log2(footprint / detail::texelAngle(pyramid_));
+}
+
+float Renderer::renderPanoramaPixel(const Eigen::Isometry3d& T, int u, int v) const {
+  const PanoramaGeometry& pano = calibration_.panorama;
+  const double lod = levelOfDetail(textureDirection(T, pano.bearing(u, v)),
+                                   textureDirection(T, pano.bearing(u + 1, v)),
+                                   textureDirection(T, pano.bearing(u, v + 1)));
+  // Box filter: mean over a K x K grid of sub-pixel centres.
+  const int k = options_.supersample;
+  double sum = 0.0;
+  for (int j = 0; j < k; ++j) {
+    const double sv = v + (j + 0.5) / k - 0.5;
+    for (int i = 0; i < k; ++i) {
+      const double su = u + (i + 0.5) / k - 0.5;
+      sum += detail::sampleEquirect(pyramid_, textureDirection(T, pano.bearing(su, sv)), lod);
+    }
+  }
+  return static_cast<float>(sum / (k * k));
+}
+
+float Renderer::renderOmniPixel(const Eigen::Isometry3d& T, int x, int y) const {
+  const OmniLens& lens = calibration_.omni;
+  const PanoramaGeometry& pano = calibration_.panorama;
+  const auto bearingAt = [&](double px, double py) {
+    const Eigen::Vector2d uv = calibration_.panoramaPixel(px, py);
+    return pano.bearing(uv.x(), uv.y());
+  };
+  const double r_centre = std::hypot(x - lens.center_x, y - lens.center_y);
+  const bool touches_ring =
+      r_centre > lens.radius_inner - 1.0 && r_centre < lens.radius_outer + 1.0;
+  const double lod = touches_ring ? levelOfDetail(textureDirection(T, bearingAt(x, y)),
+                                                  textureDirection(T, bearingAt(x + 1, y)),
+                                                  textureDirection(T, bearingAt(x, y + 1)))
+                                  : 0.0;
+  // Box filter: mean over a K x K grid of sub-pixel centres; each is either a ray through
+  // the used ring (panorama row v in [-0.5, H - 0.5]) or the lens body.
+  const int k = options_.supersample;
+  double sum = 0.0;
+  for (int j = 0; j < k; ++j) {
+    const double sy = y + (j + 0.5) / k - 0.5;
+    for (int i = 0; i < k; ++i) {
+      const double sx = x + (i + 0.5) / k - 0.5;
+      const Eigen::Vector2d uv = calibration_.panoramaPixel(sx, sy);
+      if (touches_ring && uv.y() >= -0.5 && uv.y() <= pano.height - 0.5) {
+        sum += detail::sampleEquirect(pyramid_,
+                                      textureDirection(T, pano.bearing(uv.x(), uv.y())), lod);
+      } else {
+        sum += lensBody(lens, std::hypot(sx - lens.center_x, sy - lens.center_y));
+      }
+    }
+  }
+  return static_cast<float>(sum / (k * k));
+}
+
+}  // namespace omnipose::synth
