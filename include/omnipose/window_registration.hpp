@@ -3,9 +3,9 @@
 /// Sliding-window iFMI registration (improved Fourier-Mellin, Buelow & Birk) of two
 /// panoramas: for every L x L window, the translation (du, dv), the in-window rotation and
 /// scale, and a confidence. Windows are centred at columns u_k = k * step + L/2 - 0.5
-/// (window k covers columns k*step .. k*step+L-1, wrapping around u), k = 0 .. W/step - 1,
-/// and span the full panorama height (L = H in the paper's setting; with L < H the window
-/// is vertically centred).
+/// (window k covers columns k*step .. k*step+L-1, wrapping around u),
+/// k = 0 .. ceil(W/step) - 1, and span the full panorama height (L = H in the paper's
+/// setting; with L < H the window is vertically centred).
 ///
 /// Conventions (DESIGN.md section 2/3): content at (u, v) of the current window appears at
 /// (u + du, v + dv) in the previous (reference) window, i.e. (du, dv) is what
@@ -16,7 +16,14 @@
 ///
 /// Realtime: the constructor allocates everything (FFTW plans, aligned buffers, the
 /// reference spectra); measure()/advance() allocate nothing and never throw. Not
-/// thread-safe: one instance per processing thread.
+/// thread-safe: one instance per processing thread (construction and destruction take a
+/// process-wide lock around the FFTW planner).
+///
+/// Accuracy on real texture (tests/registration, paper setting, every window): shifts
+/// 0..3 px within 0.03 px; rotations 0..3 deg within 0.09 deg and scales 0.97..1.03 within
+/// 0.2 % on rich texture (within 0.22 deg / 0.52 % on a blurry indoor photo). Cost: about
+/// 0.2 ms of CPU per window with de-rotation, 0.08 ms translation-only, on the development
+/// VM (tests/bench/registration_bench.cpp); FFTW is about half of it.
 
 #include <memory>
 #include <opencv2/core.hpp>
@@ -26,15 +33,23 @@
 namespace omnipose {
 
 /// Motion of one window between the reference and the current panorama.
+/// A confidence is the height of the phase-correlation peak (1 for identical content) above
+/// the highest peak that random phases would produce over the searched region, rescaled to
+/// [0, 1]: ~0 for unrelated content, > 0.9 for a clean match. It is a weight, not a
+/// probability.
 struct WindowMotion {
-  double center_u = 0.0;    ///< window centre column in the panorama, pixels
+  double center_u = 0.0;    ///< window centre column, pixels, reduced modulo W into [0, W)
   double du = 0.0;          ///< shift along u, pixels (see file comment for the sign)
   double dv = 0.0;          ///< shift along v, pixels
-  double rotation = 0.0;    ///< in-window rotation phi, radians (counter-clockwise on screen)
-  double scale = 1.0;       ///< in-window scale s
+  double rotation = 0.0;    ///< in-window rotation phi, radians (counter-clockwise on screen);
+                            ///< 0 when rs_confidence is 0
+  double scale = 1.0;       ///< in-window scale s; 1 when rs_confidence is 0
   double confidence = 0.0;  ///< translation peak quality in [0, 1]; 0 = no usable peak
-  double rs_confidence = 0.0;  ///< rotation/scale peak quality in [0, 1]
-  bool valid = false;       ///< false: window has no texture / no peak; ignore it
+  double rs_confidence = 0.0;  ///< rotation/scale peak quality in [0, 1]; 0 = not measured
+                               ///< (estimate_rotation_scale off), no usable peak, or the
+                               ///< peak on the border of the prior (true value outside it)
+  bool valid = false;       ///< false: window has no texture / no peak (confidence below
+                            ///< min_confidence); ignore it. du, dv = 0 for a textureless window
 };
 
 class WindowRegistration {
@@ -45,9 +60,10 @@ class WindowRegistration {
     int window = 110;            ///< L, pixels (square window, L <= H)
     int step = 20;               ///< d, pixels between window starts; W % step need not be 0
     bool estimate_rotation_scale = true;  ///< run the log-polar stage (else rotation 0, scale 1)
-    double max_rotation_rad = 0.35;  ///< |phi| searched around 0 (no 180-degree ambiguity)
-    double max_log_scale = 0.2;      ///< |ln s| searched around 0
-    double min_confidence = 0.02;    ///< below this a window is marked invalid
+    double max_rotation_rad = 0.35;  ///< |phi| searched around 0 (no 180-degree ambiguity), in (0, pi/4)
+    double max_log_scale = 0.2;      ///< |ln s| searched around 0, in (0, 0.5]
+    double min_confidence = 0.02;    ///< below this a window is marked invalid, and a
+                                     ///< rotation/scale peak is not used (rs_confidence 0)
 
     /// Empty string when valid, else a message naming the bad field.
     std::string validate() const;
@@ -65,7 +81,8 @@ class WindowRegistration {
   /// Centre column of window k, pixels.
   double windowCenter(int k) const;
 
-  /// Makes `panorama` (CV_32FC1, W x H) the reference. Transforms its windows once.
+  /// Makes `panorama` (CV_32FC1, W x H) the reference. Transforms its windows
+  /// once. A panorama of the wrong size or type is ignored (the reference is unchanged).
   void setReference(const cv::Mat& panorama);
   /// Whether a reference is set.
   bool hasReference() const;
@@ -76,8 +93,18 @@ class WindowRegistration {
   /// `keep_as_next` is false (used to re-register a warped copy of the same frame).
   /// Requires hasReference(); returns false (and writes nothing) otherwise or when the
   /// image has the wrong size/type.
-  bool measure(const cv::Mat& current, std::span<WindowMotion> out, bool keep_as_next = true);
-  /// Makes the last frame measured with keep_as_next the reference (no recomputation).
+  ///
+  /// `known_rotation_scale` (one entry per window): skip the log-polar search and
+  /// de-rotate/de-scale each window by the given rotation and scale (entries with
+  /// rs_confidence 0 are not de-warped); they are copied to `out`. With keep_as_next the
+  /// log-polar spectra are still computed for the next reference. The pipeline's first
+  /// pass uses it with all rs_confidence 0 (a fast shift-only estimate that the
+  /// refinement pass then measures again in full).
+  bool measure(const cv::Mat& current, std::span<WindowMotion> out, bool keep_as_next = true,
+               std::span<const WindowMotion> known_rotation_scale = {});
+  /// Makes the last frame measured with keep_as_next the reference (a pointer swap, no
+  /// recomputation). A no-op when no frame was measured with keep_as_next since the last
+  /// setReference()/advance().
   void advance();
 
  private:

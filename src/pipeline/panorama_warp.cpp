@@ -5,6 +5,18 @@
 #include <numbers>
 
 namespace omnipose {
+namespace {
+
+/// Keys cubic convolution weights (a = -0.5) for the 4 taps at -1, 0, 1, 2 of offset t.
+inline void keysWeights(float t, float w[4]) {
+  const float t2 = t * t, t3 = t2 * t;
+  w[0] = -0.5f * t3 + t2 - 0.5f * t;
+  w[1] = 1.5f * t3 - 2.5f * t2 + 1.0f;
+  w[2] = -1.5f * t3 + 2.0f * t2 + 0.5f * t;
+  w[3] = 0.5f * t3 - 0.5f * t2;
+}
+
+}  // namespace
 
 PanoramaWarp::PanoramaWarp(const PanoramaGeometry& geometry) : geometry_(geometry) {
   grid_cols_ = geometry.width / kGridStep + 2;
@@ -45,7 +57,8 @@ void PanoramaWarp::warp(const cv::Mat& current, const Eigen::Matrix3d& R,
   current(cv::Rect(W - kPad, 0, kPad, H)).copyTo(padded_(cv::Rect(0, 0, kPad, H)));
   current(cv::Rect(0, 0, kPad, H)).copyTo(padded_(cv::Rect(W + kPad, 0, kPad, H)));
 
-  // Bilinear interpolation of the displacement, bilinear sampling of the image.
+  // Bilinear interpolation of the (smooth) displacement; bicubic sampling of the image
+  // (Keys, a = -0.5): bilinear sampling would bias the residual shifts towards whole pixels.
   const int PW = padded_.cols;
   for (int v = 0; v < H; ++v) {
     const int gy = v / kGridStep;
@@ -62,13 +75,20 @@ void PanoramaWarp::warp(const cv::Mat& current, const Eigen::Matrix3d& R,
                        fy * ((1 - fx) * du1[gx] + fx * du1[gx + 1]);
       const float dv = (1 - fy) * ((1 - fx) * dv0[gx] + fx * dv0[gx + 1]) +
                        fy * ((1 - fx) * dv1[gx] + fx * dv1[gx + 1]);
-      const float x = std::clamp(u + du + kPad, 0.0f, static_cast<float>(PW - 1.001f));
-      const float y = std::clamp(v + dv, 0.0f, static_cast<float>(H - 1.001f));
-      const int x0 = static_cast<int>(x), y0 = static_cast<int>(y);
-      const float ax = x - x0, ay = y - y0;
-      const float* p = padded_.ptr<float>(y0) + x0;
-      const float* q = padded_.ptr<float>(y0 + 1) + x0;
-      dst[u] = (1 - ay) * ((1 - ax) * p[0] + ax * p[1]) + ay * ((1 - ax) * q[0] + ax * q[1]);
+      const float x = std::clamp(u + du + kPad, 1.0f, static_cast<float>(PW - 2.001f));
+      const float y = v + dv;
+      const int x0 = static_cast<int>(x);
+      const int y0 = static_cast<int>(std::floor(y));
+      float wx[4], wy[4];
+      keysWeights(x - x0, wx);
+      keysWeights(y - y0, wy);
+      float sum = 0.0f;
+      for (int j = 0; j < 4; ++j) {
+        const int row = std::clamp(y0 - 1 + j, 0, H - 1);  // rows beyond the edge: replicate
+        const float* p = padded_.ptr<float>(row) + x0 - 1;
+        sum += wy[j] * (wx[0] * p[0] + wx[1] * p[1] + wx[2] * p[2] + wx[3] * p[3]);
+      }
+      dst[u] = sum;
     }
   }
 }

@@ -11,7 +11,7 @@ namespace omnipose {
 
 /// Given (R, tau) with P_prev = R P_cur + tau (all points at unit horizontal distance in
 /// the previous frame), writes J(u, v) = I_cur(project(R^T (X_prev(u, v) - tau))), so that
-/// J looks like the previous panorama when the motion is right. The exact projection is
+/// J looks like the previous panorama when the motion is right (bicubic sampling). The exact projection is
 /// evaluated on a coarse grid (every kGridStep columns and rows) and interpolated; the
 /// map is smooth, the interpolation error is below 0.01 px for motions up to 0.3 rad.
 /// Allocation-free after construction.

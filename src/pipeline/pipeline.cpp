@@ -54,6 +54,7 @@ struct Pipeline::Impl {
     warped = unwrapper.makePanorama();
     windows.resize(registration.windowCount());
     refine_windows.resize(registration.windowCount());
+    shifts_only.resize(registration.windowCount());  // rs_confidence 0: no rotation/scale
   }
 
   Calibration calibration;
@@ -64,6 +65,7 @@ struct Pipeline::Impl {
   PanoramaWarp warp;
   cv::Mat panorama, warped;
   std::vector<WindowMotion> windows, refine_windows;
+  std::vector<WindowMotion> shifts_only;  ///< "known" rotation/scale for a shift-only pass
   bool has_previous = false;
 };
 
@@ -107,7 +109,12 @@ Expected<FrameMotion> Pipeline::process(const cv::Mat& frame) {
 
   // 2. iFMI per window against the previous frame (its spectra are cached).
   const auto t_reg = Clock::now();
-  if (!s.registration.measure(s.panorama, s.windows, true))
+  // With refinement to follow, the first pass only needs the shifts: the refinement pass
+  // measures rotation and scale on the de-rotated panorama, where they are small.
+  const bool shifts_only = s.options.refine_iterations > 0;
+  if (!s.registration.measure(s.panorama, s.windows, true,
+                              shifts_only ? std::span<const WindowMotion>(s.shifts_only)
+                                          : std::span<const WindowMotion>()))
     return fail(ErrorCode::kInvalidArgument, "window registration rejected the panorama");
   result.timing.registration = secondsSince(t_reg);
 

@@ -1,0 +1,73 @@
+#pragma once
+/// \file fft_plan.hpp
+/// Private RAII wrappers for FFTW single precision: aligned arrays and 2-D real<->complex
+/// plans bound to fixed arrays. Plan creation and destruction are serialised by one
+/// process-wide mutex (the FFTW planner is not thread-safe); execution is lock-free.
+
+#include <fftw3.h>
+
+#include <complex>
+#include <cstddef>
+#include <mutex>
+
+namespace omnipose::registration {
+
+using Complex = std::complex<float>;
+
+/// The mutex that guards every FFTW planner call made by omnipose.
+std::mutex& fftwPlannerMutex();
+
+/// A zero-initialised array from fftwf_malloc (SIMD-aligned), owned. Move-only.
+template <class T>
+class FftwArray {
+ public:
+  FftwArray() = default;
+  explicit FftwArray(std::size_t size);
+  ~FftwArray();
+  FftwArray(FftwArray&& other) noexcept;
+  FftwArray& operator=(FftwArray&& other) noexcept;
+  FftwArray(const FftwArray&) = delete;
+  FftwArray& operator=(const FftwArray&) = delete;
+
+  T* data() { return data_; }
+  const T* data() const { return data_; }
+  std::size_t size() const { return size_; }
+  T& operator[](std::size_t i) { return data_[i]; }
+  const T& operator[](std::size_t i) const { return data_[i]; }
+  /// Sets every element to T{}.
+  void clear();
+
+ private:
+  T* data_ = nullptr;
+  std::size_t size_ = 0;
+};
+
+extern template class FftwArray<float>;
+extern template class FftwArray<Complex>;
+
+/// A 2-D FFTW plan bound to the arrays it was made for (rows x cols real samples,
+/// rows x (cols/2+1) complex bins, row-major). Planned with FFTW_MEASURE, which scribbles
+/// on the arrays: clear them after planning. Move-only.
+class FftPlan {
+ public:
+  /// Forward real-to-complex transform of `in` (rows x cols) into `out`.
+  static FftPlan realToComplex(int rows, int cols, float* in, Complex* out);
+  /// Inverse (unnormalised) complex-to-real transform; destroys `in`.
+  static FftPlan complexToReal(int rows, int cols, Complex* in, float* out);
+
+  FftPlan() = default;
+  ~FftPlan();
+  FftPlan(FftPlan&& other) noexcept;
+  FftPlan& operator=(FftPlan&& other) noexcept;
+  FftPlan(const FftPlan&) = delete;
+  FftPlan& operator=(const FftPlan&) = delete;
+
+  /// Runs the transform on the bound arrays. Thread-safe, allocation-free.
+  void execute() const { fftwf_execute(plan_); }
+
+ private:
+  explicit FftPlan(fftwf_plan plan) : plan_(plan) {}
+  fftwf_plan plan_ = nullptr;
+};
+
+}  // namespace omnipose::registration

@@ -1,0 +1,161 @@
+#include "registration/log_polar.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <numbers>
+#include <stdexcept>
+
+#include "registration/simd.hpp"
+
+namespace omnipose::registration {
+namespace {
+
+/// Fraction of the log-radius axis covered by a cosine ramp at each end (Tukey taper).
+constexpr double kTaperRamp = 0.25;
+
+/// High-pass emphasis H(k) = 1 - cos^2(pi rho), rho = |k| / n cycles/sample, 1 for rho >= 1/2.
+double highPass(int ku, int kv, int n) {
+  const double rho = std::min(std::hypot(ku, kv) / n, 0.5);
+  const double c = std::cos(std::numbers::pi * rho);
+  return 1.0 - c * c;
+}
+
+/// Tukey taper over [0, count): cosine ramps of kTaperRamp * count at both ends.
+float tukey(int b, int count) {
+  const double t = (b + 0.5) / count;
+  const double edge = std::min(t, 1.0 - t);
+  if (edge >= kTaperRamp) return 1.0f;
+  return static_cast<float>(0.5 - 0.5 * std::cos(std::numbers::pi * edge / kTaperRamp));
+}
+
+/// Cubic B-spline weights of the taps floor(x) - 1 .. floor(x) + 2 at position x.
+void cubicBSpline(double x, int& first, float* w) {
+  const double x0 = std::floor(x), f = x - x0;
+  first = static_cast<int>(x0) - 1;
+  w[0] = static_cast<float>((1 - f) * (1 - f) * (1 - f) / 6);
+  w[1] = static_cast<float>((3 * f * f * f - 6 * f * f + 4) / 6);
+  w[2] = static_cast<float>((-3 * f * f * f + 3 * f * f + 3 * f + 1) / 6);
+  w[3] = static_cast<float>(f * f * f / 6);
+}
+
+}  // namespace
+
+LogPolarMap::LogPolarMap(int n, int n_theta, int n_radius, double r_min, double r_max)
+    : n_(n),
+      n_theta_(n_theta),
+      n_radius_(n_radius),
+      angle_step_(std::numbers::pi / n_theta),
+      log_radius_step_(std::log(r_max / r_min) / (n_radius - 1)),
+      reach_(static_cast<int>(std::ceil(r_max)) + 2),
+      grid_cols_(reach_ + 2),
+      taper_(n_radius),
+      column_mean_(n_radius),
+      column_gain_(n_radius) {
+  if (n % 2 != 0 || n_theta < 4 || n_radius < 4 || !(r_min > 0.0) || !(r_max > r_min) ||
+      r_max > n / 2 - 3)
+    throw std::invalid_argument("LogPolarMap: bad sizes or radii");
+  // Extended grid: entry (row, col) is frequency (k_u, k_v) = (col - 1, row - reach).
+  const int rows = 2 * reach_ + 1, half_cols = n / 2 + 1;
+  grid_.assign(static_cast<std::size_t>(rows) * grid_cols_, 0.0f);
+  high_pass_.resize(grid_.size());
+  spectrum_index_.resize(grid_.size());
+  for (int row = 0; row < rows; ++row) {
+    for (int col = 0; col < grid_cols_; ++col) {
+      int ku = col - 1, kv = row - reach_;
+      const std::size_t e = static_cast<std::size_t>(row) * grid_cols_ + col;
+      high_pass_[e] = static_cast<float>(highPass(ku, kv, n));
+      if (ku < 0) {  // |F(-k)| = |F(k)|: read the mirrored bin of the half plane
+        ku = -ku;
+        kv = -kv;
+      }
+      spectrum_index_[e] = ((kv % n + n) % n) * half_cols + ku;
+    }
+  }
+  // Taps and separable weights of every output sample.
+  const std::size_t samples = static_cast<std::size_t>(n_theta) * n_radius;
+  tap_offset_.resize(samples);
+  weight_u_.resize(4 * samples);
+  weight_v_.resize(4 * samples);
+  for (int a = 0; a < n_theta; ++a) {
+    const double alpha = -std::numbers::pi / 2 + a * angle_step_;
+    for (int b = 0; b < n_radius; ++b) {
+      const double rho = r_min * std::exp(b * log_radius_step_);
+      const std::size_t i = static_cast<std::size_t>(a) * n_radius + b;
+      int first_u = 0, first_v = 0;
+      cubicBSpline(rho * std::cos(alpha), first_u, &weight_u_[4 * i]);
+      cubicBSpline(rho * std::sin(alpha), first_v, &weight_v_[4 * i]);
+      tap_offset_[i] = (first_v + reach_) * grid_cols_ + (first_u + 1);
+    }
+  }
+  for (int b = 0; b < n_radius; ++b) taper_[b] = tukey(b, n_radius);
+}
+
+void LogPolarMap::fillGrid(const Complex* spectrum) {
+  // g = H |F| on the extended grid, four entries at a time.
+  const std::size_t size = grid_.size();
+  const int* index = spectrum_index_.data();
+  std::size_t e = 0;
+  for (; e + 4 <= size; e += 4) {
+    const simd::F4 norm{std::norm(spectrum[index[e]]), std::norm(spectrum[index[e + 1]]),
+                        std::norm(spectrum[index[e + 2]]), std::norm(spectrum[index[e + 3]])};
+    simd::store(&grid_[e], simd::load(&high_pass_[e]) * simd::sqrt(norm));
+  }
+  for (; e < size; ++e) grid_[e] = high_pass_[e] * std::sqrt(std::norm(spectrum[index[e]]));
+}
+
+double LogPolarMap::resample(const Complex* spectrum, float* out) {
+  fillGrid(spectrum);
+  // g(a, b) = sum_ij w_v[i] w_u[j] grid(v0 + i, u0 + j): separable cubic B-spline.
+  const std::size_t stride = grid_cols_;
+  std::fill(column_mean_.begin(), column_mean_.end(), 0.0f);
+  std::fill(column_gain_.begin(), column_gain_.end(), 0.0f);
+  for (int a = 0; a < n_theta_; ++a) {
+    float* row = out + static_cast<std::size_t>(a) * n_radius_;
+    for (int b = 0; b < n_radius_; ++b) {
+      const std::size_t i = static_cast<std::size_t>(a) * n_radius_ + b;
+      const float* p = grid_.data() + tap_offset_[i];
+      const float* wv = &weight_v_[4 * i];
+      const simd::F4 rows = simd::broadcast(wv[0]) * simd::load(p) +
+                            simd::broadcast(wv[1]) * simd::load(p + stride) +
+                            simd::broadcast(wv[2]) * simd::load(p + 2 * stride) +
+                            simd::broadcast(wv[3]) * simd::load(p + 3 * stride);
+      row[b] = simd::sum(rows * simd::load(&weight_u_[4 * i]));
+    }
+    // Per-radius sums over angle (for the mean and the RMS below).
+    int b = 0;
+    for (; b + 4 <= n_radius_; b += 4) {
+      const simd::F4 g = simd::load(row + b);
+      simd::store(&column_mean_[b], simd::load(&column_mean_[b]) + g);
+      simd::store(&column_gain_[b], simd::load(&column_gain_[b]) + g * g);
+    }
+    for (; b < n_radius_; ++b) {
+      column_mean_[b] += row[b];
+      column_gain_[b] += row[b] * row[b];
+    }
+  }
+  // Per radius: remove the mean over angle, divide by the RMS about it, then taper.
+  for (int b = 0; b < n_radius_; ++b) {
+    const float mean = column_mean_[b] / n_theta_;
+    const float var = std::max(column_gain_[b] / n_theta_ - mean * mean, 0.0f);
+    column_mean_[b] = mean;
+    column_gain_[b] = var > 0.0f ? taper_[b] / std::sqrt(var) : 0.0f;
+  }
+  simd::F4 energy4 = simd::broadcast(0.0f);
+  double energy = 0.0;
+  for (int a = 0; a < n_theta_; ++a) {
+    float* row = out + static_cast<std::size_t>(a) * n_radius_;
+    int b = 0;
+    for (; b + 4 <= n_radius_; b += 4) {
+      const simd::F4 v = (simd::load(row + b) - simd::load(&column_mean_[b])) * simd::load(&column_gain_[b]);
+      simd::store(row + b, v);
+      energy4 += v * v;
+    }
+    for (; b < n_radius_; ++b) {
+      row[b] = (row[b] - column_mean_[b]) * column_gain_[b];
+      energy += static_cast<double>(row[b]) * row[b];
+    }
+  }
+  return energy + simd::sum(energy4);
+}
+
+}  // namespace omnipose::registration

@@ -1,0 +1,134 @@
+#include "registration/phase_correlator.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <initializer_list>
+#include <numbers>
+
+#include "registration/simd.hpp"
+#include "registration/subpixel_peak.hpp"
+
+namespace omnipose::registration {
+namespace {
+
+/// W below exp(-kBandCut^2 / 2) ~ 1.1% is dropped from the band.
+constexpr double kBandCut = 3.0;
+
+/// Band size for one axis: keep frequencies with sigma * w <= kBandCut, i.e.
+/// |k| <= kBandCut * n / (2 pi sigma), so s >= kBandCut * n / (pi sigma).
+int bandLength(int n, double sigma) {
+  const int s = fastFftSize(static_cast<int>(std::ceil(kBandCut * n / (std::numbers::pi * sigma))));
+  return std::min(s, n);
+}
+
+/// Signed frequency of index i on a periodic axis of size n: 0, 1, .., n/2-1, -n/2, .., -1.
+int signedIndex(int i, int n) { return i < n / 2 ? i : i - n; }
+
+}  // namespace
+
+int fastFftSize(int n) {
+  for (int m = std::max(n + (n & 1), 2);; m += 2) {
+    int r = m;
+    for (int p : {2, 3, 5, 7})
+      while (r % p == 0) r /= p;
+    if (r == 1) return m;
+  }
+}
+
+PhaseCorrelator::PhaseCorrelator(int n0, int n1, double sigma0, double sigma1)
+    : n0_(n0),
+      n1_(n1),
+      s0_(bandLength(n0, sigma0)),
+      s1_(bandLength(n1, sigma1)),
+      band_cols_(s1_ / 2 + 1),
+      sqrt_w2_(2 * static_cast<std::size_t>(s0_) * band_cols_),
+      band_(static_cast<std::size_t>(s0_) * band_cols_),
+      surface_(static_cast<std::size_t>(s0_) * s1_) {
+  inverse_ = FftPlan::complexToReal(s0_, s1_, band_.data(), surface_.data());
+  band_.clear();
+  surface_.clear();
+  // Gaussian weight W(w) = exp(-(sigma0^2 w0^2 + sigma1^2 w1^2) / 2) on the band.
+  const double two_pi = 2.0 * std::numbers::pi;
+  double sum_w = 0.0, sum_w2 = 0.0;
+  for (int r = 0; r < s0_; ++r) {
+    const double w0 = two_pi * signedIndex(r, s0_) / n0_;
+    for (int c = 0; c < band_cols_; ++c) {
+      const double w1 = two_pi * c / n1_;
+      const bool nyquist = (r == s0_ / 2) || (c == s1_ / 2);
+      const double w =
+          nyquist ? 0.0 : std::exp(-0.5 * (sigma0 * sigma0 * w0 * w0 + sigma1 * sigma1 * w1 * w1));
+      const std::size_t bin = static_cast<std::size_t>(r) * band_cols_ + c;
+      sqrt_w2_[2 * bin] = sqrt_w2_[2 * bin + 1] = static_cast<float>(std::sqrt(w));
+      const double multiplicity = (c == 0) ? 1.0 : 2.0;  // Hermitian partner (-k) of c > 0
+      sum_w += multiplicity * w;
+      sum_w2 += multiplicity * w * w;
+    }
+  }
+  weight_sum_ = sum_w;
+  noise_sigma_ = std::sqrt(sum_w2) / sum_w;
+}
+
+void PhaseCorrelator::whiten(const Complex* spectrum, double mean_power, Complex* band) const {
+  const int spectrum_cols = n1_ / 2 + 1;
+  const float floor2 = static_cast<float>(1e-8 * mean_power) + 1e-30f;
+  const simd::F4 floor4 = simd::broadcast(floor2);
+  for (int r = 0; r < s0_; ++r) {
+    // Band row r is frequency k0 = signedIndex(r, s0), stored at row k0 mod n0.
+    const int k0 = signedIndex(r, s0_);
+    const std::size_t src_row = static_cast<std::size_t>(k0 < 0 ? k0 + n0_ : k0);
+    const float* src = reinterpret_cast<const float*>(spectrum + src_row * spectrum_cols);
+    const float* sw = sqrt_w2_.data() + 2 * static_cast<std::size_t>(r) * band_cols_;
+    float* dst = reinterpret_cast<float*>(band + static_cast<std::size_t>(r) * band_cols_);
+    // P = sqrt(W) F / |F|, two bins at a time.
+    int f = 0;
+    for (; f + 4 <= 2 * band_cols_; f += 4) {
+      const simd::F4 z = simd::load(src + f);
+      const simd::F4 norm = simd::max(simd::pairNorm(z), floor4);
+      simd::store(dst + f, z * (simd::load(sw + f) * simd::rsqrt(norm)));
+    }
+    for (; f < 2 * band_cols_; f += 2) {
+      const float re = src[f], im = src[f + 1];
+      const float gain = sw[f] / std::sqrt(std::max(re * re + im * im, floor2));
+      dst[f] = re * gain;
+      dst[f + 1] = im * gain;
+    }
+  }
+}
+
+CorrelationPeak PhaseCorrelator::correlate(const Complex* ref, const Complex* cur, double reach0,
+                                           double reach1) {
+  // Cross-power spectrum Q = W * F_ref * conj(F_cur) / (|F_ref| |F_cur|); both inputs
+  // already carry sqrt(W) / |F|.
+  const std::size_t floats = 2 * band_.size();
+  const float* a = reinterpret_cast<const float*>(ref);
+  const float* b = reinterpret_cast<const float*>(cur);
+  float* q = reinterpret_cast<float*>(band_.data());
+  std::size_t f = 0;
+  for (; f + 4 <= floats; f += 4) simd::store(q + f, simd::mulConj(simd::load(a + f), simd::load(b + f)));
+  for (; f < floats; f += 2) {
+    q[f] = a[f] * b[f] + a[f + 1] * b[f + 1];
+    q[f + 1] = a[f + 1] * b[f] - a[f] * b[f + 1];
+  }
+  // Correlation surface r(x) = sum_k Q(k) exp(+i 2 pi k x / s), peak at the shift.
+  inverse_.execute();
+
+  const double spacing0 = static_cast<double>(n0_) / s0_;
+  const double spacing1 = static_cast<double>(n1_) / s1_;
+  const SurfaceView view{surface_.data(), s0_, s1_};
+  const SearchRegion region = SearchRegion::around(view, reach0 / spacing0, reach1 / spacing1);
+  const SubpixelPeak peak = findPeak(view, region);
+
+  CorrelationPeak out;
+  out.shift0 = peak.x0 * spacing0;
+  out.shift1 = peak.x1 * spacing1;
+  out.height = peak.value / weight_sum_;
+  out.on_border = peak.on_border;
+  // Confidence: height above the expected maximum of a random-phase surface over the
+  // searched samples (noise_sigma * sqrt(2 ln M)), rescaled so that a perfect peak is 1.
+  const double samples = static_cast<double>(region.count0()) * region.count1();
+  const double floor = noise_sigma_ * std::sqrt(2.0 * std::log(std::max(samples, 2.0)));
+  out.confidence = std::clamp((out.height - floor) / (1.0 - floor), 0.0, 1.0);
+  return out;
+}
+
+}  // namespace omnipose::registration

@@ -1,0 +1,66 @@
+#pragma once
+/// \file phase_correlator.hpp
+/// Phase-only correlation of two real n0 x n1 signals given their r2c half-spectra, with a
+/// Gaussian spectral weight
+///     W(w0, w1) = exp(-(sigma0^2 w0^2 + sigma1^2 w1^2) / 2),   w = 2 pi k / n (rad/sample),
+/// so that the correlation peak of a shifted pair is a (periodic) Gaussian of standard
+/// deviation sigma samples: a 3-point Gaussian fit per axis is then unbiased, and the weak,
+/// noisy high frequencies count less. Bins where W < ~1% are dropped (the "band"), so the
+/// correlation surface is only s0 x s1 (s = n when nothing is dropped), sampled every n/s
+/// input samples.
+///
+/// Sign: correlate(ref, cur) peaks at d where content at x in `cur` appears at x + d in
+/// `ref` (the same as cv::phaseCorrelate(cur, ref)).
+
+#include <cstddef>
+
+#include "registration/fft_plan.hpp"
+
+namespace omnipose::registration {
+
+/// Peak of a correlation surface.
+struct CorrelationPeak {
+  double shift0 = 0.0;     ///< sub-sample shift along axis 0 (rows), input samples
+  double shift1 = 0.0;     ///< sub-sample shift along axis 1 (columns), input samples
+  double height = 0.0;     ///< fitted peak height / ideal peak height (1 = identical signals)
+  double confidence = 0.0; ///< height above the noise floor, mapped to [0, 1]
+  bool on_border = false;  ///< the integer peak lies on the border of the searched region
+};
+
+class PhaseCorrelator {
+ public:
+  /// n0 x n1: size of the real signals (even); sigma0, sigma1: peak width, input samples.
+  PhaseCorrelator(int n0, int n1, double sigma0, double sigma1);
+
+  /// Number of complex bins a whitened band occupies (s0 * (s1/2 + 1)).
+  std::size_t bandSize() const { return band_.size(); }
+  int surfaceRows() const { return s0_; }
+  int surfaceCols() const { return s1_; }
+
+  /// band = sqrt(W) * F / |F| on the band bins of `spectrum` (n0 x (n1/2+1), from r2c).
+  /// `mean_power`: mean of |F|^2 over all n0 x n1 bins (= the signal's energy, by
+  /// Parseval); |F| is floored at 1e-4 sqrt(mean_power) so near-empty bins are not
+  /// amplified. Allocation-free.
+  void whiten(const Complex* spectrum, double mean_power, Complex* band) const;
+
+  /// Correlation peak of two whitened bands. The integer peak is searched within
+  /// |shift0| <= reach0 and |shift1| <= reach1 (input samples; a reach beyond n/2 searches
+  /// everything, with wrap-around), then refined by a 3-point Gaussian fit per axis
+  /// (parabolic where a value is not positive). Allocation-free.
+  CorrelationPeak correlate(const Complex* ref, const Complex* cur, double reach0, double reach1);
+
+ private:
+  int n0_, n1_, s0_, s1_;
+  int band_cols_;             ///< s1/2 + 1
+  FftwArray<float> sqrt_w2_;  ///< sqrt(W) twice per band bin (re, im lanes); 0 on the band's Nyquist row/column
+  double weight_sum_ = 0.0;   ///< sum of W over the full (Hermitian) band = ideal peak height
+  double noise_sigma_ = 0.0;  ///< std of the surface for random phases / weight_sum_
+  FftwArray<Complex> band_;   ///< cross-power spectrum, c2r input (destroyed by it)
+  FftwArray<float> surface_;  ///< s0 x s1 correlation surface
+  FftPlan inverse_;
+};
+
+/// Smallest even size >= n whose only prime factors are 2, 3, 5, 7 (fast for FFTW).
+int fastFftSize(int n);
+
+}  // namespace omnipose::registration

@@ -1,0 +1,503 @@
+#include "omnipose/window_registration.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+#include <limits>
+#include <numbers>
+#include <stdexcept>
+#include <utility>
+#include <vector>
+
+#include "registration/fft_plan.hpp"
+#include "registration/log_polar.hpp"
+#include "registration/phase_correlator.hpp"
+#include "registration/simd.hpp"
+
+// Per window (DESIGN.md section 4; Buelow & Birk, iFMI):
+//   1. cut the L x L window (wrapping around u), remove its taper-weighted mean, apply a
+//      separable Hann taper, zero-pad to n x n, r2c FFT -> F_c;
+//   2. log-polar resample H |F_c| (high-pass H), r2c FFT -> L_c; phase-correlate with the
+//      reference's L_p inside the rotation/scale prior -> (phi, s);
+//   3. when (phi, s) moves the window corners noticeably, resample the current window from
+//      the panorama de-rotated and de-scaled about its centre, taper, FFT -> F_d (else F_c);
+//   4. phase-correlate F_d with the reference's F_p -> (du, dv), confidence.
+// F_c and L_c are whitened once and kept as the next frame's reference.
+//
+// Rotation/scale sign. With x_p = s R x_c, R = [[cos phi, sin phi], [-sin phi, cos phi]]
+// (u right, v down), P(x) = C(R^T x / s), so F_P(k) = s^2 F_C(s R^T k). R^T rotates the
+// frequency angle alpha = atan2(k_v, k_u) by +phi, hence
+//   |F_P|(ln rho, alpha) = s^2 |F_C|(ln rho + ln s, alpha + phi):
+// content at (ln rho, alpha) in the current log-polar image appears at
+// (ln rho - ln s, alpha - phi) in the reference one, and the correlation peaks at
+// (-phi, -ln s) (rows = alpha, columns = ln rho).
+
+namespace omnipose {
+namespace reg = registration;
+
+namespace {
+
+/// Internal tuning of the iFMI stages, chosen on real texture (tests/registration).
+struct Tuning {
+  /// Width (std) of the translation correlation peak, pixels. The Gaussian spectral weight
+  /// keeps frequencies up to ~3 / sigma rad/px and sets the correlation surface size.
+  double translation_sigma_px = 1.0;
+  /// Log-polar grid: angles over [0, pi) and log-spaced radii.
+  int log_polar_angles = 96;
+  int log_polar_radii = 64;
+  /// Radii of the log-polar ring, fractions of the FFT's Nyquist radius n/2.
+  double log_polar_r_min = 0.06;
+  double log_polar_r_max = 0.9;
+  /// Width (std) of the log-polar correlation peak, log-polar samples.
+  double log_polar_sigma = 1.0;
+  /// Translation stage: de-rotate/de-scale the current window only when the measured
+  /// rotation/scale moves the window corners by more than this, pixels.
+  double derotate_min_px = 0.1;
+};
+
+constexpr Tuning kTuning{};
+
+/// A window is textureless when its taper-weighted standard deviation is at most this
+/// fraction of its mean brightness plus kTextureFloorAbs (grey levels): only rounding noise
+/// is left, and its phase carries no information.
+constexpr double kTextureFloorRel = 1e-4;
+constexpr double kTextureFloorAbs = 1e-6;
+
+/// Hann taper h(j) = 0.5 - 0.5 cos(2 pi (j + 0.5) / L): positive, symmetric about the window
+/// centre (L - 1) / 2.
+std::vector<float> hannTaper(int length) {
+  std::vector<float> taper(length);
+  for (int j = 0; j < length; ++j)
+    taper[j] = static_cast<float>(0.5 - 0.5 * std::cos(2.0 * std::numbers::pi * (j + 0.5) / length));
+  return taper;
+}
+
+/// sum_j a[j] b[j] (four lanes, so no serial chain of additions).
+float dot(const float* a, const float* b, int count) {
+  reg::simd::F4 acc = reg::simd::broadcast(0.0f);
+  int j = 0;
+  for (; j + 4 <= count; j += 4) acc += reg::simd::load(a + j) * reg::simd::load(b + j);
+  float tail = 0.0f;
+  for (; j < count; ++j) tail += a[j] * b[j];
+  return reg::simd::sum(acc) + tail;
+}
+
+/// row[j] = h * taper[j] * (row[j] - mean) for j < count; returns sum_j row[j]^2.
+float taperRow(float* row, const float* taper, float h, float mean, int count) {
+  namespace simd = reg::simd;
+  const simd::F4 h4 = simd::broadcast(h), m4 = simd::broadcast(mean);
+  simd::F4 energy = simd::broadcast(0.0f);
+  int j = 0;
+  for (; j + 4 <= count; j += 4) {
+    const simd::F4 x = h4 * simd::load(taper + j) * (simd::load(row + j) - m4);
+    simd::store(row + j, x);
+    energy += x * x;
+  }
+  float tail = 0.0f;
+  for (; j < count; ++j) {
+    row[j] = h * taper[j] * (row[j] - mean);
+    tail += row[j] * row[j];
+  }
+  return simd::sum(energy) + tail;
+}
+
+/// One row of an affine resampling with bilinear interpolation: out[j] = image(u0 + j du,
+/// v0 + j dv), with u >= 0 and v clamped to [0, max_v] (both neighbours inside the image).
+/// Columns wrap modulo `width` (the panorama is periodic in u).
+void sampleRowWrapped(const float* image, std::size_t stride, int width, float u0, float du,
+                      float v0, float dv, float max_v, float* out, int count) {
+  for (int j = 0; j < count; ++j) {
+    const float u = u0 + static_cast<float>(j) * du;
+    const float v = std::min(std::max(v0 + static_cast<float>(j) * dv, 0.0f), max_v);
+    const int iu = static_cast<int>(u), iv = static_cast<int>(v);
+    const float fu = u - static_cast<float>(iu), fv = v - static_cast<float>(iv);
+    int c0 = iu;
+    while (c0 >= width) c0 -= width;  // u < 2 W except for panoramas barely wider than L
+    const int c1 = c0 + 1 == width ? 0 : c0 + 1;
+    const float* r0 = image + static_cast<std::size_t>(iv) * stride;
+    const float* r1 = r0 + stride;
+    const float a = r0[c0] + fu * (r0[c1] - r0[c0]);
+    const float b = r1[c0] + fu * (r1[c1] - r1[c0]);
+    out[j] = a + fv * (b - a);
+  }
+}
+
+/// As sampleRowWrapped() for a row whose columns stay inside the image (no wrap), four
+/// pixels at a time.
+void sampleRow(const float* image, std::size_t stride, float u0, float du, float v0, float dv,
+               float max_v, float* out, int count) {
+  namespace simd = reg::simd;
+  const simd::F4 lane{0.0f, 1.0f, 2.0f, 3.0f};
+  const simd::F4 zero = simd::broadcast(0.0f), top = simd::broadcast(max_v);
+  int j = 0;
+  for (; j + 4 <= count; j += 4) {
+    const simd::F4 x = simd::broadcast(static_cast<float>(j)) + lane;
+    const simd::F4 u = simd::broadcast(u0) + x * du;
+    const simd::F4 v = simd::min(simd::max(simd::broadcast(v0) + x * dv, zero), top);
+    const simd::I4 iu = __builtin_convertvector(u, simd::I4);  // truncation = floor (>= 0)
+    const simd::I4 iv = __builtin_convertvector(v, simd::I4);
+    const simd::F4 fu = u - __builtin_convertvector(iu, simd::F4);
+    const simd::F4 fv = v - __builtin_convertvector(iv, simd::F4);
+    // Gather the 2 x 2 neighbourhoods (built from registers, not lane by lane in memory).
+    const float* p0 = image + static_cast<std::size_t>(iv[0]) * stride + iu[0];
+    const float* p1 = image + static_cast<std::size_t>(iv[1]) * stride + iu[1];
+    const float* p2 = image + static_cast<std::size_t>(iv[2]) * stride + iu[2];
+    const float* p3 = image + static_cast<std::size_t>(iv[3]) * stride + iu[3];
+    const simd::F4 p00{p0[0], p1[0], p2[0], p3[0]};
+    const simd::F4 p01{p0[1], p1[1], p2[1], p3[1]};
+    const simd::F4 p10{p0[stride], p1[stride], p2[stride], p3[stride]};
+    const simd::F4 p11{p0[stride + 1], p1[stride + 1], p2[stride + 1], p3[stride + 1]};
+    const simd::F4 a = p00 + fu * (p01 - p00);
+    const simd::F4 b = p10 + fu * (p11 - p10);
+    simd::store(out + j, a + fv * (b - a));
+  }
+  if (j < count) {  // the last count % 4 pixels; a width no column reaches means "no wrap"
+    constexpr int kNoWrap = std::numeric_limits<int>::max() / 2;
+    sampleRowWrapped(image, stride, kNoWrap, u0 + static_cast<float>(j) * du, du,
+                     v0 + static_cast<float>(j) * dv, dv, max_v, out + j, count - j);
+  }
+}
+
+}  // namespace
+
+std::string WindowRegistration::Options::validate() const {
+  if (panorama_width < 16) return "panorama_width must be >= 16";
+  if (panorama_height < 16) return "panorama_height must be >= 16";
+  if (window < 16) return "window must be >= 16";
+  if (window > panorama_height) return "window must be <= panorama_height";
+  if (window > panorama_width) return "window must be <= panorama_width";
+  if (step < 1) return "step must be >= 1";
+  if (!(max_rotation_rad > 0.0 && max_rotation_rad < std::numbers::pi / 4))
+    return "max_rotation_rad must be in (0, pi/4)";
+  if (!(max_log_scale > 0.0 && max_log_scale <= 0.5)) return "max_log_scale must be in (0, 0.5]";
+  if (!(min_confidence >= 0.0 && min_confidence <= 1.0))
+    return "min_confidence must be in [0, 1]";
+  return {};
+}
+
+/// Whitened spectra of every window of one frame: what the next frame is registered against.
+struct WindowSpectra {
+  reg::FftwArray<reg::Complex> translation;  ///< translation bands, window after window
+  reg::FftwArray<reg::Complex> log_polar;    ///< log-polar bands, window after window
+  std::vector<unsigned char> textured;       ///< per window: has usable texture
+
+  WindowSpectra(int windows, std::size_t translation_band, std::size_t log_polar_band)
+      : translation(windows * translation_band),
+        log_polar(windows * log_polar_band),
+        textured(windows, 0) {}
+};
+
+/// Result of preparing one window for the FFT.
+struct TaperedWindow {
+  bool textured = false;
+  double energy = 0.0;  ///< sum of the squared tapered samples
+};
+
+struct WindowRegistration::Impl {
+  explicit Impl(const Options& o);
+
+  Options options;
+  int windows;    ///< windowCount()
+  int top;        ///< first panorama row of every window
+  int fft_size;   ///< n >= L: windows are zero-padded to n x n
+  double half;    ///< (L - 1) / 2: window centre offset from its first row/column
+
+  std::vector<float> taper;  ///< Hann, length L
+  double taper_weight;       ///< sum over the window of h_i h_j
+  double taper_weight2;      ///< sum over the window of (h_i h_j)^2
+
+  // Window stage: tapered window (n x n, zero padding) -> half spectrum.
+  reg::FftwArray<float> window;
+  reg::FftwArray<reg::Complex> spectrum;
+  reg::FftPlan window_fft;
+  reg::PhaseCorrelator translation;
+
+  // Log-polar stage: H |F| -> log-polar image -> half spectrum.
+  reg::LogPolarMap log_polar_map;
+  reg::FftwArray<float> log_polar;
+  reg::FftwArray<reg::Complex> log_polar_spectrum;
+  reg::FftPlan log_polar_fft;
+  reg::PhaseCorrelator rotation_scale;
+
+  // Reference (previous frame) and candidate next reference; advance() swaps them.
+  std::unique_ptr<WindowSpectra> reference, next;
+  bool has_reference = false;
+  bool next_ready = false;
+  // One window's bands when the current frame is not kept, and the de-rotated band.
+  reg::FftwArray<reg::Complex> scratch_translation, scratch_log_polar, derotated;
+
+  double windowCenter(int k) const;
+  bool acceptsImage(const cv::Mat& panorama) const;
+  TaperedWindow loadWindow(const cv::Mat& panorama, int k);
+  TaperedWindow loadWarpedWindow(const cv::Mat& panorama, int k, double rotation, double scale);
+  TaperedWindow taperWindow();
+  TaperedWindow transformWindow(const cv::Mat& panorama, int k, reg::Complex* log_polar_band);
+  void measureWindow(const cv::Mat& panorama, int k, const TaperedWindow& cur,
+                     const reg::Complex* cur_translation, const reg::Complex* cur_log_polar,
+                     const WindowMotion* known, WindowMotion& out);
+};
+
+WindowRegistration::Impl::Impl(const Options& o)
+    : options(o),
+      windows((o.panorama_width + o.step - 1) / o.step),
+      top((o.panorama_height - o.window) / 2),
+      fft_size(reg::fastFftSize(o.window)),
+      half(0.5 * (o.window - 1)),
+      taper(hannTaper(o.window)),
+      window(static_cast<std::size_t>(fft_size) * fft_size),
+      spectrum(static_cast<std::size_t>(fft_size) * (fft_size / 2 + 1)),
+      window_fft(reg::FftPlan::realToComplex(fft_size, fft_size, window.data(), spectrum.data())),
+      translation(fft_size, fft_size, kTuning.translation_sigma_px, kTuning.translation_sigma_px),
+      log_polar_map(fft_size, kTuning.log_polar_angles, kTuning.log_polar_radii,
+                    kTuning.log_polar_r_min * fft_size / 2,
+                    std::min(kTuning.log_polar_r_max * fft_size / 2, fft_size / 2 - 3.0)),
+      log_polar(static_cast<std::size_t>(kTuning.log_polar_angles) * kTuning.log_polar_radii),
+      log_polar_spectrum(static_cast<std::size_t>(kTuning.log_polar_angles) *
+                         (kTuning.log_polar_radii / 2 + 1)),
+      log_polar_fft(reg::FftPlan::realToComplex(kTuning.log_polar_angles, kTuning.log_polar_radii,
+                                                log_polar.data(), log_polar_spectrum.data())),
+      rotation_scale(kTuning.log_polar_angles, kTuning.log_polar_radii, kTuning.log_polar_sigma,
+                     kTuning.log_polar_sigma),
+      reference(std::make_unique<WindowSpectra>(windows, translation.bandSize(),
+                                                rotation_scale.bandSize())),
+      next(std::make_unique<WindowSpectra>(windows, translation.bandSize(),
+                                           rotation_scale.bandSize())),
+      scratch_translation(translation.bandSize()),
+      scratch_log_polar(rotation_scale.bandSize()),
+      derotated(translation.bandSize()) {
+  // FFTW_MEASURE planning wrote into the arrays; the zero padding must be zero.
+  window.clear();
+  log_polar.clear();
+  double sum = 0.0, sum2 = 0.0;
+  for (float h : taper) {
+    sum += h;
+    sum2 += static_cast<double>(h) * h;
+  }
+  taper_weight = sum * sum;
+  taper_weight2 = sum2 * sum2;
+}
+
+double WindowRegistration::Impl::windowCenter(int k) const {
+  return std::fmod(k * static_cast<double>(options.step) + half, options.panorama_width);
+}
+
+bool WindowRegistration::Impl::acceptsImage(const cv::Mat& panorama) const {
+  return panorama.type() == CV_32FC1 && panorama.cols == options.panorama_width &&
+         panorama.rows == options.panorama_height;
+}
+
+TaperedWindow WindowRegistration::Impl::loadWindow(const cv::Mat& panorama, int k) {
+  // Window k covers columns k*step .. k*step + L - 1, wrapping around u.
+  const int width = options.panorama_width, length = options.window;
+  const int first_col = static_cast<int>((static_cast<long>(k) * options.step) % width);
+  const int head = std::min(length, width - first_col);
+  for (int i = 0; i < length; ++i) {
+    const float* src = panorama.ptr<float>(top + i);
+    float* dst = window.data() + static_cast<std::size_t>(i) * fft_size;
+    std::memcpy(dst, src + first_col, sizeof(float) * head);
+    std::memcpy(dst + head, src, sizeof(float) * (length - head));
+  }
+  return taperWindow();
+}
+
+TaperedWindow WindowRegistration::Impl::loadWarpedWindow(const cv::Mat& panorama, int k,
+                                                         double rotation, double scale) {
+  // D(y) = C(c + (s R)^-1 y), y about the window centre c: content of D at y appears at
+  // y + (du, dv) in the reference window. (s R)^-1 = (1/s) [[cos, -sin], [sin, cos]].
+  const int width = options.panorama_width, length = options.window;
+  const double m00 = std::cos(rotation) / scale, m10 = std::sin(rotation) / scale;
+  const double m01 = -m10, m11 = m00;
+  // Columns are addressed from `base`, a whole column left of every sample, so coordinates
+  // stay small and positive (float keeps ~1e-5 px); rows are clamped (edge replicated).
+  const double centre_u = k * static_cast<double>(options.step) + half;  // may exceed W
+  const double reach = half * (std::abs(m00) + std::abs(m01)) + 1.0;
+  const double base = std::floor(centre_u - reach);
+  const bool wraps = base < 0.0 || centre_u + reach + 1.0 >= width;
+  const double wrapped_base = base - width * std::floor(base / width);  // in [0, W)
+  const float* origin = panorama.ptr<float>(0) + (wraps ? 0 : static_cast<std::ptrdiff_t>(base));
+  const std::size_t stride = panorama.step1();
+  const double u_centre = centre_u - base + (wraps ? wrapped_base : 0.0);
+  const double v_centre = top + half;
+  const float max_v = static_cast<float>(options.panorama_height - 1) - 1e-3f;
+  for (int i = 0; i < length; ++i) {
+    // Row i starts at y = (-half, i - half).
+    const double yv = i - half;
+    const float u0 = static_cast<float>(u_centre - m00 * half + m01 * yv);
+    const float v0 = static_cast<float>(v_centre - m10 * half + m11 * yv);
+    float* dst = window.data() + static_cast<std::size_t>(i) * fft_size;
+    if (wraps)
+      sampleRowWrapped(origin, stride, width, u0, static_cast<float>(m00), v0,
+                       static_cast<float>(m10), max_v, dst, length);
+    else
+      sampleRow(origin, stride, u0, static_cast<float>(m00), v0, static_cast<float>(m10), max_v,
+                dst, length);
+  }
+  return taperWindow();
+}
+
+TaperedWindow WindowRegistration::Impl::taperWindow() {
+  // Taper-weighted mean m = sum_ij h_i h_j x_ij / sum_ij h_i h_j: the tapered window has no DC.
+  const int length = options.window;
+  double weighted = 0.0;
+  for (int i = 0; i < length; ++i)
+    weighted += taper[i] * dot(taper.data(), window.data() + static_cast<std::size_t>(i) * fft_size, length);
+  const double mean = weighted / taper_weight;
+  // x <- h_i h_j (x - m); texture = taper-weighted standard deviation.
+  double energy = 0.0;
+  for (int i = 0; i < length; ++i) {
+    float* row = window.data() + static_cast<std::size_t>(i) * fft_size;
+    energy += taperRow(row, taper.data(), taper[i], static_cast<float>(mean), length);
+  }
+  TaperedWindow out;
+  out.energy = energy;
+  // (false for NaN input: such a window is never used)
+  out.textured = std::sqrt(energy / taper_weight2) > kTextureFloorRel * std::abs(mean) + kTextureFloorAbs;
+  return out;
+}
+
+TaperedWindow WindowRegistration::Impl::transformWindow(const cv::Mat& panorama, int k,
+                                                      reg::Complex* log_polar_band) {
+  // Step 1: F_c of the tapered window (left in `spectrum`).
+  const TaperedWindow w = loadWindow(panorama, k);
+  window_fft.execute();
+  if (options.estimate_rotation_scale && w.textured && log_polar_band != nullptr) {
+    // Step 2 (iFMI): the high-passed |F_c| in log-polar coordinates, then its own spectrum.
+    const double energy = log_polar_map.resample(spectrum.data(), log_polar.data());
+    log_polar_fft.execute();
+    rotation_scale.whiten(log_polar_spectrum.data(), energy, log_polar_band);
+  }
+  return w;
+}
+
+void WindowRegistration::Impl::measureWindow(const cv::Mat& panorama, int k, const TaperedWindow& cur,
+                                             const reg::Complex* cur_translation,
+                                             const reg::Complex* cur_log_polar,
+                                             const WindowMotion* known, WindowMotion& out) {
+  out = WindowMotion{};
+  out.center_u = windowCenter(k);
+  if (!cur.textured || !reference->textured[k]) return;
+
+  // Step 2: rotation and scale, log-polar phase correlation searched only inside the prior
+  // (no 180-degree ambiguity); the peak is at (-phi, -ln s) (see the top of this file).
+  // Known values (the refinement pass) replace the search.
+  double rotation = 0.0, scale = 1.0;
+  if (known != nullptr) {
+    if (known->rs_confidence > 0.0 && known->scale > 0.0) {
+      rotation = known->rotation;
+      scale = known->scale;
+      out.rs_confidence = known->rs_confidence;
+    }
+  } else if (options.estimate_rotation_scale) {
+    const double angle_step = log_polar_map.angleStep();
+    const double log_step = log_polar_map.logRadiusStep();
+    const reg::CorrelationPeak rs = rotation_scale.correlate(
+        reference->log_polar.data() + k * rotation_scale.bandSize(), cur_log_polar,
+        options.max_rotation_rad / angle_step, options.max_log_scale / log_step);
+    if (!rs.on_border && rs.confidence >= options.min_confidence && rs.confidence > 0.0) {
+      rotation = -rs.shift0 * angle_step;
+      scale = std::exp(-rs.shift1 * log_step);
+      out.rs_confidence = rs.confidence;
+    }
+  }
+  out.rotation = rotation;
+  out.scale = scale;
+
+  // Step 3: de-rotate/de-scale the current window (sampled from the panorama, so nothing is
+  // lost at its border) when that moves its corners noticeably; else use F_c.
+  const double corner = std::numbers::sqrt2 * 0.5 * options.window;
+  const reg::Complex* translation_band = cur_translation;
+  if (corner * std::max(std::abs(rotation), std::abs(std::log(scale))) > kTuning.derotate_min_px) {
+    const TaperedWindow w = loadWarpedWindow(panorama, k, rotation, scale);
+    window_fft.execute();
+    translation.whiten(spectrum.data(), w.energy, derotated.data());
+    translation_band = derotated.data();
+  } else if (translation_band == nullptr) {  // F_c not whitened yet (frame not kept)
+    translation.whiten(spectrum.data(), cur.energy, scratch_translation.data());
+    translation_band = scratch_translation.data();
+  }
+
+  // Step 4: translation, phase correlation of the whitened spectra over the whole surface.
+  const double everywhere = std::numeric_limits<double>::infinity();
+  const reg::CorrelationPeak t = translation.correlate(
+      reference->translation.data() + k * translation.bandSize(), translation_band, everywhere,
+      everywhere);
+  if (!std::isfinite(t.shift0) || !std::isfinite(t.shift1) || !std::isfinite(t.confidence)) return;
+  out.du = t.shift1;
+  out.dv = t.shift0;
+  out.confidence = t.confidence;
+  out.valid = t.confidence > 0.0 && t.confidence >= options.min_confidence;
+}
+
+WindowRegistration::WindowRegistration(const Options& options) {
+  if (const std::string bad = options.validate(); !bad.empty())
+    throw std::invalid_argument("WindowRegistration: " + bad);
+  impl_ = std::make_unique<Impl>(options);
+}
+
+WindowRegistration::~WindowRegistration() = default;
+
+const WindowRegistration::Options& WindowRegistration::options() const { return impl_->options; }
+
+int WindowRegistration::windowCount() const { return impl_->windows; }
+
+double WindowRegistration::windowCenter(int k) const { return impl_->windowCenter(k); }
+
+void WindowRegistration::setReference(const cv::Mat& panorama) {
+  Impl& s = *impl_;
+  if (!s.acceptsImage(panorama)) return;
+  WindowSpectra& ref = *s.reference;
+  for (int k = 0; k < s.windows; ++k) {
+    const TaperedWindow w =
+        s.transformWindow(panorama, k, ref.log_polar.data() + k * s.rotation_scale.bandSize());
+    ref.textured[k] = w.textured;
+    if (w.textured)
+      s.translation.whiten(s.spectrum.data(), w.energy, ref.translation.data() + k * s.translation.bandSize());
+  }
+  s.has_reference = true;
+  s.next_ready = false;
+}
+
+bool WindowRegistration::hasReference() const { return impl_->has_reference; }
+
+bool WindowRegistration::measure(const cv::Mat& current, std::span<WindowMotion> out,
+                                 bool keep_as_next,
+                                 std::span<const WindowMotion> known_rotation_scale) {
+  Impl& s = *impl_;
+  const bool known = !known_rotation_scale.empty();
+  if (!s.has_reference || !s.acceptsImage(current) ||
+      out.size() < static_cast<std::size_t>(s.windows) ||
+      (known && known_rotation_scale.size() < static_cast<std::size_t>(s.windows)))
+    return false;
+  WindowSpectra& next = *s.next;
+  for (int k = 0; k < s.windows; ++k) {
+    // Without a search for rotation/scale the current log-polar spectrum is not needed.
+    reg::Complex* cur_log_polar = keep_as_next
+                                      ? next.log_polar.data() + k * s.rotation_scale.bandSize()
+                                      : (known ? nullptr : s.scratch_log_polar.data());
+    const TaperedWindow w = s.transformWindow(current, k, cur_log_polar);
+    // The un-rotated F_c is whitened here only when it becomes the next reference;
+    // measureWindow() whitens it itself when it needs it.
+    reg::Complex* cur_translation = nullptr;
+    if (keep_as_next) {
+      next.textured[k] = w.textured;
+      if (w.textured) {
+        cur_translation = next.translation.data() + k * s.translation.bandSize();
+        s.translation.whiten(s.spectrum.data(), w.energy, cur_translation);
+      }
+    }
+    s.measureWindow(current, k, w, cur_translation, cur_log_polar,
+                    known ? &known_rotation_scale[k] : nullptr, out[k]);
+  }
+  if (keep_as_next) s.next_ready = true;
+  return true;
+}
+
+void WindowRegistration::advance() {
+  Impl& s = *impl_;
+  if (!s.next_ready) return;
+  std::swap(s.reference, s.next);
+  s.next_ready = false;
+  s.has_reference = true;
+}
+
+}  // namespace omnipose

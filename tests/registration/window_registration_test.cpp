@@ -1,0 +1,535 @@
+/// Tests of the sliding-window iFMI registration on real texture (shared/data/equirect).
+///
+/// Accuracy achieved at the paper's setting (W = 1100, H = L = 110, d = 20), every window,
+/// exact generators (test_images.hpp); see each test for the asserted bound:
+///   sub-pixel shift 0..3 px (0.1 steps, u and v):  max error 0.027 px (indoor), 0.017 px (park)
+///   in-window rotation 0..3 deg:                   max error 0.085 deg (park), 0.22 deg (indoor)
+///   in-window scale 0.97..1.03:                    max error 0.20 % (park), 0.52 % (indoor)
+
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <numbers>
+#include <opencv2/core.hpp>
+#include <opencv2/imgproc.hpp>
+#include <stdexcept>
+#include <vector>
+
+#include "omnipose/window_registration.hpp"
+#include "test_images.hpp"
+
+namespace omnipose {
+namespace {
+
+using test::kIndoor;
+using test::kPark;
+
+constexpr double kDeg = std::numbers::pi / 180.0;
+
+WindowRegistration::Options paperOptions() { return {}; }  // W 1100, H = L 110, d 20
+
+/// Equirect photo at panorama width 1100 (cached: decoding the park photo takes a while).
+const cv::Mat& equirect(const char* name) {
+  static cv::Mat indoor = test::loadEquirect(kIndoor, 1100);
+  static cv::Mat park = test::loadEquirect(kPark, 1100);
+  return std::string(name) == kIndoor ? indoor : park;
+}
+
+#define REQUIRE_IMAGE(image, name)                                                      \
+  if ((image).empty()) GTEST_SKIP() << "shared test photo " << (name)                   \
+                                    << " not found (set OMNIPOSE_EQUIRECT_DIR)"
+
+/// The 1100 x 110 panorama band about the horizon of a photo.
+cv::Mat horizonBand(const char* name) {
+  const cv::Mat& eq = equirect(name);
+  return test::rowBand(eq, eq.rows / 2, 110);
+}
+
+/// Runs measure() and returns the motions (asserting success).
+std::vector<WindowMotion> measureAll(WindowRegistration& reg, const cv::Mat& current,
+                                     bool keep_as_next = true) {
+  std::vector<WindowMotion> out(reg.windowCount());
+  EXPECT_TRUE(reg.measure(current, out, keep_as_next));
+  return out;
+}
+
+// ---------------------------------------------------------------------------------------
+// Options, geometry, preconditions
+// ---------------------------------------------------------------------------------------
+
+TEST(WindowRegistrationOptions, DefaultsArePaperSettingAndValid) {
+  const WindowRegistration::Options o;
+  EXPECT_EQ(o.panorama_width, 1100);
+  EXPECT_EQ(o.panorama_height, 110);
+  EXPECT_EQ(o.window, 110);
+  EXPECT_EQ(o.step, 20);
+  EXPECT_EQ(o.validate(), "");
+}
+
+TEST(WindowRegistrationOptions, ValidateNamesTheBadField) {
+  auto check = [](auto mutate, const char* field) {
+    WindowRegistration::Options o;
+    mutate(o);
+    EXPECT_NE(o.validate().find(field), std::string::npos) << o.validate();
+    EXPECT_THROW(WindowRegistration{o}, std::invalid_argument) << field;
+  };
+  check([](auto& o) { o.window = 120; }, "window");
+  check([](auto& o) { o.step = 0; }, "step");
+  check([](auto& o) { o.panorama_width = 0; }, "panorama_width");
+  check([](auto& o) { o.max_rotation_rad = 0.0; }, "max_rotation_rad");
+  check([](auto& o) { o.max_log_scale = -0.1; }, "max_log_scale");
+  check([](auto& o) { o.min_confidence = 1.5; }, "min_confidence");
+}
+
+TEST(WindowRegistration, WindowCentresFollowTheHeaderConvention) {
+  WindowRegistration reg(paperOptions());
+  ASSERT_EQ(reg.windowCount(), 55);
+  EXPECT_DOUBLE_EQ(reg.windowCenter(0), 54.5);
+  EXPECT_DOUBLE_EQ(reg.windowCenter(1), 74.5);
+  EXPECT_DOUBLE_EQ(reg.windowCenter(52), 1094.5);
+  EXPECT_DOUBLE_EQ(reg.windowCenter(53), 14.5);  // 1114.5, wrapped into [0, W)
+  // W not a multiple of the step: ceil(W / step) windows.
+  WindowRegistration::Options o;
+  o.panorama_width = 1110;
+  WindowRegistration odd(o);
+  EXPECT_EQ(odd.windowCount(), 56);
+  EXPECT_DOUBLE_EQ(odd.windowCenter(55), std::fmod(55 * 20 + 54.5, 1110.0));
+}
+
+TEST(WindowRegistration, MeasureRejectsMissingReferenceAndBadInput) {
+  WindowRegistration reg(paperOptions());
+  const cv::Mat good(110, 1100, CV_32FC1, cv::Scalar(1.0f));
+  std::vector<WindowMotion> out(reg.windowCount());
+  out[0].du = 42.0;
+  EXPECT_FALSE(reg.hasReference());
+  EXPECT_FALSE(reg.measure(good, out));
+  reg.setReference(good);
+  EXPECT_TRUE(reg.hasReference());
+  EXPECT_FALSE(reg.measure(cv::Mat(110, 1100, CV_8UC1, cv::Scalar(1)), out));
+  EXPECT_FALSE(reg.measure(cv::Mat(110, 1000, CV_32FC1, cv::Scalar(1.0f)), out));
+  std::vector<WindowMotion> short_out(reg.windowCount() - 1);
+  EXPECT_FALSE(reg.measure(good, short_out));
+  EXPECT_EQ(out[0].du, 42.0) << "a rejected call must not write";
+}
+
+TEST(WindowRegistration, AcceptsRoiViewsOfLargerImages) {
+  const cv::Mat& eq = equirect(kIndoor);
+  REQUIRE_IMAGE(eq, kIndoor);
+  const cv::Mat a = test::fourierShiftedBand(eq, eq.rows / 2, 110, 0.0, 0.0);
+  const cv::Mat b = test::fourierShiftedBand(eq, eq.rows / 2, 110, 0.4, -0.2);
+  cv::Mat big_a(130, 1150, CV_32F, cv::Scalar(0.0f)), big_b = big_a.clone();
+  const cv::Rect roi(17, 9, 1100, 110);
+  a.copyTo(big_a(roi));
+  b.copyTo(big_b(roi));
+  WindowRegistration reg(paperOptions());
+  reg.setReference(a);
+  const auto dense = measureAll(reg, b, false);
+  reg.setReference(big_a(roi));
+  const auto views = measureAll(reg, big_b(roi), false);
+  for (std::size_t k = 0; k < dense.size(); ++k) {
+    EXPECT_DOUBLE_EQ(views[k].du, dense[k].du) << k;
+    EXPECT_DOUBLE_EQ(views[k].dv, dense[k].dv) << k;
+  }
+}
+
+// ---------------------------------------------------------------------------------------
+// (c) Sign conventions, pinned with cv::warpAffine
+// ---------------------------------------------------------------------------------------
+
+TEST(WindowRegistrationSigns, TranslationMatchesPhaseCorrelateOfCurrentThenReference) {
+  const cv::Mat current = horizonBand(kPark);
+  REQUIRE_IMAGE(current, kPark);
+  WindowRegistration reg(paperOptions());
+  for (const auto& [du, dv] : {std::pair{3.0, -2.0}, {2.5, -1.5}, {-1.25, 0.75}}) {
+    // Content at x in the current panorama appears at x + (du, dv) in the reference.
+    const cv::Mat m = (cv::Mat_<double>(2, 3) << 1, 0, du, 0, 1, dv);
+    cv::Mat reference;
+    cv::warpAffine(current, reference, m, current.size(), cv::INTER_CUBIC, cv::BORDER_REFLECT);
+    reg.setReference(reference);
+    const auto out = measureAll(reg, current);
+    for (int k = 5; k < 45; ++k) {  // away from the panorama's (non-periodic) ends
+      ASSERT_TRUE(out[k].valid) << k;
+      EXPECT_NEAR(out[k].du, du, 0.1) << k;
+      EXPECT_NEAR(out[k].dv, dv, 0.1) << k;
+    }
+    if (du != std::round(du)) continue;
+    // Same sign as OpenCV's phaseCorrelate(current window, reference window), compared at
+    // an integer shift (its 5x5 centroid is biased between pixels, by up to ~0.3 px).
+    const cv::Rect roi(400, 0, 110, 110);  // window 20
+    cv::Mat hann;
+    cv::createHanningWindow(hann, roi.size(), CV_32F);
+    const cv::Point2d cv_shift = cv::phaseCorrelate(current(roi), reference(roi), hann);
+    std::printf("[ signs    ] shift (%.1f, %.1f): ours (%.3f, %.3f), cv::phaseCorrelate (%.3f, %.3f)\n",
+                du, dv, out[20].du, out[20].dv, cv_shift.x, cv_shift.y);
+    EXPECT_GT(cv_shift.x * du, 0.0);
+    EXPECT_GT(cv_shift.y * dv, 0.0);
+    EXPECT_NEAR(out[20].du, cv_shift.x, 0.1);
+    EXPECT_NEAR(out[20].dv, cv_shift.y, 0.1);
+  }
+}
+
+TEST(WindowRegistrationSigns, RotationIsCounterClockwiseOnScreenAndScaleIsReferenceOverCurrent) {
+  const cv::Mat current = horizonBand(kPark);
+  REQUIRE_IMAGE(current, kPark);
+  WindowRegistration reg(paperOptions());
+  const int k = 20;
+  const cv::Point2f centre(static_cast<float>(reg.windowCenter(k)), 54.5f);
+  for (const auto& [degrees, scale] : {std::pair{2.0, 1.0}, {-2.0, 1.0}, {0.0, 1.02}, {1.5, 0.98}}) {
+    // getRotationMatrix2D maps current -> reference: x_p = c + s [[cos, sin], [-sin, cos]] (x_c - c),
+    // i.e. the current content appears in the reference rotated counter-clockwise on screen.
+    const cv::Mat m = cv::getRotationMatrix2D(centre, degrees, scale);
+    cv::Mat reference;
+    cv::warpAffine(current, reference, m, current.size(), cv::INTER_CUBIC, cv::BORDER_REFLECT);
+    reg.setReference(reference);
+    const auto out = measureAll(reg, current);
+    ASSERT_TRUE(out[k].valid);
+    EXPECT_GT(out[k].rs_confidence, 0.2);
+    EXPECT_NEAR(out[k].rotation, degrees * kDeg, 0.2 * kDeg) << degrees << " deg, s " << scale;
+    EXPECT_NEAR(out[k].scale, scale, 0.004) << degrees << " deg, s " << scale;
+    EXPECT_NEAR(out[k].du, 0.0, 0.1);  // rotation about the window centre: no shift
+    EXPECT_NEAR(out[k].dv, 0.0, 0.1);
+  }
+}
+
+// ---------------------------------------------------------------------------------------
+// (a) Sub-pixel shifts
+// ---------------------------------------------------------------------------------------
+
+struct ShiftStats {
+  double max_error = 0.0;
+  double sum_sq = 0.0;
+  int count = 0;
+  int invalid = 0;
+  double min_confidence = 1.0;
+};
+
+/// Shifts 0.0 .. 3.0 px in 0.1 steps along one axis (Fourier shift: exact, no
+/// interpolation bias); the error of a window is the larger of its u and v errors.
+ShiftStats shiftSweep(const char* name, bool along_u) {
+  const cv::Mat& eq = equirect(name);
+  const int centre = eq.rows / 2;
+  WindowRegistration reg(paperOptions());
+  reg.setReference(test::fourierShiftedBand(eq, centre, 110, 0.0, 0.0));
+  ShiftStats stats;
+  for (int i = 0; i <= 30; ++i) {
+    const double d = 0.1 * i, du = along_u ? d : 0.0, dv = along_u ? 0.0 : d;
+    // Current = reference moved by -d: its content appears at +d in the reference.
+    const auto out = measureAll(reg, test::fourierShiftedBand(eq, centre, 110, -du, -dv), false);
+    for (const WindowMotion& w : out) {
+      if (!w.valid) {
+        ++stats.invalid;
+        continue;
+      }
+      const double e = std::max(std::abs(w.du - du), std::abs(w.dv - dv));
+      stats.max_error = std::max(stats.max_error, e);
+      stats.sum_sq += e * e;
+      ++stats.count;
+      stats.min_confidence = std::min(stats.min_confidence, w.confidence);
+    }
+  }
+  return stats;
+}
+
+class SubpixelShift : public ::testing::TestWithParam<std::tuple<std::string, bool>> {};
+
+TEST_P(SubpixelShift, EveryWindowWithin0p04Pixel) {
+  const auto& [image, along_u] = GetParam();
+  const char* name = image.c_str();
+  REQUIRE_IMAGE(equirect(name), name);
+  const ShiftStats s = shiftSweep(name, along_u);
+  // Achieved: max 0.027 px (indoor, u), 0.020 (indoor, v), 0.017 (park, u), 0.013 (park, v);
+  // RMS 0.004 - 0.006 px. Target 0.05 px.
+  EXPECT_EQ(s.invalid, 0);
+  EXPECT_LT(s.max_error, 0.04);
+  EXPECT_LT(std::sqrt(s.sum_sq / s.count), 0.01);
+  EXPECT_GT(s.min_confidence, 0.5);
+  RecordProperty("max_error_px", std::to_string(s.max_error));
+  std::printf("[ shift    ] %s along %s: max %.4f px, rms %.4f px, %d windows\n", name,
+              along_u ? "u" : "v", s.max_error, std::sqrt(s.sum_sq / s.count), s.count);
+}
+
+INSTANTIATE_TEST_SUITE_P(RealTexture, SubpixelShift,
+                         ::testing::Combine(::testing::Values(std::string(kIndoor), std::string(kPark)),
+                                            ::testing::Bool()),
+                         [](const auto& info) {
+                           return std::string(std::get<0>(info.param) == kIndoor ? "Indoor" : "Park") +
+                                  (std::get<1>(info.param) ? "AlongU" : "AlongV");
+                         });
+
+// ---------------------------------------------------------------------------------------
+// (b) In-window rotation and scale
+// ---------------------------------------------------------------------------------------
+
+/// Every window of the current panorama made from the reference rotated by `phi` and
+/// scaled by `s` about that window's own centre (4x supersampled warp, box-averaged): the
+/// current content appears in the reference rotated counter-clockwise by phi, scaled by s,
+/// so each window must report (phi, s) and no shift. Windows whose blocks do not overlap
+/// (around the circle) share one current panorama.
+std::vector<WindowMotion> similaritySweep(WindowRegistration& reg, const test::Supersampled& ss,
+                                          double phi, double s) {
+  const int n = reg.windowCount(), length = reg.options().window, step = reg.options().step;
+  const int width = reg.options().panorama_width;
+  auto overlap = [&](int a, int b) {
+    const int d = ((b - a) * step % width + width) % width;
+    return d < length || width - d < length;
+  };
+  std::vector<std::vector<int>> groups;  // greedy: first group without an overlapping block
+  for (int k = 0; k < n; ++k) {
+    auto fits = [&](const std::vector<int>& g) {
+      return std::none_of(g.begin(), g.end(), [&](int m) { return overlap(m, k); });
+    };
+    auto it = std::find_if(groups.begin(), groups.end(), fits);
+    if (it == groups.end()) groups.push_back({k});
+    else it->push_back(k);
+  }
+  const cv::Mat reference = ss.panorama();
+  reg.setReference(reference);
+  std::vector<WindowMotion> all(n);
+  for (const std::vector<int>& group : groups) {
+    cv::Mat current = reference.clone();
+    for (int k : group) {
+      const cv::Point2d centre(k * step + 0.5 * length - 0.5, 0.5 * length - 0.5);  // unwrapped
+      test::pasteWrapped(ss.warpedBlock(k * step, length, centre, phi, s), k * step, current);
+    }
+    const auto out = measureAll(reg, current, false);
+    for (int k : group) all[k] = out[k];
+  }
+  return all;
+}
+
+/// Percentile p in [0, 1] of |values|.
+double percentile(std::vector<double> values, double p) {
+  for (double& v : values) v = std::abs(v);
+  std::sort(values.begin(), values.end());
+  return values[std::min(values.size() - 1, static_cast<std::size_t>(p * values.size()))];
+}
+
+/// Bounds on the errors over every window of both sweeps (rotations 0.5..3 deg at s = 1,
+/// scales 0.97..1.03 at phi = 0); p90 = 90th percentile.
+struct SimilarityBounds {
+  const char* image;
+  double rotation_max_deg, rotation_p90_deg;  ///< |phi_measured - phi|, degrees
+  double scale_max, scale_p90;                ///< |s_measured / s - 1|
+  double shift_max_px;                        ///< |du|, |dv| (true shift 0), pixels
+};
+
+class SimilarityAccuracy : public ::testing::TestWithParam<SimilarityBounds> {};
+
+TEST_P(SimilarityAccuracy, RotationsAndScales) {
+  const SimilarityBounds bounds = GetParam();
+  const test::Supersampled ss = test::loadSupersampled(bounds.image, 1100, 110);
+  REQUIRE_IMAGE(ss.image, bounds.image);
+  WindowRegistration reg(paperOptions());
+  // Errors of every window in both sweeps (the rotation sweep has s = 1, the scale sweep
+  // phi = 0, and both have no shift).
+  std::vector<double> rotation_errors, scale_errors, shifts;
+  auto collect = [&](const std::vector<WindowMotion>& out, double degrees, double s) {
+    for (const WindowMotion& w : out) {
+      ASSERT_TRUE(w.valid);
+      ASSERT_GT(w.rs_confidence, 0.0);
+      rotation_errors.push_back(w.rotation / kDeg - degrees);
+      scale_errors.push_back(w.scale / s - 1.0);
+      shifts.push_back(std::max(std::abs(w.du), std::abs(w.dv)));
+    }
+  };
+  for (double degrees : {0.5, 1.0, 1.5, 2.0, 2.5, 3.0})
+    collect(similaritySweep(reg, ss, degrees * kDeg, 1.0), degrees, 1.0);
+  for (double s : {0.97, 0.98, 0.99, 1.01, 1.02, 1.03}) collect(similaritySweep(reg, ss, 0.0, s), 0.0, s);
+
+  const double rot_max = percentile(rotation_errors, 1.0), rot_p90 = percentile(rotation_errors, 0.9);
+  const double scale_max = percentile(scale_errors, 1.0), scale_p90 = percentile(scale_errors, 0.9);
+  const double shift_max = percentile(shifts, 1.0);
+  std::printf("[ similar  ] %s: rotation max %.3f p90 %.3f deg; scale max %.4f p90 %.4f; shift max %.3f px\n",
+              bounds.image, rot_max, rot_p90, scale_max, scale_p90, shift_max);
+  EXPECT_LT(rot_max, bounds.rotation_max_deg);
+  EXPECT_LT(rot_p90, bounds.rotation_p90_deg);
+  EXPECT_LT(scale_max, bounds.scale_max);
+  EXPECT_LT(scale_p90, bounds.scale_p90);
+  EXPECT_LT(shift_max, bounds.shift_max_px);
+}
+
+void PrintTo(const SimilarityBounds& b, std::ostream* os) { *os << b.image; }
+
+// Achieved (every one of 55 windows x 6 cases per sweep):
+//   park:   rotation max 0.085 deg, p90 0.045; scale max 0.20 %, p90 0.12 %; shift max 0.04 px.
+//           Meets the targets (0.1 deg, 0.3 %) on every window.
+//   indoor: rotation max 0.22 deg, p90 0.068; scale max 0.52 %, p90 0.20 %; shift max 0.15 px.
+//           A 1024 px photo upsampled 4.3x (little fine texture, blank walls): the targets
+//           hold for 90 % of the windows, not for the worst ones.
+INSTANTIATE_TEST_SUITE_P(RealTexture, SimilarityAccuracy,
+                         ::testing::Values(SimilarityBounds{kPark, 0.1, 0.07, 0.003, 0.002, 0.06},
+                                           SimilarityBounds{kIndoor, 0.3, 0.1, 0.007, 0.003, 0.2}),
+                         [](const auto& info) {
+                           return std::string(info.param.image == kIndoor ? "Indoor" : "Park");
+                         });
+
+// ---------------------------------------------------------------------------------------
+// (d) Whole panorama: windows wrap around u
+// ---------------------------------------------------------------------------------------
+
+TEST(WindowRegistrationPanorama, WindowsWrapAroundU) {
+  for (const char* name : {kIndoor, kPark}) {
+    const cv::Mat& eq = equirect(name);
+    REQUIRE_IMAGE(eq, name);
+    WindowRegistration reg(paperOptions());
+    reg.setReference(test::fourierShiftedBand(eq, eq.rows / 2, 110, 0.0, 0.0));
+    // The whole (periodic) panorama circularly shifted by 7.3 px in u.
+    const auto out = measureAll(reg, test::fourierShiftedBand(eq, eq.rows / 2, 110, -7.3, 0.0));
+    for (int k = 0; k < reg.windowCount(); ++k) {
+      const bool crosses_seam = k * 20 + 110 > 1100;
+      ASSERT_TRUE(out[k].valid) << name << " window " << k;
+      EXPECT_NEAR(out[k].du, 7.3, 0.05) << name << " window " << k << (crosses_seam ? " (crosses u = W)" : "");
+      EXPECT_NEAR(out[k].dv, 0.0, 0.05) << name << " window " << k;
+    }
+  }
+}
+
+TEST(WindowRegistrationPanorama, WindowSmallerThanHeightIsVerticallyCentredAndWOddToStep) {
+  const cv::Mat& eq = equirect(kPark);
+  REQUIRE_IMAGE(eq, kPark);
+  WindowRegistration::Options o;
+  o.panorama_height = 128;
+  o.window = 96;  // rows 16 .. 111
+  WindowRegistration reg(o);
+  const cv::Mat reference = test::fourierShiftedBand(eq, eq.rows / 2, 128, 0.0, 0.0);
+  cv::Mat current = test::fourierShiftedBand(eq, eq.rows / 2, 128, -1.5, -0.5);
+  // Rows outside the window band must not matter: replace them with unrelated noise.
+  cv::Mat noise(16, 1100, CV_32F);
+  cv::randu(noise, 0.0, 255.0);
+  noise.copyTo(current.rowRange(0, 16));
+  cv::randu(noise, 0.0, 255.0);
+  noise.copyTo(current.rowRange(112, 128));
+  reg.setReference(reference);
+  const auto out = measureAll(reg, current);
+  for (const WindowMotion& w : out) {
+    ASSERT_TRUE(w.valid);
+    EXPECT_NEAR(w.du, 1.5, 0.05);
+    EXPECT_NEAR(w.dv, 0.5, 0.05);
+  }
+}
+
+TEST(WindowRegistrationPanorama, SmallWindowsWork) {
+  const cv::Mat eq = test::loadEquirect(kPark, 320);
+  REQUIRE_IMAGE(eq, kPark);
+  WindowRegistration::Options o;
+  o.panorama_width = 320;
+  o.panorama_height = 48;
+  o.window = 32;
+  o.step = 16;
+  WindowRegistration reg(o);
+  reg.setReference(test::fourierShiftedBand(eq, eq.rows / 2, 48, 0.0, 0.0));
+  const auto out = measureAll(reg, test::fourierShiftedBand(eq, eq.rows / 2, 48, -1.3, 0.6));
+  int valid = 0;
+  for (const WindowMotion& w : out) {
+    if (!w.valid) continue;
+    ++valid;
+    EXPECT_NEAR(w.du, 1.3, 0.1);
+    EXPECT_NEAR(w.dv, -0.6, 0.1);
+  }
+  EXPECT_GE(valid, reg.windowCount() - 2);
+}
+
+// ---------------------------------------------------------------------------------------
+// (e) Texture and confidence
+// ---------------------------------------------------------------------------------------
+
+TEST(WindowRegistrationConfidence, ConstantPanoramaIsInvalid) {
+  WindowRegistration reg(paperOptions());
+  const cv::Mat flat(110, 1100, CV_32FC1, cv::Scalar(97.0f));
+  reg.setReference(flat);
+  for (const WindowMotion& w : measureAll(reg, flat)) {
+    EXPECT_FALSE(w.valid);
+    EXPECT_EQ(w.confidence, 0.0);
+    EXPECT_EQ(w.rs_confidence, 0.0);
+    EXPECT_EQ(w.du, 0.0);
+  }
+  // A textured reference against a flat current frame: nothing to match either.
+  const cv::Mat textured = horizonBand(kIndoor);
+  REQUIRE_IMAGE(textured, kIndoor);
+  reg.setReference(textured);
+  for (const WindowMotion& w : measureAll(reg, flat)) EXPECT_FALSE(w.valid);
+}
+
+TEST(WindowRegistrationConfidence, FlatRegionsAreInvalidTexturedOnesValid) {
+  cv::Mat pano = horizonBand(kPark);
+  REQUIRE_IMAGE(pano, kPark);
+  pano.colRange(0, 500).setTo(cv::Scalar(120.0f));  // windows 0 .. 19 lie inside
+  WindowRegistration reg(paperOptions());
+  reg.setReference(pano);
+  const auto out = measureAll(reg, pano);
+  for (int k = 0; k + 5 < 25; ++k) EXPECT_FALSE(out[k].valid) << k;
+  for (int k = 25; k < 50; ++k) {
+    EXPECT_TRUE(out[k].valid) << k;
+    EXPECT_GT(out[k].confidence, 0.9) << k;  // identical frames: a perfect peak
+  }
+}
+
+TEST(WindowRegistrationConfidence, UnrelatedTextureHasLowConfidence) {
+  const cv::Mat park = horizonBand(kPark), indoor = horizonBand(kIndoor);
+  REQUIRE_IMAGE(park, kPark);
+  REQUIRE_IMAGE(indoor, kIndoor);
+  WindowRegistration reg(paperOptions());
+  reg.setReference(park);
+  const auto out = measureAll(reg, indoor);
+  int confident = 0;
+  for (const WindowMotion& w : out) confident += w.confidence > 0.1;
+  EXPECT_LE(confident, 2) << "noise peaks should stay near the floor";
+}
+
+// ---------------------------------------------------------------------------------------
+// Reference bookkeeping: advance(), keep_as_next
+// ---------------------------------------------------------------------------------------
+
+void expectSame(const std::vector<WindowMotion>& a, const std::vector<WindowMotion>& b) {
+  ASSERT_EQ(a.size(), b.size());
+  for (std::size_t k = 0; k < a.size(); ++k) {
+    EXPECT_DOUBLE_EQ(a[k].du, b[k].du) << k;
+    EXPECT_DOUBLE_EQ(a[k].dv, b[k].dv) << k;
+    EXPECT_DOUBLE_EQ(a[k].rotation, b[k].rotation) << k;
+    EXPECT_DOUBLE_EQ(a[k].scale, b[k].scale) << k;
+    EXPECT_DOUBLE_EQ(a[k].confidence, b[k].confidence) << k;
+    EXPECT_EQ(a[k].valid, b[k].valid) << k;
+  }
+}
+
+TEST(WindowRegistrationReference, AdvanceEqualsSettingTheMeasuredFrameAsReference) {
+  const cv::Mat& eq = equirect(kPark);
+  REQUIRE_IMAGE(eq, kPark);
+  const int c = eq.rows / 2;
+  const cv::Mat a = test::fourierShiftedBand(eq, c, 110, 0.0, 0.0);
+  const cv::Mat b = test::fourierShiftedBand(eq, c, 110, 0.7, -0.3);
+  const cv::Mat d = test::fourierShiftedBand(eq, c, 110, 1.9, 0.4);
+
+  WindowRegistration chained(paperOptions());
+  chained.setReference(a);
+  measureAll(chained, b, true);
+  measureAll(chained, d, false);  // a re-registration must not replace the candidate (b)
+  chained.advance();
+  const auto via_advance = measureAll(chained, d);
+
+  WindowRegistration fresh(paperOptions());
+  fresh.setReference(b);
+  const auto via_set = measureAll(fresh, d);
+  expectSame(via_advance, via_set);
+  for (const WindowMotion& w : via_set) {
+    // Content at x in d is base content from x - (1.9, 0.4); b holds it at x - (1.2, 0.7).
+    EXPECT_NEAR(w.du, -1.2, 0.05);
+    EXPECT_NEAR(w.dv, -0.7, 0.05);
+  }
+}
+
+TEST(WindowRegistrationReference, AdvanceWithoutMeasureKeepsTheReference) {
+  const cv::Mat& eq = equirect(kIndoor);
+  REQUIRE_IMAGE(eq, kIndoor);
+  const cv::Mat a = test::fourierShiftedBand(eq, eq.rows / 2, 110, 0.0, 0.0);
+  const cv::Mat b = test::fourierShiftedBand(eq, eq.rows / 2, 110, -0.6, 0.0);
+  WindowRegistration reg(paperOptions());
+  reg.setReference(a);
+  const auto before = measureAll(reg, b, false);
+  reg.advance();  // nothing measured with keep_as_next: no-op
+  expectSame(measureAll(reg, b, false), before);
+}
+
+}  // namespace
+}  // namespace omnipose
