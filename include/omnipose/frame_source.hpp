@@ -42,7 +42,9 @@ class FrameSource {
   /// must already be frameSize() and CV_8UC1 (it is never reallocated). Errors:
   /// kTimeout (nothing yet, call again), kBadFrame (this frame was unusable and dropped:
   /// corrupt, wrong size, flagged by the driver; call again), kDisconnected (device gone:
-  /// close() and open() again, with back-off), kEndOfStream (a finite source is done).
+  /// either close() and open() again with back-off, or keep calling next(), which the
+  /// camera sources answer by reopening with their own back-off), kEndOfStream (a finite
+  /// source is done).
   virtual Expected<FrameInfo> next(cv::Mat& out, std::chrono::milliseconds timeout) = 0;
 
   /// Stops streaming and releases the device. Safe to call twice.
