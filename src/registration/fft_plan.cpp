@@ -48,8 +48,10 @@ template class FftwArray<Complex>;
 
 FftPlan FftPlan::realToComplex(int rows, int cols, float* in, Complex* out) {
   std::lock_guard lock(fftwPlannerMutex());
+  // FFTW_NO_BUFFERING: multi-dimensional real transforms of sizes that are not powers of
+  // two otherwise malloc a scratch buffer on every execute (the realtime path must not).
   fftwf_plan plan = fftwf_plan_dft_r2c_2d(rows, cols, in, reinterpret_cast<fftwf_complex*>(out),
-                                          FFTW_MEASURE);
+                                          FFTW_MEASURE | FFTW_NO_BUFFERING);
   if (plan == nullptr) throw std::runtime_error("FFTW could not plan a real-to-complex transform");
   return FftPlan(plan);
 }
@@ -57,7 +59,7 @@ FftPlan FftPlan::realToComplex(int rows, int cols, float* in, Complex* out) {
 FftPlan FftPlan::complexToReal(int rows, int cols, Complex* in, float* out) {
   std::lock_guard lock(fftwPlannerMutex());
   fftwf_plan plan = fftwf_plan_dft_c2r_2d(rows, cols, reinterpret_cast<fftwf_complex*>(in), out,
-                                          FFTW_MEASURE);
+                                          FFTW_MEASURE | FFTW_NO_BUFFERING);
   if (plan == nullptr) throw std::runtime_error("FFTW could not plan a complex-to-real transform");
   return FftPlan(plan);
 }
