@@ -7,13 +7,18 @@
 namespace omnipose {
 namespace {
 
-/// Keys cubic convolution weights (a = -0.5) for the 4 taps at -1, 0, 1, 2 of offset t.
-inline void keysWeights(float t, float w[4]) {
-  const float t2 = t * t, t3 = t2 * t;
-  w[0] = -0.5f * t3 + t2 - 0.5f * t;
-  w[1] = 1.5f * t3 - 2.5f * t2 + 1.0f;
-  w[2] = -1.5f * t3 + 2.0f * t2 + 0.5f * t;
-  w[3] = 0.5f * t3 - 0.5f * t2;
+/// Cubic convolution weights (Keys kernel with a = -0.75, OpenCV's INTER_CUBIC) for the
+/// 4 taps at -1, 0, 1, 2 of offset t in [0, 1). Of the cubic kernels this one has the
+/// most linear phase: a = -0.5 leaves a shift bias of about 0.03 px after resampling,
+/// which phase correlation reads as motion (docs/results/experiments/resample_bias.cpp).
+inline void cubicWeights(float t, float w[4]) {
+  constexpr float a = -0.75f;
+  auto near = [](float x) { return ((a + 2) * x - (a + 3)) * x * x + 1; };        // |x| <= 1
+  auto far = [](float x) { return ((a * x - 5 * a) * x + 8 * a) * x - 4 * a; };  // 1 < |x| < 2
+  w[0] = far(1 + t);
+  w[1] = near(t);
+  w[2] = near(1 - t);
+  w[3] = far(2 - t);
 }
 
 }  // namespace
@@ -58,7 +63,8 @@ void PanoramaWarp::warp(const cv::Mat& current, const Eigen::Matrix3d& R,
   current(cv::Rect(0, 0, kPad, H)).copyTo(padded_(cv::Rect(W + kPad, 0, kPad, H)));
 
   // Bilinear interpolation of the (smooth) displacement; bicubic sampling of the image
-  // (Keys, a = -0.5): bilinear sampling would bias the residual shifts towards whole pixels.
+  // (a = -0.75): the sampler's phase response must be linear, or the residual shifts are
+  // biased by the fractional part of the motion.
   const int PW = padded_.cols;
   for (int v = 0; v < H; ++v) {
     const int gy = v / kGridStep;
@@ -80,8 +86,8 @@ void PanoramaWarp::warp(const cv::Mat& current, const Eigen::Matrix3d& R,
       const int x0 = static_cast<int>(x);
       const int y0 = static_cast<int>(std::floor(y));
       float wx[4], wy[4];
-      keysWeights(x - x0, wx);
-      keysWeights(y - y0, wy);
+      cubicWeights(x - x0, wx);
+      cubicWeights(y - y0, wy);
       float sum = 0.0f;
       for (int j = 0; j < 4; ++j) {
         const int row = std::clamp(y0 - 1 + j, 0, H - 1);  // rows beyond the edge: replicate
