@@ -1,0 +1,105 @@
+#pragma once
+/// \file clock_offset.hpp
+/// Capture clocks to wall clock. Drivers stamp frames on a clock that never jumps
+/// (V4L2: CLOCK_MONOTONIC, libcamera's SensorTimestamp: CLOCK_BOOTTIME); FrameInfo wants
+/// the wall clock (CLOCK_REALTIME) in microseconds. The offset between the two is
+/// measured, not assumed:
+///
+///   one sample   = capture clock (before), wall clock, capture clock (after)
+///   offset       = wall - (before + after) / 2        of the sample with the smallest
+///                                                       after - before (least preempted)
+///   uncertainty  = (after - before) / 2               of that sample
+///   wall_us      = round((capture_ns + offset) / 1000)
+///
+/// Example: samples (1000, 5001100, 1200) and (2000, 5002100, 2200): both span 200 ns,
+/// the first wins, offset = 5001100 - 1100 = 5000000 ns; a frame stamped at capture
+/// 7,000,400 ns is at wall 12,000,400 ns = 12000 us.
+///
+/// Everything here is allocation-free, so a driver may re-measure from its per-frame
+/// path (to follow an NTP step of the wall clock).
+
+#include <array>
+#include <cstdint>
+#include <ctime>
+#include <span>
+#include <sys/time.h>
+
+namespace omnipose::drivers {
+
+/// One bracketed reading, nanoseconds.
+struct ClockSample {
+  std::int64_t before_ns = 0;  ///< capture clock, read first
+  std::int64_t wall_ns = 0;    ///< CLOCK_REALTIME, read second
+  std::int64_t after_ns = 0;   ///< capture clock, read third
+};
+
+/// wall = capture + offset_ns.
+struct ClockOffset {
+  std::int64_t offset_ns = 0;       ///< wall minus capture clock, nanoseconds
+  std::int64_t uncertainty_ns = 0;  ///< half the bracket of the chosen sample, nanoseconds
+  bool valid = false;               ///< false: no usable sample (clock reads failed)
+};
+
+/// The most samples measureClockOffset() takes.
+inline constexpr int kMaxClockSamples = 16;
+
+/// Offset from samples: the one with the smallest (after - before) wins. Samples with
+/// after < before (a broken clock read) are ignored; none left gives valid = false.
+ClockOffset offsetFromSamples(std::span<const ClockSample> samples);
+
+/// Takes `samples` (clamped to [1, kMaxClockSamples]) bracketed readings with
+/// `read(clockid_t) -> std::int64_t` nanoseconds (negative: the read failed) and returns
+/// offsetFromSamples() of them. No allocation.
+template <typename ReadClock>
+ClockOffset measureClockOffset(ReadClock&& read, clockid_t capture_clock, int samples) {
+  std::array<ClockSample, kMaxClockSamples> buffer{};
+  if (samples < 1) samples = 1;
+  if (samples > kMaxClockSamples) samples = kMaxClockSamples;
+  int n = 0;
+  for (int i = 0; i < samples; ++i) {
+    ClockSample s;
+    s.before_ns = read(capture_clock);
+    s.wall_ns = read(CLOCK_REALTIME);
+    s.after_ns = read(capture_clock);
+    if (s.before_ns < 0 || s.wall_ns < 0 || s.after_ns < 0) continue;
+    buffer[static_cast<std::size_t>(n++)] = s;
+  }
+  return offsetFromSamples(std::span<const ClockSample>(buffer.data(), static_cast<std::size_t>(n)));
+}
+
+/// Wall-clock microseconds of a capture-clock time in nanoseconds, rounded to the
+/// nearest microsecond (halves away from minus infinity).
+std::int64_t toWallMicroseconds(std::int64_t capture_ns, const ClockOffset& offset);
+
+/// Nanoseconds of a timespec / timeval (a V4L2 buffer's timestamp is a timeval).
+constexpr std::int64_t toNanoseconds(const timespec& t) {
+  return static_cast<std::int64_t>(t.tv_sec) * 1'000'000'000 + t.tv_nsec;
+}
+constexpr std::int64_t toNanoseconds(const timeval& t) {
+  return static_cast<std::int64_t>(t.tv_sec) * 1'000'000'000 +
+         static_cast<std::int64_t>(t.tv_usec) * 1'000;
+}
+
+/// Exponential back-off for reconnect attempts: next() returns initial, 2 initial,
+/// 4 initial, ... capped at max; reset() starts over. Milliseconds.
+class Backoff {
+ public:
+  Backoff(std::int64_t initial_ms, std::int64_t max_ms)
+      : initial_ms_(initial_ms < 1 ? 1 : initial_ms),
+        max_ms_(max_ms < initial_ms_ ? initial_ms_ : max_ms),
+        current_ms_(initial_ms_) {}
+  /// The delay before the next attempt, then doubles the one after it.
+  std::int64_t next() {
+    const std::int64_t d = current_ms_;
+    current_ms_ = current_ms_ > max_ms_ / 2 ? max_ms_ : current_ms_ * 2;
+    return d;
+  }
+  void reset() { current_ms_ = initial_ms_; }
+
+ private:
+  std::int64_t initial_ms_;
+  std::int64_t max_ms_;
+  std::int64_t current_ms_;
+};
+
+}  // namespace omnipose::drivers

@@ -1,0 +1,91 @@
+#pragma once
+/// \file libcamera_source.hpp
+/// A FrameSource on a libcamera camera (Raspberry Pi camera modules, UVC cameras through
+/// libcamera's uvcvideo pipeline), written for Debian 12's libcamera 0.0.3 and guarded for
+/// later versions (libcamera_compat.hpp). No libcamera header leaks through this one.
+///
+/// open(): the process-wide CameraManager (libcamera allows one) -> the camera by index or
+/// id -> acquire -> one VideoRecording stream in a grey-convertible format (chooseFormat():
+/// the configured one when offered, else the best offered) at the configured size, read
+/// back after validate() -> configure -> FrameBufferAllocator -> one Request per buffer,
+/// every buffer's planes mmap-ed once -> start with FrameDurationLimits = 1 / fps ->
+/// queue every request.
+///
+/// next(): the completion callback (libcamera's thread) only hands the finished request
+/// to the capture thread through a fixed-capacity queue; next() takes the newest, requeues
+/// the older ones (stale), converts (luma plane copy / packed luma / JPEG decode) into the
+/// caller's buffer and requeues. Timestamps: controls::SensorTimestamp (ns, CLOCK_BOOTTIME;
+/// the buffer's timestamp when absent) + a measured CLOCK_BOOTTIME -> CLOCK_REALTIME offset.
+/// Our per-frame code allocates nothing for luma/packed formats; libcamera itself allocates
+/// inside Request::reuse()/queueRequest().
+///
+/// Unplug: the camera's `disconnected` signal makes next() return kDisconnected; the
+/// following next() calls reopen with exponential back-off (or the caller closes/opens).
+///
+/// Threading: one capture thread calls open/next/close; the callbacks run on libcamera's
+/// thread and only touch the hand-over queue.
+
+#include <chrono>
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "omnipose/config.hpp"
+#include "omnipose/frame_source.hpp"
+
+namespace omnipose {
+
+struct LibcameraSourceOptions {
+  int buffer_count = 4;                              ///< requests / buffers in flight
+  std::chrono::milliseconds reconnect_initial{200};  ///< first reopen delay after unplug
+  std::chrono::milliseconds reconnect_max{5000};     ///< back-off cap
+  std::chrono::milliseconds clock_resync{10000};     ///< re-measure the clock offset
+  bool drop_stale = true;  ///< when every request had completed, wait for a fresh frame
+
+  /// One message per bad field (empty = valid).
+  std::vector<std::string> validate() const;
+};
+
+class LibcameraSource final : public FrameSource {
+ public:
+  using Options = LibcameraSourceOptions;
+
+  struct Stats {
+    std::uint64_t delivered = 0;
+    std::uint64_t stale_dropped = 0;   ///< completed frames requeued without delivery
+    std::uint64_t error_frames = 0;    ///< FrameMetadata status error / cancelled
+    std::uint64_t bad_frames = 0;      ///< too short or undecodable
+    std::uint64_t lost_upstream = 0;   ///< gaps in the buffers' sequence numbers
+    std::uint64_t disconnects = 0;
+    std::uint64_t reconnects = 0;
+    std::uint64_t reopen_failures = 0;
+  };
+
+  explicit LibcameraSource(SourceConfig config, Options options = {});
+  ~LibcameraSource() override;
+  LibcameraSource(const LibcameraSource&) = delete;
+  LibcameraSource& operator=(const LibcameraSource&) = delete;
+
+  /// Checks the libcamera fields of a configuration; one message per problem.
+  static std::vector<std::string> validate(const SourceConfig& config);
+  /// The libcamera version this was built against ("0.0.3").
+  static std::string libcameraVersion();
+
+  /// Errors: kInvalidArgument (configuration), kNoDevice ("no camera" / index out of
+  /// range), kNotFound (unknown id), kBusy (acquired elsewhere), kUnsupportedFormat,
+  /// kIoError (allocation, mapping, start).
+  Expected<void> open() override;
+  cv::Size frameSize() const override;
+  Expected<FrameInfo> next(cv::Mat& out, std::chrono::milliseconds timeout) override;
+  void close() override;
+  std::string describe() const override;
+
+  const Stats& stats() const;
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace omnipose

@@ -1,0 +1,194 @@
+#pragma once
+/// \file v4l2_source.hpp
+/// A FrameSource on a V4L2 capture device (a UVC webcam under a Kogeto Dot, ...), with
+/// memory-mapped streaming. Formats: GREY (copied), YUYV (its luma taken), MJPG (decoded);
+/// the first two are allocation-free per frame, MJPG decoding allocates inside libjpeg and
+/// OpenCV.
+///
+/// Protocol (all through a V4l2Io, so a fake device can stand in for the kernel):
+///   open(O_RDWR | O_NONBLOCK) -> QUERYCAP (device_caps: VIDEO_CAPTURE + STREAMING)
+///   -> ENUM_FMT (is the format offered?) -> S_FMT (the driver's adjusted size is read back
+///   and used) -> G_PARM / S_PARM (frame interval, read back) -> REQBUFS (MMAP) ->
+///   QUERYBUF + mmap per buffer (mapped once) -> QBUF all -> STREAMON.
+///   next(): poll(POLLIN, timeout) -> DQBUF until EAGAIN (EINTR retried) -> the newest good
+///   frame is converted, every buffer is queued again.
+///
+/// Freshness: frames left in the queue are stale. next() drains every completed buffer
+/// and delivers the newest; when *every* buffer had completed, the driver had nothing to
+/// capture into and newer frames were lost, so even the newest one is old: all are
+/// requeued and next() waits for a fresh frame (Options::drop_stale).
+///
+/// Timestamps: buffers stamped on CLOCK_MONOTONIC are converted to the wall clock with an
+/// offset measured at stream start (the least-preempted of a few bracketed reads) and
+/// re-measured every Options::clock_resync; other buffers get the wall time of dequeue.
+///
+/// Unplug: ENODEV from any call, or POLLERR/POLLHUP, releases the device and next()
+/// returns kDisconnected; the following next() calls reopen it with exponential back-off
+/// (Options::reconnect_initial .. reconnect_max) and carry on streaming, with the sequence
+/// numbers continuing (the outage shows as a gap estimated from the frame rate). A caller
+/// may as well close() and open() itself.
+///
+/// Threading: one thread drives a source (the capture thread); stats() from that thread.
+
+#include <chrono>
+#include <cstdint>
+#include <optional>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "common/clock_offset.hpp"
+#include "omnipose/config.hpp"
+#include "omnipose/frame_source.hpp"
+#include "v4l2/v4l2_io.hpp"
+
+namespace omnipose {
+
+/// The pixel formats V4l2Source turns into grey.
+enum class V4l2PixelFormat { kGrey, kYuyv, kMjpg };
+
+/// "GREY" (also "GRAY", "Y8"), "YUYV" (also "YUY2"), "MJPG" (also "MJPEG", "JPEG"),
+/// case-insensitive; nullopt otherwise.
+std::optional<V4l2PixelFormat> parseV4l2PixelFormat(std::string_view name);
+/// "GREY" | "YUYV" | "MJPG".
+const char* toString(V4l2PixelFormat format);
+
+/// Tuning of V4l2Source (defaults suit a 30 fps USB camera).
+struct V4l2SourceOptions {
+  int buffer_count = 4;  ///< buffers requested with REQBUFS (the driver may grant more)
+  std::chrono::milliseconds reconnect_initial{100};  ///< first reopen delay after unplug
+  std::chrono::milliseconds reconnect_max{2000};     ///< back-off cap
+  std::chrono::milliseconds clock_resync{10000};     ///< re-measure the clock offset
+  int clock_samples = 7;   ///< bracketed reads per measurement, [1, 16]
+  bool drop_stale = true;  ///< see the file comment ("Freshness")
+
+  /// One message per bad field (empty = valid).
+  std::vector<std::string> validate() const;
+};
+
+class V4l2Source final : public FrameSource {
+ public:
+  using Options = V4l2SourceOptions;
+
+  /// Counters since construction (they survive close()/open() and reconnects).
+  struct Stats {
+    std::uint64_t delivered = 0;        ///< frames returned by next()
+    std::uint64_t stale_dropped = 0;    ///< good frames drained from the queue, not delivered
+    std::uint64_t error_flagged = 0;    ///< buffers flagged V4L2_BUF_FLAG_ERROR, dropped
+    std::uint64_t bad_frames = 0;       ///< too short or undecodable, dropped
+    std::uint64_t lost_upstream = 0;    ///< frames the driver dropped (sequence gaps in DQBUF)
+    std::uint64_t interrupted = 0;      ///< calls retried after EINTR
+    std::uint64_t disconnects = 0;      ///< unplugs / stream failures seen
+    std::uint64_t reconnects = 0;       ///< successful reopens after a disconnect
+    std::uint64_t reopen_failures = 0;  ///< reopen attempts that failed
+  };
+
+  /// What open() agreed with the driver.
+  struct Negotiated {
+    cv::Size size;                  ///< frame size delivered (the driver's, after S_FMT)
+    cv::Size requested;             ///< what the configuration asked for
+    V4l2PixelFormat format = V4l2PixelFormat::kYuyv;
+    std::uint32_t fourcc = 0;       ///< the V4L2 pixel format in use (MJPG may be JPEG)
+    std::uint32_t bytes_per_line = 0;
+    std::uint32_t image_bytes = 0;  ///< sizeimage
+    double fps = 0.0;               ///< from the frame interval; 0 = the driver cannot tell
+    double requested_fps = 0.0;
+    int buffers = 0;                ///< granted by REQBUFS
+    std::string driver;             ///< QUERYCAP driver name
+    std::string card;               ///< QUERYCAP card name
+  };
+
+  /// `io`: borrowed, must outlive the source; nullptr = the real kernel.
+  explicit V4l2Source(SourceConfig config, Options options = {}, V4l2Io* io = nullptr);
+  ~V4l2Source() override;
+  V4l2Source(const V4l2Source&) = delete;
+  V4l2Source& operator=(const V4l2Source&) = delete;
+
+  /// Checks the V4L2 fields of a source configuration (device, size, fps, format); one
+  /// message per problem, each naming the key ("source.format: ...").
+  static std::vector<std::string> validate(const SourceConfig& config);
+
+  /// Opens, negotiates and starts streaming. Errors: kInvalidArgument (configuration),
+  /// kNotFound (no such path), kNoDevice (not a V4L2 capture node / gone), kBusy,
+  /// kUnsupportedFormat (format not offered, replaced by the driver, interlaced),
+  /// kIoError (permissions, a failing ioctl). Messages name the device.
+  Expected<void> open() override;
+  cv::Size frameSize() const override { return negotiated_.size; }
+  /// See FrameSource::next(). Also kInvalidArgument when `out` is not frameSize() CV_8UC1
+  /// or the source is not open.
+  Expected<FrameInfo> next(cv::Mat& out, std::chrono::milliseconds timeout) override;
+  void close() override;
+  std::string describe() const override;
+
+  const Stats& stats() const { return stats_; }
+  const Negotiated& negotiated() const { return negotiated_; }
+  /// The CLOCK_MONOTONIC -> CLOCK_REALTIME offset in use.
+  const drivers::ClockOffset& clockOffset() const { return clock_offset_; }
+  /// True between an unplug and the successful reopen.
+  bool disconnected() const { return state_ == State::kDisconnected; }
+
+ private:
+  enum class State { kClosed, kStreaming, kDisconnected };
+  enum class Step { kDelivered, kRetry, kFailed };
+
+  struct Buffer {
+    void* data = nullptr;
+    std::size_t length = 0;
+    bool queued = false;
+  };
+  struct Dequeued {
+    std::uint32_t index = 0;
+    std::uint32_t sequence = 0;
+    std::uint32_t bytes_used = 0;
+    std::uint32_t flags = 0;
+    std::int64_t timestamp_ns = 0;
+  };
+
+  Expected<void> start();
+  void teardown();
+  Expected<void> negotiateFormat();
+  void negotiateFrameRate();
+  Expected<void> setUpBuffers();
+  Expected<void> recover(std::int64_t deadline_ns);
+  Step drain(cv::Mat& out, FrameInfo& info, Error& error);
+  Expected<void> convert(const Dequeued& d, cv::Mat& out);
+  bool requeue(std::uint32_t index);
+  Error disconnect(const char* what, int err);
+  void resyncClock();
+  int xioctl(unsigned long request, void* arg);
+  std::int64_t nowNs(clockid_t clock);
+  void sleepMs(std::int64_t ms);
+
+  SourceConfig config_;
+  Options options_;
+  V4l2Io* io_;
+  State state_ = State::kClosed;
+  int fd_ = -1;
+  bool streaming_ = false;
+  bool buffers_requested_ = false;
+  std::vector<Buffer> buffers_;
+  std::vector<Dequeued> dequeued_;  // reserved at open: drain() never allocates
+  int queued_count_ = 0;
+  Negotiated negotiated_;
+  std::optional<Negotiated> first_negotiated_;  // what reopen must reproduce
+  std::string describe_;
+  cv::Mat jpeg_scratch_;
+
+  drivers::ClockOffset clock_offset_;
+  std::int64_t last_clock_sync_ns_ = 0;
+
+  drivers::Backoff backoff_;
+  std::int64_t retry_at_ns_ = 0;
+
+  bool have_sequence_ = false;
+  bool after_reconnect_ = false;
+  std::uint32_t last_delivered_kernel_seq_ = 0;
+  std::uint64_t sequence_ = 0;
+  std::int64_t last_capture_us_ = 0;
+  bool have_dequeued_seq_ = false;
+  std::uint32_t last_dequeued_seq_ = 0;
+
+  Stats stats_;
+};
+
+}  // namespace omnipose

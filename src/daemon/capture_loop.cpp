@@ -1,0 +1,117 @@
+#include "daemon/capture_loop.hpp"
+
+#include <algorithm>
+#include <thread>
+
+#include "daemon/wall_clock.hpp"
+
+namespace omnipose::daemon {
+
+CaptureLoop::CaptureLoop(FrameSource& source, FrameMailbox& mailbox, StatusBoard& board,
+                         Options options)
+    : source_(source),
+      mailbox_(mailbox),
+      board_(board),
+      options_(options),
+      frame_size_(source.frameSize()),
+      description_(source.describe()) {}
+
+bool CaptureLoop::sleepUnlessStopped(std::chrono::milliseconds delay) {
+  const auto deadline = SteadyClock::now() + delay;
+  while (!mailbox_.stopRequested()) {
+    const auto now = SteadyClock::now();
+    if (now >= deadline) return false;
+    board_.beatCapture();
+    std::this_thread::sleep_for(std::min<SteadyClock::duration>(deadline - now, options_.poll));
+  }
+  return true;
+}
+
+bool CaptureLoop::reopen() {
+  if (auto opened = source_.open(); !opened) {
+    board_.reportError(opened.error());
+    return false;
+  }
+  if (source_.frameSize() != frame_size_) {
+    board_.reportError("%s: re-opened with %dx%d frames, expected %dx%d", description_.c_str(), source_.frameSize().width,
+                       source_.frameSize().height, frame_size_.width, frame_size_.height);
+    source_.close();
+    return false;
+  }
+  return true;
+}
+
+void CaptureLoop::run() {
+  board_.setSourceState(SourceState::kStreaming);
+  bool open = true;
+  bool have_last = false;
+  std::uint64_t last_sequence = 0;
+  int last_index = -1;
+  auto backoff = options_.reconnect_initial;
+
+  while (!mailbox_.stopRequested()) {
+    board_.beatCapture();
+    if (!open) {
+      // Re-open with exponential back-off.
+      if (sleepUnlessStopped(backoff)) break;
+      if (!reopen()) {
+        backoff = std::min(backoff * 2, options_.reconnect_max);
+        continue;
+      }
+      open = true;
+      backoff = options_.reconnect_initial;
+      board_.setSourceState(SourceState::kStreaming);
+      board_.logInfo("source re-opened: %s", description_.c_str());
+      mailbox_.markGap();
+      continue;
+    }
+    // Lossless replay: read the next frame only when the processor took the last one.
+    if (!mailbox_.waitUntilTaken(options_.poll)) continue;
+
+    Expected<FrameInfo> got = source_.next(mailbox_.writeBuffer(), options_.poll);
+    if (got) {
+      if (have_last && got->sequence > last_sequence + 1)
+        board_.frames_lost_upstream += static_cast<std::int64_t>(got->sequence - last_sequence - 1);
+      if (have_last && got->index >= 0 && got->index <= last_index) mailbox_.markGap();
+      have_last = true;
+      last_sequence = got->sequence;
+      last_index = got->index;
+      ++board_.frames_received;
+      mailbox_.post(*got);
+      continue;
+    }
+    const Error& error = got.error();
+    switch (error.code()) {
+      case ErrorCode::kTimeout:
+        break;
+      case ErrorCode::kBadFrame:
+        ++board_.frames_bad;
+        if (have_last) ++last_sequence;  // the bad frame used a sequence number: not lost
+        board_.reportError(error);
+        mailbox_.markGap();
+        break;
+      case ErrorCode::kEndOfStream:
+        board_.setSourceState(SourceState::kEnded);
+        board_.logInfo("end of stream: %s", error.c_str());
+        source_.close();
+        mailbox_.close();
+        board_.markCaptureFinished();
+        return;
+      default:  // kDisconnected, kIoError, ...: close, re-open with back-off
+        ++board_.source_failures;
+        board_.reportError(error);
+        board_.setSourceState(SourceState::kReconnecting);
+        source_.close();
+        open = false;
+        have_last = false;
+        mailbox_.markGap();
+        break;
+    }
+  }
+  source_.close();
+  board_.setSourceState(SourceState::kStopped);
+  mailbox_.close();
+  board_.markCaptureFinished();
+}
+
+}  // namespace omnipose::daemon

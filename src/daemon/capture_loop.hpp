@@ -1,0 +1,59 @@
+#pragma once
+/// \file capture_loop.hpp
+/// The capture thread's loop: pull frames from the FrameSource into the mailbox's write
+/// slot and post them; turn every source failure into status and a gap, never into a crash.
+///
+///  - kTimeout: nothing yet, call again (the loop wakes at least every `poll`).
+///  - kBadFrame: counted (frames_bad), reported with the source's text (which names the
+///    file or frame), gap marked; streaming goes on.
+///  - kDisconnected or any other error: counted (source_failures), reported, the source is
+///    closed and re-opened with exponential back-off (`reconnect_initial` doubling up to
+///    `reconnect_max`); a re-opened source must deliver the same frame size; gap marked.
+///  - kEndOfStream: the source state becomes ended and the mailbox is closed, so the
+///    processor drains the last frame and the daemon can exit.
+///  - A restart of a file source's index (loop: the recording jumps back) is a gap as well.
+///  - A jump in the source's sequence number (frames the source or driver dropped because
+///    nobody read them in time) is counted (frames_lost_upstream) but is not a gap: like a
+///    stale frame skipped by the mailbox, the next frame is registered directly against the
+///    last processed one, and a motion too large for that makes the fit report lost.
+///
+/// Allocation: none in this loop (the source's own work aside).
+
+#include <chrono>
+#include <string>
+#include <opencv2/core.hpp>
+
+#include "daemon/frame_mailbox.hpp"
+#include "daemon/status_board.hpp"
+#include "omnipose/frame_source.hpp"
+
+namespace omnipose::daemon {
+
+class CaptureLoop {
+ public:
+  struct Options {
+    std::chrono::milliseconds poll{100};               ///< longest wait inside next()
+    std::chrono::milliseconds reconnect_initial{100};  ///< first re-open delay
+    std::chrono::milliseconds reconnect_max{2000};     ///< back-off cap
+  };
+
+  /// All borrowed; `source` must be open already (start-up opens it).
+  CaptureLoop(FrameSource& source, FrameMailbox& mailbox, StatusBoard& board, Options options);
+
+  /// Runs until stop (mailbox.requestStop()) or the end of the stream; closes the source.
+  void run();
+
+ private:
+  /// Waits `delay` unless stop is requested first; true when stop was requested.
+  bool sleepUnlessStopped(std::chrono::milliseconds delay);
+  bool reopen();
+
+  FrameSource& source_;
+  FrameMailbox& mailbox_;
+  StatusBoard& board_;
+  Options options_;
+  cv::Size frame_size_;
+  std::string description_;  ///< source_.describe() at start-up (logging must not allocate)
+};
+
+}  // namespace omnipose::daemon

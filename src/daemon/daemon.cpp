@@ -1,0 +1,135 @@
+#include "daemon/daemon.hpp"
+
+#include <opencv2/core/utility.hpp>
+#include <stdexcept>
+
+#include "daemon/source_factory.hpp"
+
+namespace omnipose::daemon {
+namespace {
+
+cv::Size expectedFrameSize(const Calibration& calibration, InputKind input) {
+  return input == InputKind::kOmni
+             ? cv::Size(calibration.omni.image_width, calibration.omni.image_height)
+             : cv::Size(calibration.panorama.width, calibration.panorama.height);
+}
+
+}  // namespace
+
+Daemon::Daemon(const DaemonConfig& config, std::FILE* log, std::unique_ptr<FrameSource> source,
+               std::unique_ptr<MessageSink> sink, DaemonOptions options)
+    : config_(config), options_(options), log_(log), board_(log) {
+  cv::setNumThreads(1);
+
+  const Calibration calibration = Calibration::load(config_.calibration);
+  const cv::Size frame_size = expectedFrameSize(calibration, config_.pipeline.unwrap.input);
+
+  source_ = source ? std::move(source)
+                   : makeFrameSource(config_.source, {frame_size, config_.calibration});
+  sink_ = sink ? std::move(sink) : makeLcmSink(config_.lcm.url);
+
+  const bool lossless = options_.force_lossless ||
+                        (config_.source.type == SourceConfig::Type::kFile && !config_.source.realtime);
+  mailbox_ = std::make_unique<FrameMailbox>(frame_size, lossless);
+
+  if (auto opened = source_->open(); !opened) {
+    throw std::runtime_error(std::string("source: ") + opened.error().c_str());
+  }
+  if (source_->frameSize() != frame_size) {
+    throw std::runtime_error("source: " + source_->describe() + " delivers " +
+                             std::to_string(source_->frameSize().width) + "x" +
+                             std::to_string(source_->frameSize().height) +
+                             " frames, the calibration (" + config_.calibration.string() +
+                             ", input " +
+                             (config_.pipeline.unwrap.input == InputKind::kOmni ? "omni" : "panorama") +
+                             ") expects " + std::to_string(frame_size.width) + "x" +
+                             std::to_string(frame_size.height));
+  }
+  source_description_ = source_->describe();
+  processor_ = std::make_unique<Processor>(calibration, config_.pipeline, config_.lcm, *sink_,
+                                           board_, *mailbox_, source_description_);
+  capture_ = std::make_unique<CaptureLoop>(*source_, *mailbox_, board_, options_.capture);
+}
+
+Daemon::~Daemon() {
+  requestStop();
+  join();
+}
+
+void Daemon::start() {
+  if (started_) return;
+  started_ = true;
+  capture_thread_ = std::thread([this] { capture_->run(); });
+  process_thread_ = std::thread([this] { processLoop(); });
+}
+
+void Daemon::requestStop() {
+  if (mailbox_) mailbox_->requestStop();
+}
+
+bool Daemon::finished() const {
+  std::lock_guard lock(done_mutex_);
+  return processing_done_;
+}
+
+bool Daemon::waitFinished(std::chrono::milliseconds timeout) {
+  std::unique_lock lock(done_mutex_);
+  return done_cv_.wait_for(lock, timeout, [&] { return processing_done_; });
+}
+
+void Daemon::join() {
+  if (!started_ || joined_) return;
+  joined_ = true;
+  if (process_thread_.joinable()) process_thread_.join();
+  // The processor ends only after the capture thread closed the mailbox or on stop.
+  mailbox_->requestStop();
+  if (capture_thread_.joinable()) capture_thread_.join();
+  processor_->publishStatus(true);
+}
+
+DaemonStats Daemon::stats() const {
+  DaemonStats s;
+  s.frames_received = board_.frames_received.load();
+  s.frames_processed = board_.frames_processed.load();
+  s.frames_skipped = mailbox_->skipped();
+  s.frames_bad = board_.frames_bad.load();
+  s.frames_lost_upstream = board_.frames_lost_upstream.load();
+  s.poses_lost = board_.poses_lost.load();
+  s.source_failures = board_.source_failures.load();
+  s.publish_failures = board_.publish_failures.load();
+  s.segment = board_.segment.load();
+  s.source_state = board_.sourceState();
+  return s;
+}
+
+void Daemon::processLoop() {
+  const auto period = std::chrono::duration_cast<SteadyClock::duration>(
+      std::chrono::duration<double>(1.0 / config_.lcm.status_hz));
+  constexpr auto kMaxWait = std::chrono::milliseconds(200);  // heartbeat cadence
+  auto next_status = SteadyClock::now() + period;
+  MailboxFrame frame;
+  for (;;) {
+    board_.beatProcessor();
+    const auto deadline = std::min(next_status, SteadyClock::now() + kMaxWait);
+    const auto taken = mailbox_->take(deadline, frame);
+    if (taken == FrameMailbox::TakeResult::kFrame) {
+      processor_->handleFrame(frame);
+      mailbox_->release();
+    }
+    const auto now = SteadyClock::now();
+    if (now >= next_status) {
+      processor_->publishStatus(false);
+      next_status += period;
+      if (next_status <= now) next_status = now + period;  // fell behind: no burst
+    }
+    if (taken == FrameMailbox::TakeResult::kClosed) break;
+  }
+  board_.markProcessorFinished();
+  {
+    std::lock_guard lock(done_mutex_);
+    processing_done_ = true;
+  }
+  done_cv_.notify_all();
+}
+
+}  // namespace omnipose::daemon

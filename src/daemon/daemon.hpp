@@ -1,0 +1,103 @@
+#pragma once
+/// \file daemon.hpp
+/// omniposed's core: start-up (calibration, pipeline, frame source, LCM, every buffer),
+/// then two threads: capture (FrameSource -> latest-frame mailbox) and processing
+/// (mailbox -> pipeline -> pose chain -> LCM pose per processed frame, status at
+/// lcm.status_hz). After start() the per-frame path allocates nothing (DESIGN.md section 5).
+///
+/// Life cycle: construct (throws on any start-up problem, with a message naming the file,
+/// key or device) -> start() -> either requestStop() (signal) or the source ends (a finite
+/// file source: finished() becomes true after the last frame's pose) -> join(), which joins
+/// both threads and publishes the final status (status_t.final = true).
+///
+/// Process-wide side effect: the constructor sets OpenCV's thread count to 1 (the daemon
+/// has its own two threads; OpenCV's pool would allocate per parallel call).
+///
+/// Replay policy: a file source with `realtime: false` is replayed losslessly (the capture
+/// thread reads the next frame only when the processor took the last one: "as fast as
+/// possible" is as fast as the pipeline); every other source drops stale frames.
+
+#include <chrono>
+#include <condition_variable>
+#include <cstdio>
+#include <memory>
+#include <mutex>
+#include <string>
+#include <thread>
+
+#include "daemon/capture_loop.hpp"
+#include "daemon/frame_mailbox.hpp"
+#include "daemon/message_sink.hpp"
+#include "daemon/processor.hpp"
+#include "daemon/status_board.hpp"
+#include "omnipose/config.hpp"
+#include "omnipose/frame_source.hpp"
+
+namespace omnipose::daemon {
+
+/// Knobs that are not part of daemon.yaml (tests, tools).
+struct DaemonOptions {
+  CaptureLoop::Options capture;
+  /// Replay lossless even if the source is not a non-realtime file source (tests).
+  bool force_lossless = false;
+};
+
+class Daemon {
+ public:
+  using Options = DaemonOptions;
+
+  /// Start-up. `source`/`sink` replace the configured ones when given (tests); the source
+  /// is opened here. `log` (borrowed) receives start-up, fault and shutdown lines.
+  /// Throws std::runtime_error (or ConfigError/CalibrationError, both runtime_errors)
+  /// on any start-up problem.
+  Daemon(const DaemonConfig& config, std::FILE* log,
+         std::unique_ptr<FrameSource> source = nullptr,
+         std::unique_ptr<MessageSink> sink = nullptr, DaemonOptions options = {});
+  /// Stops and joins if still running.
+  ~Daemon();
+  Daemon(const Daemon&) = delete;
+  Daemon& operator=(const Daemon&) = delete;
+
+  /// Starts the capture and processing threads.
+  void start();
+  /// Asks both threads to stop (thread-safe, returns at once; not async-signal-safe).
+  void requestStop();
+  /// True once the processing thread has finished (end of stream or stop).
+  bool finished() const;
+  /// Waits up to `timeout` for finished().
+  bool waitFinished(std::chrono::milliseconds timeout);
+  /// Joins both threads and publishes the final status (once). Idempotent.
+  void join();
+
+  /// Counters so far (thread-safe, allocation-free).
+  DaemonStats stats() const;
+  /// Whether both threads made progress within `max_silence` (for the systemd watchdog).
+  bool alive(std::chrono::nanoseconds max_silence) const { return board_.alive(max_silence); }
+  /// One line each: the source and the LCM transport.
+  const std::string& sourceDescription() const { return source_description_; }
+  std::string sinkDescription() const { return sink_->describe(); }
+
+ private:
+  void processLoop();
+
+  DaemonConfig config_;
+  Options options_;
+  std::FILE* log_;
+  StatusBoard board_;
+  std::unique_ptr<FrameSource> source_;
+  std::unique_ptr<MessageSink> sink_;
+  std::unique_ptr<FrameMailbox> mailbox_;
+  std::unique_ptr<Processor> processor_;
+  std::unique_ptr<CaptureLoop> capture_;
+  std::string source_description_;
+
+  std::thread capture_thread_;
+  std::thread process_thread_;
+  mutable std::mutex done_mutex_;
+  std::condition_variable done_cv_;
+  bool processing_done_ = false;
+  bool started_ = false;
+  bool joined_ = false;
+};
+
+}  // namespace omnipose::daemon

@@ -1,0 +1,160 @@
+#include "daemon/file_frame_source.hpp"
+
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+#include <thread>
+
+#include "daemon/wall_clock.hpp"
+
+namespace omnipose::daemon {
+namespace fs = std::filesystem;
+
+FileFrameSource::FileFrameSource(Options options) : options_(std::move(options)) {}
+
+Expected<void> FileFrameSource::open() {
+  std::error_code ec;
+  if (!fs::is_directory(options_.directory, ec)) {
+    return fail(ErrorCode::kNotFound, "%s: no such dataset directory",
+                options_.directory.c_str());
+  }
+  try {
+    std::optional<fs::path> override_calibration;
+    if (!options_.calibration.empty()) override_calibration = options_.calibration;
+    dataset_ = Dataset::open(options_.directory, override_calibration);
+  } catch (const std::exception& e) {
+    dataset_.reset();
+    return fail(ErrorCode::kIoError, "%s", e.what());
+  }
+  if (next_index_ > dataset_->frames.size()) next_index_ = dataset_->frames.size();
+  has_origin_ = false;  // pacing restarts from the moment of (re-)opening
+
+  // Fail early when the frames cannot be what the pipeline expects (e.g. omni frames with
+  // `input: panorama`). An undecodable first frame is left to next() (a bad frame).
+  const std::size_t probe = next_index_ < dataset_->frames.size() ? next_index_ : 0;
+  if (Expected<cv::Mat> first = readFrame(dataset_->frames[probe].path);
+      first && first->size() != options_.frame_size) {
+    const cv::Size size = first->size();
+    dataset_.reset();
+    return fail(ErrorCode::kUnsupportedFormat, "%s: frames are %dx%d, expected %dx%d",
+                options_.directory.c_str(), size.width, size.height, options_.frame_size.width,
+                options_.frame_size.height);
+  }
+  return {};
+}
+
+void FileFrameSource::close() {
+  dataset_.reset();
+  has_origin_ = false;
+}
+
+int FileFrameSource::frameCount() const {
+  return dataset_ ? static_cast<int>(dataset_->frames.size()) : 0;
+}
+
+std::string FileFrameSource::describe() const {
+  std::string text = "file " + options_.directory.string();
+  if (dataset_) text += " (" + std::to_string(dataset_->frames.size()) + " frames)";
+  text += options_.realtime ? ", realtime" : ", as fast as processed";
+  if (options_.loop) text += ", loop";
+  return text;
+}
+
+Expected<FrameInfo> FileFrameSource::next(cv::Mat& out, std::chrono::milliseconds timeout) {
+  if (!dataset_) return fail(ErrorCode::kDisconnected, "%s: not open", options_.directory.c_str());
+  const auto& frames = dataset_->frames;
+  if (next_index_ >= frames.size()) {
+    if (!options_.loop) return fail(ErrorCode::kEndOfStream, "%s: end of dataset",
+                                    options_.directory.c_str());
+    // Loop: frame 0 follows the last frame one mean frame interval later.
+    if (has_origin_) {
+      const double span = frames.back().timestamp - frames.front().timestamp;
+      const double period = frames.size() > 1 ? span / static_cast<double>(frames.size() - 1)
+                                              : 1.0 / Dataset::kDefaultFps;
+      origin_wall_us_ += static_cast<std::int64_t>((frames.back().timestamp - origin_stamp_ +
+                                                    period) * 1e6);
+      origin_stamp_ = frames.front().timestamp;
+    }
+    next_index_ = 0;
+  }
+
+  // Pacing: wait for the frame's due time, at most `timeout`.
+  std::int64_t capture_us = 0;
+  if (options_.realtime) {
+    if (!has_origin_) {
+      origin_wall_us_ = wallClockMicros();
+      origin_stamp_ = frames[next_index_].timestamp;
+      has_origin_ = true;
+    }
+    auto dueOf = [&](std::size_t i) {
+      return origin_wall_us_ + static_cast<std::int64_t>((frames[i].timestamp - origin_stamp_) * 1e6);
+    };
+    // Running late (the reader was busy longer than a frame interval): like a camera,
+    // deliver the frame that is current now; the ones missed in between are never read
+    // (the sequence number jumps over them).
+    const std::int64_t now_us = wallClockMicros();
+    while (next_index_ + 1 < frames.size() && dueOf(next_index_ + 1) <= now_us) {
+      ++next_index_;
+      ++sequence_;
+    }
+    const std::int64_t due_us = dueOf(next_index_);
+    const std::int64_t wait_us = due_us - wallClockMicros();
+    if (wait_us > std::chrono::duration_cast<std::chrono::microseconds>(timeout).count()) {
+      std::this_thread::sleep_for(timeout);
+      return fail(ErrorCode::kTimeout, "%s: next frame not due yet", options_.directory.c_str());
+    }
+    if (wait_us > 0) std::this_thread::sleep_for(std::chrono::microseconds(wait_us));
+    capture_us = due_us;
+  }
+
+  const DatasetFrame& frame = frames[next_index_];
+
+  // Read and check the frame. A missing directory is a disconnect (not consumed), a
+  // missing or undecodable file a bad frame (consumed).
+  std::error_code ec;
+  if (!fs::is_directory(frame.path.parent_path(), ec)) {
+    return fail(ErrorCode::kDisconnected, "%s: dataset directory vanished",
+                options_.directory.c_str());
+  }
+  FrameInfo info;
+  info.sequence = sequence_++;
+  info.index = static_cast<int>(next_index_);
+  info.source_timestamp = frame.timestamp;
+  ++next_index_;
+
+  Expected<cv::Mat> image = readFrame(frame.path);
+  if (!image) {
+    if (!fs::is_directory(frame.path.parent_path(), ec)) {  // vanished while reading
+      --next_index_;
+      --sequence_;
+      return fail(ErrorCode::kDisconnected, "%s: dataset directory vanished",
+                  options_.directory.c_str());
+    }
+    return fail(ErrorCode::kBadFrame, "%s", image.error().c_str());
+  }
+  decoded_ = *image;
+  if (decoded_.size() != options_.frame_size) {
+    return fail(ErrorCode::kBadFrame, "%s: %dx%d, expected %dx%d", frame.path.c_str(),
+                decoded_.cols, decoded_.rows, options_.frame_size.width,
+                options_.frame_size.height);
+  }
+  if (out.size() != options_.frame_size || out.type() != CV_8UC1) {
+    return fail(ErrorCode::kInvalidArgument, "output buffer must be %dx%d CV_8UC1",
+                options_.frame_size.width, options_.frame_size.height);
+  }
+  uchar* const target = out.data;
+  switch (decoded_.channels()) {
+    case 1: decoded_.copyTo(out); break;
+    case 3: cv::cvtColor(decoded_, out, cv::COLOR_BGR2GRAY); break;
+    case 4: cv::cvtColor(decoded_, out, cv::COLOR_BGRA2GRAY); break;
+    default:
+      return fail(ErrorCode::kBadFrame, "%s: %d channels, expected 1, 3 or 4",
+                  frame.path.c_str(), decoded_.channels());
+  }
+  if (out.data != target) {  // would break the caller's slot ownership; never expected
+    return fail(ErrorCode::kInvalidArgument, "output buffer was reallocated");
+  }
+  info.capture_time_us = options_.realtime ? capture_us : wallClockMicros();
+  return info;
+}
+
+}  // namespace omnipose::daemon

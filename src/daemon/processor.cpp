@@ -1,0 +1,244 @@
+#include "daemon/processor.hpp"
+
+#include <cmath>
+#include <limits>
+
+#include "omnipose/fit_diagnostics_t.hpp"
+#include "omnipose/motion_model.hpp"
+#include "omnipose/pose_t.hpp"
+#include "omnipose/status_t.hpp"
+
+namespace omnipose::daemon {
+namespace {
+
+/// Longest last_error / source text carried by status_t (longer text is truncated).
+constexpr std::size_t kMaxText = 512;
+
+std::int8_t toLcmStatus(FitStatus status) {
+  switch (status) {
+    case FitStatus::kOk: return pose_t::STATUS_OK;
+    case FitStatus::kDegraded: return pose_t::STATUS_DEGRADED;
+    case FitStatus::kLost: return pose_t::STATUS_LOST;
+  }
+  return pose_t::STATUS_LOST;
+}
+
+double millisSince(SteadyClock::time_point start) {
+  return std::chrono::duration<double, std::milli>(SteadyClock::now() - start).count();
+}
+
+}  // namespace
+
+Processor::Processor(const Calibration& calibration, const PipelineOptions& pipeline,
+                     const LcmConfig& lcm, MessageSink& sink, StatusBoard& board,
+                     const FrameMailbox& mailbox, const std::string& source_description)
+    : pipeline_(calibration, pipeline),
+      lcm_(lcm),
+      sink_(sink),
+      board_(board),
+      mailbox_(mailbox),
+      diagnostics_(!lcm.fit_channel.empty()),
+      kappa_(windowAttenuation(pipeline.registration.window, calibration.panorama.gamma())),
+      pose_(std::make_unique<pose_t>()),
+      status_(std::make_unique<status_t>()),
+      diagnostics_msg_(std::make_unique<fit_diagnostics_t>()),
+      error_text_(kMaxText + 1, '\0'),
+      started_(SteadyClock::now()),
+      last_status_time_(started_) {
+  *pose_ = pose_t{};
+  pose_buffer_.resize(static_cast<std::size_t>(pose_->getEncodedSize()));
+
+  *status_ = status_t{};
+  status_->source = source_description.substr(0, kMaxText);
+  status_->last_error.reserve(kMaxText);
+  status_->last_error.assign(kMaxText, 'x');  // size the buffer for the longest text
+  status_buffer_.resize(static_cast<std::size_t>(status_->getEncodedSize()));
+  status_->last_error.clear();  // keeps its capacity
+
+  // Diagnostics arrays are sized once for the (constant) window count.
+  fit_diagnostics_t& d = *diagnostics_msg_;
+  d = fit_diagnostics_t{};
+  const int windows = static_cast<int>(pipeline_.lastWindows().size());
+  d.num_windows = static_cast<std::int16_t>(windows);
+  for (auto* v : {&d.center_u, &d.du, &d.dv, &d.rotation, &d.scale, &d.confidence,
+                  &d.model_du, &d.model_dv}) {
+    v->assign(static_cast<std::size_t>(windows), 0.0f);
+  }
+  d.valid.assign(static_cast<std::size_t>(windows), 0);
+  d.gamma = calibration.panorama.gamma();
+  d.forward_column = calibration.panorama.forward_column;
+  diagnostics_buffer_.resize(static_cast<std::size_t>(d.getEncodedSize()));
+}
+
+Processor::~Processor() = default;
+
+bool Processor::publish(const std::string& channel, std::vector<std::uint8_t>& buffer,
+                        int size) {
+  if (size < 0 || !sink_.publish(channel, buffer.data(), static_cast<std::size_t>(size))) {
+    ++board_.publish_failures;
+    board_.reportError("cannot %s a message on channel %s", size < 0 ? "encode" : "publish",
+                       channel.c_str());
+    return false;
+  }
+  return true;
+}
+
+void Processor::handleFrame(const MailboxFrame& frame) {
+  const auto t_start = SteadyClock::now();
+  const FrameInfo& info = frame.info;
+
+  // A gap (bad frame, reconnect, lost frames) breaks the link to the previous frame.
+  if (frame.gap_before) {
+    pipeline_.reset();
+    last_sequence_ = -1;
+  }
+
+  Expected<FrameMotion> result = pipeline_.process(*frame.image);
+  if (!result) {
+    ++board_.frames_bad;
+    if (info.index >= 0) {
+      board_.reportError("frame %llu (dataset index %d): %s",
+                         static_cast<unsigned long long>(info.sequence), info.index,
+                         result.error().c_str());
+    } else {
+      board_.reportError("frame %llu: %s", static_cast<unsigned long long>(info.sequence),
+                         result.error().c_str());
+    }
+    pipeline_.reset();  // the next good frame starts a new segment
+    last_sequence_ = -1;
+    return;
+  }
+  const FrameMotion& motion = *result;
+  const MotionEstimate& est = motion.estimate;
+  const double t = static_cast<double>(info.capture_time_us) * 1e-6;
+
+  pose_t& p = *pose_;
+  p.utime = info.capture_time_us;
+  p.sequence = static_cast<std::int64_t>(info.sequence);
+  p.source_index = info.index;
+  p.source_timestamp = info.source_timestamp;
+  p.frames_skipped = static_cast<std::int32_t>(frame.skipped_before);
+  p.windows_total = static_cast<std::int16_t>(pipeline_.lastWindows().size());
+
+  const bool lost = !motion.has_motion || est.status == FitStatus::kLost;
+  if (lost) {
+    // Segment start: no relative motion, infinite uncertainty, pose held.
+    chain_.start(t);
+    p.status = pose_t::STATUS_LOST;
+    p.reference_sequence = -1;
+    for (int i = 0; i < 3; ++i) p.rotation_vector[i] = p.translation_direction[i] = 0.0;
+    p.tau_norm = 0.0;
+    for (int i = 0; i < 36; ++i) {
+      p.covariance[i] = (i % 7 == 0) ? std::numeric_limits<double>::infinity() : 0.0;
+    }
+    p.residual_px = static_cast<float>(est.residual_rms_px);
+    p.windows_used = static_cast<std::int16_t>(motion.has_motion ? est.windows_used : 0);
+    ++board_.poses_lost;
+  } else {
+    chain_.append(t, motion.rotation, est.tau);
+    p.status = toLcmStatus(est.status);
+    p.reference_sequence = last_sequence_;
+    for (int i = 0; i < 3; ++i) {
+      p.rotation_vector[i] = est.omega[i];
+      p.translation_direction[i] = motion.translation_direction[i];
+    }
+    p.tau_norm = motion.tau_norm;
+    for (int r = 0; r < 6; ++r)
+      for (int c = 0; c < 6; ++c) p.covariance[r * 6 + c] = est.covariance(r, c);
+    p.residual_px = static_cast<float>(est.residual_rms_px);
+    p.windows_used = static_cast<std::int16_t>(est.windows_used);
+  }
+  p.segment = chain_.segment();
+  const Eigen::Quaterniond q(chain_.pose().rotation());
+  p.orientation[0] = q.w();
+  p.orientation[1] = q.x();
+  p.orientation[2] = q.y();
+  p.orientation[3] = q.z();
+  for (int i = 0; i < 3; ++i) p.position[i] = chain_.pose().translation()[i];
+  p.processing_time_s = static_cast<float>(motion.timing.total);
+  last_sequence_ = p.sequence;
+
+  const int size = p.encode(pose_buffer_.data(), 0, static_cast<int>(pose_buffer_.size()));
+  publish(lcm_.pose_channel, pose_buffer_, size);
+  board_.segment.store(p.segment);
+  ++board_.frames_processed;
+  latency_ms_.add(static_cast<float>(wallClockMicros() - info.capture_time_us) * 1e-3f);
+
+  if (diagnostics_ && motion.has_motion) {
+    fillDiagnostics(info, motion, p.status);
+    const int n = diagnostics_msg_->encode(diagnostics_buffer_.data(), 0,
+                                           static_cast<int>(diagnostics_buffer_.size()));
+    publish(lcm_.fit_channel, diagnostics_buffer_, n);
+  }
+  processing_ms_.add(static_cast<float>(millisSince(t_start)));
+}
+
+void Processor::fillDiagnostics(const FrameInfo& info, const FrameMotion& motion,
+                                std::int8_t status) {
+  fit_diagnostics_t& d = *diagnostics_msg_;
+  const MotionEstimate& est = motion.estimate;
+  d.utime = info.capture_time_us;
+  d.sequence = static_cast<std::int64_t>(info.sequence);
+  d.status = status;
+  for (int i = 0; i < 3; ++i) {
+    d.omega[i] = est.omega[i];
+    d.tau[i] = est.tau[i];
+  }
+  d.residual_px = static_cast<float>(est.residual_rms_px);
+  const Eigen::Matrix<double, 6, 1> x = est.vector();
+  const auto windows = pipeline_.lastWindows();
+  const std::size_t n = std::min(windows.size(), d.du.size());
+  for (std::size_t k = 0; k < n; ++k) {
+    const WindowMotion& w = windows[k];
+    d.center_u[k] = static_cast<float>(w.center_u);
+    d.du[k] = static_cast<float>(w.du);
+    d.dv[k] = static_cast<float>(w.dv);
+    d.rotation[k] = static_cast<float>(w.rotation);
+    d.scale[k] = static_cast<float>(w.scale);
+    d.confidence[k] = static_cast<float>(w.confidence);
+    d.valid[k] = w.valid ? 1 : 0;
+    // Eq. 3, linear form, at the window's azimuth, converted to pixels.
+    const ModelMotion m = predictMotion(x, (w.center_u - d.forward_column) * d.gamma, kappa_);
+    d.model_du[k] = static_cast<float>(m.du_rad / d.gamma);
+    d.model_dv[k] = static_cast<float>(m.dv_rad / d.gamma);
+  }
+}
+
+void Processor::publishStatus(bool final) {
+  const auto now = SteadyClock::now();
+  status_t& s = *status_;
+  s.utime = wallClockMicros();
+  s.uptime_us = std::chrono::duration_cast<std::chrono::microseconds>(now - started_).count();
+  s.frames_received = board_.frames_received.load();
+  s.frames_processed = board_.frames_processed.load();
+  s.frames_skipped_stale = mailbox_.skipped();
+  s.frames_bad = board_.frames_bad.load();
+  s.frames_lost_upstream = board_.frames_lost_upstream.load();
+  s.poses_lost = board_.poses_lost.load();
+  s.source_failures = board_.source_failures.load();
+  s.segment = board_.segment.load();
+
+  // Rates since the last status; the final status gives the averages of the whole run.
+  const double dt = std::chrono::duration<double>(now - (final ? started_ : last_status_time_)).count();
+  const std::int64_t received = s.frames_received - (final ? 0 : last_status_received_);
+  const std::int64_t processed = s.frames_processed - (final ? 0 : last_status_processed_);
+  s.receive_rate_hz = dt > 0 ? static_cast<float>(static_cast<double>(received) / dt) : 0.0f;
+  s.process_rate_hz = dt > 0 ? static_cast<float>(static_cast<double>(processed) / dt) : 0.0f;
+  last_status_time_ = now;
+  last_status_received_ = s.frames_received;
+  last_status_processed_ = s.frames_processed;
+
+  s.processing_ms_p50 = processing_ms_.percentile(0.50);
+  s.processing_ms_p99 = processing_ms_.percentile(0.99);
+  s.latency_ms_p50 = latency_ms_.percentile(0.50);
+  s.latency_ms_p99 = latency_ms_.percentile(0.99);
+  s.source_state = static_cast<std::int8_t>(board_.sourceState());
+  s.last_error_utime = board_.lastError(error_text_.data(), error_text_.size());
+  s.last_error.assign(error_text_.data());  // within the reserved capacity: no allocation
+  s.final = final ? 1 : 0;
+
+  const int size = s.encode(status_buffer_.data(), 0, static_cast<int>(status_buffer_.size()));
+  publish(lcm_.status_channel, status_buffer_, size);
+}
+
+}  // namespace omnipose::daemon

@@ -1,0 +1,94 @@
+#pragma once
+/// \file processor.hpp
+/// The processing thread's work: for each frame taken from the mailbox, run the pipeline,
+/// chain the pose, encode an omnipose::pose_t (and, when enabled, a fit_diagnostics_t)
+/// into preallocated structs and buffers, and publish them; at the status rate, encode and
+/// publish an omnipose::status_t.
+///
+/// Pose semantics (see lcm_types/pose_t.lcm): a frame after a gap (mailbox gap flag: bad
+/// frame, source reconnect, looped recording), the first frame, and a frame whose fit
+/// is lost start a new chain segment and are published with STATUS_LOST, zero relative
+/// motion and an infinite covariance: motion is never invented across a gap. Stale frames
+/// skipped by the mailbox are not a gap: the next frame is registered directly against the
+/// last processed one (`reference_sequence`), and `frames_skipped` says how many were
+/// dropped in between. A frame the pipeline rejects (all black, wrong size) is counted as
+/// bad, reported, and produces no pose; the next frame starts a new segment.
+///
+/// Realtime: the constructor allocates everything (pipeline, messages sized for the
+/// window count, encode buffers, sample rings); handleFrame() and publishStatus() allocate
+/// nothing in this code (what the sink's transport does is its own business, see
+/// message_sink.hpp) and never throw. One instance, used by one thread at a time.
+
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "daemon/frame_mailbox.hpp"
+#include "daemon/message_sink.hpp"
+#include "daemon/sample_ring.hpp"
+#include "daemon/status_board.hpp"
+#include "daemon/wall_clock.hpp"
+#include "omnipose/config.hpp"
+#include "omnipose/pipeline.hpp"
+#include "omnipose/pose_chain.hpp"
+
+namespace omnipose {
+class pose_t;
+class status_t;
+class fit_diagnostics_t;
+}  // namespace omnipose
+
+namespace omnipose::daemon {
+
+class Processor {
+ public:
+  /// Samples kept for the percentiles in status_t.
+  static constexpr std::size_t kSamples = 256;
+
+  /// Builds the pipeline (throws std::invalid_argument listing bad options) and sizes
+  /// every message. `sink`, `board` and `mailbox` are borrowed and must outlive this.
+  /// `source_description` goes into status_t.source.
+  Processor(const Calibration& calibration, const PipelineOptions& pipeline,
+            const LcmConfig& lcm, MessageSink& sink, StatusBoard& board,
+            const FrameMailbox& mailbox, const std::string& source_description);
+  ~Processor();
+  Processor(const Processor&) = delete;
+  Processor& operator=(const Processor&) = delete;
+
+  /// Processes one frame and publishes its pose (and diagnostics). Allocation-free.
+  void handleFrame(const MailboxFrame& frame);
+  /// Publishes a status message (`final`: the last one before exit). Allocation-free.
+  void publishStatus(bool final);
+
+ private:
+  bool publish(const std::string& channel, std::vector<std::uint8_t>& buffer, int size);
+  void fillDiagnostics(const FrameInfo& info, const FrameMotion& motion, std::int8_t status);
+
+  Pipeline pipeline_;
+  PoseChain chain_;
+  LcmConfig lcm_;
+  MessageSink& sink_;
+  StatusBoard& board_;
+  const FrameMailbox& mailbox_;
+  bool diagnostics_ = false;
+  double kappa_ = 1.0;
+
+  std::unique_ptr<pose_t> pose_;
+  std::unique_ptr<status_t> status_;
+  std::unique_ptr<fit_diagnostics_t> diagnostics_msg_;
+  std::vector<std::uint8_t> pose_buffer_;
+  std::vector<std::uint8_t> status_buffer_;
+  std::vector<std::uint8_t> diagnostics_buffer_;
+  std::vector<char> error_text_;
+
+  std::int64_t last_sequence_ = -1;  ///< last frame processed, -1 = none / after a gap
+  SampleRing<kSamples> processing_ms_;
+  SampleRing<kSamples> latency_ms_;
+  SteadyClock::time_point started_;
+  SteadyClock::time_point last_status_time_;
+  std::int64_t last_status_received_ = 0;
+  std::int64_t last_status_processed_ = 0;
+};
+
+}  // namespace omnipose::daemon

@@ -1,0 +1,425 @@
+// The per-frame path of the daemon allocates nothing after start-up (DESIGN.md section 5).
+//
+// This binary replaces the global allocator hooks: operator new/delete (every variant) and,
+// by symbol interposition, malloc/calloc/realloc/memalign/posix_memalign/aligned_alloc/
+// valloc/pvalloc, so allocations inside C libraries (OpenCV's fastMalloc, FFTW, LCM's C
+// core, glib) are counted as well as C++ ones, in every thread of the process.
+//
+// What runs while counting (all threads of the whole daemon, >= 200 processed frames after
+// warm-up): the capture thread pulling frames from an in-memory source (preloaded omni
+// frames, copied into the mailbox slot: PNG decoding of the file source is NOT part of the
+// measurement) at 100 Hz, i.e. faster than the pipeline, so stale frames are skipped;
+// scripted bad frames and a source disconnect + re-open (the gap paths); the processor
+// (unwrap, iFMI registration, fit, refinement, pose chain, pose/diagnostics/status
+// encoding); status at 20 Hz; fit diagnostics on.
+//
+// Test 1 (file:// LCM log): allocations inside the LCM publish call are attributed to LCM
+// and reported separately; everything else must be 0. Test 2 (udpm://, inside a private
+// network namespace of a forked child): nothing is excluded, the whole process must make
+// 0 allocations, LCM's publish included.
+#include <dlfcn.h>
+#include <execinfo.h>
+#include <gtest/gtest.h>
+#include <net/if.h>
+#include <net/route.h>
+#include <netinet/in.h>
+#include <sched.h>
+#include <sys/ioctl.h>
+#include <sys/socket.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <atomic>
+#include <cstring>
+#include <new>
+
+#include "daemon/daemon.hpp"
+#include "daemon_test_support.hpp"
+
+// ---------------------------------------------------------------------------------------
+// Allocation counting
+// ---------------------------------------------------------------------------------------
+
+extern "C" {
+void* __libc_malloc(std::size_t);
+void __libc_free(void*);
+void* __libc_calloc(std::size_t, std::size_t);
+void* __libc_realloc(void*, std::size_t);
+void* __libc_memalign(std::size_t, std::size_t);
+void* __libc_valloc(std::size_t);
+void* __libc_pvalloc(std::size_t);
+}
+
+namespace {
+
+std::atomic<bool> g_counting{false};
+std::atomic<long> g_own{0};  ///< outside the LCM publish call
+std::atomic<long> g_lcm{0};  ///< inside the LCM publish call
+thread_local bool t_in_lcm = false;
+thread_local bool t_in_hook = false;
+
+// Backtraces of the first few counted allocations (diagnostics when the count is not 0).
+constexpr int kMaxTraces = 8;
+constexpr int kTraceDepth = 24;
+void* g_traces[kMaxTraces][kTraceDepth];
+int g_trace_sizes[kMaxTraces];
+std::atomic<int> g_trace_count{0};
+
+// Counted allocations per immediate caller (return address of malloc/new), lock-free.
+constexpr int kCallerSlots = 256;
+std::atomic<void*> g_callers[kCallerSlots];
+std::atomic<long> g_caller_counts[kCallerSlots];
+
+void recordCaller(void* caller) {
+  const auto h = (reinterpret_cast<std::uintptr_t>(caller) >> 4) % kCallerSlots;
+  for (std::size_t i = 0; i < kCallerSlots; ++i) {
+    auto& slot = g_callers[(h + i) % kCallerSlots];
+    void* expected = nullptr;
+    if (slot.load() == caller || slot.compare_exchange_strong(expected, caller) || expected == caller) {
+      g_caller_counts[(h + i) % kCallerSlots].fetch_add(1);
+      return;
+    }
+  }
+}
+
+inline void countAllocation(void* caller) {
+  if (!g_counting.load(std::memory_order_relaxed) || t_in_hook) return;
+  if (t_in_lcm) {
+    g_lcm.fetch_add(1, std::memory_order_relaxed);
+    return;
+  }
+  g_own.fetch_add(1, std::memory_order_relaxed);
+  recordCaller(caller);
+  const int slot = g_trace_count.fetch_add(1);
+  if (slot < kMaxTraces) {
+    t_in_hook = true;
+    g_trace_sizes[slot] = backtrace(g_traces[slot], kTraceDepth);
+    t_in_hook = false;
+  }
+}
+
+void resetCounters() {
+  g_own = 0;
+  g_lcm = 0;
+  g_trace_count = 0;
+  for (int i = 0; i < kCallerSlots; ++i) {
+    g_callers[i] = nullptr;
+    g_caller_counts[i] = 0;
+  }
+}
+
+/// Counted allocations by the library (and symbol) of the code that called the allocator.
+void printTraces() {
+  std::fprintf(stderr, "--- counted allocations by caller:\n");
+  for (int i = 0; i < kCallerSlots; ++i) {
+    void* caller = g_callers[i].load();
+    if (!caller) continue;
+    Dl_info info{};
+    dladdr(caller, &info);
+    std::fprintf(stderr, "  %8ld  %s (%s)\n", g_caller_counts[i].load(),
+                 info.dli_fname ? info.dli_fname : "?", info.dli_sname ? info.dli_sname : "?");
+  }
+  const int n = std::min(g_trace_count.load(), kMaxTraces);
+  for (int i = 0; i < n; ++i) {
+    std::fprintf(stderr, "--- counted allocation %d:\n", i);
+    backtrace_symbols_fd(g_traces[i], g_trace_sizes[i], 2);
+  }
+}
+
+void* allocateOrThrow(std::size_t size, void* caller) {
+  countAllocation(caller);
+  if (void* p = __libc_malloc(size ? size : 1)) return p;
+  throw std::bad_alloc();
+}
+void* allocateAlignedOrThrow(std::size_t size, std::align_val_t align, void* caller) {
+  countAllocation(caller);
+  if (void* p = __libc_memalign(static_cast<std::size_t>(align), size ? size : 1)) return p;
+  throw std::bad_alloc();
+}
+
+}  // namespace
+
+extern "C" {
+void* malloc(std::size_t size) {
+  countAllocation(__builtin_return_address(0));
+  return __libc_malloc(size);
+}
+void free(void* p) { __libc_free(p); }
+void* calloc(std::size_t n, std::size_t size) {
+  countAllocation(__builtin_return_address(0));
+  return __libc_calloc(n, size);
+}
+void* realloc(void* p, std::size_t size) {
+  countAllocation(__builtin_return_address(0));
+  return __libc_realloc(p, size);
+}
+void* memalign(std::size_t align, std::size_t size) {
+  countAllocation(__builtin_return_address(0));
+  return __libc_memalign(align, size);
+}
+void* aligned_alloc(std::size_t align, std::size_t size) {
+  countAllocation(__builtin_return_address(0));
+  return __libc_memalign(align, size);
+}
+int posix_memalign(void** out, std::size_t align, std::size_t size) {
+  countAllocation(__builtin_return_address(0));
+  void* p = __libc_memalign(align, size);
+  if (!p) return ENOMEM;
+  *out = p;
+  return 0;
+}
+void* valloc(std::size_t size) {
+  countAllocation(__builtin_return_address(0));
+  return __libc_valloc(size);
+}
+void* pvalloc(std::size_t size) {
+  countAllocation(__builtin_return_address(0));
+  return __libc_pvalloc(size);
+}
+}
+
+void* operator new(std::size_t size) { return allocateOrThrow(size, __builtin_return_address(0)); }
+void* operator new[](std::size_t size) { return allocateOrThrow(size, __builtin_return_address(0)); }
+void* operator new(std::size_t size, const std::nothrow_t&) noexcept {
+  countAllocation(__builtin_return_address(0));
+  return __libc_malloc(size ? size : 1);
+}
+void* operator new[](std::size_t size, const std::nothrow_t&) noexcept {
+  countAllocation(__builtin_return_address(0));
+  return __libc_malloc(size ? size : 1);
+}
+void* operator new(std::size_t size, std::align_val_t a) { return allocateAlignedOrThrow(size, a, __builtin_return_address(0)); }
+void* operator new[](std::size_t size, std::align_val_t a) { return allocateAlignedOrThrow(size, a, __builtin_return_address(0)); }
+void* operator new(std::size_t size, std::align_val_t a, const std::nothrow_t&) noexcept {
+  countAllocation(__builtin_return_address(0));
+  return __libc_memalign(static_cast<std::size_t>(a), size ? size : 1);
+}
+void* operator new[](std::size_t size, std::align_val_t a, const std::nothrow_t&) noexcept {
+  countAllocation(__builtin_return_address(0));
+  return __libc_memalign(static_cast<std::size_t>(a), size ? size : 1);
+}
+void operator delete(void* p) noexcept { __libc_free(p); }
+void operator delete[](void* p) noexcept { __libc_free(p); }
+void operator delete(void* p, std::size_t) noexcept { __libc_free(p); }
+void operator delete[](void* p, std::size_t) noexcept { __libc_free(p); }
+void operator delete(void* p, std::align_val_t) noexcept { __libc_free(p); }
+void operator delete[](void* p, std::align_val_t) noexcept { __libc_free(p); }
+void operator delete(void* p, std::size_t, std::align_val_t) noexcept { __libc_free(p); }
+void operator delete[](void* p, std::size_t, std::align_val_t) noexcept { __libc_free(p); }
+void operator delete(void* p, const std::nothrow_t&) noexcept { __libc_free(p); }
+void operator delete[](void* p, const std::nothrow_t&) noexcept { __libc_free(p); }
+
+namespace omnipose {
+namespace {
+
+using namespace std::chrono_literals;
+namespace fs = std::filesystem;
+using daemon::Daemon;
+
+constexpr long kWarmUpFrames = 20;
+constexpr long kCountedFrames = 220;
+
+/// Attributes allocations made inside the LCM publish call to LCM.
+class AttributingSink final : public daemon::MessageSink {
+ public:
+  explicit AttributingSink(std::unique_ptr<daemon::MessageSink> inner) : inner_(std::move(inner)) {}
+  bool publish(const std::string& channel, const std::uint8_t* data, std::size_t size) override {
+    if (g_counting.load(std::memory_order_relaxed)) publishes_.fetch_add(1);
+    t_in_lcm = true;
+    const bool ok = inner_->publish(channel, data, size);
+    t_in_lcm = false;
+    return ok;
+  }
+  std::string describe() const override { return inner_->describe(); }
+  long publishes() const { return publishes_.load(); }
+
+ private:
+  std::unique_ptr<daemon::MessageSink> inner_;
+  std::atomic<long> publishes_{0};
+};
+
+struct Measurement {
+  long own = 0;
+  long lcm = 0;
+  long processed = 0;
+  long skipped = 0;
+  long bad = 0;
+  long failures = 0;
+  long publishes = 0;
+  bool ok = false;
+};
+
+/// Runs the whole daemon on an endless in-memory source and counts allocations over
+/// kCountedFrames processed frames after kWarmUpFrames of warm-up.
+Measurement measure(const std::vector<cv::Mat>& frames, const std::string& lcm_url,
+                    const std::string& calibration, std::FILE* log) {
+  const DaemonConfig config = DaemonConfig::parse(
+      "source: {type: file, path: /unused}\ncalibration: " + calibration +
+          "\nlcm: {url: '" + lcm_url + "', fit_channel: OMNI_FIT, status_hz: 20}\n",
+      "alloc-test.yaml", "/");
+  testing::MemorySource::Script script;
+  script.period = 10ms;  // 100 Hz: faster than the pipeline, stale frames are skipped
+  for (long n = 5; n < 100000; n += 37) script.bad.insert(n);          // corrupt frames
+  for (long n = 13; n < 100000; n += 301) script.disconnect.insert(n);  // unplugged, re-opened
+  auto sink = std::make_unique<AttributingSink>(daemon::makeLcmSink(lcm_url));
+  AttributingSink* sink_ptr = sink.get();
+  Daemon::Options options;
+  options.capture.reconnect_initial = 5ms;
+  Daemon d(config, log, std::make_unique<testing::MemorySource>(frames, script), std::move(sink),
+           options);
+
+  // Warm the backtrace machinery (it loads libgcc_s on first use).
+  void* dummy[4];
+  backtrace(dummy, 4);
+
+  Measurement m;
+  d.start();
+  const auto deadline = std::chrono::steady_clock::now() + 120s;
+  auto processed = [&] { return d.stats().frames_processed; };
+  while (processed() < kWarmUpFrames && std::chrono::steady_clock::now() < deadline)
+    std::this_thread::sleep_for(5ms);
+  const daemon::DaemonStats before = d.stats();
+  resetCounters();
+  g_counting = true;
+  while (processed() < before.frames_processed + kCountedFrames &&
+         std::chrono::steady_clock::now() < deadline)
+    std::this_thread::sleep_for(5ms);
+  g_counting = false;
+  const daemon::DaemonStats after = d.stats();
+  d.requestStop();
+  d.join();
+
+  m.own = g_own.load();
+  m.lcm = g_lcm.load();
+  m.processed = after.frames_processed - before.frames_processed;
+  m.skipped = after.frames_skipped - before.frames_skipped;
+  m.bad = after.frames_bad - before.frames_bad;
+  m.failures = after.source_failures - before.source_failures;
+  m.publishes = sink_ptr->publishes();
+  m.ok = m.processed >= kCountedFrames;
+  return m;
+}
+
+std::string calibrationPath(const testing::TempDir& tmp) {
+  const fs::path path = tmp / "calibration.yaml";
+  Calibration{}.save(path);
+  return path.string();
+}
+
+TEST(DaemonAllocation, PerFramePathAllocatesNothingLcmFileLogAttributedSeparately) {
+  testing::TempDir tmp("alloc");
+  const auto frames = testing::renderFrames("mixed", 8);
+  std::FILE* log = std::tmpfile();
+  const Measurement m =
+      measure(frames, "file://" + (tmp / "alloc.lcm").string() + "?mode=w", calibrationPath(tmp), log);
+  std::fclose(log);
+  ASSERT_TRUE(m.ok) << "only " << m.processed << " frames processed in time";
+  if (m.own != 0) printTraces();
+  std::printf("[ counted ] %ld frames processed, %ld skipped (stale), %ld bad, %ld source "
+              "re-opens, %ld messages published: %ld allocations outside the LCM publish call (daemon, "
+              "pipeline and the libraries they call), %ld "
+              "inside LCM's publish (file:// provider)\n",
+              m.processed, m.skipped, m.bad, m.failures, m.publishes, m.own, m.lcm);
+  RecordProperty("own_allocations", static_cast<int>(m.own));
+  RecordProperty("lcm_file_allocations", static_cast<int>(m.lcm));
+  RecordProperty("publishes", static_cast<int>(m.publishes));
+  EXPECT_EQ(m.own, 0) << "heap allocations on the per-frame path (backtraces above)";
+  // The fault and skip paths really ran while counting.
+  EXPECT_GT(m.skipped, 0);
+  EXPECT_GT(m.bad, 0);
+  EXPECT_GT(m.failures, 0);
+  // LCM 1.3.1's file provider mallocs one event record per message (and frees it).
+  EXPECT_LE(m.lcm, m.publishes);
+}
+
+/// Puts the calling process into a new network namespace with only the loopback interface
+/// up and the multicast route on it (like `unshare -rn` + `ip link set lo up` + `ip route
+/// add 224.0.0.0/4 dev lo`). Returns an error text, empty on success.
+std::string enterPrivateNetwork() {
+  const uid_t uid = geteuid();
+  const gid_t gid = getegid();
+  if (uid == 0) {
+    if (unshare(CLONE_NEWNET) != 0) return std::string("unshare(CLONE_NEWNET): ") + std::strerror(errno);
+  } else {
+    if (unshare(CLONE_NEWUSER | CLONE_NEWNET) != 0)
+      return std::string("unshare(CLONE_NEWUSER|CLONE_NEWNET): ") + std::strerror(errno);
+    testing::writeText("/proc/self/setgroups", "deny");
+    testing::writeText("/proc/self/uid_map", "0 " + std::to_string(uid) + " 1");
+    testing::writeText("/proc/self/gid_map", "0 " + std::to_string(gid) + " 1");
+  }
+  const int s = socket(AF_INET, SOCK_DGRAM, 0);
+  if (s < 0) return "socket failed";
+  ifreq ifr{};
+  std::strncpy(ifr.ifr_name, "lo", IFNAMSIZ - 1);
+  if (ioctl(s, SIOCGIFFLAGS, &ifr) != 0) return "SIOCGIFFLAGS lo failed";
+  ifr.ifr_flags |= IFF_UP | IFF_RUNNING;
+  if (ioctl(s, SIOCSIFFLAGS, &ifr) != 0) return std::string("lo up: ") + std::strerror(errno);
+  rtentry route{};
+  auto* dst = reinterpret_cast<sockaddr_in*>(&route.rt_dst);
+  dst->sin_family = AF_INET;
+  dst->sin_addr.s_addr = htonl(0xE0000000u);  // 224.0.0.0
+  auto* mask = reinterpret_cast<sockaddr_in*>(&route.rt_genmask);
+  mask->sin_family = AF_INET;
+  mask->sin_addr.s_addr = htonl(0xF0000000u);  // /4
+  route.rt_flags = RTF_UP;
+  char dev[] = "lo";
+  route.rt_dev = dev;
+  if (ioctl(s, SIOCADDRT, &route) != 0) return std::string("multicast route: ") + std::strerror(errno);
+  close(s);
+  return {};
+}
+
+TEST(DaemonAllocation, WholeProcessIncludingLcmUdpmPublishAllocatesNothing) {
+  testing::TempDir tmp("alloc-udpm");
+  const auto frames = testing::renderFrames("mixed", 8);
+  const std::string calibration = calibrationPath(tmp);
+  int fds[2];
+  ASSERT_EQ(pipe(fds), 0);
+  const pid_t pid = fork();
+  ASSERT_GE(pid, 0);
+  if (pid == 0) {
+    // Child: private network, whole daemon over udpm (multicast never leaves it).
+    close(fds[0]);
+    char line[256];
+    const std::string error = enterPrivateNetwork();
+    if (!error.empty()) {
+      std::snprintf(line, sizeof(line), "skip %s", error.c_str());
+    } else {
+      std::FILE* log = std::tmpfile();
+      const Measurement m = measure(frames, "udpm://239.255.76.67:7667?ttl=0", calibration, log);
+      if (m.own + m.lcm != 0) printTraces();
+      std::snprintf(line, sizeof(line), "ok %d %ld %ld %ld %ld %ld %ld", m.ok ? 1 : 0, m.own,
+                    m.lcm, m.processed, m.skipped, m.bad, m.publishes);
+    }
+    [[maybe_unused]] auto written = write(fds[1], line, std::strlen(line));
+    _exit(0);
+  }
+  close(fds[1]);
+  std::string result;
+  char buf[256];
+  ssize_t n;
+  while ((n = read(fds[0], buf, sizeof(buf))) > 0) result.append(buf, static_cast<std::size_t>(n));
+  close(fds[0]);
+  int status = 0;
+  waitpid(pid, &status, 0);
+  ASSERT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 0) << "child failed: " << result;
+  if (result.rfind("skip ", 0) == 0) {
+    GTEST_SKIP() << "no private network namespace here (" << result.substr(5)
+                 << "); udpm is never used outside one";
+  }
+  int ok = 0;
+  long own = -1, lcm = -1, processed = 0, skipped = 0, bad = 0, publishes = 0;
+  ASSERT_EQ(std::sscanf(result.c_str(), "ok %d %ld %ld %ld %ld %ld %ld", &ok, &own, &lcm,
+                        &processed, &skipped, &bad, &publishes),
+            7)
+      << result;
+  ASSERT_EQ(ok, 1) << "only " << processed << " frames processed in time";
+  std::printf("[ counted ] udpm: %ld frames processed, %ld skipped, %ld bad, %ld messages "
+              "published: %ld allocations outside the LCM publish call, %ld inside it\n",
+              processed, skipped, bad, publishes, own, lcm);
+  EXPECT_EQ(own, 0);
+  EXPECT_EQ(lcm, 0) << "LCM's udpm publish allocated";
+}
+
+}  // namespace
+}  // namespace omnipose

@@ -1,0 +1,398 @@
+// omniposed and omnipose-listen as a user runs them: a dataset rendered with omnipose-synth,
+// the daemon writing a file:// LCM log, every message decoded with the generated types and
+// checked against ground truth; real-time replay timing; bad configuration; SIGINT/SIGTERM;
+// a corrupt frame; lcm-logger recording the daemon's udpm traffic in a private network
+// namespace (never any multicast outside it).
+#include <gtest/gtest.h>
+
+#include <sys/socket.h>
+#include <sys/un.h>
+
+#include <algorithm>
+#include <csignal>
+
+#include "daemon_test_support.hpp"
+
+namespace omnipose {
+namespace {
+
+using namespace std::chrono_literals;
+namespace fs = std::filesystem;
+using testing::TempDir;
+
+constexpr int kFrames = 30;
+
+fs::path omniposed() { return testing::binaryDir() / "omniposed"; }
+
+/// A 30-frame rotation sequence (preset mixed: random axes, up to 12 deg per frame),
+/// rendered with the omnipose-synth tool, shared by every test (read-only; tests that
+/// damage it work on a copy).
+const fs::path& mixedDataset() {
+  const fs::path synth = testing::binaryDir() / "omnipose-synth";
+  static const fs::path path = testing::cachedDataset(
+      "mixed" + std::to_string(kFrames),
+      [&](const fs::path& out) {
+        TempDir logs("synth");
+        const int rc = testing::runProcess(
+            {synth.string(), "--texture", testing::indoorPhoto().string(), "--out", out.string(),
+             "--preset", "mixed", "--frames", std::to_string(kFrames), "--seed", "5",
+             "--supersample", "1"},
+            logs / "synth.out", logs / "synth.err", 300s);
+        if (rc != 0)
+          throw std::runtime_error("omnipose-synth failed: " + testing::readText(logs / "synth.err"));
+      },
+      synth);
+  return path;
+}
+
+struct DaemonRun {
+  int exit_code = -1;
+  std::string err;
+  testing::DecodedLog log;
+};
+
+/// Runs omniposed on `config_text` to completion.
+DaemonRun runDaemon(const TempDir& tmp, const std::string& config_text, const fs::path& lcm_log,
+              std::chrono::seconds timeout = 120s) {
+  testing::writeText(tmp / "daemon.yaml", config_text);
+  DaemonRun r;
+  r.exit_code = testing::runProcess({omniposed().string(), "--config", (tmp / "daemon.yaml").string()},
+                                    tmp / "out.txt", tmp / "err.txt", timeout);
+  r.err = testing::readText(tmp / "err.txt");
+  if (!lcm_log.empty() && fs::exists(lcm_log)) r.log = testing::readLcmLog(lcm_log);
+  return r;
+}
+
+std::string logUrl(const fs::path& path) { return "file://" + path.string() + "?mode=w"; }
+
+TEST(Omniposed, EndToEndFileLogDecodesAndMatchesGroundTruth) {
+  TempDir tmp("e2e");
+  const fs::path& data = mixedDataset();
+  const fs::path lcm_log = tmp / "run.lcm";
+  const auto t_start_us = std::chrono::duration_cast<std::chrono::microseconds>(
+                              std::chrono::system_clock::now().time_since_epoch()).count();
+  const DaemonRun r = runDaemon(tmp, testing::fileSourceConfig(data, logUrl(lcm_log), /*realtime=*/false,
+                                                         false, "  fit_channel: OMNI_FIT\n"),
+                          lcm_log);
+  const auto t_end_us = std::chrono::duration_cast<std::chrono::microseconds>(
+                            std::chrono::system_clock::now().time_since_epoch()).count();
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  // The effective configuration is logged at start-up.
+  EXPECT_NE(r.err.find("effective values"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("window: 110"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("status_channel: OMNI_STATUS"), std::string::npos) << r.err;
+
+  const testing::DecodedLog& log = r.log;
+  EXPECT_EQ(log.undecodable, 0);
+  EXPECT_EQ(log.channels, (std::set<std::string>{"OMNI_POSE", "OMNI_STATUS", "OMNI_FIT"}));
+  ASSERT_EQ(log.poses.size(), static_cast<std::size_t>(kFrames));
+  EXPECT_EQ(log.diagnostics.size(), static_cast<std::size_t>(kFrames - 1));
+
+  const auto stamps = testing::readTimestamps(data);
+  const auto gt = readTum(data / "groundtruth.tum");
+  ASSERT_EQ(gt.size(), static_cast<std::size_t>(kFrames));
+  double max_pair_error = 0, max_chain_error = 0;
+  for (int k = 0; k < kFrames; ++k) {
+    const pose_t& p = log.poses[static_cast<std::size_t>(k)];
+    EXPECT_EQ(p.sequence, k);
+    EXPECT_EQ(p.source_index, k);
+    char name[32];
+    std::snprintf(name, sizeof(name), "%06d.png", k);
+    EXPECT_DOUBLE_EQ(p.source_timestamp, stamps.at(name));
+    EXPECT_GE(p.utime, t_start_us);
+    EXPECT_LE(p.utime, t_end_us);
+    EXPECT_LE(p.utime, log.pose_log_utime[static_cast<std::size_t>(k)]) << "captured before published";
+    EXPECT_EQ(p.segment, 0);
+    EXPECT_EQ(p.frames_skipped, 0);
+    if (k == 0) {
+      EXPECT_EQ(p.status, pose_t::STATUS_LOST);
+      EXPECT_EQ(p.reference_sequence, -1);
+      continue;
+    }
+    EXPECT_GT(p.utime, log.poses[static_cast<std::size_t>(k - 1)].utime);
+    EXPECT_EQ(p.status, pose_t::STATUS_OK) << k;
+    EXPECT_EQ(p.reference_sequence, k - 1);
+    const Eigen::Matrix3d gt_rel = (gt[k - 1].pose.inverse() * gt[k].pose).rotation();
+    const double pair_error = testing::rotationError(testing::relativeRotation(p), gt_rel);
+    EXPECT_LT(pair_error, 0.003) << "pair " << k - 1 << " -> " << k;
+    max_pair_error = std::max(max_pair_error, pair_error);
+    const double chain_error = testing::rotationError(testing::poseRotation(p), gt[k].pose.rotation());
+    max_chain_error = std::max(max_chain_error, chain_error);
+    // Covariance: symmetric, positive diagonal.
+    for (int i = 0; i < 6; ++i) {
+      EXPECT_GT(p.covariance[i * 7], 0.0);
+      for (int j = 0; j < 6; ++j) EXPECT_NEAR(p.covariance[i * 6 + j], p.covariance[j * 6 + i], 1e-12);
+    }
+  }
+  EXPECT_LT(max_chain_error, 0.02) << "chained orientation after " << kFrames << " frames";
+  std::printf("[ e2e ] max rotation error per pair %.5f rad, chained %.5f rad after %d frames\n",
+              max_pair_error, max_chain_error, kFrames);
+
+  // Status: at least the final one, which is the last message of the log.
+  ASSERT_FALSE(log.statuses.empty());
+  const status_t& last = log.statuses.back();
+  EXPECT_TRUE(last.final);
+  EXPECT_EQ(log.order.back().channel, "OMNI_STATUS");
+  EXPECT_EQ(last.frames_received, kFrames);
+  EXPECT_EQ(last.frames_processed, kFrames);
+  EXPECT_EQ(last.frames_skipped_stale, 0);
+  EXPECT_EQ(last.frames_bad, 0);
+  EXPECT_EQ(last.poses_lost, 1);
+  EXPECT_EQ(last.source_state, status_t::SOURCE_ENDED);
+  EXPECT_NE(last.source.find(data.string()), std::string::npos) << last.source;
+  EXPECT_TRUE(last.last_error.empty()) << last.last_error;
+
+  // The listener, as a user runs it, prints every pose from the log.
+  const int rc = testing::runProcess(
+      {(testing::binaryDir() / "omnipose-listen").string(), "--url",
+       "file://" + lcm_log.string() + "?speed=0", "--count", std::to_string(kFrames), "--timeout", "20"},
+      tmp / "listen.out", tmp / "listen.err", 60s);
+  EXPECT_EQ(rc, 0) << testing::readText(tmp / "listen.err");
+  const std::string printed = testing::readText(tmp / "listen.out");
+  int pose_lines = 0;
+  for (std::size_t at = printed.find("pose seq "); at != std::string::npos; at = printed.find("pose seq ", at + 1))
+    ++pose_lines;
+  EXPECT_EQ(pose_lines, kFrames) << printed;
+  EXPECT_NE(printed.find("pose seq 29 "), std::string::npos) << printed;
+}
+
+TEST(Omniposed, RealtimeReplayAt30FpsKeepsTheRecordedTimingAndReportsLatency) {
+  TempDir tmp("rt30");
+  const fs::path& data = mixedDataset();
+  const fs::path lcm_log = tmp / "run.lcm";
+  const DaemonRun r = runDaemon(tmp, testing::fileSourceConfig(data, logUrl(lcm_log), /*realtime=*/true), lcm_log);
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const testing::DecodedLog& log = r.log;
+  ASSERT_FALSE(log.poses.empty());
+  ASSERT_FALSE(log.statuses.empty());
+  const status_t& last = log.statuses.back();
+  EXPECT_TRUE(last.final);
+  // Each frame is processed, skipped as stale, or (source running late) never read.
+  EXPECT_EQ(last.frames_received + last.frames_lost_upstream, kFrames);
+  EXPECT_EQ(last.frames_processed + last.frames_skipped_stale, last.frames_received);
+  EXPECT_EQ(static_cast<std::int64_t>(log.poses.size()), last.frames_processed);
+  EXPECT_EQ(log.poses.back().source_index, kFrames - 1) << "the last frame is always processed";
+  // Capture stamps follow the recording: (t_k - t_0) of timestamps.txt on the wall clock.
+  const pose_t& first = log.poses.front();
+  for (const pose_t& p : log.poses) {
+    EXPECT_NEAR(static_cast<double>(p.utime - first.utime),
+                (p.source_timestamp - first.source_timestamp) * 1e6, 2.0);
+  }
+  std::printf("[ rt30 ] %d frames at 30 fps: processed %lld, skipped %lld, not read in time "
+              "%lld; processing p50 %.1f p99 %.1f ms; capture-to-publish latency p50 %.1f p99 "
+              "%.1f ms\n",
+              kFrames, static_cast<long long>(last.frames_processed),
+              static_cast<long long>(last.frames_skipped_stale),
+              static_cast<long long>(last.frames_lost_upstream), last.processing_ms_p50,
+              last.processing_ms_p99, last.latency_ms_p50, last.latency_ms_p99);
+  RecordProperty("processing_ms_p50", std::to_string(last.processing_ms_p50));
+  RecordProperty("processing_ms_p99", std::to_string(last.processing_ms_p99));
+  RecordProperty("latency_ms_p50", std::to_string(last.latency_ms_p50));
+  RecordProperty("latency_ms_p99", std::to_string(last.latency_ms_p99));
+  EXPECT_GT(last.processing_ms_p50, 0.0f);
+  EXPECT_GE(last.latency_ms_p50, last.processing_ms_p50 * 0.5f);
+  // Fresh pose, not a backlog: the latency is bounded by about two processing times.
+  EXPECT_LT(last.latency_ms_p99, 2.0f * last.processing_ms_p99 + 100.0f);
+}
+
+TEST(Omniposed, BadConfigurationReportsEveryProblemAndExitsNonZero) {
+  TempDir tmp("badcfg");
+  testing::writeText(tmp / "daemon.yaml",
+                     "source: {type: file, path: /data, speed: 2}\n"
+                     "calibration: cal.yaml\n"
+                     "input: fisheye\n"
+                     "pipeline: {step: -3}\n"
+                     "lcm: {status_hz: 0, pose_chanel: X}\n"
+                     "extra: 1\n");
+  const int rc = testing::runProcess({omniposed().string(), "--config", (tmp / "daemon.yaml").string()},
+                                     tmp / "out", tmp / "err", 30s);
+  const std::string err = testing::readText(tmp / "err");
+  EXPECT_EQ(rc, 1) << err;
+  for (const char* needle : {"source.speed", "input", "fisheye", "pipeline.", "step", "lcm.status_hz",
+                             "lcm.pose_chanel", "extra"}) {
+    EXPECT_NE(err.find(needle), std::string::npos) << "missing '" << needle << "' in:\n" << err;
+  }
+  // A missing file and a missing argument.
+  EXPECT_EQ(testing::runProcess({omniposed().string(), "--config", (tmp / "none.yaml").string()},
+                                tmp / "out", tmp / "err", 30s),
+            1);
+  EXPECT_NE(testing::readText(tmp / "err").find("none.yaml"), std::string::npos);
+  EXPECT_EQ(testing::runProcess({omniposed().string()}, tmp / "out", tmp / "err", 30s), 2);
+  // A valid file whose source is missing: start-up fails naming it.
+  testing::writeText(tmp / "daemon.yaml",
+                     testing::fileSourceConfig(tmp / "no-such-dataset", "memq://", false));
+  Calibration{}.save(tmp / "no-such-dataset-cal.yaml");
+  EXPECT_EQ(testing::runProcess({omniposed().string(), "--config", (tmp / "daemon.yaml").string()},
+                                tmp / "out", tmp / "err", 30s),
+            1);
+  EXPECT_NE(testing::readText(tmp / "err").find("start-up failed"), std::string::npos);
+}
+
+void expectCleanStopOn(int sig, const char* name) {
+  TempDir tmp(std::string("sig") + name);
+  const fs::path lcm_log = tmp / "run.lcm";
+  // An endless source: the recording looped in real time.
+  testing::writeText(tmp / "daemon.yaml",
+                     testing::fileSourceConfig(mixedDataset(), logUrl(lcm_log), /*realtime=*/true,
+                                               /*loop=*/true, "  status_hz: 5\n"));
+  testing::Child child({omniposed().string(), "--config", (tmp / "daemon.yaml").string()},
+                       tmp / "out", tmp / "err");
+  // Wait until it runs (start-up logged), then let it work for a while.
+  const auto deadline = std::chrono::steady_clock::now() + 60s;
+  while (testing::readText(tmp / "err").find("systemd notify") == std::string::npos &&
+         std::chrono::steady_clock::now() < deadline)
+    std::this_thread::sleep_for(50ms);
+  std::this_thread::sleep_for(2s);
+  ASSERT_TRUE(child.running()) << testing::readText(tmp / "err");
+  child.signal(sig);
+  const int rc = child.wait(15s);
+  const std::string err = testing::readText(tmp / "err");
+  ASSERT_EQ(rc, 0) << name << ":\n" << err;
+  EXPECT_NE(err.find(std::string(name) + " received"), std::string::npos) << err;
+  EXPECT_NE(err.find("stopped:"), std::string::npos) << err;
+  const auto log = testing::readLcmLog(lcm_log);
+  EXPECT_GT(log.poses.size(), 3u);
+  ASSERT_FALSE(log.statuses.empty());
+  EXPECT_EQ(log.order.back().channel, "OMNI_STATUS") << "the final status is the last message";
+  const status_t& last = log.statuses.back();
+  EXPECT_TRUE(last.final);
+  EXPECT_EQ(last.source_state, status_t::SOURCE_STOPPED);
+  EXPECT_EQ(last.frames_processed, static_cast<std::int64_t>(log.poses.size()));
+}
+
+TEST(Omniposed, SigintStopsCleanlyWithAFinalStatus) { expectCleanStopOn(SIGINT, "SIGINT"); }
+TEST(Omniposed, SigtermStopsCleanlyWithAFinalStatus) { expectCleanStopOn(SIGTERM, "SIGTERM"); }
+
+TEST(Omniposed, KeepsRunningThroughACorruptFrameAndEndsWithExitZero) {
+  TempDir tmp("corrupt");
+  testing::copyDataset(mixedDataset(), tmp / "d");
+  testing::writeText(tmp / "d/frames/000011.png", "\x89PNG truncated");
+  const fs::path lcm_log = tmp / "run.lcm";
+  const DaemonRun r = runDaemon(tmp, testing::fileSourceConfig(tmp / "d", logUrl(lcm_log), false), lcm_log);
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_NE(r.err.find("000011.png"), std::string::npos) << "the fault is logged naming the file:\n" << r.err;
+  ASSERT_EQ(r.log.poses.size(), static_cast<std::size_t>(kFrames - 1));
+  const status_t& last = r.log.statuses.back();
+  EXPECT_EQ(last.frames_bad, 1);
+  EXPECT_NE(last.last_error.find("000011.png"), std::string::npos) << last.last_error;
+  for (const pose_t& p : r.log.poses) {
+    if (p.source_index == 12) {
+      EXPECT_EQ(p.status, pose_t::STATUS_LOST);
+      EXPECT_EQ(p.segment, 1);
+    }
+    if (p.source_index > 12) {
+      EXPECT_EQ(p.reference_sequence, p.sequence - 1);
+    }
+  }
+}
+
+TEST(Omniposed, NotifiesSystemdReadyWatchdogAndStopping) {
+  TempDir tmp("notify");
+  // Play systemd's part: a datagram socket at NOTIFY_SOCKET, WatchdogSec = 0.4 s.
+  const fs::path socket_path = tmp / "notify.sock";
+  const int sock = socket(AF_UNIX, SOCK_DGRAM | SOCK_NONBLOCK | SOCK_CLOEXEC, 0);
+  ASSERT_GE(sock, 0);
+  sockaddr_un addr{};
+  addr.sun_family = AF_UNIX;
+  std::snprintf(addr.sun_path, sizeof(addr.sun_path), "%s", socket_path.c_str());
+  ASSERT_EQ(bind(sock, reinterpret_cast<sockaddr*>(&addr), sizeof(addr)), 0);
+  const fs::path lcm_log = tmp / "run.lcm";
+  testing::writeText(tmp / "daemon.yaml",
+                     testing::fileSourceConfig(mixedDataset(), logUrl(lcm_log), /*realtime=*/true,
+                                               /*loop=*/true));
+  std::vector<std::string> messages;
+  auto receive = [&] {
+    char buf[4096];
+    for (;;) {
+      const ssize_t n = recv(sock, buf, sizeof(buf), 0);
+      if (n <= 0) break;
+      messages.emplace_back(buf, static_cast<std::size_t>(n));
+    }
+  };
+  {
+    testing::Child child({omniposed().string(), "--config", (tmp / "daemon.yaml").string()},
+                         tmp / "out", tmp / "err",
+                         {"NOTIFY_SOCKET=" + socket_path.string(), "WATCHDOG_USEC=400000"});
+    const auto deadline = std::chrono::steady_clock::now() + 60s;
+    while (std::chrono::steady_clock::now() < deadline) {
+      receive();
+      if (std::count_if(messages.begin(), messages.end(),
+                        [](const std::string& m) { return m == "WATCHDOG=1"; }) >= 4)
+        break;
+      std::this_thread::sleep_for(50ms);
+    }
+    const std::string err = testing::readText(tmp / "err");
+    if (err.find("systemd notify: not built in") != std::string::npos) {
+      close(sock);
+      GTEST_SKIP() << "omniposed was built without libsystemd (OMNIPOSE_WITH_SYSTEMD)";
+    }
+    child.signal(SIGTERM);
+    ASSERT_EQ(child.wait(15s), 0) << testing::readText(tmp / "err");
+  }
+  receive();
+  close(sock);
+  ASSERT_FALSE(messages.empty());
+  EXPECT_EQ(messages.front().rfind("READY=1", 0), 0u) << messages.front();
+  EXPECT_GE(std::count(messages.begin(), messages.end(), std::string("WATCHDOG=1")), 4);
+  EXPECT_EQ(messages.back(), "STOPPING=1");
+}
+
+/// "unshare -rn" (or "-n" as root) when this system allows network namespaces.
+std::vector<std::string> unshareCommand(const TempDir& tmp) {
+  for (const char* flags : {"-rn", "-n"}) {
+    if (testing::runProcess({"/usr/bin/unshare", flags, "/bin/true"}, tmp / "u.out", tmp / "u.err", 10s) == 0)
+      return {"/usr/bin/unshare", flags};
+  }
+  return {};
+}
+
+TEST(Omniposed, LcmLoggerRecordsTheDaemonOnAPrivateNetwork) {
+  TempDir tmp("logger");
+  if (!fs::exists("/usr/bin/lcm-logger")) GTEST_SKIP() << "lcm-logger (liblcm-bin) not installed";
+  const auto unshare = unshareCommand(tmp);
+  if (unshare.empty()) {
+    GTEST_SKIP() << "network namespaces are not allowed here (unshare -rn / -n failed: "
+                 << testing::readText(tmp / "u.err") << "); multicast is never sent outside one";
+  }
+  const std::string url = "udpm://239.255.76.67:7667?ttl=0";
+  const fs::path logger_log = tmp / "logger.lcm";
+  testing::writeText(tmp / "daemon.yaml",
+                     testing::fileSourceConfig(mixedDataset(), url, /*realtime=*/false));
+  // Inside the namespace: only loopback exists, with the multicast route on it.
+  const std::string script =
+      "set -e; ip link set lo up; ip route add 224.0.0.0/4 dev lo; set +e\n"
+      "lcm-logger -q -f --lcm-url='" + url + "' '" + logger_log.string() + "' & L=$!\n"
+      "'" + (testing::binaryDir() / "omnipose-listen").string() + "' --url '" + url +
+      "' --count " + std::to_string(kFrames) + " --timeout 60 > '" + (tmp / "listen.out").string() +
+      "' 2>&1 & P=$!\n"
+      "sleep 1\n"
+      "'" + omniposed().string() + "' --config '" + (tmp / "daemon.yaml").string() + "'; rc=$?\n"
+      "wait $P; lrc=$?\n"
+      "sleep 0.5; kill -INT $L; wait $L\n"
+      "echo \"daemon=$rc listener=$lrc\"\n"
+      "exit $rc\n";
+  std::vector<std::string> argv = unshare;
+  argv.insert(argv.end(), {"/bin/sh", "-c", script});
+  const int rc = testing::runProcess(argv, tmp / "ns.out", tmp / "ns.err", 180s);
+  const std::string out = testing::readText(tmp / "ns.out");
+  ASSERT_EQ(rc, 0) << out << testing::readText(tmp / "ns.err");
+  EXPECT_NE(out.find("listener=0"), std::string::npos) << out;
+
+  // What the independent logger recorded decodes into the full run.
+  const auto log = testing::readLcmLog(logger_log);
+  EXPECT_EQ(log.undecodable, 0);
+  ASSERT_EQ(log.poses.size(), static_cast<std::size_t>(kFrames));
+  for (int k = 0; k < kFrames; ++k) EXPECT_EQ(log.poses[static_cast<std::size_t>(k)].sequence, k);
+  ASSERT_FALSE(log.statuses.empty());
+  EXPECT_TRUE(log.statuses.back().final);
+  EXPECT_EQ(log.statuses.back().frames_processed, kFrames);
+  // And the listener printed every pose live.
+  const std::string printed = testing::readText(tmp / "listen.out");
+  int pose_lines = 0;
+  for (std::size_t at = printed.find("pose seq "); at != std::string::npos; at = printed.find("pose seq ", at + 1))
+    ++pose_lines;
+  EXPECT_EQ(pose_lines, kFrames) << printed;
+}
+
+}  // namespace
+}  // namespace omnipose

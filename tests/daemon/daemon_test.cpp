@@ -1,0 +1,643 @@
+// In-process tests of the daemon library: mailbox, statistics, file source, source factory,
+// and whole daemon runs over LCM memq:// (one lcm::LCM shared by the daemon's sink and the
+// test's subscribers): poses per frame, status, corrupt frames mid-stream, a vanishing
+// dataset directory, stale frames, fit diagnostics, start-up failures.
+#include <gtest/gtest.h>
+
+#include <functional>
+#include <opencv2/imgcodecs.hpp>
+
+#include "daemon/daemon.hpp"
+#include "daemon/file_frame_source.hpp"
+#include "daemon/frame_mailbox.hpp"
+#include "daemon/sample_ring.hpp"
+#include "daemon/source_factory.hpp"
+#include "daemon/wall_clock.hpp"
+#include "daemon_test_support.hpp"
+#include "omnipose/config.hpp"
+
+namespace omnipose {
+namespace {
+
+using namespace std::chrono_literals;
+namespace fs = std::filesystem;
+using daemon::Daemon;
+using daemon::FileFrameSource;
+using daemon::FrameMailbox;
+using daemon::MailboxFrame;
+using daemon::SteadyClock;
+using testing::TempDir;
+
+constexpr int kFrames = 24;
+
+SteadyClock::time_point SteadyClockNow() { return SteadyClock::now(); }
+
+/// One rendered yaw dataset shared by every test (the renderer is the slow part). Tests
+/// that damage a dataset work on a copy.
+const fs::path& yawDataset() {
+  static const fs::path path = testing::cachedDataset(
+      "yaw" + std::to_string(kFrames), [](const fs::path& dir) { testing::renderDataset(dir, "yaw", kFrames); });
+  return path;
+}
+
+cv::Size omniSize() { return {Calibration{}.omni.image_width, Calibration{}.omni.image_height}; }
+
+// ---------------------------------------------------------------------------------------
+// Small parts
+// ---------------------------------------------------------------------------------------
+
+TEST(SampleRing, NearestRankPercentilesOverTheLastSamples) {
+  daemon::SampleRing<100> ring;
+  EXPECT_EQ(ring.percentile(0.5), 0.0f);
+  for (int i = 1; i <= 100; ++i) ring.add(static_cast<float>(i));
+  EXPECT_EQ(ring.percentile(0.5), 50.0f);
+  EXPECT_EQ(ring.percentile(0.99), 99.0f);
+  EXPECT_EQ(ring.percentile(1.0), 100.0f);
+  for (int i = 0; i < 100; ++i) ring.add(1000.0f);  // old samples fall out
+  EXPECT_EQ(ring.percentile(0.5), 1000.0f);
+  EXPECT_EQ(ring.size(), 100u);
+}
+
+FrameInfo infoWithSequence(std::uint64_t s) {
+  FrameInfo i;
+  i.sequence = s;
+  return i;
+}
+
+TEST(FrameMailbox, ProcessorTakesTheNewestAndOverwrittenFramesCountAsSkipped) {
+  FrameMailbox box({8, 4}, /*lossless=*/false);
+  for (std::uint64_t s = 0; s < 5; ++s) {
+    box.writeBuffer().setTo(static_cast<int>(s));
+    EXPECT_EQ(box.post(infoWithSequence(s)), s > 0);  // every earlier one is overwritten
+  }
+  MailboxFrame f;
+  ASSERT_EQ(box.take(SteadyClockNow() + 10ms, f), FrameMailbox::TakeResult::kFrame);
+  EXPECT_EQ(f.info.sequence, 4u);
+  EXPECT_EQ(f.image->at<uchar>(0, 0), 4);
+  EXPECT_EQ(f.skipped_before, 4);
+  EXPECT_EQ(box.skipped(), 4);
+  EXPECT_EQ(box.posted(), 5);
+  // While the processor holds its slot, the capture side never writes into it.
+  for (int s = 5; s < 9; ++s) {
+    EXPECT_NE(box.writeBuffer().data, f.image->data);
+    box.writeBuffer().setTo(s);
+    box.post(infoWithSequence(static_cast<std::uint64_t>(s)));
+  }
+  EXPECT_EQ(f.image->at<uchar>(0, 0), 4);
+  box.release();
+  ASSERT_EQ(box.take(SteadyClockNow() + 10ms, f), FrameMailbox::TakeResult::kFrame);
+  EXPECT_EQ(f.info.sequence, 8u);
+  EXPECT_EQ(f.skipped_before, 3);
+  box.release();
+  EXPECT_EQ(box.take(SteadyClockNow() + 10ms, f), FrameMailbox::TakeResult::kTimeout);
+}
+
+TEST(FrameMailbox, GapFlagSurvivesWhenTheFlaggedFrameIsOverwritten) {
+  FrameMailbox box({8, 4}, false);
+  box.post(infoWithSequence(0));
+  MailboxFrame f;
+  ASSERT_EQ(box.take(SteadyClockNow() + 10ms, f), FrameMailbox::TakeResult::kFrame);
+  EXPECT_FALSE(f.gap_before);
+  box.release();
+  box.markGap();
+  box.post(infoWithSequence(2));  // carries the gap
+  box.post(infoWithSequence(3));  // overwrites it: must inherit the gap
+  ASSERT_EQ(box.take(SteadyClockNow() + 10ms, f), FrameMailbox::TakeResult::kFrame);
+  EXPECT_EQ(f.info.sequence, 3u);
+  EXPECT_TRUE(f.gap_before);
+  box.release();
+  box.post(infoWithSequence(4));
+  ASSERT_EQ(box.take(SteadyClockNow() + 10ms, f), FrameMailbox::TakeResult::kFrame);
+  EXPECT_FALSE(f.gap_before);
+}
+
+TEST(FrameMailbox, LosslessModeWaitsUntilTheProcessorTookTheFrame) {
+  FrameMailbox box({8, 4}, /*lossless=*/true);
+  EXPECT_TRUE(box.waitUntilTaken(1ms));
+  box.post(infoWithSequence(0));
+  EXPECT_FALSE(box.waitUntilTaken(20ms));  // not taken yet
+  std::thread processor([&] {
+    std::this_thread::sleep_for(30ms);
+    MailboxFrame f;
+    box.take(SteadyClockNow() + 1s, f);
+    box.release();
+  });
+  EXPECT_TRUE(box.waitUntilTaken(2s));
+  processor.join();
+  EXPECT_EQ(box.skipped(), 0);
+}
+
+TEST(FrameMailbox, CloseDrainsTheLastFrameAndStopWakesEverybody) {
+  FrameMailbox box({8, 4}, false);
+  box.post(infoWithSequence(7));
+  box.close();
+  MailboxFrame f;
+  ASSERT_EQ(box.take(SteadyClockNow() + 10ms, f), FrameMailbox::TakeResult::kFrame);
+  box.release();
+  EXPECT_EQ(box.take(SteadyClockNow() + 1s, f), FrameMailbox::TakeResult::kClosed);
+
+  FrameMailbox waiting({8, 4}, false);
+  std::thread stopper([&] {
+    std::this_thread::sleep_for(30ms);
+    waiting.requestStop();
+  });
+  const auto t0 = SteadyClockNow();
+  EXPECT_EQ(waiting.take(t0 + 10s, f), FrameMailbox::TakeResult::kClosed);
+  EXPECT_LT(SteadyClockNow() - t0, 5s);
+  stopper.join();
+}
+
+// ---------------------------------------------------------------------------------------
+// File source
+// ---------------------------------------------------------------------------------------
+
+FileFrameSource::Options fileOptions(const fs::path& dir, bool realtime, bool loop = false) {
+  return {.directory = dir, .calibration = dir / "calibration.yaml", .frame_size = omniSize(),
+          .realtime = realtime, .loop = loop};
+}
+
+TEST(FileFrameSource, DeliversEveryFrameInOrderAsGreyWithItsTimestamp) {
+  const fs::path& data = yawDataset();
+  FileFrameSource source(fileOptions(data, /*realtime=*/false));
+  ASSERT_TRUE(source.open().has_value());
+  EXPECT_EQ(source.frameCount(), kFrames);
+  const auto stamps = testing::readTimestamps(data);
+  cv::Mat buffer(omniSize(), CV_8UC1);
+  const uchar* const data_ptr = buffer.data;
+  std::int64_t last_capture = 0;
+  for (int i = 0; i < kFrames; ++i) {
+    auto got = source.next(buffer, 100ms);
+    ASSERT_TRUE(got.has_value()) << got.error().c_str();
+    EXPECT_EQ(got->index, i);
+    EXPECT_EQ(got->sequence, static_cast<std::uint64_t>(i));
+    char name[32];
+    std::snprintf(name, sizeof(name), "%06d.png", i);
+    EXPECT_DOUBLE_EQ(got->source_timestamp, stamps.at(name));
+    EXPECT_GE(got->capture_time_us, last_capture);
+    last_capture = got->capture_time_us;
+    EXPECT_EQ(buffer.data, data_ptr) << "the caller's buffer must never be reallocated";
+    if (i == 3) {
+      const cv::Mat expected = cv::imread((data / "frames" / name).string(), cv::IMREAD_GRAYSCALE);
+      EXPECT_EQ(cv::norm(expected, buffer, cv::NORM_INF), 0.0);
+    }
+  }
+  auto end = source.next(buffer, 100ms);
+  ASSERT_FALSE(end.has_value());
+  EXPECT_EQ(end.error().code(), ErrorCode::kEndOfStream);
+}
+
+TEST(FileFrameSource, RealtimeDeliversAtTheRecordedIntervals) {
+  TempDir tmp("filesrc-rt");
+  testing::copyDataset(yawDataset(), tmp / "d");
+  // 25 ms between frames.
+  std::string stamps;
+  for (int i = 0; i < kFrames; ++i) {
+    char line[64];
+    std::snprintf(line, sizeof(line), "%06d.png %.6f\n", i, 100.0 + 0.025 * i);
+    stamps += line;
+  }
+  testing::writeText(tmp / "d" / "timestamps.txt", stamps);
+  FileFrameSource source(fileOptions(tmp / "d", /*realtime=*/true));
+  ASSERT_TRUE(source.open().has_value());
+  cv::Mat buffer(omniSize(), CV_8UC1);
+  std::vector<std::int64_t> capture;
+  const auto t0 = SteadyClockNow();
+  while (capture.size() < 8) {
+    auto got = source.next(buffer, 10ms);
+    if (!got) {
+      ASSERT_EQ(got.error().code(), ErrorCode::kTimeout) << got.error().c_str();
+      continue;
+    }
+    capture.push_back(got->capture_time_us);
+    // Never delivered before its due time.
+    EXPECT_LE(got->capture_time_us, daemon::wallClockMicros());
+  }
+  const double elapsed = std::chrono::duration<double>(SteadyClockNow() - t0).count();
+  EXPECT_GE(elapsed, 7 * 0.025 - 0.002);
+  for (std::size_t i = 1; i < capture.size(); ++i) {
+    EXPECT_NEAR(capture[i] - capture[i - 1], 25000, 2) << "capture stamps follow the recording";
+  }
+}
+
+TEST(FileFrameSource, CorruptAndWrongSizeFramesAreBadFramesNamingTheFile) {
+  TempDir tmp("filesrc-bad");
+  testing::copyDataset(yawDataset(), tmp / "d");
+  testing::writeText(tmp / "d/frames/000002.png", "this is not a PNG file");
+  cv::imwrite((tmp / "d/frames/000004.png").string(), cv::Mat(100, 120, CV_8UC1, cv::Scalar(90)));
+  FileFrameSource source(fileOptions(tmp / "d", false));
+  ASSERT_TRUE(source.open().has_value());
+  cv::Mat buffer(omniSize(), CV_8UC1);
+  std::vector<int> delivered;
+  std::vector<std::string> errors;
+  for (;;) {
+    auto got = source.next(buffer, 10ms);
+    if (got) {
+      delivered.push_back(got->index);
+      continue;
+    }
+    if (got.error().code() == ErrorCode::kEndOfStream) break;
+    ASSERT_EQ(got.error().code(), ErrorCode::kBadFrame) << got.error().c_str();
+    errors.emplace_back(got.error().message());
+  }
+  ASSERT_EQ(errors.size(), 2u);
+  EXPECT_NE(errors[0].find("000002.png"), std::string::npos) << errors[0];
+  EXPECT_NE(errors[1].find("000004.png"), std::string::npos) << errors[1];
+  EXPECT_NE(errors[1].find("120x100"), std::string::npos) << errors[1];
+  EXPECT_EQ(delivered.size(), static_cast<std::size_t>(kFrames - 2));
+  EXPECT_EQ(std::count(delivered.begin(), delivered.end(), 2), 0);
+}
+
+TEST(FileFrameSource, VanishedDirectoryIsADisconnectAndReopenResumesAtTheSameFrame) {
+  TempDir tmp("filesrc-gone");
+  testing::copyDataset(yawDataset(), tmp / "d");
+  FileFrameSource source(fileOptions(tmp / "d", false));
+  ASSERT_TRUE(source.open().has_value());
+  cv::Mat buffer(omniSize(), CV_8UC1);
+  for (int i = 0; i < 5; ++i) ASSERT_TRUE(source.next(buffer, 10ms).has_value());
+  fs::rename(tmp / "d", tmp / "away");
+  auto gone = source.next(buffer, 10ms);
+  ASSERT_FALSE(gone.has_value());
+  EXPECT_EQ(gone.error().code(), ErrorCode::kDisconnected);
+  EXPECT_NE(gone.error().message().find((tmp / "d").string()), std::string::npos)
+      << gone.error().c_str();
+  source.close();
+  auto reopen = source.open();
+  ASSERT_FALSE(reopen.has_value());
+  EXPECT_EQ(reopen.error().code(), ErrorCode::kNotFound);
+  fs::rename(tmp / "away", tmp / "d");
+  ASSERT_TRUE(source.open().has_value());
+  auto next = source.next(buffer, 10ms);
+  ASSERT_TRUE(next.has_value());
+  EXPECT_EQ(next->index, 5) << "nothing is lost: the frame that failed is read again";
+  EXPECT_EQ(next->sequence, 5u);
+}
+
+TEST(FileFrameSource, LoopStartsAgainWithTheSequenceCounting) {
+  FileFrameSource source(fileOptions(yawDataset(), false, /*loop=*/true));
+  ASSERT_TRUE(source.open().has_value());
+  cv::Mat buffer(omniSize(), CV_8UC1);
+  for (int i = 0; i < kFrames + 3; ++i) {
+    auto got = source.next(buffer, 10ms);
+    ASSERT_TRUE(got.has_value());
+    EXPECT_EQ(got->sequence, static_cast<std::uint64_t>(i));
+    EXPECT_EQ(got->index, i % kFrames);
+  }
+}
+
+TEST(SourceFactory, BuildsTheConfiguredSourceOrSaysWhatIsNotBuiltIn) {
+  SourceConfig config;
+  config.type = SourceConfig::Type::kFile;
+  config.path = yawDataset();
+  auto source = daemon::makeFrameSource(config, {omniSize(), yawDataset() / "calibration.yaml"});
+  ASSERT_NE(source, nullptr);
+  EXPECT_NE(source->describe().find(yawDataset().string()), std::string::npos);
+  // Camera sources are created (not opened) when built in, else a clear start-up error.
+  for (auto type : {SourceConfig::Type::kV4l2, SourceConfig::Type::kLibcamera}) {
+    config.type = type;
+    try {
+      auto camera = daemon::makeFrameSource(config, {omniSize(), {}});
+      EXPECT_NE(camera, nullptr) << toString(type);
+    } catch (const std::runtime_error& e) {
+      EXPECT_NE(std::string(e.what()).find("not built into this daemon"), std::string::npos) << e.what();
+      EXPECT_NE(std::string(e.what()).find(toString(type)), std::string::npos) << e.what();
+    }
+  }
+}
+
+// ---------------------------------------------------------------------------------------
+// Whole daemon over memq://
+// ---------------------------------------------------------------------------------------
+
+/// Subscribes to the daemon's channels on a shared memq:// LCM and keeps every message.
+struct Bus {
+  lcm::LCM lcm{"memq://"};
+  std::vector<pose_t> poses;
+  std::vector<std::int64_t> pose_received_us;
+  std::vector<status_t> statuses;
+  std::vector<fit_diagnostics_t> diagnostics;
+
+  Bus() {
+    lcm.subscribe("OMNI_POSE", &Bus::onPose, this)->setQueueCapacity(1 << 20);
+    lcm.subscribe("OMNI_STATUS", &Bus::onStatus, this)->setQueueCapacity(1 << 20);
+    lcm.subscribe("OMNI_FIT", &Bus::onFit, this)->setQueueCapacity(1 << 20);
+  }
+  void onPose(const lcm::ReceiveBuffer* rb, const std::string&, const pose_t* p) {
+    poses.push_back(*p);
+    pose_received_us.push_back(rb->recv_utime);  // memq: the time of publishing
+  }
+  void onStatus(const lcm::ReceiveBuffer*, const std::string&, const status_t* s) { statuses.push_back(*s); }
+  void onFit(const lcm::ReceiveBuffer*, const std::string&, const fit_diagnostics_t* d) { diagnostics.push_back(*d); }
+  void drain() {
+    while (lcm.handleTimeout(0) > 0) {
+    }
+  }
+  std::unique_ptr<daemon::MessageSink> sink() { return std::make_unique<testing::SharedLcmSink>(lcm); }
+
+  /// Runs `d` to its end (finite source) or until `until` returns true (then stops it).
+  void run(Daemon& d, std::chrono::seconds timeout, const std::function<void()>& tick = {}) {
+    const auto deadline = SteadyClockNow() + timeout;
+    d.start();
+    while (!d.waitFinished(10ms)) {
+      drain();
+      if (tick) tick();
+      if (SteadyClockNow() > deadline) {
+        ADD_FAILURE() << "daemon did not finish in time";
+        d.requestStop();
+      }
+    }
+    d.join();
+    drain();
+  }
+};
+
+DaemonConfig parseConfig(const std::string& yaml, const fs::path& base = "/") {
+  return DaemonConfig::parse(yaml, "test.yaml", base);
+}
+
+/// Ground-truth relative rotation between dataset frames i and j (T_i^-1 T_j).
+Eigen::Matrix3d gtRelative(const std::vector<StampedPose>& gt, int i, int j) {
+  return (gt[static_cast<std::size_t>(i)].pose.inverse() * gt[static_cast<std::size_t>(j)].pose).rotation();
+}
+
+/// Checks every non-lost pose against the ground truth and its reference frame.
+void expectPosesMatchGroundTruth(const std::vector<pose_t>& poses, const fs::path& dataset,
+                                 double max_error_rad) {
+  const auto gt = readTum(dataset / "groundtruth.tum");
+  std::map<std::int64_t, int> index_of;  // sequence -> dataset index
+  for (const auto& p : poses) index_of[p.sequence] = p.source_index;
+  for (const auto& p : poses) {
+    if (p.status == pose_t::STATUS_LOST) continue;
+    ASSERT_TRUE(index_of.contains(p.reference_sequence)) << "reference frame was never published";
+    const int i = index_of[p.reference_sequence];
+    const double err = testing::rotationError(testing::relativeRotation(p), gtRelative(gt, i, p.source_index));
+    EXPECT_LT(err, max_error_rad) << "pair " << i << " -> " << p.source_index;
+  }
+}
+
+TEST(Daemon, PublishesOnePosePerFrameStatusAtItsRateAndAFinalStatus) {
+  const auto frames = testing::renderFrames("yaw", 6);
+  Bus bus;
+  auto config = parseConfig(
+      "source: {type: file, path: /nonexistent}\ncalibration: " +
+      (yawDataset() / "calibration.yaml").string() + "\nlcm: {status_hz: 20}\n");
+  testing::MemorySource::Script script;
+  script.total = 40;
+  script.period = 20ms;  // 50 Hz, faster than status
+  Daemon d(config, stderr, std::make_unique<testing::MemorySource>(frames, script), bus.sink(),
+           {.capture = {}, .force_lossless = true});
+  bus.run(d, 60s);
+
+  const auto stats = d.stats();
+  EXPECT_EQ(stats.frames_received, 40);
+  EXPECT_EQ(stats.frames_processed, 40);
+  EXPECT_EQ(stats.frames_skipped, 0);
+  ASSERT_EQ(bus.poses.size(), 40u);
+  for (std::size_t k = 0; k < bus.poses.size(); ++k) {
+    const pose_t& p = bus.poses[k];
+    EXPECT_EQ(p.sequence, static_cast<std::int64_t>(k));
+    if (k == 0) {
+      EXPECT_EQ(p.status, pose_t::STATUS_LOST) << "first frame: no relative motion yet";
+      EXPECT_EQ(p.reference_sequence, -1);
+      EXPECT_EQ(p.segment, 0);
+    } else {
+      EXPECT_EQ(p.status, pose_t::STATUS_OK) << k;
+      EXPECT_EQ(p.reference_sequence, p.sequence - 1);
+      EXPECT_EQ(p.segment, 0);
+      EXPECT_GT(p.utime, bus.poses[k - 1].utime);
+    }
+    EXPECT_EQ(p.windows_total, 55);
+    EXPECT_NEAR(Eigen::Vector4d(p.orientation[0], p.orientation[1], p.orientation[2],
+                                p.orientation[3]).norm(), 1.0, 1e-9);
+  }
+  ASSERT_GE(bus.statuses.size(), 3u) << "status at 20 Hz over a run of 0.8 s or more";
+  const status_t& last = bus.statuses.back();
+  EXPECT_TRUE(last.final);
+  EXPECT_EQ(last.frames_received, 40);
+  EXPECT_EQ(last.frames_processed, 40);
+  EXPECT_EQ(last.frames_bad, 0);
+  EXPECT_EQ(last.poses_lost, 1);
+  EXPECT_EQ(last.source_state, status_t::SOURCE_ENDED);
+  EXPECT_GT(last.processing_ms_p50, 0.0f);
+  EXPECT_GE(last.latency_ms_p99, last.latency_ms_p50);
+  EXPECT_EQ(last.source, "memory (6 frames)");
+  for (std::size_t k = 0; k + 1 < bus.statuses.size(); ++k) EXPECT_FALSE(bus.statuses[k].final);
+  EXPECT_TRUE(bus.diagnostics.empty()) << "diagnostics are off by default";
+}
+
+TEST(Daemon, CorruptFramesMidStreamAreSkippedReportedAndMarkTheGap) {
+  TempDir tmp("daemon-corrupt");
+  testing::copyDataset(yawDataset(), tmp / "d");
+  testing::writeText(tmp / "d/frames/000008.png", "garbage, not an image");
+  cv::imwrite((tmp / "d/frames/000015.png").string(), cv::Mat(360, 360, CV_8UC1, cv::Scalar(80)));
+  std::FILE* log = std::tmpfile();
+  Bus bus;
+  Daemon d(parseConfig(testing::fileSourceConfig(tmp / "d", "", /*realtime=*/false)), log,
+           nullptr, bus.sink());
+  bus.run(d, 60s);
+
+  // Every good frame has its pose; the two bad ones are counted, not published.
+  ASSERT_EQ(bus.poses.size(), static_cast<std::size_t>(kFrames - 2));
+  const status_t& last = bus.statuses.back();
+  EXPECT_TRUE(last.final);
+  EXPECT_EQ(last.frames_bad, 2);
+  EXPECT_EQ(last.frames_received, kFrames - 2);
+  EXPECT_EQ(last.frames_processed, kFrames - 2);
+  EXPECT_NE(last.last_error.find("000015.png"), std::string::npos) << last.last_error;
+  EXPECT_NE(last.last_error.find("360x360"), std::string::npos) << last.last_error;
+  EXPECT_GT(last.last_error_utime, 0);
+  // The first fault was logged with its file name.
+  std::rewind(log);
+  std::string logged(1 << 16, '\0');
+  logged.resize(std::fread(logged.data(), 1, logged.size(), log));
+  std::fclose(log);
+  EXPECT_NE(logged.find("000008.png"), std::string::npos) << logged;
+
+  // The frame after each bad one starts a new segment with status lost: no motion is
+  // invented across the gap.
+  int segment = 0;
+  for (const pose_t& p : bus.poses) {
+    const bool after_gap = p.source_index == 9 || p.source_index == 16;
+    if (p.source_index == 0 || after_gap) {
+      EXPECT_EQ(p.status, pose_t::STATUS_LOST) << p.source_index;
+      EXPECT_EQ(p.reference_sequence, -1);
+      EXPECT_TRUE(std::isinf(p.covariance[0]));
+      EXPECT_EQ(p.rotation_vector[2], 0.0);
+      if (after_gap) ++segment;
+    } else {
+      EXPECT_EQ(p.status, pose_t::STATUS_OK) << p.source_index;
+      EXPECT_EQ(p.reference_sequence, p.sequence - 1) << "never across a bad frame";
+    }
+    EXPECT_EQ(p.segment, segment) << p.source_index;
+  }
+  EXPECT_EQ(last.segment, 2);
+  EXPECT_EQ(last.poses_lost, 3);
+  expectPosesMatchGroundTruth(bus.poses, tmp / "d", 0.01);
+}
+
+TEST(Daemon, VanishingDirectoryIsReportedRetriedWithBackoffAndMarksTheGap) {
+  TempDir tmp("daemon-vanish");
+  testing::copyDataset(yawDataset(), tmp / "d");
+  Bus bus;
+  auto config = parseConfig(testing::fileSourceConfig(tmp / "d", "", false) + "  status_hz: 20\n");
+  Daemon d(config, stderr, nullptr, bus.sink());
+  bool moved = false, restored = false;
+  SteadyClock::time_point moved_at;
+  bus.run(d, 60s, [&] {
+    if (!moved && bus.poses.size() >= 6) {
+      fs::rename(tmp / "d", tmp / "away");
+      moved = true;
+      moved_at = SteadyClockNow();
+    } else if (moved && !restored && SteadyClockNow() - moved_at > 700ms) {
+      fs::rename(tmp / "away", tmp / "d");
+      restored = true;
+    }
+  });
+  ASSERT_TRUE(restored);
+  const auto stats = d.stats();
+  EXPECT_GE(stats.source_failures, 1);
+  EXPECT_EQ(stats.frames_received, kFrames) << "the failed frame is read again after the re-open";
+  // Status showed the reconnecting source with the directory named.
+  bool saw_reconnecting = false;
+  for (const auto& s : bus.statuses) {
+    if (s.source_state == status_t::SOURCE_RECONNECTING) {
+      saw_reconnecting = true;
+      EXPECT_NE(s.last_error.find((tmp / "d").string()), std::string::npos) << s.last_error;
+    }
+  }
+  EXPECT_TRUE(saw_reconnecting);
+  EXPECT_EQ(bus.statuses.back().source_state, status_t::SOURCE_ENDED);
+  // Exactly one gap: the first pose after the outage is lost and opens segment 1.
+  ASSERT_EQ(bus.poses.size(), static_cast<std::size_t>(kFrames));
+  int lost_after_start = 0;
+  for (std::size_t k = 1; k < bus.poses.size(); ++k) {
+    const pose_t& p = bus.poses[k];
+    if (p.status == pose_t::STATUS_LOST) {
+      ++lost_after_start;
+      EXPECT_EQ(p.segment, 1);
+      EXPECT_EQ(p.reference_sequence, -1);
+    } else {
+      EXPECT_EQ(p.segment, bus.poses[k - 1].segment);
+      EXPECT_EQ(p.reference_sequence, bus.poses[k - 1].sequence);
+    }
+  }
+  EXPECT_EQ(lost_after_start, 1);
+  expectPosesMatchGroundTruth(bus.poses, tmp / "d", 0.01);
+}
+
+TEST(Daemon, StaleFramesAreSkippedAndLatencyStaysBounded) {
+  // A 200 fps recording replayed in real time: far faster than the pipeline.
+  TempDir tmp("daemon-stale");
+  testing::copyDataset(yawDataset(), tmp / "d");
+  std::string stamps;
+  for (int i = 0; i < kFrames; ++i) {
+    char line[64];
+    std::snprintf(line, sizeof(line), "%06d.png %.6f\n", i, 0.005 * i);
+    stamps += line;
+  }
+  testing::writeText(tmp / "d" / "timestamps.txt", stamps);
+  Bus bus;
+  auto config = parseConfig(testing::fileSourceConfig(tmp / "d", "", /*realtime=*/true, /*loop=*/true) +
+                            "  status_hz: 10\n");
+  Daemon d(config, stderr, nullptr, bus.sink());
+  bus.run(d, 60s, [&] {
+    if (bus.poses.size() >= 25) d.requestStop();
+  });
+  const auto stats = d.stats();
+  ASSERT_GE(bus.poses.size(), 25u);
+  EXPECT_GT(stats.frames_skipped, 0);
+  const status_t& last = bus.statuses.back();
+  EXPECT_TRUE(last.final);
+  EXPECT_EQ(last.source_state, status_t::SOURCE_STOPPED);
+  EXPECT_EQ(last.frames_skipped_stale, stats.frames_skipped);
+  // Every received frame is either processed or skipped (at most one still in the mailbox).
+  EXPECT_LE(last.frames_received - last.frames_processed - last.frames_skipped_stale, 1);
+  EXPECT_GE(last.frames_received - last.frames_processed - last.frames_skipped_stale, 0);
+  std::int64_t skipped_in_poses = 0;
+  for (const auto& p : bus.poses) skipped_in_poses += p.frames_skipped;
+  EXPECT_LE(skipped_in_poses, stats.frames_skipped);
+
+  // Latency (capture -> publish) stays within a couple of processing times instead of
+  // growing with a backlog: the last poses are as fresh as the first ones.
+  double max_processing_ms = 0;
+  for (const auto& p : bus.poses) max_processing_ms = std::max<double>(max_processing_ms, p.processing_time_s * 1e3);
+  std::vector<double> latency_ms;
+  for (std::size_t k = 0; k < bus.poses.size(); ++k)
+    latency_ms.push_back((bus.pose_received_us[k] - bus.poses[k].utime) * 1e-3);
+  const double bound = 3.0 * max_processing_ms + 100.0;
+  for (std::size_t k = 0; k < latency_ms.size(); ++k) {
+    EXPECT_GE(latency_ms[k], 0.0);
+    EXPECT_LT(latency_ms[k], bound) << "pose " << k << " (max processing " << max_processing_ms << " ms)";
+  }
+  EXPECT_LT(last.latency_ms_p99, bound);
+  // Capture stamps are the recorded schedule: 5 ms apart per dataset frame.
+  for (std::size_t k = 1; k < bus.poses.size(); ++k) {
+    const pose_t& a = bus.poses[k - 1];
+    const pose_t& b = bus.poses[k];
+    if (b.sequence <= a.sequence) continue;
+    EXPECT_NEAR(static_cast<double>(b.utime - a.utime), 5000.0 * static_cast<double>(b.sequence - a.sequence), 2.0);
+    if (b.status != pose_t::STATUS_LOST) {
+      // Skipped as stale by the daemon, or never read by the source (running late).
+      EXPECT_LE(b.frames_skipped, b.sequence - a.sequence - 1);
+      EXPECT_EQ(b.reference_sequence, a.sequence);
+    }
+  }
+}
+
+TEST(Daemon, FitDiagnosticsArePublishedWhenEnabledAndMatchTheModel) {
+  Bus bus;
+  const auto frames = testing::renderFrames("yaw", 4);
+  auto config = parseConfig("source: {type: file, path: /x}\ncalibration: " +
+                            (yawDataset() / "calibration.yaml").string() +
+                            "\nlcm: {fit_channel: OMNI_FIT}\n");
+  testing::MemorySource::Script script;
+  script.total = 6;
+  Daemon d(config, stderr, std::make_unique<testing::MemorySource>(frames, script), bus.sink(),
+           {.capture = {}, .force_lossless = true});
+  bus.run(d, 60s);
+  ASSERT_EQ(bus.poses.size(), 6u);
+  ASSERT_EQ(bus.diagnostics.size(), 5u) << "one per frame pair";
+  for (const auto& diag : bus.diagnostics) {
+    ASSERT_EQ(diag.num_windows, 55);
+    ASSERT_EQ(diag.du.size(), 55u);
+    int valid = 0;
+    for (int k = 0; k < diag.num_windows; ++k) {
+      if (!diag.valid[k]) continue;
+      ++valid;
+      EXPECT_NEAR(diag.du[k], diag.model_du[k], 1.0) << "window " << k;
+      EXPECT_NEAR(diag.dv[k], diag.model_dv[k], 1.0) << "window " << k;
+    }
+    EXPECT_GT(valid, 40);
+  }
+}
+
+TEST(Daemon, StartupFailuresNameTheCulprit) {
+  const std::string calibration = (yawDataset() / "calibration.yaml").string();
+  auto expectStartupError = [](const DaemonConfig& c, const std::string& needle) {
+    try {
+      Daemon d(c, nullptr);
+      ADD_FAILURE() << "expected a start-up error mentioning " << needle;
+    } catch (const std::runtime_error& e) {
+      EXPECT_NE(std::string(e.what()).find(needle), std::string::npos) << e.what();
+    }
+  };
+  expectStartupError(parseConfig("source: {type: file, path: /no/such/dataset}\ncalibration: " +
+                                 calibration + "\nlcm: {url: 'memq://'}\n"),
+                     "/no/such/dataset");
+  expectStartupError(parseConfig("source: {type: v4l2, device: /dev/omnipose-no-such-video}\n"
+                                 "calibration: " + calibration + "\nlcm: {url: 'memq://'}\n"),
+                     "/dev/omnipose-no-such-video");
+  expectStartupError(parseConfig("source: {type: file, path: " + yawDataset().string() +
+                                 "}\ncalibration: /no/such/calibration.yaml\nlcm: {url: 'memq://'}\n"),
+                     "/no/such/calibration.yaml");
+  expectStartupError(parseConfig("source: {type: file, path: " + yawDataset().string() +
+                                 "}\ncalibration: " + calibration + "\nlcm: {url: 'nonsense://x'}\n"),
+                     "nonsense://x");
+  // A panorama-input configuration on an omni dataset: the frame size does not match.
+  expectStartupError(parseConfig("source: {type: file, path: " + yawDataset().string() +
+                                 "}\ncalibration: " + calibration +
+                                 "\ninput: panorama\nlcm: {url: 'memq://'}\n"),
+                     "expected 1100x110");
+}
+
+}  // namespace
+}  // namespace omnipose

@@ -1,0 +1,274 @@
+// libcamera source: its pure parts (format choice, camera choice, configuration checks,
+// timestamp conversion) and its behaviour with no camera present.
+
+#include <gtest/gtest.h>
+
+#include <ctime>
+#include <filesystem>
+
+#include "common/clock_offset.hpp"
+#include "libcamera/libcamera_formats.hpp"
+#include "libcamera/libcamera_source.hpp"
+
+namespace omnipose {
+namespace {
+
+using namespace std::chrono_literals;
+using libcam::fourcc;
+
+constexpr std::uint32_t kR8 = fourcc('R', '8', ' ', ' ');
+constexpr std::uint32_t kNV12 = fourcc('N', 'V', '1', '2');
+constexpr std::uint32_t kYUV420 = fourcc('Y', 'U', '1', '2');
+constexpr std::uint32_t kYUYV = fourcc('Y', 'U', 'Y', 'V');
+constexpr std::uint32_t kUYVY = fourcc('U', 'Y', 'V', 'Y');
+constexpr std::uint32_t kMJPEG = fourcc('M', 'J', 'P', 'G');
+constexpr std::uint32_t kXRGB = fourcc('X', 'R', '2', '4');
+constexpr std::uint32_t kRaw10 = fourcc('p', 'R', 'A', 'A');
+
+SourceConfig libcameraConfig(const char* camera = "0", const char* format = "YUYV") {
+  SourceConfig c;
+  c.type = SourceConfig::Type::kLibcamera;
+  c.camera = camera;
+  c.width = 640;
+  c.height = 480;
+  c.fps = 30;
+  c.format = format;
+  return c;
+}
+
+// ---- format choice ----------------------------------------------------------------------
+
+TEST(LibcameraFormatTest, ConvertibleFormatsAndTheirConversion) {
+  ASSERT_NE(libcam::findGreyFormat(kR8), nullptr);
+  EXPECT_EQ(libcam::findGreyFormat(kR8)->conversion, libcam::GreyConversion::kLumaPlane);
+  EXPECT_EQ(libcam::findGreyFormat(kNV12)->conversion, libcam::GreyConversion::kLumaPlane);
+  EXPECT_EQ(libcam::findGreyFormat(kYUYV)->conversion, libcam::GreyConversion::kPackedLuma0);
+  EXPECT_EQ(libcam::findGreyFormat(kUYVY)->conversion, libcam::GreyConversion::kPackedLuma1);
+  EXPECT_EQ(libcam::findGreyFormat(kMJPEG)->conversion, libcam::GreyConversion::kJpeg);
+  EXPECT_EQ(libcam::findGreyFormat(kXRGB), nullptr);
+  EXPECT_EQ(libcam::findGreyFormat(kRaw10), nullptr);
+  EXPECT_EQ(libcam::greyFormats().front().fourcc, kR8) << "no conversion is best";
+  EXPECT_EQ(libcam::greyFormats().back().fourcc, kMJPEG) << "decoding is last";
+}
+
+TEST(LibcameraFormatTest, ParsesLibcameraAndV4l2Names) {
+  EXPECT_EQ(libcam::parseFormatName("GREY"), kR8);
+  EXPECT_EQ(libcam::parseFormatName("r8"), kR8);
+  EXPECT_EQ(libcam::parseFormatName("Y8"), kR8);
+  EXPECT_EQ(libcam::parseFormatName("nv12"), kNV12);
+  EXPECT_EQ(libcam::parseFormatName("YUV420"), kYUV420);
+  EXPECT_EQ(libcam::parseFormatName("MJPG"), kMJPEG);
+  EXPECT_EQ(libcam::parseFormatName("MJPEG"), kMJPEG);
+  EXPECT_EQ(libcam::parseFormatName("auto"), 0u);
+  EXPECT_EQ(libcam::parseFormatName(""), 0u);
+  EXPECT_FALSE(libcam::parseFormatName("XRGB8888"));
+  EXPECT_EQ(libcam::formatName(kNV12), "NV12");
+  EXPECT_EQ(libcam::formatName(kXRGB), "XR24");
+}
+
+TEST(LibcameraFormatTest, RequestedFormatWhenOffered) {
+  const std::vector<std::uint32_t> offered = {kXRGB, kNV12, kYUYV, kMJPEG};
+  auto c = libcam::chooseFormat("YUYV", offered);
+  ASSERT_TRUE(c);
+  EXPECT_EQ(c->fourcc, kYUYV);
+  EXPECT_FALSE(c->substituted);
+  c = libcam::chooseFormat("mjpg", offered);
+  ASSERT_TRUE(c);
+  EXPECT_EQ(c->fourcc, kMJPEG);
+}
+
+TEST(LibcameraFormatTest, BestOfferedWhenAutoOrNotOffered) {
+  // A Raspberry Pi ISP: no R8, but YUV420 and NV12 (a luma plane to copy) before packed.
+  const std::vector<std::uint32_t> pi = {kXRGB, kYUYV, kYUV420, kNV12, kRaw10};
+  auto c = libcam::chooseFormat("auto", pi);
+  ASSERT_TRUE(c);
+  EXPECT_EQ(c->fourcc, kNV12);
+  EXPECT_FALSE(c->substituted);
+  // A UVC camera through libcamera: YUYV and MJPEG; GREY asked, YUYV substituted.
+  const std::vector<std::uint32_t> uvc = {kMJPEG, kYUYV};
+  c = libcam::chooseFormat("GREY", uvc);
+  ASSERT_TRUE(c);
+  EXPECT_EQ(c->fourcc, kYUYV);
+  EXPECT_TRUE(c->substituted);
+  c = libcam::chooseFormat("", std::vector<std::uint32_t>{kMJPEG});
+  ASSERT_TRUE(c);
+  EXPECT_EQ(c->fourcc, kMJPEG);
+}
+
+TEST(LibcameraFormatTest, NothingConvertibleOrUnknownNameAreErrors) {
+  auto c = libcam::chooseFormat("YUYV", std::vector<std::uint32_t>{kXRGB, kRaw10});
+  ASSERT_FALSE(c);
+  EXPECT_EQ(c.error().code(), ErrorCode::kUnsupportedFormat);
+  EXPECT_NE(c.error().message().find("offers: XR24 pRAA"), std::string_view::npos)
+      << c.error().message();
+  c = libcam::chooseFormat("RGB565", std::vector<std::uint32_t>{kNV12});
+  ASSERT_FALSE(c);
+  EXPECT_EQ(c.error().code(), ErrorCode::kInvalidArgument);
+  EXPECT_NE(c.error().message().find("RGB565"), std::string_view::npos);
+}
+
+// ---- camera choice ----------------------------------------------------------------------
+
+TEST(LibcameraCameraTest, IndexOrId) {
+  const std::vector<std::string> ids = {"/base/soc/i2c0mux/i2c@1/imx219@10",
+                                        "\\_SB_.PCI0.XHC_.RHUB.HS05-5:1.0-0c45:6366"};
+  auto s = libcam::parseCameraSelector("1");
+  ASSERT_TRUE(s.index);
+  EXPECT_EQ(*s.index, 1u);
+  auto i = libcam::selectCamera(s, ids);
+  ASSERT_TRUE(i);
+  EXPECT_EQ(*i, 1u);
+  s = libcam::parseCameraSelector("/base/soc/i2c0mux/i2c@1/imx219@10");
+  EXPECT_FALSE(s.index);
+  i = libcam::selectCamera(s, ids);
+  ASSERT_TRUE(i);
+  EXPECT_EQ(*i, 0u);
+}
+
+TEST(LibcameraCameraTest, MissingCamerasAreClearErrors) {
+  const std::vector<std::string> none;
+  auto i = libcam::selectCamera(libcam::parseCameraSelector("0"), none);
+  ASSERT_FALSE(i);
+  EXPECT_EQ(i.error().code(), ErrorCode::kNoDevice);
+  EXPECT_EQ(i.error().message().substr(0, 10), "no camera:");
+
+  const std::vector<std::string> one = {"/base/soc/i2c0mux/i2c@1/imx219@10"};
+  i = libcam::selectCamera(libcam::parseCameraSelector("2"), one);
+  ASSERT_FALSE(i);
+  EXPECT_EQ(i.error().code(), ErrorCode::kNoDevice);
+  EXPECT_NE(i.error().message().find("0: /base/soc/i2c0mux/i2c@1/imx219@10"),
+            std::string_view::npos);
+  i = libcam::selectCamera(libcam::parseCameraSelector("imx477"), one);
+  ASSERT_FALSE(i);
+  EXPECT_EQ(i.error().code(), ErrorCode::kNotFound);
+  EXPECT_NE(i.error().message().find("'imx477'"), std::string_view::npos);
+}
+
+// ---- configuration ----------------------------------------------------------------------
+
+TEST(LibcameraConfigTest, Validation) {
+  EXPECT_TRUE(LibcameraSource::validate(libcameraConfig()).empty());
+  EXPECT_TRUE(LibcameraSource::validate(libcameraConfig("0", "auto")).empty());
+  SourceConfig bad = libcameraConfig("", "XRGB8888");
+  bad.width = 0;
+  bad.fps = 0;
+  const auto problems = LibcameraSource::validate(bad);
+  ASSERT_EQ(problems.size(), 4u);
+  EXPECT_EQ(problems[0].rfind("source.camera", 0), 0u);
+  EXPECT_EQ(problems[1].rfind("source.width/height", 0), 0u);
+  EXPECT_EQ(problems[2].rfind("source.fps", 0), 0u);
+  EXPECT_EQ(problems[3].rfind("source.format", 0), 0u);
+  EXPECT_EQ(libcam::frameDurationUs(30.0), 33333);
+  EXPECT_EQ(libcam::frameDurationUs(25.0), 40000);
+
+  LibcameraSourceOptions o;
+  EXPECT_TRUE(o.validate().empty());
+  o.reconnect_max = 1ms;
+  EXPECT_EQ(o.validate().size(), 1u);
+}
+
+TEST(LibcameraConfigTest, InvalidConfigurationFailsBeforeTouchingLibcamera) {
+  LibcameraSource source(libcameraConfig("0", "XRGB8888"));
+  auto r = source.open();
+  ASSERT_FALSE(r);
+  EXPECT_EQ(r.error().code(), ErrorCode::kInvalidArgument);
+}
+
+// ---- timestamps -------------------------------------------------------------------------
+
+TEST(LibcameraTimestampTest, SensorTimestampOnBoottimeBecomesWallClock) {
+  // Synthetic: BOOTTIME 100 s, wall 1.7e9 s; one preempted sample must not win.
+  const std::int64_t off = 1'700'000'000'000'000'000 - 100'000'000'000;
+  const std::vector<drivers::ClockSample> samples = {
+      {100'000'000'000, 100'000'050'000 + off, 100'000'100'000},  // 100 us bracket
+      {100'000'200'000, 100'000'200'150 + off, 100'000'200'300},  // 300 ns bracket, exact
+      {100'000'300'000, 100'000'300'900 + off, 100'000'301'000},  // 1 us, 400 ns skewed
+  };
+  const auto offset = drivers::offsetFromSamples(samples);
+  ASSERT_TRUE(offset.valid);
+  EXPECT_EQ(offset.offset_ns, off);
+  EXPECT_EQ(offset.uncertainty_ns, 150);
+  // A frame whose sensor started exposing at BOOTTIME 123.456789499 s.
+  EXPECT_EQ(drivers::toWallMicroseconds(123'456'789'499, offset),
+            (123'456'789'499 + off + 500) / 1000);
+  EXPECT_EQ(drivers::toWallMicroseconds(123'456'789'499, offset) % 1'000'000, 456'789);
+  EXPECT_EQ(drivers::toWallMicroseconds(123'456'789'500, offset) % 1'000'000, 456'790)
+      << "rounded to the nearest microsecond";
+}
+
+TEST(LibcameraTimestampTest, BrokenSamplesAreIgnored) {
+  const std::vector<drivers::ClockSample> samples = {{200, 5000, 100}};  // clock went back
+  EXPECT_FALSE(drivers::offsetFromSamples(samples).valid);
+  EXPECT_FALSE(drivers::offsetFromSamples({}).valid);
+  EXPECT_EQ(drivers::toWallMicroseconds(-1500, drivers::ClockOffset{0, 0, true}), -1)
+      << "rounds halves up also below zero";
+}
+
+TEST(LibcameraTimestampTest, RealBoottimeOffsetMatchesTheWallClock) {
+  auto read = [](clockid_t c) {
+    timespec ts{};
+    ::clock_gettime(c, &ts);
+    return drivers::toNanoseconds(ts);
+  };
+  const auto offset = drivers::measureClockOffset(read, CLOCK_BOOTTIME, 7);
+  ASSERT_TRUE(offset.valid);
+  EXPECT_LT(offset.uncertainty_ns, 1'000'000) << "a bracket of well under a millisecond";
+  const std::int64_t boot_now = read(CLOCK_BOOTTIME);
+  const std::int64_t wall_now_us = read(CLOCK_REALTIME) / 1000;
+  EXPECT_NEAR(static_cast<double>(drivers::toWallMicroseconds(boot_now, offset)),
+              static_cast<double>(wall_now_us), 2000.0);
+}
+
+TEST(BackoffTest, DoublesUpToTheCap) {
+  drivers::Backoff b(100, 700);
+  EXPECT_EQ(b.next(), 100);
+  EXPECT_EQ(b.next(), 200);
+  EXPECT_EQ(b.next(), 400);
+  EXPECT_EQ(b.next(), 700);
+  EXPECT_EQ(b.next(), 700);
+  b.reset();
+  EXPECT_EQ(b.next(), 100);
+}
+
+// ---- no camera here ---------------------------------------------------------------------
+
+bool anyMediaDevice() {
+  std::error_code ec;
+  for (const auto& e : std::filesystem::directory_iterator("/dev", ec))
+    if (e.path().filename().string().rfind("media", 0) == 0) return true;
+  return false;
+}
+
+TEST(LibcameraSourceTest, NoCameraIsAClearError) {
+  if (anyMediaDevice()) GTEST_SKIP() << "a media device exists here; this test needs none";
+  LibcameraSource source(libcameraConfig("0", "auto"));
+  EXPECT_NE(source.describe().find("not open"), std::string::npos);
+  auto r = source.open();
+  ASSERT_FALSE(r);
+  EXPECT_EQ(r.error().code(), ErrorCode::kNoDevice);
+  EXPECT_NE(r.error().message().find("no camera"), std::string_view::npos) << r.error().message();
+  EXPECT_NE(r.error().message().find("libcamera camera 0"), std::string_view::npos);
+  cv::Mat out(480, 640, CV_8UC1);
+  auto n = source.next(out, 10ms);
+  ASSERT_FALSE(n);
+  EXPECT_EQ(n.error().code(), ErrorCode::kInvalidArgument) << "not open";
+  source.close();
+  source.close();
+
+  // Twice, and two sources at once: the shared CameraManager allows it.
+  LibcameraSource a(libcameraConfig("0")), b(libcameraConfig("some-id"));
+  auto ra = a.open();
+  auto rb = b.open();
+  ASSERT_FALSE(ra);
+  ASSERT_FALSE(rb);
+  EXPECT_EQ(ra.error().code(), ErrorCode::kNoDevice);
+  EXPECT_EQ(rb.error().code(), ErrorCode::kNoDevice);
+}
+
+TEST(LibcameraSourceTest, VersionIsTheOneBuiltAgainst) {
+  EXPECT_FALSE(LibcameraSource::libcameraVersion().empty());
+  EXPECT_EQ(LibcameraSource::libcameraVersion().rfind("0.", 0), 0u);
+}
+
+}  // namespace
+}  // namespace omnipose
