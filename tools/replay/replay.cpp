@@ -5,18 +5,28 @@
 #include <fstream>
 #include <stdexcept>
 
+#include "omnipose/baselines/feature_motion_estimator.hpp"
 #include "omnipose/pipeline.hpp"
 #include "omnipose/pose_chain.hpp"
 #include "omnipose/trajectory.hpp"
 
 namespace omnipose::replay {
 
-std::vector<std::string> methodNames() { return {"ifmi"}; }
+std::vector<std::string> methodNames() {
+  std::vector<std::string> names{"ifmi"};
+  for (const auto& m : baselines::FeatureMotionOptions::methodNames()) names.push_back(m);
+  return names;
+}
 
 std::unique_ptr<MotionEstimator> makeEstimator(const std::string& method,
                                                const Calibration& calibration,
                                                const PipelineOptions& options) {
   if (method == "ifmi") return std::make_unique<Pipeline>(calibration, options);
+  // Feature baselines (issue 3): same unwrapping (input kind, black-frame threshold).
+  if (auto feature = baselines::FeatureMotionOptions::forMethod(method)) {
+    feature->unwrap = options.unwrap;
+    return std::make_unique<baselines::FeatureMotionEstimator>(calibration, *feature);
+  }
   std::string known;
   for (const auto& m : methodNames()) known += (known.empty() ? "" : ", ") + m;
   throw std::invalid_argument("unknown method '" + method + "' (known: " + known + ")");

@@ -1,0 +1,240 @@
+#!/usr/bin/env bash
+# Accuracy benchmark (GitHub issue 3): renders a fixed, seeded suite of omni sequences from
+# real 360-degree photos with exact ground truth (the paper's protocol: roll-only,
+# pitch-only and yaw-only sequences of 1..6 deg per frame on two real scenes and on a
+# Kogeto-like degraded copy of one; plus mixed-axis, large-step (6..12 deg) and
+# translation-in-a-room sequences), runs every method of omnipose-replay on each, scores
+# them with omnipose::evaluate and writes
+#   OUTDIR/report/RESULTS.md   Markdown: command, machine, date, Table I (paper layout),
+#                              Table II, where the main method is not ahead, figures
+#   OUTDIR/report/*.png        Fig. 5 (estimated vs true angle per frame, per sequence)
+#                              and Fig. 4 (du/dv per window with the fitted sinusoids)
+# plus the datasets, trajectories (TUM), per-pair CSVs and omnipose-eval outputs.
+#
+# Usage: tools/accuracy_benchmark.sh [--publish] [OUTDIR]      (default OUTDIR build/accuracy)
+#   --publish   also copy OUTDIR/report/* to docs/results/ (the README's Results section)
+# Environment (defaults in brackets):
+#   BUILD_DIR [build]  binaries in BUILD_DIR/bin; built first when missing
+#   DATA_DIR  [../shared/data/equirect]  the equirect photos
+#   FRAMES    [24]     frames per sequence      METHODS ["ifmi orb5pt akaze5pt orbrot akazerot"]
+#   SUPERSAMPLE [2]    renderer anti-aliasing: K x K rays per pixel
+# Everything is seeded: the same build gives the same datasets and estimates.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+root=$(pwd)
+
+publish=0
+out=""
+for arg in "$@"; do
+  case "$arg" in
+    --publish) publish=1 ;;
+    -h|--help) sed -n '2,/^set -euo/p' "$0" | grep '^#' | sed 's/^# \{0,1\}//'; exit 0 ;;
+    -*) echo "accuracy_benchmark: unknown option $arg" >&2; exit 2 ;;
+    *) out=$arg ;;
+  esac
+done
+build=${BUILD_DIR:-build}
+out=${out:-$build/accuracy}
+data=${DATA_DIR:-$root/../shared/data/equirect}
+frames=${FRAMES:-24}
+supersample=${SUPERSAMPLE:-2}
+methods=${METHODS:-"ifmi orb5pt akaze5pt orbrot akazerot"}
+bin=$build/bin
+command_line="tools/accuracy_benchmark.sh $*"
+[ -n "${BUILD_DIR:-}" ] && command_line="BUILD_DIR=$BUILD_DIR $command_line"
+[ -n "${FRAMES:-}" ] && command_line="FRAMES=$FRAMES $command_line"
+[ -n "${SUPERSAMPLE:-}" ] && command_line="SUPERSAMPLE=$SUPERSAMPLE $command_line"
+
+tools=(omnipose-synth omnipose-replay omnipose-eval omnipose-plot-fit omnipose-plot-angles
+       omnipose-results)
+missing=0
+for t in "${tools[@]}"; do [ -x "$bin/$t" ] || missing=1; done
+if [ "$missing" = 1 ]; then
+  echo "== building ${tools[*]} in $build"
+  cmake -S . -B "$build" -G Ninja -DCMAKE_BUILD_TYPE=Release >/dev/null
+  cmake --build "$build" -j"$(nproc 2>/dev/null || echo 2)" --target "${tools[@]}"
+fi
+
+indoor=$data/indoor_1024x512.jpg
+[ -f "$indoor" ] || indoor=$root/tests/data/equirect/indoor_1024x512.jpg
+park=$data/park_theta_v_5376x2688.jpg
+for photo in "$indoor" "$park"; do
+  [ -f "$photo" ] || { echo "accuracy_benchmark: missing photo $photo (set DATA_DIR)" >&2; exit 1; }
+done
+
+start=$(date +%s)
+load_start=$(cut -d' ' -f1-3 /proc/loadavg)
+case "$(cd "$(dirname "$out")" 2>/dev/null && pwd)/$(basename "$out")" in
+  /|"$root"|"$root/"|"$root/."|"$HOME") echo "accuracy_benchmark: refusing to clear $out" >&2; exit 2 ;;
+esac
+rm -rf "$out"
+mkdir -p "$out/motions" "$out/report"
+report=$out/report
+
+# ---------------------------------------------------------------------------- motions
+# Single-axis sequences use the renderer's presets (the paper's protocol: 1..6 deg per
+# frame, random sign; roll and pitch bounded to 15 deg from the start).
+cat > "$out/motions/mixed.yaml" <<'EOF'
+# Roll, pitch and yaw at once: 1..6 deg per frame about a random axis, within 20 deg.
+segments:
+  - frames: 99
+    rotation: {axis: random, step_deg: [1, 6], bound_deg: 20}
+EOF
+cat > "$out/motions/large.yaml" <<'EOF'
+# Large steps: 6..12 deg per frame about a random axis, within 25 deg.
+segments:
+  - frames: 99
+    rotation: {axis: random, step_deg: [6, 12], bound_deg: 25}
+EOF
+
+# ---------------------------------------------------------------------------- suite
+# name  scene_label  photo  motion  seed  degradation flags
+kogeto="--noise 4 --blur 1.2 --jpeg 75 --exposure-jitter 0.05 --exposure-offset 3"
+clean="--noise 3 --jpeg 90"
+suite=(
+  "indoor_roll|indoor|$indoor|preset:roll|101|$clean"
+  "indoor_pitch|indoor|$indoor|preset:pitch|102|$clean"
+  "indoor_yaw|indoor|$indoor|preset:yaw|103|$clean"
+  "park_roll|park|$park|preset:roll|201|$clean"
+  "park_pitch|park|$park|preset:pitch|202|$clean"
+  "park_yaw|park|$park|preset:yaw|203|$clean"
+  "kogeto_roll|indoor-kogeto|$indoor|preset:roll|301|$kogeto"
+  "kogeto_pitch|indoor-kogeto|$indoor|preset:pitch|302|$kogeto"
+  "kogeto_yaw|indoor-kogeto|$indoor|preset:yaw|303|$kogeto"
+  "park_mixed|park|$park|file:$out/motions/mixed.yaml|401|$clean"
+  "indoor_large|indoor|$indoor|file:$out/motions/large.yaml|501|$clean"
+  "room_translate|indoor-room|$indoor|preset:translate|601|$clean"
+)
+
+echo "== accuracy benchmark: ${#suite[@]} sequences x $frames frames, methods: $methods"
+echo "   output: $out    photos: $data"
+manifest=$out/manifest.tsv
+printf '# scene\tsequence\tmethod\tgroundtruth\testimate\tseconds_per_frame\n' > "$manifest"
+
+for entry in "${suite[@]}"; do
+  IFS='|' read -r name scene photo motion seed flags <<< "$entry"
+  sequence=${name#*_}
+  dir=$out/$name
+  case "$motion" in
+    preset:*) motion_args=(--preset "${motion#preset:}") ;;
+    file:*) motion_args=(--motion "${motion#file:}") ;;
+  esac
+  t0=$(date +%s)
+  # shellcheck disable=SC2086  # flags are whitespace-separated options
+  "$bin/omnipose-synth" --texture "$photo" --out "$dir/dataset" "${motion_args[@]}" \
+    --frames "$frames" --seed "$seed" --supersample "$supersample" $flags > "$dir.synth.log"
+  printf '== %-15s rendered in %3ds (%s, seed %s, %s)\n' "$name" $(( $(date +%s) - t0 )) \
+    "$motion" "$seed" "$flags"
+  for m in $methods; do
+    t0=$(date +%s)
+    line=$("$bin/omnipose-replay" "$dir/dataset" --method "$m" --quiet \
+             --out "$dir/$m.tum" --relative "$dir/$m.csv" 2> "$dir/$m.log" | tail -n 1) || {
+      echo "   $m: replay failed, see $dir/$m.log" >&2; cat "$dir/$m.log" >&2; exit 1; }
+    spf=$(sed -n 's/.*seconds_per_frame=\([0-9.eE+-]*\).*/\1/p' <<< "$line")
+    printf '   %-9s %s  (%ds)\n' "$m" "$line" $(( $(date +%s) - t0 ))
+    printf '%s\t%s\t%s\t%s\t%s\t%s\n' "$scene" "$sequence" "$m" \
+      "$dir/dataset/groundtruth.tum" "$dir/$m.tum" "$spf" >> "$manifest"
+  done
+  ests=()
+  for m in $methods; do ests+=("$dir/$m.tum"); done
+  "$bin/omnipose-eval" "$dir/dataset/groundtruth.tum" "${ests[@]}" --json "$dir/eval.json" \
+    > "$dir/eval.txt"
+done
+
+# ---------------------------------------------------------------------------- figures
+echo "== figures"
+labels=$(tr ' ' ',' <<< "$methods")
+for entry in "${suite[@]}"; do
+  IFS='|' read -r name scene _ <<< "$entry"
+  sequence=${name#*_}
+  case "$sequence" in roll|pitch|yaw) ;; *) continue ;; esac
+  ests=()
+  for m in $methods; do ests+=("$out/$name/$m.tum"); done
+  "$bin/omnipose-plot-angles" "$out/$name/dataset/groundtruth.tum" "${ests[@]}" \
+    --labels "$labels" --axis "$sequence" --title "$scene: $sequence sequence" \
+    --out "$report/fig5_$name.png"
+done
+fig4_log=$("$bin/omnipose-plot-fit" "$out/indoor_roll/dataset" --pair max \
+  --out "$report/fig4_indoor_roll.png")
+echo "$fig4_log"
+fig4_pair=$(sed -n 's/.*: pair \([0-9]*\),.*/\1/p' <<< "$fig4_log")
+
+# ---------------------------------------------------------------------------- report
+echo "== tables"
+"$bin/omnipose-results" "$manifest" --main ifmi --out "$out/tables.md" > /dev/null
+elapsed=$(( $(date +%s) - start ))
+load_end=$(cut -d' ' -f1-3 /proc/loadavg)
+cpu=$(grep -m1 'model name' /proc/cpuinfo | cut -d: -f2- | sed 's/^ *//')
+commit=$(git rev-parse --short HEAD 2>/dev/null || echo unknown)
+if [ -n "$(git status --porcelain 2>/dev/null | head -n 1)" ]; then commit="$commit (with uncommitted changes)"; fi
+
+{
+  echo "## Results"
+  echo
+  echo "Generated by \`$command_line\` on $(date -u '+%Y-%m-%d %H:%M UTC'), commit $commit."
+  echo
+  echo "Machine: $cpu, $(nproc) cores ($(uname -sr)); load average $load_start at the start and"
+  echo "$load_end at the end (the machine was shared: times per frame are wall-clock medians"
+  echo "under that load). The whole benchmark took $((elapsed / 60)) min $((elapsed % 60)) s."
+  echo
+  echo "Data: ${#suite[@]} seeded sequences of $frames omni frames (720 x 720, unwrapped to"
+  echo "1100 x 110) rendered by \`omnipose-synth\` ($supersample x $supersample rays per pixel)"
+  echo "with exact ground truth from two real"
+  echo "360-degree photos: \`indoor\` ($(basename "$indoor")) and \`park\` ($(basename "$park"))."
+  echo "Roll, pitch and yaw sequences turn 1..6 deg per frame about one axis with a random sign"
+  echo "(the paper's protocol; roll and pitch stay within 15 deg); sensor noise sigma 3 grey"
+  echo "levels and JPEG quality 90. \`indoor-kogeto\` repeats them with Kogeto-like degradations:"
+  echo "noise sigma 4, Gaussian blur sigma 1.2 px, JPEG 75, per-frame exposure gain 1 + N(0, 0.05)"
+  echo "and offset N(0, 3). Table II: \`park mixed\` (1..6 deg about a random axis),"
+  echo "\`indoor large\` (6..12 deg about a random axis) and \`indoor-room translate\` (5..15 cm"
+  echo "horizontal steps with up to 1 deg of rotation in a 6 x 5 m textured box room)."
+  echo
+  echo "Methods (\`omnipose-replay --method NAME\`): \`ifmi\` = this project (sliding-window iFMI +"
+  echo "sinusoid fit + exact refinement); \`orb5pt\` / \`akaze5pt\` = ORB / AKAZE features on the"
+  echo "panorama, ratio test 0.8, OpenGV Stewenius 5-point RANSAC + nonlinear refinement (the"
+  echo "paper's baselines); \`orbrot\` / \`akazerot\` = the same features with OpenGV's 2-point"
+  echo "rotation-only RANSAC (the strongest feature method for pure rotation). Inlier threshold:"
+  echo "one panorama pixel of angle."
+  echo
+  cat "$out/tables.md"
+  if [ -f docs/results/ANALYSIS.md ]; then
+    # Hand-written explanation of the cells listed above (kept with the results).
+    echo
+    cat docs/results/ANALYSIS.md
+  fi
+  echo
+  echo "### Figures"
+  echo
+  echo "Fig. 5 layout: estimated and true rotation per frame about the sequence's axis, RMSE"
+  echo "(mu, mrad) in the legend; below, each method's error (zoomed to the two most accurate"
+  echo "methods). Rows: scenes; columns: roll, pitch, yaw."
+  echo
+  echo "| | roll | pitch | yaw |"
+  echo "|---|---|---|---|"
+  for scene in indoor park kogeto; do
+    label=$scene
+    [ "$scene" = kogeto ] && label=indoor-kogeto
+    row="| $label |"
+    for axis in roll pitch yaw; do row="$row ![${label} ${axis}](fig5_${scene}_${axis}.png) |"; done
+    echo "$row"
+  done
+  echo
+  echo "Fig. 4 layout: frames $((fig4_pair - 1)) and $fig4_pair of \`indoor roll\` (its largest step),"
+  echo "the du and dv that iFMI measured per window in the first pass and the sinusoids fitted to"
+  echo "them (solid), against the first-order model of the true motion (dashed). The first pass"
+  echo "measures shifts only. The scatter in du comes from what the first-order model omits for a"
+  echo "roll this large: second-order terms and the in-window rotation, which is largest near"
+  echo "u = 0 and u = W/2. The refinement pass registers the de-rotated panorama, where both vanish."
+  echo
+  echo "![Fig. 4](fig4_indoor_roll.png)"
+} > "$report/RESULTS.md"
+
+echo
+cat "$out/tables.md"
+echo
+echo "== done in $((elapsed / 60)) min $((elapsed % 60)) s: $report/RESULTS.md"
+if [ "$publish" = 1 ]; then
+  mkdir -p docs/results
+  cp "$report"/RESULTS.md "$report"/*.png docs/results/
+  echo "== published to docs/results/"
+fi

@@ -1,0 +1,217 @@
+// omnipose-plot-fit: the paper's Fig. 4 for one frame pair of a dataset: the two
+// panoramas, the du and dv that iFMI measured per window (first, linear pass of the
+// pipeline) and the sinusoids of the fitted motion model (DESIGN.md section 3); with the
+// ground-truth sinusoids when the dataset has groundtruth.tum and the pair does not
+// translate (tau needs the unknown scene distance).
+
+#include <cmath>
+#include <cstdio>
+#include <exception>
+#include <limits>
+#include <opencv2/imgcodecs.hpp>
+#include <string>
+#include <vector>
+
+#include "chart.hpp"
+#include "omnipose/config.hpp"
+#include "omnipose/dataset.hpp"
+#include "omnipose/motion_fit.hpp"
+#include "omnipose/motion_model.hpp"
+#include "omnipose/pipeline.hpp"
+#include "omnipose/trajectory.hpp"
+
+namespace {
+
+using namespace omnipose;
+
+void usage(std::FILE* out) {
+  std::fprintf(out,
+               "usage: omnipose-plot-fit DATASET --pair K|max --out FIG.png\n"
+               "                         [--config daemon.yaml] [--input omni|panorama]\n"
+               "                         [--width PIXELS]\n"
+               "  Fig. 4 of the paper for the frame pair (K-1, K): both panoramas, the du and\n"
+               "  dv measured by iFMI per window and the fitted sinusoids (+ ground truth).\n"
+               "  --pair max: the pair with the largest ground-truth rotation.\n");
+}
+
+/// Ground-truth relative pose of frame k w.r.t. k-1, if both poses are in the file.
+std::optional<Eigen::Isometry3d> groundTruthStep(const Dataset& d, int k) {
+  if (!d.groundtruth) return std::nullopt;
+  auto find = [&](double t) -> const StampedPose* {
+    for (const StampedPose& p : *d.groundtruth)
+      if (std::abs(p.timestamp - t) < 1e-3) return &p;
+    return nullptr;
+  };
+  const StampedPose* a = find(d.frames[k - 1].timestamp);
+  const StampedPose* b = find(d.frames[k].timestamp);
+  if (!a || !b) return std::nullopt;
+  return a->pose.inverse() * b->pose;
+}
+
+int run(int argc, char** argv) {
+  std::string dataset_dir, out, config;
+  std::optional<InputKind> input;
+  int pair = -1, width = 1400;
+  bool largest = false;
+  for (int i = 1; i < argc; ++i) {
+    const std::string a = argv[i];
+    auto value = [&]() -> std::string {
+      if (i + 1 >= argc) throw std::invalid_argument(a + " needs a value");
+      return argv[++i];
+    };
+    if (a == "-h" || a == "--help") {
+      usage(stdout);
+      return 0;
+    } else if (a == "--pair") {
+      const std::string v = value();
+      if (v == "max") largest = true;
+      else pair = std::stoi(v);
+    }
+    else if (a == "--out") out = value();
+    else if (a == "--config") config = value();
+    else if (a == "--width") width = std::stoi(value());
+    else if (a == "--input") {
+      const std::string v = value();
+      if (v == "omni") input = InputKind::kOmni;
+      else if (v == "panorama") input = InputKind::kPanorama;
+      else throw std::invalid_argument("--input must be omni or panorama, not '" + v + "'");
+    } else if (!a.empty() && a[0] == '-') throw std::invalid_argument("unknown option " + a);
+    else dataset_dir = a;
+  }
+  if (dataset_dir.empty() || out.empty() || (pair < 1 && !largest)) {
+    usage(stderr);
+    return 2;
+  }
+
+  const Dataset d = Dataset::open(dataset_dir);
+  if (largest) {
+    double best = -1.0;
+    for (int k = 1; k < static_cast<int>(d.frames.size()); ++k) {
+      if (const auto gt = groundTruthStep(d, k)) {
+        const double angle = rotationVector(gt->linear()).norm();
+        if (angle > best) best = angle, pair = k;
+      }
+    }
+    if (pair < 1) throw std::invalid_argument("--pair max: the dataset has no ground truth");
+  }
+  if (pair >= static_cast<int>(d.frames.size()))
+    throw std::invalid_argument("--pair " + std::to_string(pair) + ": the dataset has " +
+                                std::to_string(d.frames.size()) + " frames");
+  PipelineOptions options;
+  if (!config.empty()) options = DaemonConfig::load(config, DaemonConfig::Use::kReplay).pipeline;
+  if (input) options.unwrap.input = *input;
+  Pipeline pipeline(d.calibration, options);
+
+  // Frame K-1 becomes the reference, frame K is measured against it.
+  cv::Mat previous_panorama;
+  FrameMotion motion;
+  for (int k : {pair - 1, pair}) {
+    auto image = readFrame(d.frames[k].path);
+    if (!image) throw std::runtime_error(std::string(image.error().message()));
+    auto m = pipeline.process(*image);
+    if (!m) throw std::runtime_error(d.frames[k].path.string() + ": " + m.error().c_str());
+    if (k == pair - 1) previous_panorama = pipeline.lastPanorama().clone();
+    motion = *m;
+  }
+  const std::vector<WindowMotion> windows(pipeline.lastWindows().begin(),
+                                          pipeline.lastWindows().end());
+
+  // The first-pass linear fit to exactly these windows (what the sinusoids describe).
+  const PanoramaGeometry& g = d.calibration.panorama;
+  const double gamma = g.gamma();
+  MotionFit::Options fit_options = options.fit;
+  fit_options.max_windows = std::max<int>(fit_options.max_windows, windows.size());
+  MotionFit fit(fit_options, gamma, options.registration.window);
+  const MotionEstimate linear = fit.fit(windows, g.forward_column);
+  const double kappa = windowAttenuation(options.registration.window, gamma);
+
+  // Measured points: valid windows filled, invalid ones hollow.
+  plot::Series du_ok{{}, {}, plot::paletteColor(0), "measured (iFMI)", plot::Style::kMarkers, 1};
+  plot::Series dv_ok = du_ok;
+  plot::Series du_bad{{}, {}, {150, 150, 150}, "invalid window", plot::Style::kHollowMarkers, 1};
+  plot::Series dv_bad = du_bad;
+  for (const WindowMotion& w : windows) {
+    plot::Series& su = w.valid ? du_ok : du_bad;
+    plot::Series& sv = w.valid ? dv_ok : dv_bad;
+    su.x.push_back(w.center_u);
+    su.y.push_back(w.du);
+    sv.x.push_back(w.center_u);
+    sv.y.push_back(w.dv);
+  }
+
+  // Sinusoids of a motion x over every column.
+  auto curves = [&](const Eigen::Matrix<double, 6, 1>& x, cv::Scalar color, std::string label,
+                    plot::Style style) {
+    plot::Series u{{}, {}, color, label, style, 2}, v = u;
+    for (int c = 0; c <= g.width; c += 2) {
+      const ModelMotion m = predictMotion(x, g.azimuth(c), kappa);
+      u.x.push_back(c);
+      u.y.push_back(m.du_rad / gamma);
+      v.x.push_back(c);
+      v.y.push_back(m.dv_rad / gamma);
+    }
+    return std::pair{u, v};
+  };
+  char label[160];
+  const Eigen::Vector3d w_deg = linear.omega * 180.0 / M_PI;
+  std::snprintf(label, sizeof(label), "fit: omega = (%.2f, %.2f, %.2f) deg", w_deg.x(), w_deg.y(),
+                w_deg.z());
+  auto [fit_u, fit_v] = curves(linear.vector(), plot::paletteColor(3), label, plot::Style::kLine);
+
+  plot::Chart du_chart("du per window (pair " + std::to_string(pair - 1) + " -> " +
+                           std::to_string(pair) + ")",
+                       "panorama column u (u0 = +x axis)", "du [px]");
+  plot::Chart dv_chart("dv per window", "panorama column u (u0 = +x axis)", "dv [px]");
+  if (const auto gt = groundTruthStep(d, pair); gt && gt->translation().norm() < 1e-9) {
+    Eigen::Matrix<double, 6, 1> x = Eigen::Matrix<double, 6, 1>::Zero();
+    x.head<3>() = rotationVector(gt->linear());
+    const Eigen::Vector3d t_deg = x.head<3>() * 180.0 / M_PI;
+    std::snprintf(label, sizeof(label), "truth: omega = (%.2f, %.2f, %.2f) deg", t_deg.x(),
+                  t_deg.y(), t_deg.z());
+    auto [gt_u, gt_v] = curves(x, {0, 0, 0}, label, plot::Style::kDashed);
+    du_chart.add(gt_u);
+    dv_chart.add(gt_v);
+  }
+  for (plot::Chart* c : {&du_chart, &dv_chart}) c->setXRange(0, g.width);
+  du_chart.setMinRightMargin(320);
+  dv_chart.setMinRightMargin(320);
+  du_chart.add(fit_u);
+  dv_chart.add(fit_v);
+  du_chart.add(du_ok);
+  dv_chart.add(dv_ok);
+  if (!du_bad.x.empty()) {
+    du_chart.add(du_bad);
+    dv_chart.add(dv_bad);
+  }
+
+  const cv::Mat figure = plot::stackVertical({
+      plot::captioned(previous_panorama, width,
+                      "(a) frame " + std::to_string(pair - 1) + ": " +
+                          d.frames[pair - 1].path.filename().string(),
+                      plot::Chart::kLeftMargin, du_chart.rightMargin()),
+      plot::captioned(pipeline.lastPanorama(), width,
+                      "(b) frame " + std::to_string(pair) + ": " +
+                          d.frames[pair].path.filename().string(),
+                      plot::Chart::kLeftMargin, du_chart.rightMargin()),
+      du_chart.render({width, 330}),
+      dv_chart.render({width, 330}),
+  });
+  if (!cv::imwrite(out, figure, {cv::IMWRITE_PNG_COMPRESSION, 9}))
+    throw std::runtime_error(out + ": cannot write");
+  std::printf("omnipose-plot-fit: %s: pair %d, %d of %zu windows valid, linear fit omega = "
+              "(%.5f, %.5f, %.5f) rad, status %s\n",
+              out.c_str(), pair, static_cast<int>(du_ok.x.size()), windows.size(),
+              linear.omega.x(), linear.omega.y(), linear.omega.z(), toString(linear.status));
+  return 0;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  try {
+    return run(argc, argv);
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "omnipose-plot-fit: %s\n", e.what());
+    return 1;
+  }
+}
