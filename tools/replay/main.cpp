@@ -20,7 +20,9 @@ void usage(std::FILE* out) {
                "               residual, windows used, status\n"
                "  --input      frames are omni donuts (default) or panoramas\n"
                "  --config     daemon.yaml whose input/pipeline sections are used\n"
-               "  --method     motion estimator (default ifmi)\n"
+               "  --method     ifmi (default) | orb5pt | akaze5pt | orbrot | akazerot\n"
+               "               (the feature-based baselines: ORB/AKAZE with OpenGV 5-point\n"
+               "               or 2-point rotation-only RANSAC)\n"
                "Ends with: frames=N pairs=M skipped=K seconds_per_frame=X\n");
 }
 

@@ -1,0 +1,104 @@
+// Headless replay end to end: a rendered dataset with a corrupt and a wrong-size frame in
+// the middle is replayed; both are skipped, named and counted, the trajectory is right.
+#include "replay.hpp"
+
+#include <gtest/gtest.h>
+
+#include <cstdio>
+#include <fstream>
+#include <opencv2/imgcodecs.hpp>
+
+#include "omnipose/evaluation.hpp"
+#include "omnipose/synth.hpp"
+
+namespace omnipose {
+namespace {
+namespace fs = std::filesystem;
+
+const fs::path kPhoto = fs::path(OMNIPOSE_SOURCE_DIR) / "tests/data/equirect/indoor_1024x512.jpg";
+
+class ReplayTest : public ::testing::Test {
+ protected:
+  static void SetUpTestSuite() {
+    if (!fs::exists(kPhoto)) return;
+    root_ = fs::temp_directory_path() / "omnipose_replay_test";
+    fs::remove_all(root_);
+    synth::MotionScript script = synth::MotionScript::preset("yaw");
+    script.frames = 8;
+    const auto poses = synth::generateTrajectory(script);
+    synth::RenderOptions ro;
+    ro.supersample = 2;
+    const synth::Renderer renderer(synth::Scene::load(kPhoto, synth::SceneKind::kSphere),
+                                   Calibration{}, ro);
+    synth::DatasetWriter writer(root_ / "data", Calibration{}, 0);
+    for (const auto& p : poses) writer.addFrame(synth::degrade(renderer.render(p.pose), {}, 0), p);
+    writer.finish();
+    // Frame 3 becomes unreadable, frame 5 the wrong size.
+    std::ofstream(root_ / "data/frames" / writer.frameName(3), std::ios::trunc) << "not a png";
+    cv::imwrite((root_ / "data/frames" / writer.frameName(5)).string(),
+                cv::Mat(100, 200, CV_8UC1, cv::Scalar(90)));
+  }
+  void SetUp() override {
+    if (!fs::exists(kPhoto)) GTEST_SKIP() << "missing " << kPhoto;
+  }
+  static fs::path root_;
+};
+fs::path ReplayTest::root_;
+
+TEST_F(ReplayTest, BadFramesAreSkippedNamedAndCountedAndTheRestIsRight) {
+  replay::ReplayOptions o;
+  o.dataset = root_ / "data";
+  o.out_tum = root_ / "est.tum";
+  o.relative_csv = root_ / "rel.csv";
+  o.progress = false;
+  std::FILE* log = std::tmpfile();
+  const replay::ReplaySummary s = replay::run(o, log);
+  std::rewind(log);
+  std::string text(4096, '\0');
+  text.resize(std::fread(text.data(), 1, text.size(), log));
+  std::fclose(log);
+
+  EXPECT_EQ(s.frames, 8);
+  EXPECT_EQ(s.skipped, 2);
+  EXPECT_EQ(s.pairs, 5);  // 6 good frames
+  EXPECT_GT(s.median_seconds_per_frame, 0.0);
+  EXPECT_NE(text.find("000003.png: cannot decode"), std::string::npos) << text;
+  EXPECT_NE(text.find("000005.png"), std::string::npos) << text;
+  EXPECT_NE(text.find("200x100, expected 720x720"), std::string::npos) << text;
+
+  // Pairs across the skipped frames are missing, the others are accurate.
+  const auto result = evaluate(readTum(root_ / "data/groundtruth.tum"), readTum(root_ / "est.tum"));
+  EXPECT_EQ(result.pairs_missing, 4);
+  EXPECT_EQ(result.pairs.size(), 3u);
+  EXPECT_LT(result.angle.max, 1e-3);
+  std::ifstream csv(root_ / "rel.csv");
+  int lines = 0;
+  for (std::string line; std::getline(csv, line);) ++lines;
+  EXPECT_EQ(lines, 1 + 5);  // header + one row per pair
+}
+
+TEST_F(ReplayTest, MissingDatasetOrCalibrationIsAClearError) {
+  replay::ReplayOptions o;
+  o.dataset = root_ / "nope";
+  o.progress = false;
+  try {
+    replay::run(o, stderr);
+    FAIL();
+  } catch (const std::exception& e) {
+    EXPECT_NE(std::string(e.what()).find("nope"), std::string::npos) << e.what();
+  }
+  o.dataset = root_ / "data";
+  o.calibration = root_ / "missing.yaml";
+  EXPECT_THROW(replay::run(o, stderr), CalibrationError);
+  o.calibration.reset();
+  o.method = "sift9pt";
+  try {
+    replay::run(o, stderr);
+    FAIL();
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("akazerot"), std::string::npos) << e.what();
+  }
+}
+
+}  // namespace
+}  // namespace omnipose
