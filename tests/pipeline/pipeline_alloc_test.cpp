@@ -1,44 +1,28 @@
-// The per-frame path allocates nothing: global operator new is replaced in this binary and
-// counted while Pipeline::process runs on 200 frames after warm-up (including a rejected
-// frame and a reset, which must not allocate either).
+// The per-frame path allocates nothing: every heap allocation of the process (malloc
+// family and operator new, so FFTW's and OpenCV's count too) is counted while
+// Pipeline::process runs on 200 frames after warm-up, including a rejected frame, a reset
+// and a colour frame, which must not allocate either.
 #include <gtest/gtest.h>
 
-#include <atomic>
 #include <cstdlib>
-#include <new>
 
+#include "../support/allocation_counter.hpp"
 #include "omnipose/pipeline.hpp"
 #include "render_fixture.hpp"
 
-namespace {
-std::atomic<long> g_allocations{0};
-std::atomic<bool> g_counting{false};
-}  // namespace
-
-void* operator new(std::size_t size) {
-  if (g_counting.load(std::memory_order_relaxed)) g_allocations.fetch_add(1);
-  if (void* p = std::malloc(size ? size : 1)) return p;
-  throw std::bad_alloc();
-}
-void* operator new[](std::size_t size) { return operator new(size); }
-void* operator new(std::size_t size, std::align_val_t align) {
-  if (g_counting.load(std::memory_order_relaxed)) g_allocations.fetch_add(1);
-  const std::size_t a = static_cast<std::size_t>(align);
-  if (void* p = std::aligned_alloc(a, (size + a - 1) / a * a)) return p;
-  throw std::bad_alloc();
-}
-void* operator new[](std::size_t size, std::align_val_t align) { return operator new(size, align); }
-void operator delete(void* p) noexcept { std::free(p); }
-void operator delete[](void* p) noexcept { std::free(p); }
-void operator delete(void* p, std::size_t) noexcept { std::free(p); }
-void operator delete[](void* p, std::size_t) noexcept { std::free(p); }
-void operator delete(void* p, std::align_val_t) noexcept { std::free(p); }
-void operator delete[](void* p, std::align_val_t) noexcept { std::free(p); }
-void operator delete(void* p, std::size_t, std::align_val_t) noexcept { std::free(p); }
-void operator delete[](void* p, std::size_t, std::align_val_t) noexcept { std::free(p); }
-
 namespace omnipose {
 namespace {
+
+TEST(PipelineAllocation, TheCounterSeesMallocAndNew) {
+  testing::startCountingAllocations();
+  void* p = std::malloc(64);
+  auto* q = new int[16];
+  cv::Mat m(32, 32, CV_32FC1);
+  const long counted = testing::stopCountingAllocations();
+  std::free(p);
+  delete[] q;
+  EXPECT_GE(counted, 3);
+}
 
 TEST(PipelineAllocation, ProcessAllocatesNothingAfterWarmUp) {
   if (!std::filesystem::exists(testing::indoorPhoto())) GTEST_SKIP() << "missing photo";
@@ -60,8 +44,7 @@ TEST(PipelineAllocation, ProcessAllocatesNothingAfterWarmUp) {
   for (int k = 0; k < 4; ++k) ASSERT_TRUE(pipeline.process(frames[k]).has_value());  // warm-up
   ASSERT_TRUE(pipeline.process(colour).has_value());
 
-  g_allocations = 0;
-  g_counting = true;
+  testing::startCountingAllocations();
   int ok = 0;
   for (int i = 0; i < 200; ++i) {
     if (pipeline.process(frames[i % 4]).has_value()) ++ok;
@@ -69,9 +52,9 @@ TEST(PipelineAllocation, ProcessAllocatesNothingAfterWarmUp) {
     if (i == 100) pipeline.reset();
     if (i == 150) (void)pipeline.process(colour);
   }
-  g_counting = false;
+  const long allocations = testing::stopCountingAllocations();
   EXPECT_EQ(ok, 200);
-  EXPECT_EQ(g_allocations.load(), 0) << "heap allocations in 200 frames of Pipeline::process";
+  EXPECT_EQ(allocations, 0) << "heap allocations in 200 frames of Pipeline::process";
 }
 
 }  // namespace
