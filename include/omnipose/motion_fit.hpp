@@ -106,6 +106,8 @@ class MotionFit {
   int buildTranslationRows(std::span<const WindowMotion> windows, double forward_column);
   Eigen::Matrix<double, 6, 1> irls(int n_rows, int& iterations, bool& ok);
   double robustSigma(int kind, const Eigen::Matrix<double, 6, 1>& x, int n_rows);
+  /// Noise of the shift rows in radians (the larger of du and dv, floored at 0.01 px).
+  double shiftSigma(const Eigen::Matrix<double, 6, 1>& x, int n_rows);
   /// Leverage of every row on its window's inverse depth (0 without per-window depth).
   void computeLeverage(std::span<const WindowMotion> windows, int n_rows,
                        const Eigen::Matrix<double, 6, 1>& x);

@@ -104,6 +104,11 @@ int MotionFit::buildTranslationRows(std::span<const WindowMotion> windows, doubl
   return r;
 }
 
+double MotionFit::shiftSigma(const Eigen::Matrix<double, 6, 1>& x, int n_rows) {
+  return std::max(std::max(robustSigma(kDu, x, n_rows), robustSigma(kDv, x, n_rows)),
+                  0.01 * gamma_);
+}
+
 double MotionFit::robustSigma(int kind, const Eigen::Matrix<double, 6, 1>& x, int n_rows) {
   int m = 0;
   for (int i = 0; i < n_rows; ++i) {
@@ -155,8 +160,7 @@ Eigen::Matrix<double, 6, 1> MotionFit::fitDepth(std::span<const WindowMotion> wi
   // (radians) so that it weighs against them by their noise. First with the uniform fit's residual scale (inflated by the depth misfit), then with
   // the depth model's own standardized residuals, so that the prior weighs against the
   // measurement noise and not against the misfit it is there to remove.
-  double sigma_t = std::max(
-      std::max(robustSigma(kDu, x, n_rows), robustSigma(kDv, x, n_rows)), 0.01 * gamma_);
+  double sigma_t = shiftSigma(x, n_rows);
   for (int k = 0; k < n; ++k) depth_[k] = 1.0;
   for (int round = 0; round < 2; ++round) {
     if (round == 1) {
@@ -300,8 +304,7 @@ MotionEstimate MotionFit::fit(std::span<const WindowMotion> windows, double forw
 
   // In-window rotation and scale, weighted by their own noise relative to the shifts.
   if (options_.use_rotation_scale) {
-    const double sigma_t = std::max(
-        std::max(robustSigma(kDu, x, n_rows), robustSigma(kDv, x, n_rows)), 0.01 * gamma_);
+    const double sigma_t = shiftSigma(x, n_rows);
     const int n_trans = n_rows;
     for (std::size_t k = 0; k < windows.size(); ++k) {
       if (!keep_[k] || windows[k].rs_confidence <= 0 || !(windows[k].scale > 0)) continue;

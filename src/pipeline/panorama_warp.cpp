@@ -31,13 +31,12 @@ PanoramaWarp::PanoramaWarp(const PanoramaGeometry& geometry) : geometry_(geometr
   padded_.create(geometry.height, geometry.width + 2 * kPad, CV_32FC1);
 }
 
-void PanoramaWarp::warp(const cv::Mat& current, const Eigen::Matrix3d& R,
-                        const Eigen::Vector3d& tau, cv::Mat& out) {
+void PanoramaWarp::derotate(const cv::Mat& current, const Eigen::Matrix3d& R, cv::Mat& out) {
   const int W = geometry_.width, H = geometry_.height;
   const double gamma = geometry_.gamma();
   const Eigen::Matrix3d Rt = R.transpose();
 
-  // Exact displacement on the grid: X_prev on the unit cylinder -> X_cur = R^T (X - tau).
+  // Exact displacement on the grid: X_prev on the unit cylinder -> X_cur = R^T X.
   for (int gy = 0; gy < grid_rows_; ++gy) {
     const double v = gy * kGridStep;
     const double h = geometry_.cylinderHeight(v);
@@ -45,7 +44,7 @@ void PanoramaWarp::warp(const cv::Mat& current, const Eigen::Matrix3d& R,
       const double u = gx * kGridStep;
       const double theta = geometry_.azimuth(u);
       const Eigen::Vector3d X(std::cos(theta), std::sin(theta), h);
-      const Eigen::Vector3d Y = Rt * (X - tau);
+      const Eigen::Vector3d Y = Rt * X;
       const double rho = std::hypot(Y.x(), Y.y());
       // Azimuth change relative to theta, wrapped to (-pi, pi].
       double dtheta = std::atan2(Y.y(), Y.x()) - theta;

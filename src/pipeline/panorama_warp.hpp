@@ -1,5 +1,5 @@
 #pragma once
-// Warps a panorama by a camera motion with the exact cylinder projection (private).
+// De-rotates a panorama by a camera rotation with the exact cylinder projection (private).
 
 #include <Eigen/Core>
 #include <opencv2/core.hpp>
@@ -9,19 +9,19 @@
 
 namespace omnipose {
 
-/// Given (R, tau) with P_prev = R P_cur + tau (all points at unit horizontal distance in
-/// the previous frame), writes J(u, v) = I_cur(project(R^T (X_prev(u, v) - tau))), so that
-/// J looks like the previous panorama when the motion is right (bicubic sampling). The exact projection is
-/// evaluated on a coarse grid (every kGridStep columns and rows) and interpolated; the
-/// map is smooth, the interpolation error is below 0.01 px for motions up to 0.3 rad.
+/// Given R with P_prev = R P_cur + t, writes J(u, v) = I_cur(project(R^T X_prev(u, v))):
+/// the current panorama as seen with the previous camera's orientation from the current
+/// camera's centre (bicubic sampling), so that only translation and the residual rotation
+/// are left between J and the previous panorama. The exact projection is evaluated on a
+/// coarse grid (every kGridStep columns and rows) and interpolated; the map is smooth, the
+/// interpolation error is below 0.01 px for rotations up to 0.3 rad.
 /// Allocation-free after construction.
 class PanoramaWarp {
  public:
   explicit PanoramaWarp(const PanoramaGeometry& geometry);
 
   /// `current` and `out`: CV_32FC1, W x H; `out` must be allocated and distinct.
-  void warp(const cv::Mat& current, const Eigen::Matrix3d& R, const Eigen::Vector3d& tau,
-            cv::Mat& out);
+  void derotate(const cv::Mat& current, const Eigen::Matrix3d& R, cv::Mat& out);
 
  private:
   static constexpr int kGridStep = 4;

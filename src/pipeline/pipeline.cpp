@@ -131,7 +131,7 @@ Expected<FrameMotion> Pipeline::process(const cv::Mat& frame) {
   Eigen::Vector3d tau = est.tau;
   for (int pass = 0; pass < s.options.refine_iterations && est.status != FitStatus::kLost;
        ++pass) {
-    s.warp.warp(s.panorama, R, Eigen::Vector3d::Zero(), s.warped);
+    s.warp.derotate(s.panorama, R, s.warped);
     s.registration.measure(s.warped, s.refine_windows, false);
     const MotionEstimate residual = s.fit.fit(s.refine_windows, u0);
     if (residual.status == FitStatus::kLost) {
