@@ -7,6 +7,8 @@
 #include <cstdio>
 #include <fstream>
 #include <opencv2/imgcodecs.hpp>
+#include <string>
+#include <unistd.h>
 
 #include "omnipose/evaluation.hpp"
 #include "omnipose/synth.hpp"
@@ -21,7 +23,8 @@ class ReplayTest : public ::testing::Test {
  protected:
   static void SetUpTestSuite() {
     if (!fs::exists(kPhoto)) return;
-    root_ = fs::temp_directory_path() / "omnipose_replay_test";
+    // One directory per process: ctest runs the tests of this suite in parallel processes.
+    root_ = fs::temp_directory_path() / ("omnipose_replay_test_" + std::to_string(::getpid()));
     fs::remove_all(root_);
     synth::MotionScript script = synth::MotionScript::preset("yaw");
     script.frames = 8;
@@ -40,6 +43,9 @@ class ReplayTest : public ::testing::Test {
   }
   void SetUp() override {
     if (!fs::exists(kPhoto)) GTEST_SKIP() << "missing " << kPhoto;
+  }
+  static void TearDownTestSuite() {
+    if (!root_.empty()) fs::remove_all(root_);
   }
   static fs::path root_;
 };
