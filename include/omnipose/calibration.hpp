@@ -10,14 +10,27 @@
 /// Integer (u, v) are pixel centres.
 ///
 /// Omni image (donut): image angle a = atan2(y - cy, x - cx) (y down, so a grows clockwise
-/// on screen), a = azimuth_zero + theta (cw) or azimuth_zero - theta (ccw). Radius maps
-/// linearly to row: outer_edge top: r(v) = r_out - (v + 0.5) * (r_out - r_in) / H.
+/// on screen), a = azimuth_zero + theta (cw) or azimuth_zero - theta (ccw). The lens model
+/// (`omni.model`) relates a pixel's radius to its elevation:
+///   linear     radius maps linearly to panorama row: outer_edge top:
+///              r(v) = r_out - (v + 0.5) * (r_out - r_in) / H (the panorama defines the lens)
+///   ocamcalib  Scaramuzza's calib_results.txt (lens_model.hpp): elevation atan2(f(rho), rho)
+///   mei        OpenCV omnidir's unified model (xi, K, D), robot up = -z of its frame
+/// For every model the panorama is the same cylinder; for ocamcalib and mei each panorama
+/// pixel's bearing goes through the model to an image pixel, and every panorama row must
+/// lie inside the elevations of the used ring [radius_inner, radius_outer].
+/// An optional mask (`omni.mask`, 8-bit, frame size, 0 = never use) marks what the lens
+/// sees of the robot itself (mast, body, cables).
 
 #include <Eigen/Core>
 #include <filesystem>
+#include <opencv2/core.hpp>
+#include <optional>
 #include <stdexcept>
 #include <string>
 #include <vector>
+
+#include "omnipose/lens_model.hpp"
 
 namespace omnipose {
 
@@ -25,9 +38,19 @@ namespace omnipose {
 enum class AzimuthDirection { kCw, kCcw };
 /// Which panorama edge (top row 0 or bottom row H-1) the outer ring of the donut becomes.
 enum class OuterEdge { kTop, kBottom };
+/// How image radius relates to elevation (`omni.model`).
+enum class LensModelKind { kLinear, kOcamCalib, kMei };
+
+/// "linear" | "ocamcalib" | "mei".
+const char* toString(LensModelKind kind);
 
 /// The donut in the omni image. Lengths in pixels, angles in degrees.
+/// For `ocamcalib` the image size and centre come from the OCamCalib file (the keys may be
+/// left out; when given they must agree), the ring defaults to the file's ROI; for `mei`
+/// the centre is K's principal point. Ring radii are measured in the model's ideal image
+/// coordinates (ocamcalib: after its affine correction).
 struct OmniLens {
+  LensModelKind model = LensModelKind::kLinear;
   int image_width = 720;
   int image_height = 720;
   double center_x = 359.5;        ///< mirror axis, pixel coordinates (x right)
@@ -36,7 +59,19 @@ struct OmniLens {
   double radius_outer = 300.0;
   double azimuth_zero_deg = 0.0;  ///< image angle of the robot's +x axis
   AzimuthDirection azimuth_direction = AzimuthDirection::kCw;
-  OuterEdge outer_edge = OuterEdge::kTop;
+  OuterEdge outer_edge = OuterEdge::kTop;  ///< linear only (the others know their elevation)
+
+  /// `ocamcalib`: the file as written in the YAML (relative to it) and its contents.
+  std::string ocamcalib_file;
+  std::optional<OcamCalibModel> ocamcalib;
+  /// `mei`: the omnidir cv::FileStorage file as written in the YAML (empty when xi, K, D
+  /// are given inline) and the model.
+  std::string omnidir_file;
+  std::optional<MeiModel> mei;
+  /// Optional mask: the file as written in the YAML and the image (CV_8UC1, frame size;
+  /// 0 = never use that pixel). Empty = every pixel is used.
+  std::string mask_file;
+  cv::Mat mask;
 };
 
 /// The unwrapped cylindrical panorama.
@@ -77,28 +112,45 @@ struct Calibration {
   OmniLens omni;
   PanoramaGeometry panorama;
 
-  /// Every inconsistency, one message per bad field (empty = valid): sizes > 0, radii
-  /// 0 <= r_in < r_out, centre inside the image, horizon inside the panorama, ...
+  /// Every inconsistency, one message per bad field (empty = valid): every number finite,
+  /// sizes in (0, limits.hpp], radii 0 <= r_in < r_out, centre inside the image, horizon
+  /// inside the panorama, the lens model's elevation monotonic over the ring, every
+  /// panorama row inside the ring's elevations, the mask of the frame size.
   std::vector<std::string> validate() const;
 
-  /// Reads a plain-YAML calibration file (DESIGN.md section 6). Missing sections/keys,
-  /// wrong types, unknown keys and invalid values are all collected; throws
-  /// CalibrationError listing every one of them, prefixed by the path.
+  /// Reads a plain-YAML calibration file (DESIGN.md section 6) and the files it names
+  /// (OCamCalib, omnidir, mask; relative to the YAML). Missing sections/keys, wrong types,
+  /// unknown keys and invalid values are all collected; throws CalibrationError listing
+  /// every one of them, prefixed by the path (and the line, inside an OCamCalib file).
   static Calibration load(const std::filesystem::path& path);
-  /// Parses YAML text; `origin` names the source in error messages.
-  static Calibration parse(const std::string& yaml_text, const std::string& origin = "<string>");
-  /// Writes the file (plain YAML, same layout load() reads). Throws std::runtime_error
-  /// naming the path when it cannot be written.
+  /// Parses YAML text; `origin` names the source in error messages; files it names are
+  /// looked up relative to `base_dir` (default: the current directory).
+  static Calibration parse(const std::string& yaml_text, const std::string& origin = "<string>",
+                           const std::filesystem::path& base_dir = {});
+  /// Writes the file (plain YAML, same layout load() reads) and, beside it, the files it
+  /// names (the OCamCalib text as read, the mask as PNG). Throws std::runtime_error naming
+  /// the path when it cannot be written.
   void save(const std::filesystem::path& path) const;
   /// The YAML text save() writes.
   std::string toYaml() const;
 
-  /// Omni-image pixel coordinates (x right, y down) seen by panorama pixel (u, v).
+  /// Omni-image pixel coordinates (x right, y down) seen by panorama pixel (u, v);
+  /// (NaN, NaN) where the lens model cannot see that bearing.
   Eigen::Vector2d omniPixel(double u, double v) const;
   /// Inverse of omniPixel: panorama (u, v) of omni pixel (x, y); u wrapped into [0, W).
-  /// Meaningful only inside the used ring.
+  /// Meaningful only inside the used ring; (NaN, NaN) where the model has no bearing.
   Eigen::Vector2d panoramaPixel(double x, double y) const;
-  /// Radius in the omni image (pixels) of panorama row v.
+  /// Unit bearing (camera frame: x forward, y left, z up) seen by omni pixel (x, y);
+  /// nullopt where the lens model has none.
+  std::optional<Eigen::Vector3d> bearingOfPixel(double x, double y) const;
+  /// Omni pixel that sees `bearing` (any length > 0); nullopt where the model cannot.
+  std::optional<Eigen::Vector2d> pixelOfBearing(const Eigen::Vector3d& bearing) const;
+  /// Radius of omni pixel (x, y) in the lens model's ideal image coordinates, pixels: the
+  /// measure of radius_inner / radius_outer. Plain distance to the centre for linear.
+  double ringRadius(double x, double y) const;
+  /// Elevations (radians, up positive) at radius_inner and radius_outer.
+  std::pair<double, double> ringElevations() const;
+  /// Radius in the omni image (pixels) of panorama row v (linear model).
   double radiusOfRow(double v) const;
 };
 

@@ -44,6 +44,14 @@ class Unwrapper {
   /// A panorama buffer of the right size and type.
   cv::Mat makePanorama() const;
 
+  /// Which panorama pixels carry the scene (CV_32FC1, W x H, 1 = usable, 0 = not): 0 where
+  /// the pixel's bilinear footprint touches a masked omni pixel (calibration omni.mask),
+  /// leaves the frame, or has no bearing in the lens model. All 1 for panorama input.
+  /// Built once by the constructor; static for the life of the unwrapper.
+  const cv::Mat& validity() const { return validity_; }
+  /// Mean of validity(): the fraction of the panorama that is usable, in [0, 1].
+  double usableFraction() const;
+
  private:
   Calibration calibration_;
   Options options_;
@@ -52,6 +60,7 @@ class Unwrapper {
   std::vector<int> offset_;
   std::vector<cv::Vec4f> weight_;
   cv::Mat grey_;  ///< colour frames are converted here (allocated once)
+  cv::Mat validity_;
 };
 
 }  // namespace omnipose

@@ -5,14 +5,19 @@
 #include <cmath>
 #include <fstream>
 #include <numbers>
+#include <opencv2/imgcodecs.hpp>
 #include <set>
 #include <sstream>
+
+#include "calibration/problem_list.hpp"
+#include "omnipose/limits.hpp"
 
 namespace omnipose {
 namespace {
 
 constexpr double kPi = std::numbers::pi;
 constexpr double kDegToRad = kPi / 180.0;
+constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 
 /// Collects every problem of a YAML document instead of stopping at the first.
 class YamlReader {
@@ -43,20 +48,64 @@ class YamlReader {
     return node;
   }
 
+  /// Reads `section.key` into `value`; returns whether it was present and read. Numbers
+  /// must be finite.
   template <typename T>
-  void read(const YAML::Node& section, const std::string& section_name, const std::string& key,
+  bool read(const YAML::Node& section, const std::string& section_name, const std::string& key,
             T& value, bool required = true) {
-    if (!section) return;
+    if (!section) return false;
     const YAML::Node node = section[key];
     if (!node) {
       if (required) problem(section_name + "." + key, "missing");
-      return;
+      return false;
     }
     try {
-      value = node.as<T>();
+      const T v = node.as<T>();
+      if constexpr (std::is_floating_point_v<T>) {
+        if (!std::isfinite(v)) {
+          problem(section_name + "." + key, "must be a finite number, not '" + YAML::Dump(node) + "'");
+          return false;
+        }
+      }
+      value = v;
+      return true;
     } catch (const YAML::Exception&) {
       problem(section_name + "." + key, "cannot read '" + YAML::Dump(node) + "' as " + typeName<T>());
+      return false;
     }
+  }
+
+  /// Reads a flat list of `count` finite numbers (a nested list is flattened row by row).
+  bool readNumbers(const YAML::Node& section, const std::string& section_name,
+                   const std::string& key, std::size_t count, std::vector<double>& out) {
+    const YAML::Node node = section ? section[key] : YAML::Node();
+    if (!node) {
+      problem(section_name + "." + key, "missing");
+      return false;
+    }
+    std::vector<double> values;
+    const auto take = [&](const YAML::Node& n) {
+      try {
+        values.push_back(n.as<double>());
+        return std::isfinite(values.back());
+      } catch (const YAML::Exception&) {
+        return false;
+      }
+    };
+    bool ok = node.IsSequence();
+    for (std::size_t i = 0; ok && i < node.size(); ++i) {
+      if (node[i].IsSequence()) {
+        for (std::size_t j = 0; ok && j < node[i].size(); ++j) ok = take(node[i][j]);
+      } else {
+        ok = take(node[i]);
+      }
+    }
+    if (!ok || values.size() != count) {
+      problem(section_name + "." + key, "must be a list of " + std::to_string(count) + " finite numbers");
+      return false;
+    }
+    out = std::move(values);
+    return true;
   }
 
  private:
@@ -72,13 +121,36 @@ class YamlReader {
   std::vector<std::string> problems_;
 };
 
-std::string join(const std::vector<std::string>& lines) {
-  std::string out;
-  for (const auto& l : lines) out += "\n  " + l;
-  return out;
+std::string fixed(double v, int digits = 1) {
+  char buf[64];
+  std::snprintf(buf, sizeof buf, "%.*f", digits, v);
+  return buf;
+}
+
+double deg(double rad) { return rad / kDegToRad; }
+
+/// Panorama column of azimuth theta, rows of cylinder height h: the bearing's panorama pixel.
+Eigen::Vector2d panoramaOfBearing(const PanoramaGeometry& pano, const Eigen::Vector3d& b) {
+  const double horizontal = std::hypot(b.x(), b.y());
+  if (!(horizontal > 0)) return {kNaN, kNaN};
+  return {pano.column(std::atan2(b.y(), b.x())), pano.row(b.z() / horizontal)};
+}
+
+Eigen::Vector3d bearingOf(double theta, double elevation) {
+  const double ce = std::cos(elevation);
+  return {ce * std::cos(theta), ce * std::sin(theta), std::sin(elevation)};
 }
 
 }  // namespace
+
+const char* toString(LensModelKind kind) {
+  switch (kind) {
+    case LensModelKind::kLinear: return "linear";
+    case LensModelKind::kOcamCalib: return "ocamcalib";
+    case LensModelKind::kMei: return "mei";
+  }
+  return "?";
+}
 
 double PanoramaGeometry::gamma() const { return 2.0 * kPi / width; }
 
@@ -93,34 +165,138 @@ Eigen::Vector3d PanoramaGeometry::bearing(double u, double v) const {
   return Eigen::Vector3d(std::cos(theta), std::sin(theta), cylinderHeight(v)).normalized();
 }
 
+// ---------------------------------------------------------------------------------------
+// Validation
+// ---------------------------------------------------------------------------------------
+
 std::vector<std::string> Calibration::validate() const {
   std::vector<std::string> p;
   const auto& o = omni;
-  if (o.image_width <= 0) p.push_back("omni.image_width: must be > 0");
-  if (o.image_height <= 0) p.push_back("omni.image_height: must be > 0");
-  if (!(o.center_x >= 0 && o.center_x <= o.image_width - 1))
-    p.push_back("omni.center: x = " + std::to_string(o.center_x) + " is outside the image width " +
-                std::to_string(o.image_width));
-  if (!(o.center_y >= 0 && o.center_y <= o.image_height - 1))
-    p.push_back("omni.center: y = " + std::to_string(o.center_y) + " is outside the image height " +
-                std::to_string(o.image_height));
-  if (!(o.radius_inner >= 0)) p.push_back("omni.radius_inner: must be >= 0");
-  if (!(o.radius_outer > o.radius_inner))
-    p.push_back("omni.radius_outer: must be greater than radius_inner (" +
-                std::to_string(o.radius_outer) + " <= " + std::to_string(o.radius_inner) + ")");
-  if (!std::isfinite(o.azimuth_zero_deg)) p.push_back("omni.azimuth_zero_deg: must be finite");
+  const auto size = [&](int v, int max, const char* name) {
+    if (v < 1 || v > max)
+      p.push_back(std::string(name) + ": " + std::to_string(v) + " must be in [1, " + std::to_string(max) + "]");
+  };
+  const auto finite = [&](double v, const char* name) {
+    if (std::isfinite(v)) return true;
+    p.push_back(std::string(name) + ": must be a finite number");
+    return false;
+  };
+  size(o.image_width, limits::kMaxImageSide, "omni.image_width");
+  size(o.image_height, limits::kMaxImageSide, "omni.image_height");
+  if (finite(o.center_x, "omni.center") && finite(o.center_y, "omni.center")) {
+    if (!(o.center_x >= 0 && o.center_x <= o.image_width - 1))
+      p.push_back("omni.center: x = " + std::to_string(o.center_x) + " is outside the image width " +
+                  std::to_string(o.image_width));
+    if (!(o.center_y >= 0 && o.center_y <= o.image_height - 1))
+      p.push_back("omni.center: y = " + std::to_string(o.center_y) + " is outside the image height " +
+                  std::to_string(o.image_height));
+  }
+  if (finite(o.radius_inner, "omni.radius_inner") && !(o.radius_inner >= 0))
+    p.push_back("omni.radius_inner: must be >= 0");
+  if (finite(o.radius_outer, "omni.radius_outer") && std::isfinite(o.radius_inner)) {
+    if (!(o.radius_outer > o.radius_inner))
+      p.push_back("omni.radius_outer: must be greater than radius_inner (" +
+                  std::to_string(o.radius_outer) + " <= " + std::to_string(o.radius_inner) + ")");
+    else if (o.radius_outer > 2.0 * limits::kMaxImageSide)
+      p.push_back("omni.radius_outer: must be at most " + std::to_string(2 * limits::kMaxImageSide));
+  }
+  finite(o.azimuth_zero_deg, "omni.azimuth_zero_deg");
   const auto& q = panorama;
-  if (q.width <= 0) p.push_back("panorama.width: must be > 0");
-  if (q.height <= 0) p.push_back("panorama.height: must be > 0");
-  if (!(q.horizon_row >= -0.5 && q.horizon_row <= q.height - 0.5))
+  size(q.width, limits::kMaxPanoramaWidth, "panorama.width");
+  size(q.height, limits::kMaxPanoramaHeight, "panorama.height");
+  if (finite(q.horizon_row, "panorama.horizon_row") &&
+      !(q.horizon_row >= -0.5 && q.horizon_row <= q.height - 0.5))
     p.push_back("panorama.horizon_row: " + std::to_string(q.horizon_row) +
                 " is outside the panorama rows [-0.5, " + std::to_string(q.height - 0.5) + "]");
-  if (!(q.forward_column >= 0 && q.forward_column < q.width))
+  if (finite(q.forward_column, "panorama.forward_column") &&
+      !(q.forward_column >= 0 && q.forward_column < q.width))
     p.push_back("panorama.forward_column: must be in [0, width)");
+
+  switch (o.model) {
+    case LensModelKind::kLinear: break;
+    case LensModelKind::kOcamCalib:
+      if (!o.ocamcalib) {
+        p.push_back("omni.ocamcalib_file: no OCamCalib model loaded");
+      } else if (o.ocamcalib->width != o.image_width || o.ocamcalib->height != o.image_height) {
+        p.push_back("omni.image_width/image_height: " + std::to_string(o.image_width) + "x" +
+                    std::to_string(o.image_height) + " disagree with " + o.ocamcalib->origin + " (" +
+                    std::to_string(o.ocamcalib->width) + "x" + std::to_string(o.ocamcalib->height) +
+                    " with its crops)");
+      }
+      break;
+    case LensModelKind::kMei:
+      if (!o.mei) p.push_back("omni: model mei needs xi, K and D (or omnidir_file)");
+      else
+        for (const auto& m : o.mei->validate()) p.push_back("omni." + m);
+      break;
+  }
+  if (!o.mask.empty() && (o.mask.type() != CV_8UC1 || o.mask.cols != o.image_width ||
+                          o.mask.rows != o.image_height)) {
+    p.push_back("omni.mask: " + o.mask_file + " is " + std::to_string(o.mask.cols) + "x" +
+                std::to_string(o.mask.rows) + " with " + std::to_string(o.mask.channels()) +
+                " channel(s), expected 8-bit grey " + std::to_string(o.image_width) + "x" +
+                std::to_string(o.image_height));
+  }
+  if (!p.empty() || o.model == LensModelKind::kLinear) return p;
+
+  // The model's elevation must be monotonic over the used ring (else two rows of the
+  // panorama would sample the same radius), and every panorama row must lie inside it.
+  const auto elevationAt = [&](double r) -> std::optional<double> {
+    if (o.model == LensModelKind::kOcamCalib) return o.ocamcalib->elevation(r);
+    const auto d = o.mei->direction({o.mei->cx + r, o.mei->cy});
+    return d ? std::optional<double>(d->elevation) : std::nullopt;
+  };
+  const std::string source = o.model == LensModelKind::kOcamCalib
+                                 ? "omni.ocamcalib_file: " + o.ocamcalib->origin + ": line " +
+                                       std::to_string(o.ocamcalib->ss_line) + ": the direct polynomial"
+                                 : std::string("omni: the mei model");
+  std::optional<double> previous;
+  int direction = 0;
+  for (double r = o.radius_inner; r <= o.radius_outer + 1e-9; r += 0.25) {
+    const auto e = elevationAt(r);
+    if (!e) {
+      p.push_back(source + " has no bearing at radius " + fixed(r) + " px inside the ring");
+      return p;
+    }
+    if (previous) {
+      const int d = *e > *previous ? 1 : (*e < *previous ? -1 : 0);
+      if (d == 0 || (direction != 0 && d != direction)) {
+        p.push_back(source + " is not monotonic over the ring [" + fixed(o.radius_inner) + ", " +
+                    fixed(o.radius_outer) + "] px: its elevation turns at radius " + fixed(r) +
+                    " px (" + fixed(deg(*e), 2) + " deg)");
+        return p;
+      }
+      direction = d;
+    }
+    previous = e;
+  }
+  const auto [e_in, e_out] = ringElevations();
+  const double lo = std::min(e_in, e_out), hi = std::max(e_in, e_out);
+  const auto rowElevation = [&](double v) { return std::atan(q.cylinderHeight(v)); };
+  int first_out = -1, last_out = -1;
+  for (int v = 0; v < q.height; ++v) {
+    if (rowElevation(v - 0.5) > hi || rowElevation(v + 0.5) < lo) {
+      if (first_out < 0) first_out = v;
+      last_out = v;
+    }
+  }
+  if (first_out >= 0) {
+    p.push_back("panorama: rows " + std::to_string(first_out) + ".." + std::to_string(last_out) +
+                " (elevations " + fixed(deg(rowElevation(first_out)), 2) + ".." +
+                fixed(deg(rowElevation(last_out)), 2) + " deg) lie outside the lens ring (elevations " +
+                fixed(deg(lo), 2) + ".." + fixed(deg(hi), 2) + " deg between radius_inner " +
+                fixed(o.radius_inner) + " and radius_outer " + fixed(o.radius_outer) +
+                " px); lower panorama.height, move horizon_row or widen the ring");
+  }
   return p;
 }
 
-Calibration Calibration::parse(const std::string& text, const std::string& origin) {
+// ---------------------------------------------------------------------------------------
+// YAML
+// ---------------------------------------------------------------------------------------
+
+Calibration Calibration::parse(const std::string& text, const std::string& origin,
+                               const std::filesystem::path& base_dir) {
   YamlReader r(origin);
   YAML::Node root;
   try {
@@ -129,6 +305,10 @@ Calibration Calibration::parse(const std::string& text, const std::string& origi
     throw CalibrationError(origin + ": not valid YAML: " + e.what(), {origin + ": " + e.what()});
   }
   Calibration c;
+  const auto resolve = [&](const std::string& file) {
+    const std::filesystem::path p(file);
+    return p.is_absolute() || base_dir.empty() ? p : base_dir / p;
+  };
   if (!root || !root.IsMap()) {
     r.problem("(document)", "expected a map with sections 'omni' and 'panorama'");
   } else {
@@ -138,37 +318,127 @@ Calibration Calibration::parse(const std::string& text, const std::string& origi
     }
     const YAML::Node omni = r.section(
         root, "omni",
-        {"image_width", "image_height", "center", "radius_inner", "radius_outer",
-         "azimuth_zero_deg", "azimuth_direction", "outer_edge"});
-    r.read(omni, "omni", "image_width", c.omni.image_width);
-    r.read(omni, "omni", "image_height", c.omni.image_height);
-    if (omni) {
-      const YAML::Node center = omni["center"];
-      if (!center) {
-        r.problem("omni.center", "missing");
-      } else if (!center.IsSequence() || center.size() != 2) {
-        r.problem("omni.center", "must be a list [x, y]");
-      } else {
+        {"model", "image_width", "image_height", "center", "radius_inner", "radius_outer",
+         "azimuth_zero_deg", "azimuth_direction", "outer_edge", "ocamcalib_file", "omnidir_file",
+         "xi", "K", "D", "mask"});
+    std::string model = "linear";
+    r.read(omni, "omni", "model", model, false);
+    if (model == "linear") c.omni.model = LensModelKind::kLinear;
+    else if (model == "ocamcalib") c.omni.model = LensModelKind::kOcamCalib;
+    else if (model == "mei") c.omni.model = LensModelKind::kMei;
+    else r.problem("omni.model", "'" + model + "' is not linear, ocamcalib or mei");
+    const bool linear = c.omni.model == LensModelKind::kLinear;
+    const bool ocam = c.omni.model == LensModelKind::kOcamCalib;
+    const bool mei = c.omni.model == LensModelKind::kMei;
+    const auto notWith = [&](const char* key, const char* why) {
+      if (omni && omni[key]) r.problem(std::string("omni.") + key, std::string("not used with model ") + model + ": " + why);
+    };
+
+    if (ocam) {
+      notWith("center", "the centre comes from ocamcalib_file");
+      notWith("outer_edge", "the polynomial gives every radius its elevation");
+      if (r.read(omni, "omni", "ocamcalib_file", c.omni.ocamcalib_file)) {
         try {
-          c.omni.center_x = center[0].as<double>();
-          c.omni.center_y = center[1].as<double>();
-        } catch (const YAML::Exception&) {
-          r.problem("omni.center", "must hold two numbers");
+          c.omni.ocamcalib = OcamCalibModel::load(resolve(c.omni.ocamcalib_file));
+          const OcamCalibModel& m = *c.omni.ocamcalib;
+          c.omni.image_width = m.width;
+          c.omni.image_height = m.height;
+          c.omni.center_x = m.yc;
+          c.omni.center_y = m.xc;
+          if (m.roi_min_radius) c.omni.radius_inner = *m.roi_min_radius;
+          if (m.roi_max_radius) c.omni.radius_outer = *m.roi_max_radius;
+        } catch (const std::exception& e) {
+          r.problem("omni.ocamcalib_file", e.what());
         }
       }
+      int w = c.omni.image_width, h = c.omni.image_height;
+      if (r.read(omni, "omni", "image_width", w, false) && c.omni.ocamcalib && w != c.omni.image_width)
+        r.problem("omni.image_width", std::to_string(w) + " disagrees with the OCamCalib file (" +
+                                          std::to_string(c.omni.image_width) + " with its crops)");
+      if (r.read(omni, "omni", "image_height", h, false) && c.omni.ocamcalib && h != c.omni.image_height)
+        r.problem("omni.image_height", std::to_string(h) + " disagrees with the OCamCalib file (" +
+                                           std::to_string(c.omni.image_height) + ")");
+      const bool has_roi = c.omni.ocamcalib && c.omni.ocamcalib->roi_max_radius;
+      r.read(omni, "omni", "radius_inner", c.omni.radius_inner, !has_roi && c.omni.ocamcalib.has_value());
+      r.read(omni, "omni", "radius_outer", c.omni.radius_outer, !has_roi && c.omni.ocamcalib.has_value());
+    } else {
+      notWith("ocamcalib_file", "it is the ocamcalib model's file");
+      r.read(omni, "omni", "image_width", c.omni.image_width);
+      r.read(omni, "omni", "image_height", c.omni.image_height);
+      r.read(omni, "omni", "radius_inner", c.omni.radius_inner);
+      r.read(omni, "omni", "radius_outer", c.omni.radius_outer);
     }
-    r.read(omni, "omni", "radius_inner", c.omni.radius_inner);
-    r.read(omni, "omni", "radius_outer", c.omni.radius_outer);
+    if (mei) {
+      notWith("center", "the centre is K's principal point");
+      notWith("outer_edge", "the model gives every radius its elevation");
+      const bool inline_model = omni && (omni["xi"] || omni["K"] || omni["D"]);
+      if (r.read(omni, "omni", "omnidir_file", c.omni.omnidir_file, false)) {
+        if (inline_model) r.problem("omni.omnidir_file", "give either omnidir_file or xi, K and D, not both");
+        try {
+          c.omni.mei = MeiModel::loadFileStorage(resolve(c.omni.omnidir_file));
+        } catch (const std::exception& e) {
+          r.problem("omni.omnidir_file", e.what());
+        }
+      } else {
+        MeiModel m;
+        std::vector<double> K, D;
+        const bool ok_xi = r.read(omni, "omni", "xi", m.xi);
+        const bool ok_k = r.readNumbers(omni, "omni", "K", 9, K);
+        const bool ok_d = r.readNumbers(omni, "omni", "D", 4, D);
+        if (ok_xi && ok_k && ok_d) {
+          m.fx = K[0], m.s = K[1], m.cx = K[2], m.fy = K[4], m.cy = K[5];
+          m.k1 = D[0], m.k2 = D[1], m.p1 = D[2], m.p2 = D[3];
+          c.omni.mei = m;
+        }
+      }
+      if (c.omni.mei) {
+        c.omni.center_x = c.omni.mei->cx;
+        c.omni.center_y = c.omni.mei->cy;
+      }
+    } else {
+      for (const char* key : {"omnidir_file", "xi", "K", "D"}) notWith(key, "it belongs to the mei model");
+    }
+    if (linear) {
+      if (omni) {
+        const YAML::Node center = omni["center"];
+        if (!center) {
+          r.problem("omni.center", "missing");
+        } else if (!center.IsSequence() || center.size() != 2) {
+          r.problem("omni.center", "must be a list [x, y]");
+        } else {
+          try {
+            c.omni.center_x = center[0].as<double>();
+            c.omni.center_y = center[1].as<double>();
+          } catch (const YAML::Exception&) {
+            r.problem("omni.center", "must hold two numbers");
+          }
+        }
+      }
+      std::string edge = "top";
+      r.read(omni, "omni", "outer_edge", edge, false);
+      if (edge == "top") c.omni.outer_edge = OuterEdge::kTop;
+      else if (edge == "bottom") c.omni.outer_edge = OuterEdge::kBottom;
+      else r.problem("omni.outer_edge", "'" + edge + "' is not top or bottom");
+    }
     r.read(omni, "omni", "azimuth_zero_deg", c.omni.azimuth_zero_deg, false);
-    std::string direction = "cw", edge = "top";
+    std::string direction = "cw";
     r.read(omni, "omni", "azimuth_direction", direction, false);
-    r.read(omni, "omni", "outer_edge", edge, false);
     if (direction == "cw") c.omni.azimuth_direction = AzimuthDirection::kCw;
     else if (direction == "ccw") c.omni.azimuth_direction = AzimuthDirection::kCcw;
     else r.problem("omni.azimuth_direction", "'" + direction + "' is not cw or ccw");
-    if (edge == "top") c.omni.outer_edge = OuterEdge::kTop;
-    else if (edge == "bottom") c.omni.outer_edge = OuterEdge::kBottom;
-    else r.problem("omni.outer_edge", "'" + edge + "' is not top or bottom");
+    if (r.read(omni, "omni", "mask", c.omni.mask_file, false)) {
+      const std::filesystem::path file = resolve(c.omni.mask_file);
+      cv::Mat mask;
+      try {
+        mask = cv::imread(file.string(), cv::IMREAD_UNCHANGED);
+      } catch (const cv::Exception&) {
+        mask.release();
+      }
+      if (mask.empty()) r.problem("omni.mask", file.string() + ": cannot read the mask image");
+      else if (mask.type() != CV_8UC1)
+        r.problem("omni.mask", file.string() + ": must be an 8-bit grey image (0 = never use)");
+      else c.omni.mask = mask;
+    }
 
     const YAML::Node pano =
         r.section(root, "panorama", {"width", "height", "horizon_row", "forward_column"});
@@ -183,7 +453,8 @@ Calibration Calibration::parse(const std::string& text, const std::string& origi
     for (const auto& p : c.validate()) r.problems().push_back(origin + ": " + p);
   }
   if (!r.problems().empty()) {
-    throw CalibrationError(origin + ": invalid calibration:" + join(r.problems()), r.problems());
+    throw CalibrationError(origin + ": invalid calibration:\n  " + detail::joinProblems(r.problems()),
+                           r.problems());
   }
   return c;
 }
@@ -196,23 +467,38 @@ Calibration Calibration::load(const std::filesystem::path& path) {
   }
   std::stringstream ss;
   ss << in.rdbuf();
-  return parse(ss.str(), path.string());
+  return parse(ss.str(), path.string(), path.parent_path());
 }
 
 std::string Calibration::toYaml() const {
   std::ostringstream o;
-  o.precision(10);
-  o << "omni:\n"
-    << "  image_width: " << omni.image_width << "\n"
-    << "  image_height: " << omni.image_height << "\n"
-    << "  center: [" << omni.center_x << ", " << omni.center_y << "]\n"
-    << "  radius_inner: " << omni.radius_inner << "\n"
+  o.precision(12);
+  o << "omni:\n";
+  if (omni.model != LensModelKind::kLinear) o << "  model: " << toString(omni.model) << "\n";
+  if (omni.model == LensModelKind::kOcamCalib)
+    o << "  ocamcalib_file: " << std::filesystem::path(omni.ocamcalib_file).filename().string() << "\n";
+  o << "  image_width: " << omni.image_width << "\n"
+    << "  image_height: " << omni.image_height << "\n";
+  if (omni.model == LensModelKind::kLinear)
+    o << "  center: [" << omni.center_x << ", " << omni.center_y << "]\n";
+  if (omni.model == LensModelKind::kMei && omni.mei) {
+    const MeiModel& m = *omni.mei;
+    o << "  xi: " << m.xi << "\n"
+      << "  K: [" << m.fx << ", " << m.s << ", " << m.cx << ", 0, " << m.fy << ", " << m.cy
+      << ", 0, 0, 1]\n"
+      << "  D: [" << m.k1 << ", " << m.k2 << ", " << m.p1 << ", " << m.p2 << "]\n";
+  }
+  o << "  radius_inner: " << omni.radius_inner << "\n"
     << "  radius_outer: " << omni.radius_outer << "\n"
     << "  azimuth_zero_deg: " << omni.azimuth_zero_deg << "\n"
     << "  azimuth_direction: " << (omni.azimuth_direction == AzimuthDirection::kCw ? "cw" : "ccw")
-    << "\n"
-    << "  outer_edge: " << (omni.outer_edge == OuterEdge::kTop ? "top" : "bottom") << "\n"
-    << "panorama:\n"
+    << "\n";
+  if (omni.model == LensModelKind::kLinear)
+    o << "  outer_edge: " << (omni.outer_edge == OuterEdge::kTop ? "top" : "bottom") << "\n";
+  if (!omni.mask.empty())
+    o << "  mask: " << std::filesystem::path(omni.mask_file.empty() ? "mask.png" : omni.mask_file).filename().string()
+      << "\n";
+  o << "panorama:\n"
     << "  width: " << panorama.width << "\n"
     << "  height: " << panorama.height << "\n"
     << "  horizon_row: " << panorama.horizon_row << "\n"
@@ -221,11 +507,57 @@ std::string Calibration::toYaml() const {
 }
 
 void Calibration::save(const std::filesystem::path& path) const {
+  const std::filesystem::path dir = path.parent_path();
+  const auto beside = [&](const std::string& file, const char* fallback) {
+    return dir / std::filesystem::path(file.empty() ? fallback : file).filename();
+  };
+  if (omni.model == LensModelKind::kOcamCalib && omni.ocamcalib) {
+    const auto file = beside(omni.ocamcalib_file, "calib_results.txt");
+    std::ofstream out(file);
+    out << omni.ocamcalib->text;
+    if (!out) throw std::runtime_error(file.string() + ": cannot write the OCamCalib file");
+  }
+  if (!omni.mask.empty()) {
+    const auto file = beside(omni.mask_file, "mask.png");
+    bool ok = false;
+    try {
+      ok = cv::imwrite(file.string(), omni.mask);
+    } catch (const cv::Exception&) {
+      ok = false;
+    }
+    if (!ok) throw std::runtime_error(file.string() + ": cannot write the mask");
+  }
   std::ofstream out(path);
   if (!out) throw std::runtime_error(path.string() + ": cannot write calibration file");
   out << toYaml();
   if (!out) throw std::runtime_error(path.string() + ": write failed");
 }
+
+// ---------------------------------------------------------------------------------------
+// Geometry
+// ---------------------------------------------------------------------------------------
+
+namespace {
+
+double azimuthSign(const OmniLens& lens) {
+  return lens.azimuth_direction == AzimuthDirection::kCw ? 1.0 : -1.0;
+}
+/// Image angle a of robot azimuth theta, and back.
+double imageAngleOf(const OmniLens& lens, double theta) {
+  return lens.azimuth_zero_deg * kDegToRad + azimuthSign(lens) * theta;
+}
+double azimuthOf(const OmniLens& lens, double image_angle) {
+  return azimuthSign(lens) * (image_angle - lens.azimuth_zero_deg * kDegToRad);
+}
+
+/// Panorama row of omni radius r (linear model): the inverse of radiusOfRow.
+double linearRowOfRadius(const Calibration& c, double r) {
+  const double step = (c.omni.radius_outer - c.omni.radius_inner) / c.panorama.height;
+  return c.omni.outer_edge == OuterEdge::kTop ? (c.omni.radius_outer - r) / step - 0.5
+                                              : (r - c.omni.radius_inner) / step - 0.5;
+}
+
+}  // namespace
 
 double Calibration::radiusOfRow(double v) const {
   const double step = (omni.radius_outer - omni.radius_inner) / panorama.height;
@@ -234,23 +566,86 @@ double Calibration::radiusOfRow(double v) const {
 }
 
 Eigen::Vector2d Calibration::omniPixel(double u, double v) const {
-  const double theta = panorama.azimuth(u);
-  const double sign = omni.azimuth_direction == AzimuthDirection::kCw ? 1.0 : -1.0;
-  const double a = omni.azimuth_zero_deg * kDegToRad + sign * theta;
-  const double r = radiusOfRow(v);
-  return {omni.center_x + r * std::cos(a), omni.center_y + r * std::sin(a)};
+  if (omni.model == LensModelKind::kLinear) {
+    const double a = imageAngleOf(omni, panorama.azimuth(u));
+    const double r = radiusOfRow(v);
+    return {omni.center_x + r * std::cos(a), omni.center_y + r * std::sin(a)};
+  }
+  const auto p = pixelOfBearing(panorama.bearing(u, v));
+  return p ? *p : Eigen::Vector2d(kNaN, kNaN);
 }
 
 Eigen::Vector2d Calibration::panoramaPixel(double x, double y) const {
-  const double dx = x - omni.center_x, dy = y - omni.center_y;
-  const double a = std::atan2(dy, dx);
-  const double sign = omni.azimuth_direction == AzimuthDirection::kCw ? 1.0 : -1.0;
-  const double theta = sign * (a - omni.azimuth_zero_deg * kDegToRad);
-  const double r = std::hypot(dx, dy);
-  const double step = (omni.radius_outer - omni.radius_inner) / panorama.height;
-  const double v = omni.outer_edge == OuterEdge::kTop ? (omni.radius_outer - r) / step - 0.5
-                                                      : (r - omni.radius_inner) / step - 0.5;
-  return {panorama.column(theta), v};
+  if (omni.model == LensModelKind::kLinear) {
+    const double dx = x - omni.center_x, dy = y - omni.center_y;
+    const double theta = azimuthOf(omni, std::atan2(dy, dx));
+    return {panorama.column(theta), linearRowOfRadius(*this, std::hypot(dx, dy))};
+  }
+  const auto b = bearingOfPixel(x, y);
+  return b ? panoramaOfBearing(panorama, *b) : Eigen::Vector2d(kNaN, kNaN);
+}
+
+std::optional<Eigen::Vector3d> Calibration::bearingOfPixel(double x, double y) const {
+  switch (omni.model) {
+    case LensModelKind::kLinear: {
+      const Eigen::Vector2d uv = panoramaPixel(x, y);
+      return panorama.bearing(uv.x(), uv.y());
+    }
+    case LensModelKind::kOcamCalib: {
+      const LensDirection d = omni.ocamcalib->direction({x, y});
+      return bearingOf(azimuthOf(omni, d.image_angle), d.elevation);
+    }
+    case LensModelKind::kMei: {
+      const auto d = omni.mei->direction({x, y});
+      if (!d) return std::nullopt;
+      return bearingOf(azimuthOf(omni, d->image_angle), d->elevation);
+    }
+  }
+  return std::nullopt;
+}
+
+std::optional<Eigen::Vector2d> Calibration::pixelOfBearing(const Eigen::Vector3d& b) const {
+  const double horizontal = std::hypot(b.x(), b.y());
+  if (!(horizontal > 0) || !b.allFinite()) return std::nullopt;
+  const double theta = std::atan2(b.y(), b.x());
+  switch (omni.model) {
+    case LensModelKind::kLinear:
+      return omniPixel(panorama.column(theta), panorama.row(b.z() / horizontal));
+    case LensModelKind::kOcamCalib: {
+      const auto rho = omni.ocamcalib->radius(std::atan2(b.z(), horizontal));
+      if (!rho) return std::nullopt;
+      return omni.ocamcalib->pixel(imageAngleOf(omni, theta), *rho);
+    }
+    case LensModelKind::kMei:
+      return omni.mei->pixel(imageAngleOf(omni, theta), std::atan2(b.z(), horizontal));
+  }
+  return std::nullopt;
+}
+
+double Calibration::ringRadius(double x, double y) const {
+  if (omni.model == LensModelKind::kOcamCalib) return omni.ocamcalib->direction({x, y}).radius;
+  return std::hypot(x - omni.center_x, y - omni.center_y);
+}
+
+std::pair<double, double> Calibration::ringElevations() const {
+  switch (omni.model) {
+    case LensModelKind::kLinear: {
+      const auto elevation = [&](double r) {
+        return std::atan(panorama.cylinderHeight(linearRowOfRadius(*this, r)));
+      };
+      return {elevation(omni.radius_inner), elevation(omni.radius_outer)};
+    }
+    case LensModelKind::kOcamCalib:
+      return {omni.ocamcalib->elevation(omni.radius_inner), omni.ocamcalib->elevation(omni.radius_outer)};
+    case LensModelKind::kMei: {
+      const auto elevation = [&](double r) {
+        const auto d = omni.mei->direction({omni.mei->cx + r, omni.mei->cy});
+        return d ? d->elevation : kNaN;
+      };
+      return {elevation(omni.radius_inner), elevation(omni.radius_outer)};
+    }
+  }
+  return {kNaN, kNaN};
 }
 
 }  // namespace omnipose

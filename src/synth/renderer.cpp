@@ -125,33 +125,35 @@ float Renderer::renderPanoramaPixel(const Eigen::Isometry3d& T, int u, int v) co
 
 float Renderer::renderOmniPixel(const Eigen::Isometry3d& T, int x, int y) const {
   const OmniLens& lens = calibration_.omni;
-  const PanoramaGeometry& pano = calibration_.panorama;
-  const auto bearingAt = [&](double px, double py) {
-    const Eigen::Vector2d uv = calibration_.panoramaPixel(px, py);
-    return pano.bearing(uv.x(), uv.y());
+  // Rays through the used ring [radius_inner, radius_outer] (in the lens model's radius)
+  // see the scene along the bearing the calibration assigns to them; the rest is the lens
+  // body. Any lens model: the bearing comes from Calibration::bearingOfPixel.
+  const auto inRing = [&](double px, double py) {
+    const double r = calibration_.ringRadius(px, py);
+    return r >= lens.radius_inner && r <= lens.radius_outer;
   };
-  const double r_centre = std::hypot(x - lens.center_x, y - lens.center_y);
+  const auto bearingAt = [&](double px, double py) {
+    const auto b = calibration_.bearingOfPixel(px, py);
+    return b ? *b : Eigen::Vector3d(1, 0, 0);
+  };
+  const double r_centre = calibration_.ringRadius(x, y);
   const bool touches_ring =
-      r_centre > lens.radius_inner - 1.0 && r_centre < lens.radius_outer + 1.0;
+      r_centre > lens.radius_inner - 1.5 && r_centre < lens.radius_outer + 1.5;
   const double lod = touches_ring ? levelOfDetail(textureDirection(T, bearingAt(x, y)),
                                                   textureDirection(T, bearingAt(x + 1, y)),
                                                   textureDirection(T, bearingAt(x, y + 1)))
                                   : 0.0;
-  // Box filter: mean over a K x K grid of sub-pixel centres; each is either a ray through
-  // the used ring (panorama row v in [-0.5, H - 0.5]) or the lens body.
+  // Box filter: mean over a K x K grid of sub-pixel centres.
   const int k = options_.supersample;
   double sum = 0.0;
   for (int j = 0; j < k; ++j) {
     const double sy = y + (j + 0.5) / k - 0.5;
     for (int i = 0; i < k; ++i) {
       const double sx = x + (i + 0.5) / k - 0.5;
-      const Eigen::Vector2d uv = calibration_.panoramaPixel(sx, sy);
-      if (touches_ring && uv.y() >= -0.5 && uv.y() <= pano.height - 0.5) {
-        sum += detail::sampleEquirect(pyramid_,
-                                      textureDirection(T, pano.bearing(uv.x(), uv.y())), lod);
-      } else {
-        sum += lensBody(lens, std::hypot(sx - lens.center_x, sy - lens.center_y));
-      }
+      const auto b = touches_ring && inRing(sx, sy) ? calibration_.bearingOfPixel(sx, sy)
+                                                    : std::nullopt;
+      sum += b ? detail::sampleEquirect(pyramid_, textureDirection(T, *b), lod)
+               : lensBody(lens, calibration_.ringRadius(sx, sy));
     }
   }
   return static_cast<float>(sum / (k * k));

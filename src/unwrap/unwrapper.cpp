@@ -21,7 +21,10 @@ Unwrapper::Unwrapper(const Calibration& calibration, const Options& options)
 
   const int W = calibration.panorama.width, H = calibration.panorama.height;
   const int iw = calibration.omni.image_width, ih = calibration.omni.image_height;
+  validity_.create(H, W, CV_32FC1);
+  validity_.setTo(1.0f);
   if (options.input == InputKind::kOmni) {
+    const cv::Mat& mask = calibration.omni.mask;
     offset_.resize(static_cast<std::size_t>(W) * H);
     weight_.resize(offset_.size());
     for (int v = 0; v < H; ++v) {
@@ -31,13 +34,23 @@ Unwrapper::Unwrapper(const Calibration& calibration, const Options& options)
         const int x0 = static_cast<int>(fx), y0 = static_cast<int>(fy);
         const float ax = static_cast<float>(p.x() - fx), ay = static_cast<float>(p.y() - fy);
         const std::size_t i = static_cast<std::size_t>(v) * W + u;
-        if (x0 < 0 || y0 < 0 || x0 + 1 >= iw || y0 + 1 >= ih) {
-          offset_[i] = 0;  // outside the image: black
+        if (!p.allFinite() || x0 < 0 || y0 < 0 || x0 + 1 >= iw || y0 + 1 >= ih) {
+          offset_[i] = 0;  // outside the image or the lens model: black, unusable
           weight_[i] = cv::Vec4f(0, 0, 0, 0);
+          validity_.at<float>(v, u) = 0.0f;
           continue;
         }
         offset_[i] = y0 * iw + x0;
         weight_[i] = cv::Vec4f((1 - ax) * (1 - ay), ax * (1 - ay), (1 - ax) * ay, ax * ay);
+        // Masked: any tap of the bilinear footprint that carries weight is masked.
+        if (!mask.empty()) {
+          const uint8_t* m0 = mask.ptr<uint8_t>(y0) + x0;
+          const uint8_t* m1 = mask.ptr<uint8_t>(y0 + 1) + x0;
+          const cv::Vec4f& w = weight_[i];
+          if ((w[0] > 0 && m0[0] == 0) || (w[1] > 0 && m0[1] == 0) || (w[2] > 0 && m1[0] == 0) ||
+              (w[3] > 0 && m1[1] == 0))
+            validity_.at<float>(v, u) = 0.0f;
+        }
       }
     }
   }
@@ -51,6 +64,10 @@ cv::Size Unwrapper::inputSize() const {
 
 cv::Size Unwrapper::panoramaSize() const {
   return {calibration_.panorama.width, calibration_.panorama.height};
+}
+
+double Unwrapper::usableFraction() const {
+  return cv::mean(validity_)[0];
 }
 
 cv::Mat Unwrapper::makePanorama() const { return cv::Mat(panoramaSize(), CV_32FC1, 0.0f); }

@@ -1,0 +1,256 @@
+#include <algorithm>
+#include <cctype>
+#include <cmath>
+#include <fstream>
+#include <limits>
+#include <sstream>
+#include <stdexcept>
+
+#include "calibration/problem_list.hpp"
+#include "omnipose/limits.hpp"
+#include "omnipose/lens_model.hpp"
+
+namespace omnipose {
+namespace {
+
+/// One data line of the file: its 1-based number, the comment line above it, its numbers.
+struct DataLine {
+  int number = 0;
+  std::string comment;
+  std::vector<double> values;
+  bool parsed = true;  ///< false: a token was not a number
+  std::string bad_token;
+};
+
+std::vector<DataLine> dataLines(const std::string& text) {
+  std::vector<DataLine> lines;
+  std::istringstream in(text);
+  std::string line, last_comment;
+  int number = 0;
+  while (std::getline(in, line)) {
+    ++number;
+    const auto first = line.find_first_not_of(" \t\r");
+    if (first == std::string::npos) continue;
+    if (line[first] == '#') {
+      last_comment = line.substr(first);
+      continue;
+    }
+    DataLine d;
+    d.number = number;
+    d.comment = last_comment;
+    std::istringstream tokens(line);
+    std::string token;
+    while (tokens >> token) {
+      char* end = nullptr;
+      const double v = std::strtod(token.c_str(), &end);
+      if (end == token.c_str() || *end != '\0') {
+        d.parsed = false;
+        d.bad_token = token;
+        break;
+      }
+      d.values.push_back(v);
+    }
+    lines.push_back(std::move(d));
+  }
+  return lines;
+}
+
+bool mentions(const std::string& comment, const char* word) {
+  std::string lower = comment;
+  for (auto& ch : lower) ch = static_cast<char>(std::tolower(static_cast<unsigned char>(ch)));
+  return lower.find(word) != std::string::npos;
+}
+
+double polyval(const std::vector<double>& p, double x) {
+  double y = 0.0;
+  for (auto it = p.rbegin(); it != p.rend(); ++it) y = y * x + *it;
+  return y;
+}
+
+double polyder(const std::vector<double>& p, double x) {
+  double y = 0.0;
+  for (std::size_t i = p.size(); i-- > 1;) y = y * x + static_cast<double>(i) * p[i];
+  return y;
+}
+
+}  // namespace
+
+OcamCalibModel OcamCalibModel::parse(const std::string& text, const std::string& origin) {
+  OcamCalibModel m;
+  m.origin = origin;
+  m.text = text;
+  std::vector<std::string> problems;
+  const auto problem = [&](int line, const std::string& what) {
+    problems.push_back(origin + (line > 0 ? ": line " + std::to_string(line) : std::string()) +
+                       ": " + what);
+  };
+  const std::vector<DataLine> lines = dataLines(text);
+  static constexpr const char* kFields[] = {
+      "direct polynomial (ss: count, then coefficients)",
+      "inverse polynomial (invpol: count, then coefficients)", "centre (row column)",
+      "affine parameters (c d e)", "image size (height width)"};
+  for (std::size_t i = 0; i < std::size(kFields); ++i) {
+    if (i >= lines.size()) {
+      problem(0, std::string("truncated: expected the ") + kFields[i] + " line, found the end of the file");
+    } else if (!lines[i].parsed) {
+      problem(lines[i].number, std::string(kFields[i]) + ": '" + lines[i].bad_token + "' is not a number");
+    }
+  }
+  if (!problems.empty()) throw std::runtime_error(detail::joinProblems(problems));
+
+  const auto finite = [&](const DataLine& d, const char* what) {
+    for (double v : d.values) {
+      if (!std::isfinite(v)) {
+        problem(d.number, std::string(what) + ": values must be finite");
+        return false;
+      }
+    }
+    return true;
+  };
+  // Polynomials: "N a0 a1 ... a(N-1)".
+  const auto polynomial = [&](const DataLine& d, const char* what, std::vector<double>& out) {
+    if (d.values.empty() || !finite(d, what)) return;
+    const double n = d.values[0];
+    if (n != std::floor(n) || n < 1 || n > limits::kMaxPolynomialTerms) {
+      problem(d.number, std::string(what) + ": count " + std::to_string(n) + " must be a whole number in [1, " +
+                            std::to_string(limits::kMaxPolynomialTerms) + "]");
+      return;
+    }
+    if (d.values.size() - 1 != static_cast<std::size_t>(n)) {
+      problem(d.number, std::string(what) + ": the count says " + std::to_string(static_cast<int>(n)) +
+                            " coefficients, the line has " + std::to_string(d.values.size() - 1));
+      return;
+    }
+    out.assign(d.values.begin() + 1, d.values.end());
+  };
+  polynomial(lines[0], "ss", m.ss);
+  polynomial(lines[1], "invpol", m.invpol);
+  m.ss_line = lines[0].number;
+  if (lines[2].values.size() != 2) {
+    problem(lines[2].number, "centre: expected 2 numbers (row column)");
+  } else if (finite(lines[2], "centre")) {
+    m.xc = lines[2].values[0];
+    m.yc = lines[2].values[1];
+  }
+  if (lines[3].values.size() != 3) {
+    problem(lines[3].number, "affine: expected 3 numbers (c d e)");
+  } else if (finite(lines[3], "affine")) {
+    m.c = lines[3].values[0];
+    m.d = lines[3].values[1];
+    m.e = lines[3].values[2];
+    if (std::abs(m.c - m.d * m.e) < 1e-6) problem(lines[3].number, "affine: c - d*e is 0 (singular)");
+  }
+  double height = 0, width = 0;
+  if (lines[4].values.size() != 2) {
+    problem(lines[4].number, "image size: expected 2 numbers (height width)");
+  } else if (finite(lines[4], "image size")) {
+    height = lines[4].values[0];
+    width = lines[4].values[1];
+    for (auto [v, name] : {std::pair{height, "height"}, std::pair{width, "width"}}) {
+      if (v != std::floor(v) || v < 1 || v > limits::kMaxImageSide) {
+        problem(lines[4].number, std::string("image size: ") + name + " " + std::to_string(v) +
+                                     " must be a whole number in [1, " +
+                                     std::to_string(limits::kMaxImageSide) + "]");
+      }
+    }
+  }
+  // pyomniunwarp's extensions, recognised by their comment lines.
+  for (std::size_t i = 5; i < lines.size(); ++i) {
+    const DataLine& d = lines[i];
+    if (!d.parsed) {
+      problem(d.number, "'" + d.bad_token + "' is not a number");
+    } else if (mentions(d.comment, "roi")) {
+      if (d.values.size() != 2 || !finite(d, "ROI")) {
+        if (d.values.size() != 2) problem(d.number, "ROI: expected 2 numbers (max min radius)");
+        continue;
+      }
+      m.roi_max_radius = d.values[0];
+      m.roi_min_radius = d.values[1];
+      if (!(d.values[1] >= 0 && d.values[0] > d.values[1]))
+        problem(d.number, "ROI: expected max radius > min radius >= 0");
+    } else if (mentions(d.comment, "crop")) {
+      if (d.values.size() != 2 || !finite(d, "crop")) {
+        if (d.values.size() != 2) problem(d.number, "crop: expected 2 numbers (left right)");
+        continue;
+      }
+      const double l = d.values[0], r = d.values[1];
+      if (l != std::floor(l) || r != std::floor(r) || l < 0 || r < 0 || l > limits::kMaxImageSide ||
+          r > limits::kMaxImageSide) {
+        problem(d.number, "crop: left and right must be whole numbers of pixels >= 0");
+        continue;
+      }
+      m.crop_left = static_cast<int>(l);
+      m.crop_right = static_cast<int>(r);
+    } else {
+      problem(d.number, "unexpected data line (after the image size only the ROI and crop lines "
+                        "are known, each below a comment naming it)");
+    }
+  }
+  if (!problems.empty()) throw std::runtime_error(detail::joinProblems(problems));
+  m.height = static_cast<int>(height);
+  m.width = static_cast<int>(width) + m.crop_left + m.crop_right;
+  m.yc += m.crop_left;
+  if (m.width > limits::kMaxImageSide) {
+    problem(lines[4].number, "image size: width plus crops exceeds " + std::to_string(limits::kMaxImageSide));
+    throw std::runtime_error(detail::joinProblems(problems));
+  }
+  return m;
+}
+
+OcamCalibModel OcamCalibModel::load(const std::filesystem::path& path) {
+  std::ifstream in(path);
+  if (!in) throw std::runtime_error(path.string() + ": cannot open OCamCalib file");
+  std::stringstream ss;
+  ss << in.rdbuf();
+  return parse(ss.str(), path.string());
+}
+
+double OcamCalibModel::f(double rho) const { return polyval(ss, rho); }
+
+double OcamCalibModel::elevation(double rho) const { return std::atan2(f(rho), rho); }
+
+std::optional<double> OcamCalibModel::radius(double elev) const {
+  // world2cam's start, then Newton on g(rho) = f(rho) cos(e) - rho sin(e) (zero where
+  // atan2(f, rho) = e, without the atan's branch cut).
+  const double limit = 2.0 * std::max(width, height);
+  double rho = invpol.empty() ? 0.25 * limit : polyval(invpol, elev);
+  if (!(rho > 0 && rho < limit)) rho = 0.25 * limit;
+  const double ce = std::cos(elev), se = std::sin(elev);
+  for (int it = 0; it < 50; ++it) {
+    const double g = f(rho) * ce - rho * se;
+    const double dg = polyder(ss, rho) * ce - se;
+    if (dg == 0.0 || !std::isfinite(dg)) return std::nullopt;
+    double step = g / dg;
+    step = std::clamp(step, -0.25 * limit, 0.25 * limit);
+    rho -= step;
+    if (!(rho > 0 && rho < limit)) return std::nullopt;
+    if (std::abs(step) < 1e-10) return rho;
+  }
+  return std::nullopt;
+}
+
+LensDirection OcamCalibModel::direction(const Eigen::Vector2d& pixel) const {
+  // cam2world: ideal offsets through A^-1.
+  const double row = pixel.y() - xc, col = pixel.x() - yc;
+  const double invdet = 1.0 / (c - d * e);
+  const double xp = invdet * (row - d * col);
+  const double yp = invdet * (-e * row + c * col);
+  const double rho = std::hypot(xp, yp);
+  return {std::atan2(xp, yp), elevation(rho), rho};
+}
+
+Eigen::Vector2d OcamCalibModel::pixel(double image_angle, double rho) const {
+  // world2cam's last step: pixel = A [xp; yp] + centre, with (xp, yp) = rho (sin a, cos a).
+  const double xp = rho * std::sin(image_angle), yp = rho * std::cos(image_angle);
+  const double row = xp * c + yp * d + xc;
+  const double col = xp * e + yp + yc;
+  return {col, row};
+}
+
+double OcamCalibModel::invpolMaxErrorPx(double r0, double r1) const {
+  double worst = 0.0;
+  for (double r = r0; r <= r1; r += 0.5) worst = std::max(worst, std::abs(polyval(invpol, elevation(r)) - r));
+  return worst;
+}
+
+}  // namespace omnipose
