@@ -40,6 +40,11 @@ groundtruth.tum) from an equirectangular photo, with exact ground truth.
   --calibration CAL.yaml  lens and panorama; default: 720x720, centre 359.5, radii
                           120/300, panorama 1100x110, horizon row 54.5
   --supersample K         K x K rays per pixel (default 3)
+  --occluder ANGLE,WIDTH  paint a static mast/cable occluder over a sector of the ring
+                          (image angle and width, degrees; omni output), the same in
+                          every frame
+  --write-mask            also write mask.png hiding the occluder (2 deg margin) and name
+                          it in calibration.yaml (omni.mask)
   -h, --help              this text
 )";
 
@@ -57,6 +62,8 @@ struct Args {
   double noise = 0.0, blur = 0.0, exposure_gain = 0.0, exposure_offset = 0.0;
   int jpeg = 0;
   int supersample = synth::RenderOptions{}.supersample;
+  std::optional<synth::Occluder> occluder;
+  bool write_mask = false;
   bool help = false;
 };
 
@@ -78,6 +85,10 @@ Args parseArgs(int argc, char** argv) {
       a.help = true;
       continue;
     }
+    if (opt == "--write-mask") {
+      a.write_mask = true;
+      continue;
+    }
     if (i + 1 >= argc) throw UsageError(std::string(opt) + ": unknown option or missing value");
     const std::string_view val = argv[++i];
     try {
@@ -97,6 +108,7 @@ Args parseArgs(int argc, char** argv) {
       else if (opt == "--exposure-offset") a.exposure_offset = parseNumber<double>(opt, val);
       else if (opt == "--calibration") a.calibration = val;
       else if (opt == "--supersample") a.supersample = parseNumber<int>(opt, val);
+      else if (opt == "--occluder") a.occluder = synth::parseOccluder(std::string(val));
       else throw UsageError(std::string(opt) + ": unknown option");
     } catch (const std::invalid_argument& e) {
       throw UsageError(std::string(opt) + ": " + e.what());
@@ -110,11 +122,14 @@ Args parseArgs(int argc, char** argv) {
   }
   if (a.frames && *a.frames < 1) throw UsageError("--frames: must be >= 1");
   if (a.jpeg < 0 || a.jpeg > 100) throw UsageError("--jpeg: must be in [0, 100]");
+  if (a.write_mask && !a.occluder) throw UsageError("--write-mask needs --occluder");
+  if (a.occluder && a.output != synth::OutputKind::kOmni)
+    throw UsageError("--occluder paints the omni image: it needs --output omni");
   return a;
 }
 
 int run(const Args& a) {
-  const Calibration calibration =
+  Calibration calibration =
       a.calibration.empty() ? Calibration{} : Calibration::load(a.calibration);
   const std::string motion_name = !a.motion.empty() ? a.motion
                                   : !a.preset.empty() ? "preset " + a.preset
@@ -145,11 +160,17 @@ int run(const Args& a) {
   if (const auto problems = degrade.validate(); !problems.empty()) {
     throw UsageError(problems.front());
   }
+  if (a.write_mask) {
+    calibration.omni.mask = a.occluder->mask(calibration);
+    calibration.omni.mask_file = "mask.png";
+  }
   synth::DatasetWriter writer(a.out, calibration, a.jpeg);
 
   const auto start = std::chrono::steady_clock::now();
   for (std::size_t k = 0; k < poses.size(); ++k) {
-    writer.addFrame(synth::degrade(renderer.render(poses[k].pose), degrade, k), poses[k]);
+    cv::Mat image = renderer.render(poses[k].pose);
+    if (a.occluder) a.occluder->paint(image, calibration);
+    writer.addFrame(synth::degrade(image, degrade, k), poses[k]);
   }
   writer.finish();
   const double seconds =
