@@ -46,7 +46,8 @@ struct MotionEstimate {
   Eigen::Matrix<double, 6, 6> covariance = Eigen::Matrix<double, 6, 6>::Zero();  ///< of (omega, tau)
   double residual_rms_px = 0.0;  ///< RMS of the inlier du/dv residuals, pixels
   int windows_used = 0;          ///< windows contributing to the final pass
-  int windows_total = 0;
+  int windows_total = 0;         ///< windows given to the fit, masked ones included
+  int windows_masked = 0;        ///< windows not measured because mostly masked
   int iterations = 0;
   FitStatus status = FitStatus::kLost;
 
@@ -67,7 +68,8 @@ class MotionFit {
     double tolerance = 1e-9;        ///< IRLS stops when |dx| (radians) falls below this
     bool use_rotation_scale = true; ///< add the in-window rotation/scale equations
     double inlier_sigmas = 3.0;     ///< final pass keeps |r| < this many robust sigmas
-    double min_window_fraction = 0.3;  ///< fewer valid windows than this fraction: degraded
+    double min_window_fraction = 0.3;  ///< fewer valid windows than this fraction of the
+                                       ///< unmasked ones: degraded
     double max_residual_px = 1.5;      ///< larger inlier RMS: degraded
     double max_condition = 1e6;        ///< larger normal-matrix condition number: lost
     int max_windows = 512;             ///< workspace size

@@ -50,6 +50,7 @@ struct WindowMotion {
                                ///< peak on the border of the prior (true value outside it)
   bool valid = false;       ///< false: window has no texture / no peak (confidence below
                             ///< min_confidence); ignore it. du, dv = 0 for a textureless window
+  bool masked = false;      ///< mostly masked (setValidity): not measured, valid = false
 };
 
 class WindowRegistration {
@@ -64,6 +65,9 @@ class WindowRegistration {
     double max_log_scale = 0.2;      ///< |ln s| searched around 0, in (0, 0.5]
     double min_confidence = 0.02;    ///< below this a window is marked invalid, and a
                                      ///< rotation/scale peak is not used (rs_confidence 0)
+    double min_usable_fraction = 0.5;  ///< with a mask (setValidity): windows whose
+                                       ///< taper-weighted usable fraction is below this
+                                       ///< are not measured (WindowMotion::masked)
 
     /// Empty string when valid, else a message naming the bad field.
     std::string validate() const;
@@ -86,6 +90,18 @@ class WindowRegistration {
   void setReference(const cv::Mat& panorama);
   /// Whether a reference is set.
   bool hasReference() const;
+
+  /// Sets the static map of usable panorama pixels (CV_32FC1, W x H, 1 = usable, 0 = masked
+  /// or outside the lens, e.g. Unwrapper::validity()). Start-up only: allocates one weight
+  /// table per window when anything is masked, and drops the reference. Masked pixels are
+  /// left out of each window's mean and faded out of its taper (eroded by 3 px, feathered
+  /// over 2 px), so a static mask border never reaches a spectrum as an edge that would
+  /// pull the shift towards zero; windows whose taper-weighted usable fraction is below
+  /// Options::min_usable_fraction are not measured (WindowMotion::masked). An all-ones map
+  /// restores the plain taper. Throws std::invalid_argument on a map of the wrong size/type.
+  void setValidity(const cv::Mat& validity);
+  /// Windows that setValidity() excluded.
+  int maskedWindowCount() const;
 
   /// Registers every window of `current` (CV_32FC1, W x H) against the reference and
   /// writes windowCount() motions to `out` (out.size() must be >= windowCount()). The

@@ -290,6 +290,8 @@ MotionEstimate MotionFit::fit(std::span<const WindowMotion> windows, double forw
   using Vec6 = Eigen::Matrix<double, 6, 1>;
   MotionEstimate est;
   est.windows_total = static_cast<int>(windows.size());
+  est.windows_masked = static_cast<int>(
+      std::count_if(windows.begin(), windows.end(), [](const WindowMotion& w) { return w.masked; }));
   if (windows.size() > static_cast<std::size_t>(options_.max_windows)) {
     est.status = FitStatus::kLost;  // workspace too small: configuration error upstream
     return est;
@@ -419,7 +421,8 @@ MotionEstimate MotionFit::fit(std::span<const WindowMotion> windows, double forw
   est.omega = x.head<3>();
   est.tau = x.tail<3>();
 
-  const bool few = est.windows_used < options_.min_window_fraction * est.windows_total;
+  const bool few =
+      est.windows_used < options_.min_window_fraction * (est.windows_total - est.windows_masked);
   est.status = (few || est.residual_rms_px > options_.max_residual_px) ? FitStatus::kDegraded
                                                                         : FitStatus::kOk;
   return est;

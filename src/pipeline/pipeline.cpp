@@ -52,6 +52,8 @@ struct Pipeline::Impl {
         warp(c.panorama) {
     panorama = unwrapper.makePanorama();
     warped = unwrapper.makePanorama();
+    // Mask, frame border, lens domain: what the windows must leave out.
+    registration.setValidity(unwrapper.validity());
     windows.resize(registration.windowCount());
     refine_windows.resize(registration.windowCount());
     shifts_only.resize(registration.windowCount());  // rs_confidence 0: no rotation/scale
@@ -143,6 +145,7 @@ Expected<FrameMotion> Pipeline::process(const cv::Mat& frame) {
     est.covariance = residual.covariance;
     est.residual_rms_px = residual.residual_rms_px;
     est.windows_used = residual.windows_used;
+    est.windows_masked = residual.windows_masked;
     est.iterations += residual.iterations;
     if (residual.status == FitStatus::kDegraded) est.status = FitStatus::kDegraded;
   }

@@ -5,6 +5,7 @@
 #include <cstring>
 #include <limits>
 #include <numbers>
+#include <opencv2/imgproc.hpp>
 #include <stdexcept>
 #include <utility>
 #include <vector>
@@ -60,6 +61,11 @@ constexpr Tuning kTuning{};
 /// A window is textureless when its taper-weighted standard deviation is at most this
 /// fraction of its mean brightness plus kTextureFloorAbs (grey levels): only rounding noise
 /// is left, and its phase carries no information.
+/// Static masks (setValidity): usable pixels within kMaskMarginPx of a masked one are faded
+/// out too (the in-window de-rotation moves window corners by a few pixels), with a
+/// Gaussian fade of kMaskFeatherPx, so a mask border is never a sharp, static edge.
+constexpr int kMaskMarginPx = 3;
+constexpr double kMaskFeatherPx = 2.0;
 constexpr double kTextureFloorRel = 1e-4;
 constexpr double kTextureFloorAbs = 1e-6;
 
@@ -172,6 +178,8 @@ std::string WindowRegistration::Options::validate() const {
   if (!(max_log_scale > 0.0 && max_log_scale <= 0.5)) return "max_log_scale must be in (0, 0.5]";
   if (!(min_confidence >= 0.0 && min_confidence <= 1.0))
     return "min_confidence must be in [0, 1]";
+  if (!(min_usable_fraction >= 0.0 && min_usable_fraction <= 1.0))
+    return "min_usable_fraction must be in [0, 1]";
   return {};
 }
 
@@ -206,6 +214,12 @@ struct WindowRegistration::Impl {
   double taper_weight;       ///< sum over the window of h_i h_j
   double taper_weight2;      ///< sum over the window of (h_i h_j)^2
 
+  // Static mask (setValidity): per window, the taper times the feathered usable map,
+  // L x L each, window after window; empty = the plain separable taper everywhere.
+  std::vector<float> masked_taper;
+  std::vector<double> masked_weight, masked_weight2;  ///< per window: sum w, sum w^2
+  std::vector<unsigned char> mostly_masked;           ///< per window: not measured
+
   // Window stage: tapered window (n x n, zero padding) -> half spectrum.
   reg::FftwArray<float> window;
   reg::FftwArray<reg::Complex> spectrum;
@@ -230,7 +244,9 @@ struct WindowRegistration::Impl {
   bool acceptsImage(const cv::Mat& panorama) const;
   TaperedWindow loadWindow(const cv::Mat& panorama, int k);
   TaperedWindow loadWarpedWindow(const cv::Mat& panorama, int k, double rotation, double scale);
-  TaperedWindow taperWindow();
+  TaperedWindow taperWindow(int k);
+  TaperedWindow taperMaskedWindow(int k);
+  void setValidity(const cv::Mat& validity);
   TaperedWindow transformWindow(const cv::Mat& panorama, int k, reg::Complex* log_polar_band);
   void measureWindow(const cv::Mat& panorama, int k, const TaperedWindow& cur,
                      const reg::Complex* cur_translation, const reg::Complex* cur_log_polar,
@@ -297,7 +313,7 @@ TaperedWindow WindowRegistration::Impl::loadWindow(const cv::Mat& panorama, int 
     std::memcpy(dst, src + first_col, sizeof(float) * head);
     std::memcpy(dst + head, src, sizeof(float) * (length - head));
   }
-  return taperWindow();
+  return taperWindow(k);
 }
 
 TaperedWindow WindowRegistration::Impl::loadWarpedWindow(const cv::Mat& panorama, int k,
@@ -332,10 +348,77 @@ TaperedWindow WindowRegistration::Impl::loadWarpedWindow(const cv::Mat& panorama
       sampleRow(origin, stride, u0, static_cast<float>(m00), v0, static_cast<float>(m10), max_v,
                 dst, length);
   }
-  return taperWindow();
+  return taperWindow(k);
 }
 
-TaperedWindow WindowRegistration::Impl::taperWindow() {
+void WindowRegistration::Impl::setValidity(const cv::Mat& validity) {
+  masked_taper.clear();
+  masked_weight.clear();
+  masked_weight2.clear();
+  mostly_masked.assign(windows, 0);
+  const int width = options.panorama_width, length = options.window;
+  double minimum = 1.0;
+  cv::minMaxLoc(validity, &minimum);
+  if (minimum >= 1.0) return;  // nothing masked: the plain taper
+  // Fade masked pixels out smoothly: erode the usable map by kMaskMarginPx, feather it with
+  // a Gaussian of kMaskFeatherPx (periodic in u), and never let it exceed the original map,
+  // so the fade lies entirely on usable pixels.
+  cv::Mat usable, padded, faded;
+  cv::threshold(validity, usable, 0.999, 1.0, cv::THRESH_BINARY);
+  const int pad = static_cast<int>(std::ceil(kMaskMarginPx + 4 * kMaskFeatherPx)) + 1;
+  cv::copyMakeBorder(usable, padded, 0, 0, pad, pad, cv::BORDER_WRAP);
+  cv::erode(padded, padded, cv::getStructuringElement(cv::MORPH_ELLIPSE,
+                                                      {2 * kMaskMarginPx + 1, 2 * kMaskMarginPx + 1}),
+            {-1, -1}, 1, cv::BORDER_REPLICATE);
+  cv::GaussianBlur(padded, faded, {0, 0}, kMaskFeatherPx, kMaskFeatherPx, cv::BORDER_REPLICATE);
+  faded = cv::min(faded(cv::Rect(pad, 0, width, options.panorama_height)), usable);
+  masked_taper.resize(static_cast<std::size_t>(windows) * length * length);
+  masked_weight.assign(windows, 0.0);
+  masked_weight2.assign(windows, 0.0);
+  for (int k = 0; k < windows; ++k) {
+    const int first_col = static_cast<int>((static_cast<long>(k) * options.step) % width);
+    float* w = masked_taper.data() + static_cast<std::size_t>(k) * length * length;
+    double usable_weight = 0.0;
+    for (int i = 0; i < length; ++i) {
+      const float* m = faded.ptr<float>(top + i);
+      for (int j = 0; j < length; ++j) {
+        const float h = taper[i] * taper[j];
+        const float v = h * m[(first_col + j) % width];
+        w[i * length + j] = v;
+        usable_weight += v;
+        masked_weight2[k] += static_cast<double>(v) * v;
+      }
+    }
+    masked_weight[k] = usable_weight;
+    mostly_masked[k] = usable_weight < options.min_usable_fraction * taper_weight;
+  }
+}
+
+TaperedWindow WindowRegistration::Impl::taperMaskedWindow(int k) {
+  // As taperWindow() with the window's own weights w_ij = h_i h_j m_ij (m: the feathered
+  // usable map): mean m = sum w x / sum w, x <- w (x - m); masked pixels become 0.
+  const int length = options.window;
+  const float* w = masked_taper.data() + static_cast<std::size_t>(k) * length * length;
+  double weighted = 0.0;
+  for (int i = 0; i < length; ++i)
+    weighted += dot(w + static_cast<std::size_t>(i) * length,
+                    window.data() + static_cast<std::size_t>(i) * fft_size, length);
+  const double mean = weighted / masked_weight[k];
+  double energy = 0.0;
+  for (int i = 0; i < length; ++i) {
+    float* row = window.data() + static_cast<std::size_t>(i) * fft_size;
+    const float* wr = w + static_cast<std::size_t>(i) * length;
+    energy += taperRow(row, wr, 1.0f, static_cast<float>(mean), length);
+  }
+  TaperedWindow out;
+  out.energy = energy;
+  out.textured = std::sqrt(energy / masked_weight2[k]) > kTextureFloorRel * std::abs(mean) + kTextureFloorAbs;
+  return out;
+}
+
+TaperedWindow WindowRegistration::Impl::taperWindow(int k) {
+  if (!mostly_masked.empty() && mostly_masked[k]) return {};  // not measured
+  if (!masked_taper.empty()) return taperMaskedWindow(k);
   // Taper-weighted mean m = sum_ij h_i h_j x_ij / sum_ij h_i h_j: the tapered window has no DC.
   const int length = options.window;
   double weighted = 0.0;
@@ -357,6 +440,7 @@ TaperedWindow WindowRegistration::Impl::taperWindow() {
 
 TaperedWindow WindowRegistration::Impl::transformWindow(const cv::Mat& panorama, int k,
                                                       reg::Complex* log_polar_band) {
+  if (!mostly_masked.empty() && mostly_masked[k]) return {};  // not measured, no FFT
   // Step 1: F_c of the tapered window (left in `spectrum`).
   const TaperedWindow w = loadWindow(panorama, k);
   window_fft.execute();
@@ -375,6 +459,7 @@ void WindowRegistration::Impl::measureWindow(const cv::Mat& panorama, int k, con
                                              const WindowMotion* known, WindowMotion& out) {
   out = WindowMotion{};
   out.center_u = windowCenter(k);
+  out.masked = !mostly_masked.empty() && mostly_masked[k];
   if (!cur.textured || !reference->textured[k]) return;
 
   // Step 2: rotation and scale, log-polar phase correlation searched only inside the prior
@@ -458,6 +543,23 @@ void WindowRegistration::setReference(const cv::Mat& panorama) {
 }
 
 bool WindowRegistration::hasReference() const { return impl_->has_reference; }
+
+void WindowRegistration::setValidity(const cv::Mat& validity) {
+  Impl& s = *impl_;
+  if (validity.type() != CV_32FC1 || validity.cols != s.options.panorama_width ||
+      validity.rows != s.options.panorama_height)
+    throw std::invalid_argument("WindowRegistration::setValidity: expected a CV_32FC1 " +
+                                std::to_string(s.options.panorama_width) + "x" +
+                                std::to_string(s.options.panorama_height) + " map");
+  s.setValidity(validity);
+  s.has_reference = false;  // reference spectra were tapered with the old weights
+  s.next_ready = false;
+}
+
+int WindowRegistration::maskedWindowCount() const {
+  const Impl& s = *impl_;
+  return static_cast<int>(std::count(s.mostly_masked.begin(), s.mostly_masked.end(), 1));
+}
 
 bool WindowRegistration::measure(const cv::Mat& current, std::span<WindowMotion> out,
                                  bool keep_as_next,
