@@ -65,6 +65,7 @@ Processor::Processor(const Calibration& calibration, const PipelineOptions& pipe
     v->assign(static_cast<std::size_t>(windows), 0.0f);
   }
   d.valid.assign(static_cast<std::size_t>(windows), 0);
+  d.masked.assign(static_cast<std::size_t>(windows), 0);
   d.gamma = calibration.panorama.gamma();
   d.forward_column = calibration.panorama.forward_column;
   diagnostics_buffer_.resize(static_cast<std::size_t>(d.getEncodedSize()));
@@ -185,6 +186,7 @@ void Processor::fillDiagnostics(const FrameInfo& info, const FrameMotion& motion
     d.tau[i] = est.tau[i];
   }
   d.residual_px = static_cast<float>(est.residual_rms_px);
+  d.windows_masked = static_cast<std::int16_t>(est.windows_masked);
   const Eigen::Matrix<double, 6, 1> x = est.vector();
   const auto windows = pipeline_.lastWindows();
   const std::size_t n = std::min(windows.size(), d.du.size());
@@ -197,6 +199,7 @@ void Processor::fillDiagnostics(const FrameInfo& info, const FrameMotion& motion
     d.scale[k] = static_cast<float>(w.scale);
     d.confidence[k] = static_cast<float>(w.confidence);
     d.valid[k] = w.valid ? 1 : 0;
+    d.masked[k] = w.masked ? 1 : 0;
     // Eq. 3, linear form, at the window's azimuth, converted to pixels.
     const ModelMotion m = predictMotion(x, (w.center_u - d.forward_column) * d.gamma, kappa_);
     d.model_du[k] = static_cast<float>(m.du_rad / d.gamma);

@@ -15,6 +15,7 @@
 #include <vector>
 
 #include "omnipose/calibrate/lens_calibrator.hpp"
+#include "omnipose/calibrate/ocamcalib_import.hpp"
 #include "omnipose/calibrate/preview.hpp"
 
 namespace {
@@ -26,6 +27,9 @@ void usage(std::FILE* out) {
   std::fprintf(
       out,
       "usage: omnipose-calibrate FRAMES... --out calibration.yaml [options]\n"
+      "       omnipose-calibrate --from-ocamcalib calib_results.txt --out calibration.yaml\n"
+      "                          [FRAMES...] [--radius-inner R --radius-outer R] [--direction D]\n"
+      "                          [--forward-angle DEG] [--width W --height H --horizon-row V]\n"
       "\n"
       "Finds the donut's centre and the used inner/outer radii (robust circle fits on the ring\n"
       "edges, median over the frames), proposes the panorama size and writes the calibration\n"
@@ -53,6 +57,11 @@ void usage(std::FILE* out) {
       "                          a lens model); default: the donut is taken as isotropic there\n"
       "Detection hints:\n"
       "  --center-guess X,Y  --inner-guess R  --outer-guess R   (pixels)\n"
+      "Lens models:\n"
+      "  --from-ocamcalib FILE   the lens is Scaramuzza's OCamCalib calib_results.txt: writes\n"
+      "                          model ocamcalib (the file is copied beside --out), the ring from\n"
+      "                          its ROI line (or --radius-inner/--radius-outer), a panorama\n"
+      "                          inside the ring's elevations; FRAMES (optional) are previewed\n"
       "Other:\n"
       "  --no-replay             skip the Pipeline replay of consecutive frames\n"
       "  --quiet                 print only errors\n"
@@ -88,12 +97,48 @@ bool isImage(const fs::path& p) {
   return kExt.contains(ext);
 }
 
+/// --from-ocamcalib: the calibration of an OCamCalib lens, its preview when frames are given.
+int writeOcamCalibCalibration(const fs::path& file, const LensCalibratorOptions& given,
+                              const std::vector<cv::Mat>& frames, const std::vector<fs::path>& files,
+                              const fs::path& out_yaml, const fs::path& preview, bool quiet) {
+  omnipose::calibrate::OcamCalibImportOptions o;
+  o.radius_inner = given.radius_inner;
+  o.radius_outer = given.radius_outer;
+  o.direction = given.direction;
+  o.forward_angle_deg = given.forward_angle_deg.value_or(0.0);
+  o.width = given.width.value_or(o.width);
+  o.height = given.height.value_or(o.height);
+  o.horizon_row = given.horizon_row;
+  const auto result = omnipose::calibrate::importOcamCalib(file, o);
+  const omnipose::Calibration& c = result.calibration;
+  for (std::size_t i = 0; i < frames.size(); ++i) {
+    if (frames[i].cols != c.omni.image_width || frames[i].rows != c.omni.image_height)
+      throw std::runtime_error(files[i].string() + ": " + std::to_string(frames[i].cols) + "x" +
+                               std::to_string(frames[i].rows) + ", but " + file.string() +
+                               " describes " + std::to_string(c.omni.image_width) + "x" +
+                               std::to_string(c.omni.image_height) + " frames");
+  }
+  c.save(out_yaml);
+  omnipose::Calibration::load(out_yaml);  // what we wrote must read back
+  if (!frames.empty()) {
+    const cv::Mat picture = omnipose::calibrate::renderPreview(frames, c, nullptr, result.notes);
+    if (!cv::imwrite(preview.string(), picture))
+      throw std::runtime_error(preview.string() + ": cannot write preview");
+  }
+  if (!quiet) {
+    for (const auto& n : result.notes) std::printf("  %s\n", n.c_str());
+    std::printf("wrote %s%s\n", out_yaml.c_str(),
+                frames.empty() ? "" : (" and " + preview.string()).c_str());
+  }
+  return 0;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
   LensCalibratorOptions options;
   std::vector<fs::path> inputs;
-  fs::path out_yaml, preview;
+  fs::path out_yaml, preview, from_ocamcalib;
   bool quiet = false;
   for (int i = 1; i < argc; ++i) {
     const std::string arg = argv[i];
@@ -106,6 +151,8 @@ int main(int argc, char** argv) {
       return 0;
     } else if (arg == "--out") {
       out_yaml = value();
+    } else if (arg == "--from-ocamcalib") {
+      from_ocamcalib = value();
     } else if (arg == "--preview") {
       preview = value();
     } else if (arg == "--turn-left") {
@@ -168,7 +215,7 @@ int main(int argc, char** argv) {
       inputs.emplace_back(arg);
     }
   }
-  if (inputs.empty()) usageError("no FRAMES given (see --help)");
+  if (inputs.empty() && from_ocamcalib.empty()) usageError("no FRAMES given (see --help)");
   if (out_yaml.empty()) usageError("--out calibration.yaml is required (see --help)");
   if (preview.empty()) {
     preview = out_yaml;
@@ -197,6 +244,10 @@ int main(int argc, char** argv) {
       cv::Mat m = cv::imread(f.string(), cv::IMREAD_COLOR);
       if (m.empty()) throw std::runtime_error(f.string() + ": cannot read image");
       frames.push_back(std::move(m));
+    }
+    if (!from_ocamcalib.empty()) {
+      return writeOcamCalibCalibration(from_ocamcalib, options, frames, files, out_yaml,
+                                       preview, quiet);
     }
     if (!quiet) std::printf("omnipose-calibrate: %zu frame(s), %dx%d\n", frames.size(),
                             frames.front().cols, frames.front().rows);

@@ -1,0 +1,39 @@
+#pragma once
+/// \file ocamcalib_import.hpp
+/// A calibration.yaml for a lens calibrated with Scaramuzza's OCamCalib toolbox
+/// (`omnipose-calibrate --from-ocamcalib calib_results.txt`): the lens model is the file
+/// itself; what is left to choose is the used ring, the robot's azimuth and the panorama.
+
+#include <filesystem>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "omnipose/calibration.hpp"
+
+namespace omnipose::calibrate {
+
+struct OcamCalibImportOptions {
+  std::optional<double> radius_inner;  ///< used ring, pixels; default: the file's ROI line
+  std::optional<double> radius_outer;
+  std::optional<AzimuthDirection> direction;  ///< default ccw (assumed, and said so)
+  double forward_angle_deg = 0.0;      ///< image angle of the robot's +x axis, degrees
+  int width = 1100;                    ///< panorama W (the paper's setting)
+  int height = 110;                    ///< panorama H
+  std::optional<double> horizon_row;   ///< default: elevation 0 in the middle, moved into the ring if needed
+  /// Elevation kept clear at both ring edges, degrees (blur at the edges of a mirror).
+  double edge_margin_deg = 1.0;
+};
+
+struct OcamCalibImport {
+  Calibration calibration;        ///< valid (validate() is empty)
+  std::vector<std::string> notes; ///< how each value was determined, one line each
+};
+
+/// Builds the calibration. Throws std::runtime_error naming the file and the reason (an
+/// unreadable or invalid file, no ROI line and no radii given, a panorama that does not fit
+/// into the ring's elevations, with what to try).
+OcamCalibImport importOcamCalib(const std::filesystem::path& calib_results,
+                                const OcamCalibImportOptions& options);
+
+}  // namespace omnipose::calibrate

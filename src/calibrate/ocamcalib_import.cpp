@@ -1,0 +1,109 @@
+#include "omnipose/calibrate/ocamcalib_import.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <numbers>
+#include <stdexcept>
+
+namespace omnipose::calibrate {
+namespace {
+
+constexpr double kDeg = std::numbers::pi / 180.0;
+
+std::string format(const char* fmt, double a, double b = 0, double c = 0, double d = 0) {
+  char buf[256];
+  std::snprintf(buf, sizeof buf, fmt, a, b, c, d);
+  return buf;
+}
+
+}  // namespace
+
+OcamCalibImport importOcamCalib(const std::filesystem::path& file,
+                                const OcamCalibImportOptions& options) {
+  OcamCalibImport out;
+  Calibration& c = out.calibration;
+  OmniLens& lens = c.omni;
+  lens.model = LensModelKind::kOcamCalib;
+  lens.ocamcalib_file = file.filename().string();
+  lens.ocamcalib = OcamCalibModel::load(file);  // throws naming the file and line
+  const OcamCalibModel& m = *lens.ocamcalib;
+  lens.image_width = m.width;
+  lens.image_height = m.height;
+  lens.center_x = m.yc;
+  lens.center_y = m.xc;
+  out.notes.push_back(format("centre (%.2f, %.2f) px and frame %.0f x %.0f from the file", m.yc,
+                             m.xc, m.width, m.height) +
+                      (m.crop_left || m.crop_right
+                           ? format(" (calibrated on a crop: %.0f px left, %.0f px right)",
+                                    m.crop_left, m.crop_right)
+                           : std::string()));
+
+  // The used ring.
+  if (options.radius_inner && options.radius_outer) {
+    lens.radius_inner = *options.radius_inner;
+    lens.radius_outer = *options.radius_outer;
+    out.notes.push_back(format("ring %.1f..%.1f px as given", lens.radius_inner, lens.radius_outer));
+  } else if (m.roi_min_radius && m.roi_max_radius) {
+    lens.radius_inner = options.radius_inner.value_or(*m.roi_min_radius);
+    lens.radius_outer = options.radius_outer.value_or(*m.roi_max_radius);
+    out.notes.push_back(format("ring %.1f..%.1f px from the file's ROI line", lens.radius_inner,
+                               lens.radius_outer));
+  } else {
+    throw std::runtime_error(file.string() +
+                             ": has no ROI line: give the used ring with --radius-inner and "
+                             "--radius-outer (pixels from the centre)");
+  }
+  out.notes.push_back(format("invpol agrees with ss to %.3f px over the ring (world2cam is "
+                             "refined on ss)", m.invpolMaxErrorPx(lens.radius_inner, lens.radius_outer)));
+
+  // Azimuth.
+  lens.azimuth_zero_deg = options.forward_angle_deg;
+  lens.azimuth_direction = options.direction.value_or(AzimuthDirection::kCcw);
+  out.notes.push_back(format("forward (+x) at image angle %.1f deg", lens.azimuth_zero_deg) +
+                      (options.direction ? ", azimuth direction as given"
+                                         : ", azimuth direction ccw ASSUMED (a mirror seen from "
+                                           "below; check with a turn-left sequence)"));
+
+  // Panorama: the cylinder rows must lie inside the ring's elevations (minus a margin).
+  PanoramaGeometry& p = c.panorama;
+  p.width = options.width;
+  p.height = options.height;
+  const auto [e_in, e_out] = c.ringElevations();
+  const double lo = std::min(e_in, e_out) + options.edge_margin_deg * kDeg;
+  const double hi = std::max(e_in, e_out) - options.edge_margin_deg * kDeg;
+  const double gamma = p.gamma();
+  const double h_lo = std::tan(lo), h_hi = std::tan(hi);  // cylinder heights of the ring
+  const double span_rows = (h_hi - h_lo) / gamma;         // rows that fit
+  if (!(span_rows >= p.height)) {
+    throw std::runtime_error(
+        file.string() + format(": a %.0f x %.0f panorama does not fit into the ring's elevations "
+                               "%.1f..%.1f deg",
+                               p.width, p.height, lo / kDeg, hi / kDeg) +
+        format(" (%.0f rows at this width): lower --height or --width", std::floor(span_rows)));
+  }
+  if (options.horizon_row) {
+    p.horizon_row = *options.horizon_row;
+    out.notes.push_back(format("horizon row %.2f as given", p.horizon_row));
+  } else {
+    // Row v spans heights gamma (v_h - v -+ 0.5); rows -0.5 .. H - 0.5 must stay in [h_lo, h_hi].
+    const double centred = 0.5 * p.height - 0.5;
+    const double v_min = h_lo / gamma + p.height - 0.5;  // lowest v_h keeping the bottom row in
+    const double v_max = h_hi / gamma - 0.5;             // highest v_h keeping the top row in
+    p.horizon_row = std::clamp(centred, v_min, v_max);
+    out.notes.push_back(
+        format("horizon row %.2f: panorama elevations %.1f..%.1f deg", p.horizon_row,
+               std::atan(gamma * (p.horizon_row - p.height + 0.5)) / kDeg,
+               std::atan(gamma * (p.horizon_row + 0.5)) / kDeg) +
+        format(" inside the ring's %.1f..%.1f deg", lo / kDeg, hi / kDeg) +
+        (p.horizon_row == centred ? " (horizon in the middle)" : " (horizon moved off the middle to fit)"));
+  }
+  if (const auto problems = c.validate(); !problems.empty()) {
+    std::string what = file.string() + ": the proposed calibration is not usable:";
+    for (const auto& q : problems) what += "\n  " + q;
+    throw std::runtime_error(what);
+  }
+  return out;
+}
+
+}  // namespace omnipose::calibrate

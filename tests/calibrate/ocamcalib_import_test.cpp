@@ -1,0 +1,90 @@
+// omnipose-calibrate --from-ocamcalib (issue 9): a calibration for an OCamCalib lens that
+// the pipeline accepts, or a refusal that says what to change.
+#include "omnipose/calibrate/ocamcalib_import.hpp"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+
+namespace omnipose::calibrate {
+namespace {
+
+namespace fs = std::filesystem;
+const fs::path kOffice = fs::path(OMNIPOSE_SOURCE_DIR) / "tests/data/catadioptric/mirror_office_ocamcalib.txt";
+
+std::string errorOf(const fs::path& file, const OcamCalibImportOptions& o) {
+  try {
+    importOcamCalib(file, o);
+  } catch (const std::runtime_error& e) {
+    return e.what();
+  }
+  return "";
+}
+
+TEST(OcamCalibImport, RealFileGivesAValidCalibrationInsideTheRing) {
+  const OcamCalibImport r = importOcamCalib(kOffice, {});
+  const Calibration& c = r.calibration;
+  EXPECT_TRUE(c.validate().empty());
+  EXPECT_EQ(c.omni.model, LensModelKind::kOcamCalib);
+  EXPECT_DOUBLE_EQ(c.omni.radius_inner, 235.0);
+  EXPECT_DOUBLE_EQ(c.omni.radius_outer, 600.0);
+  EXPECT_EQ(c.panorama.width, 1100);
+  EXPECT_EQ(c.panorama.height, 110);
+  EXPECT_DOUBLE_EQ(c.panorama.horizon_row, 54.5);  // +-17 deg fits: horizon in the middle
+  // It says what it assumed.
+  bool assumed = false;
+  for (const auto& n : r.notes) assumed |= n.find("ASSUMED") != std::string::npos;
+  EXPECT_TRUE(assumed);
+}
+
+TEST(OcamCalibImport, TallPanoramaMovesTheHorizonToFit) {
+  OcamCalibImportOptions o;
+  o.width = 1440;
+  o.height = 240;
+  const Calibration c = importOcamCalib(kOffice, o).calibration;
+  EXPECT_TRUE(c.validate().empty());
+  // 240 rows centred would span +-27.6 deg, but the ring (1 deg margin) reaches only
+  // +25.1: the horizon moves up (to a smaller row) and the bottom edge stays inside too.
+  EXPECT_LT(c.panorama.horizon_row, 119.5);
+  const auto [e_in, e_out] = c.ringElevations();
+  EXPECT_LE(std::atan(c.panorama.cylinderHeight(-0.5)), e_out);
+  EXPECT_GE(std::atan(c.panorama.cylinderHeight(239.5)), e_in);
+}
+
+TEST(OcamCalibImport, PanoramaTooTallForTheRingIsRefusedWithAHint) {
+  OcamCalibImportOptions o;
+  o.height = 400;
+  const std::string what = errorOf(kOffice, o);
+  EXPECT_NE(what.find("mirror_office_ocamcalib.txt: a 1100 x 400 panorama does not fit"),
+            std::string::npos)
+      << what;
+  EXPECT_NE(what.find("lower --height or --width"), std::string::npos) << what;
+}
+
+TEST(OcamCalibImport, NoRoiLineNeedsTheRing) {
+  const fs::path dir = fs::temp_directory_path() / ("omnipose_ocam_import_" + std::to_string(::getpid()));
+  fs::create_directories(dir);
+  std::ifstream in(kOffice);
+  std::stringstream text;
+  text << in.rdbuf();
+  std::string s = text.str();
+  s = s.substr(0, s.find("#ROI"));
+  std::ofstream(dir / "noroi.txt") << s;
+  const std::string what = errorOf(dir / "noroi.txt", {});
+  EXPECT_NE(what.find("noroi.txt: has no ROI line: give the used ring with --radius-inner"),
+            std::string::npos)
+      << what;
+  OcamCalibImportOptions o;
+  o.radius_inner = 250;
+  o.radius_outer = 560;
+  const Calibration c = importOcamCalib(dir / "noroi.txt", o).calibration;
+  EXPECT_DOUBLE_EQ(c.omni.radius_outer, 560.0);
+  EXPECT_EQ(c.omni.image_width, 1300);  // no crop line: the calibrated size
+  fs::remove_all(dir);
+}
+
+}  // namespace
+}  // namespace omnipose::calibrate
