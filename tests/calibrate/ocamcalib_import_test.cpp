@@ -8,6 +8,7 @@
 #include <filesystem>
 #include <fstream>
 #include <sstream>
+#include <sys/wait.h>
 
 namespace omnipose::calibrate {
 namespace {
@@ -83,6 +84,36 @@ TEST(OcamCalibImport, NoRoiLineNeedsTheRing) {
   const Calibration c = importOcamCalib(dir / "noroi.txt", o).calibration;
   EXPECT_DOUBLE_EQ(c.omni.radius_outer, 560.0);
   EXPECT_EQ(c.omni.image_width, 1300);  // no crop line: the calibrated size
+  fs::remove_all(dir);
+}
+
+}  // namespace
+}  // namespace omnipose::calibrate
+
+namespace omnipose::calibrate {
+namespace {
+
+// The tool's quality gate: a panorama the default pipeline would refuse (lower than its
+// 110-pixel window) is not written; exit code 1 and the reason on stderr.
+TEST(OcamCalibImportCli, RefusesWhatReplayWouldRefuse) {
+  const fs::path tool = fs::path(OMNIPOSE_BINARY_DIR) / "bin/omnipose-calibrate";
+  const fs::path dir = fs::temp_directory_path() / ("omnipose_ocam_cli_" + std::to_string(::getpid()));
+  fs::create_directories(dir);
+  const std::string base = tool.string() + " --quiet --from-ocamcalib " + kOffice.string() + " --out " +
+                           (dir / "cal.yaml").string();
+  int status = std::system((base + " --height 80 2> " + (dir / "err.txt").string()).c_str());
+  EXPECT_EQ(WEXITSTATUS(status), 1);
+  EXPECT_FALSE(fs::exists(dir / "cal.yaml"));
+  std::ifstream err(dir / "err.txt");
+  std::stringstream text;
+  text << err.rdbuf();
+  EXPECT_NE(text.str().find("window (110) must not exceed the panorama height (80)"), std::string::npos)
+      << text.str();
+  status = std::system(base.c_str());
+  EXPECT_EQ(WEXITSTATUS(status), 0);
+  EXPECT_TRUE(fs::exists(dir / "cal.yaml"));
+  EXPECT_TRUE(fs::exists(dir / "mirror_office_ocamcalib.txt"));
+  EXPECT_NO_THROW(Calibration::load(dir / "cal.yaml"));
   fs::remove_all(dir);
 }
 

@@ -16,6 +16,7 @@
 
 #include "omnipose/calibrate/lens_calibrator.hpp"
 #include "omnipose/calibrate/ocamcalib_import.hpp"
+#include "omnipose/pipeline.hpp"
 #include "omnipose/calibrate/preview.hpp"
 
 namespace {
@@ -97,6 +98,21 @@ bool isImage(const fs::path& p) {
   return kExt.contains(ext);
 }
 
+/// Quality gate: never write a calibration that omnipose-replay or omniposed would refuse
+/// with the default pipeline (a panorama lower than the window, rows outside the ring ...).
+void requirePipelineAccepts(const omnipose::Calibration& c) {
+  try {
+    omnipose::Pipeline pipeline(c, omnipose::PipelineOptions{});
+  } catch (const std::invalid_argument& e) {
+    throw std::runtime_error(std::string("refusing to write a calibration that omnipose-replay and "
+                                         "omniposed would refuse: ") +
+                             e.what() +
+                             "\n  try: more or sharper frames, --outer-guess/--inner-guess, "
+                             "--height >= 110 (the default window), or a lens model "
+                             "(--from-ocamcalib)");
+  }
+}
+
 /// --from-ocamcalib: the calibration of an OCamCalib lens, its preview when frames are given.
 int writeOcamCalibCalibration(const fs::path& file, const LensCalibratorOptions& given,
                               const std::vector<cv::Mat>& frames, const std::vector<fs::path>& files,
@@ -118,6 +134,7 @@ int writeOcamCalibCalibration(const fs::path& file, const LensCalibratorOptions&
                                " describes " + std::to_string(c.omni.image_width) + "x" +
                                std::to_string(c.omni.image_height) + " frames");
   }
+  requirePipelineAccepts(c);
   c.save(out_yaml);
   omnipose::Calibration::load(out_yaml);  // what we wrote must read back
   if (!frames.empty()) {
@@ -253,6 +270,7 @@ int main(int argc, char** argv) {
                             frames.front().cols, frames.front().rows);
 
     const auto result = omnipose::calibrate::calibrateLens(frames, options);
+    requirePipelineAccepts(result.calibration);
 
     {
       std::ofstream out(out_yaml);
