@@ -15,6 +15,7 @@
 #include <vector>
 
 #include "omnipose/calibrate/lens_calibrator.hpp"
+#include "omnipose/calibrate/mask_proposal.hpp"
 #include "omnipose/calibrate/ocamcalib_import.hpp"
 #include "omnipose/pipeline.hpp"
 #include "omnipose/calibrate/preview.hpp"
@@ -28,6 +29,7 @@ void usage(std::FILE* out) {
   std::fprintf(
       out,
       "usage: omnipose-calibrate FRAMES... --out calibration.yaml [options]\n"
+      "       omnipose-calibrate --propose-mask FRAMES... --out mask.png [--preview P.png]\n"
       "       omnipose-calibrate --from-ocamcalib calib_results.txt --out calibration.yaml\n"
       "                          [FRAMES...] [--radius-inner R --radius-outer R] [--direction D]\n"
       "                          [--forward-angle DEG] [--width W --height H --horizon-row V]\n"
@@ -63,6 +65,11 @@ void usage(std::FILE* out) {
       "                          model ocamcalib (the file is copied beside --out), the ring from\n"
       "                          its ROI line (or --radius-inner/--radius-outer), a panorama\n"
       "                          inside the ring's elevations; FRAMES (optional) are previewed\n"
+      "Masks:\n"
+      "  --propose-mask          FRAMES of the robot turning or driving: writes to --out an\n"
+      "                          8-bit mask (0 = never use) of the textured pixels that stay\n"
+      "                          still while the rest of the ring moves (mast, body, cables,\n"
+      "                          bezel), and a preview; name it in calibration.yaml (omni.mask)\n"
       "Other:\n"
       "  --no-replay             skip the Pipeline replay of consecutive frames\n"
       "  --quiet                 print only errors\n"
@@ -113,6 +120,22 @@ void requirePipelineAccepts(const omnipose::Calibration& c) {
   }
 }
 
+/// --propose-mask: the mask of what stays still while the ring moves, and its preview.
+int writeMaskProposal(const std::vector<cv::Mat>& frames, const fs::path& out,
+                      const fs::path& preview, bool quiet) {
+  const auto proposal = omnipose::calibrate::proposeMask(frames);
+  if (!cv::imwrite(out.string(), proposal.mask))
+    throw std::runtime_error(out.string() + ": cannot write the mask");
+  if (!cv::imwrite(preview.string(), omnipose::calibrate::renderMaskPreview(frames, proposal.mask)))
+    throw std::runtime_error(preview.string() + ": cannot write the preview");
+  if (!quiet) {
+    for (const auto& n : proposal.notes) std::printf("  %s\n", n.c_str());
+    std::printf("wrote %s and %s; name it in calibration.yaml as omni.mask\n", out.c_str(),
+                preview.c_str());
+  }
+  return 0;
+}
+
 /// --from-ocamcalib: the calibration of an OCamCalib lens, its preview when frames are given.
 int writeOcamCalibCalibration(const fs::path& file, const LensCalibratorOptions& given,
                               const std::vector<cv::Mat>& frames, const std::vector<fs::path>& files,
@@ -156,7 +179,7 @@ int main(int argc, char** argv) {
   LensCalibratorOptions options;
   std::vector<fs::path> inputs;
   fs::path out_yaml, preview, from_ocamcalib;
-  bool quiet = false;
+  bool quiet = false, propose_mask = false;
   for (int i = 1; i < argc; ++i) {
     const std::string arg = argv[i];
     auto value = [&]() -> std::string {
@@ -168,6 +191,8 @@ int main(int argc, char** argv) {
       return 0;
     } else if (arg == "--out") {
       out_yaml = value();
+    } else if (arg == "--propose-mask") {
+      propose_mask = true;
     } else if (arg == "--from-ocamcalib") {
       from_ocamcalib = value();
     } else if (arg == "--preview") {
@@ -233,7 +258,9 @@ int main(int argc, char** argv) {
     }
   }
   if (inputs.empty() && from_ocamcalib.empty()) usageError("no FRAMES given (see --help)");
-  if (out_yaml.empty()) usageError("--out calibration.yaml is required (see --help)");
+  if (out_yaml.empty()) usageError("--out FILE is required (see --help)");
+  if (propose_mask && !from_ocamcalib.empty())
+    usageError("--propose-mask and --from-ocamcalib are separate steps: run them one by one");
   if (preview.empty()) {
     preview = out_yaml;
     preview.replace_filename(out_yaml.stem().string() + "_preview.png");
@@ -262,6 +289,7 @@ int main(int argc, char** argv) {
       if (m.empty()) throw std::runtime_error(f.string() + ": cannot read image");
       frames.push_back(std::move(m));
     }
+    if (propose_mask) return writeMaskProposal(frames, out_yaml, preview, quiet);
     if (!from_ocamcalib.empty()) {
       return writeOcamCalibCalibration(from_ocamcalib, options, frames, files, out_yaml,
                                        preview, quiet);
