@@ -1,4 +1,5 @@
 #include "omnipose/calibrate/lens_calibrator.hpp"
+#include "omnipose/calibrate/ring_checks.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -162,6 +163,19 @@ LensCalibrationResult calibrateLens(std::span<const cv::Mat> frames,
   }
   const std::string frames_note =
       res.ring ? format("%d of %zu frames", res.ring->frames, frames.size()) : std::string();
+  // Quality gates: right or refuse (ring_checks.hpp).
+  if (res.ring && !(o.radius_inner && o.radius_outer)) {
+    const RingCheck check = checkRing(frames, *res.ring, res.detections);
+    if (!check.refusals.empty()) {
+      std::string why = "refusing to calibrate: the ring found is not trustworthy:";
+      for (const auto& r : check.refusals) why += "\n  " + r;
+      throw std::runtime_error(why);
+    }
+    for (const auto& n : check.notes) {
+      if (n.rfind("ring checked", 0) == 0) note("ring check", "passed", n);
+      else res.warnings.push_back(n);
+    }
+  }
 
   if (o.center) {
     lens.center_x = o.center->x();

@@ -1,5 +1,6 @@
 #include "omnipose/calibrate/ring_detector.hpp"
 
+#include <cstdio>
 #include <algorithm>
 #include <cmath>
 #include <limits>
@@ -27,6 +28,14 @@ double median(std::vector<double> v) {
   if (n % 2 == 1) return upper;
   return 0.5 * (upper + *std::max_element(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(n / 2)));
 }
+
+/// Step 3b: a coherent step beyond the texture interval replaces its boundary when it is
+/// this many times stronger than the strongest coherent step about the boundary.
+constexpr double kCoherentStepRatio = 1.2;
+/// With a step of the same polarity at the boundary, the one beyond must be this much stronger.
+constexpr double kSamePolarityStepRatio = 2.5;
+/// ... and when the band it crosses has no coherent step of this fraction of its strength.
+constexpr double kClearBandRatio = 0.25;
 
 /// The image resampled on rays about a centre: row i = ray at image angle 2 pi i / rays,
 /// column k = radius k * step. `valid` marks samples inside the image.
@@ -549,10 +558,67 @@ Expected<RingDetection> detectRing(const cv::Mat& image, const RingDetectorOptio
                     "ring detector: no textured ring found about (%.1f, %.1f)", c.x(), c.y());
       r_in = o.inner_guess ? *o.inner_guess : interval->first;
       r_out = o.outer_guess ? *o.outer_guess : interval->second;
-      det.coarse_inner = r_in;
-      det.coarse_outer = r_out;
       w_in = std::max(6.0, o.search_fraction * r_in);
       w_out = std::max(6.0, o.search_fraction * r_out);
+      // Step 3b: a textureless band of the scene at a ring edge (ceiling, sky, floor) ends
+      // the texture interval inside the ring. The ring's edges are the strongest steps that
+      // are coherent over all rays (a lens-body edge is a circle; scene edges average out in
+      // the median): where a clearly stronger one lies beyond the texture interval, the
+      // boundary moves onto it.
+      {
+        cv::Mat smooth0, deriv0;
+        radialDerivative(polar, o.edge_sigma, smooth0, deriv0);
+        PolarDeriv pd{polar, smooth0, deriv0};
+        const std::vector<double> m = medianDerivative(std::span<const PolarDeriv>(&pd, 1));
+        struct Step {
+          double strength = 0.0;  ///< |M|
+          double radius = 0.0;
+          int sign = 0;           ///< +1: brighter outward
+        };
+        const auto strongest = [&](double a, double b) {
+          Step best;
+          for (int k = std::max(0, static_cast<int>(a / o.radial_step));
+               k <= std::min(static_cast<int>(m.size()) - 1, static_cast<int>(b / o.radial_step)); ++k) {
+            const double v = m[static_cast<std::size_t>(k)];
+            if (std::abs(v) > best.strength) best = {std::abs(v), k * o.radial_step, v > 0 ? 1 : -1};
+          }
+          return best;
+        };
+        const double last = (static_cast<int>(m.size()) - 3) * o.radial_step;
+        // Only across a band free of other coherent steps: a lens body beyond the ring
+        // (bezels, housings) is a stack of concentric steps, a textureless scene band is not.
+        const auto clearBand = [&](double a, double b, double strength) {
+          return strongest(a, b).strength < kClearBandRatio * strength;
+        };
+        // A step of the other polarity at the texture boundary is a scene edge (a horizon
+        // under a bright sky); one of the same polarity may be the ring's own edge in front
+        // of a brighter bezel, so then the step beyond must be much stronger.
+        const auto moves = [&](const Step& here, const Step& there) {
+          const double ratio = there.strength / std::max(here.strength, 1e-9);
+          return ratio > (here.sign != there.sign ? kCoherentStepRatio : kSamePolarityStepRatio);
+        };
+        const double lobe = 2.0 + 3.0 * o.edge_sigma;  // an edge's own derivative lobe
+        if (!o.outer_guess) {
+          const auto here = strongest(r_out - w_out, r_out + w_out);
+          const auto beyond = strongest(r_out + w_out, last);
+          if (moves(here, beyond) && clearBand(r_out + w_out, beyond.radius - lobe, beyond.strength)) {
+            r_out = beyond.radius;
+            det.outer_moved_to_step = true;
+          }
+        }
+        if (!o.inner_guess) {
+          const auto here = strongest(r_in - w_in, r_in + w_in);
+          const auto before = strongest(o.min_radius, r_in - w_in);
+          if (moves(here, before) && clearBand(before.radius + lobe, r_in - w_in, before.strength)) {
+            r_in = before.radius;
+            det.inner_moved_to_step = true;
+          }
+        }
+        w_in = std::max(6.0, o.search_fraction * r_in);
+        w_out = std::max(6.0, o.search_fraction * r_out);
+      }
+      det.coarse_inner = r_in;
+      det.coarse_outer = r_out;
       // The two windows must not overlap: split at the middle.
       const double mid = 0.5 * (r_in + r_out);
       w_in = std::min(w_in, mid - r_in - 1.0);

@@ -16,6 +16,10 @@
 ///     sum (t(r) - tau), tau = lo + 0.25 (hi - lo) from the profile's 10 % / 90 % quantiles
 ///     (maximum subarray: low-texture bands of the scene such as sky or paving stay in when
 ///     textured radii on both sides outweigh them).
+///  3b. A textureless band of the scene at a ring edge (ceiling, sky, floor) ends the
+///     texture interval inside the ring; the ring's edges are the strongest steps that are
+///     coherent across the rays (M(r) = median over rays of dP/dr), so a boundary moves onto
+///     a coherent step beyond the interval that is twice as strong as any about it.
 ///  4. Per ray, the edge is the extreme of the radial derivative dP/dr (Gaussian-smoothed)
 ///     inside a window about each coarse boundary, in the dominant polarity when most rays
 ///     agree (e.g. scene -> dark body), sub-pixel by a parabola through the peak.
@@ -93,8 +97,12 @@ struct RingEdge {
 struct RingDetection {
   cv::Size image_size;
   Eigen::Vector2d coarse_center = Eigen::Vector2d::Zero();  ///< voting (or guess)
-  double coarse_inner = 0.0;   ///< texture-profile boundaries, pixels
+  double coarse_inner = 0.0;   ///< texture-profile boundaries (after step 3b), pixels
   double coarse_outer = 0.0;
+  /// Step 3b moved the boundary onto a stronger coherent step beyond the texture interval
+  /// (a textureless band of the scene at that edge).
+  bool inner_moved_to_step = false;
+  bool outer_moved_to_step = false;
   Eigen::Vector2d center = Eigen::Vector2d::Zero();  ///< concentric fit, pixels
   double radius_inner = 0.0;   ///< edge radii of the concentric fit, pixels
   double radius_outer = 0.0;
