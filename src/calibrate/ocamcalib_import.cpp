@@ -1,4 +1,5 @@
 #include "omnipose/calibrate/ocamcalib_import.hpp"
+#include "omnipose/calibrate/orientation.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -20,7 +21,8 @@ std::string format(const char* fmt, double a, double b = 0, double c = 0, double
 }  // namespace
 
 OcamCalibImport importOcamCalib(const std::filesystem::path& file,
-                                const OcamCalibImportOptions& options) {
+                                const OcamCalibImportOptions& options,
+                                std::span<const cv::Mat> frames) {
   OcamCalibImport out;
   Calibration& c = out.calibration;
   OmniLens& lens = c.omni;
@@ -60,10 +62,24 @@ OcamCalibImport importOcamCalib(const std::filesystem::path& file,
   // Azimuth.
   lens.azimuth_zero_deg = options.forward_angle_deg;
   lens.azimuth_direction = options.direction.value_or(AzimuthDirection::kCcw);
-  out.notes.push_back(format("forward (+x) at image angle %.1f deg", lens.azimuth_zero_deg) +
-                      (options.direction ? ", azimuth direction as given"
-                                         : ", azimuth direction ccw ASSUMED (a mirror seen from "
-                                           "below; check with a turn-left sequence)"));
+  std::string direction_how = options.direction ? "as given" : "ccw ASSUMED (a mirror seen from "
+                                                               "below; check with --turn-left)";
+  if (options.turn_left && !options.direction) {
+    if (frames.size() < 2)
+      throw std::runtime_error("--turn-left needs at least 2 frames of the robot turning left");
+    c.panorama.width = options.width;
+    c.panorama.height = options.height;
+    c.panorama.horizon_row = 0.5 * options.height - 0.5;
+    const DirectionResult d = directionFromTurnLeft(frames, c);
+    if (!d.decisive)
+      throw std::runtime_error("--turn-left: the frames do not show a clear turn (" + d.how +
+                               "); try frames further apart or give --direction");
+    lens.azimuth_direction = d.direction;
+    direction_how = std::string(d.direction == AzimuthDirection::kCw ? "cw" : "ccw") +
+                    " measured from the turn-left sequence (" + d.how + ")";
+  }
+  out.notes.push_back(format("forward (+x) at image angle %.1f deg, azimuth direction ",
+                             lens.azimuth_zero_deg) + direction_how);
 
   // Panorama: the cylinder rows must lie inside the ring's elevations (minus a margin).
   PanoramaGeometry& p = c.panorama;

@@ -119,3 +119,45 @@ TEST(OcamCalibImportCli, RefusesWhatReplayWouldRefuse) {
 
 }  // namespace
 }  // namespace omnipose::calibrate
+
+#include "omnipose/synth.hpp"
+#include "omnipose/trajectory.hpp"
+
+namespace omnipose::calibrate {
+namespace {
+
+// A mirrored capture flips the azimuth direction: a turn-left sequence measures it.
+TEST(OcamCalibImport, TurnLeftSequenceMeasuresTheDirection) {
+  const fs::path steep = fs::path(OMNIPOSE_SOURCE_DIR) / "tests/data/catadioptric/steep_mirror_800_ocamcalib.txt";
+  const fs::path photo = fs::path(OMNIPOSE_SOURCE_DIR) / "tests/data/equirect/indoor_1024x512.jpg";
+  for (const auto truth : {AzimuthDirection::kCw, AzimuthDirection::kCcw}) {
+    OcamCalibImportOptions given;
+    given.direction = truth;
+    const Calibration rendered = importOcamCalib(steep, given).calibration;
+    const synth::Renderer renderer(synth::Scene::load(photo, synth::SceneKind::kSphere), rendered,
+                                   {synth::OutputKind::kOmni, 1});
+    std::vector<cv::Mat> frames;
+    for (int k = 0; k < 3; ++k) {
+      Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+      T.linear() = rotationFromVector(Eigen::Vector3d(0, 0, 0.06 * k));  // turning left
+      cv::Mat f;
+      renderer.render(T).convertTo(f, CV_8U);
+      frames.push_back(f);
+    }
+    OcamCalibImportOptions measure;
+    measure.turn_left = true;
+    const OcamCalibImport r = importOcamCalib(steep, measure, frames);
+    EXPECT_EQ(r.calibration.omni.azimuth_direction, truth);
+    bool measured = false;
+    for (const auto& n : r.notes) measured |= n.find("measured from the turn-left sequence") != std::string::npos;
+    EXPECT_TRUE(measured);
+  }
+  // Without motion it refuses instead of guessing.
+  OcamCalibImportOptions measure;
+  measure.turn_left = true;
+  const std::vector<cv::Mat> still(3, cv::Mat(800, 800, CV_8UC1, cv::Scalar(90)));
+  EXPECT_THROW(importOcamCalib(steep, measure, still), std::runtime_error);
+}
+
+}  // namespace
+}  // namespace omnipose::calibrate

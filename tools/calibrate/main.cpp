@@ -65,6 +65,7 @@ void usage(std::FILE* out) {
       "                          model ocamcalib (the file is copied beside --out), the ring from\n"
       "                          its ROI line (or --radius-inner/--radius-outer), a panorama\n"
       "                          inside the ring's elevations; FRAMES (optional) are previewed\n"
+      "                          (and measure the direction with --turn-left)\n"
       "Masks:\n"
       "  --propose-mask          FRAMES of the robot turning or driving: writes to --out an\n"
       "                          8-bit mask (0 = never use) of the textured pixels that stay\n"
@@ -144,19 +145,21 @@ int writeOcamCalibCalibration(const fs::path& file, const LensCalibratorOptions&
   o.radius_inner = given.radius_inner;
   o.radius_outer = given.radius_outer;
   o.direction = given.direction;
+  o.turn_left = given.turn_left;
   o.forward_angle_deg = given.forward_angle_deg.value_or(0.0);
   o.width = given.width.value_or(o.width);
   o.height = given.height.value_or(o.height);
   o.horizon_row = given.horizon_row;
-  const auto result = omnipose::calibrate::importOcamCalib(file, o);
-  const omnipose::Calibration& c = result.calibration;
+  const auto model = omnipose::OcamCalibModel::load(file);
   for (std::size_t i = 0; i < frames.size(); ++i) {
-    if (frames[i].cols != c.omni.image_width || frames[i].rows != c.omni.image_height)
+    if (frames[i].cols != model.width || frames[i].rows != model.height)
       throw std::runtime_error(files[i].string() + ": " + std::to_string(frames[i].cols) + "x" +
                                std::to_string(frames[i].rows) + ", but " + file.string() +
-                               " describes " + std::to_string(c.omni.image_width) + "x" +
-                               std::to_string(c.omni.image_height) + " frames");
+                               " describes " + std::to_string(model.width) + "x" +
+                               std::to_string(model.height) + " frames");
   }
+  const auto result = omnipose::calibrate::importOcamCalib(file, o, frames);
+  const omnipose::Calibration& c = result.calibration;
   requirePipelineAccepts(c);
   c.save(out_yaml);
   omnipose::Calibration::load(out_yaml);  // what we wrote must read back

@@ -5,7 +5,9 @@
 /// itself; what is left to choose is the used ring, the robot's azimuth and the panorama.
 
 #include <filesystem>
+#include <opencv2/core.hpp>
 #include <optional>
+#include <span>
 #include <string>
 #include <vector>
 
@@ -16,7 +18,10 @@ namespace omnipose::calibrate {
 struct OcamCalibImportOptions {
   std::optional<double> radius_inner;  ///< used ring, pixels; default: the file's ROI line
   std::optional<double> radius_outer;
-  std::optional<AzimuthDirection> direction;  ///< default ccw (assumed, and said so)
+  std::optional<AzimuthDirection> direction;  ///< default: measured (turn_left) or ccw, assumed and said so
+  /// The frames given to importOcamCalib show the robot turning left in place: measure the
+  /// azimuth direction from them (a mirrored capture flips it).
+  bool turn_left = false;
   double forward_angle_deg = 0.0;      ///< image angle of the robot's +x axis, degrees
   int width = 1100;                    ///< panorama W (the paper's setting)
   int height = 110;                    ///< panorama H
@@ -30,10 +35,12 @@ struct OcamCalibImport {
   std::vector<std::string> notes; ///< how each value was determined, one line each
 };
 
-/// Builds the calibration. Throws std::runtime_error naming the file and the reason (an
-/// unreadable or invalid file, no ROI line and no radii given, a panorama that does not fit
-/// into the ring's elevations, with what to try).
+/// Builds the calibration. `frames` (optional, the file's frame size) serve turn_left.
+/// Throws std::runtime_error naming the file and the reason (an unreadable or invalid file,
+/// no ROI line and no radii given, a panorama that does not fit into the ring's elevations,
+/// a turn-left sequence that does not show a clear turn, with what to try).
 OcamCalibImport importOcamCalib(const std::filesystem::path& calib_results,
-                                const OcamCalibImportOptions& options);
+                                const OcamCalibImportOptions& options,
+                                std::span<const cv::Mat> frames = {});
 
 }  // namespace omnipose::calibrate
