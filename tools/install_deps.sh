@@ -5,7 +5,7 @@ set -euo pipefail
 
 PACKAGES=(
   build-essential cmake ninja-build pkg-config git
-  libopencv-dev libeigen3-dev libfftw3-dev libyaml-cpp-dev
+  libopencv-dev libopencv-contrib-dev libeigen3-dev libfftw3-dev libyaml-cpp-dev
   libgtest-dev libgmock-dev libbenchmark-dev
   liblcm-dev liblcm-bin libglib2.0-dev
   libcamera-dev libopengv-dev libsystemd-dev

@@ -16,7 +16,7 @@ namespace {
 namespace fs = std::filesystem;
 const fs::path kOffice = fs::path(OMNIPOSE_SOURCE_DIR) / "tests/data/catadioptric/mirror_office_ocamcalib.txt";
 
-std::string errorOf(const fs::path& file, const OcamCalibImportOptions& o) {
+std::string errorOf(const fs::path& file, const ModelImportOptions& o) {
   try {
     importOcamCalib(file, o);
   } catch (const std::runtime_error& e) {
@@ -26,7 +26,7 @@ std::string errorOf(const fs::path& file, const OcamCalibImportOptions& o) {
 }
 
 TEST(OcamCalibImport, RealFileGivesAValidCalibrationInsideTheRing) {
-  const OcamCalibImport r = importOcamCalib(kOffice, {});
+  const ModelImport r = importOcamCalib(kOffice, {});
   const Calibration& c = r.calibration;
   EXPECT_TRUE(c.validate().empty());
   EXPECT_EQ(c.omni.model, LensModelKind::kOcamCalib);
@@ -42,7 +42,7 @@ TEST(OcamCalibImport, RealFileGivesAValidCalibrationInsideTheRing) {
 }
 
 TEST(OcamCalibImport, TallPanoramaMovesTheHorizonToFit) {
-  OcamCalibImportOptions o;
+  ModelImportOptions o;
   o.width = 1440;
   o.height = 240;
   const Calibration c = importOcamCalib(kOffice, o).calibration;
@@ -56,7 +56,7 @@ TEST(OcamCalibImport, TallPanoramaMovesTheHorizonToFit) {
 }
 
 TEST(OcamCalibImport, PanoramaTooTallForTheRingIsRefusedWithAHint) {
-  OcamCalibImportOptions o;
+  ModelImportOptions o;
   o.height = 400;
   const std::string what = errorOf(kOffice, o);
   EXPECT_NE(what.find("mirror_office_ocamcalib.txt: a 1100 x 400 panorama does not fit"),
@@ -78,7 +78,7 @@ TEST(OcamCalibImport, NoRoiLineNeedsTheRing) {
   EXPECT_NE(what.find("noroi.txt: has no ROI line: give the used ring with --radius-inner"),
             std::string::npos)
       << what;
-  OcamCalibImportOptions o;
+  ModelImportOptions o;
   o.radius_inner = 250;
   o.radius_outer = 560;
   const Calibration c = importOcamCalib(dir / "noroi.txt", o).calibration;
@@ -131,7 +131,7 @@ TEST(OcamCalibImport, TurnLeftSequenceMeasuresTheDirection) {
   const fs::path steep = fs::path(OMNIPOSE_SOURCE_DIR) / "tests/data/catadioptric/steep_mirror_800_ocamcalib.txt";
   const fs::path photo = fs::path(OMNIPOSE_SOURCE_DIR) / "tests/data/equirect/indoor_1024x512.jpg";
   for (const auto truth : {AzimuthDirection::kCw, AzimuthDirection::kCcw}) {
-    OcamCalibImportOptions given;
+    ModelImportOptions given;
     given.direction = truth;
     const Calibration rendered = importOcamCalib(steep, given).calibration;
     const synth::Renderer renderer(synth::Scene::load(photo, synth::SceneKind::kSphere), rendered,
@@ -144,16 +144,16 @@ TEST(OcamCalibImport, TurnLeftSequenceMeasuresTheDirection) {
       renderer.render(T).convertTo(f, CV_8U);
       frames.push_back(f);
     }
-    OcamCalibImportOptions measure;
+    ModelImportOptions measure;
     measure.turn_left = true;
-    const OcamCalibImport r = importOcamCalib(steep, measure, frames);
+    const ModelImport r = importOcamCalib(steep, measure, frames);
     EXPECT_EQ(r.calibration.omni.azimuth_direction, truth);
     bool measured = false;
     for (const auto& n : r.notes) measured |= n.find("measured from the turn-left sequence") != std::string::npos;
     EXPECT_TRUE(measured);
   }
   // Without motion it refuses instead of guessing.
-  OcamCalibImportOptions measure;
+  ModelImportOptions measure;
   measure.turn_left = true;
   const std::vector<cv::Mat> still(3, cv::Mat(800, 800, CV_8UC1, cv::Scalar(90)));
   EXPECT_THROW(importOcamCalib(steep, measure, still), std::runtime_error);

@@ -10,10 +10,12 @@
 #include <fstream>
 #include <iostream>
 #include <opencv2/imgcodecs.hpp>
+#include <optional>
 #include <set>
 #include <string>
 #include <vector>
 
+#include "omnipose/calibrate/checkerboard.hpp"
 #include "omnipose/calibrate/lens_calibrator.hpp"
 #include "omnipose/calibrate/mask_proposal.hpp"
 #include "omnipose/calibrate/ocamcalib_import.hpp"
@@ -30,6 +32,7 @@ void usage(std::FILE* out) {
       out,
       "usage: omnipose-calibrate FRAMES... --out calibration.yaml [options]\n"
       "       omnipose-calibrate --propose-mask FRAMES... --out mask.png [--preview P.png]\n"
+      "       omnipose-calibrate --checkerboard 9x6 --square 0.025 IMAGES... --out calibration.yaml\n"
       "       omnipose-calibrate --from-ocamcalib calib_results.txt --out calibration.yaml\n"
       "                          [FRAMES...] [--radius-inner R --radius-outer R] [--direction D]\n"
       "                          [--forward-angle DEG] [--width W --height H --horizon-row V]\n"
@@ -66,6 +69,9 @@ void usage(std::FILE* out) {
       "                          its ROI line (or --radius-inner/--radius-outer), a panorama\n"
       "                          inside the ring's elevations; FRAMES (optional) are previewed\n"
       "                          (and measure the direction with --turn-left)\n"
+      "  --checkerboard COLSxROWS --square METRES   FRAMES are checkerboard views (COLSxROWS\n"
+      "                          inner corners): calibrates the mei model with cv::omnidir,\n"
+      "                          reports its reprojection error; ring given or detected\n"
       "Masks:\n"
       "  --propose-mask          FRAMES of the robot turning or driving: writes to --out an\n"
       "                          8-bit mask (0 = never use) of the textured pixels that stay\n"
@@ -138,10 +144,9 @@ int writeMaskProposal(const std::vector<cv::Mat>& frames, const fs::path& out,
 }
 
 /// --from-ocamcalib: the calibration of an OCamCalib lens, its preview when frames are given.
-int writeOcamCalibCalibration(const fs::path& file, const LensCalibratorOptions& given,
-                              const std::vector<cv::Mat>& frames, const std::vector<fs::path>& files,
-                              const fs::path& out_yaml, const fs::path& preview, bool quiet) {
-  omnipose::calibrate::OcamCalibImportOptions o;
+/// The choices left once a lens model is known, from the command line.
+omnipose::calibrate::ModelImportOptions modelImportOptions(const LensCalibratorOptions& given) {
+  omnipose::calibrate::ModelImportOptions o;
   o.radius_inner = given.radius_inner;
   o.radius_outer = given.radius_outer;
   o.direction = given.direction;
@@ -150,15 +155,14 @@ int writeOcamCalibCalibration(const fs::path& file, const LensCalibratorOptions&
   o.width = given.width.value_or(o.width);
   o.height = given.height.value_or(o.height);
   o.horizon_row = given.horizon_row;
-  const auto model = omnipose::OcamCalibModel::load(file);
-  for (std::size_t i = 0; i < frames.size(); ++i) {
-    if (frames[i].cols != model.width || frames[i].rows != model.height)
-      throw std::runtime_error(files[i].string() + ": " + std::to_string(frames[i].cols) + "x" +
-                               std::to_string(frames[i].rows) + ", but " + file.string() +
-                               " describes " + std::to_string(model.width) + "x" +
-                               std::to_string(model.height) + " frames");
-  }
-  const auto result = omnipose::calibrate::importOcamCalib(file, o, frames);
+  return o;
+}
+
+/// --from-ocamcalib / --checkerboard: writes the model's calibration (after the quality
+/// gate) and, when frames were given, its preview.
+int writeModelCalibration(const omnipose::calibrate::ModelImport& result,
+                          const std::vector<cv::Mat>& frames, const fs::path& out_yaml,
+                          const fs::path& preview, bool quiet) {
   const omnipose::Calibration& c = result.calibration;
   requirePipelineAccepts(c);
   c.save(out_yaml);
@@ -176,12 +180,30 @@ int writeOcamCalibCalibration(const fs::path& file, const LensCalibratorOptions&
   return 0;
 }
 
+/// --from-ocamcalib: frames (optional) must have the file's frame size.
+omnipose::calibrate::ModelImport importOcamCalibFile(const fs::path& file,
+                                                    const LensCalibratorOptions& given,
+                                                    const std::vector<cv::Mat>& frames,
+                                                    const std::vector<fs::path>& files) {
+  const auto model = omnipose::OcamCalibModel::load(file);
+  for (std::size_t i = 0; i < frames.size(); ++i) {
+    if (frames[i].cols != model.width || frames[i].rows != model.height)
+      throw std::runtime_error(files[i].string() + ": " + std::to_string(frames[i].cols) + "x" +
+                               std::to_string(frames[i].rows) + ", but " + file.string() +
+                               " describes " + std::to_string(model.width) + "x" +
+                               std::to_string(model.height) + " frames");
+  }
+  return omnipose::calibrate::importOcamCalib(file, modelImportOptions(given), frames);
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
   LensCalibratorOptions options;
   std::vector<fs::path> inputs;
   fs::path out_yaml, preview, from_ocamcalib;
+  std::string checkerboard;
+  std::optional<double> square;
   bool quiet = false, propose_mask = false;
   for (int i = 1; i < argc; ++i) {
     const std::string arg = argv[i];
@@ -196,6 +218,10 @@ int main(int argc, char** argv) {
       out_yaml = value();
     } else if (arg == "--propose-mask") {
       propose_mask = true;
+    } else if (arg == "--checkerboard") {
+      checkerboard = value();
+    } else if (arg == "--square") {
+      square = parseNumber(arg, value());
     } else if (arg == "--from-ocamcalib") {
       from_ocamcalib = value();
     } else if (arg == "--preview") {
@@ -262,8 +288,9 @@ int main(int argc, char** argv) {
   }
   if (inputs.empty() && from_ocamcalib.empty()) usageError("no FRAMES given (see --help)");
   if (out_yaml.empty()) usageError("--out FILE is required (see --help)");
-  if (propose_mask && !from_ocamcalib.empty())
-    usageError("--propose-mask and --from-ocamcalib are separate steps: run them one by one");
+  if (int(propose_mask) + int(!from_ocamcalib.empty()) + int(!checkerboard.empty()) > 1)
+    usageError("--propose-mask, --from-ocamcalib and --checkerboard are separate steps: run them "
+               "one by one");
   if (preview.empty()) {
     preview = out_yaml;
     preview.replace_filename(out_yaml.stem().string() + "_preview.png");
@@ -294,8 +321,17 @@ int main(int argc, char** argv) {
     }
     if (propose_mask) return writeMaskProposal(frames, out_yaml, preview, quiet);
     if (!from_ocamcalib.empty()) {
-      return writeOcamCalibCalibration(from_ocamcalib, options, frames, files, out_yaml,
-                                       preview, quiet);
+      return writeModelCalibration(importOcamCalibFile(from_ocamcalib, options, frames, files),
+                                   frames, out_yaml, preview, quiet);
+    }
+    if (!checkerboard.empty()) {
+      omnipose::calibrate::CheckerboardOptions board;
+      omnipose::calibrate::parsePatternSize(checkerboard, board);
+      if (!square) usageError("--checkerboard needs --square METRES");
+      board.square_m = *square;
+      return writeModelCalibration(
+          omnipose::calibrate::importCheckerboard(frames, board, modelImportOptions(options)),
+          frames, out_yaml, preview, quiet);
     }
     if (!quiet) std::printf("omnipose-calibrate: %zu frame(s), %dx%d\n", frames.size(),
                             frames.front().cols, frames.front().rows);
