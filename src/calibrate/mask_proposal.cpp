@@ -1,4 +1,5 @@
 #include "omnipose/calibrate/mask_proposal.hpp"
+#include "omnipose/calibrate/ring_detector.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -10,14 +11,6 @@
 namespace omnipose::calibrate {
 namespace {
 
-cv::Mat toGreyFloat(const cv::Mat& frame) {
-  cv::Mat grey, out;
-  if (frame.channels() == 3) cv::cvtColor(frame, grey, cv::COLOR_BGR2GRAY);
-  else if (frame.channels() == 4) cv::cvtColor(frame, grey, cv::COLOR_BGRA2GRAY);
-  else grey = frame;
-  grey.convertTo(out, CV_32F);
-  return out;
-}
 
 std::string format(const char* fmt, double a, double b = 0) {
   char buf[200];

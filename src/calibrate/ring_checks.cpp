@@ -16,14 +16,6 @@ std::string format(const char* fmt, double a = 0, double b = 0, double c = 0, do
   return buf;
 }
 
-cv::Mat greyFloat(const cv::Mat& f) {
-  cv::Mat g, out;
-  if (f.channels() == 3) cv::cvtColor(f, g, cv::COLOR_BGR2GRAY);
-  else if (f.channels() == 4) cv::cvtColor(f, g, cv::COLOR_BGRA2GRAY);
-  else g = f;
-  g.convertTo(out, CV_32F);
-  return out;
-}
 
 /// Mean over rays (inside the image) and consecutive frame pairs of the squared change, per
 /// whole-pixel radius about `c`; NaN where fewer than a quarter of the rays are inside.
@@ -31,7 +23,7 @@ std::vector<double> motionProfile(std::span<const cv::Mat> frames, const Eigen::
                                   int radii) {
   constexpr int kRays = 720;
   std::vector<cv::Mat> grey;
-  for (const auto& f : frames) grey.push_back(greyFloat(f));
+  for (const auto& f : frames) grey.push_back(toGreyFloat(f));
   std::vector<double> sum(radii, 0.0);
   std::vector<int> count(radii, 0);
   for (int r = 0; r < radii; ++r) {
