@@ -13,6 +13,7 @@
 
 #include "daemon/service.hpp"
 #include "omnipose/config.hpp"
+#include "omnipose/pipeline.hpp"
 
 namespace {
 
@@ -20,7 +21,9 @@ constexpr const char* kUsage =
     "usage: omniposed --config daemon.yaml [--check]\n"
     "\n"
     "  --config FILE   daemon configuration (DESIGN.md section 7)\n"
-    "  --check         validate the configuration, print the effective values and exit\n"
+    "  --check         validate the configuration, the calibration and what it names (lens\n"
+    "                  model, mask) and the pipeline against it, print the effective values\n"
+    "                  and exit; opens no camera\n"
     "  -h, --help      this text\n"
     "\n"
     "Stops cleanly on SIGINT/SIGTERM (exit 0); a finite file source ends the daemon after the\n"
@@ -61,7 +64,17 @@ int main(int argc, char** argv) {
     std::fprintf(stderr, "omniposed: configuration %s (effective values):\n%s", config_path.c_str(),
                  config.describe().c_str());
     std::fflush(stderr);
-    if (check_only) return 0;
+    if (check_only) {
+      // The whole start-up validation that needs no hardware: the calibration file and what
+      // it names (lens model, mask), and the pipeline against its panorama.
+      const auto calibration = omnipose::Calibration::load(config.calibration);
+      const omnipose::Pipeline pipeline(calibration, config.pipeline);
+      std::fprintf(stderr, "omniposed: calibration %s: lens model %s%s, panorama %dx%d: usable\n",
+                   config.calibration.c_str(), omnipose::toString(calibration.omni.model),
+                   calibration.omni.mask.empty() ? "" : " with a mask", calibration.panorama.width,
+                   calibration.panorama.height);
+      return 0;
+    }
     return omnipose::daemon::runService(config, stderr);
   } catch (const std::exception& e) {
     std::fprintf(stderr, "omniposed: start-up failed: %s\n", e.what());
