@@ -53,8 +53,9 @@ cv::Mat unwrapColour(const cv::Mat& frame, const Calibration& cal) {
   for (int v = 0; v < h; ++v)
     for (int u = 0; u < w; ++u) {
       const Eigen::Vector2d p = cal.omniPixel(u, v);
-      map_x.at<float>(v, u) = static_cast<float>(p.x());
-      map_y.at<float>(v, u) = static_cast<float>(p.y());
+      const bool seen = p.allFinite();  // else no bearing in the lens model: black
+      map_x.at<float>(v, u) = seen ? static_cast<float>(p.x()) : -1.0f;
+      map_y.at<float>(v, u) = seen ? static_cast<float>(p.y()) : -1.0f;
     }
   cv::Mat pano;
   cv::remap(toBgr8(frame), pano, map_x, map_y, cv::INTER_LINEAR, cv::BORDER_CONSTANT);

@@ -30,11 +30,14 @@ Unwrapper::Unwrapper(const Calibration& calibration, const Options& options)
     for (int v = 0; v < H; ++v) {
       for (int u = 0; u < W; ++u) {
         const Eigen::Vector2d p = calibration.omniPixel(u, v);
-        const double fx = std::floor(p.x()), fy = std::floor(p.y());
-        const int x0 = static_cast<int>(fx), y0 = static_cast<int>(fy);
-        const float ax = static_cast<float>(p.x() - fx), ay = static_cast<float>(p.y() - fy);
         const std::size_t i = static_cast<std::size_t>(v) * W + u;
-        if (!p.allFinite() || x0 < 0 || y0 < 0 || x0 + 1 >= iw || y0 + 1 >= ih) {
+        // Outside the image (or no bearing in the lens model): decided in double, before any
+        // conversion to int.
+        const double fx = std::floor(p.x()), fy = std::floor(p.y());
+        const bool inside = p.allFinite() && fx >= 0 && fy >= 0 && fx + 1 < iw && fy + 1 < ih;
+        const int x0 = inside ? static_cast<int>(fx) : 0, y0 = inside ? static_cast<int>(fy) : 0;
+        const float ax = static_cast<float>(p.x() - fx), ay = static_cast<float>(p.y() - fy);
+        if (!inside) {
           offset_[i] = 0;  // outside the image or the lens model: black, unusable
           weight_[i] = cv::Vec4f(0, 0, 0, 0);
           validity_.at<float>(v, u) = 0.0f;
