@@ -9,6 +9,7 @@
 #include "omnipose/pipeline.hpp"
 #include "omnipose/pose_chain.hpp"
 #include "omnipose/trajectory.hpp"
+#include "progress_line.hpp"
 
 namespace omnipose::replay {
 
@@ -77,8 +78,7 @@ ReplaySummary run(const ReplayOptions& options, std::FILE* log) {
   std::vector<double> seconds;
   seconds.reserve(dataset.frames.size());
   int prev = -1;
-  const auto start = std::chrono::steady_clock::now();
-  auto last_progress = start;
+  tools::ProgressLine progress(log, summary.frames, "frames", options.progress);
 
   for (int i = 0; i < summary.frames; ++i) {
     const DatasetFrame& f = dataset.frames[i];
@@ -107,15 +107,9 @@ ReplaySummary run(const ReplayOptions& options, std::FILE* log) {
     if (csv.is_open() && motion->has_motion) writeCsvRow(csv, i, f, prev, *motion);
     prev = i;
 
-    const auto now = std::chrono::steady_clock::now();
-    if (options.progress && now - last_progress > std::chrono::seconds(2)) {
-      std::fprintf(log, "\r%d/%d frames", i + 1, summary.frames);
-      std::fflush(log);
-      last_progress = now;
-    }
+    progress.update(i + 1);
   }
-  if (options.progress && std::chrono::steady_clock::now() - start > std::chrono::seconds(2))
-    std::fprintf(log, "\r%d/%d frames\n", summary.frames, summary.frames);
+  progress.finish();
 
   if (options.out_tum) writeTum(*options.out_tum, trajectory);
   if (!seconds.empty()) {

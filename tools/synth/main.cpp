@@ -10,6 +10,7 @@
 #include <string_view>
 
 #include "omnipose/synth.hpp"
+#include "progress_line.hpp"
 
 namespace {
 
@@ -45,6 +46,7 @@ groundtruth.tum) from an equirectangular photo, with exact ground truth.
                           every frame
   --write-mask            also write mask.png hiding the occluder (2 deg margin) and name
                           it in calibration.yaml (omni.mask)
+  --quiet                 no progress line (it is shown only on a terminal anyway)
   -h, --help              this text
 )";
 
@@ -64,6 +66,7 @@ struct Args {
   int supersample = synth::RenderOptions{}.supersample;
   std::optional<synth::Occluder> occluder;
   bool write_mask = false;
+  bool quiet = false;
   bool help = false;
 };
 
@@ -87,6 +90,10 @@ Args parseArgs(int argc, char** argv) {
     }
     if (opt == "--write-mask") {
       a.write_mask = true;
+      continue;
+    }
+    if (opt == "--quiet") {
+      a.quiet = true;
       continue;
     }
     if (i + 1 >= argc) throw UsageError(std::string(opt) + ": unknown option or missing value");
@@ -167,11 +174,14 @@ int run(const Args& a) {
   synth::DatasetWriter writer(a.out, calibration, a.jpeg);
 
   const auto start = std::chrono::steady_clock::now();
+  tools::ProgressLine progress(stderr, static_cast<int>(poses.size()), "frames", !a.quiet);
   for (std::size_t k = 0; k < poses.size(); ++k) {
     cv::Mat image = renderer.render(poses[k].pose);
     if (a.occluder) a.occluder->paint(image, calibration);
     writer.addFrame(synth::degrade(image, degrade, k), poses[k]);
+    progress.update(static_cast<int>(k + 1));
   }
+  progress.finish();
   writer.finish();
   const double seconds =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
