@@ -66,6 +66,11 @@ struct DaemonConfig {
   /// dataset comes from the command line).
   enum class Use { kDaemon, kReplay };
 
+  /// Upper bounds of the sizes in daemon.yaml (checked before anything is allocated).
+  static constexpr int kMaxFrameSide = 8192;  ///< source.width, source.height, pixels
+  static constexpr int kMaxWindow = 512;      ///< pipeline.window, pixels
+  static constexpr int kMaxStep = 4096;       ///< pipeline.step, pixels
+
   SourceConfig source;
   std::filesystem::path calibration;  ///< resolved against the config file's folder
   PipelineOptions pipeline;           ///< includes the input kind (pipeline.unwrap.input)
