@@ -194,6 +194,7 @@ DaemonConfig DaemonConfig::parse(const std::string& text, const std::string& ori
   std::vector<std::string> problems;
   Reader r(origin, problems);
   DaemonConfig c;
+  c.origin = origin;
   YAML::Node root;
   try {
     root = YAML::Load(text);
@@ -232,6 +233,31 @@ DaemonConfig DaemonConfig::parse(const std::string& text, const std::string& ori
     throw ConfigError(what, problems);
   }
   return c;
+}
+
+std::vector<std::string> DaemonConfig::checkAgainst(const Calibration& cal,
+                                                    const std::string& origin) const {
+  std::vector<std::string> problems;
+  const auto& r = pipeline.registration;
+  const int width = cal.panorama.width, height = cal.panorama.height;
+  if (r.window > height || r.window > width) {
+    problems.push_back(origin + ": pipeline.window: " + std::to_string(r.window) +
+                       " is larger than the panorama (" + std::to_string(width) + " x " +
+                       std::to_string(height) + ", " + calibration.string() + ")");
+  }
+  if (r.step >= 1 && width > 0) {
+    const long long windows = (static_cast<long long>(width) + r.step - 1) / r.step;
+    const long long samples = windows * r.window * r.window;
+    if (samples > kMaxWindowSamples) {
+      problems.push_back(origin + ": pipeline.step: " + std::to_string(r.step) + " gives " +
+                         std::to_string(windows) + " windows of " + std::to_string(r.window) +
+                         " x " + std::to_string(r.window) + " over the " + std::to_string(width) +
+                         "-pixel panorama: " + std::to_string(samples) +
+                         " window samples, the largest supported is " +
+                         std::to_string(kMaxWindowSamples) + " (use a larger step or window)");
+    }
+  }
+  return problems;
 }
 
 DaemonConfig DaemonConfig::load(const std::filesystem::path& path, Use use) {

@@ -2,6 +2,8 @@
 
 #include <gtest/gtest.h>
 
+#include "omnipose/calibration.hpp"
+
 namespace omnipose {
 namespace {
 
@@ -142,7 +144,7 @@ TEST(DaemonConfig, EveryNumberMustBeFiniteAndInItsRangeNamingFileAndField) {
 
 TEST(DaemonConfig, OddYamlShapesAreProblemsNotExceptions) {
   // Non-scalar keys, a sequence where a map belongs, a map where a number belongs.
-  for (const std::string text :
+  for (const std::string& text :
        {std::string("? [a, b]\n: 1\nsource: {type: file, path: x}\ncalibration: c\n"),
         std::string("source: [1, 2]\ncalibration: c\n"),
         std::string("source: {type: file, path: x}\ncalibration: {a: 1}\n"),
@@ -159,6 +161,29 @@ TEST(DaemonConfig, OddYamlShapesAreProblemsNotExceptions) {
   }
   EXPECT_TRUE(mentions(problemsOf("? [a, b]\n: 1\nsource: {type: file, path: x}\ncalibration: c\n"),
                        "keys must be plain names"));
+}
+
+TEST(DaemonConfig, PipelineSizesAreCheckedAgainstTheCalibrationBeforeAnythingIsAllocated) {
+  Calibration cal;  // 1100 x 110 panorama
+  const auto c = DaemonConfig::parse("source: {type: file, path: r}\ncalibration: c.yaml\n",
+                                     "/etc/d.yaml", "/etc");
+  EXPECT_EQ(c.origin, "/etc/d.yaml");
+  EXPECT_TRUE(c.checkAgainst(cal, c.origin).empty()) << "the paper's setting fits";
+  auto tall = c;
+  tall.pipeline.registration.window = 200;
+  const auto p1 = tall.checkAgainst(cal, tall.origin);
+  ASSERT_EQ(p1.size(), 1u);
+  EXPECT_NE(p1[0].find("/etc/d.yaml: pipeline.window: 200 is larger than the panorama (1100 x 110"),
+            std::string::npos)
+      << p1[0];
+  auto dense = c;
+  dense.pipeline.registration.step = 1;
+  dense.pipeline.registration.window = 110;
+  cal.panorama.width = 8000;
+  const auto p2 = dense.checkAgainst(cal, dense.origin);
+  ASSERT_EQ(p2.size(), 1u);
+  EXPECT_NE(p2[0].find("/etc/d.yaml: pipeline.step: 1 gives 8000 windows"), std::string::npos) << p2[0];
+  EXPECT_NE(p2[0].find("largest supported is 16777216"), std::string::npos) << p2[0];
 }
 
 }  // namespace
