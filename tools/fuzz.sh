@@ -11,7 +11,9 @@
 # groundtruth.tum, PNG frames, the bundled JPEG photo). Corpora grow in build-fuzz/corpus/,
 # crashes land in build-fuzz/artifacts/ and fail the run; each crash found so far is a
 # regression test in the normal suite.
-# Environment: NICE (default 15), JOBS (build jobs, default nproc).
+# Environment: NICE (default 15), JOBS (build jobs, default nproc), KEEP_GOING=1 (fork mode:
+# a crash is recorded in build-fuzz/artifacts/ and fuzzing goes on for the full time; the run
+# still fails).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 seconds=${1:-600}
@@ -80,16 +82,24 @@ for t in "${targets[@]}"; do
   log=$dir/logs/$t.log
   echo "fuzz.sh: $t for $seconds s"
   rc=0
-  nice -n "$nice_level" "$dir/fuzz/$t" -max_total_time="$seconds" -timeout=30 -rss_limit_mb=2048 \
-    -print_final_stats=1 -artifact_prefix="$dir/artifacts/$t-" "$dir/corpus/$t" "$seeds/$t" \
-    >"$log" 2>&1 || rc=$?
+  keep=()
+  [ "${KEEP_GOING:-0}" = 1 ] && keep=(-fork=1 -ignore_crashes=1 -ignore_ooms=1 -ignore_timeouts=1)
+  before=$(find "$dir/artifacts" -name "$t-*" | wc -l)
+  start=$(date +%s)
+  nice -n "$nice_level" "$dir/fuzz/$t" "${keep[@]}" -max_total_time="$seconds" -timeout=30 \
+    -rss_limit_mb=2048 -print_final_stats=1 -artifact_prefix="$dir/artifacts/$t-" \
+    "$dir/corpus/$t" "$seeds/$t" >"$log" 2>&1 || rc=$?
+  secs=$(( $(date +%s) - start ))
   runs=$(sed -n 's/^stat::number_of_executed_units: *//p' "$log" | tail -1)
-  secs=$(sed -n 's/^Done [0-9]* runs in \([0-9]*\) second.*/\1/p' "$log" | tail -1)
+  # fork mode prints no final stats: the last status line "#RUNS: cov: ..." has the count.
+  [ -z "$runs" ] && runs=$(grep -oE '^#[0-9]+' "$log" | tail -1 | tr -d '#')
+  found=$(( $(find "$dir/artifacts" -name "$t-*" | wc -l) - before ))
+  [ "$found" -gt 0 ] && [ "$rc" -eq 0 ] && rc=1
   cov=$(grep -o 'cov: [0-9]*' "$log" | tail -1 | cut -d' ' -f2)
   corpus=$(find "$dir/corpus/$t" -type f | wc -l)
   if [ "$rc" -ne 0 ]; then
     failed=1
-    line="$t: FAILED (exit $rc) after ${runs:-?} runs; see $log and $dir/artifacts/"
+    line="$t: FAILED (exit $rc, $found new artifacts) after ${runs:-?} runs in $secs s; see $log and $dir/artifacts/"
     grep -m3 -E "ERROR|runtime error|deadly signal" "$log" || true
   else
     line="$t: ${runs:-?} runs in ${secs:-?} s, no crash (coverage ${cov:-?} edges, corpus $corpus inputs)"

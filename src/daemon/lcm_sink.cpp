@@ -36,7 +36,7 @@ class LcmSink final : public MessageSink {
   lcm::LCM lcm_;
 };
 
-/// `file://PATH?mode=w` (or mode=a): the LCM event log written with LCM's own eventlog
+/// `file://PATH?mode=w`: the LCM event log written with LCM's own eventlog
 /// writer, but checked. LCM 1.3.1's file provider ignores the result of every write, so a
 /// full or failing disk would go unnoticed; here every write is checked (the stream is
 /// unbuffered: the error shows at the message that failed), a failed write returns false
@@ -95,7 +95,7 @@ class FileLogSink final : public MessageSink {
   char error_[512] = {};
 };
 
-/// For `file://PATH?mode=w|a` (nothing else in the query): the path and the mode; else false.
+/// For `file://PATH?mode=w` (nothing else in the query): the path and the mode; else false.
 bool parseWritableLogUrl(const std::string& url, std::string& path, const char*& mode) {
   constexpr std::string_view kScheme = "file://";
   if (url.rfind(kScheme, 0) != 0) return false;
@@ -103,9 +103,8 @@ bool parseWritableLogUrl(const std::string& url, std::string& path, const char*&
   const auto q = rest.find('?');
   if (q == std::string::npos) return false;  // LCM's default for file:// is read mode
   const std::string query = rest.substr(q + 1);
-  if (query == "mode=w") mode = "w";
-  else if (query == "mode=a") mode = "a";
-  else return false;
+  if (query != "mode=w") return false;  // anything else is LCM's own file provider
+  mode = "w";
   path = rest.substr(0, q);
   return !path.empty();
 }

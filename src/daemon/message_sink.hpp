@@ -27,7 +27,7 @@ class MessageSink {
 /// "memq://" in-process; "file://PATH?mode=w" writes an event log).
 /// Throws std::runtime_error naming the URL when LCM cannot be initialised.
 ///
-/// `file://PATH?mode=w` (or `mode=a`) is written by the daemon itself with LCM's eventlog
+/// `file://PATH?mode=w` is written by the daemon itself with LCM's eventlog
 /// writer: LCM 1.3.1's file provider ignores write errors, this sink checks every write
 /// (a full disk shows in lastError() and the status; the log keeps only whole records and
 /// resumes when there is room). The start-up error names the file when it cannot be opened.
