@@ -24,5 +24,20 @@ function(omnipose_add_test name)
     OMNIPOSE_SOURCE_DIR="${CMAKE_SOURCE_DIR}"
     OMNIPOSE_BINARY_DIR="${CMAKE_BINARY_DIR}")
   set_target_properties(${name} PROPERTIES RUNTIME_OUTPUT_DIRECTORY ${CMAKE_BINARY_DIR}/tests)
-  gtest_discover_tests(${name} WORKING_DIRECTORY ${CMAKE_SOURCE_DIR} DISCOVERY_TIMEOUT 60)
+  # Labels: the test folder (tests/daemon -> "daemon"), plus "allocation" (below).
+  get_filename_component(folder ${CMAKE_CURRENT_SOURCE_DIR} NAME)
+  set(labels ${folder})
+  if(name IN_LIST OMNIPOSE_ALLOCATION_COUNTING_TESTS)
+    list(APPEND labels allocation)
+  endif()
+  gtest_discover_tests(${name} WORKING_DIRECTORY ${CMAKE_SOURCE_DIR} DISCOVERY_TIMEOUT 120
+                       PROPERTIES LABELS "${labels}")
 endfunction()
+
+# Test binaries that count heap allocations by replacing operator new/delete or interposing
+# the malloc family. They carry the ctest label "allocation": a sanitizer build
+# (tools/sanitize.sh) excludes them with `ctest -LE allocation`, because ASan/TSan replace the
+# allocator themselves (the interposed malloc would bypass or fight the sanitizer's, and its
+# counts would include the sanitizer's own bookkeeping).
+set(OMNIPOSE_ALLOCATION_COUNTING_TESTS pipeline_alloc_test registration_alloc_test
+    daemon_alloc_test)

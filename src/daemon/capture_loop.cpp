@@ -47,6 +47,8 @@ void CaptureLoop::run() {
   bool have_last = false;
   std::uint64_t last_sequence = 0;
   int last_index = -1;
+  std::int64_t last_capture_us = 0;
+  double last_source_timestamp = 0.0;
   auto backoff = options_.reconnect_initial;
 
   while (!mailbox_.stopRequested()) {
@@ -73,9 +75,29 @@ void CaptureLoop::run() {
       if (have_last && got->sequence > last_sequence + 1)
         board_.frames_lost_upstream += static_cast<std::int64_t>(got->sequence - last_sequence - 1);
       if (have_last && got->index >= 0 && got->index <= last_index) mailbox_.markGap();
+      // Time must move forward: a frame stamped at or before its predecessor (a camera
+      // clock step, a broken recording) cannot be linked to it (the pose stream would go
+      // back in time). It is processed and starts a new segment; the fault is reported.
+      else if (have_last && got->capture_time_us < last_capture_us) {
+        board_.reportError("%s: frame %llu: capture time %lld us is before the previous "
+                           "frame's %lld us (time went backwards): new segment",
+                           description_.c_str(), static_cast<unsigned long long>(got->sequence),
+                           static_cast<long long>(got->capture_time_us),
+                           static_cast<long long>(last_capture_us));
+        mailbox_.markGap();
+      } else if (have_last && got->index > last_index &&
+                 got->source_timestamp < last_source_timestamp) {
+        board_.reportError("%s: frame %d: timestamp %.6f s is before the previous frame's "
+                           "%.6f s (time went backwards): new segment",
+                           description_.c_str(), got->index, got->source_timestamp,
+                           last_source_timestamp);
+        mailbox_.markGap();
+      }
       have_last = true;
       last_sequence = got->sequence;
       last_index = got->index;
+      last_capture_us = got->capture_time_us;
+      last_source_timestamp = got->source_timestamp;
       ++board_.frames_received;
       mailbox_.post(*got);
       continue;

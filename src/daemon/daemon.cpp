@@ -22,6 +22,13 @@ Daemon::Daemon(const DaemonConfig& config, std::FILE* log, std::unique_ptr<Frame
   cv::setNumThreads(1);
 
   const Calibration calibration = Calibration::load(config_.calibration);
+  // Before anything is sized by the pair (frame buffers, window spectra).
+  if (const auto problems = config_.checkAgainst(
+          calibration, config_.origin.empty() ? "daemon.yaml" : config_.origin); !problems.empty()) {
+    std::string what = "configuration does not fit the calibration:";
+    for (const auto& p : problems) what += "\n  " + p;
+    throw ConfigError(what, problems);
+  }
   const cv::Size frame_size = expectedFrameSize(calibration, config_.pipeline.unwrap.input);
 
   source_ = source ? std::move(source)

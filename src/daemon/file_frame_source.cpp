@@ -68,8 +68,9 @@ Expected<FrameInfo> FileFrameSource::next(cv::Mat& out, std::chrono::millisecond
     // Loop: frame 0 follows the last frame one mean frame interval later.
     if (has_origin_) {
       const double span = frames.back().timestamp - frames.front().timestamp;
-      const double period = frames.size() > 1 ? span / static_cast<double>(frames.size() - 1)
-                                              : 1.0 / Dataset::kDefaultFps;
+      double period = frames.size() > 1 ? span / static_cast<double>(frames.size() - 1)
+                                        : 1.0 / Dataset::kDefaultFps;
+      if (!(period > 0)) period = 1.0 / Dataset::kDefaultFps;  // timestamps not increasing
       origin_wall_us_ += static_cast<std::int64_t>((frames.back().timestamp - origin_stamp_ +
                                                     period) * 1e6);
       origin_stamp_ = frames.front().timestamp;
@@ -85,6 +86,13 @@ Expected<FrameInfo> FileFrameSource::next(cv::Mat& out, std::chrono::millisecond
       origin_stamp_ = frames[next_index_].timestamp;
       has_origin_ = true;
     }
+    // A frame stamped before its predecessor (a broken recording): pacing starts again
+    // from it (it is due now) instead of treating every frame up to the old time as late.
+    auto backwards = [&](std::size_t i) { return i > 0 && frames[i].timestamp < frames[i - 1].timestamp; };
+    if (backwards(next_index_)) {
+      origin_wall_us_ = wallClockMicros();
+      origin_stamp_ = frames[next_index_].timestamp;
+    }
     auto dueOf = [&](std::size_t i) {
       return origin_wall_us_ + static_cast<std::int64_t>((frames[i].timestamp - origin_stamp_) * 1e6);
     };
@@ -92,7 +100,8 @@ Expected<FrameInfo> FileFrameSource::next(cv::Mat& out, std::chrono::millisecond
     // deliver the frame that is current now; the ones missed in between are never read
     // (the sequence number jumps over them).
     const std::int64_t now_us = wallClockMicros();
-    while (next_index_ + 1 < frames.size() && dueOf(next_index_ + 1) <= now_us) {
+    while (next_index_ + 1 < frames.size() && !backwards(next_index_ + 1) &&
+           dueOf(next_index_ + 1) <= now_us) {
       ++next_index_;
       ++sequence_;
     }

@@ -18,15 +18,23 @@ class MessageSink {
   virtual bool publish(const std::string& channel, const std::uint8_t* data, std::size_t size) = 0;
   /// One line naming the transport, for the start-up log.
   virtual std::string describe() const = 0;
+  /// Why the last publish() failed (e.g. "LCM log /var/log/run.lcm: No space left on
+  /// device"), "" when the transport does not say. Valid until the next publish().
+  virtual const char* lastError() const { return ""; }
 };
 
 /// Publishes over LCM. `url`: an LCM provider URL ("" = LCM's default, udpm multicast;
 /// "memq://" in-process; "file://PATH?mode=w" writes an event log).
 /// Throws std::runtime_error naming the URL when LCM cannot be initialised.
 ///
+/// `file://PATH?mode=w` is written by the daemon itself with LCM's eventlog
+/// writer: LCM 1.3.1's file provider ignores write errors, this sink checks every write
+/// (a full disk shows in lastError() and the status; the log keeps only whole records and
+/// resumes when there is room). The start-up error names the file when it cannot be opened.
+///
 /// What LCM 1.3.1 itself does per publish (measured by tests/daemon's allocation test):
-/// udpm: no heap allocation; file:// (mode=w): one malloc/free per message (the log event
-/// record); memq://: nothing when no one subscribes, else about three per message (the
+/// udpm: no heap allocation; file:// log: none (the event is written from the caller's
+/// buffer); memq://: nothing when no one subscribes, else about three per message (the
 /// queued copy).
 std::unique_ptr<MessageSink> makeLcmSink(const std::string& url);
 

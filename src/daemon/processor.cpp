@@ -77,8 +77,9 @@ bool Processor::publish(const std::string& channel, std::vector<std::uint8_t>& b
                         int size) {
   if (size < 0 || !sink_.publish(channel, buffer.data(), static_cast<std::size_t>(size))) {
     ++board_.publish_failures;
-    board_.reportError("cannot %s a message on channel %s", size < 0 ? "encode" : "publish",
-                       channel.c_str());
+    const char* why = size < 0 ? "" : sink_.lastError();
+    board_.reportError("cannot %s a message on channel %s%s%s", size < 0 ? "encode" : "publish",
+                       channel.c_str(), *why ? ": " : "", why);
     return false;
   }
   return true;

@@ -18,19 +18,21 @@ sigset_t stopSignals() {
   sigemptyset(&set);
   sigaddset(&set, SIGINT);
   sigaddset(&set, SIGTERM);
+  sigaddset(&set, SIGHUP);
   return set;
 }
 
 std::string summary(const DaemonStats& s) {
-  char text[320];
+  char text[400];
   std::snprintf(text, sizeof(text),
                 "received %lld, processed %lld, skipped (stale) %lld, bad %lld, lost upstream "
-                "%lld, lost poses %lld, source failures %lld, segment %d, source %s",
+                "%lld, lost poses %lld, source failures %lld, publish failures %lld, segment %d, "
+                "source %s",
                 static_cast<long long>(s.frames_received), static_cast<long long>(s.frames_processed),
                 static_cast<long long>(s.frames_skipped), static_cast<long long>(s.frames_bad),
                 static_cast<long long>(s.frames_lost_upstream),
                 static_cast<long long>(s.poses_lost), static_cast<long long>(s.source_failures),
-                s.segment, toString(s.source_state));
+                static_cast<long long>(s.publish_failures), s.segment, toString(s.source_state));
   return text;
 }
 
@@ -75,6 +77,13 @@ int runService(const DaemonConfig& config, std::FILE* log) {
     if (sig == SIGINT || sig == SIGTERM) {
       signal_number = sig;
       break;
+    }
+    if (sig == SIGHUP) {
+      // No reload: a changed daemon.yaml needs a restart (the pipeline's buffers are sized
+      // by it). The counters go to the log, and the daemon keeps running.
+      std::fprintf(log, "omniposed: SIGHUP received: configuration not reloaded (restart to "
+                   "apply changes); %s\n", summary(daemon.stats()).c_str());
+      std::fflush(log);
     }
     const auto now = std::chrono::steady_clock::now();
     if (watchdog && now >= next_ping) {

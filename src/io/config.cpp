@@ -2,12 +2,29 @@
 
 #include <yaml-cpp/yaml.h>
 
+#include <cmath>
 #include <fstream>
 #include <set>
+#include <type_traits>
 #include <sstream>
 
 namespace omnipose {
 namespace {
+
+template <typename T>
+const char* typeName() {
+  if constexpr (std::is_same_v<T, bool>) return "true or false";
+  else if constexpr (std::is_integral_v<T>) return "an integer";
+  else if constexpr (std::is_floating_point_v<T>) return "a number";
+  else return "text";
+}
+
+template <typename T>
+std::string fmt(T value) {
+  std::ostringstream o;
+  o << value;
+  return o.str();
+}
 
 /// Reads typed values out of a YAML map, collecting every problem with its key path.
 class Reader {
@@ -27,10 +44,18 @@ class Reader {
       return false;
     }
     for (const auto& kv : node) {
-      const auto key = kv.first.as<std::string>();
-      if (!known.contains(key)) problem(prefix.empty() ? key : prefix + "." + key, "unknown key");
+      if (!kv.first.IsScalar()) {
+        problem(prefix.empty() ? "(top level)" : prefix, "keys must be plain names");
+        continue;
+      }
+      const auto key = kv.first.Scalar();
+      if (!known.contains(key)) problem(join(prefix, key), "unknown key");
     }
     return true;
+  }
+
+  static std::string join(const std::string& prefix, const std::string& key) {
+    return prefix.empty() ? key : prefix + "." + key;
   }
 
   template <typename T>
@@ -40,8 +65,35 @@ class Reader {
     try {
       value = node.as<T>();
     } catch (const YAML::Exception&) {
-      problem(prefix + "." + key, "cannot read '" + YAML::Dump(node) + "' as the expected type");
+      std::string text = node.IsScalar() ? node.Scalar() : YAML::Dump(node);
+      if (text.size() > 60) text = text.substr(0, 60) + "...";
+      problem(join(prefix, key), "cannot read '" + text + "' as " + typeName<T>());
     }
+  }
+
+  /// A number in [lo, hi] (finite; NaN and infinities are refused).
+  template <typename T>
+  void range(T value, const std::string& key, T lo, T hi, const char* unit = "") {
+    if constexpr (std::is_floating_point_v<T>) {
+      if (!std::isfinite(value)) {
+        problem(key, "must be a finite number, not " + fmt(value));
+        return;
+      }
+    }
+    if (value < lo || value > hi)
+      problem(key, fmt(value) + " is outside [" + fmt(lo) + ", " + fmt(hi) + "]" + unit);
+  }
+  /// A number in (lo, hi] (finite).
+  template <typename T>
+  void rangeAbove(T value, const std::string& key, T lo, T hi, const char* unit = "") {
+    if constexpr (std::is_floating_point_v<T>) {
+      if (!std::isfinite(value)) {
+        problem(key, "must be a finite number, not " + fmt(value));
+        return;
+      }
+    }
+    if (value <= lo || value > hi)
+      problem(key, fmt(value) + " is outside (" + fmt(lo) + ", " + fmt(hi) + "]" + unit);
   }
 
   /// Range check helper: reports `what` when `ok` is false.
@@ -82,9 +134,9 @@ void parseSource(Reader& r, const YAML::Node& node, const std::filesystem::path&
     r.problem("source.path", "missing (the dataset directory of a file source)");
   if (s.type == SourceConfig::Type::kV4l2 && s.device.empty())
     r.problem("source.device", "must not be empty");
-  r.require(s.width > 0, "source.width", "must be > 0");
-  r.require(s.height > 0, "source.height", "must be > 0");
-  r.require(s.fps > 0 && s.fps <= 1000, "source.fps", "must be in (0, 1000]");
+  r.range(s.width, "source.width", 1, DaemonConfig::kMaxFrameSide, " pixels");
+  r.range(s.height, "source.height", 1, DaemonConfig::kMaxFrameSide, " pixels");
+  r.rangeAbove(s.fps, "source.fps", 0.0, 1000.0, " frames per second");
 }
 
 void parsePipeline(Reader& r, const YAML::Node& node, PipelineOptions& p) {
@@ -102,6 +154,14 @@ void parsePipeline(Reader& r, const YAML::Node& node, PipelineOptions& p) {
   r.get(node, "pipeline", "estimate_rotation_scale", p.registration.estimate_rotation_scale);
   r.get(node, "pipeline", "min_confidence", p.registration.min_confidence);
   r.get(node, "pipeline", "inlier_sigmas", p.fit.inlier_sigmas);
+  // Bounds before anything is sized by them (the pipeline allocates per window).
+  r.range(p.registration.window, "pipeline.window", 16, DaemonConfig::kMaxWindow, " pixels");
+  r.range(p.registration.step, "pipeline.step", 1, DaemonConfig::kMaxStep, " pixels");
+  r.rangeAbove(p.fit.huber_delta_px, "pipeline.huber_delta_px", 0.0, 100.0, " pixels");
+  r.range(p.fit.median, "pipeline.median", 0, 15);
+  r.range(p.refine_iterations, "pipeline.refine_iterations", 0, 5);
+  r.range(p.registration.min_confidence, "pipeline.min_confidence", 0.0, 1.0);
+  r.rangeAbove(p.fit.inlier_sigmas, "pipeline.inlier_sigmas", 0.0, 100.0);
 }
 
 void parseLcm(Reader& r, const YAML::Node& node, LcmConfig& l) {
@@ -115,7 +175,7 @@ void parseLcm(Reader& r, const YAML::Node& node, LcmConfig& l) {
   r.get(node, "lcm", "status_hz", l.status_hz);
   r.require(!l.pose_channel.empty(), "lcm.pose_channel", "must not be empty");
   r.require(!l.status_channel.empty(), "lcm.status_channel", "must not be empty");
-  r.require(l.status_hz > 0 && l.status_hz <= 100, "lcm.status_hz", "must be in (0, 100]");
+  r.rangeAbove(l.status_hz, "lcm.status_hz", 0.0, 100.0, " Hz");
 }
 
 }  // namespace
@@ -134,6 +194,7 @@ DaemonConfig DaemonConfig::parse(const std::string& text, const std::string& ori
   std::vector<std::string> problems;
   Reader r(origin, problems);
   DaemonConfig c;
+  c.origin = origin;
   YAML::Node root;
   try {
     root = YAML::Load(text);
@@ -172,6 +233,31 @@ DaemonConfig DaemonConfig::parse(const std::string& text, const std::string& ori
     throw ConfigError(what, problems);
   }
   return c;
+}
+
+std::vector<std::string> DaemonConfig::checkAgainst(const Calibration& cal,
+                                                    const std::string& origin) const {
+  std::vector<std::string> problems;
+  const auto& r = pipeline.registration;
+  const int width = cal.panorama.width, height = cal.panorama.height;
+  if (r.window > height || r.window > width) {
+    problems.push_back(origin + ": pipeline.window: " + std::to_string(r.window) +
+                       " is larger than the panorama (" + std::to_string(width) + " x " +
+                       std::to_string(height) + ", " + calibration.string() + ")");
+  }
+  if (r.step >= 1 && width > 0) {
+    const long long windows = (static_cast<long long>(width) + r.step - 1) / r.step;
+    const long long samples = windows * r.window * r.window;
+    if (samples > kMaxWindowSamples) {
+      problems.push_back(origin + ": pipeline.step: " + std::to_string(r.step) + " gives " +
+                         std::to_string(windows) + " windows of " + std::to_string(r.window) +
+                         " x " + std::to_string(r.window) + " over the " + std::to_string(width) +
+                         "-pixel panorama: " + std::to_string(samples) +
+                         " window samples, the largest supported is " +
+                         std::to_string(kMaxWindowSamples) + " (use a larger step or window)");
+    }
+  }
+  return problems;
 }
 
 DaemonConfig DaemonConfig::load(const std::filesystem::path& path, Use use) {

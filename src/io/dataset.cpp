@@ -1,6 +1,7 @@
 #include "omnipose/dataset.hpp"
 
 #include <algorithm>
+#include <cmath>
 #include <fstream>
 #include <map>
 #include <opencv2/imgcodecs.hpp>
@@ -19,6 +20,8 @@ bool isImageFile(const fs::path& path) {
 
 namespace {
 
+constexpr double kMaxTimestamp = 1e10;
+
 std::map<std::string, double> readTimestamps(const fs::path& path) {
   std::ifstream in(path);
   if (!in) throw std::runtime_error(path.string() + ": cannot open");
@@ -35,6 +38,11 @@ std::map<std::string, double> readTimestamps(const fs::path& path) {
     if (!(fields >> name >> t)) {
       throw std::runtime_error(path.string() + ":" + std::to_string(line_no) +
                                ": expected '<file name> <seconds>'");
+    }
+    // Finite and within +-1e10 s (year 2286): pacing converts to integer microseconds.
+    if (!std::isfinite(t) || std::abs(t) > kMaxTimestamp) {
+      throw std::runtime_error(path.string() + ":" + std::to_string(line_no) +
+                               ": timestamp must be a finite number of seconds within +-1e10");
     }
     stamps[name] = t;
   }

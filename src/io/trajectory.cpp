@@ -26,8 +26,14 @@ std::vector<StampedPose> readTum(const std::filesystem::path& path) {
                                  ": expected 'timestamp tx ty tz qx qy qz qw'");
       }
     }
+    for (const double x : v) {
+      if (!std::isfinite(x)) {
+        throw std::runtime_error(path.string() + ":" + std::to_string(line_no) +
+                                 ": every value must be a finite number");
+      }
+    }
     Eigen::Quaterniond q(v[7], v[4], v[5], v[6]);
-    if (std::abs(q.norm() - 1.0) > 1e-3) {
+    if (!(std::abs(q.norm() - 1.0) <= 1e-3)) {
       throw std::runtime_error(path.string() + ":" + std::to_string(line_no) +
                                ": quaternion is not unit length");
     }

@@ -10,6 +10,7 @@
 
 #include <algorithm>
 #include <csignal>
+#include <cstring>
 
 #include "daemon_test_support.hpp"
 
@@ -392,6 +393,269 @@ TEST(Omniposed, LcmLoggerRecordsTheDaemonOnAPrivateNetwork) {
   for (std::size_t at = printed.find("pose seq "); at != std::string::npos; at = printed.find("pose seq ", at + 1))
     ++pose_lines;
   EXPECT_EQ(pose_lines, kFrames) << printed;
+}
+
+// ---------------------------------------------------------------------------------------
+// Faults the daemon must survive (issue 12, point 5).
+// ---------------------------------------------------------------------------------------
+
+/// Starts omniposed on an endless source (the 30-frame recording looped, paced in real time)
+/// and waits until it runs.
+struct RunningDaemon {
+  RunningDaemon(const TempDir& tmp, const std::string& lcm_url, const std::string& extra_lcm = "")
+      : err_path(tmp / "err") {
+    testing::writeText(tmp / "daemon.yaml",
+                       testing::fileSourceConfig(mixedDataset(), lcm_url, /*realtime=*/true,
+                                                 /*loop=*/true, extra_lcm));
+    child = std::make_unique<testing::Child>(
+        std::vector<std::string>{omniposed().string(), "--config", (tmp / "daemon.yaml").string()},
+        tmp / "out", err_path);
+    waitFor("systemd notify", 60s);
+  }
+  std::string err() const { return testing::readText(err_path); }
+  /// Waits until the daemon's log contains `needle`; true if it did in time.
+  bool waitFor(const std::string& needle, std::chrono::milliseconds timeout) const {
+    const auto deadline = std::chrono::steady_clock::now() + timeout;
+    while (err().find(needle) == std::string::npos) {
+      if (std::chrono::steady_clock::now() > deadline) return false;
+      std::this_thread::sleep_for(50ms);
+    }
+    return true;
+  }
+  fs::path err_path;
+  std::unique_ptr<testing::Child> child;
+};
+
+std::size_t countOf(const std::string& text, const std::string& needle) {
+  std::size_t n = 0;
+  for (auto at = text.find(needle); at != std::string::npos; at = text.find(needle, at + 1)) ++n;
+  return n;
+}
+
+TEST(OmniposedFaults, UnusableLcmUrlAtStartupIsAClearErrorAndExitCodeOne) {
+  TempDir tmp("badurl");
+  struct Case {
+    std::string url;
+    std::vector<std::string> says;
+  };
+  const std::vector<Case> cases = {
+      {"nonsense://x", {"lcm.url \"nonsense://x\"", "cannot initialise LCM"}},
+      {"file://" + (tmp / "no-such-dir/run.lcm").string() + "?mode=w",
+       {"lcm.url", (tmp / "no-such-dir/run.lcm").string(), "No such file or directory"}},
+      {"file://" + tmp.path().string() + "?mode=w",
+       {"cannot open the log file " + tmp.path().string(), "Is a directory"}},
+  };
+  for (const Case& c : cases) {
+    SCOPED_TRACE(c.url);
+    const DaemonRun r = runDaemon(tmp, testing::fileSourceConfig(mixedDataset(), c.url, false), {},
+                                  60s);
+    EXPECT_EQ(r.exit_code, 1) << r.err;
+    EXPECT_NE(r.err.find("start-up failed"), std::string::npos) << r.err;
+    for (const auto& needle : c.says) EXPECT_NE(r.err.find(needle), std::string::npos) << r.err;
+  }
+}
+
+TEST(OmniposedFaults, SighupIsLoggedWithTheCountersAndTheDaemonKeepsRunning) {
+  TempDir tmp("hup");
+  const fs::path lcm_log = tmp / "run.lcm";
+  RunningDaemon d(tmp, logUrl(lcm_log));
+  ASSERT_TRUE(d.child->running()) << d.err();
+  std::this_thread::sleep_for(1s);
+  d.child->signal(SIGHUP);
+  ASSERT_TRUE(d.waitFor("SIGHUP received", 10s)) << d.err();
+  std::this_thread::sleep_for(1s);
+  EXPECT_TRUE(d.child->running()) << "SIGHUP must not stop the daemon:\n" << d.err();
+  d.child->signal(SIGHUP);
+  ASSERT_TRUE(d.waitFor("SIGHUP received", 10s));
+  const auto hup_deadline = std::chrono::steady_clock::now() + 10s;
+  while (countOf(d.err(), "SIGHUP received") < 2 && std::chrono::steady_clock::now() < hup_deadline)
+    std::this_thread::sleep_for(50ms);
+  const std::string before_stop = d.err();
+  EXPECT_EQ(countOf(before_stop, "SIGHUP received"), 2u) << before_stop;
+  EXPECT_NE(before_stop.find("configuration not reloaded"), std::string::npos) << before_stop;
+  EXPECT_NE(before_stop.find("processed "), std::string::npos) << before_stop;
+  d.child->signal(SIGTERM);
+  ASSERT_EQ(d.child->wait(15s), 0) << d.err();
+  const auto log = testing::readLcmLog(lcm_log);
+  ASSERT_FALSE(log.statuses.empty());
+  EXPECT_TRUE(log.statuses.back().final);
+  EXPECT_EQ(log.statuses.back().frames_processed, static_cast<std::int64_t>(log.poses.size()));
+}
+
+TEST(OmniposedFaults, TwoSigtermsInARowStopOnceCleanly) {
+  TempDir tmp("term2");
+  const fs::path lcm_log = tmp / "run.lcm";
+  RunningDaemon d(tmp, logUrl(lcm_log));
+  std::this_thread::sleep_for(1s);
+  ASSERT_TRUE(d.child->running()) << d.err();
+  d.child->signal(SIGTERM);
+  d.child->signal(SIGTERM);
+  std::this_thread::sleep_for(20ms);
+  d.child->signal(SIGTERM);
+  ASSERT_EQ(d.child->wait(15s), 0) << d.err();
+  const std::string err = d.err();
+  EXPECT_EQ(countOf(err, "SIGTERM received"), 1u) << err;
+  EXPECT_EQ(countOf(err, "stopped:"), 1u) << err;
+  const auto log = testing::readLcmLog(lcm_log);
+  EXPECT_EQ(log.undecodable, 0);
+  ASSERT_FALSE(log.statuses.empty());
+  EXPECT_EQ(log.order.back().channel, "OMNI_STATUS");
+  EXPECT_TRUE(log.statuses.back().final);
+  EXPECT_EQ(std::count_if(log.statuses.begin(), log.statuses.end(),
+                          [](const status_t& s) { return s.final; }),
+            1);
+  EXPECT_EQ(log.statuses.back().frames_processed, static_cast<std::int64_t>(log.poses.size()));
+}
+
+TEST(OmniposedFaults, TimestampsGoingBackwardsStartANewSegmentAndEveryFrameIsProcessed) {
+  TempDir tmp("backwards");
+  testing::copyDataset(mixedDataset(), tmp / "d");
+  // Frames 0..14 at k/30 s, then frame 15 goes back to 5/30 s and the clock runs on from there.
+  std::ostringstream stamps;
+  for (int k = 0; k < kFrames; ++k) {
+    char name[32];
+    std::snprintf(name, sizeof(name), "%06d.png", k);
+    stamps << name << " " << (k < 15 ? k : k - 10) / 30.0 << "\n";
+  }
+  testing::writeText(tmp / "d/timestamps.txt", stamps.str());
+  for (const bool realtime : {true, false}) {
+    SCOPED_TRACE(realtime ? "realtime" : "as fast as possible");
+    const fs::path lcm_log = tmp / (realtime ? "rt.lcm" : "fast.lcm");
+    const auto t0 = std::chrono::steady_clock::now();
+    const DaemonRun r = runDaemon(tmp, testing::fileSourceConfig(tmp / "d", logUrl(lcm_log), realtime),
+                                  lcm_log);
+    const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    ASSERT_EQ(r.exit_code, 0) << r.err;
+    EXPECT_NE(r.err.find("time went backwards"), std::string::npos) << r.err;
+    const auto& log = r.log;
+    ASSERT_FALSE(log.statuses.empty());
+    const status_t& last = log.statuses.back();
+    EXPECT_TRUE(last.final);
+    if (realtime) {
+      // Paced again from the backwards frame: nothing is treated as late and dropped; the
+      // run lasts the recording's 25 frame intervals (not 15 + 20), and the machine may lag.
+      EXPECT_EQ(last.frames_received + last.frames_lost_upstream, kFrames);
+      EXPECT_LT(last.frames_lost_upstream, 5) << "frames after the backwards step were dropped as late";
+      EXPECT_GT(seconds, 24 / 30.0);
+    } else {
+      EXPECT_EQ(last.frames_received, kFrames);
+      EXPECT_EQ(last.frames_processed, kFrames);
+    }
+    EXPECT_NE(last.last_error.find("time went backwards"), std::string::npos) << last.last_error;
+    bool saw_15 = false;
+    for (std::size_t k = 1; k < log.poses.size(); ++k) {
+      const pose_t& p = log.poses[k];
+      EXPECT_GT(p.utime, log.poses[k - 1].utime) << "pose times never go backwards";
+      if (p.source_index == 15) {
+        saw_15 = true;
+        EXPECT_EQ(p.status, pose_t::STATUS_LOST) << "no motion across a backwards time step";
+        EXPECT_EQ(p.reference_sequence, -1);
+        EXPECT_EQ(p.segment, 1);
+      } else if (p.source_index > 15 && p.reference_sequence >= 0) {
+        EXPECT_EQ(p.segment, 1);
+        EXPECT_NE(p.status, pose_t::STATUS_LOST);
+      }
+    }
+    EXPECT_TRUE(saw_15 || last.frames_skipped_stale > 0);
+  }
+}
+
+/// "unshare -rm" (or "-m" as root) when this system allows mount namespaces.
+std::vector<std::string> unshareMountCommand(const TempDir& tmp) {
+  for (const char* flags : {"-rm", "-m"}) {
+    if (testing::runProcess({"/usr/bin/unshare", flags, "/bin/sh", "-c",
+                             "mount -t tmpfs -o size=64k tmpfs '" + tmp.path().string() + "'"},
+                            tmp / "u.out", tmp / "u.err", 10s) == 0)
+      return {"/usr/bin/unshare", flags};
+  }
+  return {};
+}
+
+TEST(OmniposedFaults, LogDiskFullMidRunIsReportedPipelineKeepsGoingAndLogRecovers) {
+  TempDir tmp("diskfull");
+  TempDir mnt("diskfull-mnt");
+  const auto unshare = unshareMountCommand(mnt);
+  if (unshare.empty()) {
+    GTEST_SKIP() << "mount namespaces are not allowed here (unshare -rm / -m failed: "
+                 << testing::readText(mnt / "u.err") << ")";
+  }
+  const fs::path small = mnt.path();  // a 96 KiB tmpfs inside the namespace
+  const fs::path lcm_log = small / "run.lcm";
+  testing::writeText(tmp / "daemon.yaml",
+                     testing::fileSourceConfig(mixedDataset(), logUrl(lcm_log), /*realtime=*/false,
+                                               /*loop=*/true, "  status_hz: 10\n"));
+  // In the namespace: a 96 KiB tmpfs with a 48 KiB filler; the daemon fills the rest, then
+  // the test removes the filler (space comes back) and stops the daemon; the log is copied out.
+  const std::string script =
+      "set -e; mount -t tmpfs -o size=96k tmpfs '" + small.string() + "'\n"
+      "head -c 49152 /dev/zero > '" + (small / "filler").string() + "'; set +e\n"
+      "'" + omniposed().string() + "' --config '" + (tmp / "daemon.yaml").string() + "' 2> '" +
+      (tmp / "err").string() + "' & D=$!\n"
+      "echo $D > '" + (tmp / "pid").string() + "'\n"
+      "while [ ! -e '" + (tmp / "release").string() + "' ]; do sleep 0.05; done\n"
+      "rm '" + (small / "filler").string() + "'\n"
+      "touch '" + (tmp / "released").string() + "'\n"
+      "wait $D; rc=$?\n"
+      "cp '" + lcm_log.string() + "' '" + (tmp / "run.lcm").string() + "'\n"
+      "exit $rc\n";
+  std::vector<std::string> argv = unshare;
+  argv.insert(argv.end(), {"/bin/sh", "-c", script});
+  testing::Child ns(argv, tmp / "ns.out", tmp / "ns.err");
+  auto waitForText = [&](const fs::path& file, const std::string& needle, std::chrono::seconds timeout) {
+    const auto deadline = std::chrono::steady_clock::now() + timeout;
+    while (testing::readText(file).find(needle) == std::string::npos) {
+      if (std::chrono::steady_clock::now() > deadline) return false;
+      std::this_thread::sleep_for(50ms);
+    }
+    return true;
+  };
+  ASSERT_TRUE(waitForText(tmp / "err", "No space left on device", 120s))
+      << testing::readText(tmp / "err") << testing::readText(tmp / "ns.err");
+  const std::string full = testing::readText(tmp / "err");
+  EXPECT_NE(full.find(lcm_log.string()), std::string::npos) << "the fault names the log:\n" << full;
+  ASSERT_TRUE(waitForText(tmp / "pid", "\n", 10s));
+  const pid_t daemon_pid = std::stoi(testing::readText(tmp / "pid"));
+  // The pipeline keeps going while nothing can be written: ask for the counters twice.
+  std::this_thread::sleep_for(1500ms);
+  ::kill(daemon_pid, SIGHUP);
+  ASSERT_TRUE(waitForText(tmp / "err", "SIGHUP received", 10s)) << testing::readText(tmp / "err");
+  // Space comes back; the daemon writes whole records again.
+  testing::writeText(tmp / "release", "");
+  ASSERT_TRUE(waitForText(tmp / "released", "", 10s));
+  std::this_thread::sleep_for(1500ms);
+  ::kill(daemon_pid, SIGTERM);
+  const int rc = ns.wait(30s);
+  const std::string err = testing::readText(tmp / "err");
+  ASSERT_EQ(rc, 0) << "no crash, clean stop:\n" << err << testing::readText(tmp / "ns.err");
+  EXPECT_NE(err.find("stopped:"), std::string::npos) << err;
+  // The counters logged at the end: frames went on being processed while the log was full.
+  const auto at = err.rfind("stopped:");
+  ASSERT_NE(at, std::string::npos);
+  long long received = 0, processed = 0, skipped = 0, bad = 0, publish_failures = 0;
+  ASSERT_EQ(std::sscanf(err.c_str() + at, "stopped: received %lld, processed %lld, skipped (stale) %lld, bad %lld",
+                        &received, &processed, &skipped, &bad),
+            4)
+      << err.substr(at);
+  const auto pf = err.find("publish failures ", at);
+  ASSERT_NE(pf, std::string::npos);
+  publish_failures = std::atoll(err.c_str() + pf + std::strlen("publish failures "));
+  EXPECT_GT(publish_failures, 0);
+  // The log is whole records only, and it goes on after the disk-full stretch.
+  const auto log = testing::readLcmLog(tmp / "run.lcm");
+  EXPECT_EQ(log.undecodable, 0);
+  ASSERT_FALSE(log.poses.empty());
+  ASSERT_FALSE(log.statuses.empty());
+  const status_t& last = log.statuses.back();
+  EXPECT_TRUE(last.final) << "the final status was written after space came back";
+  EXPECT_EQ(last.frames_processed, processed);
+  EXPECT_LT(static_cast<long long>(log.poses.size()), processed) << "poses lost while full";
+  EXPECT_NE(last.last_error.find("No space left on device"), std::string::npos) << last.last_error;
+  EXPECT_NE(last.last_error.find(lcm_log.string()), std::string::npos) << last.last_error;
+  // Sequence numbers jump over the poses that could not be written, and resume after.
+  bool jumped = false;
+  for (std::size_t k = 1; k < log.poses.size(); ++k)
+    jumped |= log.poses[k].sequence > log.poses[k - 1].sequence + 1;
+  EXPECT_TRUE(jumped);
 }
 
 }  // namespace

@@ -639,5 +639,87 @@ TEST(Daemon, StartupFailuresNameTheCulprit) {
                      "expected 1100x110");
 }
 
+/// A source whose capture clock steps back by one second at delivery `step_at` (a camera
+/// clock step): the frames themselves are the ping-pong sequence of MemorySource.
+class ClockStepSource final : public FrameSource {
+ public:
+  ClockStepSource(std::vector<cv::Mat> frames, long total, long step_at)
+      : inner_(std::move(frames), {.period = {}, .total = total, .bad = {}, .disconnect = {}}),
+        step_at_(step_at) {}
+  Expected<void> open() override { return inner_.open(); }
+  cv::Size frameSize() const override { return inner_.frameSize(); }
+  Expected<FrameInfo> next(cv::Mat& out, std::chrono::milliseconds timeout) override {
+    Expected<FrameInfo> got = inner_.next(out, timeout);
+    if (got && static_cast<long>(got->sequence) >= step_at_) got->capture_time_us -= 1'000'000;
+    return got;
+  }
+  void close() override { inner_.close(); }
+  std::string describe() const override { return "clock-step source"; }
+
+ private:
+  testing::MemorySource inner_;
+  long step_at_;
+};
+
+TEST(DaemonFaults, CaptureClockGoingBackwardsStartsANewSegmentAndIsReported) {
+  const auto frames = testing::renderFrames("yaw", 6);
+  Bus bus;
+  const auto config = parseConfig("source: {type: file, path: /nonexistent}\ncalibration: " +
+                                  (yawDataset() / "calibration.yaml").string() + "\n");
+  Daemon d(config, nullptr, std::make_unique<ClockStepSource>(frames, 12, 5), bus.sink(),
+           {.capture = {}, .force_lossless = true});
+  bus.run(d, 60s);
+  ASSERT_EQ(bus.poses.size(), 12u);
+  for (const pose_t& p : bus.poses) {
+    SCOPED_TRACE(p.sequence);
+    if (p.sequence == 0 || p.sequence == 5) {
+      EXPECT_EQ(p.status, pose_t::STATUS_LOST);
+      EXPECT_EQ(p.reference_sequence, -1);
+    } else {
+      EXPECT_NE(p.status, pose_t::STATUS_LOST);
+      EXPECT_EQ(p.reference_sequence, p.sequence - 1);
+    }
+    EXPECT_EQ(p.segment, p.sequence < 5 ? 0 : 1);
+  }
+  ASSERT_FALSE(bus.statuses.empty());
+  const status_t& last = bus.statuses.back();
+  EXPECT_EQ(last.frames_processed, 12);
+  EXPECT_EQ(last.poses_lost, 2);
+  EXPECT_NE(last.last_error.find("time went backwards"), std::string::npos) << last.last_error;
+  EXPECT_NE(last.last_error.find("clock-step source"), std::string::npos) << last.last_error;
+}
+
+TEST(DaemonFaults, LcmLogOnAFullDiskIsReportedAndThePipelineKeepsGoing) {
+  if (!fs::exists("/dev/full")) GTEST_SKIP() << "no /dev/full on this system";
+  const auto frames = testing::renderFrames("yaw", 6);
+  const auto config = parseConfig("source: {type: file, path: /nonexistent}\ncalibration: " +
+                                  (yawDataset() / "calibration.yaml").string() +
+                                  "\nlcm: {url: 'file:///dev/full?mode=w', status_hz: 20}\n");
+  std::FILE* log = std::tmpfile();
+  ASSERT_NE(log, nullptr);
+  {
+    testing::MemorySource::Script script;
+    script.total = 20;
+    Daemon d(config, log, std::make_unique<testing::MemorySource>(frames, script), nullptr,
+             {.capture = {}, .force_lossless = true});
+    EXPECT_NE(d.sinkDescription().find("/dev/full"), std::string::npos);
+    d.start();
+    ASSERT_TRUE(d.waitFinished(60s));
+    d.join();
+    const auto stats = d.stats();
+    EXPECT_EQ(stats.frames_received, 20);
+    EXPECT_EQ(stats.frames_processed, 20) << "every frame is processed although nothing is written";
+    EXPECT_GE(stats.publish_failures, 21) << "20 poses and at least the final status";
+  }
+  std::fflush(log);
+  std::rewind(log);
+  std::string text;
+  char buffer[4096];
+  while (std::size_t n = std::fread(buffer, 1, sizeof(buffer), log)) text.append(buffer, n);
+  std::fclose(log);
+  EXPECT_NE(text.find("LCM log /dev/full: No space left on device"), std::string::npos) << text;
+  EXPECT_NE(text.find("channel OMNI_POSE"), std::string::npos) << text;
+}
+
 }  // namespace
 }  // namespace omnipose

@@ -19,6 +19,8 @@ class AllocationCounter {
   ~AllocationCounter();
   AllocationCounter(const AllocationCounter&) = delete;
   AllocationCounter& operator=(const AllocationCounter&) = delete;
+  /// False in a sanitizer build (ASan/TSan own the allocator; nothing is counted).
+  static bool available();
   /// Allocations on this thread since construction.
   std::int64_t count() const;
 

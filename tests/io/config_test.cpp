@@ -2,6 +2,8 @@
 
 #include <gtest/gtest.h>
 
+#include "omnipose/calibration.hpp"
+
 namespace omnipose {
 namespace {
 
@@ -66,6 +68,122 @@ TEST(DaemonConfig, MissingFileAndBrokenYamlAreClear) {
   } catch (const ConfigError& e) {
     EXPECT_NE(std::string(e.what()).find("x.yaml: not valid YAML"), std::string::npos);
   }
+}
+
+/// Parses `text` and returns the problems (empty when valid).
+std::vector<std::string> problemsOf(const std::string& text) {
+  try {
+    DaemonConfig::parse(text, "daemon.yaml", "/tmp");
+  } catch (const ConfigError& e) {
+    return e.problems();
+  }
+  return {};
+}
+
+bool mentions(const std::vector<std::string>& problems, const std::string& needle) {
+  for (const auto& p : problems)
+    if (p.find(needle) != std::string::npos) return true;
+  return false;
+}
+
+std::string joined(const std::vector<std::string>& problems) {
+  std::string all;
+  for (const auto& p : problems) all += p + "\n";
+  return all;
+}
+
+TEST(DaemonConfig, EveryNumberMustBeFiniteAndInItsRangeNamingFileAndField) {
+  const std::string head = "source: {type: file, path: run1}\ncalibration: cal.yaml\n";
+  struct Case {
+    std::string yaml;
+    std::string field;
+    std::string says;
+  };
+  const std::vector<Case> cases = {
+      {"source: {type: v4l2, width: 100000}\ncalibration: c.yaml\n", "daemon.yaml: source.width",
+       "[1, 8192]"},
+      {"source: {type: v4l2, height: -4}\ncalibration: c.yaml\n", "daemon.yaml: source.height",
+       "[1, 8192]"},
+      {"source: {type: v4l2, fps: .nan}\ncalibration: c.yaml\n", "daemon.yaml: source.fps",
+       "finite"},
+      {"source: {type: v4l2, fps: .inf}\ncalibration: c.yaml\n", "daemon.yaml: source.fps",
+       "finite"},
+      {head + "pipeline: {window: 100000}\n", "daemon.yaml: pipeline.window", "[16, 512]"},
+      {head + "pipeline: {step: 1000000000}\n", "daemon.yaml: pipeline.step", "[1, 4096]"},
+      {head + "pipeline: {huber_delta_px: .inf}\n", "daemon.yaml: pipeline.huber_delta_px",
+       "finite"},
+      {head + "pipeline: {huber_delta_px: 1e300}\n", "daemon.yaml: pipeline.huber_delta_px",
+       "(0, 100]"},
+      {head + "pipeline: {median: 99}\n", "daemon.yaml: pipeline.median", "[0, 15]"},
+      {head + "pipeline: {refine_iterations: -1}\n", "daemon.yaml: pipeline.refine_iterations",
+       "[0, 5]"},
+      {head + "pipeline: {min_confidence: .nan}\n", "daemon.yaml: pipeline.min_confidence",
+       "finite"},
+      {head + "pipeline: {inlier_sigmas: -.inf}\n", "daemon.yaml: pipeline.inlier_sigmas",
+       "finite"},
+      {head + "lcm: {status_hz: .nan}\n", "daemon.yaml: lcm.status_hz", "finite"},
+      {head + "lcm: {status_hz: 1000}\n", "daemon.yaml: lcm.status_hz", "(0, 100]"},
+      {head + "pipeline: {window: 3000000000}\n", "daemon.yaml: pipeline.window", "an integer"},
+      {head + "pipeline: {step: 2.5}\n", "daemon.yaml: pipeline.step", "an integer"},
+  };
+  for (const Case& c : cases) {
+    SCOPED_TRACE(c.yaml);
+    const auto problems = problemsOf(c.yaml);
+    ASSERT_FALSE(problems.empty());
+    bool found = false;
+    for (const auto& p : problems)
+      found |= p.rfind(c.field, 0) == 0 && p.find(c.says) != std::string::npos;
+    EXPECT_TRUE(found) << "expected '" << c.field << "' ... '" << c.says << "' in:\n"
+                       << joined(problems);
+  }
+  // The upper bounds themselves are accepted.
+  EXPECT_TRUE(problemsOf("source: {type: v4l2, width: 8192, height: 8192, fps: 1000}\n"
+                         "calibration: c.yaml\n")
+                  .empty());
+}
+
+TEST(DaemonConfig, OddYamlShapesAreProblemsNotExceptions) {
+  // Non-scalar keys, a sequence where a map belongs, a map where a number belongs.
+  for (const std::string& text :
+       {std::string("? [a, b]\n: 1\nsource: {type: file, path: x}\ncalibration: c\n"),
+        std::string("source: [1, 2]\ncalibration: c\n"),
+        std::string("source: {type: file, path: x}\ncalibration: {a: 1}\n"),
+        std::string("source: {type: file, path: x, fps: {a: 1}}\ncalibration: c\n"),
+        std::string("- 1\n- 2\n"), std::string("just text\n")}) {
+    SCOPED_TRACE(text);
+    try {
+      DaemonConfig::parse(text, "daemon.yaml", "/tmp");
+      ADD_FAILURE() << "accepted";
+    } catch (const ConfigError& e) {
+      EXPECT_FALSE(e.problems().empty());
+      EXPECT_NE(std::string(e.what()).find("daemon.yaml"), std::string::npos) << e.what();
+    }
+  }
+  EXPECT_TRUE(mentions(problemsOf("? [a, b]\n: 1\nsource: {type: file, path: x}\ncalibration: c\n"),
+                       "keys must be plain names"));
+}
+
+TEST(DaemonConfig, PipelineSizesAreCheckedAgainstTheCalibrationBeforeAnythingIsAllocated) {
+  Calibration cal;  // 1100 x 110 panorama
+  const auto c = DaemonConfig::parse("source: {type: file, path: r}\ncalibration: c.yaml\n",
+                                     "/etc/d.yaml", "/etc");
+  EXPECT_EQ(c.origin, "/etc/d.yaml");
+  EXPECT_TRUE(c.checkAgainst(cal, c.origin).empty()) << "the paper's setting fits";
+  auto tall = c;
+  tall.pipeline.registration.window = 200;
+  const auto p1 = tall.checkAgainst(cal, tall.origin);
+  ASSERT_EQ(p1.size(), 1u);
+  EXPECT_NE(p1[0].find("/etc/d.yaml: pipeline.window: 200 is larger than the panorama (1100 x 110"),
+            std::string::npos)
+      << p1[0];
+  auto dense = c;
+  dense.pipeline.registration.step = 1;
+  dense.pipeline.registration.window = 110;
+  cal.panorama.width = 8000;
+  const auto p2 = dense.checkAgainst(cal, dense.origin);
+  ASSERT_EQ(p2.size(), 1u);
+  EXPECT_NE(p2[0].find("/etc/d.yaml: pipeline.step: 1 gives 8000 windows"), std::string::npos) << p2[0];
+  EXPECT_NE(p2[0].find("largest supported is 16777216"), std::string::npos) << p2[0];
 }
 
 }  // namespace

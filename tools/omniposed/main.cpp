@@ -6,6 +6,7 @@
 /// failed (bad configuration, calibration, source or LCM URL; every problem is printed);
 /// 2 = bad command line.
 
+#include <csignal>
 #include <cstdio>
 #include <cstring>
 #include <exception>
@@ -26,8 +27,10 @@ constexpr const char* kUsage =
     "                  and exit; opens no camera\n"
     "  -h, --help      this text\n"
     "\n"
-    "Stops cleanly on SIGINT/SIGTERM (exit 0); a finite file source ends the daemon after the\n"
-    "last frame's pose and a final status (exit 0).\n";
+    "Stops cleanly on SIGINT/SIGTERM (exit 0; a second one during the shutdown is ignored);\n"
+    "a finite file source ends the daemon after the last frame's pose and a final status\n"
+    "(exit 0). SIGHUP does not reload the configuration: it logs the counters and the daemon\n"
+    "keeps running.\n";
 
 }  // namespace
 
@@ -35,6 +38,8 @@ int main(int argc, char** argv) {
   // Before anything can start a thread: every thread inherits the blocked stop signals and
   // the main thread collects them with sigtimedwait().
   omnipose::daemon::blockStopSignals();
+  // A closed stderr pipe (e.g. the log collector restarted) must not kill the daemon.
+  std::signal(SIGPIPE, SIG_IGN);
 
   std::string config_path;
   bool check_only = false;

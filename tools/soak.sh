@@ -1,0 +1,142 @@
+#!/usr/bin/env bash
+# Soak run: omniposed on a looping file source (a rendered 60-frame recording, realtime off:
+# every frame is processed, as fast as the pipeline goes) for at least FRAMES frames, with a
+# file:// LCM log. Every SAMPLE seconds it sends SIGHUP (the daemon logs its counters) and
+# samples the daemon's resident set size (VmRSS). Then SIGTERM, and the checks:
+#   - the daemon stops with exit code 0;
+#   - no frame is unaccounted for: received = processed + skipped + bad, from the final status
+#     in the LCM log, and the log holds exactly `processed` poses;
+#   - memory is flat: after the warm-up (the first max(1000, FRAMES/10) frames), no RSS
+#     sample exceeds the first post-warm-up sample by more than RSS_TOLERANCE_KB.
+# Usage: tools/soak.sh [FRAMES]   (default 10000)
+# Environment: BUILD_DIR (default build; built with tools/build.sh when omniposed is missing),
+# SAMPLE (seconds between samples, default 5), RSS_TOLERANCE_KB (default 512), NICE (default 10),
+# KEEP=1 keeps the working directory.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+frames=${1:-10000}
+if ! [[ "$frames" =~ ^[0-9]+$ ]] || [ "$frames" -lt 1 ]; then
+  echo "usage: tools/soak.sh [FRAMES]" >&2
+  exit 2
+fi
+build=${BUILD_DIR:-build}
+bin=$build/bin
+sample=${SAMPLE:-5}
+tolerance_kb=${RSS_TOLERANCE_KB:-512}
+nice_level=${NICE:-10}
+if [ ! -x "$bin/omniposed" ] || [ ! -x "$bin/omnipose-synth" ] || [ ! -x "$bin/omnipose-listen" ]; then
+  bash tools/build.sh
+fi
+
+work=$(mktemp -d "${TMPDIR:-/tmp}/omnipose-soak-XXXXXX")
+pid=""
+cleanup() {
+  if [ -n "$pid" ] && kill -0 "$pid" 2>/dev/null; then kill -KILL "$pid" 2>/dev/null || true; fi
+  if [ "${KEEP:-0}" = 1 ]; then echo "soak: kept $work"; else rm -rf "$work"; fi
+}
+trap cleanup EXIT
+
+echo "soak: rendering the recording"
+"$bin/omnipose-synth" --texture tests/data/equirect/indoor_1024x512.jpg --out "$work/data" \
+  --preset mixed --frames 60 --seed 7 --supersample 1 >"$work/synth.log" 2>&1
+cat >"$work/daemon.yaml" <<YAML
+source: {type: file, path: data, realtime: false, loop: true}
+calibration: data/calibration.yaml
+lcm: {url: "file://$work/soak.lcm?mode=w", status_hz: 1}
+YAML
+
+nice -n "$nice_level" "$bin/omniposed" --config "$work/daemon.yaml" 2>"$work/daemon.err" &
+pid=$!
+start=$(date +%s.%N)
+warmup=$(( frames / 10 > 1000 ? frames / 10 : 1000 ))
+baseline_kb=""
+max_after_kb=0
+last_kb=0
+processed=0
+samples=0
+printf 'soak: %8s %10s %10s\n' seconds processed rss_kB
+while :; do
+  sleep "$sample"
+  if ! kill -0 "$pid" 2>/dev/null; then
+    echo "soak: FAIL: omniposed died:" >&2
+    tail -20 "$work/daemon.err" >&2
+    exit 1
+  fi
+  rss_kb=$(awk '/^VmRSS:/ {print $2}' "/proc/$pid/status")
+  hups=$(grep -c 'SIGHUP received' "$work/daemon.err" || true)
+  kill -HUP "$pid"
+  for _ in $(seq 100); do
+    [ "$(grep -c 'SIGHUP received' "$work/daemon.err" || true)" -gt "$hups" ] && break
+    sleep 0.05
+  done
+  processed=$(sed -n 's/.*SIGHUP received.*processed \([0-9]*\),.*/\1/p' "$work/daemon.err" | tail -1)
+  processed=${processed:-0}
+  now=$(date +%s.%N)
+  printf 'soak: %8.0f %10d %10d\n' "$(awk -v a="$now" -v b="$start" 'BEGIN {print a - b}')" "$processed" "$rss_kb"
+  samples=$((samples + 1))
+  last_kb=$rss_kb
+  if [ "$processed" -ge "$warmup" ]; then
+    if [ -z "$baseline_kb" ]; then
+      baseline_kb=$rss_kb
+    elif [ "$rss_kb" -gt "$max_after_kb" ]; then
+      max_after_kb=$rss_kb
+    fi
+  fi
+  if [ "$processed" -ge "$frames" ]; then break; fi
+done
+
+kill -TERM "$pid"
+rc=0
+wait "$pid" || rc=$?
+pid=""
+end=$(date +%s.%N)
+if [ "$rc" -ne 0 ]; then
+  echo "soak: FAIL: omniposed exited with $rc" >&2
+  tail -20 "$work/daemon.err" >&2
+  exit 1
+fi
+
+"$bin/omnipose-listen" --url "file://$work/soak.lcm?speed=0" >"$work/listen.txt" 2>&1 || true
+final=$(grep '^status (final):' "$work/listen.txt" | tail -1)
+if [ -z "$final" ]; then
+  echo "soak: FAIL: no final status in the LCM log" >&2
+  exit 1
+fi
+field() { sed -n "s/.* $1 \([0-9]*\).*/\1/p" <<<"$final"; }
+received=$(field received)
+f_processed=$(field processed)
+skipped=$(field skipped)
+bad=$(field bad)
+poses=$(grep -c '^pose seq ' "$work/listen.txt" || true)
+seconds=$(awk -v a="$end" -v b="$start" 'BEGIN {print a - b}')
+
+fail=0
+echo "soak: final status: $final"
+if [ "$received" -ne $((f_processed + skipped + bad)) ]; then
+  echo "soak: FAIL: received $received != processed $f_processed + skipped $skipped + bad $bad" >&2
+  fail=1
+fi
+if [ "$poses" -ne "$f_processed" ]; then
+  echo "soak: FAIL: the log holds $poses poses, the final status says $f_processed processed" >&2
+  fail=1
+fi
+if [ "$f_processed" -lt "$frames" ]; then
+  echo "soak: FAIL: only $f_processed frames processed, wanted $frames" >&2
+  fail=1
+fi
+if [ -z "$baseline_kb" ] || [ "$max_after_kb" -eq 0 ]; then
+  echo "soak: FAIL: fewer than two RSS samples after the warm-up ($warmup frames); run longer" >&2
+  fail=1
+else
+  growth=$((max_after_kb - baseline_kb))
+  if [ "$growth" -gt "$tolerance_kb" ]; then
+    echo "soak: FAIL: RSS grew by $growth kB after the warm-up (tolerance $tolerance_kb kB)" >&2
+    fail=1
+  fi
+fi
+printf 'soak: %d frames in %.0f s (%.1f frames/s); received %d = processed %d + skipped %d + bad %d; %d poses in the log; RSS after warm-up (%d frames) %s kB, max later %s kB, last %s kB (growth %s kB, tolerance %d kB); %d samples\n' \
+  "$f_processed" "$seconds" "$(awk -v n="$f_processed" -v s="$seconds" 'BEGIN {print n / s}')" "$received" "$f_processed" \
+  "$skipped" "$bad" "$poses" "$warmup" "${baseline_kb:-?}" "$max_after_kb" "$last_kb" \
+  "${growth:-?}" "$tolerance_kb" "$samples"
+if [ "$fail" -ne 0 ]; then exit 1; fi
+echo "soak: PASS"
