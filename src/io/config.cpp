@@ -87,11 +87,12 @@ void parseSource(Reader& r, const YAML::Node& node, const std::filesystem::path&
   r.require(s.fps > 0 && s.fps <= 1000, "source.fps", "must be in (0, 1000]");
 }
 
-void parsePipeline(Reader& r, const YAML::Node& node, PipelineOptions& p) {
+void parsePipeline(Reader& r, const YAML::Node& node, const std::filesystem::path& base_dir,
+                   PipelineOptions& p) {
   if (!r.checkMap(node, "pipeline",
                   {"window", "step", "huber_delta_px", "median", "refine_iterations",
                    "use_rotation_scale", "estimate_rotation_scale", "min_confidence",
-                   "inlier_sigmas"}))
+                   "inlier_sigmas", "threads", "fftw_wisdom"}))
     return;
   r.get(node, "pipeline", "window", p.registration.window);
   r.get(node, "pipeline", "step", p.registration.step);
@@ -102,6 +103,13 @@ void parsePipeline(Reader& r, const YAML::Node& node, PipelineOptions& p) {
   r.get(node, "pipeline", "estimate_rotation_scale", p.registration.estimate_rotation_scale);
   r.get(node, "pipeline", "min_confidence", p.registration.min_confidence);
   r.get(node, "pipeline", "inlier_sigmas", p.fit.inlier_sigmas);
+  r.get(node, "pipeline", "threads", p.threads);
+  std::string wisdom;
+  r.get(node, "pipeline", "fftw_wisdom", wisdom);
+  if (!wisdom.empty())
+    p.fftw_wisdom = (std::filesystem::path(wisdom).is_absolute() ? std::filesystem::path(wisdom)
+                                                                  : base_dir / wisdom)
+                        .string();
 }
 
 void parseLcm(Reader& r, const YAML::Node& node, LcmConfig& l) {
@@ -162,7 +170,7 @@ DaemonConfig DaemonConfig::parse(const std::string& text, const std::string& ori
     else if (input == "panorama") c.pipeline.unwrap.input = InputKind::kPanorama;
     else r.problem("input", "'" + input + "' is not omni or panorama");
 
-    if (root["pipeline"]) parsePipeline(r, root["pipeline"], c.pipeline);
+    if (root["pipeline"]) parsePipeline(r, root["pipeline"], base_dir, c.pipeline);
     if (root["lcm"]) parseLcm(r, root["lcm"], c.lcm);
     for (const auto& p : c.pipeline.validate()) problems.push_back(origin + ": pipeline." + p);
   }
@@ -206,7 +214,8 @@ std::string DaemonConfig::describe() const {
     << std::boolalpha << p.fit.use_rotation_scale
     << "\n  estimate_rotation_scale: " << p.registration.estimate_rotation_scale
     << "\n  min_confidence: " << p.registration.min_confidence
-    << "\n  inlier_sigmas: " << p.fit.inlier_sigmas << "\n"
+    << "\n  inlier_sigmas: " << p.fit.inlier_sigmas << "\n  threads: " << p.threads
+    << "\n  fftw_wisdom: \"" << p.fftw_wisdom << "\"\n"
     << "lcm:\n  url: \"" << lcm.url << "\"\n  pose_channel: " << lcm.pose_channel
     << "\n  status_channel: " << lcm.status_channel << "\n  fit_channel: \"" << lcm.fit_channel
     << "\"\n  status_hz: " << lcm.status_hz << "\n";

@@ -32,6 +32,11 @@ PanoramaWarp::PanoramaWarp(const PanoramaGeometry& geometry) : geometry_(geometr
 }
 
 void PanoramaWarp::derotate(const cv::Mat& current, const Eigen::Matrix3d& R, cv::Mat& out) {
+  prepare(current, R);
+  derotateRows(out, 0, geometry_.height);
+}
+
+void PanoramaWarp::prepare(const cv::Mat& current, const Eigen::Matrix3d& R) {
   const int W = geometry_.width, H = geometry_.height;
   const double gamma = geometry_.gamma();
   const Eigen::Matrix3d Rt = R.transpose();
@@ -60,12 +65,15 @@ void PanoramaWarp::derotate(const cv::Mat& current, const Eigen::Matrix3d& R, cv
   current.copyTo(padded_(cv::Rect(kPad, 0, W, H)));
   current(cv::Rect(W - kPad, 0, kPad, H)).copyTo(padded_(cv::Rect(0, 0, kPad, H)));
   current(cv::Rect(0, 0, kPad, H)).copyTo(padded_(cv::Rect(W + kPad, 0, kPad, H)));
+}
 
+void PanoramaWarp::derotateRows(cv::Mat& out, int first, int last) const {
+  const int W = geometry_.width, H = geometry_.height;
   // Bilinear interpolation of the (smooth) displacement; bicubic sampling of the image
   // (a = -0.75): the sampler's phase response must be linear, or the residual shifts are
   // biased by the fractional part of the motion.
   const int PW = padded_.cols;
-  for (int v = 0; v < H; ++v) {
+  for (int v = first; v < last; ++v) {
     const int gy = v / kGridStep;
     const float fy = static_cast<float>(v - gy * kGridStep) / kGridStep;
     const float* du0 = &grid_du_[static_cast<std::size_t>(gy) * grid_cols_];

@@ -23,6 +23,12 @@ class PanoramaWarp {
   /// `current` and `out`: CV_32FC1, W x H; `out` must be allocated and distinct.
   void derotate(const cv::Mat& current, const Eigen::Matrix3d& R, cv::Mat& out);
 
+  /// derotate() in two steps, so the rows can be shared between threads: prepare() (serial)
+  /// evaluates the projection on the grid and pads `current`; derotateRows() writes rows
+  /// [first, last) of `out` and may run concurrently on disjoint ranges. Same result.
+  void prepare(const cv::Mat& current, const Eigen::Matrix3d& R);
+  void derotateRows(cv::Mat& out, int first, int last) const;
+
  private:
   static constexpr int kGridStep = 4;
   static constexpr int kPad = 160;  ///< columns of wrap-around padding on each side
