@@ -36,6 +36,10 @@ class PanoramaWarp {
   PanoramaGeometry geometry_;
   int grid_cols_ = 0, grid_rows_ = 0;
   std::vector<float> grid_du_, grid_dv_;  ///< displacement at grid points, pixels
+  // Start-up tables: the unit-cylinder point of every grid column and row, so prepare()
+  // evaluates no sine or cosine per frame.
+  std::vector<double> grid_theta_, grid_cos_, grid_sin_;  ///< per grid column
+  std::vector<double> grid_h_;                            ///< per grid row
   cv::Mat padded_;                        ///< current panorama with wrapped borders
 };
 
