@@ -12,14 +12,15 @@
 /// camera centre). The residual rotation is small, so its first-order error is negligible;
 /// translation stays first order (it is small per frame), with per-window inverse depth.
 ///
-/// Realtime: the constructor allocates everything; process() allocates nothing and never
-/// throws. Not thread-safe: one instance per processing thread.
+/// Realtime: the constructor allocates everything (the worker threads included); process()
+/// allocates nothing and never throws. Not thread-safe: one caller at a time.
 
 #include <Eigen/Core>
 #include <chrono>
 #include <memory>
 #include <opencv2/core.hpp>
 #include <span>
+#include <string>
 
 #include "omnipose/calibration.hpp"
 #include "omnipose/error.hpp"
@@ -37,6 +38,14 @@ struct PipelineOptions {
   MotionFit::Options fit;
   /// Warp-and-refit passes after the linear fit (0 = plain first-order fit).
   int refine_iterations = 1;
+  /// Worker threads for the window registration and the de-rotation, the processing thread
+  /// included, created at start-up (1 = everything on the calling thread; 0 = all online
+  /// cores). The result is bit-identical for any value. registration.threads is ignored.
+  int threads = 0;
+  /// FFTW wisdom file ("" = none): loaded before the FFT plans are made, so every start-up
+  /// uses the same FFT algorithms (deterministic speed and results); when it does not exist
+  /// yet, the plans are measured and the file is written (first start).
+  std::string fftw_wisdom;
 
   /// Every problem, one message per bad field, prefixed by its section (empty = valid).
   std::vector<std::string> validate() const;
@@ -64,6 +73,10 @@ class Pipeline final : public MotionEstimator {
   const cv::Mat& lastPanorama() const;
   const Calibration& calibration() const;
   const PipelineOptions& options() const;
+  /// Worker threads in use (PipelineOptions::threads resolved; the calling thread included).
+  int threads() const;
+  /// Whether options().fftw_wisdom was loaded (true) or measured and written (false).
+  bool wisdomLoaded() const;
 
  private:
   struct Impl;

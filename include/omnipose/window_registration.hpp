@@ -15,9 +15,12 @@
 /// reference rotated counter-clockwise by phi and scaled by s.
 ///
 /// Realtime: the constructor allocates everything (FFTW plans, aligned buffers, the
-/// reference spectra); measure()/advance() allocate nothing and never throw. Not
-/// thread-safe: one instance per processing thread (construction and destruction take a
-/// process-wide lock around the FFTW planner).
+/// reference spectra, the worker threads); measure()/advance() allocate nothing and never
+/// throw. Windows are registered in parallel on a pool of Options::threads workers (the
+/// calling thread is one of them), each with its own FFTW plans and buffers; every window's
+/// result is computed by the same code on the same data whichever worker runs it, so the
+/// output is bit-identical for any thread count. Not thread-safe: one caller at a time
+/// (construction and destruction take a process-wide lock around the FFTW planner).
 ///
 /// Accuracy on real texture (tests/registration, paper setting, every window): shifts
 /// 0..3 px within 0.03 px; rotations 0..3 deg within 0.09 deg and scales 0.97..1.03 within
@@ -31,6 +34,10 @@
 #include <string>
 
 namespace omnipose {
+
+namespace registration {
+class WorkerPool;  // private (src/registration/worker_pool.hpp)
+}
 
 /// Motion of one window between the reference and the current panorama.
 /// A confidence is the height of the phase-correlation peak (1 for identical content) above
@@ -68,6 +75,7 @@ class WindowRegistration {
     double min_usable_fraction = 0.5;  ///< with a mask (setValidity): windows whose
                                        ///< taper-weighted usable fraction is below this
                                        ///< are not measured (WindowMotion::masked)
+    int threads = 1;  ///< workers (calling thread included); 0 = all online cores; in [0, 256]
 
     /// Empty string when valid, else a message naming the bad field.
     std::string validate() const;
@@ -75,11 +83,16 @@ class WindowRegistration {
 
   /// Throws std::invalid_argument (naming the field) when options are invalid.
   explicit WindowRegistration(const Options& options);
+  /// Internal (the pipeline): runs on `pool` (shared with other stages) instead of a pool of
+  /// its own; options.threads is ignored. `pool` must outlive this object.
+  WindowRegistration(const Options& options, registration::WorkerPool& pool);
   ~WindowRegistration();
   WindowRegistration(const WindowRegistration&) = delete;
   WindowRegistration& operator=(const WindowRegistration&) = delete;
 
   const Options& options() const;
+  /// Number of workers (the calling thread included).
+  int threads() const;
   /// Number of windows per panorama.
   int windowCount() const;
   /// Centre column of window k, pixels.

@@ -139,11 +139,12 @@ void parseSource(Reader& r, const YAML::Node& node, const std::filesystem::path&
   r.rangeAbove(s.fps, "source.fps", 0.0, 1000.0, " frames per second");
 }
 
-void parsePipeline(Reader& r, const YAML::Node& node, PipelineOptions& p) {
+void parsePipeline(Reader& r, const YAML::Node& node, const std::filesystem::path& base_dir,
+                   PipelineOptions& p) {
   if (!r.checkMap(node, "pipeline",
                   {"window", "step", "huber_delta_px", "median", "refine_iterations",
                    "use_rotation_scale", "estimate_rotation_scale", "min_confidence",
-                   "inlier_sigmas"}))
+                   "inlier_sigmas", "threads", "fftw_wisdom"}))
     return;
   r.get(node, "pipeline", "window", p.registration.window);
   r.get(node, "pipeline", "step", p.registration.step);
@@ -154,6 +155,13 @@ void parsePipeline(Reader& r, const YAML::Node& node, PipelineOptions& p) {
   r.get(node, "pipeline", "estimate_rotation_scale", p.registration.estimate_rotation_scale);
   r.get(node, "pipeline", "min_confidence", p.registration.min_confidence);
   r.get(node, "pipeline", "inlier_sigmas", p.fit.inlier_sigmas);
+  r.get(node, "pipeline", "threads", p.threads);
+  std::string wisdom;
+  r.get(node, "pipeline", "fftw_wisdom", wisdom);
+  if (!wisdom.empty())
+    p.fftw_wisdom = (std::filesystem::path(wisdom).is_absolute() ? std::filesystem::path(wisdom)
+                                                                  : base_dir / wisdom)
+                        .string();
   // Bounds before anything is sized by them (the pipeline allocates per window).
   r.range(p.registration.window, "pipeline.window", 16, DaemonConfig::kMaxWindow, " pixels");
   r.range(p.registration.step, "pipeline.step", 1, DaemonConfig::kMaxStep, " pixels");
@@ -162,6 +170,7 @@ void parsePipeline(Reader& r, const YAML::Node& node, PipelineOptions& p) {
   r.range(p.refine_iterations, "pipeline.refine_iterations", 0, 5);
   r.range(p.registration.min_confidence, "pipeline.min_confidence", 0.0, 1.0);
   r.rangeAbove(p.fit.inlier_sigmas, "pipeline.inlier_sigmas", 0.0, 100.0);
+  r.range(p.threads, "pipeline.threads", 0, 256, " (0 = all online cores)");
 }
 
 void parseLcm(Reader& r, const YAML::Node& node, LcmConfig& l) {
@@ -223,7 +232,7 @@ DaemonConfig DaemonConfig::parse(const std::string& text, const std::string& ori
     else if (input == "panorama") c.pipeline.unwrap.input = InputKind::kPanorama;
     else r.problem("input", "'" + input + "' is not omni or panorama");
 
-    if (root["pipeline"]) parsePipeline(r, root["pipeline"], c.pipeline);
+    if (root["pipeline"]) parsePipeline(r, root["pipeline"], base_dir, c.pipeline);
     if (root["lcm"]) parseLcm(r, root["lcm"], c.lcm);
     for (const auto& p : c.pipeline.validate()) problems.push_back(origin + ": pipeline." + p);
   }
@@ -292,7 +301,8 @@ std::string DaemonConfig::describe() const {
     << std::boolalpha << p.fit.use_rotation_scale
     << "\n  estimate_rotation_scale: " << p.registration.estimate_rotation_scale
     << "\n  min_confidence: " << p.registration.min_confidence
-    << "\n  inlier_sigmas: " << p.fit.inlier_sigmas << "\n"
+    << "\n  inlier_sigmas: " << p.fit.inlier_sigmas << "\n  threads: " << p.threads
+    << "\n  fftw_wisdom: \"" << p.fftw_wisdom << "\"\n"
     << "lcm:\n  url: \"" << lcm.url << "\"\n  pose_channel: " << lcm.pose_channel
     << "\n  status_channel: " << lcm.status_channel << "\n  fit_channel: \"" << lcm.fit_channel
     << "\"\n  status_hz: " << lcm.status_hz << "\n";

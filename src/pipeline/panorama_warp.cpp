@@ -4,24 +4,13 @@
 #include <cmath>
 #include <numbers>
 
+#include "registration/simd.hpp"
+
 namespace omnipose {
-namespace {
-
-/// Cubic convolution weights (Keys kernel with a = -0.75, OpenCV's INTER_CUBIC) for the
-/// 4 taps at -1, 0, 1, 2 of offset t in [0, 1). Of the cubic kernels this one has the
-/// most linear phase: a = -0.5 leaves a shift bias of about 0.03 px after resampling,
-/// which phase correlation reads as motion (docs/results/experiments/resample_bias.cpp).
-inline void cubicWeights(float t, float w[4]) {
-  constexpr float a = -0.75f;
-  auto near = [](float x) { return ((a + 2) * x - (a + 3)) * x * x + 1; };        // |x| <= 1
-  auto far = [](float x) { return ((a * x - 5 * a) * x + 8 * a) * x - 4 * a; };  // 1 < |x| < 2
-  w[0] = far(1 + t);
-  w[1] = near(t);
-  w[2] = near(1 - t);
-  w[3] = far(2 - t);
-}
-
-}  // namespace
+// Image sampling: cubic convolution (Keys kernel with a = -0.75, OpenCV's INTER_CUBIC). Of
+// the cubic kernels this one has the most linear phase: a = -0.5 leaves a shift bias of
+// about 0.03 px after resampling, which phase correlation reads as motion
+// (docs/results/experiments/resample_bias.cpp).
 
 PanoramaWarp::PanoramaWarp(const PanoramaGeometry& geometry) : geometry_(geometry) {
   grid_cols_ = geometry.width / kGridStep + 2;
@@ -29,9 +18,21 @@ PanoramaWarp::PanoramaWarp(const PanoramaGeometry& geometry) : geometry_(geometr
   grid_du_.resize(static_cast<std::size_t>(grid_cols_) * grid_rows_);
   grid_dv_.resize(grid_du_.size());
   padded_.create(geometry.height, geometry.width + 2 * kPad, CV_32FC1);
+  for (int gx = 0; gx < grid_cols_; ++gx) {
+    const double theta = geometry.azimuth(gx * kGridStep);
+    grid_theta_.push_back(theta);
+    grid_cos_.push_back(std::cos(theta));
+    grid_sin_.push_back(std::sin(theta));
+  }
+  for (int gy = 0; gy < grid_rows_; ++gy) grid_h_.push_back(geometry.cylinderHeight(gy * kGridStep));
 }
 
 void PanoramaWarp::derotate(const cv::Mat& current, const Eigen::Matrix3d& R, cv::Mat& out) {
+  prepare(current, R);
+  derotateRows(out, 0, geometry_.height);
+}
+
+void PanoramaWarp::prepare(const cv::Mat& current, const Eigen::Matrix3d& R) {
   const int W = geometry_.width, H = geometry_.height;
   const double gamma = geometry_.gamma();
   const Eigen::Matrix3d Rt = R.transpose();
@@ -39,11 +40,10 @@ void PanoramaWarp::derotate(const cv::Mat& current, const Eigen::Matrix3d& R, cv
   // Exact displacement on the grid: X_prev on the unit cylinder -> X_cur = R^T X.
   for (int gy = 0; gy < grid_rows_; ++gy) {
     const double v = gy * kGridStep;
-    const double h = geometry_.cylinderHeight(v);
+    const double h = grid_h_[gy];
     for (int gx = 0; gx < grid_cols_; ++gx) {
-      const double u = gx * kGridStep;
-      const double theta = geometry_.azimuth(u);
-      const Eigen::Vector3d X(std::cos(theta), std::sin(theta), h);
+      const double theta = grid_theta_[gx];
+      const Eigen::Vector3d X(grid_cos_[gx], grid_sin_[gx], h);
       const Eigen::Vector3d Y = Rt * X;
       const double rho = std::hypot(Y.x(), Y.y());
       // Azimuth change relative to theta, wrapped to (-pi, pi].
@@ -60,12 +60,39 @@ void PanoramaWarp::derotate(const cv::Mat& current, const Eigen::Matrix3d& R, cv
   current.copyTo(padded_(cv::Rect(kPad, 0, W, H)));
   current(cv::Rect(W - kPad, 0, kPad, H)).copyTo(padded_(cv::Rect(0, 0, kPad, H)));
   current(cv::Rect(0, 0, kPad, H)).copyTo(padded_(cv::Rect(W + kPad, 0, kPad, H)));
+}
 
+void PanoramaWarp::derotateRows(cv::Mat& out, int first, int last) const {
+  const int W = geometry_.width, H = geometry_.height;
   // Bilinear interpolation of the (smooth) displacement; bicubic sampling of the image
   // (a = -0.75): the sampler's phase response must be linear, or the residual shifts are
-  // biased by the fractional part of the motion.
+  // biased by the fractional part of the motion. Four pixels at a time: the 4 columns of one
+  // grid cell share their grid corners; per pixel the 4 x 4 taps are four row vectors
+  // weighted by the row weights, then by the column weights.
+  namespace simd = registration::simd;
+  static_assert(kGridStep == 4, "one grid cell = one group of four lanes");
   const int PW = padded_.cols;
-  for (int v = 0; v < H; ++v) {
+  const simd::F4 fx{0.0f, 0.25f, 0.5f, 0.75f};
+  const simd::F4 one = simd::broadcast(1.0f);
+  const simd::F4 x_lo = simd::broadcast(1.0f), x_hi = simd::broadcast(static_cast<float>(PW - 2.001f));
+  const simd::F4 lane{0.0f, 1.0f, 2.0f, 3.0f};
+  // Keys cubic (a = -0.75) weights of the taps at -1, 0, 1, 2 for offsets t (lane-wise).
+  const auto weights = [&](simd::F4 t, simd::F4 w[4]) {
+    constexpr float a = -0.75f;
+    const auto near = [&](simd::F4 x) {
+      return ((simd::broadcast(a + 2) * x - simd::broadcast(a + 3)) * x * x) + one;
+    };
+    const auto far = [&](simd::F4 x) {
+      return ((simd::broadcast(a) * x - simd::broadcast(5 * a)) * x + simd::broadcast(8 * a)) * x -
+             simd::broadcast(4 * a);
+    };
+    w[0] = far(one + t);
+    w[1] = near(t);
+    w[2] = near(one - t);
+    w[3] = far(simd::broadcast(2.0f) - t);
+  };
+  const float* rows[4];
+  for (int v = first; v < last; ++v) {
     const int gy = v / kGridStep;
     const float fy = static_cast<float>(v - gy * kGridStep) / kGridStep;
     const float* du0 = &grid_du_[static_cast<std::size_t>(gy) * grid_cols_];
@@ -73,27 +100,41 @@ void PanoramaWarp::derotate(const cv::Mat& current, const Eigen::Matrix3d& R, cv
     const float* dv0 = &grid_dv_[static_cast<std::size_t>(gy) * grid_cols_];
     const float* dv1 = dv0 + grid_cols_;
     float* dst = out.ptr<float>(v);
-    for (int u = 0; u < W; ++u) {
+    const simd::F4 fy4 = simd::broadcast(fy), gy4 = simd::broadcast(1.0f - fy);
+    for (int u = 0; u < W; u += kGridStep) {
       const int gx = u / kGridStep;
-      const float fx = static_cast<float>(u - gx * kGridStep) / kGridStep;
-      const float du = (1 - fy) * ((1 - fx) * du0[gx] + fx * du0[gx + 1]) +
-                       fy * ((1 - fx) * du1[gx] + fx * du1[gx + 1]);
-      const float dv = (1 - fy) * ((1 - fx) * dv0[gx] + fx * dv0[gx + 1]) +
-                       fy * ((1 - fx) * dv1[gx] + fx * dv1[gx + 1]);
-      const float x = std::clamp(u + du + kPad, 1.0f, static_cast<float>(PW - 2.001f));
-      const float y = v + dv;
-      const int x0 = static_cast<int>(x);
-      const int y0 = static_cast<int>(std::floor(y));
-      float wx[4], wy[4];
-      cubicWeights(x - x0, wx);
-      cubicWeights(y - y0, wy);
-      float sum = 0.0f;
-      for (int j = 0; j < 4; ++j) {
-        const int row = std::clamp(y0 - 1 + j, 0, H - 1);  // rows beyond the edge: replicate
-        const float* p = padded_.ptr<float>(row) + x0 - 1;
-        sum += wy[j] * (wx[0] * p[0] + wx[1] * p[1] + wx[2] * p[2] + wx[3] * p[3]);
+      // Displacement at the 4 columns of this cell (bilinear in the grid).
+      const simd::F4 du = gy4 * ((one - fx) * du0[gx] + fx * du0[gx + 1]) +
+                          fy4 * ((one - fx) * du1[gx] + fx * du1[gx + 1]);
+      const simd::F4 dv = gy4 * ((one - fx) * dv0[gx] + fx * dv0[gx + 1]) +
+                          fy4 * ((one - fx) * dv1[gx] + fx * dv1[gx + 1]);
+      const simd::F4 x = simd::min(simd::max(simd::broadcast(static_cast<float>(u + kPad)) + lane + du, x_lo), x_hi);
+      const simd::F4 y = simd::broadcast(static_cast<float>(v)) + dv;
+      float yf[4];
+      for (int l = 0; l < 4; ++l) yf[l] = std::floor(y[l]);
+      const simd::F4 y_floor{yf[0], yf[1], yf[2], yf[3]};
+      const simd::I4 x0 = __builtin_convertvector(x, simd::I4);  // x >= 1: truncation = floor
+      const simd::I4 y0 = __builtin_convertvector(y_floor, simd::I4);
+      simd::F4 wx[4], wy[4];
+      weights(x - __builtin_convertvector(x0, simd::F4), wx);
+      weights(y - y_floor, wy);
+      simd::F4 sum4 = simd::broadcast(0.0f);
+      for (int l = 0; l < 4 && u + l < W; ++l) {
+        for (int j = 0; j < 4; ++j) {
+          const int row = std::clamp(y0[l] - 1 + j, 0, H - 1);  // beyond the edge: replicate
+          rows[j] = padded_.ptr<float>(row) + x0[l] - 1;
+        }
+        const simd::F4 acc = simd::broadcast(wy[0][l]) * simd::load(rows[0]) +
+                             simd::broadcast(wy[1][l]) * simd::load(rows[1]) +
+                             simd::broadcast(wy[2][l]) * simd::load(rows[2]) +
+                             simd::broadcast(wy[3][l]) * simd::load(rows[3]);
+        sum4[l] = simd::sum(acc * simd::F4{wx[0][l], wx[1][l], wx[2][l], wx[3][l]});
       }
-      dst[u] = sum;
+      if (u + 4 <= W) {
+        simd::store(dst + u, sum4);
+      } else {
+        for (int l = 0; u + l < W; ++l) dst[u + l] = sum4[l];
+      }
     }
   }
 }

@@ -23,6 +23,12 @@ class PanoramaWarp {
   /// `current` and `out`: CV_32FC1, W x H; `out` must be allocated and distinct.
   void derotate(const cv::Mat& current, const Eigen::Matrix3d& R, cv::Mat& out);
 
+  /// derotate() in two steps, so the rows can be shared between threads: prepare() (serial)
+  /// evaluates the projection on the grid and pads `current`; derotateRows() writes rows
+  /// [first, last) of `out` and may run concurrently on disjoint ranges. Same result.
+  void prepare(const cv::Mat& current, const Eigen::Matrix3d& R);
+  void derotateRows(cv::Mat& out, int first, int last) const;
+
  private:
   static constexpr int kGridStep = 4;
   static constexpr int kPad = 160;  ///< columns of wrap-around padding on each side
@@ -30,6 +36,10 @@ class PanoramaWarp {
   PanoramaGeometry geometry_;
   int grid_cols_ = 0, grid_rows_ = 0;
   std::vector<float> grid_du_, grid_dv_;  ///< displacement at grid points, pixels
+  // Start-up tables: the unit-cylinder point of every grid column and row, so prepare()
+  // evaluates no sine or cosine per frame.
+  std::vector<double> grid_theta_, grid_cos_, grid_sin_;  ///< per grid column
+  std::vector<double> grid_h_;                            ///< per grid row
   cv::Mat padded_;                        ///< current panorama with wrapped borders
 };
 

@@ -1,10 +1,13 @@
 #include "omnipose/pipeline.hpp"
 
+#include <algorithm>
 #include <stdexcept>
 #include <vector>
 
 #include "omnipose/trajectory.hpp"
 #include "pipeline/panorama_warp.hpp"
+#include "registration/fft_plan.hpp"
+#include "registration/worker_pool.hpp"
 
 namespace omnipose {
 namespace {
@@ -39,6 +42,8 @@ std::vector<std::string> PipelineOptions::validate() const {
   if (auto bad = fit.validate(); !bad.empty()) problems.push_back("fit: " + bad);
   if (refine_iterations < 0 || refine_iterations > 5)
     problems.push_back("refine_iterations: must be in [0, 5]");
+  if (threads < 0 || threads > 256)
+    problems.push_back("threads: must be in [0, 256] (0 = all online cores)");
   return problems;
 }
 
@@ -46,8 +51,10 @@ struct Pipeline::Impl {
   Impl(const Calibration& c, const PipelineOptions& o)
       : calibration(c),
         options(o),
+        wisdom_loaded(registration::importWisdom(o.fftw_wisdom)),
+        pool(o.threads > 0 ? o.threads : registration::WorkerPool::onlineCores()),
         unwrapper(c, o.unwrap),
-        registration(registrationOptions(c, o)),
+        registration(registrationOptions(c, o), pool),
         fit(fitOptions(c, o), c.panorama.gamma(), o.registration.window),
         warp(c.panorama) {
     panorama = unwrapper.makePanorama();
@@ -57,10 +64,26 @@ struct Pipeline::Impl {
     windows.resize(registration.windowCount());
     refine_windows.resize(registration.windowCount());
     shifts_only.resize(registration.windowCount());  // rs_confidence 0: no rotation/scale
+    // First start with a wisdom file configured: keep what FFTW_MEASURE chose (best effort:
+    // an unwritable path only costs the determinism of the next start-up).
+    if (!o.fftw_wisdom.empty() && !wisdom_loaded) (void)registration::exportWisdom(o.fftw_wisdom);
+  }
+
+  /// De-rotates `panorama` into `warped` on the pool, in bands of rows.
+  void derotate(const Eigen::Matrix3d& R) {
+    warp.prepare(panorama, R);
+    const int rows = panorama.rows;
+    const int bands = std::min(rows, 4 * pool.size());
+    auto task = [&](int, int b) {
+      warp.derotateRows(warped, b * rows / bands, (b + 1) * rows / bands);
+    };
+    pool.run(bands, task);
   }
 
   Calibration calibration;
   PipelineOptions options;
+  bool wisdom_loaded;
+  registration::WorkerPool pool;
   Unwrapper unwrapper;
   WindowRegistration registration;
   MotionFit fit;
@@ -133,7 +156,7 @@ Expected<FrameMotion> Pipeline::process(const cv::Mat& frame) {
   Eigen::Vector3d tau = est.tau;
   for (int pass = 0; pass < s.options.refine_iterations && est.status != FitStatus::kLost;
        ++pass) {
-    s.warp.derotate(s.panorama, R, s.warped);
+    s.derotate(R);
     s.registration.measure(s.warped, s.refine_windows, false);
     const MotionEstimate residual = s.fit.fit(s.refine_windows, u0);
     if (residual.status == FitStatus::kLost) {
@@ -170,5 +193,7 @@ std::span<const WindowMotion> Pipeline::lastWindows() const { return impl_->wind
 const cv::Mat& Pipeline::lastPanorama() const { return impl_->panorama; }
 const Calibration& Pipeline::calibration() const { return impl_->calibration; }
 const PipelineOptions& Pipeline::options() const { return impl_->options; }
+int Pipeline::threads() const { return impl_->pool.size(); }
+bool Pipeline::wisdomLoaded() const { return impl_->wisdom_loaded; }
 
 }  // namespace omnipose

@@ -12,6 +12,16 @@ std::mutex& fftwPlannerMutex() {
   return mutex;
 }
 
+bool importWisdom(const std::string& path) {
+  std::lock_guard lock(fftwPlannerMutex());
+  return !path.empty() && fftwf_import_wisdom_from_filename(path.c_str()) != 0;
+}
+
+bool exportWisdom(const std::string& path) {
+  std::lock_guard lock(fftwPlannerMutex());
+  return !path.empty() && fftwf_export_wisdom_to_filename(path.c_str()) != 0;
+}
+
 template <class T>
 FftwArray<T>::FftwArray(std::size_t size) : size_(size) {
   data_ = static_cast<T*>(fftwf_malloc(sizeof(T) * std::max<std::size_t>(size, 1)));

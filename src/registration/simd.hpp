@@ -10,11 +10,22 @@
 
 #if defined(__SSE2__)
 #include <emmintrin.h>
+#define OMNIPOSE_SIMD_BACKEND "sse2"
 #elif defined(__ARM_NEON) && defined(__aarch64__)
 #include <arm_neon.h>
+#define OMNIPOSE_SIMD_BACKEND "neon"
+#else
+#define OMNIPOSE_SIMD_BACKEND "scalar"
+#endif
+#if defined(__aarch64__) && !defined(__ARM_NEON)
+#error "AArch64 without __ARM_NEON: simd.hpp would fall back to its scalar branch"
 #endif
 
 namespace omnipose::registration::simd {
+
+/// Which branch of this header was compiled: "sse2", "neon" or "scalar"
+/// (tools/arm64_check.sh checks for "neon" in the arm64 build).
+inline constexpr const char* kBackend = OMNIPOSE_SIMD_BACKEND;
 
 using F4 = float __attribute__((vector_size(16)));
 using I4 = int __attribute__((vector_size(16)));

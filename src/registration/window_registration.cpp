@@ -14,6 +14,7 @@
 #include "registration/log_polar.hpp"
 #include "registration/phase_correlator.hpp"
 #include "registration/simd.hpp"
+#include "registration/worker_pool.hpp"
 
 // Per window (DESIGN.md section 4; Buelow & Birk, iFMI):
 //   1. cut the L x L window (wrapping around u), remove its taper-weighted mean, apply a
@@ -180,6 +181,7 @@ std::string WindowRegistration::Options::validate() const {
     return "min_confidence must be in [0, 1]";
   if (!(min_usable_fraction >= 0.0 && min_usable_fraction <= 1.0))
     return "min_usable_fraction must be in [0, 1]";
+  if (threads < 0 || threads > 256) return "threads must be in [0, 256] (0 = all online cores)";
   return {};
 }
 
@@ -201,24 +203,10 @@ struct TaperedWindow {
   double energy = 0.0;  ///< sum of the squared tapered samples
 };
 
-struct WindowRegistration::Impl {
-  explicit Impl(const Options& o);
-
-  Options options;
-  int windows;    ///< windowCount()
-  int top;        ///< first panorama row of every window
-  int fft_size;   ///< n >= L: windows are zero-padded to n x n
-  double half;    ///< (L - 1) / 2: window centre offset from its first row/column
-
-  std::vector<float> taper;  ///< Hann, length L
-  double taper_weight;       ///< sum over the window of h_i h_j
-  double taper_weight2;      ///< sum over the window of (h_i h_j)^2
-
-  // Static mask (setValidity): per window, the taper times the feathered usable map,
-  // L x L each, window after window; empty = the plain separable taper everywhere.
-  std::vector<float> masked_taper;
-  std::vector<double> masked_weight, masked_weight2;  ///< per window: sum w, sum w^2
-  std::vector<unsigned char> mostly_masked;           ///< per window: not measured
+/// What one worker thread owns: its FFTW plans and every buffer it writes while it
+/// registers a window. Built once; nothing is shared between workers but read-only state.
+struct Worker {
+  explicit Worker(int fft_size);
 
   // Window stage: tapered window (n x n, zero padding) -> half spectrum.
   reg::FftwArray<float> window;
@@ -233,34 +221,12 @@ struct WindowRegistration::Impl {
   reg::FftPlan log_polar_fft;
   reg::PhaseCorrelator rotation_scale;
 
-  // Reference (previous frame) and candidate next reference; advance() swaps them.
-  std::unique_ptr<WindowSpectra> reference, next;
-  bool has_reference = false;
-  bool next_ready = false;
   // One window's bands when the current frame is not kept, and the de-rotated band.
   reg::FftwArray<reg::Complex> scratch_translation, scratch_log_polar, derotated;
-
-  double windowCenter(int k) const;
-  bool acceptsImage(const cv::Mat& panorama) const;
-  TaperedWindow loadWindow(const cv::Mat& panorama, int k);
-  TaperedWindow loadWarpedWindow(const cv::Mat& panorama, int k, double rotation, double scale);
-  TaperedWindow taperWindow(int k);
-  TaperedWindow taperMaskedWindow(int k);
-  void setValidity(const cv::Mat& validity);
-  TaperedWindow transformWindow(const cv::Mat& panorama, int k, reg::Complex* log_polar_band);
-  void measureWindow(const cv::Mat& panorama, int k, const TaperedWindow& cur,
-                     const reg::Complex* cur_translation, const reg::Complex* cur_log_polar,
-                     const WindowMotion* known, WindowMotion& out);
 };
 
-WindowRegistration::Impl::Impl(const Options& o)
-    : options(o),
-      windows((o.panorama_width + o.step - 1) / o.step),
-      top((o.panorama_height - o.window) / 2),
-      fft_size(reg::fastFftSize(o.window)),
-      half(0.5 * (o.window - 1)),
-      taper(hannTaper(o.window)),
-      window(static_cast<std::size_t>(fft_size) * fft_size),
+Worker::Worker(int fft_size)
+    : window(static_cast<std::size_t>(fft_size) * fft_size),
       spectrum(static_cast<std::size_t>(fft_size) * (fft_size / 2 + 1)),
       window_fft(reg::FftPlan::realToComplex(fft_size, fft_size, window.data(), spectrum.data())),
       translation(fft_size, fft_size, kTuning.translation_sigma_px, kTuning.translation_sigma_px),
@@ -274,16 +240,80 @@ WindowRegistration::Impl::Impl(const Options& o)
                                                 log_polar.data(), log_polar_spectrum.data())),
       rotation_scale(kTuning.log_polar_angles, kTuning.log_polar_radii, kTuning.log_polar_sigma,
                      kTuning.log_polar_sigma),
-      reference(std::make_unique<WindowSpectra>(windows, translation.bandSize(),
-                                                rotation_scale.bandSize())),
-      next(std::make_unique<WindowSpectra>(windows, translation.bandSize(),
-                                           rotation_scale.bandSize())),
       scratch_translation(translation.bandSize()),
       scratch_log_polar(rotation_scale.bandSize()),
       derotated(translation.bandSize()) {
   // FFTW_MEASURE planning wrote into the arrays; the zero padding must be zero.
   window.clear();
   log_polar.clear();
+}
+
+struct WindowRegistration::Impl {
+  Impl(const Options& o, reg::WorkerPool* shared_pool);
+
+  Options options;
+  int windows;    ///< windowCount()
+  int top;        ///< first panorama row of every window
+  int fft_size;   ///< n >= L: windows are zero-padded to n x n
+  double half;    ///< (L - 1) / 2: window centre offset from its first row/column
+
+  std::vector<float> taper;  ///< Hann, length L
+  double taper_weight;       ///< sum over the window of h_i h_j
+  double taper_weight2;      ///< sum over the window of (h_i h_j)^2
+
+  std::unique_ptr<reg::WorkerPool> own_pool;  ///< when no pool is shared
+  reg::WorkerPool* pool;
+  std::vector<std::unique_ptr<Worker>> workers;  ///< one per pool worker
+  std::size_t translation_band, log_polar_band;  ///< band sizes (the same for every worker)
+  double angle_step, log_step;                   ///< log-polar grid steps
+
+  // Static mask (setValidity): per window, the taper times the feathered usable map,
+  // L x L each, window after window; empty = the plain separable taper everywhere.
+  std::vector<float> masked_taper;
+  std::vector<double> masked_weight, masked_weight2;  ///< per window: sum w, sum w^2
+  std::vector<unsigned char> mostly_masked;           ///< per window: not measured
+
+  // Reference (previous frame) and candidate next reference; advance() swaps them.
+  std::unique_ptr<WindowSpectra> reference, next;
+  bool has_reference = false;
+  bool next_ready = false;
+
+  double windowCenter(int k) const;
+  bool mostlyMasked(int k) const { return !mostly_masked.empty() && mostly_masked[k]; }
+  void setValidity(const cv::Mat& validity);
+  bool acceptsImage(const cv::Mat& panorama) const;
+  TaperedWindow loadWindow(Worker& w, const cv::Mat& panorama, int k) const;
+  TaperedWindow loadWarpedWindow(Worker& w, const cv::Mat& panorama, int k, double rotation,
+                                 double scale) const;
+  TaperedWindow taperWindow(Worker& w, int k) const;
+  TaperedWindow taperMaskedWindow(Worker& w, int k) const;
+  TaperedWindow transformWindow(Worker& w, const cv::Mat& panorama, int k,
+                                reg::Complex* log_polar_band) const;
+  void measureWindow(Worker& w, const cv::Mat& panorama, int k, const TaperedWindow& cur,
+                     const reg::Complex* cur_translation, const reg::Complex* cur_log_polar,
+                     const WindowMotion* known, WindowMotion& out) const;
+};
+
+WindowRegistration::Impl::Impl(const Options& o, reg::WorkerPool* shared_pool)
+    : options(o),
+      windows((o.panorama_width + o.step - 1) / o.step),
+      top((o.panorama_height - o.window) / 2),
+      fft_size(reg::fastFftSize(o.window)),
+      half(0.5 * (o.window - 1)),
+      taper(hannTaper(o.window)),
+      own_pool(shared_pool != nullptr
+                   ? nullptr
+                   : std::make_unique<reg::WorkerPool>(
+                         o.threads > 0 ? o.threads : reg::WorkerPool::onlineCores())),
+      pool(shared_pool != nullptr ? shared_pool : own_pool.get()) {
+  workers.reserve(pool->size());
+  for (int i = 0; i < pool->size(); ++i) workers.push_back(std::make_unique<Worker>(fft_size));
+  translation_band = workers[0]->translation.bandSize();
+  log_polar_band = workers[0]->rotation_scale.bandSize();
+  angle_step = workers[0]->log_polar_map.angleStep();
+  log_step = workers[0]->log_polar_map.logRadiusStep();
+  reference = std::make_unique<WindowSpectra>(windows, translation_band, log_polar_band);
+  next = std::make_unique<WindowSpectra>(windows, translation_band, log_polar_band);
   double sum = 0.0, sum2 = 0.0;
   for (float h : taper) {
     sum += h;
@@ -302,22 +332,24 @@ bool WindowRegistration::Impl::acceptsImage(const cv::Mat& panorama) const {
          panorama.rows == options.panorama_height;
 }
 
-TaperedWindow WindowRegistration::Impl::loadWindow(const cv::Mat& panorama, int k) {
+TaperedWindow WindowRegistration::Impl::loadWindow(Worker& w, const cv::Mat& panorama,
+                                                   int k) const {
   // Window k covers columns k*step .. k*step + L - 1, wrapping around u.
   const int width = options.panorama_width, length = options.window;
   const int first_col = static_cast<int>((static_cast<long>(k) * options.step) % width);
   const int head = std::min(length, width - first_col);
   for (int i = 0; i < length; ++i) {
     const float* src = panorama.ptr<float>(top + i);
-    float* dst = window.data() + static_cast<std::size_t>(i) * fft_size;
+    float* dst = w.window.data() + static_cast<std::size_t>(i) * fft_size;
     std::memcpy(dst, src + first_col, sizeof(float) * head);
     std::memcpy(dst + head, src, sizeof(float) * (length - head));
   }
-  return taperWindow(k);
+  return taperWindow(w, k);
 }
 
-TaperedWindow WindowRegistration::Impl::loadWarpedWindow(const cv::Mat& panorama, int k,
-                                                         double rotation, double scale) {
+TaperedWindow WindowRegistration::Impl::loadWarpedWindow(Worker& w, const cv::Mat& panorama,
+                                                         int k, double rotation,
+                                                         double scale) const {
   // D(y) = C(c + (s R)^-1 y), y about the window centre c: content of D at y appears at
   // y + (du, dv) in the reference window. (s R)^-1 = (1/s) [[cos, -sin], [sin, cos]].
   const int width = options.panorama_width, length = options.window;
@@ -340,7 +372,7 @@ TaperedWindow WindowRegistration::Impl::loadWarpedWindow(const cv::Mat& panorama
     const double yv = i - half;
     const float u0 = static_cast<float>(u_centre - m00 * half + m01 * yv);
     const float v0 = static_cast<float>(v_centre - m10 * half + m11 * yv);
-    float* dst = window.data() + static_cast<std::size_t>(i) * fft_size;
+    float* dst = w.window.data() + static_cast<std::size_t>(i) * fft_size;
     if (wraps)
       sampleRowWrapped(origin, stride, width, u0, static_cast<float>(m00), v0,
                        static_cast<float>(m10), max_v, dst, length);
@@ -348,7 +380,7 @@ TaperedWindow WindowRegistration::Impl::loadWarpedWindow(const cv::Mat& panorama
       sampleRow(origin, stride, u0, static_cast<float>(m00), v0, static_cast<float>(m10), max_v,
                 dst, length);
   }
-  return taperWindow(k);
+  return taperWindow(w, k);
 }
 
 void WindowRegistration::Impl::setValidity(const cv::Mat& validity) {
@@ -377,14 +409,13 @@ void WindowRegistration::Impl::setValidity(const cv::Mat& validity) {
   masked_weight2.assign(windows, 0.0);
   for (int k = 0; k < windows; ++k) {
     const int first_col = static_cast<int>((static_cast<long>(k) * options.step) % width);
-    float* w = masked_taper.data() + static_cast<std::size_t>(k) * length * length;
+    float* wk = masked_taper.data() + static_cast<std::size_t>(k) * length * length;
     double usable_weight = 0.0;
     for (int i = 0; i < length; ++i) {
       const float* m = faded.ptr<float>(top + i);
       for (int j = 0; j < length; ++j) {
-        const float h = taper[i] * taper[j];
-        const float v = h * m[(first_col + j) % width];
-        w[i * length + j] = v;
+        const float v = taper[i] * taper[j] * m[(first_col + j) % width];
+        wk[i * length + j] = v;
         usable_weight += v;
         masked_weight2[k] += static_cast<double>(v) * v;
       }
@@ -394,21 +425,21 @@ void WindowRegistration::Impl::setValidity(const cv::Mat& validity) {
   }
 }
 
-TaperedWindow WindowRegistration::Impl::taperMaskedWindow(int k) {
+TaperedWindow WindowRegistration::Impl::taperMaskedWindow(Worker& w, int k) const {
   // As taperWindow() with the window's own weights w_ij = h_i h_j m_ij (m: the feathered
   // usable map): mean m = sum w x / sum w, x <- w (x - m); masked pixels become 0.
   const int length = options.window;
-  const float* w = masked_taper.data() + static_cast<std::size_t>(k) * length * length;
+  const float* wk = masked_taper.data() + static_cast<std::size_t>(k) * length * length;
   double weighted = 0.0;
   for (int i = 0; i < length; ++i)
-    weighted += dot(w + static_cast<std::size_t>(i) * length,
-                    window.data() + static_cast<std::size_t>(i) * fft_size, length);
+    weighted += dot(wk + static_cast<std::size_t>(i) * length,
+                    w.window.data() + static_cast<std::size_t>(i) * fft_size, length);
   const double mean = weighted / masked_weight[k];
   double energy = 0.0;
   for (int i = 0; i < length; ++i) {
-    float* row = window.data() + static_cast<std::size_t>(i) * fft_size;
-    const float* wr = w + static_cast<std::size_t>(i) * length;
-    energy += taperRow(row, wr, 1.0f, static_cast<float>(mean), length);
+    float* row = w.window.data() + static_cast<std::size_t>(i) * fft_size;
+    energy += taperRow(row, wk + static_cast<std::size_t>(i) * length, 1.0f,
+                       static_cast<float>(mean), length);
   }
   TaperedWindow out;
   out.energy = energy;
@@ -416,19 +447,19 @@ TaperedWindow WindowRegistration::Impl::taperMaskedWindow(int k) {
   return out;
 }
 
-TaperedWindow WindowRegistration::Impl::taperWindow(int k) {
-  if (!mostly_masked.empty() && mostly_masked[k]) return {};  // not measured
-  if (!masked_taper.empty()) return taperMaskedWindow(k);
+TaperedWindow WindowRegistration::Impl::taperWindow(Worker& w, int k) const {
+  if (mostlyMasked(k)) return {};  // not measured
+  if (!masked_taper.empty()) return taperMaskedWindow(w, k);
   // Taper-weighted mean m = sum_ij h_i h_j x_ij / sum_ij h_i h_j: the tapered window has no DC.
   const int length = options.window;
   double weighted = 0.0;
   for (int i = 0; i < length; ++i)
-    weighted += taper[i] * dot(taper.data(), window.data() + static_cast<std::size_t>(i) * fft_size, length);
+    weighted += taper[i] * dot(taper.data(), w.window.data() + static_cast<std::size_t>(i) * fft_size, length);
   const double mean = weighted / taper_weight;
   // x <- h_i h_j (x - m); texture = taper-weighted standard deviation.
   double energy = 0.0;
   for (int i = 0; i < length; ++i) {
-    float* row = window.data() + static_cast<std::size_t>(i) * fft_size;
+    float* row = w.window.data() + static_cast<std::size_t>(i) * fft_size;
     energy += taperRow(row, taper.data(), taper[i], static_cast<float>(mean), length);
   }
   TaperedWindow out;
@@ -438,28 +469,29 @@ TaperedWindow WindowRegistration::Impl::taperWindow(int k) {
   return out;
 }
 
-TaperedWindow WindowRegistration::Impl::transformWindow(const cv::Mat& panorama, int k,
-                                                      reg::Complex* log_polar_band) {
-  if (!mostly_masked.empty() && mostly_masked[k]) return {};  // not measured, no FFT
+TaperedWindow WindowRegistration::Impl::transformWindow(Worker& w, const cv::Mat& panorama, int k,
+                                                        reg::Complex* log_polar_band) const {
+  if (mostlyMasked(k)) return {};  // not measured, no FFT
   // Step 1: F_c of the tapered window (left in `spectrum`).
-  const TaperedWindow w = loadWindow(panorama, k);
-  window_fft.execute();
-  if (options.estimate_rotation_scale && w.textured && log_polar_band != nullptr) {
+  const TaperedWindow tw = loadWindow(w, panorama, k);
+  w.window_fft.execute();
+  if (options.estimate_rotation_scale && tw.textured && log_polar_band != nullptr) {
     // Step 2 (iFMI): the high-passed |F_c| in log-polar coordinates, then its own spectrum.
-    const double energy = log_polar_map.resample(spectrum.data(), log_polar.data());
-    log_polar_fft.execute();
-    rotation_scale.whiten(log_polar_spectrum.data(), energy, log_polar_band);
+    const double energy = w.log_polar_map.resample(w.spectrum.data(), w.log_polar.data());
+    w.log_polar_fft.execute();
+    w.rotation_scale.whiten(w.log_polar_spectrum.data(), energy, log_polar_band);
   }
-  return w;
+  return tw;
 }
 
-void WindowRegistration::Impl::measureWindow(const cv::Mat& panorama, int k, const TaperedWindow& cur,
+void WindowRegistration::Impl::measureWindow(Worker& w, const cv::Mat& panorama, int k,
+                                             const TaperedWindow& cur,
                                              const reg::Complex* cur_translation,
                                              const reg::Complex* cur_log_polar,
-                                             const WindowMotion* known, WindowMotion& out) {
+                                             const WindowMotion* known, WindowMotion& out) const {
   out = WindowMotion{};
   out.center_u = windowCenter(k);
-  out.masked = !mostly_masked.empty() && mostly_masked[k];
+  out.masked = mostlyMasked(k);
   if (!cur.textured || !reference->textured[k]) return;
 
   // Step 2: rotation and scale, log-polar phase correlation searched only inside the prior
@@ -473,10 +505,8 @@ void WindowRegistration::Impl::measureWindow(const cv::Mat& panorama, int k, con
       out.rs_confidence = known->rs_confidence;
     }
   } else if (options.estimate_rotation_scale) {
-    const double angle_step = log_polar_map.angleStep();
-    const double log_step = log_polar_map.logRadiusStep();
-    const reg::CorrelationPeak rs = rotation_scale.correlate(
-        reference->log_polar.data() + k * rotation_scale.bandSize(), cur_log_polar,
+    const reg::CorrelationPeak rs = w.rotation_scale.correlate(
+        reference->log_polar.data() + k * log_polar_band, cur_log_polar,
         options.max_rotation_rad / angle_step, options.max_log_scale / log_step);
     if (!rs.on_border && rs.confidence >= options.min_confidence && rs.confidence > 0.0) {
       rotation = -rs.shift0 * angle_step;
@@ -490,21 +520,21 @@ void WindowRegistration::Impl::measureWindow(const cv::Mat& panorama, int k, con
   // Step 3: de-rotate/de-scale the current window (sampled from the panorama, so nothing is
   // lost at its border) when that moves its corners noticeably; else use F_c.
   const double corner = std::numbers::sqrt2 * 0.5 * options.window;
-  const reg::Complex* translation_band = cur_translation;
+  const reg::Complex* translation_band_ptr = cur_translation;
   if (corner * std::max(std::abs(rotation), std::abs(std::log(scale))) > kTuning.derotate_min_px) {
-    const TaperedWindow w = loadWarpedWindow(panorama, k, rotation, scale);
-    window_fft.execute();
-    translation.whiten(spectrum.data(), w.energy, derotated.data());
-    translation_band = derotated.data();
-  } else if (translation_band == nullptr) {  // F_c not whitened yet (frame not kept)
-    translation.whiten(spectrum.data(), cur.energy, scratch_translation.data());
-    translation_band = scratch_translation.data();
+    const TaperedWindow tw = loadWarpedWindow(w, panorama, k, rotation, scale);
+    w.window_fft.execute();
+    w.translation.whiten(w.spectrum.data(), tw.energy, w.derotated.data());
+    translation_band_ptr = w.derotated.data();
+  } else if (translation_band_ptr == nullptr) {  // F_c not whitened yet (frame not kept)
+    w.translation.whiten(w.spectrum.data(), cur.energy, w.scratch_translation.data());
+    translation_band_ptr = w.scratch_translation.data();
   }
 
   // Step 4: translation, phase correlation of the whitened spectra over the whole surface.
   const double everywhere = std::numeric_limits<double>::infinity();
-  const reg::CorrelationPeak t = translation.correlate(
-      reference->translation.data() + k * translation.bandSize(), translation_band, everywhere,
+  const reg::CorrelationPeak t = w.translation.correlate(
+      reference->translation.data() + k * translation_band, translation_band_ptr, everywhere,
       everywhere);
   if (!std::isfinite(t.shift0) || !std::isfinite(t.shift1) || !std::isfinite(t.confidence)) return;
   out.du = t.shift1;
@@ -516,12 +546,20 @@ void WindowRegistration::Impl::measureWindow(const cv::Mat& panorama, int k, con
 WindowRegistration::WindowRegistration(const Options& options) {
   if (const std::string bad = options.validate(); !bad.empty())
     throw std::invalid_argument("WindowRegistration: " + bad);
-  impl_ = std::make_unique<Impl>(options);
+  impl_ = std::make_unique<Impl>(options, nullptr);
+}
+
+WindowRegistration::WindowRegistration(const Options& options, reg::WorkerPool& pool) {
+  if (const std::string bad = options.validate(); !bad.empty())
+    throw std::invalid_argument("WindowRegistration: " + bad);
+  impl_ = std::make_unique<Impl>(options, &pool);
 }
 
 WindowRegistration::~WindowRegistration() = default;
 
 const WindowRegistration::Options& WindowRegistration::options() const { return impl_->options; }
+
+int WindowRegistration::threads() const { return impl_->pool->size(); }
 
 int WindowRegistration::windowCount() const { return impl_->windows; }
 
@@ -531,13 +569,16 @@ void WindowRegistration::setReference(const cv::Mat& panorama) {
   Impl& s = *impl_;
   if (!s.acceptsImage(panorama)) return;
   WindowSpectra& ref = *s.reference;
-  for (int k = 0; k < s.windows; ++k) {
-    const TaperedWindow w =
-        s.transformWindow(panorama, k, ref.log_polar.data() + k * s.rotation_scale.bandSize());
-    ref.textured[k] = w.textured;
-    if (w.textured)
-      s.translation.whiten(s.spectrum.data(), w.energy, ref.translation.data() + k * s.translation.bandSize());
-  }
+  auto task = [&](int worker, int k) {
+    Worker& w = *s.workers[worker];
+    const TaperedWindow tw =
+        s.transformWindow(w, panorama, k, ref.log_polar.data() + k * s.log_polar_band);
+    ref.textured[k] = tw.textured;
+    if (tw.textured)
+      w.translation.whiten(w.spectrum.data(), tw.energy,
+                           ref.translation.data() + k * s.translation_band);
+  };
+  s.pool->run(s.windows, task);
   s.has_reference = true;
   s.next_ready = false;
 }
@@ -571,25 +612,27 @@ bool WindowRegistration::measure(const cv::Mat& current, std::span<WindowMotion>
       (known && known_rotation_scale.size() < static_cast<std::size_t>(s.windows)))
     return false;
   WindowSpectra& next = *s.next;
-  for (int k = 0; k < s.windows; ++k) {
+  auto task = [&](int worker, int k) {
+    Worker& w = *s.workers[worker];
     // Without a search for rotation/scale the current log-polar spectrum is not needed.
     reg::Complex* cur_log_polar = keep_as_next
-                                      ? next.log_polar.data() + k * s.rotation_scale.bandSize()
-                                      : (known ? nullptr : s.scratch_log_polar.data());
-    const TaperedWindow w = s.transformWindow(current, k, cur_log_polar);
+                                      ? next.log_polar.data() + k * s.log_polar_band
+                                      : (known ? nullptr : w.scratch_log_polar.data());
+    const TaperedWindow tw = s.transformWindow(w, current, k, cur_log_polar);
     // The un-rotated F_c is whitened here only when it becomes the next reference;
     // measureWindow() whitens it itself when it needs it.
     reg::Complex* cur_translation = nullptr;
     if (keep_as_next) {
-      next.textured[k] = w.textured;
-      if (w.textured) {
-        cur_translation = next.translation.data() + k * s.translation.bandSize();
-        s.translation.whiten(s.spectrum.data(), w.energy, cur_translation);
+      next.textured[k] = tw.textured;
+      if (tw.textured) {
+        cur_translation = next.translation.data() + k * s.translation_band;
+        w.translation.whiten(w.spectrum.data(), tw.energy, cur_translation);
       }
     }
-    s.measureWindow(current, k, w, cur_translation, cur_log_polar,
+    s.measureWindow(w, current, k, tw, cur_translation, cur_log_polar,
                     known ? &known_rotation_scale[k] : nullptr, out[k]);
-  }
+  };
+  s.pool->run(s.windows, task);
   if (keep_as_next) s.next_ready = true;
   return true;
 }

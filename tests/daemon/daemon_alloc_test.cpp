@@ -255,6 +255,7 @@ Measurement measure(const std::vector<cv::Mat>& frames, const std::string& lcm_u
                     const std::string& calibration, std::FILE* log) {
   const DaemonConfig config = DaemonConfig::parse(
       "source: {type: file, path: /unused}\ncalibration: " + calibration +
+          "\npipeline: {threads: 2}"  // the worker pool runs (and must not allocate) too
           "\nlcm: {url: '" + lcm_url + "', fit_channel: OMNI_FIT, status_hz: 20}\n",
       "alloc-test.yaml", "/");
   testing::MemorySource::Script script;

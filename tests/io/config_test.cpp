@@ -52,6 +52,23 @@ bogus: 1
   }
 }
 
+TEST(DaemonConfig, PipelineThreads) {
+  const auto parse = [](const std::string& pipeline) {
+    return DaemonConfig::parse("source: {type: file, path: run1}\ncalibration: cal.yaml\n" + pipeline,
+                               "d.yaml", "/etc/omnipose");
+  };
+  EXPECT_EQ(parse("").pipeline.threads, 0);  // default: all online cores
+  const DaemonConfig c = parse("pipeline: {threads: 2}\n");
+  EXPECT_EQ(c.pipeline.threads, 2);
+  EXPECT_NE(c.describe().find("threads: 2"), std::string::npos);
+  try {
+    parse("pipeline: {threads: -3}\n");
+    FAIL() << "expected ConfigError";
+  } catch (const ConfigError& e) {
+    EXPECT_NE(std::string(e.what()).find("pipeline.threads"), std::string::npos) << e.what();
+  }
+}
+
 TEST(DaemonConfig, ReplayUseNeedsNoSource) {
   const DaemonConfig c = DaemonConfig::parse("input: panorama\npipeline: {refine_iterations: 2}\n",
                                              "r.yaml", "/tmp", DaemonConfig::Use::kReplay);

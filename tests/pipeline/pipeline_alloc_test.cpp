@@ -13,7 +13,7 @@
 namespace omnipose {
 namespace {
 
-TEST(PipelineAllocation, TheCounterSeesMallocAndNew) {
+TEST(PipelineAllocationCounter, TheCounterSeesMallocAndNew) {
   testing::startCountingAllocations();
   void* p = std::malloc(64);
   auto* q = new int[16];
@@ -24,7 +24,9 @@ TEST(PipelineAllocation, TheCounterSeesMallocAndNew) {
   EXPECT_GE(counted, 3);
 }
 
-TEST(PipelineAllocation, ProcessAllocatesNothingAfterWarmUp) {
+class PipelineAllocation : public ::testing::TestWithParam<int> {};
+
+TEST_P(PipelineAllocation, ProcessAllocatesNothingAfterWarmUp) {
   if (!std::filesystem::exists(testing::indoorPhoto())) GTEST_SKIP() << "missing photo";
   cv::setNumThreads(1);  // OpenCV's thread pool would allocate its own task objects
   synth::RenderOptions ro;
@@ -40,7 +42,10 @@ TEST(PipelineAllocation, ProcessAllocatesNothingAfterWarmUp) {
   cv::merge(std::vector<cv::Mat>{frames[0], frames[0], frames[0]}, colour);
   const cv::Mat wrong_size(100, 100, CV_8UC1, cv::Scalar(7));
 
-  Pipeline pipeline(Calibration{}, {});
+  PipelineOptions options;
+  options.threads = GetParam();  // the worker pool's hand-off must not allocate either
+  Pipeline pipeline(Calibration{}, options);
+  ASSERT_EQ(pipeline.threads(), GetParam());
   for (int k = 0; k < 4; ++k) ASSERT_TRUE(pipeline.process(frames[k]).has_value());  // warm-up
   ASSERT_TRUE(pipeline.process(colour).has_value());
 
@@ -54,8 +59,11 @@ TEST(PipelineAllocation, ProcessAllocatesNothingAfterWarmUp) {
   }
   const long allocations = testing::stopCountingAllocations();
   EXPECT_EQ(ok, 200);
-  EXPECT_EQ(allocations, 0) << "heap allocations in 200 frames of Pipeline::process";
+  EXPECT_EQ(allocations, 0) << "heap allocations in 200 frames of Pipeline::process, "
+                            << GetParam() << " threads";
 }
+
+INSTANTIATE_TEST_SUITE_P(Threads, PipelineAllocation, ::testing::Values(1, 2, 3));
 
 }  // namespace
 }  // namespace omnipose

@@ -75,9 +75,14 @@ std::pair<cv::Mat, cv::Mat> framePair() {
   return {a, b};
 }
 
-TEST(WindowRegistrationRealtime, MeasureAndAdvanceAllocateNothing) {
+class WindowRegistrationRealtime : public ::testing::TestWithParam<int> {};
+
+TEST_P(WindowRegistrationRealtime, MeasureAndAdvanceAllocateNothing) {
   const auto [a, b] = framePair();
-  WindowRegistration reg(WindowRegistration::Options{});
+  WindowRegistration::Options options;
+  options.threads = GetParam();  // 1: the calling thread only; more: the worker pool
+  WindowRegistration reg(options);
+  ASSERT_EQ(reg.threads(), GetParam());
   std::vector<WindowMotion> out(reg.windowCount());
   reg.setReference(a);
   ASSERT_TRUE(reg.measure(b, out, true));  // warm-up
@@ -103,6 +108,8 @@ TEST(WindowRegistrationRealtime, MeasureAndAdvanceAllocateNothing) {
   EXPECT_EQ(after.uordblks, before.uordblks) << "malloc'd bytes changed in the per-frame path";
   EXPECT_EQ(after.hblkhd, before.hblkhd) << "mmap'd bytes changed in the per-frame path";
 }
+
+INSTANTIATE_TEST_SUITE_P(Threads, WindowRegistrationRealtime, ::testing::Values(1, 2, 4));
 
 }  // namespace
 }  // namespace omnipose

@@ -1,0 +1,64 @@
+#pragma once
+/// \file worker_pool.hpp
+/// A fixed pool of worker threads created at start-up (private). run(count, task) calls
+/// task(worker, index) once for every index in [0, count), spread over the calling thread
+/// (worker 0) and the pool's threads (workers 1 .. size() - 1), and returns when all are
+/// done. Indices are handed out one at a time from an atomic counter, so which worker runs
+/// which index varies from call to call: a task must give the same result on every worker
+/// (each worker owns its own scratch, indexed by `worker`).
+///
+/// Realtime: run() allocates nothing (a mutex, two condition variables and a function
+/// pointer); the threads are created in the constructor and joined in the destructor.
+/// One caller at a time (the pipeline's processing thread).
+
+#include <atomic>
+#include <condition_variable>
+#include <mutex>
+#include <thread>
+#include <vector>
+
+namespace omnipose::registration {
+
+class WorkerPool {
+ public:
+  /// `threads` >= 1 workers in all, the calling thread included (threads - 1 are started).
+  explicit WorkerPool(int threads);
+  ~WorkerPool();
+  WorkerPool(const WorkerPool&) = delete;
+  WorkerPool& operator=(const WorkerPool&) = delete;
+
+  /// Number of workers, the calling thread included.
+  int size() const { return static_cast<int>(threads_.size()) + 1; }
+
+  /// Calls task(worker, index) for every index in [0, count); returns when all returned.
+  /// `task` must not throw.
+  template <class Task>
+  void run(int count, Task& task) {
+    runRaw(count, [](void* context, int worker, int index) {
+      (*static_cast<Task*>(context))(worker, index);
+    }, &task);
+  }
+
+  /// All online cores (sysconf(_SC_NPROCESSORS_ONLN)), at least 1.
+  static int onlineCores();
+
+ private:
+  using Function = void (*)(void* context, int worker, int index);
+  void runRaw(int count, Function function, void* context);
+  void work(int worker);
+  void drain(int worker);
+
+  std::vector<std::thread> threads_;
+  std::mutex mutex_;
+  std::condition_variable start_, done_;
+  // The current job (written under mutex_ before generation_ is bumped).
+  Function function_ = nullptr;
+  void* context_ = nullptr;
+  int count_ = 0;
+  std::atomic<int> next_{0};
+  unsigned long generation_ = 0;
+  int busy_ = 0;      ///< pool threads still working on the current job
+  bool stop_ = false;
+};
+
+}  // namespace omnipose::registration

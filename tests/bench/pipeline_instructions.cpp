@@ -1,0 +1,74 @@
+// Per-frame instruction counts of the pipeline (paper setting), for valgrind --tool=callgrind
+// (x86) and for an instruction-counting emulator run (arm64): renders the benchmark's two
+// frames (3 degrees of roll + yaw apart), makes a Pipeline, processes --warmup frames and
+// then --frames frames, and prints the wall time. Under callgrind only the measured frames
+// are counted (CALLGRIND_TOGGLE_COLLECT around them; run with --collect-atstart=no):
+//   valgrind --tool=callgrind --collect-atstart=no build/bin/omnipose-bench-instructions --frames 10
+//   -> "Collected" instructions / 10 = instructions per frame.
+// Usage: omnipose-bench-instructions [--threads N] [--frames K] [--warmup W]
+//                                    [--refine R] [--wisdom FILE]
+#include <chrono>
+#include <cstdio>
+#include <algorithm>
+#include <cstdlib>
+#include <filesystem>
+#include <string>
+
+#include "omnipose/pipeline.hpp"
+#include "omnipose/synth.hpp"
+#include "omnipose/trajectory.hpp"
+
+#if __has_include(<valgrind/callgrind.h>)
+#include <valgrind/callgrind.h>
+#define OMNIPOSE_TOGGLE_COLLECT() CALLGRIND_TOGGLE_COLLECT
+#else
+#define OMNIPOSE_TOGGLE_COLLECT() \
+  do {                            \
+  } while (false)
+#endif
+
+int main(int argc, char** argv) {
+  int threads = 1, frames = 10, warmup = 2, refine = 1;
+  std::string wisdom;
+  for (int i = 1; i + 1 < argc; i += 2) {
+    const std::string key = argv[i];
+    const char* value = argv[i + 1];
+    if (key == "--threads") threads = std::atoi(value);
+    else if (key == "--frames") frames = std::atoi(value);
+    else if (key == "--warmup") warmup = std::atoi(value);
+    else if (key == "--refine") refine = std::atoi(value);
+    else if (key == "--wisdom") wisdom = value;
+    else {
+      std::fprintf(stderr, "unknown option %s\n", key.c_str());
+      return 2;
+    }
+  }
+  cv::setNumThreads(1);
+  const auto photo =
+      std::filesystem::path(OMNIPOSE_SOURCE_DIR) / "tests/data/equirect/indoor_1024x512.jpg";
+  omnipose::synth::Renderer renderer(
+      omnipose::synth::Scene::load(photo, omnipose::synth::SceneKind::kSphere),
+      omnipose::Calibration{});
+  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+  T.linear() = omnipose::rotationFromVector(Eigen::Vector3d(0.03, 0.0, 0.04));
+  cv::Mat f[2];
+  renderer.render(Eigen::Isometry3d::Identity()).convertTo(f[0], CV_8U);
+  renderer.render(T).convertTo(f[1], CV_8U);
+
+  omnipose::PipelineOptions options;
+  options.threads = threads;
+  options.refine_iterations = refine;
+  options.fftw_wisdom = wisdom;
+  omnipose::Pipeline pipeline(omnipose::Calibration{}, options);
+  int n = 0, ok = 0;
+  for (int i = 0; i < warmup; ++i) ok += pipeline.process(f[n++ % 2]).has_value();
+  OMNIPOSE_TOGGLE_COLLECT();
+  const auto start = std::chrono::steady_clock::now();
+  for (int i = 0; i < frames; ++i) ok += pipeline.process(f[n++ % 2]).has_value();
+  const double seconds =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  OMNIPOSE_TOGGLE_COLLECT();
+  std::printf("frames=%d threads=%d refine=%d ok=%d ms_per_frame=%.3f\n", frames,
+              pipeline.threads(), refine, ok, 1e3 * seconds / std::max(frames, 1));
+  return ok == warmup + frames ? 0 : 1;
+}

@@ -1,0 +1,116 @@
+// The per-frame result does not depend on PipelineOptions::threads: every window and every
+// de-rotated row is computed by the same code on the same data whichever worker runs it.
+// Compared bit for bit (memcmp of the doubles), not within a tolerance.
+#include <gtest/gtest.h>
+
+#include <unistd.h>
+
+#include <cstring>
+#include <fstream>
+#include <iterator>
+
+#include "omnipose/pipeline.hpp"
+#include "render_fixture.hpp"
+
+namespace omnipose {
+namespace {
+
+/// Everything process() reports about a frame pair, plus the first pass's window motions.
+struct Trace {
+  std::vector<double> values;
+  void add(double x) { values.push_back(x); }
+  template <class M>
+  void add(const Eigen::MatrixBase<M>& m) {
+    for (Eigen::Index i = 0; i < m.size(); ++i) values.push_back(m.derived().data()[i]);
+  }
+};
+
+Trace run(const std::vector<cv::Mat>& frames, int threads, int refine_iterations) {
+  PipelineOptions options;
+  options.threads = threads;
+  options.refine_iterations = refine_iterations;
+  Pipeline pipeline(Calibration{}, options);
+  EXPECT_EQ(pipeline.threads(), threads);
+  Trace t;
+  for (const cv::Mat& f : frames) {
+    auto m = pipeline.process(f);
+    EXPECT_TRUE(m.has_value());
+    if (!m || !m->has_motion) continue;
+    t.add(m->estimate.omega);
+    t.add(m->estimate.tau);
+    t.add(m->estimate.covariance);
+    t.add(m->estimate.residual_rms_px);
+    t.add(static_cast<double>(m->estimate.windows_used));
+    t.add(m->rotation);
+    t.add(m->translation_direction);
+    for (const WindowMotion& w : pipeline.lastWindows()) {
+      for (double x : {w.center_u, w.du, w.dv, w.rotation, w.scale, w.confidence, w.rs_confidence})
+        t.add(x);
+      t.add(w.valid ? 1.0 : 0.0);
+    }
+  }
+  return t;
+}
+
+TEST(PipelineThreads, ResultIsBitIdenticalForAnyThreadCount) {
+  if (!std::filesystem::exists(testing::indoorPhoto())) GTEST_SKIP() << "missing photo";
+  cv::setNumThreads(1);
+  synth::RenderOptions ro;
+  ro.supersample = 2;
+  const synth::Renderer renderer(synth::Scene::load(testing::indoorPhoto(), synth::SceneKind::kSphere),
+                                 Calibration{}, ro);
+  std::vector<cv::Mat> frames(4);
+  for (int k = 0; k < 4; ++k)
+    renderer.render(testing::relativePose(Eigen::Vector3d(0.02 * k, -0.01 * k, 0.04 * k),
+                                          Eigen::Vector3d(0.05 * k, 0.0, 0.0)))
+        .convertTo(frames[k], CV_8U);
+
+  for (int refine : {0, 1}) {
+    const Trace one = run(frames, 1, refine);
+    ASSERT_GT(one.values.size(), 3u * 56u) << "no motion measured";
+    for (int threads : {2, 3, 5}) {
+      const Trace many = run(frames, threads, refine);
+      ASSERT_EQ(many.values.size(), one.values.size()) << threads << " threads";
+      EXPECT_EQ(std::memcmp(many.values.data(), one.values.data(),
+                            one.values.size() * sizeof(double)),
+                0)
+          << threads << " threads, refine_iterations " << refine << ": results differ";
+    }
+  }
+}
+
+TEST(PipelineThreads, ZeroMeansAllOnlineCoresAndBadCountsAreRejected) {
+  PipelineOptions options;
+  options.threads = 0;
+  Pipeline pipeline(Calibration{}, options);
+  EXPECT_GE(pipeline.threads(), 1);
+  options.threads = -1;
+  EXPECT_THROW(Pipeline(Calibration{}, options), std::invalid_argument);
+  options.threads = 257;
+  EXPECT_THROW(Pipeline(Calibration{}, options), std::invalid_argument);
+}
+
+TEST(PipelineWisdom, WrittenOnFirstStartThenLoaded) {
+  const auto path = std::filesystem::temp_directory_path() /
+                    ("omnipose_wisdom_" + std::to_string(::getpid()) + ".txt");
+  std::filesystem::remove(path);
+  PipelineOptions options;
+  options.threads = 2;
+  options.fftw_wisdom = path.string();
+  {
+    Pipeline first(Calibration{}, options);
+    EXPECT_FALSE(first.wisdomLoaded());
+  }
+  ASSERT_TRUE(std::filesystem::exists(path));
+  std::ifstream in(path);
+  const std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  EXPECT_NE(text.find("fftw"), std::string::npos) << "not an FFTW wisdom file:\n" << text;
+  {
+    Pipeline second(Calibration{}, options);
+    EXPECT_TRUE(second.wisdomLoaded());
+  }
+  std::filesystem::remove(path);
+}
+
+}  // namespace
+}  // namespace omnipose

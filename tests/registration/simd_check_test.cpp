@@ -1,0 +1,53 @@
+// Which branch of src/registration/simd.hpp this build compiled, and that its lane-wise
+// helpers agree with scalar arithmetic. tools/arm64_check.sh runs this binary under
+// qemu-aarch64 and also greps it for the backend marker string below.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstdio>
+#include <cstring>
+
+#include "registration/simd.hpp"
+
+namespace omnipose::registration {
+namespace {
+
+// Kept in the binary's read-only data: "omnipose-simd-backend=neon" on arm64.
+const char kMarker[] = "omnipose-simd-backend=" OMNIPOSE_SIMD_BACKEND;
+
+TEST(Simd, TheArchitecturesVectorBranchIsCompiled) {
+  std::printf("%s\n", kMarker);
+#if defined(__aarch64__)
+  EXPECT_STREQ(simd::kBackend, "neon");
+#elif defined(__x86_64__)
+  EXPECT_STREQ(simd::kBackend, "sse2");
+#else
+  GTEST_SKIP() << "no vector branch for this architecture: " << simd::kBackend;
+#endif
+}
+
+TEST(Simd, LaneWiseHelpersMatchScalarArithmetic) {
+  const simd::F4 x{0.25f, 2.0f, 9.0f, 1e4f};
+  const simd::F4 r = simd::sqrt(x);
+  const simd::F4 q = simd::rsqrt(x);
+  for (int l = 0; l < 4; ++l) {
+    EXPECT_FLOAT_EQ(r[l], std::sqrt(x[l]));
+    EXPECT_NEAR(q[l] * std::sqrt(x[l]), 1.0f, 1e-6f) << "rsqrt lane " << l;
+  }
+  // (1 + 2i) conj(3 - i) = (1 + 2i)(3 + i) = 1 + 7i; (0.5 - i) conj(2 + 2i) = -1 - 3i.
+  const simd::F4 a{1.0f, 2.0f, 0.5f, -1.0f}, b{3.0f, -1.0f, 2.0f, 2.0f};
+  const simd::F4 m = simd::mulConj(a, b);
+  EXPECT_FLOAT_EQ(m[0], 1.0f);
+  EXPECT_FLOAT_EQ(m[1], 7.0f);
+  EXPECT_FLOAT_EQ(m[2], -1.0f);
+  EXPECT_FLOAT_EQ(m[3], -3.0f);
+  const simd::F4 n = simd::pairNorm(a);
+  EXPECT_FLOAT_EQ(n[0], 5.0f);
+  EXPECT_FLOAT_EQ(n[1], 5.0f);
+  EXPECT_FLOAT_EQ(n[2], 1.25f);
+  EXPECT_FLOAT_EQ(simd::sum(x), 0.25f + 2.0f + 9.0f + 1e4f);
+  EXPECT_FLOAT_EQ(simd::maxLane(x), 1e4f);
+}
+
+}  // namespace
+}  // namespace omnipose::registration
