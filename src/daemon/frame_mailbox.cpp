@@ -27,6 +27,11 @@ bool FrameMailbox::post(const FrameInfo& info) {
   bool dropped = false;
   {
     std::lock_guard lock(mutex_);
+    ++posted_;
+    if (stop_) {  // read while the stop came: it will never be processed
+      ++skipped_;
+      return true;
+    }
     Slot& slot = slots_[static_cast<std::size_t>(writing_)];
     slot.info = info;
     if (ready_ >= 0) {  // the newest frame was never taken: it is stale now
@@ -41,7 +46,6 @@ bool FrameMailbox::post(const FrameInfo& info) {
     pending_gap_ = false;
     pending_skipped_ = 0;
     ready_ = writing_;
-    ++posted_;
     writing_ = freeSlotLocked();
   }
   frame_ready_.notify_one();
@@ -95,6 +99,12 @@ void FrameMailbox::requestStop() {
   {
     std::lock_guard lock(mutex_);
     stop_ = true;
+    // A posted frame the processor never took is dropped: counted as skipped, so that at
+    // the end every received frame is processed, skipped or bad.
+    if (ready_ >= 0) {
+      ++skipped_;
+      ready_ = -1;
+    }
   }
   frame_ready_.notify_all();
   frame_taken_.notify_all();

@@ -5,7 +5,9 @@
 /// slot (never the newest unread one nor the one being processed) and posts it; the
 /// processor takes the newest posted frame. A posted frame that is overwritten by a newer
 /// one before the processor took it is dropped and counted as skipped (stale): a robot
-/// wants fresh pose, not a backlog (DESIGN.md section 5).
+/// wants fresh pose, not a backlog (DESIGN.md section 5). At a stop, the posted frame that
+/// was never taken, and any frame posted after the stop, count as skipped too: at the end,
+/// posted = processed + skipped + rejected by the pipeline.
 ///
 /// Gaps: markGap() (bad frame, source reconnect) flags the next posted frame; the flag
 /// survives when that frame is itself overwritten, so the processor always learns that the

@@ -127,6 +127,21 @@ TEST(FrameMailbox, LosslessModeWaitsUntilTheProcessorTookTheFrame) {
   EXPECT_EQ(box.skipped(), 0);
 }
 
+TEST(FrameMailbox, AFrameNeverTakenBeforeTheStopCountsAsSkipped) {
+  FrameMailbox box(cv::Size(8, 8), /*lossless=*/false);
+  FrameInfo info;
+  info.sequence = 1;
+  box.post(info);  // posted, not taken
+  box.requestStop();
+  EXPECT_EQ(box.skipped(), 1);
+  MailboxFrame frame;
+  EXPECT_EQ(box.take(std::chrono::steady_clock::now(), frame), FrameMailbox::TakeResult::kClosed);
+  info.sequence = 2;
+  EXPECT_TRUE(box.post(info)) << "a frame read while stopping is dropped";
+  EXPECT_EQ(box.skipped(), 2);
+  EXPECT_EQ(box.posted(), 2);
+}
+
 TEST(FrameMailbox, CloseDrainsTheLastFrameAndStopWakesEverybody) {
   FrameMailbox box({8, 4}, false);
   box.post(infoWithSequence(7));
@@ -550,8 +565,9 @@ TEST(Daemon, StaleFramesAreSkippedAndLatencyStaysBounded) {
   EXPECT_EQ(last.source_state, status_t::SOURCE_STOPPED);
   EXPECT_EQ(last.frames_skipped_stale, stats.frames_skipped);
   // Every received frame is either processed or skipped (at most one still in the mailbox).
-  EXPECT_LE(last.frames_received - last.frames_processed - last.frames_skipped_stale, 1);
-  EXPECT_GE(last.frames_received - last.frames_processed - last.frames_skipped_stale, 0);
+  // Every received frame is accounted for, also the one still in the mailbox at the stop
+  // (tools/soak.sh found it unaccounted: received 10013, processed 10012, skipped 0).
+  EXPECT_EQ(last.frames_received, last.frames_processed + last.frames_skipped_stale);
   std::int64_t skipped_in_poses = 0;
   for (const auto& p : bus.poses) skipped_in_poses += p.frames_skipped;
   EXPECT_LE(skipped_in_poses, stats.frames_skipped);
