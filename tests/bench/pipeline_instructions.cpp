@@ -6,12 +6,15 @@
 //   valgrind --tool=callgrind --collect-atstart=no build/bin/omnipose-bench-instructions --frames 10
 //   -> "Collected" instructions / 10 = instructions per frame.
 // Usage: omnipose-bench-instructions [--threads N] [--frames K] [--warmup W]
-//                                    [--refine R] [--wisdom FILE]
+//                                    [--refine R] [--wisdom FILE] [--save DIR | --load DIR]
+// --save writes the two rendered frames to DIR/a.png, DIR/b.png; --load reads them instead
+// of rendering (an emulator then spends nothing on the renderer).
 #include <chrono>
 #include <cstdio>
 #include <algorithm>
 #include <cstdlib>
 #include <filesystem>
+#include <opencv2/imgcodecs.hpp>
 #include <string>
 
 #include "omnipose/pipeline.hpp"
@@ -29,7 +32,7 @@
 
 int main(int argc, char** argv) {
   int threads = 1, frames = 10, warmup = 2, refine = 1;
-  std::string wisdom;
+  std::string wisdom, save, load;
   for (int i = 1; i + 1 < argc; i += 2) {
     const std::string key = argv[i];
     const char* value = argv[i + 1];
@@ -38,22 +41,37 @@ int main(int argc, char** argv) {
     else if (key == "--warmup") warmup = std::atoi(value);
     else if (key == "--refine") refine = std::atoi(value);
     else if (key == "--wisdom") wisdom = value;
+    else if (key == "--save") save = value;
+    else if (key == "--load") load = value;
     else {
       std::fprintf(stderr, "unknown option %s\n", key.c_str());
       return 2;
     }
   }
   cv::setNumThreads(1);
-  const auto photo =
-      std::filesystem::path(OMNIPOSE_SOURCE_DIR) / "tests/data/equirect/indoor_1024x512.jpg";
-  omnipose::synth::Renderer renderer(
-      omnipose::synth::Scene::load(photo, omnipose::synth::SceneKind::kSphere),
-      omnipose::Calibration{});
-  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
-  T.linear() = omnipose::rotationFromVector(Eigen::Vector3d(0.03, 0.0, 0.04));
   cv::Mat f[2];
-  renderer.render(Eigen::Isometry3d::Identity()).convertTo(f[0], CV_8U);
-  renderer.render(T).convertTo(f[1], CV_8U);
+  if (!load.empty()) {
+    f[0] = cv::imread(load + "/a.png", cv::IMREAD_GRAYSCALE);
+    f[1] = cv::imread(load + "/b.png", cv::IMREAD_GRAYSCALE);
+    if (f[0].empty() || f[1].empty()) {
+      std::fprintf(stderr, "cannot read %s/a.png, b.png\n", load.c_str());
+      return 2;
+    }
+  } else {
+    const auto photo =
+        std::filesystem::path(OMNIPOSE_SOURCE_DIR) / "tests/data/equirect/indoor_1024x512.jpg";
+    omnipose::synth::Renderer renderer(
+        omnipose::synth::Scene::load(photo, omnipose::synth::SceneKind::kSphere),
+        omnipose::Calibration{});
+    Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+    T.linear() = omnipose::rotationFromVector(Eigen::Vector3d(0.03, 0.0, 0.04));
+    renderer.render(Eigen::Isometry3d::Identity()).convertTo(f[0], CV_8U);
+    renderer.render(T).convertTo(f[1], CV_8U);
+  }
+  if (!save.empty() && !(cv::imwrite(save + "/a.png", f[0]) && cv::imwrite(save + "/b.png", f[1]))) {
+    std::fprintf(stderr, "cannot write %s/a.png, b.png\n", save.c_str());
+    return 2;
+  }
 
   omnipose::PipelineOptions options;
   options.threads = threads;
