@@ -106,10 +106,33 @@ suite=(
   "room_translate|indoor-room|$indoor|preset:translate|601|$clean"
 )
 
+# Table III (issue 9): the lens suite, run after the main suite (see "lenses and masks").
+catadioptric=$root/tests/data/catadioptric
+# name | reference (main suite) | lens label | calibration ("" = the default linear lens) | extra flags
+lens_suite=(
+  "steep_indoor_pitch|indoor_pitch|steep mirror (OCamCalib, 800 x 800)|$out/lenses/steep_mirror_800.yaml|"
+  "steep_park_mixed|park_mixed|steep mirror (OCamCalib, 800 x 800)|$out/lenses/steep_mirror_800.yaml|"
+  "office_indoor_pitch|indoor_pitch|office mirror (real OCamCalib file, 1920 x 1080)|$out/lenses/mirror_office.yaml|"
+  "office_park_mixed|park_mixed|office mirror (real OCamCalib file, 1920 x 1080)|$out/lenses/mirror_office.yaml|"
+  "mast_park_mixed|park_mixed|linear, 40 deg static mast, no mask||--occluder 30,40"
+  "masked_park_mixed|park_mixed|linear, 40 deg static mast, with its mask||--occluder 30,40 --write-mask"
+)
 echo "== accuracy benchmark: ${#suite[@]} sequences x $frames frames, methods: $methods"
 echo "   output: $out    photos: $data"
 manifest=$out/manifest.tsv
 printf '# scene\tsequence\tmethod\tgroundtruth\testimate\tseconds_per_frame\n' > "$manifest"
+
+# Progress: sequences done of all (main suite and lens suite), the time so far, and the time
+# left at the mean rate so far.
+sequences_total=$(( ${#suite[@]} + ${#lens_suite[@]} ))
+sequences_done=0
+progress() {
+  sequences_done=$((sequences_done + 1))
+  local spent=$(( $(date +%s) - start ))
+  local left=$(( spent * (sequences_total - sequences_done) / sequences_done ))
+  printf '   [%d/%d sequences, %d:%02d spent, about %d:%02d left]\n' "$sequences_done" \
+    "$sequences_total" $((spent / 60)) $((spent % 60)) $((left / 60)) $((left % 60))
+}
 
 for entry in "${suite[@]}"; do
   IFS='|' read -r name scene photo motion seed flags <<< "$entry"
@@ -139,6 +162,7 @@ for entry in "${suite[@]}"; do
   for m in $methods; do ests+=("$dir/$m.tum"); done
   "$bin/omnipose-eval" "$dir/dataset/groundtruth.tum" "${ests[@]}" --json "$dir/eval.json" \
     > "$dir/eval.txt"
+  progress
 done
 
 # ---------------------------------------------------------------------------- lenses and masks
@@ -146,7 +170,6 @@ done
 # degradations), rendered through non-linear mirrors given as OCamCalib files and through a
 # static 40-degree occluder, replayed by ifmi with the model (and mask) they were rendered
 # with. Table III compares their eps with the linear-lens sequence of the same scene.
-catadioptric=$root/tests/data/catadioptric
 mkdir -p "$out/lenses"
 for lens in steep_mirror_800 mirror_office; do
   cat > "$out/lenses/$lens.yaml" <<YAML
@@ -158,15 +181,6 @@ omni:
 panorama: {width: 1100, height: 110, horizon_row: 54.5, forward_column: 0.0}
 YAML
 done
-# name | reference (main suite) | lens label | calibration ("" = the default linear lens) | extra flags
-lens_suite=(
-  "steep_indoor_pitch|indoor_pitch|steep mirror (OCamCalib, 800 x 800)|$out/lenses/steep_mirror_800.yaml|"
-  "steep_park_mixed|park_mixed|steep mirror (OCamCalib, 800 x 800)|$out/lenses/steep_mirror_800.yaml|"
-  "office_indoor_pitch|indoor_pitch|office mirror (real OCamCalib file, 1920 x 1080)|$out/lenses/mirror_office.yaml|"
-  "office_park_mixed|park_mixed|office mirror (real OCamCalib file, 1920 x 1080)|$out/lenses/mirror_office.yaml|"
-  "mast_park_mixed|park_mixed|linear, 40 deg static mast, no mask||--occluder 30,40"
-  "masked_park_mixed|park_mixed|linear, 40 deg static mast, with its mask||--occluder 30,40 --write-mask"
-)
 lens_table=$out/lens_table.tsv
 : > "$lens_table"
 for entry in "${lens_suite[@]}"; do
@@ -194,6 +208,7 @@ for entry in "${lens_suite[@]}"; do
   printf '== %-20s %3ds: %s\n' "$name" $(( $(date +%s) - t0 )) "$line"
   printf '%s\t%s\t%s\t%s\t%s\n' "$name" "$reference" "$label" "$dir/eval.json" \
     "$out/$reference/eval.json" >> "$lens_table"
+  progress
 done
 python3 - "$lens_table" > "$out/lens_table.md" <<'PY'
 import json, sys
