@@ -10,6 +10,8 @@
 #include <string>
 #include <vector>
 
+#include "omnipose/so3.hpp"  // rotationVector / rotationFromVector, kept for its users
+
 namespace omnipose {
 
 /// One timestamped pose.
@@ -26,10 +28,5 @@ std::vector<StampedPose> readTum(const std::filesystem::path& path);
 void writeTum(const std::filesystem::path& path, const std::vector<StampedPose>& poses);
 /// One TUM line (no newline).
 std::string formatTumLine(const StampedPose& pose);
-
-/// Rotation vector (axis * angle, radians) of a rotation matrix; |result| in [0, pi].
-Eigen::Vector3d rotationVector(const Eigen::Matrix3d& R);
-/// Rotation matrix of a rotation vector: exp([omega]x).
-Eigen::Matrix3d rotationFromVector(const Eigen::Vector3d& omega);
 
 }  // namespace omnipose

@@ -4,7 +4,7 @@
 #include <stdexcept>
 #include <vector>
 
-#include "omnipose/trajectory.hpp"
+#include "omnipose/so3.hpp"
 #include "pipeline/panorama_warp.hpp"
 #include "registration/fft_plan.hpp"
 #include "registration/worker_pool.hpp"

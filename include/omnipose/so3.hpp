@@ -1,0 +1,17 @@
+#pragma once
+/// \file so3.hpp
+/// The rotation group SO(3) in rotation-vector form, as the motion model uses it
+/// (DESIGN.md sections 2 and 3): omega = axis * angle (radians), R = exp([omega]x).
+
+#include <Eigen/Core>
+
+namespace omnipose {
+
+/// Rotation vector (axis * angle, radians) of a rotation matrix: log(R), |result| in [0, pi].
+/// Example: rotationVector(rotationFromVector({0, 0, 0.05})) = (0, 0, 0.05), a yaw of 0.05 rad.
+Eigen::Vector3d rotationVector(const Eigen::Matrix3d& R);
+/// Rotation matrix of a rotation vector: exp([omega]x) (Rodrigues); the identity for
+/// |omega| < 1e-15.
+Eigen::Matrix3d rotationFromVector(const Eigen::Vector3d& omega);
+
+}  // namespace omnipose
