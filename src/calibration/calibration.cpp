@@ -42,7 +42,11 @@ class YamlReader {
       return {};
     }
     for (const auto& kv : node) {
-      const auto key = kv.first.as<std::string>();
+      if (!kv.first.IsScalar()) {
+        problem(name, "keys must be plain names, not '" + YAML::Dump(kv.first) + "'");
+        continue;
+      }
+      const auto key = kv.first.Scalar();
       if (!known.contains(key)) problem(name + "." + key, "unknown key");
     }
     return node;
@@ -313,7 +317,11 @@ Calibration Calibration::parse(const std::string& text, const std::string& origi
     r.problem("(document)", "expected a map with sections 'omni' and 'panorama'");
   } else {
     for (const auto& kv : root) {
-      const auto key = kv.first.as<std::string>();
+      if (!kv.first.IsScalar()) {
+        r.problem("(document)", "keys must be plain names, not '" + YAML::Dump(kv.first) + "'");
+        continue;
+      }
+      const auto key = kv.first.Scalar();
       if (key != "omni" && key != "panorama") r.problem(key, "unknown section");
     }
     const YAML::Node omni = r.section(

@@ -395,3 +395,24 @@ TEST(NumericFields, NonFiniteAndHugeValuesAreStartUpErrors) {
 
 }  // namespace
 }  // namespace omnipose
+
+namespace omnipose {
+namespace {
+
+// Found by the calibration.yaml fuzzer (tests/fuzz): a key that is not a plain name threw a
+// yaml-cpp conversion error instead of a CalibrationError naming the file.
+TEST(CalibrationYaml, KeysThatAreNotPlainNamesAreReportedNotThrown) {
+  for (const char* text : {"omni:\n  ? [a]\n  : 1\npanorama: {width: 1100, height: 110}\n",
+                           "? {x: 1}\n: 2\nomni: {}\n"}) {
+    try {
+      Calibration::parse(text, "fuzz.yaml");
+      FAIL() << "expected a CalibrationError for:\n" << text;
+    } catch (const CalibrationError& e) {
+      EXPECT_NE(std::string(e.what()).find("fuzz.yaml"), std::string::npos) << e.what();
+      EXPECT_NE(std::string(e.what()).find("keys must be plain names"), std::string::npos) << e.what();
+    }
+  }
+}
+
+}  // namespace
+}  // namespace omnipose
