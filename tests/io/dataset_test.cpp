@@ -55,6 +55,21 @@ TEST_F(DatasetTest, TimestampsFileIsUsedAndAMissingEntryIsNamed) {
   }
 }
 
+TEST_F(DatasetTest, TimestampsBeyondTenBillionSecondsAreRefusedNamingTheLine) {
+  {
+    std::ofstream out(root_ / "timestamps.txt");
+    out << "f0.png 0.0\nf1.png 1e300\nf2.png 0.2\n";
+  }
+  try {
+    Dataset::open(root_);
+    ADD_FAILURE() << "1e300 s accepted (pacing converts it to integer microseconds)";
+  } catch (const std::runtime_error& e) {
+    EXPECT_NE(std::string(e.what()).find("timestamps.txt:2: timestamp must be a finite number"),
+              std::string::npos)
+        << e.what();
+  }
+}
+
 TEST_F(DatasetTest, MissingPiecesAreClearErrors) {
   EXPECT_THROW(Dataset::open(root_ / "nope"), std::runtime_error);
   fs::remove(root_ / "calibration.yaml");
