@@ -4,6 +4,7 @@
 #   fuzz_daemon_yaml        daemon.yaml (DaemonConfig::parse)
 #   fuzz_frame_pipeline     frame decode (readFrame) + Pipeline::process on arbitrary bytes
 #   fuzz_timestamps_tum     DATASET/timestamps.txt and groundtruth.tum (Dataset::open, readTum)
+#   fuzz_ocamcalib          OCamCalib calib_results.txt (OcamCalibModel::parse + the lens model)
 # Usage: tools/fuzz.sh [SECONDS] [TARGET...]   (default 600 s each, every target)
 # Installs clang-16 and its libFuzzer runtime (Debian 12 packages) when missing; builds into
 # build-fuzz/ with clang; seeds each corpus from the repository's own files (the example
@@ -18,7 +19,7 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 seconds=${1:-600}
 shift || true
-all_targets=(fuzz_calibration_yaml fuzz_daemon_yaml fuzz_frame_pipeline fuzz_timestamps_tum)
+all_targets=(fuzz_calibration_yaml fuzz_daemon_yaml fuzz_frame_pipeline fuzz_timestamps_tum fuzz_ocamcalib)
 targets=("$@")
 [ ${#targets[@]} -eq 0 ] && targets=("${all_targets[@]}")
 nice_level=${NICE:-15}
@@ -51,7 +52,8 @@ nice -n "$nice_level" cmake --build "$dir" -j"$jobs" --target "${targets[@]}"
 seeds=$dir/seeds
 if [ ! -d "$seeds/done" ]; then
   rm -rf "$seeds"
-  mkdir -p "$seeds"/{fuzz_calibration_yaml,fuzz_daemon_yaml,fuzz_frame_pipeline,fuzz_timestamps_tum}
+  mkdir -p "$seeds"/{fuzz_calibration_yaml,fuzz_daemon_yaml,fuzz_frame_pipeline,fuzz_timestamps_tum,fuzz_ocamcalib}
+  cp tests/data/catadioptric/*_ocamcalib.txt "$seeds/fuzz_ocamcalib/"
   synth=""
   for b in build/bin/omnipose-synth build-asan/bin/omnipose-synth; do [ -x "$b" ] && synth=$b && break; done
   if [ -z "$synth" ]; then bash tools/build.sh omnipose-synth; synth=build/bin/omnipose-synth; fi
