@@ -15,11 +15,13 @@ function(omnipose_add_subdirectories)
 endfunction()
 
 # omnipose_add_test(NAME src... [LIBS lib...]): one GoogleTest binary, run by ctest.
-# Tests run with the source tree as working directory so they find tests/data.
+# Tests run with the source tree as working directory so they find tests/data. Every test
+# may use the renderer (the referee of every sign), datasets and the evaluation.
 function(omnipose_add_test name)
   cmake_parse_arguments(ARG "" "" "LIBS" ${ARGN})
   add_executable(${name} ${ARG_UNPARSED_ARGUMENTS})
-  target_link_libraries(${name} PRIVATE ${ARG_LIBS} GTest::gtest GTest::gtest_main)
+  target_link_libraries(${name} PRIVATE ${ARG_LIBS} omnipose_synth omnipose_eval omnipose_io
+                        GTest::gtest GTest::gtest_main)
   target_compile_definitions(${name} PRIVATE
     OMNIPOSE_SOURCE_DIR="${CMAKE_SOURCE_DIR}"
     OMNIPOSE_BINARY_DIR="${CMAKE_BINARY_DIR}")

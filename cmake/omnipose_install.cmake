@@ -5,7 +5,8 @@
 #   include/omnipose/            the public API (+ calibrate/ and lcm/ for the components)
 #   lib/                         the static libraries
 #   lib/cmake/omnipose/          omniposeConfig.cmake: omnipose::omnipose (calibration, unwrap,
-#                                registration, fit, chain, pipeline), omnipose::calibrate,
+#                                registration, fit, chain, pipeline), omnipose::io,
+#                                omnipose::synth, omnipose::eval, omnipose::calibrate,
 #                                omnipose::lcm_types
 #   lib/systemd/system/          omniposed.service, with the installed path of omniposed
 #   share/omnipose/lcm_types/    the LCM type definitions
@@ -16,7 +17,8 @@ set(OMNIPOSE_PROGRAMS omniposed omnipose-replay omnipose-synth omnipose-eval omn
     omnipose-listen omnipose-plot-fit omnipose-plot-angles omnipose-results)
 install(TARGETS ${OMNIPOSE_PROGRAMS} RUNTIME DESTINATION ${CMAKE_INSTALL_BINDIR} COMPONENT runtime)
 
-install(TARGETS omnipose omnipose_calibrate omnipose_lcm_types EXPORT omniposeTargets
+install(TARGETS omnipose omnipose_io omnipose_synth omnipose_eval omnipose_calibrate
+                omnipose_lcm_types EXPORT omniposeTargets
         ARCHIVE DESTINATION ${CMAKE_INSTALL_LIBDIR} COMPONENT dev
         INCLUDES DESTINATION ${CMAKE_INSTALL_INCLUDEDIR})
 install(DIRECTORY ${CMAKE_SOURCE_DIR}/include/omnipose DESTINATION ${CMAKE_INSTALL_INCLUDEDIR}

@@ -5,7 +5,7 @@
 #include <stdexcept>
 #include <utility>
 
-#include "omnipose/trajectory.hpp"
+#include "omnipose/so3.hpp"
 #include "panorama_features.hpp"
 #include "relative_pose_solver.hpp"
 
@@ -40,7 +40,7 @@ const char* toString(Solver solver) {
 
 std::vector<std::string> FeatureMotionOptions::validate() const {
   std::vector<std::string> p;
-  if (auto bad = unwrap.validate(); !bad.empty()) p.push_back("unwrap." + bad);
+  for (const auto& bad : unwrap.validate()) p.push_back("unwrap." + bad);
   if (max_features < 16 || max_features > 100000)
     p.push_back(problem("max_features", "must be in [16, 100000]", max_features));
   if (wrap_margin_px < 0 || wrap_margin_px > 256)

@@ -16,7 +16,7 @@ run(${CMAKE_COMMAND} -S ${SOURCE_DIR} -B ${WORK_DIR}/build -DCMAKE_BUILD_TYPE=Re
 run(${CMAKE_COMMAND} --build ${WORK_DIR}/build)
 run(${WORK_DIR}/build/downstream)
 message(STATUS "${last_output}")
-if(NOT last_output MATCHES "first frame accepted, proposed panorama 1885x257, pose_t encodes to")
+if(NOT last_output MATCHES "first frame accepted, \\|yaw\\| 0\\.03[0-9]+ rad \\(rendered 0\\.03491\\), proposed panorama 1885x257, pose_t encodes to")
   message(FATAL_ERROR "unexpected output: ${last_output}")
 endif()
 # The unit names the installed omniposed.

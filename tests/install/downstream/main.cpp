@@ -1,23 +1,38 @@
-// Uses the core library, a component and the generated LCM types of an installed omnipose.
+// Uses the core library, the renderer, a component and the generated LCM types of an
+// installed omnipose: renders two frames 2 degrees of yaw apart and measures the turn.
+#include <cmath>
 #include <cstdio>
+#include <numbers>
 #include <omnipose/calibrate/lens_calibrator.hpp>
 #include <omnipose/pipeline.hpp>
 #include <omnipose/pose_t.hpp>
-#include <opencv2/core.hpp>
+#include <omnipose/synth.hpp>
+#include <opencv2/imgproc.hpp>
 
 int main() {
   const omnipose::Calibration calibration;  // the DESIGN.md example lens
-  omnipose::PipelineOptions options;
-  options.refine_iterations = 0;
-  omnipose::Pipeline pipeline(calibration, options);
-  const cv::Mat frame(calibration.omni.image_height, calibration.omni.image_width, CV_8UC1,
-                      cv::Scalar(128));
-  const auto first = pipeline.process(frame);
+  omnipose::synth::Scene scene;
+  scene.texture.create(512, 1024, CV_32FC1);
+  cv::randu(scene.texture, 0.0, 255.0);
+  cv::GaussianBlur(scene.texture, scene.texture, cv::Size(0, 0), 3.0);
+  const omnipose::synth::Renderer renderer(scene, calibration, {omnipose::synth::OutputKind::kOmni, 2});
+  const double yaw = 2.0 * std::numbers::pi / 180.0;
+  Eigen::Isometry3d turned = Eigen::Isometry3d::Identity();
+  turned.linear() = Eigen::AngleAxisd(yaw, Eigen::Vector3d::UnitZ()).toRotationMatrix();
+  cv::Mat first, second;
+  renderer.render(Eigen::Isometry3d::Identity()).convertTo(first, CV_8UC1);
+  renderer.render(turned).convertTo(second, CV_8UC1);
+
+  omnipose::Pipeline pipeline(calibration, omnipose::PipelineOptions{});
+  const bool accepted = pipeline.process(first).has_value();
+  const auto motion = pipeline.process(second);
+  const double measured = motion ? std::abs(motion->estimate.omega.z()) : -1.0;
   const auto proposal = omnipose::calibrate::proposePanorama(120.0, 300.0, omnipose::OuterEdge::kTop);
   omnipose::pose_t pose;
   pose.sequence = 7;
-  std::printf("downstream: first frame %s, proposed panorama %dx%d, pose_t encodes to %d bytes\n",
-              first ? "accepted" : "rejected", proposal.width, proposal.height,
+  std::printf("downstream: first frame %s, |yaw| %.5f rad (rendered %.5f), proposed panorama "
+              "%dx%d, pose_t encodes to %d bytes\n",
+              accepted ? "accepted" : "rejected", measured, yaw, proposal.width, proposal.height,
               pose.getEncodedSize());
-  return first && proposal.width > 0 ? 0 : 1;
+  return accepted && std::abs(measured - yaw) < 1e-3 && proposal.width > 0 ? 0 : 1;
 }
