@@ -67,12 +67,9 @@ struct DaemonConfig {
   enum class Use { kDaemon, kReplay };
 
   /// Upper bounds of the sizes in daemon.yaml (checked before anything is allocated).
+  /// (The pipeline section's bounds are the pipeline's: WindowRegistration::kMaxWindow,
+  /// kMaxStep, kMaxWindowSamples.)
   static constexpr int kMaxFrameSide = 8192;  ///< source.width, source.height, pixels
-  static constexpr int kMaxWindow = 512;      ///< pipeline.window, pixels
-  static constexpr int kMaxStep = 4096;       ///< pipeline.step, pixels
-  /// Windows x window^2 (the samples of one frame's window spectra): at most 16 Mi, 25 times
-  /// the paper's setting (55 windows of 110 x 110).
-  static constexpr long long kMaxWindowSamples = 16LL << 20;
 
   std::string origin;                 ///< where it was read from (named in messages)
   SourceConfig source;
@@ -87,8 +84,9 @@ struct DaemonConfig {
   static DaemonConfig parse(const std::string& yaml_text, const std::string& origin,
                             const std::filesystem::path& base_dir, Use use = Use::kDaemon);
   /// Problems of the pipeline section together with the calibration's panorama (window
-  /// taller than the panorama, more window samples than kMaxWindowSamples), each naming
-  /// `origin` (this file) and the key; empty when it fits. Checked before anything is sized.
+  /// taller than the panorama, more window samples than WindowRegistration::
+  /// kMaxWindowSamples), each naming `origin` (this file) and the daemon.yaml key; empty when
+  /// it fits. Checked before anything is sized.
   std::vector<std::string> checkAgainst(const Calibration& cal, const std::string& origin) const;
   /// The effective configuration as YAML, for the start-up log.
   std::string describe() const;

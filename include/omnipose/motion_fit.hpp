@@ -19,15 +19,15 @@
 /// the Schur complement; the covariance is the marginal one of (omega, tau). Without
 /// translation lambda_k stays at 1 and nothing changes.
 ///
-/// Realtime: construction reserves the workspace for `max_windows`; fit() allocates
-/// nothing and never throws.
+/// Realtime: construction reserves the workspace for `max_windows` windows (the
+/// registration's window count); fit() allocates nothing and never throws.
 
 #include <Eigen/Core>
 #include <span>
 #include <string>
 #include <vector>
 
-#include "omnipose/window_registration.hpp"
+#include "omnipose/window_motion.hpp"
 
 namespace omnipose {
 
@@ -72,26 +72,34 @@ class MotionFit {
                                        ///< unmasked ones: degraded
     double max_residual_px = 1.5;      ///< larger inlier RMS: degraded
     double max_condition = 1e6;        ///< larger normal-matrix condition number: lost
-    int max_windows = 512;             ///< workspace size
     /// Per-window inverse depth: every window gets its own rho_mean/rho_k (mean 1), so a
     /// room whose walls are at different distances does not turn translation into
     /// rotation. Solved jointly with (omega, tau) by Gauss-Newton (Schur complement).
     bool per_window_depth = true;
     double depth_prior_sigma = 0.5;  ///< prior spread of the relative inverse depth around 1
 
-    /// Empty when valid, else a message naming the bad field.
-    std::string validate() const;
+    /// Every problem, one message per bad field, each starting with the field's name
+    /// ("median: 4 must be odd (or 0/1 = off)"); empty when valid.
+    std::vector<std::string> validate() const;
   };
 
   /// `gamma`: radians per panorama column; `window_px`: window size L (for the window
-  /// attenuation). Throws std::invalid_argument on invalid options.
-  MotionFit(const Options& options, double gamma, int window_px);
+  /// attenuation kappa); `max_windows`: most windows one fit() is given (the workspace is
+  /// sized for it; WindowRegistration::windowCount()). Throws std::invalid_argument listing
+  /// every invalid option or argument.
+  MotionFit(const Options& options, double gamma, int window_px, int max_windows);
 
   /// Fits the model to `windows`; a window's azimuth is theta = gamma * (center_u - forward_column).
-  /// `windows.size()` must not exceed options().max_windows (else status kLost).
+  /// `windows.size()` must not exceed maxWindows() (else status kLost).
   MotionEstimate fit(std::span<const WindowMotion> windows, double forward_column);
 
   const Options& options() const { return options_; }
+  /// Radians per panorama column.
+  double gamma() const { return gamma_; }
+  /// The window attenuation kappa the model rows use (motion_model.hpp).
+  double kappa() const { return kappa_; }
+  /// Most windows one fit() accepts.
+  int maxWindows() const { return static_cast<int>(keep_.size()); }
 
  private:
   struct Row {

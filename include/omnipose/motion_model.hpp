@@ -26,7 +26,8 @@ struct ModelMotion {
   double log_scale = 0.0;  ///< ln s
 };
 
-/// Kappa for a Hann-tapered window of `window_px` columns at `gamma` radians per column.
+/// Kappa for a window of `window_px` columns under the registration's taper (windowTaper(),
+/// window_motion.hpp) at `gamma` radians per column.
 double windowAttenuation(int window_px, double gamma);
 
 /// Rows of the linear system A x = b for x = (omega_x, omega_y, omega_z, tau_x, tau_y,

@@ -33,7 +33,8 @@ namespace omnipose {
 
 struct PipelineOptions {
   Unwrapper::Options unwrap;
-  /// Window size/step and iFMI settings; the panorama size is taken from the calibration.
+  /// Window size/step and iFMI settings; the panorama size is the calibration's.
+  /// registration.threads is ignored (see threads).
   WindowRegistration::Options registration;
   MotionFit::Options fit;
   /// Warp-and-refit passes after the linear fit (0 = plain first-order fit).
@@ -47,13 +48,22 @@ struct PipelineOptions {
   /// yet, the plans are measured and the file is written (first start).
   std::string fftw_wisdom;
 
-  /// Every problem, one message per bad field, prefixed by its section (empty = valid).
+  /// Every problem of the options alone, one message per bad field, each starting with the
+  /// field's path in this struct ("registration.window: 8 is outside [16, 512] pixels",
+  /// "fit.median: ...", "threads: ..."); empty when valid.
   std::vector<std::string> validate() const;
 };
 
 class Pipeline final : public MotionEstimator {
  public:
-  /// Throws std::invalid_argument listing every invalid option or calibration field.
+  /// Every problem that would stop the constructor, without building anything: the
+  /// calibration's ("calibration: ..."), the options' (as PipelineOptions::validate()) and
+  /// the registration against the calibration's panorama ("registration.window: 200 is
+  /// larger than the panorama (1100 x 110)", too many window samples). Empty when valid.
+  static std::vector<std::string> validate(const Calibration& calibration,
+                                           const PipelineOptions& options);
+
+  /// Throws std::invalid_argument listing every problem of validate(calibration, options).
   Pipeline(const Calibration& calibration, const PipelineOptions& options);
   ~Pipeline();
   Pipeline(const Pipeline&) = delete;
@@ -73,6 +83,8 @@ class Pipeline final : public MotionEstimator {
   const cv::Mat& lastPanorama() const;
   const Calibration& calibration() const;
   const PipelineOptions& options() const;
+  /// The window attenuation kappa of the motion model (motion_model.hpp), as the fit uses it.
+  double windowAttenuation() const;
   /// Worker threads in use (PipelineOptions::threads resolved; the calling thread included).
   int threads() const;
   /// Whether options().fftw_wisdom was loaded (true) or measured and written (false).

@@ -5,6 +5,7 @@
 /// (`input: panorama`) pass through the same entry point and are only converted.
 
 #include <opencv2/core.hpp>
+#include <string>
 #include <vector>
 
 #include "omnipose/calibration.hpp"
@@ -22,12 +23,13 @@ class Unwrapper {
     /// A frame whose mean grey level is below this is rejected as black (lens cap,
     /// exposure failure). Grey levels 0..255.
     double min_mean_intensity = 2.0;
-    /// Empty string when valid, else a message naming the bad field.
-    std::string validate() const;
+    /// Every problem, one message per bad field, each starting with the field's name;
+    /// empty when valid.
+    std::vector<std::string> validate() const;
   };
 
-  /// Builds the lookup table (allocates). Throws std::invalid_argument when the options
-  /// or the calibration are invalid.
+  /// Builds the lookup table (allocates). Throws std::invalid_argument listing every problem
+  /// of the options and the calibration.
   Unwrapper(const Calibration& calibration, const Options& options);
 
   /// Expected frame size: the omni image size or the panorama size, by input kind.

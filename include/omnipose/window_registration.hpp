@@ -32,6 +32,9 @@
 #include <opencv2/core.hpp>
 #include <span>
 #include <string>
+#include <vector>
+
+#include "omnipose/window_motion.hpp"
 
 namespace omnipose {
 
@@ -39,34 +42,12 @@ namespace registration {
 class WorkerPool;  // private (src/registration/worker_pool.hpp)
 }
 
-/// Motion of one window between the reference and the current panorama.
-/// A confidence is the height of the phase-correlation peak (1 for identical content) above
-/// the highest peak that random phases would produce over the searched region, rescaled to
-/// [0, 1]: ~0 for unrelated content, > 0.9 for a clean match. It is a weight, not a
-/// probability.
-struct WindowMotion {
-  double center_u = 0.0;    ///< window centre column, pixels, reduced modulo W into [0, W)
-  double du = 0.0;          ///< shift along u, pixels (see file comment for the sign)
-  double dv = 0.0;          ///< shift along v, pixels
-  double rotation = 0.0;    ///< in-window rotation phi, radians (counter-clockwise on screen);
-                            ///< 0 when rs_confidence is 0
-  double scale = 1.0;       ///< in-window scale s; 1 when rs_confidence is 0
-  double confidence = 0.0;  ///< translation peak quality in [0, 1]; 0 = no usable peak
-  double rs_confidence = 0.0;  ///< rotation/scale peak quality in [0, 1]; 0 = not measured
-                               ///< (estimate_rotation_scale off), no usable peak, or the
-                               ///< peak on the border of the prior (true value outside it)
-  bool valid = false;       ///< false: window has no texture / no peak (confidence below
-                            ///< min_confidence); ignore it. du, dv = 0 for a textureless window
-  bool masked = false;      ///< mostly masked (setValidity): not measured, valid = false
-};
-
 class WindowRegistration {
  public:
   struct Options {
-    int panorama_width = 1100;   ///< W, pixels
-    int panorama_height = 110;   ///< H, pixels
-    int window = 110;            ///< L, pixels (square window, L <= H)
-    int step = 20;               ///< d, pixels between window starts; W % step need not be 0
+    int window = 110;            ///< L, pixels (square window, 16 <= L <= H, <= kMaxWindow)
+    int step = 20;               ///< d, pixels between window starts (1..kMaxStep); W % step
+                                 ///< need not be 0
     bool estimate_rotation_scale = true;  ///< run the log-polar stage (else rotation 0, scale 1)
     double max_rotation_rad = 0.35;  ///< |phi| searched around 0 (no 180-degree ambiguity), in (0, pi/4)
     double max_log_scale = 0.2;      ///< |ln s| searched around 0, in (0, 0.5]
@@ -77,20 +58,38 @@ class WindowRegistration {
                                        ///< are not measured (WindowMotion::masked)
     int threads = 1;  ///< workers (calling thread included); 0 = all online cores; in [0, 256]
 
-    /// Empty string when valid, else a message naming the bad field.
-    std::string validate() const;
+    /// Every problem, one message per bad field, each starting with the field's name
+    /// ("window: 8 is outside [16, 512] pixels"); empty when valid.
+    std::vector<std::string> validate() const;
   };
 
-  /// Throws std::invalid_argument (naming the field) when options are invalid.
-  explicit WindowRegistration(const Options& options);
+  /// Largest window side, pixels.
+  static constexpr int kMaxWindow = 512;
+  /// Largest step between windows, pixels.
+  static constexpr int kMaxStep = 4096;
+  /// Most window samples of one frame (windows x L^2): 16 Mi, 25 times the paper's setting
+  /// (55 windows of 110 x 110); bounds the memory of the reference spectra.
+  static constexpr long long kMaxWindowSamples = 16LL << 20;
+
+  /// Every problem of `options` on a panorama of `panorama` pixels (width x height): those
+  /// of Options::validate() plus the window against the panorama (taller or wider than it,
+  /// more window samples than kMaxWindowSamples, a panorama under 16 pixels). Messages start
+  /// with the field's name (or "panorama"). Empty when they fit.
+  static std::vector<std::string> validate(cv::Size panorama, const Options& options);
+
+  /// Registration of panoramas of `panorama` pixels (W x H: the calibration's panorama).
+  /// Throws std::invalid_argument listing every problem of validate(panorama, options).
+  WindowRegistration(cv::Size panorama, const Options& options);
   /// Internal (the pipeline): runs on `pool` (shared with other stages) instead of a pool of
   /// its own; options.threads is ignored. `pool` must outlive this object.
-  WindowRegistration(const Options& options, registration::WorkerPool& pool);
+  WindowRegistration(cv::Size panorama, const Options& options, registration::WorkerPool& pool);
   ~WindowRegistration();
   WindowRegistration(const WindowRegistration&) = delete;
   WindowRegistration& operator=(const WindowRegistration&) = delete;
 
   const Options& options() const;
+  /// Panorama size (W x H) this registration was built for.
+  cv::Size panoramaSize() const;
   /// Number of workers (the calling thread included).
   int threads() const;
   /// Number of windows per panorama.

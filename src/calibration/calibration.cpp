@@ -9,7 +9,7 @@
 #include <set>
 #include <sstream>
 
-#include "calibration/problem_list.hpp"
+#include "common/problem_list.hpp"
 #include "omnipose/limits.hpp"
 
 namespace omnipose {

@@ -4,7 +4,7 @@
 #include <opencv2/core.hpp>
 #include <stdexcept>
 
-#include "calibration/problem_list.hpp"
+#include "common/problem_list.hpp"
 #include "omnipose/lens_model.hpp"
 
 namespace omnipose {

@@ -6,7 +6,7 @@
 #include <sstream>
 #include <stdexcept>
 
-#include "calibration/problem_list.hpp"
+#include "common/problem_list.hpp"
 #include "omnipose/limits.hpp"
 #include "omnipose/lens_model.hpp"
 

@@ -38,7 +38,6 @@ Processor::Processor(const Calibration& calibration, const PipelineOptions& pipe
       board_(board),
       mailbox_(mailbox),
       diagnostics_(!lcm.fit_channel.empty()),
-      kappa_(windowAttenuation(pipeline.registration.window, calibration.panorama.gamma())),
       pose_(std::make_unique<pose_t>()),
       status_(std::make_unique<status_t>()),
       diagnostics_msg_(std::make_unique<fit_diagnostics_t>()),
@@ -202,7 +201,8 @@ void Processor::fillDiagnostics(const FrameInfo& info, const FrameMotion& motion
     d.valid[k] = w.valid ? 1 : 0;
     d.masked[k] = w.masked ? 1 : 0;
     // Eq. 3, linear form, at the window's azimuth, converted to pixels.
-    const ModelMotion m = predictMotion(x, (w.center_u - d.forward_column) * d.gamma, kappa_);
+    const ModelMotion m = predictMotion(x, (w.center_u - d.forward_column) * d.gamma,
+                                          pipeline_.windowAttenuation());
     d.model_du[k] = static_cast<float>(m.du_rad / d.gamma);
     d.model_dv[k] = static_cast<float>(m.dv_rad / d.gamma);
   }

@@ -72,7 +72,6 @@ class Processor {
   StatusBoard& board_;
   const FrameMailbox& mailbox_;
   bool diagnostics_ = false;
-  double kappa_ = 1.0;
 
   std::unique_ptr<pose_t> pose_;
   std::unique_ptr<status_t> status_;

@@ -5,8 +5,11 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <numbers>
 #include <stdexcept>
+#include <string>
 
+#include "common/problem_list.hpp"
 #include "omnipose/motion_model.hpp"
 
 namespace omnipose {
@@ -35,33 +38,38 @@ const char* toString(FitStatus status) {
   return "unknown";
 }
 
-std::string MotionFit::Options::validate() const {
-  if (!(huber_delta_px > 0)) return "huber_delta_px must be > 0";
-  if (median < 0 || median > 15) return "median must be in [0, 15]";
-  if (median > 1 && median % 2 == 0) return "median must be odd (or 0/1 = off)";
-  if (!(median_reject_px > 0)) return "median_reject_px must be > 0";
-  if (max_iterations < 1) return "max_iterations must be >= 1";
-  if (!(tolerance > 0)) return "tolerance must be > 0";
-  if (!(inlier_sigmas > 0)) return "inlier_sigmas must be > 0";
-  if (!(min_window_fraction >= 0 && min_window_fraction <= 1))
-    return "min_window_fraction must be in [0, 1]";
-  if (!(max_residual_px > 0)) return "max_residual_px must be > 0";
-  if (!(max_condition > 1)) return "max_condition must be > 1";
-  if (max_windows < 6) return "max_windows must be >= 6";
-  if (!(depth_prior_sigma > 0)) return "depth_prior_sigma must be > 0";
-  return {};
+std::vector<std::string> MotionFit::Options::validate() const {
+  std::vector<std::string> p;
+  detail::checkRange(p, "huber_delta_px", huber_delta_px, 0.0, 100.0, " pixels", true);
+  detail::checkRange(p, "median", median, 0, 15, " windows");
+  if (median > 1 && median <= 15 && median % 2 == 0)
+    p.push_back("median: " + std::to_string(median) + " must be odd (or 0/1 = off)");
+  detail::checkRange(p, "median_reject_px", median_reject_px, 0.0, 1000.0, " pixels", true);
+  detail::checkRange(p, "max_iterations", max_iterations, 1, 1000);
+  detail::checkRange(p, "tolerance", tolerance, 0.0, 1.0, " radians", true);
+  detail::checkRange(p, "inlier_sigmas", inlier_sigmas, 0.0, 100.0, "", true);
+  detail::checkRange(p, "min_window_fraction", min_window_fraction, 0.0, 1.0);
+  detail::checkRange(p, "max_residual_px", max_residual_px, 0.0, 1000.0, " pixels", true);
+  detail::checkRange(p, "max_condition", max_condition, 1.0, 1e300, "", true);
+  detail::checkRange(p, "depth_prior_sigma", depth_prior_sigma, 0.0, 1000.0, "", true);
+  return p;
 }
 
-MotionFit::MotionFit(const Options& options, double gamma, int window_px)
-    : options_(options), gamma_(gamma), kappa_(windowAttenuation(window_px, gamma)) {
-  if (const auto bad = options.validate(); !bad.empty())
-    throw std::invalid_argument("MotionFit::Options: " + bad);
-  if (!(gamma > 0)) throw std::invalid_argument("MotionFit: gamma must be > 0");
-  rows_.resize(4 * static_cast<std::size_t>(options.max_windows));
+MotionFit::MotionFit(const Options& options, double gamma, int window_px, int max_windows)
+    : options_(options),
+      gamma_(gamma),
+      kappa_(window_px >= 1 && gamma > 0 ? windowAttenuation(window_px, gamma) : 1.0) {
+  std::vector<std::string> problems = options.validate();
+  detail::checkRange(problems, "gamma", gamma, 0.0, 2 * std::numbers::pi, " radians per column",
+                     true);
+  detail::checkRange(problems, "window_px", window_px, 1, 65536, " pixels");
+  detail::checkRange(problems, "max_windows", max_windows, 1, 65536);
+  detail::throwIfProblems("MotionFit", problems);
+  rows_.resize(4 * static_cast<std::size_t>(max_windows));
   scratch_.resize(rows_.size());
-  keep_.resize(options.max_windows);
-  depth_.resize(options.max_windows);
-  depth_xl_.resize(options.max_windows);
+  keep_.resize(max_windows);
+  depth_.resize(max_windows);
+  depth_xl_.resize(max_windows);
 }
 
 int MotionFit::buildTranslationRows(std::span<const WindowMotion> windows, double forward_column) {
@@ -292,7 +300,7 @@ MotionEstimate MotionFit::fit(std::span<const WindowMotion> windows, double forw
   est.windows_total = static_cast<int>(windows.size());
   est.windows_masked = static_cast<int>(
       std::count_if(windows.begin(), windows.end(), [](const WindowMotion& w) { return w.masked; }));
-  if (windows.size() > static_cast<std::size_t>(options_.max_windows)) {
+  if (windows.size() > keep_.size()) {
     est.status = FitStatus::kLost;  // workspace too small: configuration error upstream
     return est;
   }

@@ -1,18 +1,20 @@
 #include "omnipose/motion_model.hpp"
 
 #include <cmath>
-#include <numbers>
+
+#include "omnipose/window_motion.hpp"
 
 namespace omnipose {
 
 double windowAttenuation(int window_px, double gamma) {
-  // kappa = sum_x w(x) cos(gamma x) / sum_x w(x), w = Hann over the window's columns.
-  // Phase correlation weights each column by the taper of both windows, so w = hann^2.
+  // kappa = sum_x w(x) cos(gamma x) / sum_x w(x), w = the registration's taper over the
+  // window's columns. Phase correlation weights each column by the taper of both windows,
+  // so w = taper^2.
   double num = 0.0, den = 0.0;
   const double c = 0.5 * (window_px - 1);
   for (int i = 0; i < window_px; ++i) {
-    const double hann = 0.5 - 0.5 * std::cos(2.0 * std::numbers::pi * (i + 0.5) / window_px);
-    const double w = hann * hann;
+    const double taper = windowTaper(i, window_px);
+    const double w = taper * taper;
     num += w * std::cos(gamma * (i - c));
     den += w;
   }

@@ -5,8 +5,11 @@
 #include <cmath>
 #include <fstream>
 #include <set>
+#include <string_view>
 #include <type_traits>
 #include <sstream>
+
+#include "common/problem_list.hpp"
 
 namespace omnipose {
 namespace {
@@ -17,13 +20,6 @@ const char* typeName() {
   else if constexpr (std::is_integral_v<T>) return "an integer";
   else if constexpr (std::is_floating_point_v<T>) return "a number";
   else return "text";
-}
-
-template <typename T>
-std::string fmt(T value) {
-  std::ostringstream o;
-  o << value;
-  return o.str();
 }
 
 /// Reads typed values out of a YAML map, collecting every problem with its key path.
@@ -71,29 +67,13 @@ class Reader {
     }
   }
 
-  /// A number in [lo, hi] (finite; NaN and infinities are refused).
+  /// A number in [lo, hi] ((lo, hi] with `open_below`); NaN and infinities are refused.
   template <typename T>
-  void range(T value, const std::string& key, T lo, T hi, const char* unit = "") {
-    if constexpr (std::is_floating_point_v<T>) {
-      if (!std::isfinite(value)) {
-        problem(key, "must be a finite number, not " + fmt(value));
-        return;
-      }
-    }
-    if (value < lo || value > hi)
-      problem(key, fmt(value) + " is outside [" + fmt(lo) + ", " + fmt(hi) + "]" + unit);
-  }
-  /// A number in (lo, hi] (finite).
-  template <typename T>
-  void rangeAbove(T value, const std::string& key, T lo, T hi, const char* unit = "") {
-    if constexpr (std::is_floating_point_v<T>) {
-      if (!std::isfinite(value)) {
-        problem(key, "must be a finite number, not " + fmt(value));
-        return;
-      }
-    }
-    if (value <= lo || value > hi)
-      problem(key, fmt(value) + " is outside (" + fmt(lo) + ", " + fmt(hi) + "]" + unit);
+  void range(T value, const std::string& key, T lo, T hi, const char* unit = "",
+             bool open_below = false) {
+    std::vector<std::string> found;
+    detail::checkRange(found, key, value, lo, hi, unit, open_below);
+    for (const auto& p : found) problems_.push_back(origin_ + ": " + p);
   }
 
   /// Range check helper: reports `what` when `ok` is false.
@@ -136,16 +116,50 @@ void parseSource(Reader& r, const YAML::Node& node, const std::filesystem::path&
     r.problem("source.device", "must not be empty");
   r.range(s.width, "source.width", 1, DaemonConfig::kMaxFrameSide, " pixels");
   r.range(s.height, "source.height", 1, DaemonConfig::kMaxFrameSide, " pixels");
-  r.rangeAbove(s.fps, "source.fps", 0.0, 1000.0, " frames per second");
+  r.range(s.fps, "source.fps", 0.0, 1000.0, " frames per second", true);
+}
+
+/// daemon.yaml keys that set a PipelineOptions field, with that field's path in
+/// PipelineOptions: one table to read the keys by and to name each field's problem by the key
+/// the user wrote.
+struct PipelineKey {
+  const char* yaml;   ///< key path in daemon.yaml
+  const char* field;  ///< field path in PipelineOptions (as its validate() names it)
+};
+constexpr PipelineKey kPipelineKeys[] = {
+    {"pipeline.window", "registration.window"},
+    {"pipeline.step", "registration.step"},
+    {"pipeline.huber_delta_px", "fit.huber_delta_px"},
+    {"pipeline.median", "fit.median"},
+    {"pipeline.refine_iterations", "refine_iterations"},
+    {"pipeline.use_rotation_scale", "fit.use_rotation_scale"},
+    {"pipeline.estimate_rotation_scale", "registration.estimate_rotation_scale"},
+    {"pipeline.min_confidence", "registration.min_confidence"},
+    {"pipeline.inlier_sigmas", "fit.inlier_sigmas"},
+    {"pipeline.threads", "threads"},
+    {"pipeline.fftw_wisdom", "fftw_wisdom"},
+    {"input", "unwrap.input"},
+};
+
+/// A PipelineOptions problem ("registration.window: ...") keyed by the daemon.yaml key that
+/// sets the field ("pipeline.window: ..."); a field no key sets keeps its path, marked as a
+/// built-in value.
+std::string yamlProblem(const std::string& problem) {
+  for (const PipelineKey& k : kPipelineKeys) {
+    const std::string field = std::string(k.field) + ":";
+    if (problem.rfind(field, 0) == 0) return k.yaml + problem.substr(field.size() - 1);
+  }
+  return "pipeline (built-in value) " + problem;
 }
 
 void parsePipeline(Reader& r, const YAML::Node& node, const std::filesystem::path& base_dir,
                    PipelineOptions& p) {
-  if (!r.checkMap(node, "pipeline",
-                  {"window", "step", "huber_delta_px", "median", "refine_iterations",
-                   "use_rotation_scale", "estimate_rotation_scale", "min_confidence",
-                   "inlier_sigmas", "threads", "fftw_wisdom"}))
-    return;
+  std::set<std::string> known;
+  for (const PipelineKey& k : kPipelineKeys) {
+    const std::string_view yaml = k.yaml;
+    if (yaml.starts_with("pipeline.")) known.insert(std::string(yaml.substr(9)));
+  }
+  if (!r.checkMap(node, "pipeline", known)) return;
   r.get(node, "pipeline", "window", p.registration.window);
   r.get(node, "pipeline", "step", p.registration.step);
   r.get(node, "pipeline", "huber_delta_px", p.fit.huber_delta_px);
@@ -162,15 +176,8 @@ void parsePipeline(Reader& r, const YAML::Node& node, const std::filesystem::pat
     p.fftw_wisdom = (std::filesystem::path(wisdom).is_absolute() ? std::filesystem::path(wisdom)
                                                                   : base_dir / wisdom)
                         .string();
-  // Bounds before anything is sized by them (the pipeline allocates per window).
-  r.range(p.registration.window, "pipeline.window", 16, DaemonConfig::kMaxWindow, " pixels");
-  r.range(p.registration.step, "pipeline.step", 1, DaemonConfig::kMaxStep, " pixels");
-  r.rangeAbove(p.fit.huber_delta_px, "pipeline.huber_delta_px", 0.0, 100.0, " pixels");
-  r.range(p.fit.median, "pipeline.median", 0, 15);
-  r.range(p.refine_iterations, "pipeline.refine_iterations", 0, 5);
-  r.range(p.registration.min_confidence, "pipeline.min_confidence", 0.0, 1.0);
-  r.rangeAbove(p.fit.inlier_sigmas, "pipeline.inlier_sigmas", 0.0, 100.0);
-  r.range(p.threads, "pipeline.threads", 0, 256, " (0 = all online cores)");
+  // The ranges are the pipeline's own (PipelineOptions::validate(), checked by parse()
+  // before anything is sized by them).
 }
 
 void parseLcm(Reader& r, const YAML::Node& node, LcmConfig& l) {
@@ -184,7 +191,7 @@ void parseLcm(Reader& r, const YAML::Node& node, LcmConfig& l) {
   r.get(node, "lcm", "status_hz", l.status_hz);
   r.require(!l.pose_channel.empty(), "lcm.pose_channel", "must not be empty");
   r.require(!l.status_channel.empty(), "lcm.status_channel", "must not be empty");
-  r.rangeAbove(l.status_hz, "lcm.status_hz", 0.0, 100.0, " Hz");
+  r.range(l.status_hz, "lcm.status_hz", 0.0, 100.0, " Hz", true);
 }
 
 }  // namespace
@@ -234,7 +241,7 @@ DaemonConfig DaemonConfig::parse(const std::string& text, const std::string& ori
 
     if (root["pipeline"]) parsePipeline(r, root["pipeline"], base_dir, c.pipeline);
     if (root["lcm"]) parseLcm(r, root["lcm"], c.lcm);
-    for (const auto& p : c.pipeline.validate()) problems.push_back(origin + ": pipeline." + p);
+    for (const auto& p : c.pipeline.validate()) problems.push_back(origin + ": " + yamlProblem(p));
   }
   if (!problems.empty()) {
     std::string what = origin + ": invalid configuration:";
@@ -247,24 +254,12 @@ DaemonConfig DaemonConfig::parse(const std::string& text, const std::string& ori
 std::vector<std::string> DaemonConfig::checkAgainst(const Calibration& cal,
                                                     const std::string& origin) const {
   std::vector<std::string> problems;
-  const auto& r = pipeline.registration;
-  const int width = cal.panorama.width, height = cal.panorama.height;
-  if (r.window > height || r.window > width) {
-    problems.push_back(origin + ": pipeline.window: " + std::to_string(r.window) +
-                       " is larger than the panorama (" + std::to_string(width) + " x " +
-                       std::to_string(height) + ", " + calibration.string() + ")");
-  }
-  if (r.step >= 1 && width > 0) {
-    const long long windows = (static_cast<long long>(width) + r.step - 1) / r.step;
-    const long long samples = windows * r.window * r.window;
-    if (samples > kMaxWindowSamples) {
-      problems.push_back(origin + ": pipeline.step: " + std::to_string(r.step) + " gives " +
-                         std::to_string(windows) + " windows of " + std::to_string(r.window) +
-                         " x " + std::to_string(r.window) + " over the " + std::to_string(width) +
-                         "-pixel panorama: " + std::to_string(samples) +
-                         " window samples, the largest supported is " +
-                         std::to_string(kMaxWindowSamples) + " (use a larger step or window)");
-    }
+  const cv::Size panorama(cal.panorama.width, cal.panorama.height);
+  for (const auto& p : WindowRegistration::validate(panorama, pipeline.registration)) {
+    std::string text = yamlProblem("registration." + p);
+    if (text.find("than the panorama") != std::string::npos)
+      text += " (" + calibration.string() + ")";  // name the file the panorama comes from
+    problems.push_back(origin + ": " + text);
   }
   return problems;
 }

@@ -4,6 +4,7 @@
 #include <stdexcept>
 #include <vector>
 
+#include "common/problem_list.hpp"
 #include "omnipose/so3.hpp"
 #include "pipeline/panorama_warp.hpp"
 #include "registration/fft_plan.hpp"
@@ -18,32 +19,42 @@ double secondsSince(Clock::time_point start) {
   return std::chrono::duration<double>(Clock::now() - start).count();
 }
 
-WindowRegistration::Options registrationOptions(const Calibration& calibration,
-                                                const PipelineOptions& options) {
-  WindowRegistration::Options o = options.registration;
-  o.panorama_width = calibration.panorama.width;
-  o.panorama_height = calibration.panorama.height;
-  return o;
+/// Problems of the options other than the registration's, keyed by PipelineOptions field.
+std::vector<std::string> otherProblems(const PipelineOptions& o) {
+  std::vector<std::string> problems;
+  for (const auto& p : o.unwrap.validate()) problems.push_back("unwrap." + p);
+  for (const auto& p : o.fit.validate()) problems.push_back("fit." + p);
+  detail::checkRange(problems, "refine_iterations", o.refine_iterations, 0, 5);
+  detail::checkRange(problems, "threads", o.threads, 0, 256, " (0 = all online cores)");
+  return problems;
 }
 
-MotionFit::Options fitOptions(const Calibration& calibration, const PipelineOptions& options) {
-  MotionFit::Options o = options.fit;
-  const int step = std::max(options.registration.step, 1);
-  o.max_windows = std::max(o.max_windows, (calibration.panorama.width + step - 1) / step);
-  return o;
+cv::Size panoramaSize(const Calibration& calibration) {
+  return {calibration.panorama.width, calibration.panorama.height};
 }
 
 }  // namespace
 
 std::vector<std::string> PipelineOptions::validate() const {
   std::vector<std::string> problems;
-  if (auto bad = unwrap.validate(); !bad.empty()) problems.push_back("unwrap: " + bad);
-  if (auto bad = registration.validate(); !bad.empty()) problems.push_back("registration: " + bad);
-  if (auto bad = fit.validate(); !bad.empty()) problems.push_back("fit: " + bad);
-  if (refine_iterations < 0 || refine_iterations > 5)
-    problems.push_back("refine_iterations: must be in [0, 5]");
-  if (threads < 0 || threads > 256)
-    problems.push_back("threads: must be in [0, 256] (0 = all online cores)");
+  for (const auto& p : registration.validate()) problems.push_back("registration." + p);
+  for (auto& p : otherProblems(*this)) problems.push_back(std::move(p));
+  return problems;
+}
+
+std::vector<std::string> Pipeline::validate(const Calibration& calibration,
+                                            const PipelineOptions& options) {
+  std::vector<std::string> problems;
+  const auto calibration_problems = calibration.validate();
+  for (const auto& p : calibration_problems) problems.push_back("calibration: " + p);
+  // The registration against the calibration's panorama (its size is only meaningful when
+  // the calibration is valid).
+  const auto registration_problems =
+      calibration_problems.empty()
+          ? WindowRegistration::validate(panoramaSize(calibration), options.registration)
+          : options.registration.validate();
+  for (const auto& p : registration_problems) problems.push_back("registration." + p);
+  for (auto& p : otherProblems(options)) problems.push_back(std::move(p));
   return problems;
 }
 
@@ -54,8 +65,8 @@ struct Pipeline::Impl {
         wisdom_loaded(registration::importWisdom(o.fftw_wisdom)),
         pool(o.threads > 0 ? o.threads : registration::WorkerPool::onlineCores()),
         unwrapper(c, o.unwrap),
-        registration(registrationOptions(c, o), pool),
-        fit(fitOptions(c, o), c.panorama.gamma(), o.registration.window),
+        registration(panoramaSize(c), o.registration, pool),
+        fit(o.fit, c.panorama.gamma(), o.registration.window, registration.windowCount()),
         warp(c.panorama) {
     panorama = unwrapper.makePanorama();
     warped = unwrapper.makePanorama();
@@ -95,17 +106,7 @@ struct Pipeline::Impl {
 };
 
 Pipeline::Pipeline(const Calibration& calibration, const PipelineOptions& options) {
-  std::vector<std::string> problems = options.validate();
-  for (const auto& p : calibration.validate()) problems.push_back("calibration: " + p);
-  if (options.registration.window > calibration.panorama.height)
-    problems.push_back("registration: window (" + std::to_string(options.registration.window) +
-                       ") must not exceed the panorama height (" +
-                       std::to_string(calibration.panorama.height) + ")");
-  if (!problems.empty()) {
-    std::string what = "invalid pipeline configuration:";
-    for (const auto& p : problems) what += "\n  " + p;
-    throw std::invalid_argument(what);
-  }
+  detail::throwIfProblems("invalid pipeline configuration", validate(calibration, options));
   impl_ = std::make_unique<Impl>(calibration, options);
 }
 
@@ -194,6 +195,7 @@ const cv::Mat& Pipeline::lastPanorama() const { return impl_->panorama; }
 const Calibration& Pipeline::calibration() const { return impl_->calibration; }
 const PipelineOptions& Pipeline::options() const { return impl_->options; }
 int Pipeline::threads() const { return impl_->pool.size(); }
+double Pipeline::windowAttenuation() const { return impl_->fit.kappa(); }
 bool Pipeline::wisdomLoaded() const { return impl_->wisdom_loaded; }
 
 }  // namespace omnipose

@@ -7,9 +7,11 @@
 #include <numbers>
 #include <opencv2/imgproc.hpp>
 #include <stdexcept>
+#include <string>
 #include <utility>
 #include <vector>
 
+#include "common/problem_list.hpp"
 #include "registration/fft_plan.hpp"
 #include "registration/log_polar.hpp"
 #include "registration/phase_correlator.hpp"
@@ -74,12 +76,10 @@ constexpr double kMaskFeatherPx = 2.0;
 constexpr double kTextureFloorRel = 1e-4;
 constexpr double kTextureFloorAbs = 1e-6;
 
-/// Hann taper h(j) = 0.5 - 0.5 cos(2 pi (j + 0.5) / L): positive, symmetric about the window
-/// centre (L - 1) / 2.
-std::vector<float> hannTaper(int length) {
+/// The registration's taper (windowTaper(), window_motion.hpp) as floats.
+std::vector<float> taperTable(int length) {
   std::vector<float> taper(length);
-  for (int j = 0; j < length; ++j)
-    taper[j] = static_cast<float>(0.5 - 0.5 * std::cos(2.0 * std::numbers::pi * (j + 0.5) / length));
+  for (int j = 0; j < length; ++j) taper[j] = static_cast<float>(windowTaper(j, length));
   return taper;
 }
 
@@ -171,22 +171,47 @@ void sampleRow(const float* image, std::size_t stride, float u0, float du, float
 
 }  // namespace
 
-std::string WindowRegistration::Options::validate() const {
-  if (panorama_width < 16) return "panorama_width must be >= 16";
-  if (panorama_height < 16) return "panorama_height must be >= 16";
-  if (window < 16) return "window must be >= 16";
-  if (window > panorama_height) return "window must be <= panorama_height";
-  if (window > panorama_width) return "window must be <= panorama_width";
-  if (step < 1) return "step must be >= 1";
-  if (!(max_rotation_rad > 0.0 && max_rotation_rad < std::numbers::pi / 4))
-    return "max_rotation_rad must be in (0, pi/4)";
-  if (!(max_log_scale > 0.0 && max_log_scale <= 0.5)) return "max_log_scale must be in (0, 0.5]";
-  if (!(min_confidence >= 0.0 && min_confidence <= 1.0))
-    return "min_confidence must be in [0, 1]";
-  if (!(min_usable_fraction >= 0.0 && min_usable_fraction <= 1.0))
-    return "min_usable_fraction must be in [0, 1]";
-  if (threads < 0 || threads > 256) return "threads must be in [0, 256] (0 = all online cores)";
-  return {};
+std::vector<std::string> WindowRegistration::Options::validate() const {
+  std::vector<std::string> p;
+  detail::checkRange(p, "window", window, 16, kMaxWindow, " pixels");
+  detail::checkRange(p, "step", step, 1, kMaxStep, " pixels");
+  if (max_rotation_rad >= std::numbers::pi / 4)  // open at both ends
+    p.push_back("max_rotation_rad: " + std::to_string(max_rotation_rad) +
+                " must be below pi/4 (a quarter turn is ambiguous)");
+  else
+    detail::checkRange(p, "max_rotation_rad", max_rotation_rad, 0.0, std::numbers::pi / 4,
+                       " radians", true);
+  detail::checkRange(p, "max_log_scale", max_log_scale, 0.0, 0.5, "", true);
+  detail::checkRange(p, "min_confidence", min_confidence, 0.0, 1.0);
+  detail::checkRange(p, "min_usable_fraction", min_usable_fraction, 0.0, 1.0);
+  detail::checkRange(p, "threads", threads, 0, 256, " (0 = all online cores)");
+  return p;
+}
+
+std::vector<std::string> WindowRegistration::validate(cv::Size panorama, const Options& options) {
+  std::vector<std::string> problems = options.validate();
+  const std::string size = std::to_string(panorama.width) + " x " + std::to_string(panorama.height);
+  if (panorama.width < 16 || panorama.height < 16) {
+    problems.push_back("panorama: " + size + " pixels, both sides must be >= 16");
+    return problems;
+  }
+  if (options.window > panorama.height || options.window > panorama.width)
+    problems.push_back("window: " + std::to_string(options.window) +
+                       " is larger than the panorama (" + size + ")");
+  if (options.step >= 1 && options.window >= 1) {
+    const long long windows = (static_cast<long long>(panorama.width) + options.step - 1) /
+                              options.step;
+    const long long samples = windows * options.window * options.window;
+    if (samples > kMaxWindowSamples)
+      problems.push_back("step: " + std::to_string(options.step) + " gives " +
+                         std::to_string(windows) + " windows of " +
+                         std::to_string(options.window) + " x " +
+                         std::to_string(options.window) + " over the " +
+                         std::to_string(panorama.width) + "-pixel panorama: " +
+                         std::to_string(samples) + " window samples, the largest supported is " +
+                         std::to_string(kMaxWindowSamples) + " (use a larger step or window)");
+  }
+  return problems;
 }
 
 /// Whitened spectra of every window of one frame: what the next frame is registered against.
@@ -253,9 +278,10 @@ Worker::Worker(int fft_size)
 }
 
 struct WindowRegistration::Impl {
-  Impl(const Options& o, reg::WorkerPool* shared_pool);
+  Impl(cv::Size panorama, const Options& o, reg::WorkerPool* shared_pool);
 
   Options options;
+  int width, height;  ///< panorama size, pixels
   int windows;    ///< windowCount()
   int top;        ///< first panorama row of every window
   int fft_size;   ///< n >= L: windows are zero-padded to n x n
@@ -298,13 +324,16 @@ struct WindowRegistration::Impl {
                      const WindowMotion* known, WindowMotion& out) const;
 };
 
-WindowRegistration::Impl::Impl(const Options& o, reg::WorkerPool* shared_pool)
+WindowRegistration::Impl::Impl(cv::Size panorama, const Options& o,
+                                reg::WorkerPool* shared_pool)
     : options(o),
-      windows((o.panorama_width + o.step - 1) / o.step),
-      top((o.panorama_height - o.window) / 2),
+      width(panorama.width),
+      height(panorama.height),
+      windows((panorama.width + o.step - 1) / o.step),
+      top((panorama.height - o.window) / 2),
       fft_size(reg::fastFftSize(o.window)),
       half(0.5 * (o.window - 1)),
-      taper(hannTaper(o.window)),
+      taper(taperTable(o.window)),
       own_pool(shared_pool != nullptr
                    ? nullptr
                    : std::make_unique<reg::WorkerPool>(
@@ -328,18 +357,18 @@ WindowRegistration::Impl::Impl(const Options& o, reg::WorkerPool* shared_pool)
 }
 
 double WindowRegistration::Impl::windowCenter(int k) const {
-  return std::fmod(k * static_cast<double>(options.step) + half, options.panorama_width);
+  return std::fmod(k * static_cast<double>(options.step) + half, width);
 }
 
 bool WindowRegistration::Impl::acceptsImage(const cv::Mat& panorama) const {
-  return panorama.type() == CV_32FC1 && panorama.cols == options.panorama_width &&
-         panorama.rows == options.panorama_height;
+  return panorama.type() == CV_32FC1 && panorama.cols == width &&
+         panorama.rows == height;
 }
 
 TaperedWindow WindowRegistration::Impl::loadWindow(Worker& w, const cv::Mat& panorama,
                                                    int k) const {
   // Window k covers columns k*step .. k*step + L - 1, wrapping around u.
-  const int width = options.panorama_width, length = options.window;
+  const int length = options.window;
   const int first_col = static_cast<int>((static_cast<long>(k) * options.step) % width);
   const int head = std::min(length, width - first_col);
   for (int i = 0; i < length; ++i) {
@@ -356,7 +385,7 @@ TaperedWindow WindowRegistration::Impl::loadWarpedWindow(Worker& w, const cv::Ma
                                                          double scale) const {
   // D(y) = C(c + (s R)^-1 y), y about the window centre c: content of D at y appears at
   // y + (du, dv) in the reference window. (s R)^-1 = (1/s) [[cos, -sin], [sin, cos]].
-  const int width = options.panorama_width, length = options.window;
+  const int length = options.window;
   const double m00 = std::cos(rotation) / scale, m10 = std::sin(rotation) / scale;
   const double m01 = -m10, m11 = m00;
   // Columns are addressed from `base`, a whole column left of every sample, so coordinates
@@ -370,7 +399,7 @@ TaperedWindow WindowRegistration::Impl::loadWarpedWindow(Worker& w, const cv::Ma
   const std::size_t stride = panorama.step1();
   const double u_centre = centre_u - base + (wraps ? wrapped_base : 0.0);
   const double v_centre = top + half;
-  const float max_v = static_cast<float>(options.panorama_height - 1) - 1e-3f;
+  const float max_v = static_cast<float>(height - 1) - 1e-3f;
   for (int i = 0; i < length; ++i) {
     // Row i starts at y = (-half, i - half).
     const double yv = i - half;
@@ -392,7 +421,7 @@ void WindowRegistration::Impl::setValidity(const cv::Mat& validity) {
   masked_weight.clear();
   masked_weight2.clear();
   mostly_masked.assign(windows, 0);
-  const int width = options.panorama_width, length = options.window;
+  const int length = options.window;
   double minimum = 1.0;
   cv::minMaxLoc(validity, &minimum);
   if (minimum >= 1.0) return;  // nothing masked: the plain taper
@@ -407,7 +436,7 @@ void WindowRegistration::Impl::setValidity(const cv::Mat& validity) {
                                                       {2 * kMaskMarginPx + 1, 2 * kMaskMarginPx + 1}),
             {-1, -1}, 1, cv::BORDER_REPLICATE);
   cv::GaussianBlur(padded, faded, {0, 0}, kMaskFeatherPx, kMaskFeatherPx, cv::BORDER_REPLICATE);
-  faded = cv::min(faded(cv::Rect(pad, 0, width, options.panorama_height)), usable);
+  faded = cv::min(faded(cv::Rect(pad, 0, width, height)), usable);
   masked_taper.resize(static_cast<std::size_t>(windows) * length * length);
   masked_weight.assign(windows, 0.0);
   masked_weight2.assign(windows, 0.0);
@@ -547,21 +576,28 @@ void WindowRegistration::Impl::measureWindow(Worker& w, const cv::Mat& panorama,
   out.valid = t.confidence > 0.0 && t.confidence >= options.min_confidence;
 }
 
-WindowRegistration::WindowRegistration(const Options& options) {
-  if (const std::string bad = options.validate(); !bad.empty())
-    throw std::invalid_argument("WindowRegistration: " + bad);
-  impl_ = std::make_unique<Impl>(options, nullptr);
+namespace {
+void requireValid(cv::Size panorama, const WindowRegistration::Options& options) {
+  detail::throwIfProblems("WindowRegistration", WindowRegistration::validate(panorama, options));
+}
+}  // namespace
+
+WindowRegistration::WindowRegistration(cv::Size panorama, const Options& options) {
+  requireValid(panorama, options);
+  impl_ = std::make_unique<Impl>(panorama, options, nullptr);
 }
 
-WindowRegistration::WindowRegistration(const Options& options, reg::WorkerPool& pool) {
-  if (const std::string bad = options.validate(); !bad.empty())
-    throw std::invalid_argument("WindowRegistration: " + bad);
-  impl_ = std::make_unique<Impl>(options, &pool);
+WindowRegistration::WindowRegistration(cv::Size panorama, const Options& options,
+                                       reg::WorkerPool& pool) {
+  requireValid(panorama, options);
+  impl_ = std::make_unique<Impl>(panorama, options, &pool);
 }
 
 WindowRegistration::~WindowRegistration() = default;
 
 const WindowRegistration::Options& WindowRegistration::options() const { return impl_->options; }
+
+cv::Size WindowRegistration::panoramaSize() const { return {impl_->width, impl_->height}; }
 
 int WindowRegistration::threads() const { return impl_->pool->size(); }
 
@@ -591,11 +627,11 @@ bool WindowRegistration::hasReference() const { return impl_->has_reference; }
 
 void WindowRegistration::setValidity(const cv::Mat& validity) {
   Impl& s = *impl_;
-  if (validity.type() != CV_32FC1 || validity.cols != s.options.panorama_width ||
-      validity.rows != s.options.panorama_height)
+  if (validity.type() != CV_32FC1 || validity.cols != s.width ||
+      validity.rows != s.height)
     throw std::invalid_argument("WindowRegistration::setValidity: expected a CV_32FC1 " +
-                                std::to_string(s.options.panorama_width) + "x" +
-                                std::to_string(s.options.panorama_height) + " map");
+                                std::to_string(s.width) + "x" +
+                                std::to_string(s.height) + " map");
   s.setValidity(validity);
   s.has_reference = false;  // reference spectra were tapered with the old weights
   s.next_ready = false;

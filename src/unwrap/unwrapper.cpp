@@ -3,21 +3,26 @@
 #include <cmath>
 #include <opencv2/imgproc.hpp>
 #include <stdexcept>
+#include <string>
+
+#include "common/problem_list.hpp"
 
 namespace omnipose {
 
-std::string Unwrapper::Options::validate() const {
-  if (!(min_mean_intensity >= 0.0 && min_mean_intensity < 255.0))
-    return "min_mean_intensity must be in [0, 255)";
-  return {};
+std::vector<std::string> Unwrapper::Options::validate() const {
+  std::vector<std::string> problems;
+  detail::checkRange(problems, "min_mean_intensity", min_mean_intensity, 0.0, 254.0,
+                     " grey levels");
+  return problems;
 }
 
 Unwrapper::Unwrapper(const Calibration& calibration, const Options& options)
     : calibration_(calibration), options_(options) {
-  if (const auto bad = options.validate(); !bad.empty())
-    throw std::invalid_argument("Unwrapper::Options: " + bad);
-  if (const auto problems = calibration.validate(); !problems.empty())
-    throw std::invalid_argument("Unwrapper: invalid calibration: " + problems.front());
+  {
+    std::vector<std::string> problems = options.validate();
+    for (const auto& p : calibration.validate()) problems.push_back("calibration: " + p);
+    detail::throwIfProblems("Unwrapper", problems);
+  }
 
   const int W = calibration.panorama.width, H = calibration.panorama.height;
   const int iw = calibration.omni.image_width, ih = calibration.omni.image_height;

@@ -63,9 +63,10 @@ cv::Mat moved(const cv::Mat& band, double du, double dv, double degrees) {
 
 struct Frames {
   WindowRegistration::Options options;
+  cv::Size panorama{1100, 110};  // the paper's setting
   cv::Mat a, b;
   Frames() {
-    a = panoramaBand(options.panorama_width, options.panorama_height);
+    a = panoramaBand(panorama.width, panorama.height);
     b = moved(a, 1.3, 0.4, 0.8);
   }
 };
@@ -80,7 +81,7 @@ void measureAndAdvance(benchmark::State& state, bool rotation_scale) {
   const Frames& f = frames();
   WindowRegistration::Options options = f.options;
   options.estimate_rotation_scale = rotation_scale;
-  WindowRegistration registration(options);
+  WindowRegistration registration(f.panorama, options);
   std::vector<WindowMotion> out(registration.windowCount());
   registration.setReference(f.a);
   bool use_b = true;
@@ -103,7 +104,7 @@ void BM_MeasureAdvance_TranslationOnly(benchmark::State& state) { measureAndAdva
 /// The pipeline's second pass: re-registering a warped copy against the same reference.
 void BM_MeasureKeepAsNextFalse(benchmark::State& state) {
   const Frames& f = frames();
-  WindowRegistration registration(f.options);
+  WindowRegistration registration(f.panorama, f.options);
   std::vector<WindowMotion> out(registration.windowCount());
   registration.setReference(f.a);
   for (auto _ : state) {

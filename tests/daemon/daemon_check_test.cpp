@@ -5,6 +5,7 @@
 
 #include <opencv2/imgcodecs.hpp>
 
+#include "daemon/startup_check.hpp"
 #include "daemon_test_support.hpp"
 #include "omnipose/calibration.hpp"
 
@@ -16,6 +17,12 @@ using namespace std::chrono_literals;
 using testing::TempDir;
 
 fs::path omniposed() { return testing::binaryDir() / "omniposed"; }
+
+std::string lines(const std::vector<std::string>& v) {
+  std::string out;
+  for (const auto& s : v) out += s + "\n";
+  return out;
+}
 
 /// A dataset directory with only a calibration (the check reads no frames).
 struct CheckCase {
@@ -65,8 +72,45 @@ TEST(DaemonCheck, APanoramaLowerThanTheWindowFails) {
   c.panorama.height = 80;
   c.panorama.horizon_row = 39.5;
   EXPECT_EQ(t.run(c), 1);
-  EXPECT_NE(t.err().find("window (110) must not exceed the panorama height (80)"), std::string::npos)
+  EXPECT_NE(t.err().find("daemon.yaml: pipeline.window: 110 is larger than the panorama (1100 x 80)"),
+            std::string::npos)
       << t.err();
+}
+
+TEST(DaemonCheck, EveryProblemIsListedAtOnceByTheKeyTheUserWrote) {
+  TempDir tmp("check_all");
+  Calibration c;
+  c.panorama.height = 80;
+  c.panorama.horizon_row = 39.5;
+  c.save(tmp / "calibration.yaml");
+  const DaemonConfig config = DaemonConfig::parse(
+      "source: {type: file, path: no_such_dataset}\ncalibration: calibration.yaml\n"
+      "pipeline: {window: 100}\n",
+      (tmp / "daemon.yaml").string(), tmp.path());
+  const daemon::StartupCheck check = daemon::checkStartup(config);
+  ASSERT_EQ(check.problems.size(), 2u) << lines(check.problems);
+  EXPECT_NE(check.problems[0].find("daemon.yaml: source.path: "), std::string::npos)
+      << check.problems[0];
+  EXPECT_NE(check.problems[0].find("no_such_dataset is not a directory"), std::string::npos)
+      << check.problems[0];
+  EXPECT_NE(check.problems[1].find("daemon.yaml: pipeline.window: 100 is larger than the "
+                                   "panorama (1100 x 80)"),
+            std::string::npos)
+      << check.problems[1];
+
+  // Fixed: the check builds the pipeline and reports what it found usable.
+  fs::create_directories(tmp / "no_such_dataset");
+  c.panorama.height = 110;
+  c.panorama.horizon_row = 54.5;
+  c.save(tmp / "calibration.yaml");
+  const daemon::StartupCheck fixed = daemon::checkStartup(DaemonConfig::parse(
+      "source: {type: file, path: no_such_dataset}\ncalibration: calibration.yaml\n",
+      (tmp / "daemon.yaml").string(), tmp.path()));
+  EXPECT_TRUE(fixed.problems.empty()) << lines(fixed.problems);
+  ASSERT_EQ(fixed.findings.size(), 2u);
+  EXPECT_NE(fixed.findings[1].find("lens model linear, panorama 1100x110: usable"),
+            std::string::npos)
+      << fixed.findings[1];
 }
 
 }  // namespace

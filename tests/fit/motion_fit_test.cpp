@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <limits>
 #include <numbers>
 #include <random>
 #include <vector>
@@ -13,6 +14,7 @@ namespace omnipose {
 namespace {
 
 constexpr int kW = 1100, kWindow = 110, kStep = 20;
+constexpr int kWindows = kW / kStep;  // what synthesize() gives the fit
 const double kGamma = 2 * std::numbers::pi / kW;
 
 using Vec6 = Eigen::Matrix<double, 6, 1>;
@@ -27,7 +29,7 @@ std::vector<WindowMotion> synthesize(const Vec6& x, double noise_px, double outl
   std::uniform_real_distribution<double> gross(-25.0, 25.0);
   std::bernoulli_distribution is_outlier(outlier_fraction);
   std::vector<WindowMotion> windows;
-  for (int k = 0; k < kW / kStep; ++k) {
+  for (int k = 0; k < kWindows; ++k) {
     WindowMotion w;
     w.center_u = k * kStep + kWindow / 2.0 - 0.5;
     const double theta = kGamma * (w.center_u - forward_column);
@@ -56,7 +58,7 @@ MotionFit makeFit(bool use_rotation_scale = true, bool per_window_depth = true) 
   MotionFit::Options o;
   o.use_rotation_scale = use_rotation_scale;
   o.per_window_depth = per_window_depth;
-  return MotionFit(o, kGamma, kWindow);
+  return MotionFit(o, kGamma, kWindow, kWindows);
 }
 
 /// Relative inverse depth rho_mean / rho(theta_k) of each window seen from (x0, y0) in a
@@ -64,7 +66,7 @@ MotionFit makeFit(bool use_rotation_scale = true, bool per_window_depth = true) 
 std::vector<double> boxRoomInverseDepth(double x0, double y0) {
   std::vector<double> lambda;
   double mean = 0.0;
-  for (int k = 0; k < kW / kStep; ++k) {
+  for (int k = 0; k < kWindows; ++k) {
     const double theta = kGamma * (k * kStep + kWindow / 2.0 - 0.5);
     const double c = std::cos(theta), s = std::sin(theta);
     const double tx = c > 0 ? (3.0 - x0) / c : (c < 0 ? (-3.0 - x0) / c : 1e9);
@@ -185,13 +187,34 @@ TEST(MotionFit, TooFewWindowsIsLostAndHalfTheCircleIsStillSolved) {
   EXPECT_LT((half.vector() - x).cwiseAbs().maxCoeff(), 1e-3);
 }
 
-TEST(MotionFit, InvalidOptionsNameTheField) {
+TEST(MotionFit, InvalidOptionsNameEveryBadField) {
   MotionFit::Options o;
   o.median = 4;
-  EXPECT_NE(o.validate().find("median"), std::string::npos);
-  o = {};
   o.huber_delta_px = 0;
-  EXPECT_THROW(MotionFit(o, kGamma, kWindow), std::invalid_argument);
+  o.inlier_sigmas = std::numeric_limits<double>::infinity();
+  const auto problems = o.validate();
+  ASSERT_EQ(problems.size(), 3u);
+  EXPECT_EQ(problems[0], "huber_delta_px: 0 is outside (0, 100] pixels");
+  EXPECT_EQ(problems[1], "median: 4 must be odd (or 0/1 = off)");
+  EXPECT_EQ(problems[2], "inlier_sigmas: must be a finite number, not inf");
+  EXPECT_THROW(MotionFit(o, kGamma, kWindow, kWindows), std::invalid_argument);
+  EXPECT_THROW(MotionFit({}, kGamma, kWindow, 0), std::invalid_argument);  // no workspace
+  EXPECT_TRUE(MotionFit::Options{}.validate().empty());
+}
+
+TEST(MotionFit, MoreWindowsThanTheWorkspaceIsLost) {
+  MotionFit fit({}, kGamma, kWindow, kWindows - 1);
+  EXPECT_EQ(fit.maxWindows(), kWindows - 1);
+  std::mt19937 rng(3);
+  Vec6 x;
+  x << 0.01, 0.0, 0.02, 0.0, 0.0, 0.0;
+  EXPECT_EQ(fit.fit(synthesize(x, 0.0, 0.0, rng), 0.0).status, FitStatus::kLost);
+}
+
+TEST(MotionFit, KappaIsTheAttenuationOfTheRegistrationTaper) {
+  const MotionFit fit({}, kGamma, kWindow, kWindows);
+  EXPECT_DOUBLE_EQ(fit.kappa(), windowAttenuation(kWindow, kGamma));
+  EXPECT_DOUBLE_EQ(fit.gamma(), kGamma);
 }
 
 TEST(MotionModel, WindowAttenuationIsBelowOneForWideWindows) {

@@ -12,8 +12,8 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
     try {
       const DaemonConfig c = DaemonConfig::parse(text, "fuzz.yaml", "/base", use);
       const auto& r = c.pipeline.registration;
-      if (r.window < 16 || r.window > DaemonConfig::kMaxWindow || r.step < 1 ||
-          r.step > DaemonConfig::kMaxStep || c.source.width < 1 ||
+      if (r.window < 16 || r.window > omnipose::WindowRegistration::kMaxWindow || r.step < 1 ||
+          r.step > omnipose::WindowRegistration::kMaxStep || c.source.width < 1 ||
           c.source.width > DaemonConfig::kMaxFrameSide || c.source.height < 1 ||
           c.source.height > DaemonConfig::kMaxFrameSide || !(c.lcm.status_hz > 0) ||
           !(c.lcm.status_hz <= 100) || !(c.source.fps > 0) || !(c.source.fps <= 1000) ||

@@ -45,10 +45,18 @@ bogus: 1
     const std::string what = e.what();
     for (const char* key : {"source.type", "source.speed: unknown key", "input", "pipeline.colour",
                             "lcm.status_hz", "bogus: unknown key", "calibration: missing",
-                            "registration: step"}) {
+                            "daemon.yaml: pipeline.step: 0 is outside [1, 4096] pixels"}) {
       EXPECT_NE(what.find(key), std::string::npos) << key << " not in:\n" << what;
     }
     EXPECT_GE(e.problems().size(), 8u) << what;
+    // Every problem is named by a key the user can write, once.
+    int step_problems = 0;
+    for (const auto& p : e.problems()) {
+      EXPECT_EQ(p.find("registration"), std::string::npos) << p;
+      EXPECT_EQ(p.find("built-in"), std::string::npos) << p;
+      step_problems += p.find("pipeline.step") != std::string::npos;
+    }
+    EXPECT_EQ(step_problems, 1) << what;
   }
 }
 

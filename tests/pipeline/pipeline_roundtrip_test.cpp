@@ -148,6 +148,20 @@ TEST(Pipeline, InvalidOptionsListEveryProblem) {
     EXPECT_NE(what.find("huber_delta_px"), std::string::npos) << what;
     EXPECT_NE(what.find("refine_iterations"), std::string::npos) << what;
   }
+  // The same list without building anything, each keyed by its field in PipelineOptions.
+  const auto problems = Pipeline::validate(Calibration{}, o);
+  ASSERT_EQ(problems.size(), 3u);
+  EXPECT_EQ(problems[0].rfind("registration.window: 200 is larger than the panorama", 0), 0u)
+      << problems[0];
+  EXPECT_EQ(problems[1], "fit.huber_delta_px: -1 is outside (0, 100] pixels");
+  EXPECT_EQ(problems[2], "refine_iterations: 9 is outside [0, 5]");
+  EXPECT_TRUE(Pipeline::validate(Calibration{}, PipelineOptions{}).empty());
+  // An invalid calibration is named as such, and the window is then checked on its own.
+  Calibration broken;
+  broken.panorama.height = 0;
+  const auto with_calibration = Pipeline::validate(broken, PipelineOptions{});
+  ASSERT_FALSE(with_calibration.empty());
+  for (const auto& p : with_calibration) EXPECT_EQ(p.rfind("calibration: ", 0), 0u) << p;
 }
 
 }  // namespace

@@ -61,7 +61,7 @@ TEST(WindowMask, MaskedMastNoLongerPullsTheShiftToZero) {
   const Pair p = mastPair(du, dv);
   if (p.previous.empty()) GTEST_SKIP() << "indoor photo not found";
 
-  WindowRegistration plain(WindowRegistration::Options{});
+  WindowRegistration plain(cv::Size(kW, kH), WindowRegistration::Options{});
   std::vector<WindowMotion> m(plain.windowCount());
   plain.setReference(p.previous);
   ASSERT_TRUE(plain.measure(p.current, m));
@@ -69,7 +69,7 @@ TEST(WindowMask, MaskedMastNoLongerPullsTheShiftToZero) {
 
   cv::Mat validity(kH, kW, CV_32FC1, cv::Scalar(1.0f));
   validity.colRange(300, 360).setTo(0.0f);
-  WindowRegistration masked(WindowRegistration::Options{});
+  WindowRegistration masked(cv::Size(kW, kH), WindowRegistration::Options{});
   masked.setValidity(validity);
   masked.setReference(p.previous);
   ASSERT_TRUE(masked.measure(p.current, m));
@@ -94,7 +94,9 @@ TEST(WindowMask, MaskedMastNoLongerPullsTheShiftToZero) {
 TEST(WindowMask, AllOnesMapIsThePlainTaperBitForBit) {
   const Pair p = mastPair(0.8, 0.3);
   if (p.previous.empty()) GTEST_SKIP() << "indoor photo not found";
-  WindowRegistration a(WindowRegistration::Options{}), b(WindowRegistration::Options{});
+  const cv::Size panorama(kW, kH);
+  WindowRegistration a(panorama, WindowRegistration::Options{});
+  WindowRegistration b(panorama, WindowRegistration::Options{});
   b.setValidity(cv::Mat(kH, kW, CV_32FC1, cv::Scalar(1.0f)));
   std::vector<WindowMotion> ma(a.windowCount()), mb(b.windowCount());
   a.setReference(p.previous);
@@ -109,7 +111,7 @@ TEST(WindowMask, AllOnesMapIsThePlainTaperBitForBit) {
 }
 
 TEST(WindowMask, WrongSizedMapIsRefused) {
-  WindowRegistration reg(WindowRegistration::Options{});
+  WindowRegistration reg(cv::Size(kW, kH), WindowRegistration::Options{});
   EXPECT_THROW(reg.setValidity(cv::Mat(10, 10, CV_32FC1, cv::Scalar(1.0f))), std::invalid_argument);
   EXPECT_THROW(reg.setValidity(cv::Mat(kH, kW, CV_8UC1, cv::Scalar(1))), std::invalid_argument);
 }

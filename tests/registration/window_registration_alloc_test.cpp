@@ -81,7 +81,7 @@ TEST_P(WindowRegistrationRealtime, MeasureAndAdvanceAllocateNothing) {
   const auto [a, b] = framePair();
   WindowRegistration::Options options;
   options.threads = GetParam();  // 1: the calling thread only; more: the worker pool
-  WindowRegistration reg(options);
+  WindowRegistration reg(a.size(), options);
   ASSERT_EQ(reg.threads(), GetParam());
   std::vector<WindowMotion> out(reg.windowCount());
   reg.setReference(a);

@@ -27,7 +27,8 @@ using test::kPark;
 
 constexpr double kDeg = std::numbers::pi / 180.0;
 
-WindowRegistration::Options paperOptions() { return {}; }  // W 1100, H = L 110, d 20
+WindowRegistration::Options paperOptions() { return {}; }  // L 110, d 20
+const cv::Size kPaperPanorama(1100, 110);                  // W 1100, H = L
 
 /// Equirect photo at panorama width 1100 (cached: decoding the park photo takes a while).
 const cv::Mat& equirect(const char* name) {
@@ -60,45 +61,62 @@ std::vector<WindowMotion> measureAll(WindowRegistration& reg, const cv::Mat& cur
 
 TEST(WindowRegistrationOptions, DefaultsArePaperSettingAndValid) {
   const WindowRegistration::Options o;
-  EXPECT_EQ(o.panorama_width, 1100);
-  EXPECT_EQ(o.panorama_height, 110);
   EXPECT_EQ(o.window, 110);
   EXPECT_EQ(o.step, 20);
-  EXPECT_EQ(o.validate(), "");
+  EXPECT_TRUE(o.validate().empty());
+  EXPECT_TRUE(WindowRegistration::validate(kPaperPanorama, o).empty());
 }
 
 TEST(WindowRegistrationOptions, ValidateNamesTheBadField) {
-  auto check = [](auto mutate, const char* field) {
+  auto check = [](auto mutate, const char* field, cv::Size panorama = kPaperPanorama) {
     WindowRegistration::Options o;
     mutate(o);
-    EXPECT_NE(o.validate().find(field), std::string::npos) << o.validate();
-    EXPECT_THROW(WindowRegistration{o}, std::invalid_argument) << field;
+    const auto problems = WindowRegistration::validate(panorama, o);
+    ASSERT_EQ(problems.size(), 1u) << field;
+    EXPECT_EQ(problems[0].rfind(std::string(field) + ": ", 0), 0u) << problems[0];
+    EXPECT_THROW(WindowRegistration(panorama, o), std::invalid_argument) << field;
   };
-  check([](auto& o) { o.window = 120; }, "window");
+  check([](auto& o) { o.window = 120; }, "window");  // taller than the panorama
+  check([](auto& o) { o.window = 8; }, "window");
   check([](auto& o) { o.step = 0; }, "step");
-  check([](auto& o) { o.panorama_width = 0; }, "panorama_width");
+  check([](auto&) {}, "panorama", cv::Size(0, 110));
   check([](auto& o) { o.max_rotation_rad = 0.0; }, "max_rotation_rad");
+  check([](auto& o) { o.max_rotation_rad = 1.0; }, "max_rotation_rad");
   check([](auto& o) { o.max_log_scale = -0.1; }, "max_log_scale");
   check([](auto& o) { o.min_confidence = 1.5; }, "min_confidence");
+  check([](auto& o) { o.min_confidence = std::nan(""); }, "min_confidence");
+  check([](auto& o) { o.step = 1; }, "step", cv::Size(16384, 512));  // too many samples
+}
+
+TEST(WindowRegistrationOptions, ValidateListsEveryProblem) {
+  WindowRegistration::Options o;
+  o.window = 4;
+  o.step = -1;
+  o.max_log_scale = 0.9;
+  o.threads = 1000;
+  const auto problems = o.validate();
+  ASSERT_EQ(problems.size(), 4u);
+  EXPECT_EQ(problems[0], "window: 4 is outside [16, 512] pixels");
+  EXPECT_EQ(problems[1], "step: -1 is outside [1, 4096] pixels");
+  EXPECT_EQ(problems[2], "max_log_scale: 0.9 is outside (0, 0.5]");
+  EXPECT_EQ(problems[3], "threads: 1000 is outside [0, 256] (0 = all online cores)");
 }
 
 TEST(WindowRegistration, WindowCentresFollowTheHeaderConvention) {
-  WindowRegistration reg(paperOptions());
+  WindowRegistration reg(kPaperPanorama, paperOptions());
   ASSERT_EQ(reg.windowCount(), 55);
   EXPECT_DOUBLE_EQ(reg.windowCenter(0), 54.5);
   EXPECT_DOUBLE_EQ(reg.windowCenter(1), 74.5);
   EXPECT_DOUBLE_EQ(reg.windowCenter(52), 1094.5);
   EXPECT_DOUBLE_EQ(reg.windowCenter(53), 14.5);  // 1114.5, wrapped into [0, W)
   // W not a multiple of the step: ceil(W / step) windows.
-  WindowRegistration::Options o;
-  o.panorama_width = 1110;
-  WindowRegistration odd(o);
+  WindowRegistration odd(cv::Size(1110, 110), paperOptions());
   EXPECT_EQ(odd.windowCount(), 56);
   EXPECT_DOUBLE_EQ(odd.windowCenter(55), std::fmod(55 * 20 + 54.5, 1110.0));
 }
 
 TEST(WindowRegistration, MeasureRejectsMissingReferenceAndBadInput) {
-  WindowRegistration reg(paperOptions());
+  WindowRegistration reg(kPaperPanorama, paperOptions());
   const cv::Mat good(110, 1100, CV_32FC1, cv::Scalar(1.0f));
   std::vector<WindowMotion> out(reg.windowCount());
   out[0].du = 42.0;
@@ -122,7 +140,7 @@ TEST(WindowRegistration, AcceptsRoiViewsOfLargerImages) {
   const cv::Rect roi(17, 9, 1100, 110);
   a.copyTo(big_a(roi));
   b.copyTo(big_b(roi));
-  WindowRegistration reg(paperOptions());
+  WindowRegistration reg(kPaperPanorama, paperOptions());
   reg.setReference(a);
   const auto dense = measureAll(reg, b, false);
   reg.setReference(big_a(roi));
@@ -140,7 +158,7 @@ TEST(WindowRegistration, AcceptsRoiViewsOfLargerImages) {
 TEST(WindowRegistrationSigns, TranslationMatchesPhaseCorrelateOfCurrentThenReference) {
   const cv::Mat current = horizonBand(kPark);
   REQUIRE_IMAGE(current, kPark);
-  WindowRegistration reg(paperOptions());
+  WindowRegistration reg(kPaperPanorama, paperOptions());
   for (const auto& [du, dv] : {std::pair{3.0, -2.0}, {2.5, -1.5}, {-1.25, 0.75}}) {
     // Content at x in the current panorama appears at x + (du, dv) in the reference.
     const cv::Mat m = (cv::Mat_<double>(2, 3) << 1, 0, du, 0, 1, dv);
@@ -172,7 +190,7 @@ TEST(WindowRegistrationSigns, TranslationMatchesPhaseCorrelateOfCurrentThenRefer
 TEST(WindowRegistrationSigns, RotationIsCounterClockwiseOnScreenAndScaleIsReferenceOverCurrent) {
   const cv::Mat current = horizonBand(kPark);
   REQUIRE_IMAGE(current, kPark);
-  WindowRegistration reg(paperOptions());
+  WindowRegistration reg(kPaperPanorama, paperOptions());
   const int k = 20;
   const cv::Point2f centre(static_cast<float>(reg.windowCenter(k)), 54.5f);
   for (const auto& [degrees, scale] : {std::pair{2.0, 1.0}, {-2.0, 1.0}, {0.0, 1.02}, {1.5, 0.98}}) {
@@ -209,7 +227,7 @@ struct ShiftStats {
 ShiftStats shiftSweep(const char* name, bool along_u) {
   const cv::Mat& eq = equirect(name);
   const int centre = eq.rows / 2;
-  WindowRegistration reg(paperOptions());
+  WindowRegistration reg(kPaperPanorama, paperOptions());
   reg.setReference(test::fourierShiftedBand(eq, centre, 110, 0.0, 0.0));
   ShiftStats stats;
   for (int i = 0; i <= 30; ++i) {
@@ -269,7 +287,7 @@ INSTANTIATE_TEST_SUITE_P(RealTexture, SubpixelShift,
 std::vector<WindowMotion> similaritySweep(WindowRegistration& reg, const test::Supersampled& ss,
                                           double phi, double s) {
   const int n = reg.windowCount(), length = reg.options().window, step = reg.options().step;
-  const int width = reg.options().panorama_width;
+  const int width = reg.panoramaSize().width;
   auto overlap = [&](int a, int b) {
     const int d = ((b - a) * step % width + width) % width;
     return d < length || width - d < length;
@@ -320,7 +338,7 @@ TEST_P(SimilarityAccuracy, RotationsAndScales) {
   const SimilarityBounds bounds = GetParam();
   const test::Supersampled ss = test::loadSupersampled(bounds.image, 1100, 110);
   REQUIRE_IMAGE(ss.image, bounds.image);
-  WindowRegistration reg(paperOptions());
+  WindowRegistration reg(kPaperPanorama, paperOptions());
   // Errors of every window in both sweeps (the rotation sweep has s = 1, the scale sweep
   // phi = 0, and both have no shift).
   std::vector<double> rotation_errors, scale_errors, shifts;
@@ -372,7 +390,7 @@ TEST(WindowRegistrationPanorama, WindowsWrapAroundU) {
   for (const char* name : {kIndoor, kPark}) {
     const cv::Mat& eq = equirect(name);
     REQUIRE_IMAGE(eq, name);
-    WindowRegistration reg(paperOptions());
+    WindowRegistration reg(kPaperPanorama, paperOptions());
     reg.setReference(test::fourierShiftedBand(eq, eq.rows / 2, 110, 0.0, 0.0));
     // The whole (periodic) panorama circularly shifted by 7.3 px in u.
     const auto out = measureAll(reg, test::fourierShiftedBand(eq, eq.rows / 2, 110, -7.3, 0.0));
@@ -389,9 +407,8 @@ TEST(WindowRegistrationPanorama, WindowSmallerThanHeightIsVerticallyCentredAndWO
   const cv::Mat& eq = equirect(kPark);
   REQUIRE_IMAGE(eq, kPark);
   WindowRegistration::Options o;
-  o.panorama_height = 128;
-  o.window = 96;  // rows 16 .. 111
-  WindowRegistration reg(o);
+  o.window = 96;  // rows 16 .. 111 of a 128-row panorama
+  WindowRegistration reg(cv::Size(1100, 128), o);
   const cv::Mat reference = test::fourierShiftedBand(eq, eq.rows / 2, 128, 0.0, 0.0);
   cv::Mat current = test::fourierShiftedBand(eq, eq.rows / 2, 128, -1.5, -0.5);
   // Rows outside the window band must not matter: replace them with unrelated noise.
@@ -413,11 +430,9 @@ TEST(WindowRegistrationPanorama, SmallWindowsWork) {
   const cv::Mat eq = test::loadEquirect(kPark, 320);
   REQUIRE_IMAGE(eq, kPark);
   WindowRegistration::Options o;
-  o.panorama_width = 320;
-  o.panorama_height = 48;
   o.window = 32;
   o.step = 16;
-  WindowRegistration reg(o);
+  WindowRegistration reg(cv::Size(320, 48), o);
   reg.setReference(test::fourierShiftedBand(eq, eq.rows / 2, 48, 0.0, 0.0));
   const auto out = measureAll(reg, test::fourierShiftedBand(eq, eq.rows / 2, 48, -1.3, 0.6));
   int valid = 0;
@@ -435,7 +450,7 @@ TEST(WindowRegistrationPanorama, SmallWindowsWork) {
 // ---------------------------------------------------------------------------------------
 
 TEST(WindowRegistrationConfidence, ConstantPanoramaIsInvalid) {
-  WindowRegistration reg(paperOptions());
+  WindowRegistration reg(kPaperPanorama, paperOptions());
   const cv::Mat flat(110, 1100, CV_32FC1, cv::Scalar(97.0f));
   reg.setReference(flat);
   for (const WindowMotion& w : measureAll(reg, flat)) {
@@ -455,7 +470,7 @@ TEST(WindowRegistrationConfidence, FlatRegionsAreInvalidTexturedOnesValid) {
   cv::Mat pano = horizonBand(kPark);
   REQUIRE_IMAGE(pano, kPark);
   pano.colRange(0, 500).setTo(cv::Scalar(120.0f));  // windows 0 .. 19 lie inside
-  WindowRegistration reg(paperOptions());
+  WindowRegistration reg(kPaperPanorama, paperOptions());
   reg.setReference(pano);
   const auto out = measureAll(reg, pano);
   for (int k = 0; k + 5 < 25; ++k) EXPECT_FALSE(out[k].valid) << k;
@@ -469,7 +484,7 @@ TEST(WindowRegistrationConfidence, UnrelatedTextureHasLowConfidence) {
   const cv::Mat park = horizonBand(kPark), indoor = horizonBand(kIndoor);
   REQUIRE_IMAGE(park, kPark);
   REQUIRE_IMAGE(indoor, kIndoor);
-  WindowRegistration reg(paperOptions());
+  WindowRegistration reg(kPaperPanorama, paperOptions());
   reg.setReference(park);
   const auto out = measureAll(reg, indoor);
   int confident = 0;
@@ -501,14 +516,14 @@ TEST(WindowRegistrationReference, AdvanceEqualsSettingTheMeasuredFrameAsReferenc
   const cv::Mat b = test::fourierShiftedBand(eq, c, 110, 0.7, -0.3);
   const cv::Mat d = test::fourierShiftedBand(eq, c, 110, 1.9, 0.4);
 
-  WindowRegistration chained(paperOptions());
+  WindowRegistration chained(kPaperPanorama, paperOptions());
   chained.setReference(a);
   measureAll(chained, b, true);
   measureAll(chained, d, false);  // a re-registration must not replace the candidate (b)
   chained.advance();
   const auto via_advance = measureAll(chained, d);
 
-  WindowRegistration fresh(paperOptions());
+  WindowRegistration fresh(kPaperPanorama, paperOptions());
   fresh.setReference(b);
   const auto via_set = measureAll(fresh, d);
   expectSame(via_advance, via_set);
@@ -524,7 +539,7 @@ TEST(WindowRegistrationReference, AdvanceWithoutMeasureKeepsTheReference) {
   REQUIRE_IMAGE(eq, kIndoor);
   const cv::Mat a = test::fourierShiftedBand(eq, eq.rows / 2, 110, 0.0, 0.0);
   const cv::Mat b = test::fourierShiftedBand(eq, eq.rows / 2, 110, -0.6, 0.0);
-  WindowRegistration reg(paperOptions());
+  WindowRegistration reg(kPaperPanorama, paperOptions());
   reg.setReference(a);
   const auto before = measureAll(reg, b, false);
   reg.advance();  // nothing measured with keep_as_next: no-op

@@ -13,8 +13,8 @@
 #include <string>
 
 #include "daemon/service.hpp"
+#include "daemon/startup_check.hpp"
 #include "omnipose/config.hpp"
-#include "omnipose/pipeline.hpp"
 
 namespace {
 
@@ -70,14 +70,14 @@ int main(int argc, char** argv) {
                  config.describe().c_str());
     std::fflush(stderr);
     if (check_only) {
-      // The whole start-up validation that needs no hardware: the calibration file and what
-      // it names (lens model, mask), and the pipeline against its panorama.
-      const auto calibration = omnipose::Calibration::load(config.calibration);
-      const omnipose::Pipeline pipeline(calibration, config.pipeline);
-      std::fprintf(stderr, "omniposed: calibration %s: lens model %s%s, panorama %dx%d: usable\n",
-                   config.calibration.c_str(), omnipose::toString(calibration.omni.model),
-                   calibration.omni.mask.empty() ? "" : " with a mask", calibration.panorama.width,
-                   calibration.panorama.height);
+      // The whole start-up validation that needs no hardware, every problem at once.
+      const auto check = omnipose::daemon::checkStartup(config);
+      for (const auto& f : check.findings) std::fprintf(stderr, "omniposed: %s\n", f.c_str());
+      for (const auto& p : check.problems) std::fprintf(stderr, "omniposed: %s\n", p.c_str());
+      if (!check.problems.empty()) {
+        std::fprintf(stderr, "omniposed: --check: %zu problem(s)\n", check.problems.size());
+        return 1;
+      }
       return 0;
     }
     return omnipose::daemon::runService(config, stderr);

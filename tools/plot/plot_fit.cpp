@@ -119,11 +119,10 @@ int run(int argc, char** argv) {
   // The first-pass linear fit to exactly these windows (what the sinusoids describe).
   const PanoramaGeometry& g = d.calibration.panorama;
   const double gamma = g.gamma();
-  MotionFit::Options fit_options = options.fit;
-  fit_options.max_windows = std::max<int>(fit_options.max_windows, windows.size());
-  MotionFit fit(fit_options, gamma, options.registration.window);
+  MotionFit fit(options.fit, gamma, options.registration.window,
+                static_cast<int>(windows.size()));
   const MotionEstimate linear = fit.fit(windows, g.forward_column);
-  const double kappa = windowAttenuation(options.registration.window, gamma);
+  const double kappa = fit.kappa();
 
   // Measured points: valid windows filled, invalid ones hollow.
   plot::Series du_ok{{}, {}, plot::paletteColor(0), "measured (iFMI)", plot::Style::kMarkers, 1};

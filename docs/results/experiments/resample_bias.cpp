@@ -110,10 +110,8 @@ int main(int argc, char** argv) {
   cv::Mat pano;
   cv::imread(argv[1], cv::IMREAD_GRAYSCALE).convertTo(pano, CV_32F);
   omnipose::WindowRegistration::Options options;
-  options.panorama_width = pano.cols;
-  options.panorama_height = pano.rows;
   options.window = std::min(options.window, pano.rows);
-  omnipose::WindowRegistration reg(options);
+  omnipose::WindowRegistration reg(pano.size(), options);
 
   std::printf("1. exact shift, registered directly: error of the mean du [px]\n   d:");
   const double ds[] = {-0.375, -0.25, -0.125, 0.0, 0.125, 0.25, 0.375, 0.5};
