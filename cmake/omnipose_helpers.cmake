@@ -44,10 +44,10 @@ function(omnipose_add_test name)
   set_property(DIRECTORY APPEND PROPERTY TEST_INCLUDE_FILES ${label_script})
 endfunction()
 
-# Test binaries that count heap allocations by replacing operator new/delete or interposing
-# the malloc family. They carry the ctest label "allocation": a sanitizer build
+# Test binaries whose point is counting heap allocations (they link the one counter,
+# tests/support/allocation_counter.hpp, which interposes the malloc family and replaces
+# operator new/delete). They carry the ctest label "allocation": a sanitizer build
 # (tools/sanitize.sh) excludes them with `ctest -LE allocation`, because ASan/TSan replace the
-# allocator themselves (the interposed malloc would bypass or fight the sanitizer's, and its
-# counts would include the sanitizer's own bookkeeping).
+# allocator themselves (the counter is compiled out there and counts nothing).
 set(OMNIPOSE_ALLOCATION_COUNTING_TESTS pipeline_alloc_test registration_alloc_test
-    daemon_alloc_test)
+    daemon_alloc_test allocation_counter_test)
