@@ -16,6 +16,7 @@
 
 #include <CLI/CLI.hpp>
 
+#include <algorithm>
 #include <cstdio>
 #include <optional>
 #include <string>
@@ -44,6 +45,25 @@ class HelpFormatter : public CLI::Formatter {
     return text;
   }
   std::string make_description(const CLI::App*) const override { return {}; }
+  /// Option descriptions wrapped to fit 80 columns (CLI11 indents the continuation lines).
+  std::string make_option_desc(const CLI::Option* opt) const override {
+    const std::string text = CLI::Formatter::make_option_desc(opt);
+    const std::size_t width = 80 - std::min<std::size_t>(get_column_width(), 60);
+    std::string out, line;
+    std::size_t start = 0;
+    while (start < text.size()) {
+      std::size_t end = text.find(' ', start);
+      if (end == std::string::npos) end = text.size();
+      const std::string word = text.substr(start, end - start);
+      if (!line.empty() && line.size() + 1 + word.size() > width) {
+        out += line + "\n";
+        line.clear();
+      }
+      line += (line.empty() ? "" : " ") + word;
+      start = end + 1;
+    }
+    return out + line;
+  }
 
  private:
   std::string usage_;
