@@ -6,7 +6,7 @@ set -euo pipefail
 PACKAGES=(
   build-essential cmake ninja-build pkg-config git
   libopencv-dev libopencv-contrib-dev libeigen3-dev libfftw3-dev libyaml-cpp-dev
-  libgtest-dev libgmock-dev libbenchmark-dev
+  libgtest-dev libgmock-dev libbenchmark-dev libcli11-dev
   liblcm-dev liblcm-bin libglib2.0-dev
   libcamera-dev libopengv-dev libsystemd-dev
   valgrind iproute2 util-linux python3

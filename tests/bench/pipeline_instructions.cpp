@@ -17,6 +17,7 @@
 #include <opencv2/imgcodecs.hpp>
 #include <string>
 
+#include "cli.hpp"
 #include "omnipose/pipeline.hpp"
 #include "omnipose/synth.hpp"
 #include "omnipose/trajectory.hpp"
@@ -33,21 +34,30 @@
 int main(int argc, char** argv) {
   int threads = 1, frames = 10, warmup = 2, refine = 1;
   std::string wisdom, save, load;
-  for (int i = 1; i + 1 < argc; i += 2) {
-    const std::string key = argv[i];
-    const char* value = argv[i + 1];
-    if (key == "--threads") threads = std::atoi(value);
-    else if (key == "--frames") frames = std::atoi(value);
-    else if (key == "--warmup") warmup = std::atoi(value);
-    else if (key == "--refine") refine = std::atoi(value);
-    else if (key == "--wisdom") wisdom = value;
-    else if (key == "--save") save = value;
-    else if (key == "--load") load = value;
-    else {
-      std::fprintf(stderr, "unknown option %s\n", key.c_str());
-      return 2;
-    }
-  }
+  omnipose::tools::Cli cli(
+      "omnipose-bench-instructions",
+      "usage: omnipose-bench-instructions [--threads N] [--frames K] [--warmup W]\n"
+      "                                   [--refine R] [--wisdom FILE] [--save DIR | --load DIR]",
+      "Per-frame instruction counts of the pipeline, for valgrind --tool=callgrind\n"
+      "--collect-atstart=no (only the measured frames are collected). Prints frames, threads,\n"
+      "refine, ok and ms_per_frame (wall time, milliseconds).");
+  auto& app = cli.app();
+  app.add_option("--threads", threads, "pipeline worker threads")->type_name("N")->capture_default_str();
+  app.add_option("--frames", frames, "measured frames")->type_name("K")->capture_default_str();
+  app.add_option("--warmup", warmup, "frames processed before measuring")
+      ->type_name("W")
+      ->capture_default_str();
+  app.add_option("--refine", refine, "refinement iterations per frame")
+      ->type_name("R")
+      ->capture_default_str();
+  app.add_option("--wisdom", wisdom, "FFTW wisdom file")->type_name("FILE");
+  auto* save_opt = app.add_option("--save", save, "write the two rendered frames to DIR/a.png, "
+                                                  "DIR/b.png")->type_name("DIR");
+  app.add_option("--load", load, "read the two frames from DIR/a.png, DIR/b.png instead of "
+                                 "rendering them")
+      ->type_name("DIR")
+      ->excludes(save_opt);
+  if (const auto exit_code = cli.parse(argc, argv)) return *exit_code;
   cv::setNumThreads(1);
   cv::Mat f[2];
   if (!load.empty()) {

@@ -1,9 +1,10 @@
 // The per-frame path of the daemon allocates nothing after start-up (DESIGN.md section 5).
 //
-// This binary replaces the global allocator hooks: operator new/delete (every variant) and,
-// by symbol interposition, malloc/calloc/realloc/memalign/posix_memalign/aligned_alloc/
-// valloc/pvalloc, so allocations inside C libraries (OpenCV's fastMalloc, FFTW, LCM's C
-// core, glib) are counted as well as C++ ones, in every thread of the process.
+// This binary links tests/support/allocation_counter.hpp, which replaces operator new/delete
+// (every variant) and, by symbol interposition, malloc/calloc/realloc/memalign/
+// posix_memalign/aligned_alloc/valloc/pvalloc, so allocations inside C libraries (OpenCV's
+// fastMalloc, FFTW, LCM's C core, glib) are counted as well as C++ ones, in every thread of
+// the process.
 //
 // What runs while counting (all threads of the whole daemon, >= 200 processed frames after
 // warm-up): the capture thread pulling frames from an in-memory source (preloaded omni
@@ -17,8 +18,6 @@
 // separately (the log writer), and both must be 0. Test 2 (udpm://, inside a private
 // network namespace of a forked child): nothing is excluded, the whole process must make
 // 0 allocations, LCM's publish included.
-#include <dlfcn.h>
-#include <execinfo.h>
 #include <gtest/gtest.h>
 #include <net/if.h>
 #include <net/route.h>
@@ -33,181 +32,9 @@
 #include <cstring>
 #include <new>
 
+#include "allocation_counter.hpp"
 #include "daemon/daemon.hpp"
 #include "daemon_test_support.hpp"
-
-// ---------------------------------------------------------------------------------------
-// Allocation counting
-// ---------------------------------------------------------------------------------------
-
-extern "C" {
-void* __libc_malloc(std::size_t);
-void __libc_free(void*);
-void* __libc_calloc(std::size_t, std::size_t);
-void* __libc_realloc(void*, std::size_t);
-void* __libc_memalign(std::size_t, std::size_t);
-void* __libc_valloc(std::size_t);
-void* __libc_pvalloc(std::size_t);
-}
-
-namespace {
-
-std::atomic<bool> g_counting{false};
-std::atomic<long> g_own{0};  ///< outside the LCM publish call
-std::atomic<long> g_lcm{0};  ///< inside the LCM publish call
-thread_local bool t_in_lcm = false;
-thread_local bool t_in_hook = false;
-
-// Backtraces of the first few counted allocations (diagnostics when the count is not 0).
-constexpr int kMaxTraces = 8;
-constexpr int kTraceDepth = 24;
-void* g_traces[kMaxTraces][kTraceDepth];
-int g_trace_sizes[kMaxTraces];
-std::atomic<int> g_trace_count{0};
-
-// Counted allocations per immediate caller (return address of malloc/new), lock-free.
-constexpr int kCallerSlots = 256;
-std::atomic<void*> g_callers[kCallerSlots];
-std::atomic<long> g_caller_counts[kCallerSlots];
-
-void recordCaller(void* caller) {
-  const auto h = (reinterpret_cast<std::uintptr_t>(caller) >> 4) % kCallerSlots;
-  for (std::size_t i = 0; i < kCallerSlots; ++i) {
-    auto& slot = g_callers[(h + i) % kCallerSlots];
-    void* expected = nullptr;
-    if (slot.load() == caller || slot.compare_exchange_strong(expected, caller) || expected == caller) {
-      g_caller_counts[(h + i) % kCallerSlots].fetch_add(1);
-      return;
-    }
-  }
-}
-
-inline void countAllocation(void* caller) {
-  if (!g_counting.load(std::memory_order_relaxed) || t_in_hook) return;
-  if (t_in_lcm) {
-    g_lcm.fetch_add(1, std::memory_order_relaxed);
-    return;
-  }
-  g_own.fetch_add(1, std::memory_order_relaxed);
-  recordCaller(caller);
-  const int slot = g_trace_count.fetch_add(1);
-  if (slot < kMaxTraces) {
-    t_in_hook = true;
-    g_trace_sizes[slot] = backtrace(g_traces[slot], kTraceDepth);
-    t_in_hook = false;
-  }
-}
-
-void resetCounters() {
-  g_own = 0;
-  g_lcm = 0;
-  g_trace_count = 0;
-  for (int i = 0; i < kCallerSlots; ++i) {
-    g_callers[i] = nullptr;
-    g_caller_counts[i] = 0;
-  }
-}
-
-/// Counted allocations by the library (and symbol) of the code that called the allocator.
-void printTraces() {
-  std::fprintf(stderr, "--- counted allocations by caller:\n");
-  for (int i = 0; i < kCallerSlots; ++i) {
-    void* caller = g_callers[i].load();
-    if (!caller) continue;
-    Dl_info info{};
-    dladdr(caller, &info);
-    std::fprintf(stderr, "  %8ld  %s (%s)\n", g_caller_counts[i].load(),
-                 info.dli_fname ? info.dli_fname : "?", info.dli_sname ? info.dli_sname : "?");
-  }
-  const int n = std::min(g_trace_count.load(), kMaxTraces);
-  for (int i = 0; i < n; ++i) {
-    std::fprintf(stderr, "--- counted allocation %d:\n", i);
-    backtrace_symbols_fd(g_traces[i], g_trace_sizes[i], 2);
-  }
-}
-
-void* allocateOrThrow(std::size_t size, void* caller) {
-  countAllocation(caller);
-  if (void* p = __libc_malloc(size ? size : 1)) return p;
-  throw std::bad_alloc();
-}
-void* allocateAlignedOrThrow(std::size_t size, std::align_val_t align, void* caller) {
-  countAllocation(caller);
-  if (void* p = __libc_memalign(static_cast<std::size_t>(align), size ? size : 1)) return p;
-  throw std::bad_alloc();
-}
-
-}  // namespace
-
-extern "C" {
-void* malloc(std::size_t size) {
-  countAllocation(__builtin_return_address(0));
-  return __libc_malloc(size);
-}
-void free(void* p) { __libc_free(p); }
-void* calloc(std::size_t n, std::size_t size) {
-  countAllocation(__builtin_return_address(0));
-  return __libc_calloc(n, size);
-}
-void* realloc(void* p, std::size_t size) {
-  countAllocation(__builtin_return_address(0));
-  return __libc_realloc(p, size);
-}
-void* memalign(std::size_t align, std::size_t size) {
-  countAllocation(__builtin_return_address(0));
-  return __libc_memalign(align, size);
-}
-void* aligned_alloc(std::size_t align, std::size_t size) {
-  countAllocation(__builtin_return_address(0));
-  return __libc_memalign(align, size);
-}
-int posix_memalign(void** out, std::size_t align, std::size_t size) {
-  countAllocation(__builtin_return_address(0));
-  void* p = __libc_memalign(align, size);
-  if (!p) return ENOMEM;
-  *out = p;
-  return 0;
-}
-void* valloc(std::size_t size) {
-  countAllocation(__builtin_return_address(0));
-  return __libc_valloc(size);
-}
-void* pvalloc(std::size_t size) {
-  countAllocation(__builtin_return_address(0));
-  return __libc_pvalloc(size);
-}
-}
-
-void* operator new(std::size_t size) { return allocateOrThrow(size, __builtin_return_address(0)); }
-void* operator new[](std::size_t size) { return allocateOrThrow(size, __builtin_return_address(0)); }
-void* operator new(std::size_t size, const std::nothrow_t&) noexcept {
-  countAllocation(__builtin_return_address(0));
-  return __libc_malloc(size ? size : 1);
-}
-void* operator new[](std::size_t size, const std::nothrow_t&) noexcept {
-  countAllocation(__builtin_return_address(0));
-  return __libc_malloc(size ? size : 1);
-}
-void* operator new(std::size_t size, std::align_val_t a) { return allocateAlignedOrThrow(size, a, __builtin_return_address(0)); }
-void* operator new[](std::size_t size, std::align_val_t a) { return allocateAlignedOrThrow(size, a, __builtin_return_address(0)); }
-void* operator new(std::size_t size, std::align_val_t a, const std::nothrow_t&) noexcept {
-  countAllocation(__builtin_return_address(0));
-  return __libc_memalign(static_cast<std::size_t>(a), size ? size : 1);
-}
-void* operator new[](std::size_t size, std::align_val_t a, const std::nothrow_t&) noexcept {
-  countAllocation(__builtin_return_address(0));
-  return __libc_memalign(static_cast<std::size_t>(a), size ? size : 1);
-}
-void operator delete(void* p) noexcept { __libc_free(p); }
-void operator delete[](void* p) noexcept { __libc_free(p); }
-void operator delete(void* p, std::size_t) noexcept { __libc_free(p); }
-void operator delete[](void* p, std::size_t) noexcept { __libc_free(p); }
-void operator delete(void* p, std::align_val_t) noexcept { __libc_free(p); }
-void operator delete[](void* p, std::align_val_t) noexcept { __libc_free(p); }
-void operator delete(void* p, std::size_t, std::align_val_t) noexcept { __libc_free(p); }
-void operator delete[](void* p, std::size_t, std::align_val_t) noexcept { __libc_free(p); }
-void operator delete(void* p, const std::nothrow_t&) noexcept { __libc_free(p); }
-void operator delete[](void* p, const std::nothrow_t&) noexcept { __libc_free(p); }
 
 namespace omnipose {
 namespace {
@@ -215,6 +42,7 @@ namespace {
 using namespace std::chrono_literals;
 namespace fs = std::filesystem;
 using daemon::Daemon;
+using testing::AllocationCounter;
 
 constexpr long kWarmUpFrames = 20;
 constexpr long kCountedFrames = 220;
@@ -224,18 +52,18 @@ class AttributingSink final : public daemon::MessageSink {
  public:
   explicit AttributingSink(std::unique_ptr<daemon::MessageSink> inner) : inner_(std::move(inner)) {}
   bool publish(const std::string& channel, const std::uint8_t* data, std::size_t size) override {
-    if (g_counting.load(std::memory_order_relaxed)) publishes_.fetch_add(1);
-    t_in_lcm = true;
-    const bool ok = inner_->publish(channel, data, size);
-    t_in_lcm = false;
-    return ok;
+    if (counting_.load(std::memory_order_relaxed)) publishes_.fetch_add(1);
+    AllocationCounter::ExcludedScope in_lcm;  // counted apart: AllocationCounter::excluded()
+    return inner_->publish(channel, data, size);
   }
+  void setCounting(bool on) { counting_ = on; }
   std::string describe() const override { return inner_->describe(); }
   long publishes() const { return publishes_.load(); }
 
  private:
   std::unique_ptr<daemon::MessageSink> inner_;
   std::atomic<long> publishes_{0};
+  std::atomic<bool> counting_{false};
 };
 
 struct Measurement {
@@ -269,10 +97,6 @@ Measurement measure(const std::vector<cv::Mat>& frames, const std::string& lcm_u
   Daemon d(config, log, std::make_unique<testing::MemorySource>(frames, script), std::move(sink),
            options);
 
-  // Warm the backtrace machinery (it loads libgcc_s on first use).
-  void* dummy[4];
-  backtrace(dummy, 4);
-
   Measurement m;
   d.start();
   const auto deadline = std::chrono::steady_clock::now() + 120s;
@@ -280,18 +104,22 @@ Measurement measure(const std::vector<cv::Mat>& frames, const std::string& lcm_u
   while (processed() < kWarmUpFrames && std::chrono::steady_clock::now() < deadline)
     std::this_thread::sleep_for(5ms);
   const daemon::DaemonStats before = d.stats();
-  resetCounters();
-  g_counting = true;
-  while (processed() < before.frames_processed + kCountedFrames &&
-         std::chrono::steady_clock::now() < deadline)
-    std::this_thread::sleep_for(5ms);
-  g_counting = false;
+  {
+    // Every thread of the process; who allocated is recorded for the report.
+    AllocationCounter counter(AllocationCounter::Scope::kProcess, /*record_callers=*/true);
+    sink_ptr->setCounting(true);
+    while (processed() < before.frames_processed + kCountedFrames &&
+           std::chrono::steady_clock::now() < deadline)
+      std::this_thread::sleep_for(5ms);
+    sink_ptr->setCounting(false);
+    m.own = counter.stop();
+    m.lcm = counter.excluded();
+    if (m.own != 0) counter.printCallers(stderr);
+  }
   const daemon::DaemonStats after = d.stats();
   d.requestStop();
   d.join();
 
-  m.own = g_own.load();
-  m.lcm = g_lcm.load();
   m.processed = after.frames_processed - before.frames_processed;
   m.skipped = after.frames_skipped - before.frames_skipped;
   m.bad = after.frames_bad - before.frames_bad;
@@ -308,6 +136,8 @@ std::string calibrationPath(const testing::TempDir& tmp) {
 }
 
 TEST(DaemonAllocation, PerFramePathAllocatesNothingLcmFileLogAttributedSeparately) {
+  if (!AllocationCounter::available())
+    GTEST_SKIP() << "sanitizer build: the sanitizer owns malloc, allocations are not counted";
   testing::TempDir tmp("alloc");
   const auto frames = testing::renderFrames("mixed", 8);
   std::FILE* log = std::tmpfile();
@@ -315,7 +145,6 @@ TEST(DaemonAllocation, PerFramePathAllocatesNothingLcmFileLogAttributedSeparatel
       measure(frames, "file://" + (tmp / "alloc.lcm").string() + "?mode=w", calibrationPath(tmp), log);
   std::fclose(log);
   ASSERT_TRUE(m.ok) << "only " << m.processed << " frames processed in time";
-  if (m.own != 0) printTraces();
   std::printf("[ counted ] %ld frames processed, %ld skipped (stale), %ld bad, %ld source "
               "re-opens, %ld messages published: %ld allocations outside the LCM publish call (daemon, "
               "pipeline and the libraries they call), %ld "
@@ -373,6 +202,8 @@ std::string enterPrivateNetwork() {
 }
 
 TEST(DaemonAllocation, WholeProcessIncludingLcmUdpmPublishAllocatesNothing) {
+  if (!AllocationCounter::available())
+    GTEST_SKIP() << "sanitizer build: the sanitizer owns malloc, allocations are not counted";
   testing::TempDir tmp("alloc-udpm");
   const auto frames = testing::renderFrames("mixed", 8);
   const std::string calibration = calibrationPath(tmp);
@@ -390,7 +221,6 @@ TEST(DaemonAllocation, WholeProcessIncludingLcmUdpmPublishAllocatesNothing) {
     } else {
       std::FILE* log = std::tmpfile();
       const Measurement m = measure(frames, "udpm://239.255.76.67:7667?ttl=0", calibration, log);
-      if (m.own + m.lcm != 0) printTraces();
       std::snprintf(line, sizeof(line), "ok %d %ld %ld %ld %ld %ld %ld", m.ok ? 1 : 0, m.own,
                     m.lcm, m.processed, m.skipped, m.bad, m.publishes);
     }

@@ -11,7 +11,7 @@
 #include <opencv2/imgproc.hpp>
 #include <sys/mman.h>
 
-#include "alloc_counter.hpp"
+#include "allocation_counter.hpp"
 #include "fake_v4l2_device.hpp"
 #include "v4l2/v4l2_source.hpp"
 
@@ -746,7 +746,7 @@ TEST_F(V4l2SourceTest, GreyAndYuyvFramesAllocateNothing) {
     std::int64_t allocations = 0;
     int delivered = 0;
     {
-      AllocationCounter counter;
+      AllocationCounter counter(AllocationCounter::Scope::kThisThread);
       for (int i = 0; i < 200; ++i) {
         if (i % 7 == 0) fake_->advance(150 * kMs);  // backlog: drain path too
         auto info = next();

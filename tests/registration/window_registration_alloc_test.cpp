@@ -1,56 +1,21 @@
 /// (f) The per-frame path of WindowRegistration allocates nothing: after construction and
 /// one warm-up frame, measure()/advance() over 50 frames perform zero heap allocations.
 ///
-/// Global operator new/delete are replaced in this binary (and only here) to count
-/// allocations while counting is switched on. FFTW allocates through fftwf_malloc (malloc),
-/// not operator new, so malloc is checked too through glibc's mallinfo2 counters.
+/// Every heap allocation of the process (malloc family and operator new: FFTW allocates
+/// through fftwf_malloc, i.e. malloc) is counted by tests/support/allocation_counter.hpp,
+/// linked into this binary only; glibc's mallinfo2 counters check the bytes in use too.
 
 #include <gtest/gtest.h>
 #include <malloc.h>
 
-#include <atomic>
-#include <cstdlib>
-#include <new>
 #include <numbers>
 #include <opencv2/core.hpp>
 #include <opencv2/imgproc.hpp>
 #include <vector>
 
+#include "allocation_counter.hpp"
 #include "omnipose/window_registration.hpp"
 #include "test_images.hpp"
-
-namespace {
-std::atomic<bool> g_counting{false};
-std::atomic<long> g_allocations{0};
-
-void* countedAllocate(std::size_t size, std::size_t alignment = 0) {
-  if (g_counting.load(std::memory_order_relaxed)) g_allocations.fetch_add(1, std::memory_order_relaxed);
-  if (size == 0) size = 1;
-  void* p = alignment > alignof(std::max_align_t) ? std::aligned_alloc(alignment, (size + alignment - 1) / alignment * alignment)
-                                                  : std::malloc(size);
-  if (p == nullptr) throw std::bad_alloc();
-  return p;
-}
-}  // namespace
-
-void* operator new(std::size_t size) { return countedAllocate(size); }
-void* operator new[](std::size_t size) { return countedAllocate(size); }
-void* operator new(std::size_t size, std::align_val_t a) { return countedAllocate(size, static_cast<std::size_t>(a)); }
-void* operator new[](std::size_t size, std::align_val_t a) { return countedAllocate(size, static_cast<std::size_t>(a)); }
-void* operator new(std::size_t size, const std::nothrow_t&) noexcept {
-  try { return countedAllocate(size); } catch (...) { return nullptr; }
-}
-void* operator new[](std::size_t size, const std::nothrow_t&) noexcept {
-  try { return countedAllocate(size); } catch (...) { return nullptr; }
-}
-void operator delete(void* p) noexcept { std::free(p); }
-void operator delete[](void* p) noexcept { std::free(p); }
-void operator delete(void* p, std::size_t) noexcept { std::free(p); }
-void operator delete[](void* p, std::size_t) noexcept { std::free(p); }
-void operator delete(void* p, std::align_val_t) noexcept { std::free(p); }
-void operator delete[](void* p, std::align_val_t) noexcept { std::free(p); }
-void operator delete(void* p, std::size_t, std::align_val_t) noexcept { std::free(p); }
-void operator delete[](void* p, std::size_t, std::align_val_t) noexcept { std::free(p); }
 
 namespace omnipose {
 namespace {
@@ -78,6 +43,8 @@ std::pair<cv::Mat, cv::Mat> framePair() {
 class WindowRegistrationRealtime : public ::testing::TestWithParam<int> {};
 
 TEST_P(WindowRegistrationRealtime, MeasureAndAdvanceAllocateNothing) {
+  if (!testing::AllocationCounter::available())
+    GTEST_SKIP() << "sanitizer build: the sanitizer owns malloc, allocations are not counted";
   const auto [a, b] = framePair();
   WindowRegistration::Options options;
   options.threads = GetParam();  // 1: the calling thread only; more: the worker pool
@@ -89,8 +56,7 @@ TEST_P(WindowRegistrationRealtime, MeasureAndAdvanceAllocateNothing) {
   reg.advance();
 
   const struct mallinfo2 before = mallinfo2();
-  g_allocations = 0;
-  g_counting = true;
+  testing::AllocationCounter counter;  // every thread: the worker pool's too
   int failures = 0, derotated = 0;
   for (int frame = 0; frame < 50; ++frame) {
     const cv::Mat& current = frame % 2 == 0 ? a : b;
@@ -99,12 +65,12 @@ TEST_P(WindowRegistrationRealtime, MeasureAndAdvanceAllocateNothing) {
     reg.advance();
     derotated += std::abs(out[10].rotation) > 0.005;
   }
-  g_counting = false;
+  const std::int64_t allocations = counter.stop();
   const struct mallinfo2 after = mallinfo2();
 
   EXPECT_EQ(failures, 0);
   EXPECT_GT(derotated, 0) << "the de-rotation path should have run";
-  EXPECT_EQ(g_allocations.load(), 0) << "operator new called in the per-frame path";
+  EXPECT_EQ(allocations, 0) << "heap allocations (malloc family or operator new) in the per-frame path";
   EXPECT_EQ(after.uordblks, before.uordblks) << "malloc'd bytes changed in the per-frame path";
   EXPECT_EQ(after.hblkhd, before.hblkhd) << "mmap'd bytes changed in the per-frame path";
 }

@@ -15,6 +15,7 @@
 #include <string>
 #include <vector>
 
+#include "cli.hpp"
 #include "omnipose/calibrate/checkerboard.hpp"
 #include "omnipose/calibrate/lens_calibrator.hpp"
 #include "omnipose/calibrate/mask_proposal.hpp"
@@ -27,82 +28,40 @@ namespace {
 namespace fs = std::filesystem;
 using omnipose::calibrate::LensCalibratorOptions;
 
-void usage(std::FILE* out) {
-  std::fprintf(
-      out,
-      "usage: omnipose-calibrate FRAMES... --out calibration.yaml [options]\n"
-      "       omnipose-calibrate --propose-mask FRAMES... --out mask.png [--preview P.png]\n"
-      "       omnipose-calibrate --checkerboard 9x6 --square 0.025 IMAGES... --out calibration.yaml\n"
-      "       omnipose-calibrate --from-ocamcalib calib_results.txt --out calibration.yaml\n"
-      "                          [FRAMES...] [--radius-inner R --radius-outer R] [--direction D]\n"
-      "                          [--forward-angle DEG] [--width W --height H --horizon-row V]\n"
-      "\n"
-      "Finds the donut's centre and the used inner/outer radii (robust circle fits on the ring\n"
-      "edges, median over the frames), proposes the panorama size and writes the calibration\n"
-      "YAML (DESIGN.md section 6) with a note on how each value was determined, plus a preview.\n"
-      "\n"
-      "  FRAMES                  omni images, or directories of images (sorted by name)\n"
-      "  --out FILE              calibration YAML to write (required)\n"
-      "  --preview FILE          preview PNG (default: FILE of --out with _preview.png)\n"
-      "Orientation:\n"
-      "  --turn-left             the FRAMES, in this order, show the robot turning left in\n"
-      "                          place (positive yaw): measures azimuth_direction\n"
-      "  --up-cue bright|dark|none  vertical cue for outer_edge: the upward-looking side of the\n"
-      "                          ring is brighter (sky, ceiling, lights; default) or darker\n"
-      "  --default-outer-edge top|bottom  used when the cue is not decisive (default top:\n"
-      "                          the paper's mounting, lens over the phone's front camera\n"
-      "                          looking up at the mirror, so the outer ring looks up)\n"
-      "  --forward-angle DEG     image angle atan2(y - cy, x - cx) of the robot's +x axis\n"
-      "  --forward-point X,Y     an image point straight ahead of the robot (instead)\n"
-      "Fix any value by hand:\n"
-      "  --center X,Y  --radius-inner R  --radius-outer R   (used radii, no margin applied)\n"
-      "  --margin PX             safety margin at both edges (default: 1 px + 2 x edge blur)\n"
-      "  --direction cw|ccw  --outer-edge top|bottom\n"
-      "  --width W  --height H  --horizon-row V  --horizon-radius R  --forward-column U\n"
-      "  --radial-scale S        image px per radian of elevation at the horizon radius (from\n"
-      "                          a lens model); default: the donut is taken as isotropic there\n"
-      "Detection hints:\n"
-      "  --center-guess X,Y  --inner-guess R  --outer-guess R   (pixels)\n"
-      "Lens models:\n"
-      "  --from-ocamcalib FILE   the lens is Scaramuzza's OCamCalib calib_results.txt: writes\n"
-      "                          model ocamcalib (the file is copied beside --out), the ring from\n"
-      "                          its ROI line (or --radius-inner/--radius-outer), a panorama\n"
-      "                          inside the ring's elevations; FRAMES (optional) are previewed\n"
-      "                          (and measure the direction with --turn-left)\n"
-      "  --checkerboard COLSxROWS --square METRES   FRAMES are checkerboard views (COLSxROWS\n"
-      "                          inner corners): calibrates the mei model with cv::omnidir,\n"
-      "                          reports its reprojection error; ring given or detected\n"
-      "Masks:\n"
-      "  --propose-mask          FRAMES of the robot turning or driving: writes to --out an\n"
-      "                          8-bit mask (0 = never use) of the textured pixels that stay\n"
-      "                          still while the rest of the ring moves (mast, body, cables,\n"
-      "                          bezel), and a preview; name it in calibration.yaml (omni.mask)\n"
-      "Other:\n"
-      "  --no-replay             skip the Pipeline replay of consecutive frames\n"
-      "  --quiet                 print only errors\n"
-      "Exit codes: 0 written, 1 calibration failed, 2 usage error.\n");
-}
+constexpr const char* kUsage =
+    "usage: omnipose-calibrate FRAMES... --out calibration.yaml [options]\n"
+    "       omnipose-calibrate --propose-mask FRAMES... --out mask.png [--preview P.png]\n"
+    "       omnipose-calibrate --checkerboard 9x6 --square 0.025 IMAGES... --out calibration.yaml\n"
+    "       omnipose-calibrate --from-ocamcalib calib_results.txt --out calibration.yaml\n"
+    "                          [FRAMES...] [--radius-inner R --radius-outer R] [--direction D]\n"
+    "                          [--forward-angle DEG] [--width W --height H --horizon-row V]";
 
-[[noreturn]] void usageError(const std::string& msg) {
-  std::fprintf(stderr, "omnipose-calibrate: %s\n", msg.c_str());
-  std::exit(2);
-}
+constexpr const char* kDescription =
+    "Finds the donut's centre and the used inner/outer radii (robust circle fits on the ring\n"
+    "edges, median over the frames), proposes the panorama size and writes the calibration\n"
+    "YAML (DESIGN.md section 6) with a note on how each value was determined, plus a preview.\n"
+    "Lengths are in omni-image pixels, angles in degrees.\n"
+    "Exit codes: 0 written, 1 calibration failed, 2 usage error.";
 
-double parseNumber(const std::string& option, const std::string& text) {
-  try {
-    std::size_t pos = 0;
-    const double v = std::stod(text, &pos);
-    if (pos != text.size()) throw std::invalid_argument(text);
-    return v;
-  } catch (const std::exception&) {
-    usageError(option + ": '" + text + "' is not a number");
-  }
-}
+/// A command-line mistake found after parsing: exit code 2.
+struct UsageError : std::runtime_error {
+  using std::runtime_error::runtime_error;
+};
 
+/// "X,Y" (pixels); a malformed value is a usage error naming `option`.
 Eigen::Vector2d parsePoint(const std::string& option, const std::string& text) {
   const auto comma = text.find(',');
-  if (comma == std::string::npos) usageError(option + ": expected X,Y, got '" + text + "'");
-  return {parseNumber(option, text.substr(0, comma)), parseNumber(option, text.substr(comma + 1))};
+  auto number = [&](const std::string& part) {
+    try {
+      std::size_t pos = 0;
+      const double v = std::stod(part, &pos);
+      if (pos == part.size()) return v;
+    } catch (const std::exception&) {
+    }
+    throw CLI::ValidationError(option, "'" + text + "' is not X,Y (two numbers)");
+  };
+  if (comma == std::string::npos) throw CLI::ValidationError(option, "expected X,Y, got '" + text + "'");
+  return {number(text.substr(0, comma)), number(text.substr(comma + 1))};
 }
 
 bool isImage(const fs::path& p) {
@@ -200,97 +159,171 @@ omnipose::calibrate::ModelImport importOcamCalibFile(const fs::path& file,
 
 int main(int argc, char** argv) {
   LensCalibratorOptions options;
-  std::vector<fs::path> inputs;
-  fs::path out_yaml, preview, from_ocamcalib;
+  std::vector<std::string> inputs_text;
+  std::string out_text, preview_text, ocamcalib_text;
   std::string checkerboard;
   std::optional<double> square;
-  bool quiet = false, propose_mask = false;
-  for (int i = 1; i < argc; ++i) {
-    const std::string arg = argv[i];
-    auto value = [&]() -> std::string {
-      if (i + 1 >= argc) usageError(arg + " needs a value");
-      return argv[++i];
-    };
-    if (arg == "-h" || arg == "--help") {
-      usage(stdout);
-      return 0;
-    } else if (arg == "--out") {
-      out_yaml = value();
-    } else if (arg == "--propose-mask") {
-      propose_mask = true;
-    } else if (arg == "--checkerboard") {
-      checkerboard = value();
-    } else if (arg == "--square") {
-      square = parseNumber(arg, value());
-    } else if (arg == "--from-ocamcalib") {
-      from_ocamcalib = value();
-    } else if (arg == "--preview") {
-      preview = value();
-    } else if (arg == "--turn-left") {
-      options.turn_left = true;
-    } else if (arg == "--up-cue") {
-      try {
-        options.up_cue = omnipose::calibrate::parseUpCue(value());
-      } catch (const std::exception& e) {
-        usageError(std::string("--up-cue: ") + e.what());
-      }
-    } else if (arg == "--default-outer-edge" || arg == "--outer-edge") {
-      const std::string v = value();
-      if (v != "top" && v != "bottom") usageError(arg + " must be top or bottom, not '" + v + "'");
-      const auto e = v == "top" ? omnipose::OuterEdge::kTop : omnipose::OuterEdge::kBottom;
-      if (arg == "--outer-edge") options.outer_edge = e;
-      else options.default_outer_edge = e;
-    } else if (arg == "--direction") {
-      const std::string v = value();
-      if (v != "cw" && v != "ccw") usageError("--direction must be cw or ccw, not '" + v + "'");
-      options.direction = v == "cw" ? omnipose::AzimuthDirection::kCw : omnipose::AzimuthDirection::kCcw;
-    } else if (arg == "--forward-angle") {
-      options.forward_angle_deg = parseNumber(arg, value());
-    } else if (arg == "--forward-point") {
-      options.forward_point = parsePoint(arg, value());
-    } else if (arg == "--center") {
-      options.center = parsePoint(arg, value());
-    } else if (arg == "--radius-inner") {
-      options.radius_inner = parseNumber(arg, value());
-    } else if (arg == "--radius-outer") {
-      options.radius_outer = parseNumber(arg, value());
-    } else if (arg == "--margin") {
-      options.margin = parseNumber(arg, value());
-    } else if (arg == "--width") {
-      options.width = static_cast<int>(parseNumber(arg, value()));
-    } else if (arg == "--height") {
-      options.height = static_cast<int>(parseNumber(arg, value()));
-    } else if (arg == "--horizon-row") {
-      options.horizon_row = parseNumber(arg, value());
-    } else if (arg == "--horizon-radius") {
-      options.horizon_radius = parseNumber(arg, value());
-    } else if (arg == "--radial-scale") {
-      options.radial_scale = parseNumber(arg, value());
-    } else if (arg == "--forward-column") {
-      options.forward_column = parseNumber(arg, value());
-    } else if (arg == "--center-guess") {
-      options.detector.center_guess = parsePoint(arg, value());
-    } else if (arg == "--inner-guess") {
-      options.detector.inner_guess = parseNumber(arg, value());
-    } else if (arg == "--outer-guess") {
-      options.detector.outer_guess = parseNumber(arg, value());
-    } else if (arg == "--no-replay") {
-      options.replay = false;
-    } else if (arg == "--quiet") {
-      quiet = true;
-    } else if (!arg.empty() && arg[0] == '-') {
-      std::fprintf(stderr, "omnipose-calibrate: unknown option %s\n", arg.c_str());
-      usage(stderr);
-      return 2;
-    } else {
-      inputs.emplace_back(arg);
-    }
-  }
-  if (inputs.empty() && from_ocamcalib.empty()) usageError("no FRAMES given (see --help)");
-  if (out_yaml.empty()) usageError("--out FILE is required (see --help)");
+  bool quiet = false, propose_mask = false, no_replay = false;
+
+  omnipose::tools::Cli cli("omnipose-calibrate", kUsage, kDescription);
+  auto& app = cli.app();
+  // A number into an optional (CLI11 converts it and names the flag when it cannot).
+  auto number = [&](const char* flag, std::optional<double>& target, const std::string& help) {
+    return app.add_option_function<double>(flag, [&target](const double& v) { target = v; }, help);
+  };
+  auto integer = [&](const char* flag, std::optional<int>& target, const std::string& help) {
+    // As before: any number, truncated to an integer.
+    return app.add_option_function<double>(
+        flag, [&target](const double& v) { target = static_cast<int>(v); }, help);
+  };
+  auto point = [&](const char* flag, std::optional<Eigen::Vector2d>& target,
+                   const std::string& help) {
+    return app
+        .add_option_function<std::string>(
+            flag, [&target, flag](const std::string& v) { target = parsePoint(flag, v); }, help)
+        ->type_name("X,Y");
+  };
+  auto topOrBottom = [](const std::string& v) {
+    return v == "top" ? omnipose::OuterEdge::kTop : omnipose::OuterEdge::kBottom;
+  };
+
+  app.add_option("FRAMES", inputs_text,
+                 "omni images, or directories of images (sorted by name)");
+  app.add_option("--out", out_text, "calibration YAML (or mask PNG) to write (required)")
+      ->type_name("FILE");
+  app.add_option("--preview", preview_text,
+                 "preview PNG (default: FILE of --out with _preview.png)")
+      ->type_name("FILE");
+
+  const std::string orientation = "Orientation";
+  app.add_flag("--turn-left", options.turn_left,
+               "the FRAMES, in this order, show the robot turning left in place (positive "
+               "yaw): measures azimuth_direction")
+      ->group(orientation);
+  app.add_option_function<std::string>(
+         "--up-cue",
+         [&](const std::string& v) {
+           try {
+             options.up_cue = omnipose::calibrate::parseUpCue(v);
+           } catch (const std::exception& e) {
+             throw CLI::ValidationError("--up-cue", e.what());
+           }
+         },
+         "vertical cue for outer_edge: the upward-looking side of the ring is brighter (sky, "
+         "ceiling, lights; default) or darker")
+      ->type_name("bright|dark|none")
+      ->group(orientation);
+  app.add_option_function<std::string>(
+         "--default-outer-edge",
+         [&](const std::string& v) { options.default_outer_edge = topOrBottom(v); },
+         "used when the cue is not decisive (default top: the paper's mounting, lens over the "
+         "phone's front camera looking up at the mirror, so the outer ring looks up)")
+      ->type_name("top|bottom")
+      ->check(omnipose::tools::oneOf({"top", "bottom"}))
+      ->group(orientation);
+  number("--forward-angle", options.forward_angle_deg,
+         "image angle atan2(y - cy, x - cx) of the robot's +x axis, degrees")
+      ->type_name("DEG")
+      ->group(orientation);
+  point("--forward-point", options.forward_point,
+        "an image point straight ahead of the robot, pixels (instead of --forward-angle)")
+      ->group(orientation);
+
+  const std::string by_hand = "Fix any value by hand";
+  point("--center", options.center, "centre of the donut, pixels")->group(by_hand);
+  number("--radius-inner", options.radius_inner, "used inner radius, pixels (no margin applied)")
+      ->type_name("R")
+      ->group(by_hand);
+  number("--radius-outer", options.radius_outer, "used outer radius, pixels (no margin applied)")
+      ->type_name("R")
+      ->group(by_hand);
+  number("--margin", options.margin,
+         "safety margin at both edges, pixels (default: 1 px + 2 x edge blur)")
+      ->type_name("PX")
+      ->group(by_hand);
+  app.add_option_function<std::string>(
+         "--direction",
+         [&](const std::string& v) {
+           options.direction =
+               v == "cw" ? omnipose::AzimuthDirection::kCw : omnipose::AzimuthDirection::kCcw;
+         },
+         "azimuth direction in the omni image")
+      ->type_name("cw|ccw")
+      ->check(omnipose::tools::oneOf({"cw", "ccw"}))
+      ->group(by_hand);
+  app.add_option_function<std::string>(
+         "--outer-edge", [&](const std::string& v) { options.outer_edge = topOrBottom(v); },
+         "which panorama edge the outer ring becomes")
+      ->type_name("top|bottom")
+      ->check(omnipose::tools::oneOf({"top", "bottom"}))
+      ->group(by_hand);
+  integer("--width", options.width, "panorama width W, pixels")->type_name("W")->group(by_hand);
+  integer("--height", options.height, "panorama height H, pixels")->type_name("H")->group(by_hand);
+  number("--horizon-row", options.horizon_row, "panorama row V of the horizon, pixels")
+      ->type_name("V")
+      ->group(by_hand);
+  number("--horizon-radius", options.horizon_radius, "omni-image radius R of the horizon, pixels")
+      ->type_name("R")
+      ->group(by_hand);
+  app.add_option_function<double>(
+         "--forward-column", [&](const double& v) { options.forward_column = v; },
+         "panorama column U of the robot's +x axis, pixels (default 0)")
+      ->type_name("U")
+      ->group(by_hand);
+  number("--radial-scale", options.radial_scale,
+         "image px per radian of elevation at the horizon radius (from a lens model); "
+         "default: the donut is taken as isotropic there")
+      ->type_name("S")
+      ->group(by_hand);
+
+  const std::string hints = "Detection hints";
+  point("--center-guess", options.detector.center_guess, "rough centre of the donut, pixels")
+      ->group(hints);
+  number("--inner-guess", options.detector.inner_guess, "rough inner radius, pixels")
+      ->type_name("R")
+      ->group(hints);
+  number("--outer-guess", options.detector.outer_guess, "rough outer radius, pixels")
+      ->type_name("R")
+      ->group(hints);
+
+  const std::string models = "Lens models";
+  app.add_option("--from-ocamcalib", ocamcalib_text,
+                 "the lens is Scaramuzza's OCamCalib calib_results.txt: writes model ocamcalib "
+                 "(the file is copied beside --out), the ring from its ROI line (or "
+                 "--radius-inner/--radius-outer), a panorama inside the ring's elevations; "
+                 "FRAMES (optional) are previewed (and measure the direction with --turn-left)")
+      ->type_name("FILE")
+      ->group(models);
+  app.add_option("--checkerboard", checkerboard,
+                 "FRAMES are checkerboard views (COLSxROWS inner corners): calibrates the mei "
+                 "model with cv::omnidir, reports its reprojection error; ring given or detected")
+      ->type_name("COLSxROWS")
+      ->group(models);
+  app.add_option_function<double>(
+         "--square", [&](const double& v) { square = v; },
+         "checkerboard square size, metres (with --checkerboard)")
+      ->type_name("METRES")
+      ->group(models);
+
+  app.add_flag("--propose-mask", propose_mask,
+               "FRAMES of the robot turning or driving: writes to --out an 8-bit mask (0 = "
+               "never use) of the textured pixels that stay still while the rest of the ring "
+               "moves (mast, body, cables, bezel), and a preview; name it in calibration.yaml "
+               "(omni.mask)")
+      ->group("Masks");
+  app.add_flag("--no-replay", no_replay, "skip the Pipeline replay of consecutive frames")
+      ->group("Other");
+  app.add_flag("--quiet", quiet, "print only errors")->group("Other");
+  if (const auto exit_code = cli.parse(argc, argv)) return *exit_code;
+
+  if (no_replay) options.replay = false;
+  std::vector<fs::path> inputs(inputs_text.begin(), inputs_text.end());
+  fs::path out_yaml = out_text, preview = preview_text, from_ocamcalib = ocamcalib_text;
+  if (inputs.empty() && from_ocamcalib.empty()) return cli.usageError("no FRAMES given");
+  if (out_yaml.empty()) return cli.usageError("--out FILE is required");
   if (int(propose_mask) + int(!from_ocamcalib.empty()) + int(!checkerboard.empty()) > 1)
-    usageError("--propose-mask, --from-ocamcalib and --checkerboard are separate steps: run them "
-               "one by one");
+    return cli.usageError("--propose-mask, --from-ocamcalib and --checkerboard are separate "
+                          "steps: run them one by one");
   if (preview.empty()) {
     preview = out_yaml;
     preview.replace_filename(out_yaml.stem().string() + "_preview.png");
@@ -327,7 +360,7 @@ int main(int argc, char** argv) {
     if (!checkerboard.empty()) {
       omnipose::calibrate::CheckerboardOptions board;
       omnipose::calibrate::parsePatternSize(checkerboard, board);
-      if (!square) usageError("--checkerboard needs --square METRES");
+      if (!square) throw UsageError("--checkerboard needs --square METRES");
       board.square_m = *square;
       return writeModelCalibration(
           omnipose::calibrate::importCheckerboard(frames, board, modelImportOptions(options)),
@@ -362,6 +395,8 @@ int main(int argc, char** argv) {
       std::printf("wrote %s and %s\n", out_yaml.c_str(), preview.c_str());
     }
     return 0;
+  } catch (const UsageError& e) {
+    return cli.usageError(e.what());
   } catch (const std::exception& e) {
     std::fprintf(stderr, "omnipose-calibrate: %s\n", e.what());
     return 1;

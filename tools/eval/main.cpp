@@ -5,49 +5,37 @@
 #include <string>
 #include <vector>
 
+#include "cli.hpp"
 #include "omnipose/evaluation.hpp"
 #include "omnipose/trajectory.hpp"
-
-namespace {
-
-void usage(std::FILE* out) {
-  std::fprintf(out,
-               "usage: omnipose-eval GT.tum EST.tum [EST2.tum ...] [--json OUT.json]\n"
-               "                     [--pairs OUT.csv] [--tolerance SECONDS]\n"
-               "  Per consecutive ground-truth pair: rotation-vector error (roll x, pitch y,\n"
-               "  yaw z), rotation angle error eps, translation-direction error; RMSE and max.\n"
-               "  --json   all results as a JSON array (one object per estimate)\n"
-               "  --pairs  per-pair errors of the first estimate as CSV\n");
-}
-
-}  // namespace
 
 int main(int argc, char** argv) {
   std::vector<std::string> files;
   std::string json_path, pairs_path;
   omnipose::EvaluationOptions options;
-  for (int i = 1; i < argc; ++i) {
-    const std::string arg = argv[i];
-    if (arg == "-h" || arg == "--help") {
-      usage(stdout);
-      return 0;
-    }
-    if ((arg == "--json" || arg == "--pairs" || arg == "--tolerance") && i + 1 >= argc) {
-      std::fprintf(stderr, "omnipose-eval: %s needs a value\n", arg.c_str());
-      return 2;
-    }
-    if (arg == "--json") json_path = argv[++i];
-    else if (arg == "--pairs") pairs_path = argv[++i];
-    else if (arg == "--tolerance") options.time_tolerance = std::stod(argv[++i]);
-    else if (!arg.empty() && arg[0] == '-') {
-      std::fprintf(stderr, "omnipose-eval: unknown option %s\n", arg.c_str());
-      return 2;
-    } else files.push_back(arg);
-  }
-  if (files.size() < 2) {
-    usage(stderr);
-    return 2;
-  }
+  omnipose::tools::Cli cli(
+      "omnipose-eval",
+      "usage: omnipose-eval GT.tum EST.tum [EST2.tum ...] [--json OUT.json]\n"
+      "                     [--pairs OUT.csv] [--tolerance SECONDS]",
+      "Per consecutive ground-truth pair: rotation-vector error (roll x, pitch y, yaw z; rad),\n"
+      "rotation angle error eps (rad), translation-direction error (rad); RMSE and max.\n"
+      "Exit codes: 0 scored, 1 a file cannot be read or written, 2 bad command line.");
+  auto& app = cli.app();
+  app.add_option("FILES", files,
+                 "GT.tum EST.tum [EST2.tum ...]: the ground-truth trajectory, then one or more "
+                 "estimated ones (TUM format: timestamp s, position, quaternion)")
+      ->required();
+  app.add_option("--json", json_path, "all results as a JSON array (one object per estimate)")
+      ->type_name("OUT.json");
+  app.add_option("--pairs", pairs_path, "per-pair errors of the first estimate as CSV")
+      ->type_name("OUT.csv");
+  app.add_option("--tolerance", options.time_tolerance,
+                 "largest timestamp difference, seconds, at which an estimated pose matches a "
+                 "ground-truth pose")
+      ->type_name("SECONDS")
+      ->capture_default_str();
+  if (const auto exit_code = cli.parse(argc, argv)) return *exit_code;
+  if (files.size() < 2) return cli.usageError("FILES: give GT.tum and at least one EST.tum");
   try {
     const auto gt = omnipose::readTum(files[0]);
     std::string json = "[";

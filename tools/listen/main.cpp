@@ -6,7 +6,6 @@
 
 #include <lcm/lcm-cpp.hpp>
 
-#include <charconv>
 #include <chrono>
 #include <cinttypes>
 #include <cmath>
@@ -14,6 +13,7 @@
 #include <cstdio>
 #include <string>
 
+#include "cli.hpp"
 #include "omnipose/pose_t.hpp"
 #include "omnipose/status_t.hpp"
 
@@ -21,17 +21,6 @@ namespace {
 
 volatile std::sig_atomic_t g_stop = 0;
 void onSignal(int) { g_stop = 1; }
-
-constexpr const char* kUsage =
-    "usage: omnipose-listen [--url URL] [--channel OMNI_POSE] [--status-channel OMNI_STATUS]\n"
-    "                       [--count N] [--timeout SECONDS]\n"
-    "\n"
-    "  --url URL              LCM URL (default: LCM's default, udpm multicast; a log file:\n"
-    "                         file:///path/run.lcm?speed=0 replays it as fast as possible)\n"
-    "  --channel NAME         pose channel (default OMNI_POSE)\n"
-    "  --status-channel NAME  status channel (default OMNI_STATUS; \"\" = do not print status)\n"
-    "  --count N              exit after N poses (default: run until Ctrl-C)\n"
-    "  --timeout SECONDS      exit (code 3) when no message arrived for this long (default: never)\n";
 
 const char* statusName(std::int8_t status) {
   switch (status) {
@@ -93,38 +82,37 @@ struct Printer {
   }
 };
 
-bool parseNumber(const char* text, double& out) {
-  const std::string s = text;
-  const auto [end, ec] = std::from_chars(s.data(), s.data() + s.size(), out);
-  return ec == std::errc() && end == s.data() + s.size();
-}
-
 }  // namespace
 
 int main(int argc, char** argv) {
   std::string url, pose_channel = "OMNI_POSE", status_channel = "OMNI_STATUS";
   double count = 0, timeout = 0;
-  for (int i = 1; i < argc; ++i) {
-    const std::string arg = argv[i];
-    const bool has_value = i + 1 < argc;
-    if (arg == "-h" || arg == "--help") {
-      std::fputs(kUsage, stdout);
-      return 0;
-    } else if (arg == "--url" && has_value) {
-      url = argv[++i];
-    } else if (arg == "--channel" && has_value) {
-      pose_channel = argv[++i];
-    } else if (arg == "--status-channel" && has_value) {
-      status_channel = argv[++i];
-    } else if (arg == "--count" && has_value && parseNumber(argv[i + 1], count) && count >= 0) {
-      ++i;
-    } else if (arg == "--timeout" && has_value && parseNumber(argv[i + 1], timeout) && timeout >= 0) {
-      ++i;
-    } else {
-      std::fprintf(stderr, "omnipose-listen: bad argument '%s'\n%s", arg.c_str(), kUsage);
-      return 2;
-    }
-  }
+  omnipose::tools::Cli cli(
+      "omnipose-listen",
+      "usage: omnipose-listen [--url URL] [--channel OMNI_POSE] [--status-channel OMNI_STATUS]\n"
+      "                       [--count N] [--timeout SECONDS]",
+      "Prints the poses (and status) omniposed publishes over LCM, one line per message.\n"
+      "Exit codes: 0 done (Ctrl-C, --count reached, end of a log), 1 LCM failed, 2 bad command\n"
+      "line, 3 --timeout expired.");
+  auto& app = cli.app();
+  app.add_option("--url", url,
+                 "LCM URL (default: LCM's default, udpm multicast; a log file: "
+                 "file:///path/run.lcm?speed=0 replays it as fast as possible)");
+  app.add_option("--channel", pose_channel, "pose channel")
+      ->type_name("NAME")
+      ->capture_default_str();
+  app.add_option("--status-channel", status_channel,
+                 "status channel (\"\" = do not print status)")
+      ->type_name("NAME")
+      ->capture_default_str();
+  app.add_option("--count", count, "exit after N poses (default: run until Ctrl-C)")
+      ->type_name("N")
+      ->check(omnipose::tools::nonNegative());
+  app.add_option("--timeout", timeout,
+                 "exit (code 3) when no message arrived for this long, seconds (default: never)")
+      ->type_name("SECONDS")
+      ->check(omnipose::tools::nonNegative());
+  if (const auto exit_code = cli.parse(argc, argv)) return *exit_code;
 
   lcm::LCM lcm(url);
   if (!lcm.good()) {

@@ -8,29 +8,21 @@
 
 #include <csignal>
 #include <cstdio>
-#include <cstring>
 #include <exception>
 #include <string>
 
+#include "cli.hpp"
 #include "daemon/service.hpp"
 #include "daemon/startup_check.hpp"
 #include "omnipose/config.hpp"
 
 namespace {
 
-constexpr const char* kUsage =
-    "usage: omniposed --config daemon.yaml [--check]\n"
-    "\n"
-    "  --config FILE   daemon configuration (DESIGN.md section 7)\n"
-    "  --check         validate the configuration, the calibration and what it names (lens\n"
-    "                  model, mask) and the pipeline against it, print the effective values\n"
-    "                  and exit; opens no camera\n"
-    "  -h, --help      this text\n"
-    "\n"
+constexpr const char* kDescription =
     "Stops cleanly on SIGINT/SIGTERM (exit 0; a second one during the shutdown is ignored);\n"
     "a finite file source ends the daemon after the last frame's pose and a final status\n"
     "(exit 0). SIGHUP does not reload the configuration: it logs the counters and the daemon\n"
-    "keeps running.\n";
+    "keeps running. Exit codes: 0 stopped, 1 start-up failed, 2 bad command line.";
 
 }  // namespace
 
@@ -43,26 +35,19 @@ int main(int argc, char** argv) {
 
   std::string config_path;
   bool check_only = false;
-  for (int i = 1; i < argc; ++i) {
-    const std::string arg = argv[i];
-    if (arg == "-h" || arg == "--help") {
-      std::fputs(kUsage, stdout);
-      return 0;
-    } else if (arg == "--config" && i + 1 < argc) {
-      config_path = argv[++i];
-    } else if (arg.rfind("--config=", 0) == 0) {
-      config_path = arg.substr(std::strlen("--config="));
-    } else if (arg == "--check") {
-      check_only = true;
-    } else {
-      std::fprintf(stderr, "omniposed: unknown argument '%s'\n%s", arg.c_str(), kUsage);
-      return 2;
-    }
-  }
-  if (config_path.empty()) {
-    std::fprintf(stderr, "omniposed: --config is required\n%s", kUsage);
-    return 2;
-  }
+  omnipose::tools::Cli cli("omniposed", "usage: omniposed --config daemon.yaml [--check]",
+                           kDescription);
+  cli.app()
+      .add_option("--config", config_path,
+                  "daemon configuration, YAML (DESIGN.md section 7; example: "
+                  "tools/omniposed/daemon.example.yaml)")
+      ->type_name("FILE")
+      ->required();
+  cli.app().add_flag("--check", check_only,
+                     "validate the configuration, the calibration and what it names (lens "
+                     "model, mask) and the pipeline against it, print the effective values "
+                     "and exit; opens no camera");
+  if (const auto exit_code = cli.parse(argc, argv)) return *exit_code;
 
   try {
     const auto config = omnipose::DaemonConfig::load(config_path);

@@ -15,6 +15,7 @@
 #include <vector>
 
 #include "chart.hpp"
+#include "cli.hpp"
 #include "omnipose/evaluation.hpp"
 #include "omnipose/trajectory.hpp"
 
@@ -22,16 +23,6 @@ namespace {
 
 using namespace omnipose;
 constexpr double kDeg = 180.0 / M_PI;
-
-void usage(std::FILE* out) {
-  std::fprintf(out,
-               "usage: omnipose-plot-angles GT.tum EST.tum [EST2.tum ...] --out FIG.png\n"
-               "                            [--labels A,B,...] [--axis roll|pitch|yaw|auto]\n"
-               "                            [--title TEXT] [--width PIXELS]\n"
-               "  Fig. 5 of the paper: per-frame rotation about one axis (degrees) of the\n"
-               "  ground truth and each estimate, RMSE (mrad) in the legend, errors below.\n"
-               "  --axis auto (default) takes the axis the ground truth turns most about.\n");
-}
 
 std::vector<std::string> split(const std::string& s, char sep) {
   std::vector<std::string> parts;
@@ -42,29 +33,37 @@ std::vector<std::string> split(const std::string& s, char sep) {
 
 int run(int argc, char** argv) {
   std::vector<std::string> files, labels;
-  std::string out, title, axis_name = "auto";
+  std::string out, title, axis_name = "auto", labels_text;
   int width = 1100;
-  for (int i = 1; i < argc; ++i) {
-    const std::string a = argv[i];
-    auto value = [&]() -> std::string {
-      if (i + 1 >= argc) throw std::invalid_argument(a + " needs a value");
-      return argv[++i];
-    };
-    if (a == "-h" || a == "--help") {
-      usage(stdout);
-      return 0;
-    } else if (a == "--out") out = value();
-    else if (a == "--labels") labels = split(value(), ',');
-    else if (a == "--axis") axis_name = value();
-    else if (a == "--title") title = value();
-    else if (a == "--width") width = std::stoi(value());
-    else if (!a.empty() && a[0] == '-') throw std::invalid_argument("unknown option " + a);
-    else files.push_back(a);
-  }
-  if (files.size() < 2 || out.empty()) {
-    usage(stderr);
-    return 2;
-  }
+  tools::Cli cli("omnipose-plot-angles",
+                 "usage: omnipose-plot-angles GT.tum EST.tum [EST2.tum ...] --out FIG.png\n"
+                 "                            [--labels A,B,...] [--axis roll|pitch|yaw|auto]\n"
+                 "                            [--title TEXT] [--width PIXELS]",
+                 "Fig. 5 of the paper: per-frame rotation about one axis (degrees) of the\n"
+                 "ground truth and each estimate, RMSE (mrad) in the legend, errors below.\n"
+                 "Exit codes: 0 drawn, 1 failed, 2 bad command line.");
+  auto& app = cli.app();
+  app.add_option("FILES", files,
+                 "GT.tum EST.tum [EST2.tum ...]: the ground-truth trajectory, then one or more "
+                 "estimated ones (TUM format)")
+      ->required();
+  app.add_option("--out", out, "figure to write (PNG)")->type_name("FIG.png")->required();
+  app.add_option("--labels", labels_text,
+                 "legend name of each estimate, comma-separated (default: the file names)")
+      ->type_name("A,B,...");
+  app.add_option("--axis", axis_name,
+                 "the rotation axis drawn; auto takes the axis the ground truth turns most about")
+      ->type_name("roll|pitch|yaw|auto")
+      ->check(tools::oneOf({"roll", "pitch", "yaw", "auto"}))
+      ->capture_default_str();
+  app.add_option("--title", title, "figure title")->type_name("TEXT");
+  app.add_option("--width", width, "figure width, pixels")
+      ->type_name("PIXELS")
+      ->check(CLI::PositiveNumber)
+      ->capture_default_str();
+  if (const auto exit_code = cli.parse(argc, argv)) return *exit_code;
+  if (files.size() < 2) return cli.usageError("FILES: give GT.tum and at least one EST.tum");
+  if (app.count("--labels") > 0) labels = split(labels_text, ',');
   if (!labels.empty() && labels.size() != files.size() - 1)
     throw std::invalid_argument("--labels: " + std::to_string(labels.size()) + " labels for " +
                                 std::to_string(files.size() - 1) + " estimates");

@@ -13,6 +13,7 @@
 #include <vector>
 
 #include "chart.hpp"
+#include "cli.hpp"
 #include "omnipose/config.hpp"
 #include "omnipose/dataset.hpp"
 #include "omnipose/motion_fit.hpp"
@@ -23,16 +24,6 @@
 namespace {
 
 using namespace omnipose;
-
-void usage(std::FILE* out) {
-  std::fprintf(out,
-               "usage: omnipose-plot-fit DATASET --pair K|max --out FIG.png\n"
-               "                         [--config daemon.yaml] [--input omni|panorama]\n"
-               "                         [--width PIXELS]\n"
-               "  Fig. 4 of the paper for the frame pair (K-1, K): both panoramas, the du and\n"
-               "  dv measured by iFMI per window and the fitted sinusoids (+ ground truth).\n"
-               "  --pair max: the pair with the largest ground-truth rotation.\n");
-}
 
 /// Ground-truth relative pose of frame k w.r.t. k-1, if both poses are in the file.
 std::optional<Eigen::Isometry3d> groundTruthStep(const Dataset& d, int k) {
@@ -49,39 +40,51 @@ std::optional<Eigen::Isometry3d> groundTruthStep(const Dataset& d, int k) {
 }
 
 int run(int argc, char** argv) {
-  std::string dataset_dir, out, config;
+  std::string dataset_dir, out, config, pair_text, input_text;
   std::optional<InputKind> input;
   int pair = -1, width = 1400;
   bool largest = false;
-  for (int i = 1; i < argc; ++i) {
-    const std::string a = argv[i];
-    auto value = [&]() -> std::string {
-      if (i + 1 >= argc) throw std::invalid_argument(a + " needs a value");
-      return argv[++i];
-    };
-    if (a == "-h" || a == "--help") {
-      usage(stdout);
-      return 0;
-    } else if (a == "--pair") {
-      const std::string v = value();
-      if (v == "max") largest = true;
-      else pair = std::stoi(v);
-    }
-    else if (a == "--out") out = value();
-    else if (a == "--config") config = value();
-    else if (a == "--width") width = std::stoi(value());
-    else if (a == "--input") {
-      const std::string v = value();
-      if (v == "omni") input = InputKind::kOmni;
-      else if (v == "panorama") input = InputKind::kPanorama;
-      else throw std::invalid_argument("--input must be omni or panorama, not '" + v + "'");
-    } else if (!a.empty() && a[0] == '-') throw std::invalid_argument("unknown option " + a);
-    else dataset_dir = a;
-  }
-  if (dataset_dir.empty() || out.empty() || (pair < 1 && !largest)) {
-    usage(stderr);
-    return 2;
-  }
+  tools::Cli cli("omnipose-plot-fit",
+                 "usage: omnipose-plot-fit DATASET --pair K|max --out FIG.png\n"
+                 "                         [--config daemon.yaml] [--input omni|panorama]\n"
+                 "                         [--width PIXELS]",
+                 "Fig. 4 of the paper for the frame pair (K-1, K): both panoramas, the du and\n"
+                 "dv (pixels) measured by iFMI per window and the fitted sinusoids (+ ground\n"
+                 "truth). Exit codes: 0 drawn, 1 failed, 2 bad command line.");
+  auto& app = cli.app();
+  app.add_option("DATASET", dataset_dir, "dataset directory (calibration.yaml, frames/, ...)")
+      ->required();
+  app.add_option("--pair", pair_text,
+                 "the frame pair (K-1, K), K >= 1 a frame index; max: the pair with the "
+                 "largest ground-truth rotation")
+      ->type_name("K|max")
+      ->required()
+      ->check(CLI::Validator(
+          [](std::string& v) -> std::string {
+            if (v == "max") return {};
+            try {
+              std::size_t pos = 0;
+              if (std::stoi(v, &pos) >= 1 && pos == v.size()) return {};
+            } catch (const std::exception&) {
+            }
+            return "must be a frame index >= 1 or max, not '" + v + "'";
+          },
+          "", ""));
+  app.add_option("--out", out, "figure to write (PNG)")->type_name("FIG.png")->required();
+  app.add_option("--config", config, "daemon.yaml whose input/pipeline sections are used")
+      ->type_name("daemon.yaml");
+  app.add_option("--input", input_text, "frames are omni donuts (default) or panoramas")
+      ->type_name("omni|panorama")
+      ->check(tools::oneOf({"omni", "panorama"}));
+  app.add_option("--width", width, "figure width, pixels")
+      ->type_name("PIXELS")
+      ->check(CLI::PositiveNumber)
+      ->capture_default_str();
+  if (const auto exit_code = cli.parse(argc, argv)) return *exit_code;
+  if (pair_text == "max") largest = true;
+  else pair = std::stoi(pair_text);
+  if (input_text == "omni") input = InputKind::kOmni;
+  else if (input_text == "panorama") input = InputKind::kPanorama;
 
   const Dataset d = Dataset::open(dataset_dir);
   if (largest) {

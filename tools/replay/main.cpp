@@ -1,85 +1,68 @@
 // omnipose-replay: estimates the camera motion of a recorded dataset directory, headless.
+// Exit codes: 0 done, 1 failed (dataset, calibration, no pair estimated), 2 bad command line.
 #include <cstdio>
-#include <cstring>
 #include <exception>
 #include <string>
 
+#include "cli.hpp"
 #include "replay.hpp"
-
-namespace {
-
-void usage(std::FILE* out) {
-  std::fprintf(out,
-               "usage: omnipose-replay DATASET [--out EST.tum] [--relative REL.csv]\n"
-               "                       [--input omni|panorama] [--config daemon.yaml]\n"
-               "                       [--calibration CAL.yaml] [--method NAME] [--quiet]\n"
-               "  DATASET      directory with calibration.yaml, frames/, optional\n"
-               "               timestamps.txt and groundtruth.tum\n"
-               "  --out        TUM trajectory (first frame at identity)\n"
-               "  --relative   per-pair CSV: rotation vector, translation direction, |tau|,\n"
-               "               residual, windows used, status\n"
-               "  --input      frames are omni donuts (default) or panoramas\n"
-               "  --config     daemon.yaml whose input/pipeline sections are used\n"
-               "  --method     ifmi (default) | orb5pt | akaze5pt | orbrot | akazerot\n"
-               "               (the feature-based baselines: ORB/AKAZE with OpenGV 5-point\n"
-               "               or 2-point rotation-only RANSAC)\n"
-               "Ends with: frames=N pairs=M skipped=K seconds_per_frame=X\n");
-}
-
-}  // namespace
 
 int main(int argc, char** argv) {
   omnipose::replay::ReplayOptions options;
-  bool have_dataset = false;
-  for (int i = 1; i < argc; ++i) {
-    const std::string arg = argv[i];
-    auto value = [&](const char* name) -> std::string {
-      if (i + 1 >= argc) {
-        std::fprintf(stderr, "omnipose-replay: %s needs a value\n", name);
-        std::exit(2);
-      }
-      return argv[++i];
-    };
-    if (arg == "-h" || arg == "--help") {
-      usage(stdout);
-      return 0;
-    } else if (arg == "--out") {
-      options.out_tum = value("--out");
-    } else if (arg == "--relative") {
-      options.relative_csv = value("--relative");
-    } else if (arg == "--config") {
-      options.config = value("--config");
-    } else if (arg == "--calibration") {
-      options.calibration = value("--calibration");
-    } else if (arg == "--method") {
-      options.method = value("--method");
-    } else if (arg == "--quiet") {
-      options.progress = false;
-    } else if (arg == "--input") {
-      const std::string kind = value("--input");
-      if (kind == "omni") options.input = omnipose::InputKind::kOmni;
-      else if (kind == "panorama") options.input = omnipose::InputKind::kPanorama;
-      else {
-        std::fprintf(stderr, "omnipose-replay: --input must be omni or panorama, not '%s'\n",
-                     kind.c_str());
-        return 2;
-      }
-    } else if (!arg.empty() && arg[0] == '-') {
-      std::fprintf(stderr, "omnipose-replay: unknown option %s\n", arg.c_str());
-      usage(stderr);
-      return 2;
-    } else if (!have_dataset) {
-      options.dataset = arg;
-      have_dataset = true;
-    } else {
-      std::fprintf(stderr, "omnipose-replay: more than one dataset given (%s)\n", arg.c_str());
-      return 2;
-    }
-  }
-  if (!have_dataset) {
-    usage(stderr);
-    return 2;
-  }
+  std::string dataset, input, out_tum, relative_csv, config, calibration;
+  bool quiet = false;
+  std::string methods;
+  for (const auto& m : omnipose::replay::methodNames()) methods += (methods.empty() ? "" : "|") + m;
+
+  omnipose::tools::Cli cli(
+      "omnipose-replay",
+      "usage: omnipose-replay DATASET [--out EST.tum] [--relative REL.csv]\n"
+      "                       [--input omni|panorama] [--config daemon.yaml]\n"
+      "                       [--calibration CAL.yaml] [--method NAME] [--quiet]",
+      "Estimates the camera motion of every consecutive frame pair of a dataset directory.\n"
+      "Ends with: frames=N pairs=M skipped=K seconds_per_frame=X (median wall time per frame,\n"
+      "seconds). Exit codes: 0 done, 1 failed (or no pair estimated), 2 bad command line.");
+  auto& app = cli.app();
+  app.add_option("DATASET", dataset,
+                 "directory with calibration.yaml, frames/, optional timestamps.txt and "
+                 "groundtruth.tum")
+      ->required();
+  app.add_option("--out", out_tum,
+                 "TUM trajectory to write (timestamp s, position, quaternion; first frame at "
+                 "identity; position up to scale)")
+      ->type_name("EST.tum");
+  app.add_option("--relative", relative_csv,
+                 "per-pair CSV: rotation vector (rad), translation direction (unit), |tau|, "
+                 "residual (px), windows used, status")
+      ->type_name("REL.csv");
+  app.add_option("--input", input, "frames are omni donuts (default) or panoramas")
+      ->type_name("omni|panorama")
+      ->check(omnipose::tools::oneOf({"omni", "panorama"}));
+  app.add_option("--config", config,
+                 "daemon.yaml whose input/pipeline sections are used")
+      ->type_name("daemon.yaml");
+  app.add_option("--calibration", calibration,
+                 "calibration YAML instead of DATASET/calibration.yaml")
+      ->type_name("CAL.yaml");
+  app.add_option("--method", options.method,
+                 "ifmi (default, this project) | orb5pt | akaze5pt | orbrot | akazerot (the "
+                 "feature-based baselines: ORB/AKAZE with OpenGV 5-point or 2-point "
+                 "rotation-only RANSAC)")
+      ->type_name(methods)
+      ->check(omnipose::tools::oneOf(omnipose::replay::methodNames()));
+  app.add_flag("--quiet", quiet, "no progress line (it is shown only on a terminal anyway)");
+  if (const auto exit_code = cli.parse(argc, argv)) return *exit_code;
+
+  options.dataset = dataset;
+  // Given (even as ""), as the optional paths of ReplayOptions tell.
+  auto given = [&](const char* flag) { return app.count(flag) > 0; };
+  if (given("--out")) options.out_tum = out_tum;
+  if (given("--relative")) options.relative_csv = relative_csv;
+  if (given("--config")) options.config = config;
+  if (given("--calibration")) options.calibration = calibration;
+  options.progress = !quiet;
+  if (input == "omni") options.input = omnipose::InputKind::kOmni;
+  else if (input == "panorama") options.input = omnipose::InputKind::kPanorama;
   try {
     const auto s = omnipose::replay::run(options, stderr);
     std::printf("frames=%d pairs=%d skipped=%d seconds_per_frame=%.6f\n", s.frames, s.pairs,

@@ -1,54 +1,25 @@
 /// omnipose-synth: renders a synthetic dataset (DESIGN.md section 6) from an equirect photo,
 /// with exact ground truth, through the exact renderer of omnipose::synth.
 
-#include <charconv>
 #include <chrono>
 #include <cstdio>
 #include <iostream>
 #include <optional>
 #include <string>
-#include <string_view>
 
 #include "omnipose/synth.hpp"
+#include "cli.hpp"
 #include "progress_line.hpp"
 
 namespace {
 
 using namespace omnipose;
 
-constexpr const char* kUsage = R"(usage: omnipose-synth --texture PHOTO.jpg --out DIR [options]
-
-Renders a synthetic omni-camera dataset (calibration.yaml, frames/, timestamps.txt,
-groundtruth.tum) from an equirectangular photo, with exact ground truth.
-
-  --texture PHOTO         equirectangular photo (2:1), converted to grey     (required)
-  --out DIR               dataset directory; DIR/frames must be empty or new (required)
-  --scene sphere|box      texture at infinity, or on a 6 x 5 m box room (floor -1 m,
-                          ceiling +1.5 m); default: box if the motion translates
-  --output omni|panorama  donut image of the lens (default) or the unwrapped panorama
-  --motion MOTION.yaml    motion script (format: include/omnipose/synth.hpp,
-                          example: tools/synth/examples/tour.yaml)
-  --preset NAME           built-in motion: roll, pitch, yaw, mixed, translate, demo
-                          (default: demo)
-  --print-preset NAME     print a preset's motion script and exit
-  --frames N              total frame count (segments are cycled or cut to fit)
-  --seed S                seed of the motion and the degradations (default: the script's)
-  --noise SIGMA           Gaussian sensor noise, grey levels (default 0)
-  --blur SIGMA            Gaussian blur, pixels (default 0)
-  --jpeg Q                write JPEG frames of quality Q (1..100); 0 = PNG (default)
-  --exposure-jitter STD   per-frame gain 1 + N(0, STD), e.g. 0.05 (default 0)
-  --exposure-offset STD   per-frame offset N(0, STD), grey levels (default 0)
-  --calibration CAL.yaml  lens and panorama; default: 720x720, centre 359.5, radii
-                          120/300, panorama 1100x110, horizon row 54.5
-  --supersample K         K x K rays per pixel (default 3)
-  --occluder ANGLE,WIDTH  paint a static mast/cable occluder over a sector of the ring
-                          (image angle and width, degrees; omni output), the same in
-                          every frame
-  --write-mask            also write mask.png hiding the occluder (2 deg margin) and name
-                          it in calibration.yaml (omni.mask)
-  --quiet                 no progress line (it is shown only on a terminal anyway)
-  -h, --help              this text
-)";
+constexpr const char* kUsage = "usage: omnipose-synth --texture PHOTO.jpg --out DIR [options]";
+constexpr const char* kDescription =
+    "Renders a synthetic omni-camera dataset (calibration.yaml, frames/, timestamps.txt,\n"
+    "groundtruth.tum) from an equirectangular photo, with exact ground truth.\n"
+    "Exit codes: 0 written, 1 rendering or writing failed, 2 bad command line.";
 
 /// A command-line mistake: reported with a hint to --help, exit code 2.
 struct UsageError : std::runtime_error {
@@ -67,61 +38,88 @@ struct Args {
   std::optional<synth::Occluder> occluder;
   bool write_mask = false;
   bool quiet = false;
-  bool help = false;
 };
 
-template <typename T>
-T parseNumber(std::string_view option, std::string_view text) {
-  T value{};
-  const auto [end, ec] = std::from_chars(text.data(), text.data() + text.size(), value);
-  if (ec != std::errc() || end != text.data() + text.size()) {
-    throw UsageError(std::string(option) + ": '" + std::string(text) + "' is not a valid number");
-  }
-  return value;
+/// The command line's options, bound to `a`; the values CLI11 cannot convert itself (scene,
+/// output, occluder, the optional numbers) land in `raw` and are converted by finish().
+struct Raw {
+  std::string scene, output, occluder;
+  int frames = 0;
+  std::uint64_t seed = 0;
+};
+
+void addOptions(CLI::App& app, Args& a, Raw& raw) {
+  app.add_option("--texture", a.texture, "equirectangular photo (2:1), converted to grey (required)")
+      ->type_name("PHOTO");
+  app.add_option("--out", a.out, "dataset directory; DIR/frames must be empty or new (required)")
+      ->type_name("DIR");
+  app.add_option("--scene", raw.scene,
+                 "texture at infinity, or on a 6 x 5 m box room (floor -1 m, ceiling +1.5 m); "
+                 "default: box if the motion translates")
+      ->type_name("sphere|box");
+  app.add_option("--output", raw.output,
+                 "donut image of the lens (default) or the unwrapped panorama")
+      ->type_name("omni|panorama");
+  app.add_option("--motion", a.motion,
+                 "motion script (format: include/omnipose/synth.hpp, example: "
+                 "tools/synth/examples/tour.yaml)")
+      ->type_name("MOTION.yaml");
+  app.add_option("--preset", a.preset,
+                 "built-in motion: roll, pitch, yaw, mixed, translate, demo (default: demo)")
+      ->type_name("NAME");
+  app.add_option("--print-preset", a.print_preset, "print a preset's motion script and exit")
+      ->type_name("NAME");
+  app.add_option("--frames", raw.frames, "total frame count (segments are cycled or cut to fit)")
+      ->type_name("N");
+  app.add_option("--seed", raw.seed,
+                 "seed of the motion and the degradations (default: the script's)")
+      ->type_name("S");
+  app.add_option("--noise", a.noise, "Gaussian sensor noise sigma, grey levels (default 0)")
+      ->type_name("SIGMA");
+  app.add_option("--blur", a.blur, "Gaussian blur sigma, pixels (default 0)")->type_name("SIGMA");
+  app.add_option("--jpeg", a.jpeg, "write JPEG frames of quality Q (1..100); 0 = PNG (default)")
+      ->type_name("Q");
+  app.add_option("--exposure-jitter", a.exposure_gain,
+                 "per-frame gain 1 + N(0, STD), e.g. 0.05 (default 0)")
+      ->type_name("STD");
+  app.add_option("--exposure-offset", a.exposure_offset,
+                 "per-frame offset N(0, STD), grey levels (default 0)")
+      ->type_name("STD");
+  app.add_option("--calibration", a.calibration,
+                 "lens and panorama; default: 720x720, centre 359.5, radii 120/300 px, "
+                 "panorama 1100x110, horizon row 54.5")
+      ->type_name("CAL.yaml");
+  app.add_option("--supersample", a.supersample, "K x K rays per pixel (default 3)")
+      ->type_name("K");
+  app.add_option("--occluder", raw.occluder,
+                 "paint a static mast/cable occluder over a sector of the ring (image angle "
+                 "and width, degrees; omni output), the same in every frame")
+      ->type_name("ANGLE,WIDTH");
+  app.add_flag("--write-mask", a.write_mask,
+               "also write mask.png hiding the occluder (2 deg margin) and name it in "
+               "calibration.yaml (omni.mask)");
+  app.add_flag("--quiet", a.quiet, "no progress line (it is shown only on a terminal anyway)");
 }
 
-Args parseArgs(int argc, char** argv) {
-  Args a;
-  for (int i = 1; i < argc; ++i) {
-    const std::string_view opt = argv[i];
-    if (opt == "-h" || opt == "--help") {
-      a.help = true;
-      continue;
-    }
-    if (opt == "--write-mask") {
-      a.write_mask = true;
-      continue;
-    }
-    if (opt == "--quiet") {
-      a.quiet = true;
-      continue;
-    }
-    if (i + 1 >= argc) throw UsageError(std::string(opt) + ": unknown option or missing value");
-    const std::string_view val = argv[++i];
+/// Converts what CLI11 left as text and checks what it cannot; throws UsageError.
+void finish(const CLI::App& app, Args& a, const Raw& raw) {
+  auto given = [&](const char* flag) { return app.count(flag) > 0; };
+  auto convert = [](const char* flag, auto parse) {
     try {
-      if (opt == "--texture") a.texture = val;
-      else if (opt == "--out") a.out = val;
-      else if (opt == "--scene") a.scene = synth::parseSceneKind(std::string(val));
-      else if (opt == "--output") a.output = synth::parseOutputKind(std::string(val));
-      else if (opt == "--motion") a.motion = val;
-      else if (opt == "--preset") a.preset = val;
-      else if (opt == "--print-preset") a.print_preset = val;
-      else if (opt == "--frames") a.frames = parseNumber<int>(opt, val);
-      else if (opt == "--seed") a.seed = parseNumber<std::uint64_t>(opt, val);
-      else if (opt == "--noise") a.noise = parseNumber<double>(opt, val);
-      else if (opt == "--blur") a.blur = parseNumber<double>(opt, val);
-      else if (opt == "--jpeg") a.jpeg = parseNumber<int>(opt, val);
-      else if (opt == "--exposure-jitter") a.exposure_gain = parseNumber<double>(opt, val);
-      else if (opt == "--exposure-offset") a.exposure_offset = parseNumber<double>(opt, val);
-      else if (opt == "--calibration") a.calibration = val;
-      else if (opt == "--supersample") a.supersample = parseNumber<int>(opt, val);
-      else if (opt == "--occluder") a.occluder = synth::parseOccluder(std::string(val));
-      else throw UsageError(std::string(opt) + ": unknown option");
+      return parse();
     } catch (const std::invalid_argument& e) {
-      throw UsageError(std::string(opt) + ": " + e.what());
+      throw UsageError(std::string(flag) + ": " + e.what());
     }
-  }
-  if (a.help || !a.print_preset.empty()) return a;
+  };
+  if (given("--scene"))
+    a.scene = convert("--scene", [&] { return synth::parseSceneKind(raw.scene); });
+  if (given("--output"))
+    a.output = convert("--output", [&] { return synth::parseOutputKind(raw.output); });
+  if (given("--occluder"))
+    a.occluder = convert("--occluder", [&] { return synth::parseOccluder(raw.occluder); });
+  if (given("--frames")) a.frames = raw.frames;
+  if (given("--seed")) a.seed = raw.seed;
+  if (!a.print_preset.empty()) return;
   if (a.texture.empty()) throw UsageError("--texture is required");
   if (a.out.empty()) throw UsageError("--out is required");
   if (!a.motion.empty() && !a.preset.empty()) {
@@ -132,7 +130,6 @@ Args parseArgs(int argc, char** argv) {
   if (a.write_mask && !a.occluder) throw UsageError("--write-mask needs --occluder");
   if (a.occluder && a.output != synth::OutputKind::kOmni)
     throw UsageError("--occluder paints the omni image: it needs --output omni");
-  return a;
 }
 
 int run(const Args& a) {
@@ -199,20 +196,20 @@ int run(const Args& a) {
 }  // namespace
 
 int main(int argc, char** argv) {
+  Args args;
+  Raw raw;
+  tools::Cli cli("omnipose-synth", kUsage, kDescription);
+  addOptions(cli.app(), args, raw);
+  if (const auto exit_code = cli.parse(argc, argv)) return *exit_code;
   try {
-    const Args args = parseArgs(argc, argv);
-    if (args.help) {
-      std::cout << kUsage;
-      return 0;
-    }
+    finish(cli.app(), args, raw);
     if (!args.print_preset.empty()) {
       std::cout << synth::MotionScript::presetYaml(args.print_preset);
       return 0;
     }
     return run(args);
   } catch (const UsageError& e) {
-    std::cerr << "omnipose-synth: " << e.what() << "\n(see omnipose-synth --help)\n";
-    return 2;
+    return cli.usageError(e.what());
   } catch (const std::exception& e) {
     std::cerr << "omnipose-synth: error: " << e.what() << "\n";
     return 1;

@@ -1,0 +1,166 @@
+// Every program's command line (tools/common/cli.hpp, CLI11), run as a user runs it:
+// --help and --version succeed (exit 0) and print the usage and the project's version;
+// an unknown flag and a malformed value are usage errors (exit 2) that name the flag.
+#include <gtest/gtest.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <cctype>
+
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <map>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "omnipose_version.hpp"
+
+namespace {
+
+namespace fs = std::filesystem;
+
+struct Outcome {
+  int exit_code = -1;
+  std::string out, err;
+};
+
+std::string readText(const fs::path& p) {
+  std::ifstream in(p);
+  std::stringstream s;
+  s << in.rdbuf();
+  return s.str();
+}
+
+std::string quote(const std::string& s) {
+  std::string q = "'";
+  for (char c : s) q += c == '\'' ? std::string("'\\''") : std::string(1, c);
+  return q + "'";
+}
+
+/// Runs build/bin/PROGRAM ARGS... with stdin from /dev/null; exit code, stdout, stderr.
+Outcome run(const std::string& program, const std::vector<std::string>& args) {
+  const fs::path dir = fs::temp_directory_path() / ("omnipose-cli-test-" + std::to_string(::getpid()));
+  fs::create_directories(dir);
+  std::string cmd = quote((fs::path(OMNIPOSE_BINARY_DIR) / "bin" / program).string());
+  for (const auto& a : args) cmd += " " + quote(a);
+  cmd += " < /dev/null > " + quote((dir / "out").string()) + " 2> " + quote((dir / "err").string());
+  const int status = std::system(cmd.c_str());
+  Outcome r;
+  r.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  r.out = readText(dir / "out");
+  r.err = readText(dir / "err");
+  fs::remove_all(dir);
+  return r;
+}
+
+std::vector<std::string> programs() {
+  std::vector<std::string> list;
+  std::stringstream in(OMNIPOSE_CLI_PROGRAMS);
+  for (std::string p; std::getline(in, p, ',');) list.push_back(p);
+  return list;
+}
+
+class ProgramCli : public ::testing::TestWithParam<std::string> {};
+
+TEST_P(ProgramCli, HelpPrintsTheUsageAndExitsZero) {
+  const std::string program = GetParam();
+  for (const char* flag : {"--help", "-h"}) {
+    SCOPED_TRACE(flag);
+    const Outcome r = run(program, {flag});
+    EXPECT_EQ(r.exit_code, 0) << r.err;
+    EXPECT_EQ(r.out.rfind("usage: " + program, 0), 0u) << "help must start with the usage:\n" << r.out;
+    EXPECT_NE(r.out.find("--version"), std::string::npos) << r.out;
+    EXPECT_NE(r.out.find("--help"), std::string::npos) << r.out;
+    EXPECT_EQ(r.err, "");
+  }
+}
+
+TEST_P(ProgramCli, VersionPrintsTheProjectVersionAndExitsZero) {
+  const std::string program = GetParam();
+  const Outcome r = run(program, {"--version"});
+  EXPECT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_EQ(r.out, program + " " + OMNIPOSE_VERSION + "\n");
+  EXPECT_EQ(r.err, "");
+}
+
+TEST_P(ProgramCli, UnknownFlagIsAUsageErrorNamingTheFlag) {
+  const std::string program = GetParam();
+  const Outcome r = run(program, {"--no-such-flag"});
+  EXPECT_EQ(r.exit_code, 2) << r.out << r.err;
+  EXPECT_NE(r.err.find("--no-such-flag"), std::string::npos) << r.err;
+  EXPECT_EQ(r.err.rfind(program + ": ", 0), 0u) << "the message starts with the program:\n" << r.err;
+  EXPECT_NE(r.err.find("--help"), std::string::npos) << "a hint to --help:\n" << r.err;
+  EXPECT_EQ(r.out, "");
+}
+
+TEST_P(ProgramCli, BadValueIsAUsageErrorNamingTheFlag) {
+  // One malformed value per program (a number that is not one, a name not in the list, a
+  // missing value), with the other arguments valid so that the value is the only mistake.
+  const std::map<std::string, std::vector<std::string>> bad = {
+      {"omniposed", {"--config"}},
+      {"omnipose-replay", {"dataset", "--input", "donut"}},
+      {"omnipose-synth", {"--texture", "t.jpg", "--out", "o", "--frames", "ten"}},
+      {"omnipose-eval", {"gt.tum", "est.tum", "--tolerance", "abc"}},
+      {"omnipose-calibrate", {"frames", "--out", "c.yaml", "--center", "12"}},
+      {"omnipose-listen", {"--count", "-1"}},
+      {"omnipose-plot-fit", {"dataset", "--out", "f.png", "--pair", "0"}},
+      {"omnipose-plot-angles", {"gt.tum", "est.tum", "--out", "f.png", "--axis", "diagonal"}},
+      {"omnipose-results", {"manifest.tsv", "--main"}},
+      {"omnipose-bench-instructions", {"--threads", "many"}},
+  };
+  const std::map<std::string, std::string> flag = {
+      {"omniposed", "--config"},         {"omnipose-replay", "--input"},
+      {"omnipose-synth", "--frames"},    {"omnipose-eval", "--tolerance"},
+      {"omnipose-calibrate", "--center"}, {"omnipose-listen", "--count"},
+      {"omnipose-plot-fit", "--pair"},   {"omnipose-plot-angles", "--axis"},
+      {"omnipose-results", "--main"},    {"omnipose-bench-instructions", "--threads"},
+  };
+  const std::string program = GetParam();
+  ASSERT_TRUE(bad.contains(program)) << "add a bad value for " << program;
+  const Outcome r = run(program, bad.at(program));
+  EXPECT_EQ(r.exit_code, 2) << r.out << r.err;
+  EXPECT_NE(r.err.find(flag.at(program)), std::string::npos) << r.err;
+  EXPECT_EQ(r.err.rfind(program + ": ", 0), 0u) << r.err;
+}
+
+INSTANTIATE_TEST_SUITE_P(Programs, ProgramCli, ::testing::ValuesIn(programs()),
+                         [](const ::testing::TestParamInfo<std::string>& info) {
+                           std::string name;
+                           for (char c : info.param) name += std::isalnum(static_cast<unsigned char>(c)) ? c : '_';
+                           return name;
+                         });
+
+// Semantic checks the programs keep after parsing are usage errors too (exit 2).
+TEST(ProgramCliChecks, SemanticMistakesExitTwo) {
+  struct Case {
+    std::string program;
+    std::vector<std::string> args;
+    std::string needle;
+  };
+  const std::vector<Case> cases = {
+      {"omnipose-synth", {"--out", "o"}, "--texture"},
+      {"omnipose-synth", {"--texture", "t.jpg", "--out", "o", "--jpeg", "101"}, "--jpeg"},
+      {"omnipose-synth", {"--texture", "t.jpg", "--out", "o", "--write-mask"}, "--write-mask"},
+      {"omnipose-synth", {"--texture", "t.jpg", "--out", "o", "--scene", "cube"}, "--scene"},
+      {"omnipose-calibrate", {"frames"}, "--out"},
+      {"omnipose-calibrate", {"--out", "c.yaml"}, "FRAMES"},
+      {"omnipose-calibrate", {"frames", "--out", "c.yaml", "--direction", "up"}, "--direction"},
+      {"omnipose-eval", {"gt.tum"}, "EST.tum"},
+      {"omnipose-replay", {}, "DATASET"},
+      {"omnipose-replay", {"a", "b"}, "b"},
+      {"omniposed", {}, "--config"},
+      {"omniposed", {"--bogus"}, "--bogus"},  // the unknown flag, not the missing --config
+  };
+  for (const Case& c : cases) {
+    std::string line = c.program;
+    for (const auto& a : c.args) line += " " + a;
+    SCOPED_TRACE(line);
+    const Outcome r = run(c.program, c.args);
+    EXPECT_EQ(r.exit_code, 2) << r.out << r.err;
+    EXPECT_NE(r.err.find(c.needle), std::string::npos) << r.err;
+  }
+}
+
+}  // namespace
