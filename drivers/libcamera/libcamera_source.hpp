@@ -21,6 +21,8 @@
 ///
 /// Unplug: the camera's `disconnected` signal makes next() return kDisconnected; the
 /// following next() calls reopen with exponential back-off (or the caller closes/opens).
+/// Draining, back-off and sequence numbers follow the policy both camera drivers share
+/// (common/streaming.hpp).
 ///
 /// Threading: one capture thread calls open/next/close; the callbacks run on libcamera's
 /// thread and only touch the hand-over queue.

@@ -114,7 +114,7 @@ V4l2Source::V4l2Source(SourceConfig config, Options options, V4l2Io* io)
     : config_(std::move(config)),
       options_(options),
       io_(io != nullptr ? io : &SystemV4l2Io::instance()),
-      backoff_(options.reconnect_initial.count(), options.reconnect_max.count()) {}
+      reconnect_(options.reconnect_initial, options.reconnect_max) {}
 
 V4l2Source::~V4l2Source() { close(); }
 
@@ -162,8 +162,6 @@ Expected<void> V4l2Source::open() {
     return fail(ErrorCode::kInvalidArgument, "v4l2 %s: options.%s", config_.device.c_str(),
                 problems.front().c_str());
   first_negotiated_.reset();
-  // After a close()/open() by the caller the driver's counter restarts: continue ours.
-  after_reconnect_ = have_sequence_;
   auto started = start();
   if (!started) return started;
   state_ = State::kStreaming;
@@ -259,7 +257,9 @@ Expected<void> V4l2Source::start() {
   }
   streaming_ = true;
   resyncClock();
-  have_dequeued_seq_ = false;
+  // The driver's counter starts over with the stream (after a reconnect, or the caller's
+  // close() and open()): ours goes on.
+  sequence_.restart();
 
   std::ostringstream d;
   d << "v4l2 " << config_.device << " " << negotiated_.size.width << "x"
@@ -506,9 +506,7 @@ Error V4l2Source::disconnect(const char* what, int err) {
   teardown();
   state_ = State::kDisconnected;
   ++stats_.disconnects;
-  after_reconnect_ = true;
-  backoff_.reset();
-  retry_at_ns_ = nowNs(CLOCK_MONOTONIC) + backoff_.next() * kNsPerMs;
+  reconnect_.lost(nowNs(CLOCK_MONOTONIC));
   return Error::format(ErrorCode::kDisconnected,
                        "v4l2 %s: device disconnected (%s: %s); reopening with back-off",
                        config_.device.c_str(), what, std::strerror(err));
@@ -516,32 +514,29 @@ Error V4l2Source::disconnect(const char* what, int err) {
 
 Expected<void> V4l2Source::recover(std::int64_t deadline_ns) {
   const char* dev = config_.device.c_str();
+  using Action = drivers::ReconnectSchedule::Action;
   for (;;) {
-    const std::int64_t now = nowNs(CLOCK_MONOTONIC);
-    if (now < retry_at_ns_) {
-      // Not yet: sleep until the attempt is due, or give the caller its time back.
-      if (retry_at_ns_ > deadline_ns) {
-        sleepMs((deadline_ns - now + kNsPerMs - 1) / kNsPerMs);
-        return fail(ErrorCode::kDisconnected,
-                    "v4l2 %s: disconnected; next reopen attempt in %lld ms", dev,
-                    static_cast<long long>((retry_at_ns_ - nowNs(CLOCK_MONOTONIC)) / kNsPerMs));
-      }
-      sleepMs((retry_at_ns_ - now + kNsPerMs - 1) / kNsPerMs);
-      continue;
-    }
-    auto started = start();
-    if (started) {
-      state_ = State::kStreaming;
-      ++stats_.reconnects;
-      backoff_.reset();
-      return {};
-    }
-    ++stats_.reopen_failures;
-    const std::int64_t delay = backoff_.next();
-    retry_at_ns_ = nowNs(CLOCK_MONOTONIC) + delay * kNsPerMs;
-    return fail(ErrorCode::kDisconnected, "v4l2 %s: still disconnected (%s); next attempt in %lld ms",
-                dev, started.error().c_str(), static_cast<long long>(delay));
+    // Not yet due: sleep until it is, or give the caller its time back.
+    const auto step = reconnect_.step(nowNs(CLOCK_MONOTONIC), deadline_ns);
+    if (step.action == Action::kAttempt) break;
+    sleepMs((step.sleep_ns + kNsPerMs - 1) / kNsPerMs);
+    if (step.action == Action::kGiveBack)
+      return fail(ErrorCode::kDisconnected,
+                  "v4l2 %s: disconnected; next reopen attempt in %lld ms", dev,
+                  static_cast<long long>((reconnect_.retryAtNs() - nowNs(CLOCK_MONOTONIC)) /
+                                         kNsPerMs));
   }
+  auto started = start();
+  if (started) {
+    state_ = State::kStreaming;
+    ++stats_.reconnects;
+    reconnect_.reconnected();
+    return {};
+  }
+  ++stats_.reopen_failures;
+  const std::int64_t delay = reconnect_.attemptFailed(nowNs(CLOCK_MONOTONIC));
+  return fail(ErrorCode::kDisconnected, "v4l2 %s: still disconnected (%s); next attempt in %lld ms",
+              dev, started.error().c_str(), static_cast<long long>(delay));
 }
 
 Expected<FrameInfo> V4l2Source::next(cv::Mat& out, std::chrono::milliseconds timeout) {
@@ -631,12 +626,7 @@ V4l2Source::Step V4l2Source::drain(cv::Mat& out, FrameInfo& info, Error& error) 
     buffers_[b.index].queued = false;
     --queued_count_;
     // Frames the driver dropped for want of a queued buffer show as sequence gaps.
-    if (have_dequeued_seq_) {
-      const std::uint32_t step = b.sequence - last_dequeued_seq_;
-      if (step >= 1) stats_.lost_upstream += step - 1;
-    }
-    have_dequeued_seq_ = true;
-    last_dequeued_seq_ = b.sequence;
+    stats_.lost_upstream += sequence_.completed(b.sequence);
     Dequeued d;
     d.index = b.index;
     d.sequence = b.sequence;
@@ -649,29 +639,14 @@ V4l2Source::Step V4l2Source::drain(cv::Mat& out, FrameInfo& info, Error& error) 
   }
   if (dequeued_.empty()) return Step::kRetry;  // poll raced with nothing: wait again
 
-  // Every queued buffer had completed: the driver ran dry, newer frames were lost and the
-  // newest we hold is old. Give all back and wait for a fresh one.
-  const bool ran_dry = static_cast<int>(dequeued_.size()) == queued_before &&
-                       dequeued_.size() == buffers_.size();
-  if (options_.drop_stale && ran_dry) {
-    for (const Dequeued& d : dequeued_) {
-      if ((d.flags & V4L2_BUF_FLAG_ERROR) != 0) ++stats_.error_flagged;
-      else ++stats_.stale_dropped;
-      if (!requeue(d.index)) {
-        error = disconnect("VIDIOC_QBUF", errno);
-        return Step::kFailed;
-      }
-    }
-    return Step::kRetry;
-  }
-
-  // The newest frame without the error flag is delivered; the rest go back.
-  int chosen = -1;
-  for (int i = static_cast<int>(dequeued_.size()) - 1; i >= 0; --i)
-    if ((dequeued_[static_cast<std::size_t>(i)].flags & V4L2_BUF_FLAG_ERROR) == 0) {
-      chosen = i;
-      break;
-    }
+  // The newest frame without the error flag is delivered, the rest go back. When every
+  // queued buffer had completed, the driver ran dry, newer frames were lost and the newest
+  // we hold is old: all go back and next() waits for a fresh one.
+  const auto plan = drivers::planDrain(
+      dequeued_.size(), static_cast<std::size_t>(queued_before), buffers_.size(),
+      options_.drop_stale,
+      [this](std::size_t i) { return (dequeued_[i].flags & V4L2_BUF_FLAG_ERROR) == 0; });
+  const int chosen = plan.deliver;
   int flagged = 0;
   for (int i = 0; i < static_cast<int>(dequeued_.size()); ++i) {
     if (i == chosen) continue;
@@ -687,6 +662,7 @@ V4l2Source::Step V4l2Source::drain(cv::Mat& out, FrameInfo& info, Error& error) 
       return Step::kFailed;
     }
   }
+  if (plan.ran_dry) return Step::kRetry;
   if (chosen < 0) {
     error = Error::format(ErrorCode::kBadFrame,
                           "v4l2 %s: %d frame(s) flagged V4L2_BUF_FLAG_ERROR by the driver, dropped",
@@ -706,31 +682,11 @@ V4l2Source::Step V4l2Source::drain(cv::Mat& out, FrameInfo& info, Error& error) 
 
   // Timestamp: the buffer's CLOCK_MONOTONIC time on the wall clock, else the dequeue time.
   info = FrameInfo{};
-  if (d.timestamp_ns > 0 && clock_offset_.valid)
-    info.capture_time_us = drivers::toWallMicroseconds(d.timestamp_ns, clock_offset_);
-  else
-    info.capture_time_us = (nowNs(CLOCK_REALTIME) + 500) / 1000;
-
+  info.capture_time_us = drivers::captureTimeUs(d.timestamp_ns, clock_offset_,
+                                                [this] { return nowNs(CLOCK_REALTIME); });
   // Sequence: the driver's 32-bit counter, extended to 64 bits; across a reconnect (the
   // counter restarts) it continues with the gap the frame rate implies.
-  if (!have_sequence_) {
-    sequence_ = d.sequence;
-    have_sequence_ = true;
-  } else if (after_reconnect_) {
-    std::uint64_t gap = 1;
-    if (negotiated_.fps > 0 && info.capture_time_us > last_capture_us_)
-      gap = std::max<std::uint64_t>(
-          1, static_cast<std::uint64_t>(std::llround(
-                 static_cast<double>(info.capture_time_us - last_capture_us_) * 1e-6 *
-                 negotiated_.fps)));
-    sequence_ += gap;
-  } else {
-    sequence_ += static_cast<std::uint32_t>(d.sequence - last_delivered_kernel_seq_);
-  }
-  after_reconnect_ = false;
-  last_delivered_kernel_seq_ = d.sequence;
-  last_capture_us_ = info.capture_time_us;
-  info.sequence = sequence_;
+  info.sequence = sequence_.delivered(d.sequence, info.capture_time_us, negotiated_.fps);
   ++stats_.delivered;
 
   if (!requeued) {

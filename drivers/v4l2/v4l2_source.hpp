@@ -16,7 +16,9 @@
 /// Freshness: frames left in the queue are stale. next() drains every completed buffer
 /// and delivers the newest; when *every* buffer had completed, the driver had nothing to
 /// capture into and newer frames were lost, so even the newest one is old: all are
-/// requeued and next() waits for a fresh frame (Options::drop_stale).
+/// requeued and next() waits for a fresh frame (Options::drop_stale). The policy is the one
+/// both camera drivers share (common/streaming.hpp: planDrain, ReconnectSchedule,
+/// SequenceTracker).
 ///
 /// Timestamps: buffers stamped on CLOCK_MONOTONIC are converted to the wall clock with an
 /// offset measured at stream start (the least-preempted of a few bracketed reads) and
@@ -38,6 +40,7 @@
 #include <vector>
 
 #include "common/clock_offset.hpp"
+#include "common/streaming.hpp"
 #include "omnipose/config.hpp"
 #include "omnipose/frame_source.hpp"
 #include "v4l2/v4l2_io.hpp"
@@ -177,16 +180,8 @@ class V4l2Source final : public FrameSource {
   drivers::ClockOffset clock_offset_;
   std::int64_t last_clock_sync_ns_ = 0;
 
-  drivers::Backoff backoff_;
-  std::int64_t retry_at_ns_ = 0;
-
-  bool have_sequence_ = false;
-  bool after_reconnect_ = false;
-  std::uint32_t last_delivered_kernel_seq_ = 0;
-  std::uint64_t sequence_ = 0;
-  std::int64_t last_capture_us_ = 0;
-  bool have_dequeued_seq_ = false;
-  std::uint32_t last_dequeued_seq_ = 0;
+  drivers::ReconnectSchedule reconnect_;
+  drivers::SequenceTracker sequence_;
 
   Stats stats_;
 };

@@ -219,17 +219,6 @@ TEST(LibcameraTimestampTest, RealBoottimeOffsetMatchesTheWallClock) {
               static_cast<double>(wall_now_us), 2000.0);
 }
 
-TEST(BackoffTest, DoublesUpToTheCap) {
-  drivers::Backoff b(100, 700);
-  EXPECT_EQ(b.next(), 100);
-  EXPECT_EQ(b.next(), 200);
-  EXPECT_EQ(b.next(), 400);
-  EXPECT_EQ(b.next(), 700);
-  EXPECT_EQ(b.next(), 700);
-  b.reset();
-  EXPECT_EQ(b.next(), 100);
-}
-
 // ---- no camera here ---------------------------------------------------------------------
 
 bool anyMediaDevice() {
