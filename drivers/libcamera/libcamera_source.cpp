@@ -67,17 +67,6 @@ Expected<std::shared_ptr<libcamera::CameraManager>> sharedCameraManager() {
 
 }  // namespace
 
-std::vector<std::string> LibcameraSourceOptions::validate() const {
-  std::vector<std::string> problems;
-  if (buffer_count < 1 || buffer_count > 32)
-    problems.push_back("buffer_count: must be in [1, 32]");
-  if (reconnect_initial.count() < 1) problems.push_back("reconnect_initial: must be >= 1 ms");
-  if (reconnect_max < reconnect_initial)
-    problems.push_back("reconnect_max: must be >= reconnect_initial");
-  if (clock_resync.count() < 1) problems.push_back("clock_resync: must be >= 1 ms");
-  return problems;
-}
-
 // ---------------------------------------------------------------------------------------
 
 struct LibcameraSource::Impl {
@@ -92,12 +81,9 @@ struct LibcameraSource::Impl {
     std::size_t length = 0;
   };
 
-  Impl(SourceConfig c, Options o)
-      : config(std::move(c)),
-        options(o),
-        reconnect(o.reconnect_initial, o.reconnect_max) {}
+  explicit Impl(Options o)
+      : options(std::move(o)), reconnect(options.reconnect_initial, options.reconnect_max) {}
 
-  SourceConfig config;
   Options options;
   State state = State::kClosed;
 
@@ -154,7 +140,7 @@ struct LibcameraSource::Impl {
     cond.notify_one();
   }
 
-  const char* name() const { return camera_id.empty() ? config.camera.c_str() : camera_id.c_str(); }
+  const char* name() const { return camera_id.empty() ? options.camera.c_str() : camera_id.c_str(); }
 
   void resyncClock() {
     const auto offset = drivers::measureClockOffset(readClockNs, CLOCK_BOOTTIME, 7);
@@ -181,9 +167,9 @@ Expected<void> LibcameraSource::Impl::start() {
   const std::vector<std::shared_ptr<libcamera::Camera>> cameras = manager->cameras();
   std::vector<std::string> ids;
   for (const auto& c : cameras) ids.push_back(c->id());
-  auto index = libcam::selectCamera(libcam::parseCameraSelector(config.camera), ids);
+  auto index = libcam::selectCamera(libcam::parseCameraSelector(options.camera), ids);
   if (!index)
-    return fail(index.error().code(), "libcamera camera %s: %s", config.camera.c_str(),
+    return fail(index.error().code(), "libcamera camera %s: %s", options.camera.c_str(),
                 index.error().c_str());
   camera = cameras[*index];
   camera_id = camera->id();
@@ -203,16 +189,16 @@ Expected<void> LibcameraSource::Impl::start() {
   std::vector<std::uint32_t> offered;
   for (const libcamera::PixelFormat& pf : sc.formats().pixelformats())
     offered.push_back(pf.fourcc());
-  auto choice = libcam::chooseFormat(config.format, offered);
+  auto choice = libcam::chooseFormat(options.format, offered);
   if (!choice)
     return fail(choice.error().code(), "libcamera camera %s: %s", name(), choice.error().c_str());
   sc.pixelFormat = libcamera::PixelFormat(choice->fourcc);
-  sc.size = libcamera::Size(static_cast<unsigned>(config.width),
-                            static_cast<unsigned>(config.height));
+  sc.size = libcamera::Size(static_cast<unsigned>(options.width),
+                            static_cast<unsigned>(options.height));
   sc.bufferCount = static_cast<unsigned>(options.buffer_count);
   if (camera_config->validate() == libcamera::CameraConfiguration::Invalid)
     return fail(ErrorCode::kUnsupportedFormat, "libcamera camera %s: rejects %s %dx%d", name(),
-                libcam::formatName(choice->fourcc).c_str(), config.width, config.height);
+                libcam::formatName(choice->fourcc).c_str(), options.width, options.height);
   format = libcam::findGreyFormat(sc.pixelFormat.fourcc());
   if (format == nullptr)
     return fail(ErrorCode::kUnsupportedFormat,
@@ -251,7 +237,7 @@ Expected<void> LibcameraSource::Impl::start() {
   libcamera::ControlList controls(libcamera::controls::controls);
   fps = 0.0;
   if (camera->controls().count(&libcamera::controls::FrameDurationLimits) != 0) {
-    const std::int64_t d = libcam::frameDurationUs(config.fps);
+    const std::int64_t d = libcam::frameDurationUs(options.fps);
     controls.set(libcamera::controls::FrameDurationLimits,
                  libcamera::Span<const std::int64_t, 2>({d, d}));
     fps = 1e6 / static_cast<double>(d);
@@ -276,9 +262,9 @@ Expected<void> LibcameraSource::Impl::start() {
   if (fps > 0) d << " " << fps << " fps";
   else d << " (frame rate not settable)";
   d << ", " << requests.size() << " buffers";
-  if (choice->substituted) d << " (" << config.format << " not offered)";
-  if (size != cv::Size(config.width, config.height))
-    d << " (asked " << config.width << "x" << config.height << ")";
+  if (choice->substituted) d << " (" << options.format << " not offered)";
+  if (size != cv::Size(options.width, options.height))
+    d << " (asked " << options.width << "x" << options.height << ")";
   describe_text = d.str();
   return {};
 }
@@ -499,14 +485,10 @@ LibcameraSource::Impl::Step LibcameraSource::Impl::take(cv::Mat& out, FrameInfo&
 
 // ---------------------------------------------------------------------------------------
 
-LibcameraSource::LibcameraSource(SourceConfig config, Options options)
-    : impl_(std::make_unique<Impl>(std::move(config), options)) {}
+LibcameraSource::LibcameraSource(Options options)
+    : impl_(std::make_unique<Impl>(std::move(options))) {}
 
 LibcameraSource::~LibcameraSource() { close(); }
-
-std::vector<std::string> LibcameraSource::validate(const SourceConfig& config) {
-  return libcam::validateConfig(config);
-}
 
 std::string LibcameraSource::libcameraVersion() {
   return std::to_string(LIBCAMERA_VERSION_MAJOR) + "." + std::to_string(LIBCAMERA_VERSION_MINOR) +
@@ -516,12 +498,9 @@ std::string LibcameraSource::libcameraVersion() {
 Expected<void> LibcameraSource::open() {
   Impl& d = *impl_;
   if (d.state != Impl::State::kClosed) close();
-  if (const auto problems = validate(d.config); !problems.empty())
-    return fail(ErrorCode::kInvalidArgument, "libcamera camera %s: %s", d.config.camera.c_str(),
+  if (const auto problems = validate(d.options); !problems.empty())
+    return fail(ErrorCode::kInvalidArgument, "libcamera camera %s: %s", d.options.camera.c_str(),
                 problems.front().c_str());
-  if (const auto problems = d.options.validate(); !problems.empty())
-    return fail(ErrorCode::kInvalidArgument, "libcamera camera %s: options.%s",
-                d.config.camera.c_str(), problems.front().c_str());
   d.first_size.reset();
   auto started = d.start();
   if (!started) {
@@ -541,7 +520,7 @@ Expected<FrameInfo> LibcameraSource::next(cv::Mat& out, std::chrono::millisecond
   Impl& d = *impl_;
   if (d.state == Impl::State::kClosed)
     return fail(ErrorCode::kInvalidArgument, "libcamera camera %s: next() before open()",
-                d.config.camera.c_str());
+                d.options.camera.c_str());
   if (out.type() != CV_8UC1 || out.size() != d.size)
     return fail(ErrorCode::kInvalidArgument,
                 "libcamera camera %s: output must be %dx%d CV_8UC1, is %dx%d", d.name(),
@@ -592,8 +571,8 @@ void LibcameraSource::close() {
 std::string LibcameraSource::describe() const {
   const Impl& d = *impl_;
   if (d.state == Impl::State::kClosed || d.describe_text.empty())
-    return "libcamera camera " + d.config.camera + " " + std::to_string(d.config.width) + "x" +
-           std::to_string(d.config.height) + " " + d.config.format + " (not open)";
+    return "libcamera camera " + d.options.camera + " " + std::to_string(d.options.width) + "x" +
+           std::to_string(d.options.height) + " " + d.options.format + " (not open)";
   if (d.state == Impl::State::kDisconnected) return d.describe_text + " (disconnected)";
   return d.describe_text;
 }

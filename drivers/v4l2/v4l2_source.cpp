@@ -81,40 +81,35 @@ const char* toString(V4l2PixelFormat format) {
   return "?";
 }
 
-std::vector<std::string> V4l2SourceOptions::validate() const {
+std::vector<std::string> validate(const V4l2Options& o) {
   std::vector<std::string> problems;
-  if (buffer_count < 2 || buffer_count > 32)
-    problems.push_back("buffer_count: must be in [2, 32], is " + std::to_string(buffer_count));
-  if (reconnect_initial.count() < 1)
+  if (o.device.empty()) problems.push_back("source.device: must not be empty");
+  if (o.width <= 0 || o.width > 16384)
+    problems.push_back("source.width: must be in [1, 16384], is " + std::to_string(o.width));
+  if (o.height <= 0 || o.height > 16384)
+    problems.push_back("source.height: must be in [1, 16384], is " + std::to_string(o.height));
+  if (!(o.fps > 0.0 && o.fps <= 1000.0))  // also NaN
+    problems.push_back("source.fps: must be in (0, 1000]");
+  if (!parseV4l2PixelFormat(o.format))
+    problems.push_back("source.format: '" + o.format +
+                       "' is not a V4L2 format this source converts (GREY, YUYV, MJPG)");
+  if (o.buffer_count < 2 || o.buffer_count > 32)
+    problems.push_back("buffer_count: must be in [2, 32], is " + std::to_string(o.buffer_count));
+  if (o.reconnect_initial.count() < 1)
     problems.push_back("reconnect_initial: must be >= 1 ms");
-  if (reconnect_max < reconnect_initial)
+  if (o.reconnect_max < o.reconnect_initial)
     problems.push_back("reconnect_max: must be >= reconnect_initial");
-  if (clock_resync.count() < 1) problems.push_back("clock_resync: must be >= 1 ms");
-  if (clock_samples < 1 || clock_samples > drivers::kMaxClockSamples)
+  if (o.clock_resync.count() < 1) problems.push_back("clock_resync: must be >= 1 ms");
+  if (o.clock_samples < 1 || o.clock_samples > drivers::kMaxClockSamples)
     problems.push_back("clock_samples: must be in [1, " +
                        std::to_string(drivers::kMaxClockSamples) + "]");
   return problems;
 }
 
-std::vector<std::string> V4l2Source::validate(const SourceConfig& config) {
-  std::vector<std::string> problems;
-  if (config.device.empty()) problems.push_back("source.device: must not be empty");
-  if (config.width <= 0 || config.height <= 0 || config.width > 16384 || config.height > 16384)
-    problems.push_back("source.width/height: must be in [1, 16384], are " +
-                       std::to_string(config.width) + "x" + std::to_string(config.height));
-  if (!(config.fps > 0.0 && config.fps <= 1000.0))
-    problems.push_back("source.fps: must be in (0, 1000]");
-  if (!parseV4l2PixelFormat(config.format))
-    problems.push_back("source.format: '" + config.format +
-                       "' is not a V4L2 format this source converts (GREY, YUYV, MJPG)");
-  return problems;
-}
-
-V4l2Source::V4l2Source(SourceConfig config, Options options, V4l2Io* io)
-    : config_(std::move(config)),
-      options_(options),
+V4l2Source::V4l2Source(Options options, V4l2Io* io)
+    : options_(std::move(options)),
       io_(io != nullptr ? io : &SystemV4l2Io::instance()),
-      reconnect_(options.reconnect_initial, options.reconnect_max) {}
+      reconnect_(options_.reconnect_initial, options_.reconnect_max) {}
 
 V4l2Source::~V4l2Source() { close(); }
 
@@ -155,11 +150,8 @@ void V4l2Source::resyncClock() {
 
 Expected<void> V4l2Source::open() {
   if (state_ != State::kClosed) close();
-  if (const auto problems = validate(config_); !problems.empty())
-    return fail(ErrorCode::kInvalidArgument, "v4l2 %s: %s", config_.device.c_str(),
-                problems.front().c_str());
-  if (const auto problems = options_.validate(); !problems.empty())
-    return fail(ErrorCode::kInvalidArgument, "v4l2 %s: options.%s", config_.device.c_str(),
+  if (const auto problems = validate(options_); !problems.empty())
+    return fail(ErrorCode::kInvalidArgument, "v4l2 %s: %s", options_.device.c_str(),
                 problems.front().c_str());
   first_negotiated_.reset();
   auto started = start();
@@ -169,7 +161,7 @@ Expected<void> V4l2Source::open() {
 }
 
 Expected<void> V4l2Source::start() {
-  const char* dev = config_.device.c_str();
+  const char* dev = options_.device.c_str();
   // Non-blocking: DQBUF answers EAGAIN instead of sleeping, poll() does the waiting.
   fd_ = io_->open(dev, O_RDWR | O_NONBLOCK | O_CLOEXEC);
   if (fd_ < 0) {
@@ -262,7 +254,7 @@ Expected<void> V4l2Source::start() {
   sequence_.restart();
 
   std::ostringstream d;
-  d << "v4l2 " << config_.device << " " << negotiated_.size.width << "x"
+  d << "v4l2 " << options_.device << " " << negotiated_.size.width << "x"
     << negotiated_.size.height << " " << FourccText(negotiated_.fourcc).text;
   if (negotiated_.fps > 0) d << " " << negotiated_.fps << " fps";
   else d << " (frame rate not settable)";
@@ -277,8 +269,8 @@ Expected<void> V4l2Source::start() {
 }
 
 Expected<void> V4l2Source::negotiateFormat() {
-  const char* dev = config_.device.c_str();
-  const V4l2PixelFormat want = *parseV4l2PixelFormat(config_.format);
+  const char* dev = options_.device.c_str();
+  const V4l2PixelFormat want = *parseV4l2PixelFormat(options_.format);
 
   // ENUM_FMT: what does the node offer? (Answers with a clear list instead of relying on
   // S_FMT, which by the specification silently substitutes another format.)
@@ -315,8 +307,8 @@ Expected<void> V4l2Source::negotiateFormat() {
   // S_FMT, then read back what the driver made of it.
   v4l2_format fmt{};
   fmt.type = V4L2_BUF_TYPE_VIDEO_CAPTURE;
-  fmt.fmt.pix.width = static_cast<std::uint32_t>(config_.width);
-  fmt.fmt.pix.height = static_cast<std::uint32_t>(config_.height);
+  fmt.fmt.pix.width = static_cast<std::uint32_t>(options_.width);
+  fmt.fmt.pix.height = static_cast<std::uint32_t>(options_.height);
   fmt.fmt.pix.pixelformat = fourcc;
   fmt.fmt.pix.field = V4L2_FIELD_NONE;
   if (xioctl(VIDIOC_S_FMT, &fmt) != 0) {
@@ -326,7 +318,7 @@ Expected<void> V4l2Source::negotiateFormat() {
     if (e == ENODEV) return fail(ErrorCode::kNoDevice, "v4l2 %s: device gone", dev);
     if (e == EINVAL)
       return fail(ErrorCode::kUnsupportedFormat, "v4l2 %s: driver rejects %s %dx%d", dev,
-                  FourccText(fourcc).text, config_.width, config_.height);
+                  FourccText(fourcc).text, options_.width, options_.height);
     return fail(ErrorCode::kIoError, "v4l2 %s: VIDIOC_S_FMT: %s", dev, std::strerror(e));
   }
   const v4l2_pix_format& pix = fmt.fmt.pix;
@@ -341,7 +333,7 @@ Expected<void> V4l2Source::negotiateFormat() {
     return fail(ErrorCode::kIoError, "v4l2 %s: driver answered a %ux%u format", dev, pix.width,
                 pix.height);
 
-  negotiated_.requested = cv::Size(config_.width, config_.height);
+  negotiated_.requested = cv::Size(options_.width, options_.height);
   negotiated_.size = cv::Size(static_cast<int>(pix.width), static_cast<int>(pix.height));
   negotiated_.format = want;
   negotiated_.fourcc = fourcc;
@@ -359,7 +351,7 @@ Expected<void> V4l2Source::negotiateFormat() {
 }
 
 void V4l2Source::negotiateFrameRate() {
-  negotiated_.requested_fps = config_.fps;
+  negotiated_.requested_fps = options_.fps;
   negotiated_.fps = 0.0;
   v4l2_streamparm parm{};
   parm.type = V4L2_BUF_TYPE_VIDEO_CAPTURE;
@@ -370,7 +362,7 @@ void V4l2Source::negotiateFrameRate() {
     parm.type = V4L2_BUF_TYPE_VIDEO_CAPTURE;
     parm.parm.capture.timeperframe.numerator = 1000;
     parm.parm.capture.timeperframe.denominator =
-        static_cast<std::uint32_t>(std::lround(config_.fps * 1000.0));
+        static_cast<std::uint32_t>(std::lround(options_.fps * 1000.0));
     if (xioctl(VIDIOC_S_PARM, &parm) != 0) {
       parm = v4l2_streamparm{};
       parm.type = V4L2_BUF_TYPE_VIDEO_CAPTURE;
@@ -383,7 +375,7 @@ void V4l2Source::negotiateFrameRate() {
 }
 
 Expected<void> V4l2Source::setUpBuffers() {
-  const char* dev = config_.device.c_str();
+  const char* dev = options_.device.c_str();
   v4l2_requestbuffers req{};
   req.count = static_cast<std::uint32_t>(options_.buffer_count);
   req.type = V4L2_BUF_TYPE_VIDEO_CAPTURE;
@@ -481,8 +473,8 @@ void V4l2Source::close() {
 
 std::string V4l2Source::describe() const {
   if (state_ == State::kClosed || describe_.empty())
-    return "v4l2 " + config_.device + " " + std::to_string(config_.width) + "x" +
-           std::to_string(config_.height) + " " + config_.format + " (not open)";
+    return "v4l2 " + options_.device + " " + std::to_string(options_.width) + "x" +
+           std::to_string(options_.height) + " " + options_.format + " (not open)";
   if (state_ == State::kDisconnected) return describe_ + " (disconnected)";
   return describe_;
 }
@@ -509,11 +501,11 @@ Error V4l2Source::disconnect(const char* what, int err) {
   reconnect_.lost(nowNs(CLOCK_MONOTONIC));
   return Error::format(ErrorCode::kDisconnected,
                        "v4l2 %s: device disconnected (%s: %s); reopening with back-off",
-                       config_.device.c_str(), what, std::strerror(err));
+                       options_.device.c_str(), what, std::strerror(err));
 }
 
 Expected<void> V4l2Source::recover(std::int64_t deadline_ns) {
-  const char* dev = config_.device.c_str();
+  const char* dev = options_.device.c_str();
   using Action = drivers::ReconnectSchedule::Action;
   for (;;) {
     // Not yet due: sleep until it is, or give the caller its time back.
@@ -540,7 +532,7 @@ Expected<void> V4l2Source::recover(std::int64_t deadline_ns) {
 }
 
 Expected<FrameInfo> V4l2Source::next(cv::Mat& out, std::chrono::milliseconds timeout) {
-  const char* dev = config_.device.c_str();
+  const char* dev = options_.device.c_str();
   if (state_ == State::kClosed)
     return fail(ErrorCode::kInvalidArgument, "v4l2 %s: next() before open()", dev);
   if (out.type() != CV_8UC1 || out.size() != negotiated_.size)
@@ -666,7 +658,7 @@ V4l2Source::Step V4l2Source::drain(cv::Mat& out, FrameInfo& info, Error& error) 
   if (chosen < 0) {
     error = Error::format(ErrorCode::kBadFrame,
                           "v4l2 %s: %d frame(s) flagged V4L2_BUF_FLAG_ERROR by the driver, dropped",
-                          config_.device.c_str(), flagged);
+                          options_.device.c_str(), flagged);
     return Step::kFailed;
   }
 
@@ -708,7 +700,7 @@ Expected<void> V4l2Source::convert(const Dequeued& d, cv::Mat& out) {
       const std::size_t need = drivers::minimumFrameBytes(bpl, static_cast<std::size_t>(w), h);
       if (used < need)
         return fail(ErrorCode::kBadFrame, "v4l2 %s: frame %u has %zu bytes, %zu expected",
-                    config_.device.c_str(), d.sequence, used, need);
+                    options_.device.c_str(), d.sequence, used, need);
       drivers::copyLumaPlane(src, bpl, out);
       return {};
     }
@@ -717,14 +709,14 @@ Expected<void> V4l2Source::convert(const Dequeued& d, cv::Mat& out) {
           drivers::minimumFrameBytes(bpl, 2 * static_cast<std::size_t>(w), h);
       if (used < need)
         return fail(ErrorCode::kBadFrame, "v4l2 %s: frame %u has %zu bytes, %zu expected",
-                    config_.device.c_str(), d.sequence, used, need);
+                    options_.device.c_str(), d.sequence, used, need);
       drivers::packedYuv422ToGrey(src, bpl, 0, out);
       return {};
     }
     case V4l2PixelFormat::kMjpg: {
       auto r = drivers::decodeJpegToGrey(src, used, jpeg_scratch_, out);
       if (!r)
-        return fail(ErrorCode::kBadFrame, "v4l2 %s: frame %u: %s", config_.device.c_str(),
+        return fail(ErrorCode::kBadFrame, "v4l2 %s: frame %u: %s", options_.device.c_str(),
                     d.sequence, r.error().c_str());
       return {};
     }

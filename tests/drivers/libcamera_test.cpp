@@ -25,9 +25,8 @@ constexpr std::uint32_t kMJPEG = fourcc('M', 'J', 'P', 'G');
 constexpr std::uint32_t kXRGB = fourcc('X', 'R', '2', '4');
 constexpr std::uint32_t kRaw10 = fourcc('p', 'R', 'A', 'A');
 
-SourceConfig libcameraConfig(const char* camera = "0", const char* format = "YUYV") {
-  SourceConfig c;
-  c.type = SourceConfig::Type::kLibcamera;
+LibcameraOptions libcameraConfig(const char* camera = "0", const char* format = "YUYV") {
+  LibcameraOptions c;
   c.camera = camera;
   c.width = 640;
   c.height = 480;
@@ -147,24 +146,36 @@ TEST(LibcameraCameraTest, MissingCamerasAreClearErrors) {
 // ---- configuration ----------------------------------------------------------------------
 
 TEST(LibcameraConfigTest, Validation) {
-  EXPECT_TRUE(LibcameraSource::validate(libcameraConfig()).empty());
-  EXPECT_TRUE(LibcameraSource::validate(libcameraConfig("0", "auto")).empty());
-  SourceConfig bad = libcameraConfig("", "XRGB8888");
+  EXPECT_TRUE(validate(LibcameraOptions{}).empty()) << "the defaults are valid";
+  EXPECT_TRUE(validate(libcameraConfig()).empty());
+  EXPECT_TRUE(validate(libcameraConfig("0", "auto")).empty());
+  EXPECT_TRUE(validate(libcameraConfig("0", "")).empty()) << "empty = auto";
+  LibcameraOptions bad = libcameraConfig("", "XRGB8888");
   bad.width = 0;
+  bad.height = -5;
   bad.fps = 0;
-  const auto problems = LibcameraSource::validate(bad);
-  ASSERT_EQ(problems.size(), 4u);
-  EXPECT_EQ(problems[0].rfind("source.camera", 0), 0u);
-  EXPECT_EQ(problems[1].rfind("source.width/height", 0), 0u);
-  EXPECT_EQ(problems[2].rfind("source.fps", 0), 0u);
-  EXPECT_EQ(problems[3].rfind("source.format", 0), 0u);
+  bad.buffer_count = 0;
+  bad.reconnect_initial = 0ms;
+  bad.reconnect_max = -1ms;
+  bad.clock_resync = 0ms;
+  const auto problems = validate(bad);
+  ASSERT_EQ(problems.size(), 9u) << ::testing::PrintToString(problems);
+  EXPECT_EQ(problems[0].rfind("source.camera: ", 0), 0u);
+  EXPECT_EQ(problems[1], "source.width: must be in [1, 16384], is 0");
+  EXPECT_EQ(problems[2], "source.height: must be in [1, 16384], is -5");
+  EXPECT_EQ(problems[3], "source.fps: must be in (0, 1000]");
+  EXPECT_EQ(problems[4].rfind("source.format: 'XRGB8888' cannot be turned into grey", 0), 0u)
+      << problems[4];
+  EXPECT_EQ(problems[5], "buffer_count: must be in [1, 32], is 0");
+  EXPECT_EQ(problems[6], "reconnect_initial: must be >= 1 ms");
+  EXPECT_EQ(problems[7], "reconnect_max: must be >= reconnect_initial");
+  EXPECT_EQ(problems[8], "clock_resync: must be >= 1 ms");
   EXPECT_EQ(libcam::frameDurationUs(30.0), 33333);
   EXPECT_EQ(libcam::frameDurationUs(25.0), 40000);
 
-  LibcameraSourceOptions o;
-  EXPECT_TRUE(o.validate().empty());
+  LibcameraOptions o;
   o.reconnect_max = 1ms;
-  EXPECT_EQ(o.validate().size(), 1u);
+  EXPECT_EQ(validate(o), std::vector<std::string>{"reconnect_max: must be >= reconnect_initial"});
 }
 
 TEST(LibcameraConfigTest, InvalidConfigurationFailsBeforeTouchingLibcamera) {
@@ -172,6 +183,9 @@ TEST(LibcameraConfigTest, InvalidConfigurationFailsBeforeTouchingLibcamera) {
   auto r = source.open();
   ASSERT_FALSE(r);
   EXPECT_EQ(r.error().code(), ErrorCode::kInvalidArgument);
+  EXPECT_NE(r.error().message().find("libcamera camera 0: source.format: 'XRGB8888'"),
+            std::string_view::npos)
+      << r.error().message();
 }
 
 // ---- timestamps -------------------------------------------------------------------------
