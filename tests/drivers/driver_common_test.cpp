@@ -1,11 +1,13 @@
-// The streaming policy both camera drivers share (drivers/common/streaming.hpp), tested
-// directly: the reconnect schedule, the drain-to-newest decision, the 32 -> 64 bit sequence
-// numbers, and the capture time of a frame. The drivers' own tests (v4l2_test.cpp against
-// the fake device) show the same behaviour end to end.
+// What the camera drivers share (drivers/common), tested directly: the streaming policy of
+// streaming.hpp (the reconnect schedule, the drain-to-newest decision, the 32 -> 64 bit
+// sequence numbers) and clock_offset.hpp (capture clock -> wall clock, a frame's capture
+// time). The drivers' own tests (v4l2_test.cpp against the fake device) show the same
+// behaviour end to end.
 
 #include <gtest/gtest.h>
 
 #include <cstdint>
+#include <ctime>
 #include <vector>
 
 #include "common/clock_offset.hpp"
@@ -235,6 +237,51 @@ TEST(SequenceTrackerTest, RestartBeforeAnyFrameKeepsTheDriverNumber) {
   t.restart();  // every stream start restarts, the first one too
   EXPECT_EQ(t.delivered(42, 5'000'000, 30.0), 42u);
   EXPECT_EQ(t.delivered(43, 5'033'333, 30.0), 43u);
+}
+
+// ---- clock offset (libcamera's SensorTimestamp is on CLOCK_BOOTTIME) ----------------------
+
+TEST(ClockOffsetTest, SensorTimestampOnBoottimeBecomesWallClock) {
+  // Synthetic: BOOTTIME 100 s, wall 1.7e9 s; one preempted sample must not win.
+  const std::int64_t off = 1'700'000'000'000'000'000 - 100'000'000'000;
+  const std::vector<ClockSample> samples = {
+      {100'000'000'000, 100'000'050'000 + off, 100'000'100'000},  // 100 us bracket
+      {100'000'200'000, 100'000'200'150 + off, 100'000'200'300},  // 300 ns bracket, exact
+      {100'000'300'000, 100'000'300'900 + off, 100'000'301'000},  // 1 us, 400 ns skewed
+  };
+  const auto offset = offsetFromSamples(samples);
+  ASSERT_TRUE(offset.valid);
+  EXPECT_EQ(offset.offset_ns, off);
+  EXPECT_EQ(offset.uncertainty_ns, 150);
+  // A frame whose sensor started exposing at BOOTTIME 123.456789499 s.
+  EXPECT_EQ(toWallMicroseconds(123'456'789'499, offset),
+            (123'456'789'499 + off + 500) / 1000);
+  EXPECT_EQ(toWallMicroseconds(123'456'789'499, offset) % 1'000'000, 456'789);
+  EXPECT_EQ(toWallMicroseconds(123'456'789'500, offset) % 1'000'000, 456'790)
+      << "rounded to the nearest microsecond";
+}
+
+TEST(ClockOffsetTest, BrokenSamplesAreIgnored) {
+  const std::vector<ClockSample> samples = {{200, 5000, 100}};  // clock went back
+  EXPECT_FALSE(offsetFromSamples(samples).valid);
+  EXPECT_FALSE(offsetFromSamples({}).valid);
+  EXPECT_EQ(toWallMicroseconds(-1500, ClockOffset{0, 0, true}), -1)
+      << "rounds halves up also below zero";
+}
+
+TEST(ClockOffsetTest, RealBoottimeOffsetMatchesTheWallClock) {
+  auto read = [](clockid_t c) {
+    timespec ts{};
+    ::clock_gettime(c, &ts);
+    return toNanoseconds(ts);
+  };
+  const auto offset = measureClockOffset(read, CLOCK_BOOTTIME, 7);
+  ASSERT_TRUE(offset.valid);
+  EXPECT_LT(offset.uncertainty_ns, 1'000'000) << "a bracket of well under a millisecond";
+  const std::int64_t boot_now = read(CLOCK_BOOTTIME);
+  const std::int64_t wall_now_us = read(CLOCK_REALTIME) / 1000;
+  EXPECT_NEAR(static_cast<double>(toWallMicroseconds(boot_now, offset)),
+              static_cast<double>(wall_now_us), 2000.0);
 }
 
 // ---- capture time -------------------------------------------------------------------------

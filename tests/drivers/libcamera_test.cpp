@@ -1,12 +1,11 @@
-// libcamera source: its pure parts (format choice, camera choice, configuration checks,
-// timestamp conversion) and its behaviour with no camera present.
+// libcamera source: its pure parts (format choice, camera choice, option checks) and its
+// behaviour with no camera present. Its timestamp conversion (CLOCK_BOOTTIME -> wall clock)
+// is common code, tested in driver_common_test.cpp.
 
 #include <gtest/gtest.h>
 
-#include <ctime>
 #include <filesystem>
 
-#include "common/clock_offset.hpp"
 #include "libcamera/libcamera_formats.hpp"
 #include "libcamera/libcamera_source.hpp"
 
@@ -186,51 +185,6 @@ TEST(LibcameraConfigTest, InvalidConfigurationFailsBeforeTouchingLibcamera) {
   EXPECT_NE(r.error().message().find("libcamera camera 0: source.format: 'XRGB8888'"),
             std::string_view::npos)
       << r.error().message();
-}
-
-// ---- timestamps -------------------------------------------------------------------------
-
-TEST(LibcameraTimestampTest, SensorTimestampOnBoottimeBecomesWallClock) {
-  // Synthetic: BOOTTIME 100 s, wall 1.7e9 s; one preempted sample must not win.
-  const std::int64_t off = 1'700'000'000'000'000'000 - 100'000'000'000;
-  const std::vector<drivers::ClockSample> samples = {
-      {100'000'000'000, 100'000'050'000 + off, 100'000'100'000},  // 100 us bracket
-      {100'000'200'000, 100'000'200'150 + off, 100'000'200'300},  // 300 ns bracket, exact
-      {100'000'300'000, 100'000'300'900 + off, 100'000'301'000},  // 1 us, 400 ns skewed
-  };
-  const auto offset = drivers::offsetFromSamples(samples);
-  ASSERT_TRUE(offset.valid);
-  EXPECT_EQ(offset.offset_ns, off);
-  EXPECT_EQ(offset.uncertainty_ns, 150);
-  // A frame whose sensor started exposing at BOOTTIME 123.456789499 s.
-  EXPECT_EQ(drivers::toWallMicroseconds(123'456'789'499, offset),
-            (123'456'789'499 + off + 500) / 1000);
-  EXPECT_EQ(drivers::toWallMicroseconds(123'456'789'499, offset) % 1'000'000, 456'789);
-  EXPECT_EQ(drivers::toWallMicroseconds(123'456'789'500, offset) % 1'000'000, 456'790)
-      << "rounded to the nearest microsecond";
-}
-
-TEST(LibcameraTimestampTest, BrokenSamplesAreIgnored) {
-  const std::vector<drivers::ClockSample> samples = {{200, 5000, 100}};  // clock went back
-  EXPECT_FALSE(drivers::offsetFromSamples(samples).valid);
-  EXPECT_FALSE(drivers::offsetFromSamples({}).valid);
-  EXPECT_EQ(drivers::toWallMicroseconds(-1500, drivers::ClockOffset{0, 0, true}), -1)
-      << "rounds halves up also below zero";
-}
-
-TEST(LibcameraTimestampTest, RealBoottimeOffsetMatchesTheWallClock) {
-  auto read = [](clockid_t c) {
-    timespec ts{};
-    ::clock_gettime(c, &ts);
-    return drivers::toNanoseconds(ts);
-  };
-  const auto offset = drivers::measureClockOffset(read, CLOCK_BOOTTIME, 7);
-  ASSERT_TRUE(offset.valid);
-  EXPECT_LT(offset.uncertainty_ns, 1'000'000) << "a bracket of well under a millisecond";
-  const std::int64_t boot_now = read(CLOCK_BOOTTIME);
-  const std::int64_t wall_now_us = read(CLOCK_REALTIME) / 1000;
-  EXPECT_NEAR(static_cast<double>(drivers::toWallMicroseconds(boot_now, offset)),
-              static_cast<double>(wall_now_us), 2000.0);
 }
 
 // ---- no camera here ---------------------------------------------------------------------
