@@ -80,26 +80,15 @@ constexpr std::int64_t toNanoseconds(const timeval& t) {
          static_cast<std::int64_t>(t.tv_usec) * 1'000;
 }
 
-/// Exponential back-off for reconnect attempts: next() returns initial, 2 initial,
-/// 4 initial, ... capped at max; reset() starts over. Milliseconds.
-class Backoff {
- public:
-  Backoff(std::int64_t initial_ms, std::int64_t max_ms)
-      : initial_ms_(initial_ms < 1 ? 1 : initial_ms),
-        max_ms_(max_ms < initial_ms_ ? initial_ms_ : max_ms),
-        current_ms_(initial_ms_) {}
-  /// The delay before the next attempt, then doubles the one after it.
-  std::int64_t next() {
-    const std::int64_t d = current_ms_;
-    current_ms_ = current_ms_ > max_ms_ / 2 ? max_ms_ : current_ms_ * 2;
-    return d;
-  }
-  void reset() { current_ms_ = initial_ms_; }
-
- private:
-  std::int64_t initial_ms_;
-  std::int64_t max_ms_;
-  std::int64_t current_ms_;
-};
+/// FrameInfo::capture_time_us of a frame stamped `capture_ns` on the capture clock (0 or
+/// less: not stamped on it): its wall-clock time when the offset is valid, else the wall
+/// time now, `read_wall_ns()` (nanoseconds, CLOCK_REALTIME; called only then), rounded to
+/// the nearest microsecond.
+template <typename ReadWallNs>
+std::int64_t captureTimeUs(std::int64_t capture_ns, const ClockOffset& offset,
+                           ReadWallNs&& read_wall_ns) {
+  if (capture_ns > 0 && offset.valid) return toWallMicroseconds(capture_ns, offset);
+  return (read_wall_ns() + 500) / 1000;
+}
 
 }  // namespace omnipose::drivers

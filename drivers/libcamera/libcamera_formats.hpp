@@ -2,9 +2,9 @@
 /// \file libcamera_formats.hpp
 /// The parts of the libcamera source that need no camera and no libcamera headers, so they
 /// are unit-tested on their own: which pixel formats become grey and how, the choice of a
-/// format among those a camera offers, the choice of a camera by index or id, and the
-/// validation of the source configuration. Pixel formats are DRM fourccs, as libcamera's
-/// formats::R8.fourcc() etc.
+/// format among those a camera offers, the choice of a camera by index or id (and, in
+/// libcamera_formats.cpp, validate(const LibcameraOptions&)). Pixel formats are DRM
+/// fourccs, as libcamera's formats::R8.fourcc() etc.
 
 #include <cstddef>
 #include <cstdint>
@@ -14,7 +14,6 @@
 #include <string_view>
 #include <vector>
 
-#include "omnipose/config.hpp"
 #include "omnipose/error.hpp"
 
 namespace omnipose::libcam {
@@ -82,10 +81,6 @@ CameraSelector parseCameraSelector(std::string_view camera);
 /// kNotFound for an unknown id; messages list the cameras present.
 Expected<std::size_t> selectCamera(const CameraSelector& selector,
                                    std::span<const std::string> ids);
-
-/// Checks the libcamera fields of a source configuration (camera, size, fps, format); one
-/// message per problem, naming the key.
-std::vector<std::string> validateConfig(const SourceConfig& config);
 
 /// Frame duration limits for a frame rate: {min, max} in microseconds, both 1e6 / fps
 /// rounded; fps must be > 0.

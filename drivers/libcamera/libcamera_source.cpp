@@ -22,6 +22,7 @@
 
 #include "common/clock_offset.hpp"
 #include "common/grey_convert.hpp"
+#include "common/streaming.hpp"
 #include "libcamera/libcamera_compat.hpp"
 #include "libcamera/libcamera_formats.hpp"
 
@@ -66,17 +67,6 @@ Expected<std::shared_ptr<libcamera::CameraManager>> sharedCameraManager() {
 
 }  // namespace
 
-std::vector<std::string> LibcameraSourceOptions::validate() const {
-  std::vector<std::string> problems;
-  if (buffer_count < 1 || buffer_count > 32)
-    problems.push_back("buffer_count: must be in [1, 32]");
-  if (reconnect_initial.count() < 1) problems.push_back("reconnect_initial: must be >= 1 ms");
-  if (reconnect_max < reconnect_initial)
-    problems.push_back("reconnect_max: must be >= reconnect_initial");
-  if (clock_resync.count() < 1) problems.push_back("clock_resync: must be >= 1 ms");
-  return problems;
-}
-
 // ---------------------------------------------------------------------------------------
 
 struct LibcameraSource::Impl {
@@ -91,12 +81,9 @@ struct LibcameraSource::Impl {
     std::size_t length = 0;
   };
 
-  Impl(SourceConfig c, Options o)
-      : config(std::move(c)),
-        options(o),
-        backoff(o.reconnect_initial.count(), o.reconnect_max.count()) {}
+  explicit Impl(Options o)
+      : options(std::move(o)), reconnect(options.reconnect_initial, options.reconnect_max) {}
 
-  SourceConfig config;
   Options options;
   State state = State::kClosed;
 
@@ -131,16 +118,8 @@ struct LibcameraSource::Impl {
 
   drivers::ClockOffset clock_offset;
   std::int64_t last_clock_sync_ns = 0;
-  drivers::Backoff backoff;
-  std::int64_t retry_at_ns = 0;
-
-  bool have_sequence = false;
-  bool after_reconnect = false;
-  std::uint32_t last_delivered_seq = 0;
-  std::uint64_t sequence = 0;
-  std::int64_t last_capture_us = 0;
-  bool have_completed_seq = false;
-  std::uint32_t last_completed_seq = 0;
+  drivers::ReconnectSchedule reconnect;
+  drivers::SequenceTracker sequence;
 
   cv::Mat jpeg_scratch;
   Stats stats;
@@ -161,7 +140,7 @@ struct LibcameraSource::Impl {
     cond.notify_one();
   }
 
-  const char* name() const { return camera_id.empty() ? config.camera.c_str() : camera_id.c_str(); }
+  const char* name() const { return camera_id.empty() ? options.camera.c_str() : camera_id.c_str(); }
 
   void resyncClock() {
     const auto offset = drivers::measureClockOffset(readClockNs, CLOCK_BOOTTIME, 7);
@@ -188,9 +167,9 @@ Expected<void> LibcameraSource::Impl::start() {
   const std::vector<std::shared_ptr<libcamera::Camera>> cameras = manager->cameras();
   std::vector<std::string> ids;
   for (const auto& c : cameras) ids.push_back(c->id());
-  auto index = libcam::selectCamera(libcam::parseCameraSelector(config.camera), ids);
+  auto index = libcam::selectCamera(libcam::parseCameraSelector(options.camera), ids);
   if (!index)
-    return fail(index.error().code(), "libcamera camera %s: %s", config.camera.c_str(),
+    return fail(index.error().code(), "libcamera camera %s: %s", options.camera.c_str(),
                 index.error().c_str());
   camera = cameras[*index];
   camera_id = camera->id();
@@ -210,16 +189,16 @@ Expected<void> LibcameraSource::Impl::start() {
   std::vector<std::uint32_t> offered;
   for (const libcamera::PixelFormat& pf : sc.formats().pixelformats())
     offered.push_back(pf.fourcc());
-  auto choice = libcam::chooseFormat(config.format, offered);
+  auto choice = libcam::chooseFormat(options.format, offered);
   if (!choice)
     return fail(choice.error().code(), "libcamera camera %s: %s", name(), choice.error().c_str());
   sc.pixelFormat = libcamera::PixelFormat(choice->fourcc);
-  sc.size = libcamera::Size(static_cast<unsigned>(config.width),
-                            static_cast<unsigned>(config.height));
+  sc.size = libcamera::Size(static_cast<unsigned>(options.width),
+                            static_cast<unsigned>(options.height));
   sc.bufferCount = static_cast<unsigned>(options.buffer_count);
   if (camera_config->validate() == libcamera::CameraConfiguration::Invalid)
     return fail(ErrorCode::kUnsupportedFormat, "libcamera camera %s: rejects %s %dx%d", name(),
-                libcam::formatName(choice->fourcc).c_str(), config.width, config.height);
+                libcam::formatName(choice->fourcc).c_str(), options.width, options.height);
   format = libcam::findGreyFormat(sc.pixelFormat.fourcc());
   if (format == nullptr)
     return fail(ErrorCode::kUnsupportedFormat,
@@ -258,7 +237,7 @@ Expected<void> LibcameraSource::Impl::start() {
   libcamera::ControlList controls(libcamera::controls::controls);
   fps = 0.0;
   if (camera->controls().count(&libcamera::controls::FrameDurationLimits) != 0) {
-    const std::int64_t d = libcam::frameDurationUs(config.fps);
+    const std::int64_t d = libcam::frameDurationUs(options.fps);
     controls.set(libcamera::controls::FrameDurationLimits,
                  libcamera::Span<const std::int64_t, 2>({d, d}));
     fps = 1e6 / static_cast<double>(d);
@@ -272,6 +251,9 @@ Expected<void> LibcameraSource::Impl::start() {
     if (!requeue(request.get()))
       return fail(ErrorCode::kIoError, "libcamera camera %s: queueing a request failed", name());
   resyncClock();
+  // The camera's counter starts over with the stream (after a reconnect, or the caller's
+  // close() and open()): ours goes on.
+  sequence.restart();
   if (!first_size) first_size = size;
 
   std::ostringstream d;
@@ -280,9 +262,9 @@ Expected<void> LibcameraSource::Impl::start() {
   if (fps > 0) d << " " << fps << " fps";
   else d << " (frame rate not settable)";
   d << ", " << requests.size() << " buffers";
-  if (choice->substituted) d << " (" << config.format << " not offered)";
-  if (size != cv::Size(config.width, config.height))
-    d << " (asked " << config.width << "x" << config.height << ")";
+  if (choice->substituted) d << " (" << options.format << " not offered)";
+  if (size != cv::Size(options.width, options.height))
+    d << " (asked " << options.width << "x" << options.height << ")";
   describe_text = d.str();
   return {};
 }
@@ -372,39 +354,34 @@ Error LibcameraSource::Impl::disconnect(const char* why) {
   teardown();
   state = State::kDisconnected;
   ++stats.disconnects;
-  after_reconnect = true;
-  backoff.reset();
-  retry_at_ns = readClockNs(CLOCK_MONOTONIC) + backoff.next() * kNsPerMs;
+  reconnect.lost(readClockNs(CLOCK_MONOTONIC));
   return Error::format(ErrorCode::kDisconnected,
                        "libcamera camera %s: %s; reopening with back-off", name(), why);
 }
 
 Expected<void> LibcameraSource::Impl::recover(std::int64_t deadline_ns) {
+  using Action = drivers::ReconnectSchedule::Action;
   for (;;) {
-    const std::int64_t now = readClockNs(CLOCK_MONOTONIC);
-    if (now < retry_at_ns) {
-      const std::int64_t until = std::min(retry_at_ns, deadline_ns);
-      if (until > now) std::this_thread::sleep_for(std::chrono::nanoseconds(until - now));
-      if (retry_at_ns > deadline_ns)
-        return fail(ErrorCode::kDisconnected, "libcamera camera %s: disconnected; reopening later",
-                    name());
-      continue;
-    }
-    auto started_again = start();
-    if (started_again) {
-      state = State::kStreaming;
-      ++stats.reconnects;
-      backoff.reset();
-      return {};
-    }
-    teardown();
-    ++stats.reopen_failures;
-    const std::int64_t delay = backoff.next();
-    retry_at_ns = readClockNs(CLOCK_MONOTONIC) + delay * kNsPerMs;
-    return fail(ErrorCode::kDisconnected,
-                "libcamera camera %s: still disconnected (%s); next attempt in %lld ms", name(),
-                started_again.error().c_str(), static_cast<long long>(delay));
+    const auto step = reconnect.step(readClockNs(CLOCK_MONOTONIC), deadline_ns);
+    if (step.action == Action::kAttempt) break;
+    if (step.sleep_ns > 0) std::this_thread::sleep_for(std::chrono::nanoseconds(step.sleep_ns));
+    if (step.action == Action::kGiveBack)
+      return fail(ErrorCode::kDisconnected, "libcamera camera %s: disconnected; reopening later",
+                  name());
   }
+  auto started_again = start();
+  if (started_again) {
+    state = State::kStreaming;
+    ++stats.reconnects;
+    reconnect.reconnected();
+    return {};
+  }
+  teardown();
+  ++stats.reopen_failures;
+  const std::int64_t delay = reconnect.attemptFailed(readClockNs(CLOCK_MONOTONIC));
+  return fail(ErrorCode::kDisconnected,
+              "libcamera camera %s: still disconnected (%s); next attempt in %lld ms", name(),
+              started_again.error().c_str(), static_cast<long long>(delay));
 }
 
 Expected<void> LibcameraSource::Impl::convert(const libcamera::FrameBuffer& buffer,
@@ -444,13 +421,7 @@ LibcameraSource::Impl::Step LibcameraSource::Impl::take(cv::Mat& out, FrameInfo&
   for (libcamera::Request* r : taken) {
     libcamera::FrameBuffer* b = r->findBuffer(stream);
     if (b == nullptr) continue;
-    const std::uint32_t seq = b->metadata().sequence;
-    if (have_completed_seq) {
-      const std::uint32_t step = seq - last_completed_seq;
-      if (step >= 1) stats.lost_upstream += step - 1;
-    }
-    have_completed_seq = true;
-    last_completed_seq = seq;
+    stats.lost_upstream += sequence.completed(b->metadata().sequence);
   }
   auto good = [this](libcamera::Request* r) {
     libcamera::FrameBuffer* b = r->findBuffer(stream);
@@ -458,28 +429,12 @@ LibcameraSource::Impl::Step LibcameraSource::Impl::take(cv::Mat& out, FrameInfo&
            b->metadata().status == libcamera::FrameMetadata::FrameSuccess;
   };
 
-  // Every request had completed: frames after the newest were lost; wait for a fresh one.
-  const bool ran_dry = static_cast<int>(taken.size()) == in_flight_before &&
-                       taken.size() == requests.size();
-  if (options.drop_stale && ran_dry && taken.size() > 1) {
-    for (libcamera::Request* r : taken) {
-      if (good(r)) ++stats.stale_dropped;
-      else ++stats.error_frames;
-      if (!requeue(r)) {
-        error = disconnect("queueing a request failed");
-        return Step::kFailed;
-      }
-    }
-    taken.clear();
-    return Step::kRetry;
-  }
-
-  int chosen = -1;
-  for (int i = static_cast<int>(taken.size()) - 1; i >= 0; --i)
-    if (good(taken[static_cast<std::size_t>(i)])) {
-      chosen = i;
-      break;
-    }
+  // The newest good frame is delivered, the rest go back. When every request had
+  // completed, frames after the newest were lost: all go back, wait for a fresh one.
+  const auto plan = drivers::planDrain(
+      taken.size(), static_cast<std::size_t>(std::max(in_flight_before, 0)), requests.size(),
+      options.drop_stale, [&](std::size_t i) { return good(taken[i]); });
+  const int chosen = plan.deliver;
   for (int i = 0; i < static_cast<int>(taken.size()); ++i) {
     if (i == chosen) continue;
     libcamera::Request* r = taken[static_cast<std::size_t>(i)];
@@ -489,6 +444,10 @@ LibcameraSource::Impl::Step LibcameraSource::Impl::take(cv::Mat& out, FrameInfo&
       error = disconnect("queueing a request failed");
       return Step::kFailed;
     }
+  }
+  if (plan.ran_dry) {
+    taken.clear();
+    return Step::kRetry;
   }
   if (chosen < 0) {
     error = Error::format(ErrorCode::kBadFrame,
@@ -516,26 +475,9 @@ LibcameraSource::Impl::Step LibcameraSource::Impl::take(cv::Mat& out, FrameInfo&
   }
 
   info = FrameInfo{};
-  info.capture_time_us = ts_ns > 0 && clock_offset.valid
-                             ? drivers::toWallMicroseconds(ts_ns, clock_offset)
-                             : (readClockNs(CLOCK_REALTIME) + 500) / 1000;
-  if (!have_sequence) {
-    sequence = buffer_seq;
-    have_sequence = true;
-  } else if (after_reconnect) {
-    std::uint64_t gap = 1;
-    if (fps > 0 && info.capture_time_us > last_capture_us)
-      gap = std::max<std::uint64_t>(
-          1, static_cast<std::uint64_t>(std::llround(
-                 static_cast<double>(info.capture_time_us - last_capture_us) * 1e-6 * fps)));
-    sequence += gap;
-  } else {
-    sequence += static_cast<std::uint32_t>(buffer_seq - last_delivered_seq);
-  }
-  after_reconnect = false;
-  last_delivered_seq = buffer_seq;
-  last_capture_us = info.capture_time_us;
-  info.sequence = sequence;
+  info.capture_time_us = drivers::captureTimeUs(ts_ns, clock_offset,
+                                                [] { return readClockNs(CLOCK_REALTIME); });
+  info.sequence = sequence.delivered(buffer_seq, info.capture_time_us, fps);
   ++stats.delivered;
   if (!requeued) disconnect("queueing a request failed");
   return Step::kDelivered;
@@ -543,14 +485,10 @@ LibcameraSource::Impl::Step LibcameraSource::Impl::take(cv::Mat& out, FrameInfo&
 
 // ---------------------------------------------------------------------------------------
 
-LibcameraSource::LibcameraSource(SourceConfig config, Options options)
-    : impl_(std::make_unique<Impl>(std::move(config), options)) {}
+LibcameraSource::LibcameraSource(Options options)
+    : impl_(std::make_unique<Impl>(std::move(options))) {}
 
 LibcameraSource::~LibcameraSource() { close(); }
-
-std::vector<std::string> LibcameraSource::validate(const SourceConfig& config) {
-  return libcam::validateConfig(config);
-}
 
 std::string LibcameraSource::libcameraVersion() {
   return std::to_string(LIBCAMERA_VERSION_MAJOR) + "." + std::to_string(LIBCAMERA_VERSION_MINOR) +
@@ -560,14 +498,10 @@ std::string LibcameraSource::libcameraVersion() {
 Expected<void> LibcameraSource::open() {
   Impl& d = *impl_;
   if (d.state != Impl::State::kClosed) close();
-  if (const auto problems = validate(d.config); !problems.empty())
-    return fail(ErrorCode::kInvalidArgument, "libcamera camera %s: %s", d.config.camera.c_str(),
+  if (const auto problems = validate(d.options); !problems.empty())
+    return fail(ErrorCode::kInvalidArgument, "libcamera camera %s: %s", d.options.camera.c_str(),
                 problems.front().c_str());
-  if (const auto problems = d.options.validate(); !problems.empty())
-    return fail(ErrorCode::kInvalidArgument, "libcamera camera %s: options.%s",
-                d.config.camera.c_str(), problems.front().c_str());
   d.first_size.reset();
-  d.after_reconnect = d.have_sequence;
   auto started = d.start();
   if (!started) {
     d.teardown();
@@ -586,7 +520,7 @@ Expected<FrameInfo> LibcameraSource::next(cv::Mat& out, std::chrono::millisecond
   Impl& d = *impl_;
   if (d.state == Impl::State::kClosed)
     return fail(ErrorCode::kInvalidArgument, "libcamera camera %s: next() before open()",
-                d.config.camera.c_str());
+                d.options.camera.c_str());
   if (out.type() != CV_8UC1 || out.size() != d.size)
     return fail(ErrorCode::kInvalidArgument,
                 "libcamera camera %s: output must be %dx%d CV_8UC1, is %dx%d", d.name(),
@@ -637,8 +571,8 @@ void LibcameraSource::close() {
 std::string LibcameraSource::describe() const {
   const Impl& d = *impl_;
   if (d.state == Impl::State::kClosed || d.describe_text.empty())
-    return "libcamera camera " + d.config.camera + " " + std::to_string(d.config.width) + "x" +
-           std::to_string(d.config.height) + " " + d.config.format + " (not open)";
+    return "libcamera camera " + d.options.camera + " " + std::to_string(d.options.width) + "x" +
+           std::to_string(d.options.height) + " " + d.options.format + " (not open)";
   if (d.state == Impl::State::kDisconnected) return d.describe_text + " (disconnected)";
   return d.describe_text;
 }

@@ -21,6 +21,8 @@
 ///
 /// Unplug: the camera's `disconnected` signal makes next() return kDisconnected; the
 /// following next() calls reopen with exponential back-off (or the caller closes/opens).
+/// Draining, back-off and sequence numbers follow the policy both camera drivers share
+/// (common/streaming.hpp).
 ///
 /// Threading: one capture thread calls open/next/close; the callbacks run on libcamera's
 /// thread and only touch the hand-over queue.
@@ -31,25 +33,37 @@
 #include <string>
 #include <vector>
 
-#include "omnipose/config.hpp"
 #include "omnipose/frame_source.hpp"
 
 namespace omnipose {
 
-struct LibcameraSourceOptions {
-  int buffer_count = 4;                              ///< requests / buffers in flight
-  std::chrono::milliseconds reconnect_initial{200};  ///< first reopen delay after unplug
-  std::chrono::milliseconds reconnect_max{5000};     ///< back-off cap
-  std::chrono::milliseconds clock_resync{10000};     ///< re-measure the clock offset
-  bool drop_stale = true;  ///< when every request had completed, wait for a fresh frame
+/// Everything LibcameraSource needs. The first five fields are what daemon.yaml's
+/// `source:` section sets (src/daemon/source_factory.cpp maps them, the key is named beside
+/// each); the rest is tuning, not in daemon.yaml.
+struct LibcameraOptions {
+  std::string camera = "0";  ///< source.camera: an index ("0", "1", ...) or a libcamera id
+  int width = 1280;          ///< source.width: requested, pixels, [1, 16384]
+  int height = 720;          ///< source.height: requested, pixels, [1, 16384]
+  double fps = 30.0;         ///< source.fps: requested, frames/s, (0, 1000]
+  /// source.format: a grey-convertible format (libcam::parseFormatName(): R8/GREY, NV12,
+  /// YUV420, YUYV, UYVY, MJPEG, ...), or "auto" / "" for the best the camera offers.
+  std::string format = "auto";
 
-  /// One message per bad field (empty = valid).
-  std::vector<std::string> validate() const;
+  int buffer_count = 4;                              ///< requests / buffers in flight, [1, 32]
+  std::chrono::milliseconds reconnect_initial{200};  ///< first reopen delay after unplug, >= 1
+  std::chrono::milliseconds reconnect_max{5000};     ///< back-off cap, >= reconnect_initial
+  std::chrono::milliseconds clock_resync{10000};     ///< re-measure the clock offset, >= 1
+  bool drop_stale = true;  ///< when every request had completed, wait for a fresh frame
 };
+
+/// Every problem of `options`, without touching libcamera (empty = valid). The daemon's
+/// fields are named by their daemon.yaml key ("source.camera: ..."), the tuning fields by
+/// their name ("reconnect_max: must be >= reconnect_initial").
+std::vector<std::string> validate(const LibcameraOptions& options);
 
 class LibcameraSource final : public FrameSource {
  public:
-  using Options = LibcameraSourceOptions;
+  using Options = LibcameraOptions;
 
   struct Stats {
     std::uint64_t delivered = 0;
@@ -62,17 +76,16 @@ class LibcameraSource final : public FrameSource {
     std::uint64_t reopen_failures = 0;
   };
 
-  explicit LibcameraSource(SourceConfig config, Options options = {});
+  /// The options are checked by open() (validate()).
+  explicit LibcameraSource(Options options);
   ~LibcameraSource() override;
   LibcameraSource(const LibcameraSource&) = delete;
   LibcameraSource& operator=(const LibcameraSource&) = delete;
 
-  /// Checks the libcamera fields of a configuration; one message per problem.
-  static std::vector<std::string> validate(const SourceConfig& config);
   /// The libcamera version this was built against ("0.0.3").
   static std::string libcameraVersion();
 
-  /// Errors: kInvalidArgument (configuration), kNoDevice ("no camera" / index out of
+  /// Errors: kInvalidArgument (validate() failed; the first problem is named), kNoDevice ("no camera" / index out of
   /// range), kNotFound (unknown id), kBusy (acquired elsewhere), kUnsupportedFormat,
   /// kIoError (allocation, mapping, start).
   Expected<void> open() override;

@@ -81,40 +81,35 @@ const char* toString(V4l2PixelFormat format) {
   return "?";
 }
 
-std::vector<std::string> V4l2SourceOptions::validate() const {
+std::vector<std::string> validate(const V4l2Options& o) {
   std::vector<std::string> problems;
-  if (buffer_count < 2 || buffer_count > 32)
-    problems.push_back("buffer_count: must be in [2, 32], is " + std::to_string(buffer_count));
-  if (reconnect_initial.count() < 1)
+  if (o.device.empty()) problems.push_back("source.device: must not be empty");
+  if (o.width <= 0 || o.width > 16384)
+    problems.push_back("source.width: must be in [1, 16384], is " + std::to_string(o.width));
+  if (o.height <= 0 || o.height > 16384)
+    problems.push_back("source.height: must be in [1, 16384], is " + std::to_string(o.height));
+  if (!(o.fps > 0.0 && o.fps <= 1000.0))  // also NaN
+    problems.push_back("source.fps: must be in (0, 1000]");
+  if (!parseV4l2PixelFormat(o.format))
+    problems.push_back("source.format: '" + o.format +
+                       "' is not a V4L2 format this source converts (GREY, YUYV, MJPG)");
+  if (o.buffer_count < 2 || o.buffer_count > 32)
+    problems.push_back("buffer_count: must be in [2, 32], is " + std::to_string(o.buffer_count));
+  if (o.reconnect_initial.count() < 1)
     problems.push_back("reconnect_initial: must be >= 1 ms");
-  if (reconnect_max < reconnect_initial)
+  if (o.reconnect_max < o.reconnect_initial)
     problems.push_back("reconnect_max: must be >= reconnect_initial");
-  if (clock_resync.count() < 1) problems.push_back("clock_resync: must be >= 1 ms");
-  if (clock_samples < 1 || clock_samples > drivers::kMaxClockSamples)
+  if (o.clock_resync.count() < 1) problems.push_back("clock_resync: must be >= 1 ms");
+  if (o.clock_samples < 1 || o.clock_samples > drivers::kMaxClockSamples)
     problems.push_back("clock_samples: must be in [1, " +
                        std::to_string(drivers::kMaxClockSamples) + "]");
   return problems;
 }
 
-std::vector<std::string> V4l2Source::validate(const SourceConfig& config) {
-  std::vector<std::string> problems;
-  if (config.device.empty()) problems.push_back("source.device: must not be empty");
-  if (config.width <= 0 || config.height <= 0 || config.width > 16384 || config.height > 16384)
-    problems.push_back("source.width/height: must be in [1, 16384], are " +
-                       std::to_string(config.width) + "x" + std::to_string(config.height));
-  if (!(config.fps > 0.0 && config.fps <= 1000.0))
-    problems.push_back("source.fps: must be in (0, 1000]");
-  if (!parseV4l2PixelFormat(config.format))
-    problems.push_back("source.format: '" + config.format +
-                       "' is not a V4L2 format this source converts (GREY, YUYV, MJPG)");
-  return problems;
-}
-
-V4l2Source::V4l2Source(SourceConfig config, Options options, V4l2Io* io)
-    : config_(std::move(config)),
-      options_(options),
+V4l2Source::V4l2Source(Options options, V4l2Io* io)
+    : options_(std::move(options)),
       io_(io != nullptr ? io : &SystemV4l2Io::instance()),
-      backoff_(options.reconnect_initial.count(), options.reconnect_max.count()) {}
+      reconnect_(options_.reconnect_initial, options_.reconnect_max) {}
 
 V4l2Source::~V4l2Source() { close(); }
 
@@ -155,15 +150,10 @@ void V4l2Source::resyncClock() {
 
 Expected<void> V4l2Source::open() {
   if (state_ != State::kClosed) close();
-  if (const auto problems = validate(config_); !problems.empty())
-    return fail(ErrorCode::kInvalidArgument, "v4l2 %s: %s", config_.device.c_str(),
-                problems.front().c_str());
-  if (const auto problems = options_.validate(); !problems.empty())
-    return fail(ErrorCode::kInvalidArgument, "v4l2 %s: options.%s", config_.device.c_str(),
+  if (const auto problems = validate(options_); !problems.empty())
+    return fail(ErrorCode::kInvalidArgument, "v4l2 %s: %s", options_.device.c_str(),
                 problems.front().c_str());
   first_negotiated_.reset();
-  // After a close()/open() by the caller the driver's counter restarts: continue ours.
-  after_reconnect_ = have_sequence_;
   auto started = start();
   if (!started) return started;
   state_ = State::kStreaming;
@@ -171,7 +161,7 @@ Expected<void> V4l2Source::open() {
 }
 
 Expected<void> V4l2Source::start() {
-  const char* dev = config_.device.c_str();
+  const char* dev = options_.device.c_str();
   // Non-blocking: DQBUF answers EAGAIN instead of sleeping, poll() does the waiting.
   fd_ = io_->open(dev, O_RDWR | O_NONBLOCK | O_CLOEXEC);
   if (fd_ < 0) {
@@ -259,10 +249,12 @@ Expected<void> V4l2Source::start() {
   }
   streaming_ = true;
   resyncClock();
-  have_dequeued_seq_ = false;
+  // The driver's counter starts over with the stream (after a reconnect, or the caller's
+  // close() and open()): ours goes on.
+  sequence_.restart();
 
   std::ostringstream d;
-  d << "v4l2 " << config_.device << " " << negotiated_.size.width << "x"
+  d << "v4l2 " << options_.device << " " << negotiated_.size.width << "x"
     << negotiated_.size.height << " " << FourccText(negotiated_.fourcc).text;
   if (negotiated_.fps > 0) d << " " << negotiated_.fps << " fps";
   else d << " (frame rate not settable)";
@@ -277,8 +269,8 @@ Expected<void> V4l2Source::start() {
 }
 
 Expected<void> V4l2Source::negotiateFormat() {
-  const char* dev = config_.device.c_str();
-  const V4l2PixelFormat want = *parseV4l2PixelFormat(config_.format);
+  const char* dev = options_.device.c_str();
+  const V4l2PixelFormat want = *parseV4l2PixelFormat(options_.format);
 
   // ENUM_FMT: what does the node offer? (Answers with a clear list instead of relying on
   // S_FMT, which by the specification silently substitutes another format.)
@@ -315,8 +307,8 @@ Expected<void> V4l2Source::negotiateFormat() {
   // S_FMT, then read back what the driver made of it.
   v4l2_format fmt{};
   fmt.type = V4L2_BUF_TYPE_VIDEO_CAPTURE;
-  fmt.fmt.pix.width = static_cast<std::uint32_t>(config_.width);
-  fmt.fmt.pix.height = static_cast<std::uint32_t>(config_.height);
+  fmt.fmt.pix.width = static_cast<std::uint32_t>(options_.width);
+  fmt.fmt.pix.height = static_cast<std::uint32_t>(options_.height);
   fmt.fmt.pix.pixelformat = fourcc;
   fmt.fmt.pix.field = V4L2_FIELD_NONE;
   if (xioctl(VIDIOC_S_FMT, &fmt) != 0) {
@@ -326,7 +318,7 @@ Expected<void> V4l2Source::negotiateFormat() {
     if (e == ENODEV) return fail(ErrorCode::kNoDevice, "v4l2 %s: device gone", dev);
     if (e == EINVAL)
       return fail(ErrorCode::kUnsupportedFormat, "v4l2 %s: driver rejects %s %dx%d", dev,
-                  FourccText(fourcc).text, config_.width, config_.height);
+                  FourccText(fourcc).text, options_.width, options_.height);
     return fail(ErrorCode::kIoError, "v4l2 %s: VIDIOC_S_FMT: %s", dev, std::strerror(e));
   }
   const v4l2_pix_format& pix = fmt.fmt.pix;
@@ -341,7 +333,7 @@ Expected<void> V4l2Source::negotiateFormat() {
     return fail(ErrorCode::kIoError, "v4l2 %s: driver answered a %ux%u format", dev, pix.width,
                 pix.height);
 
-  negotiated_.requested = cv::Size(config_.width, config_.height);
+  negotiated_.requested = cv::Size(options_.width, options_.height);
   negotiated_.size = cv::Size(static_cast<int>(pix.width), static_cast<int>(pix.height));
   negotiated_.format = want;
   negotiated_.fourcc = fourcc;
@@ -359,7 +351,7 @@ Expected<void> V4l2Source::negotiateFormat() {
 }
 
 void V4l2Source::negotiateFrameRate() {
-  negotiated_.requested_fps = config_.fps;
+  negotiated_.requested_fps = options_.fps;
   negotiated_.fps = 0.0;
   v4l2_streamparm parm{};
   parm.type = V4L2_BUF_TYPE_VIDEO_CAPTURE;
@@ -370,7 +362,7 @@ void V4l2Source::negotiateFrameRate() {
     parm.type = V4L2_BUF_TYPE_VIDEO_CAPTURE;
     parm.parm.capture.timeperframe.numerator = 1000;
     parm.parm.capture.timeperframe.denominator =
-        static_cast<std::uint32_t>(std::lround(config_.fps * 1000.0));
+        static_cast<std::uint32_t>(std::lround(options_.fps * 1000.0));
     if (xioctl(VIDIOC_S_PARM, &parm) != 0) {
       parm = v4l2_streamparm{};
       parm.type = V4L2_BUF_TYPE_VIDEO_CAPTURE;
@@ -383,7 +375,7 @@ void V4l2Source::negotiateFrameRate() {
 }
 
 Expected<void> V4l2Source::setUpBuffers() {
-  const char* dev = config_.device.c_str();
+  const char* dev = options_.device.c_str();
   v4l2_requestbuffers req{};
   req.count = static_cast<std::uint32_t>(options_.buffer_count);
   req.type = V4L2_BUF_TYPE_VIDEO_CAPTURE;
@@ -481,8 +473,8 @@ void V4l2Source::close() {
 
 std::string V4l2Source::describe() const {
   if (state_ == State::kClosed || describe_.empty())
-    return "v4l2 " + config_.device + " " + std::to_string(config_.width) + "x" +
-           std::to_string(config_.height) + " " + config_.format + " (not open)";
+    return "v4l2 " + options_.device + " " + std::to_string(options_.width) + "x" +
+           std::to_string(options_.height) + " " + options_.format + " (not open)";
   if (state_ == State::kDisconnected) return describe_ + " (disconnected)";
   return describe_;
 }
@@ -506,46 +498,41 @@ Error V4l2Source::disconnect(const char* what, int err) {
   teardown();
   state_ = State::kDisconnected;
   ++stats_.disconnects;
-  after_reconnect_ = true;
-  backoff_.reset();
-  retry_at_ns_ = nowNs(CLOCK_MONOTONIC) + backoff_.next() * kNsPerMs;
+  reconnect_.lost(nowNs(CLOCK_MONOTONIC));
   return Error::format(ErrorCode::kDisconnected,
                        "v4l2 %s: device disconnected (%s: %s); reopening with back-off",
-                       config_.device.c_str(), what, std::strerror(err));
+                       options_.device.c_str(), what, std::strerror(err));
 }
 
 Expected<void> V4l2Source::recover(std::int64_t deadline_ns) {
-  const char* dev = config_.device.c_str();
+  const char* dev = options_.device.c_str();
+  using Action = drivers::ReconnectSchedule::Action;
   for (;;) {
-    const std::int64_t now = nowNs(CLOCK_MONOTONIC);
-    if (now < retry_at_ns_) {
-      // Not yet: sleep until the attempt is due, or give the caller its time back.
-      if (retry_at_ns_ > deadline_ns) {
-        sleepMs((deadline_ns - now + kNsPerMs - 1) / kNsPerMs);
-        return fail(ErrorCode::kDisconnected,
-                    "v4l2 %s: disconnected; next reopen attempt in %lld ms", dev,
-                    static_cast<long long>((retry_at_ns_ - nowNs(CLOCK_MONOTONIC)) / kNsPerMs));
-      }
-      sleepMs((retry_at_ns_ - now + kNsPerMs - 1) / kNsPerMs);
-      continue;
-    }
-    auto started = start();
-    if (started) {
-      state_ = State::kStreaming;
-      ++stats_.reconnects;
-      backoff_.reset();
-      return {};
-    }
-    ++stats_.reopen_failures;
-    const std::int64_t delay = backoff_.next();
-    retry_at_ns_ = nowNs(CLOCK_MONOTONIC) + delay * kNsPerMs;
-    return fail(ErrorCode::kDisconnected, "v4l2 %s: still disconnected (%s); next attempt in %lld ms",
-                dev, started.error().c_str(), static_cast<long long>(delay));
+    // Not yet due: sleep until it is, or give the caller its time back.
+    const auto step = reconnect_.step(nowNs(CLOCK_MONOTONIC), deadline_ns);
+    if (step.action == Action::kAttempt) break;
+    sleepMs((step.sleep_ns + kNsPerMs - 1) / kNsPerMs);
+    if (step.action == Action::kGiveBack)
+      return fail(ErrorCode::kDisconnected,
+                  "v4l2 %s: disconnected; next reopen attempt in %lld ms", dev,
+                  static_cast<long long>((reconnect_.retryAtNs() - nowNs(CLOCK_MONOTONIC)) /
+                                         kNsPerMs));
   }
+  auto started = start();
+  if (started) {
+    state_ = State::kStreaming;
+    ++stats_.reconnects;
+    reconnect_.reconnected();
+    return {};
+  }
+  ++stats_.reopen_failures;
+  const std::int64_t delay = reconnect_.attemptFailed(nowNs(CLOCK_MONOTONIC));
+  return fail(ErrorCode::kDisconnected, "v4l2 %s: still disconnected (%s); next attempt in %lld ms",
+              dev, started.error().c_str(), static_cast<long long>(delay));
 }
 
 Expected<FrameInfo> V4l2Source::next(cv::Mat& out, std::chrono::milliseconds timeout) {
-  const char* dev = config_.device.c_str();
+  const char* dev = options_.device.c_str();
   if (state_ == State::kClosed)
     return fail(ErrorCode::kInvalidArgument, "v4l2 %s: next() before open()", dev);
   if (out.type() != CV_8UC1 || out.size() != negotiated_.size)
@@ -631,12 +618,7 @@ V4l2Source::Step V4l2Source::drain(cv::Mat& out, FrameInfo& info, Error& error) 
     buffers_[b.index].queued = false;
     --queued_count_;
     // Frames the driver dropped for want of a queued buffer show as sequence gaps.
-    if (have_dequeued_seq_) {
-      const std::uint32_t step = b.sequence - last_dequeued_seq_;
-      if (step >= 1) stats_.lost_upstream += step - 1;
-    }
-    have_dequeued_seq_ = true;
-    last_dequeued_seq_ = b.sequence;
+    stats_.lost_upstream += sequence_.completed(b.sequence);
     Dequeued d;
     d.index = b.index;
     d.sequence = b.sequence;
@@ -649,29 +631,14 @@ V4l2Source::Step V4l2Source::drain(cv::Mat& out, FrameInfo& info, Error& error) 
   }
   if (dequeued_.empty()) return Step::kRetry;  // poll raced with nothing: wait again
 
-  // Every queued buffer had completed: the driver ran dry, newer frames were lost and the
-  // newest we hold is old. Give all back and wait for a fresh one.
-  const bool ran_dry = static_cast<int>(dequeued_.size()) == queued_before &&
-                       dequeued_.size() == buffers_.size();
-  if (options_.drop_stale && ran_dry) {
-    for (const Dequeued& d : dequeued_) {
-      if ((d.flags & V4L2_BUF_FLAG_ERROR) != 0) ++stats_.error_flagged;
-      else ++stats_.stale_dropped;
-      if (!requeue(d.index)) {
-        error = disconnect("VIDIOC_QBUF", errno);
-        return Step::kFailed;
-      }
-    }
-    return Step::kRetry;
-  }
-
-  // The newest frame without the error flag is delivered; the rest go back.
-  int chosen = -1;
-  for (int i = static_cast<int>(dequeued_.size()) - 1; i >= 0; --i)
-    if ((dequeued_[static_cast<std::size_t>(i)].flags & V4L2_BUF_FLAG_ERROR) == 0) {
-      chosen = i;
-      break;
-    }
+  // The newest frame without the error flag is delivered, the rest go back. When every
+  // queued buffer had completed, the driver ran dry, newer frames were lost and the newest
+  // we hold is old: all go back and next() waits for a fresh one.
+  const auto plan = drivers::planDrain(
+      dequeued_.size(), static_cast<std::size_t>(queued_before), buffers_.size(),
+      options_.drop_stale,
+      [this](std::size_t i) { return (dequeued_[i].flags & V4L2_BUF_FLAG_ERROR) == 0; });
+  const int chosen = plan.deliver;
   int flagged = 0;
   for (int i = 0; i < static_cast<int>(dequeued_.size()); ++i) {
     if (i == chosen) continue;
@@ -687,10 +654,11 @@ V4l2Source::Step V4l2Source::drain(cv::Mat& out, FrameInfo& info, Error& error) 
       return Step::kFailed;
     }
   }
+  if (plan.ran_dry) return Step::kRetry;
   if (chosen < 0) {
     error = Error::format(ErrorCode::kBadFrame,
                           "v4l2 %s: %d frame(s) flagged V4L2_BUF_FLAG_ERROR by the driver, dropped",
-                          config_.device.c_str(), flagged);
+                          options_.device.c_str(), flagged);
     return Step::kFailed;
   }
 
@@ -706,31 +674,11 @@ V4l2Source::Step V4l2Source::drain(cv::Mat& out, FrameInfo& info, Error& error) 
 
   // Timestamp: the buffer's CLOCK_MONOTONIC time on the wall clock, else the dequeue time.
   info = FrameInfo{};
-  if (d.timestamp_ns > 0 && clock_offset_.valid)
-    info.capture_time_us = drivers::toWallMicroseconds(d.timestamp_ns, clock_offset_);
-  else
-    info.capture_time_us = (nowNs(CLOCK_REALTIME) + 500) / 1000;
-
+  info.capture_time_us = drivers::captureTimeUs(d.timestamp_ns, clock_offset_,
+                                                [this] { return nowNs(CLOCK_REALTIME); });
   // Sequence: the driver's 32-bit counter, extended to 64 bits; across a reconnect (the
   // counter restarts) it continues with the gap the frame rate implies.
-  if (!have_sequence_) {
-    sequence_ = d.sequence;
-    have_sequence_ = true;
-  } else if (after_reconnect_) {
-    std::uint64_t gap = 1;
-    if (negotiated_.fps > 0 && info.capture_time_us > last_capture_us_)
-      gap = std::max<std::uint64_t>(
-          1, static_cast<std::uint64_t>(std::llround(
-                 static_cast<double>(info.capture_time_us - last_capture_us_) * 1e-6 *
-                 negotiated_.fps)));
-    sequence_ += gap;
-  } else {
-    sequence_ += static_cast<std::uint32_t>(d.sequence - last_delivered_kernel_seq_);
-  }
-  after_reconnect_ = false;
-  last_delivered_kernel_seq_ = d.sequence;
-  last_capture_us_ = info.capture_time_us;
-  info.sequence = sequence_;
+  info.sequence = sequence_.delivered(d.sequence, info.capture_time_us, negotiated_.fps);
   ++stats_.delivered;
 
   if (!requeued) {
@@ -752,7 +700,7 @@ Expected<void> V4l2Source::convert(const Dequeued& d, cv::Mat& out) {
       const std::size_t need = drivers::minimumFrameBytes(bpl, static_cast<std::size_t>(w), h);
       if (used < need)
         return fail(ErrorCode::kBadFrame, "v4l2 %s: frame %u has %zu bytes, %zu expected",
-                    config_.device.c_str(), d.sequence, used, need);
+                    options_.device.c_str(), d.sequence, used, need);
       drivers::copyLumaPlane(src, bpl, out);
       return {};
     }
@@ -761,14 +709,14 @@ Expected<void> V4l2Source::convert(const Dequeued& d, cv::Mat& out) {
           drivers::minimumFrameBytes(bpl, 2 * static_cast<std::size_t>(w), h);
       if (used < need)
         return fail(ErrorCode::kBadFrame, "v4l2 %s: frame %u has %zu bytes, %zu expected",
-                    config_.device.c_str(), d.sequence, used, need);
+                    options_.device.c_str(), d.sequence, used, need);
       drivers::packedYuv422ToGrey(src, bpl, 0, out);
       return {};
     }
     case V4l2PixelFormat::kMjpg: {
       auto r = drivers::decodeJpegToGrey(src, used, jpeg_scratch_, out);
       if (!r)
-        return fail(ErrorCode::kBadFrame, "v4l2 %s: frame %u: %s", config_.device.c_str(),
+        return fail(ErrorCode::kBadFrame, "v4l2 %s: frame %u: %s", options_.device.c_str(),
                     d.sequence, r.error().c_str());
       return {};
     }

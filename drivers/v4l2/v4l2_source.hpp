@@ -16,7 +16,9 @@
 /// Freshness: frames left in the queue are stale. next() drains every completed buffer
 /// and delivers the newest; when *every* buffer had completed, the driver had nothing to
 /// capture into and newer frames were lost, so even the newest one is old: all are
-/// requeued and next() waits for a fresh frame (Options::drop_stale).
+/// requeued and next() waits for a fresh frame (Options::drop_stale). The policy is the one
+/// both camera drivers share (common/streaming.hpp: planDrain, ReconnectSchedule,
+/// SequenceTracker).
 ///
 /// Timestamps: buffers stamped on CLOCK_MONOTONIC are converted to the wall clock with an
 /// offset measured at stream start (the least-preempted of a few bracketed reads) and
@@ -38,7 +40,7 @@
 #include <vector>
 
 #include "common/clock_offset.hpp"
-#include "omnipose/config.hpp"
+#include "common/streaming.hpp"
 #include "omnipose/frame_source.hpp"
 #include "v4l2/v4l2_io.hpp"
 
@@ -53,22 +55,32 @@ std::optional<V4l2PixelFormat> parseV4l2PixelFormat(std::string_view name);
 /// "GREY" | "YUYV" | "MJPG".
 const char* toString(V4l2PixelFormat format);
 
-/// Tuning of V4l2Source (defaults suit a 30 fps USB camera).
-struct V4l2SourceOptions {
-  int buffer_count = 4;  ///< buffers requested with REQBUFS (the driver may grant more)
-  std::chrono::milliseconds reconnect_initial{100};  ///< first reopen delay after unplug
-  std::chrono::milliseconds reconnect_max{2000};     ///< back-off cap
-  std::chrono::milliseconds clock_resync{10000};     ///< re-measure the clock offset
+/// Everything V4l2Source needs. The first five fields are what daemon.yaml's `source:`
+/// section sets (src/daemon/source_factory.cpp maps them, the key is named beside each);
+/// the rest is tuning, not in daemon.yaml, with defaults for a 30 fps USB camera.
+struct V4l2Options {
+  std::string device = "/dev/video0";  ///< source.device: the capture node's path
+  int width = 1280;                    ///< source.width: requested, pixels, [1, 16384]
+  int height = 720;                    ///< source.height: requested, pixels, [1, 16384]
+  double fps = 30.0;                   ///< source.fps: requested, frames/s, (0, 1000]
+  std::string format = "YUYV";         ///< source.format: parseV4l2PixelFormat()
+
+  int buffer_count = 4;  ///< buffers requested with REQBUFS, [2, 32] (the driver may grant more)
+  std::chrono::milliseconds reconnect_initial{100};  ///< first reopen delay after unplug, >= 1
+  std::chrono::milliseconds reconnect_max{2000};     ///< back-off cap, >= reconnect_initial
+  std::chrono::milliseconds clock_resync{10000};     ///< re-measure the clock offset, >= 1
   int clock_samples = 7;   ///< bracketed reads per measurement, [1, 16]
   bool drop_stale = true;  ///< see the file comment ("Freshness")
-
-  /// One message per bad field (empty = valid).
-  std::vector<std::string> validate() const;
 };
+
+/// Every problem of `options`, without touching any device (empty = valid). The daemon's
+/// fields are named by their daemon.yaml key ("source.format: 'XYZ' is not ..."), the
+/// tuning fields by their name ("buffer_count: must be in [2, 32], is 1").
+std::vector<std::string> validate(const V4l2Options& options);
 
 class V4l2Source final : public FrameSource {
  public:
-  using Options = V4l2SourceOptions;
+  using Options = V4l2Options;
 
   /// Counters since construction (they survive close()/open() and reconnects).
   struct Stats {
@@ -86,7 +98,7 @@ class V4l2Source final : public FrameSource {
   /// What open() agreed with the driver.
   struct Negotiated {
     cv::Size size;                  ///< frame size delivered (the driver's, after S_FMT)
-    cv::Size requested;             ///< what the configuration asked for
+    cv::Size requested;             ///< what the options asked for
     V4l2PixelFormat format = V4l2PixelFormat::kYuyv;
     std::uint32_t fourcc = 0;       ///< the V4L2 pixel format in use (MJPG may be JPEG)
     std::uint32_t bytes_per_line = 0;
@@ -98,20 +110,17 @@ class V4l2Source final : public FrameSource {
     std::string card;               ///< QUERYCAP card name
   };
 
-  /// `io`: borrowed, must outlive the source; nullptr = the real kernel.
-  explicit V4l2Source(SourceConfig config, Options options = {}, V4l2Io* io = nullptr);
+  /// `io`: borrowed, must outlive the source; nullptr = the real kernel. The options are
+  /// checked by open() (validate()).
+  explicit V4l2Source(Options options, V4l2Io* io = nullptr);
   ~V4l2Source() override;
   V4l2Source(const V4l2Source&) = delete;
   V4l2Source& operator=(const V4l2Source&) = delete;
 
-  /// Checks the V4L2 fields of a source configuration (device, size, fps, format); one
-  /// message per problem, each naming the key ("source.format: ...").
-  static std::vector<std::string> validate(const SourceConfig& config);
-
-  /// Opens, negotiates and starts streaming. Errors: kInvalidArgument (configuration),
-  /// kNotFound (no such path), kNoDevice (not a V4L2 capture node / gone), kBusy,
-  /// kUnsupportedFormat (format not offered, replaced by the driver, interlaced),
-  /// kIoError (permissions, a failing ioctl). Messages name the device.
+  /// Opens, negotiates and starts streaming. Errors: kInvalidArgument (validate() failed;
+  /// the first problem is named), kNotFound (no such path), kNoDevice (not a V4L2 capture
+  /// node / gone), kBusy, kUnsupportedFormat (format not offered, replaced by the driver,
+  /// interlaced), kIoError (permissions, a failing ioctl). Messages name the device.
   Expected<void> open() override;
   cv::Size frameSize() const override { return negotiated_.size; }
   /// See FrameSource::next(). Also kInvalidArgument when `out` is not frameSize() CV_8UC1
@@ -159,7 +168,6 @@ class V4l2Source final : public FrameSource {
   std::int64_t nowNs(clockid_t clock);
   void sleepMs(std::int64_t ms);
 
-  SourceConfig config_;
   Options options_;
   V4l2Io* io_;
   State state_ = State::kClosed;
@@ -177,16 +185,8 @@ class V4l2Source final : public FrameSource {
   drivers::ClockOffset clock_offset_;
   std::int64_t last_clock_sync_ns_ = 0;
 
-  drivers::Backoff backoff_;
-  std::int64_t retry_at_ns_ = 0;
-
-  bool have_sequence_ = false;
-  bool after_reconnect_ = false;
-  std::uint32_t last_delivered_kernel_seq_ = 0;
-  std::uint64_t sequence_ = 0;
-  std::int64_t last_capture_us_ = 0;
-  bool have_dequeued_seq_ = false;
-  std::uint32_t last_dequeued_seq_ = 0;
+  drivers::ReconnectSchedule reconnect_;
+  drivers::SequenceTracker sequence_;
 
   Stats stats_;
 };

@@ -19,6 +19,12 @@ constexpr const char* kAvailable = "file, v4l2, libcamera";
 constexpr const char* kAvailable = "file, v4l2";
 #endif
 
+std::string notBuiltIn(SourceConfig::Type type) {
+  return std::string("source.type: '") + toString(type) +
+         "' is not built into this daemon (available: " + kAvailable +
+         "; the libcamera source needs libcamera-dev at build time)";
+}
+
 /// Every problem of the source section at once (the driver's own checks).
 void throwIfInvalid(const std::vector<std::string>& problems) {
   if (problems.empty()) return;
@@ -28,6 +34,42 @@ void throwIfInvalid(const std::vector<std::string>& problems) {
 }
 
 }  // namespace
+
+V4l2Options v4l2Options(const SourceConfig& config) {
+  V4l2Options o;
+  o.device = config.device;
+  o.width = config.width;
+  o.height = config.height;
+  o.fps = config.fps;
+  o.format = config.format;
+  return o;
+}
+
+#if defined(OMNIPOSE_HAVE_LIBCAMERA)
+LibcameraOptions libcameraOptions(const SourceConfig& config) {
+  LibcameraOptions o;
+  o.camera = config.camera;
+  o.width = config.width;
+  o.height = config.height;
+  o.fps = config.fps;
+  o.format = config.format;
+  return o;
+}
+#endif
+
+std::vector<std::string> checkSourceOptions(const SourceConfig& config) {
+  switch (config.type) {
+    case SourceConfig::Type::kFile: return {};
+    case SourceConfig::Type::kV4l2: return validate(v4l2Options(config));
+    case SourceConfig::Type::kLibcamera:
+#if defined(OMNIPOSE_HAVE_LIBCAMERA)
+      return validate(libcameraOptions(config));
+#else
+      break;
+#endif
+  }
+  return {notBuiltIn(config.type)};
+}
 
 std::unique_ptr<FrameSource> makeFrameSource(const SourceConfig& config,
                                              const SourceContext& context) {
@@ -41,19 +83,17 @@ std::unique_ptr<FrameSource> makeFrameSource(const SourceConfig& config,
           .loop = config.loop,
       });
     case SourceConfig::Type::kV4l2:
-      throwIfInvalid(V4l2Source::validate(config));
-      return std::make_unique<V4l2Source>(config);
+      throwIfInvalid(checkSourceOptions(config));
+      return std::make_unique<V4l2Source>(v4l2Options(config));
     case SourceConfig::Type::kLibcamera:
 #if defined(OMNIPOSE_HAVE_LIBCAMERA)
-      throwIfInvalid(LibcameraSource::validate(config));
-      return std::make_unique<LibcameraSource>(config);
+      throwIfInvalid(checkSourceOptions(config));
+      return std::make_unique<LibcameraSource>(libcameraOptions(config));
 #else
       break;
 #endif
   }
-  throw std::runtime_error(std::string("source.type: '") + toString(config.type) +
-                           "' is not built into this daemon (available: " + kAvailable +
-                           "; the libcamera source needs libcamera-dev at build time)");
+  throw std::runtime_error(notBuiltIn(config.type));
 }
 
 }  // namespace omnipose::daemon

@@ -10,6 +10,7 @@
 
 #include <Eigen/Geometry>
 #include <chrono>
+#include <cmath>
 #include <cstdlib>
 #include <filesystem>
 #include <map>
@@ -27,6 +28,9 @@
 #include "omnipose/synth.hpp"
 #include "omnipose/trajectory.hpp"
 #include "v4l2/v4l2_source.hpp"
+#if defined(OMNIPOSE_HAVE_LIBCAMERA)
+#include "libcamera/libcamera_source.hpp"
+#endif
 
 namespace omnipose {
 namespace {
@@ -214,7 +218,7 @@ TEST_P(DaemonOnFakeV4l2, RenderedOmniFramesGivePosesMatchingTheGroundTruth) {
   {
     // Lossless pacing: the capture thread asks for the next frame only when the processor
     // took the last one; the fake's virtual clock jumps to it, so every frame is processed.
-    daemon::Daemon d(config, stderr, std::make_unique<V4l2Source>(config.source, V4l2SourceOptions{}, fake.get()),
+    daemon::Daemon d(config, stderr, std::make_unique<V4l2Source>(daemon::v4l2Options(config.source), fake.get()),
                      std::make_unique<SharedLcmSink>(bus.lcm), losslessOptions());
     EXPECT_NE(d.sourceDescription().find("v4l2 /dev/video0 720x720"), std::string::npos)
         << d.sourceDescription();
@@ -265,7 +269,7 @@ TEST(DaemonOnFakeV4l2Unplug, UnplugMidStreamIsAGapAndPosesGoOnAfterTheReplug) {
   Bus bus;
   std::int64_t failures = 0;
   {
-    daemon::Daemon d(config, stderr, std::make_unique<V4l2Source>(config.source, V4l2SourceOptions{}, fake.get()),
+    daemon::Daemon d(config, stderr, std::make_unique<V4l2Source>(daemon::v4l2Options(config.source), fake.get()),
                      std::make_unique<SharedLcmSink>(bus.lcm), losslessOptions());
     bus.run(d, kFrames, 120s);
     failures = d.stats().source_failures;
@@ -314,6 +318,81 @@ TEST(CameraSourceFactory, BuildsV4l2AndReportsEveryBadKey) {
     EXPECT_NE(std::string(e.what()).find("source.format: 'RGB3'"), std::string::npos) << e.what();
     EXPECT_NE(std::string(e.what()).find("source.fps"), std::string::npos) << e.what();
   }
+}
+
+TEST(CameraSourceFactory, MapsTheSourceSectionToEachDriversOptions) {
+  SourceConfig c;
+  c.type = SourceConfig::Type::kV4l2;
+  c.device = "/dev/video3";
+  c.camera = "/base/soc/i2c0mux/i2c@1/imx219@10";
+  c.width = 800;
+  c.height = 600;
+  c.fps = 12.5;
+  c.format = "MJPG";
+  const V4l2Options v = daemon::v4l2Options(c);
+  EXPECT_EQ(v.device, "/dev/video3");
+  EXPECT_EQ(v.width, 800);
+  EXPECT_EQ(v.height, 600);
+  EXPECT_EQ(v.fps, 12.5);
+  EXPECT_EQ(v.format, "MJPG");
+  const V4l2Options defaults;
+  EXPECT_EQ(v.buffer_count, defaults.buffer_count) << "tuning is not in daemon.yaml";
+  EXPECT_EQ(v.reconnect_initial, defaults.reconnect_initial);
+  EXPECT_EQ(v.drop_stale, defaults.drop_stale);
+#if defined(OMNIPOSE_HAVE_LIBCAMERA)
+  c.type = SourceConfig::Type::kLibcamera;
+  const LibcameraOptions l = daemon::libcameraOptions(c);
+  EXPECT_EQ(l.camera, "/base/soc/i2c0mux/i2c@1/imx219@10");
+  EXPECT_EQ(l.width, 800);
+  EXPECT_EQ(l.height, 600);
+  EXPECT_EQ(l.fps, 12.5);
+  EXPECT_EQ(l.format, "MJPG");
+  EXPECT_EQ(l.buffer_count, LibcameraOptions{}.buffer_count);
+#endif
+}
+
+TEST(CameraSourceFactory, CheckSourceOptionsListsEveryProblemWithoutOpeningAnything) {
+  SourceConfig c;
+  c.type = SourceConfig::Type::kV4l2;
+  c.device = "/dev/video-omnipose-missing";  // valid as an option; never opened here
+  EXPECT_TRUE(daemon::checkSourceOptions(c).empty());
+
+  c.width = 0;
+  c.fps = std::nan("");
+  c.format = "XYZ";
+  const auto problems = daemon::checkSourceOptions(c);
+  ASSERT_EQ(problems.size(), 3u) << ::testing::PrintToString(problems);
+  EXPECT_EQ(problems[0], "source.width: must be in [1, 16384], is 0");
+  EXPECT_EQ(problems[1], "source.fps: must be in (0, 1000]");
+  EXPECT_EQ(problems[2],
+            "source.format: 'XYZ' is not a V4L2 format this source converts (GREY, YUYV, MJPG)");
+  // makeFrameSource() refuses the same section with the same list.
+  try {
+    daemon::makeFrameSource(c, {omniSize(), {}});
+    ADD_FAILURE() << "expected an error";
+  } catch (const std::runtime_error& e) {
+    for (const auto& p : problems)
+      EXPECT_NE(std::string(e.what()).find(p), std::string::npos) << e.what();
+  }
+
+  c.type = SourceConfig::Type::kLibcamera;
+  c.camera = "";
+#if defined(OMNIPOSE_HAVE_LIBCAMERA)
+  const auto lp = daemon::checkSourceOptions(c);
+  ASSERT_EQ(lp.size(), 4u) << ::testing::PrintToString(lp);
+  EXPECT_EQ(lp[0].rfind("source.camera: ", 0), 0u) << lp[0];
+  EXPECT_EQ(lp[1], "source.width: must be in [1, 16384], is 0");
+  EXPECT_EQ(lp[2], "source.fps: must be in (0, 1000]");
+  EXPECT_EQ(lp[3].rfind("source.format: 'XYZ'", 0), 0u) << lp[3];
+#else
+  const auto lp = daemon::checkSourceOptions(c);
+  ASSERT_EQ(lp.size(), 1u);
+  EXPECT_NE(lp[0].find("source.type: 'libcamera' is not built into this daemon"),
+            std::string::npos) << lp[0];
+#endif
+
+  c.type = SourceConfig::Type::kFile;  // no driver options; the directory is checked elsewhere
+  EXPECT_TRUE(daemon::checkSourceOptions(c).empty());
 }
 
 TEST(CameraSourceFactory, LibcameraIsBuiltWhenFound) {

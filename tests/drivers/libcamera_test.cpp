@@ -1,12 +1,11 @@
-// libcamera source: its pure parts (format choice, camera choice, configuration checks,
-// timestamp conversion) and its behaviour with no camera present.
+// libcamera source: its pure parts (format choice, camera choice, option checks) and its
+// behaviour with no camera present. Its timestamp conversion (CLOCK_BOOTTIME -> wall clock)
+// is common code, tested in driver_common_test.cpp.
 
 #include <gtest/gtest.h>
 
-#include <ctime>
 #include <filesystem>
 
-#include "common/clock_offset.hpp"
 #include "libcamera/libcamera_formats.hpp"
 #include "libcamera/libcamera_source.hpp"
 
@@ -25,9 +24,8 @@ constexpr std::uint32_t kMJPEG = fourcc('M', 'J', 'P', 'G');
 constexpr std::uint32_t kXRGB = fourcc('X', 'R', '2', '4');
 constexpr std::uint32_t kRaw10 = fourcc('p', 'R', 'A', 'A');
 
-SourceConfig libcameraConfig(const char* camera = "0", const char* format = "YUYV") {
-  SourceConfig c;
-  c.type = SourceConfig::Type::kLibcamera;
+LibcameraOptions libcameraConfig(const char* camera = "0", const char* format = "YUYV") {
+  LibcameraOptions c;
   c.camera = camera;
   c.width = 640;
   c.height = 480;
@@ -147,24 +145,36 @@ TEST(LibcameraCameraTest, MissingCamerasAreClearErrors) {
 // ---- configuration ----------------------------------------------------------------------
 
 TEST(LibcameraConfigTest, Validation) {
-  EXPECT_TRUE(LibcameraSource::validate(libcameraConfig()).empty());
-  EXPECT_TRUE(LibcameraSource::validate(libcameraConfig("0", "auto")).empty());
-  SourceConfig bad = libcameraConfig("", "XRGB8888");
+  EXPECT_TRUE(validate(LibcameraOptions{}).empty()) << "the defaults are valid";
+  EXPECT_TRUE(validate(libcameraConfig()).empty());
+  EXPECT_TRUE(validate(libcameraConfig("0", "auto")).empty());
+  EXPECT_TRUE(validate(libcameraConfig("0", "")).empty()) << "empty = auto";
+  LibcameraOptions bad = libcameraConfig("", "XRGB8888");
   bad.width = 0;
+  bad.height = -5;
   bad.fps = 0;
-  const auto problems = LibcameraSource::validate(bad);
-  ASSERT_EQ(problems.size(), 4u);
-  EXPECT_EQ(problems[0].rfind("source.camera", 0), 0u);
-  EXPECT_EQ(problems[1].rfind("source.width/height", 0), 0u);
-  EXPECT_EQ(problems[2].rfind("source.fps", 0), 0u);
-  EXPECT_EQ(problems[3].rfind("source.format", 0), 0u);
+  bad.buffer_count = 0;
+  bad.reconnect_initial = 0ms;
+  bad.reconnect_max = -1ms;
+  bad.clock_resync = 0ms;
+  const auto problems = validate(bad);
+  ASSERT_EQ(problems.size(), 9u) << ::testing::PrintToString(problems);
+  EXPECT_EQ(problems[0].rfind("source.camera: ", 0), 0u);
+  EXPECT_EQ(problems[1], "source.width: must be in [1, 16384], is 0");
+  EXPECT_EQ(problems[2], "source.height: must be in [1, 16384], is -5");
+  EXPECT_EQ(problems[3], "source.fps: must be in (0, 1000]");
+  EXPECT_EQ(problems[4].rfind("source.format: 'XRGB8888' cannot be turned into grey", 0), 0u)
+      << problems[4];
+  EXPECT_EQ(problems[5], "buffer_count: must be in [1, 32], is 0");
+  EXPECT_EQ(problems[6], "reconnect_initial: must be >= 1 ms");
+  EXPECT_EQ(problems[7], "reconnect_max: must be >= reconnect_initial");
+  EXPECT_EQ(problems[8], "clock_resync: must be >= 1 ms");
   EXPECT_EQ(libcam::frameDurationUs(30.0), 33333);
   EXPECT_EQ(libcam::frameDurationUs(25.0), 40000);
 
-  LibcameraSourceOptions o;
-  EXPECT_TRUE(o.validate().empty());
+  LibcameraOptions o;
   o.reconnect_max = 1ms;
-  EXPECT_EQ(o.validate().size(), 1u);
+  EXPECT_EQ(validate(o), std::vector<std::string>{"reconnect_max: must be >= reconnect_initial"});
 }
 
 TEST(LibcameraConfigTest, InvalidConfigurationFailsBeforeTouchingLibcamera) {
@@ -172,62 +182,9 @@ TEST(LibcameraConfigTest, InvalidConfigurationFailsBeforeTouchingLibcamera) {
   auto r = source.open();
   ASSERT_FALSE(r);
   EXPECT_EQ(r.error().code(), ErrorCode::kInvalidArgument);
-}
-
-// ---- timestamps -------------------------------------------------------------------------
-
-TEST(LibcameraTimestampTest, SensorTimestampOnBoottimeBecomesWallClock) {
-  // Synthetic: BOOTTIME 100 s, wall 1.7e9 s; one preempted sample must not win.
-  const std::int64_t off = 1'700'000'000'000'000'000 - 100'000'000'000;
-  const std::vector<drivers::ClockSample> samples = {
-      {100'000'000'000, 100'000'050'000 + off, 100'000'100'000},  // 100 us bracket
-      {100'000'200'000, 100'000'200'150 + off, 100'000'200'300},  // 300 ns bracket, exact
-      {100'000'300'000, 100'000'300'900 + off, 100'000'301'000},  // 1 us, 400 ns skewed
-  };
-  const auto offset = drivers::offsetFromSamples(samples);
-  ASSERT_TRUE(offset.valid);
-  EXPECT_EQ(offset.offset_ns, off);
-  EXPECT_EQ(offset.uncertainty_ns, 150);
-  // A frame whose sensor started exposing at BOOTTIME 123.456789499 s.
-  EXPECT_EQ(drivers::toWallMicroseconds(123'456'789'499, offset),
-            (123'456'789'499 + off + 500) / 1000);
-  EXPECT_EQ(drivers::toWallMicroseconds(123'456'789'499, offset) % 1'000'000, 456'789);
-  EXPECT_EQ(drivers::toWallMicroseconds(123'456'789'500, offset) % 1'000'000, 456'790)
-      << "rounded to the nearest microsecond";
-}
-
-TEST(LibcameraTimestampTest, BrokenSamplesAreIgnored) {
-  const std::vector<drivers::ClockSample> samples = {{200, 5000, 100}};  // clock went back
-  EXPECT_FALSE(drivers::offsetFromSamples(samples).valid);
-  EXPECT_FALSE(drivers::offsetFromSamples({}).valid);
-  EXPECT_EQ(drivers::toWallMicroseconds(-1500, drivers::ClockOffset{0, 0, true}), -1)
-      << "rounds halves up also below zero";
-}
-
-TEST(LibcameraTimestampTest, RealBoottimeOffsetMatchesTheWallClock) {
-  auto read = [](clockid_t c) {
-    timespec ts{};
-    ::clock_gettime(c, &ts);
-    return drivers::toNanoseconds(ts);
-  };
-  const auto offset = drivers::measureClockOffset(read, CLOCK_BOOTTIME, 7);
-  ASSERT_TRUE(offset.valid);
-  EXPECT_LT(offset.uncertainty_ns, 1'000'000) << "a bracket of well under a millisecond";
-  const std::int64_t boot_now = read(CLOCK_BOOTTIME);
-  const std::int64_t wall_now_us = read(CLOCK_REALTIME) / 1000;
-  EXPECT_NEAR(static_cast<double>(drivers::toWallMicroseconds(boot_now, offset)),
-              static_cast<double>(wall_now_us), 2000.0);
-}
-
-TEST(BackoffTest, DoublesUpToTheCap) {
-  drivers::Backoff b(100, 700);
-  EXPECT_EQ(b.next(), 100);
-  EXPECT_EQ(b.next(), 200);
-  EXPECT_EQ(b.next(), 400);
-  EXPECT_EQ(b.next(), 700);
-  EXPECT_EQ(b.next(), 700);
-  b.reset();
-  EXPECT_EQ(b.next(), 100);
+  EXPECT_NE(r.error().message().find("libcamera camera 0: source.format: 'XRGB8888'"),
+            std::string_view::npos)
+      << r.error().message();
 }
 
 // ---- no camera here ---------------------------------------------------------------------

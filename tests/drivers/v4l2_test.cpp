@@ -24,10 +24,9 @@ using namespace std::chrono_literals;
 
 constexpr std::int64_t kMs = 1'000'000;
 
-SourceConfig v4l2Config(int width, int height, const char* format, double fps = 30.0,
-                        const char* device = "/dev/video0") {
-  SourceConfig c;
-  c.type = SourceConfig::Type::kV4l2;
+V4l2Options v4l2Config(int width, int height, const char* format, double fps = 30.0,
+                       const char* device = "/dev/video0") {
+  V4l2Options c;
   c.device = device;
   c.width = width;
   c.height = height;
@@ -97,9 +96,9 @@ class V4l2SourceTest : public ::testing::Test {
     }
   }
 
-  void make(FakeV4l2Device::Config fc, SourceConfig sc, V4l2Source::Options options = {}) {
+  void make(FakeV4l2Device::Config fc, V4l2Options options) {
     fake_ = std::make_unique<FakeV4l2Device>(std::move(fc));
-    source_ = std::make_unique<V4l2Source>(std::move(sc), options, fake_.get());
+    source_ = std::make_unique<V4l2Source>(std::move(options), fake_.get());
   }
   void openOrDie() {
     auto r = source_->open();
@@ -318,8 +317,54 @@ TEST_F(V4l2SourceTest, UnknownConfiguredFormatIsInvalidArgument) {
   ASSERT_FALSE(r);
   EXPECT_EQ(r.error().code(), ErrorCode::kInvalidArgument);
   EXPECT_NE(r.error().message().find("RGB3"), std::string_view::npos);
-  EXPECT_EQ(V4l2Source::validate(v4l2Config(0, 480, "YUYV", -1)).size(), 2u);
-  EXPECT_TRUE(V4l2Source::validate(v4l2Config(640, 480, "mjpeg")).empty());
+  EXPECT_NE(r.error().message().find("source.format"), std::string_view::npos);
+}
+
+TEST(V4l2OptionsTest, ValidateListsEveryProblemByItsKey) {
+  EXPECT_TRUE(validate(V4l2Options{}).empty()) << "the defaults are valid";
+  EXPECT_TRUE(validate(v4l2Config(640, 480, "mjpeg")).empty()) << "format names: any case";
+  EXPECT_TRUE(validate(v4l2Config(16384, 1, "Y8", 1000.0)).empty()) << "the bounds themselves";
+
+  V4l2Options bad = v4l2Config(0, 20000, "XYZ", -1, "");
+  bad.buffer_count = 1;
+  bad.reconnect_initial = 0ms;
+  bad.reconnect_max = -1ms;
+  bad.clock_resync = 0ms;
+  bad.clock_samples = 17;
+  const auto problems = validate(bad);
+  ASSERT_EQ(problems.size(), 10u) << ::testing::PrintToString(problems);
+  EXPECT_EQ(problems[0], "source.device: must not be empty");
+  EXPECT_EQ(problems[1], "source.width: must be in [1, 16384], is 0");
+  EXPECT_EQ(problems[2], "source.height: must be in [1, 16384], is 20000");
+  EXPECT_EQ(problems[3], "source.fps: must be in (0, 1000]");
+  EXPECT_EQ(problems[4],
+            "source.format: 'XYZ' is not a V4L2 format this source converts (GREY, YUYV, MJPG)");
+  EXPECT_EQ(problems[5], "buffer_count: must be in [2, 32], is 1");
+  EXPECT_EQ(problems[6], "reconnect_initial: must be >= 1 ms");
+  EXPECT_EQ(problems[7], "reconnect_max: must be >= reconnect_initial");
+  EXPECT_EQ(problems[8], "clock_resync: must be >= 1 ms");
+  EXPECT_EQ(problems[9], "clock_samples: must be in [1, 16]");
+
+  // fps: NaN, infinity and above 1000 are refused like <= 0.
+  for (double fps : {std::nan(""), HUGE_VAL, 1000.5, 0.0}) {
+    const auto p = validate(v4l2Config(640, 480, "YUYV", fps));
+    ASSERT_EQ(p.size(), 1u) << fps;
+    EXPECT_EQ(p[0].rfind("source.fps: ", 0), 0u) << p[0];
+  }
+}
+
+TEST(V4l2OptionsTest, OpenRefusesInvalidOptionsBeforeTouchingTheDevice) {
+  FakeV4l2Device fake;
+  V4l2Options o = v4l2Config(640, 480, "YUYV");
+  o.buffer_count = 40;
+  V4l2Source source(o, &fake);
+  auto r = source.open();
+  ASSERT_FALSE(r);
+  EXPECT_EQ(r.error().code(), ErrorCode::kInvalidArgument);
+  EXPECT_NE(r.error().message().find("v4l2 /dev/video0: buffer_count: must be in [2, 32], is 40"),
+            std::string_view::npos)
+      << r.error().message();
+  EXPECT_TRUE(fake.openAttempts().empty()) << "the device was not opened";
 }
 
 TEST_F(V4l2SourceTest, MetadataNodeIsNotACaptureDevice) {
@@ -478,7 +523,9 @@ TEST_F(V4l2SourceTest, ErrorFlaggedBufferIsDroppedAndCounted) {
 }
 
 TEST_F(V4l2SourceTest, StaleFramesAreDrainedAndTheNewestDelivered) {
-  make({}, v4l2Config(320, 240, "GREY"), V4l2Source::Options{.buffer_count = 4});
+  V4l2Options o = v4l2Config(320, 240, "GREY");
+  o.buffer_count = 4;
+  make({}, o);
   openOrDie();
   ASSERT_EQ(fake_->bufferCount(), 4u);
   auto first = next();
@@ -508,9 +555,9 @@ TEST_F(V4l2SourceTest, StaleFramesAreDrainedAndTheNewestDelivered) {
 }
 
 TEST_F(V4l2SourceTest, WithoutDropStaleTheNewestQueuedFrameIsDelivered) {
-  V4l2Source::Options o;
+  V4l2Options o = v4l2Config(320, 240, "GREY");
   o.drop_stale = false;
-  make({}, v4l2Config(320, 240, "GREY"), o);
+  make({}, o);
   openOrDie();
   ASSERT_TRUE(next());
   fake_->advance(334 * kMs);
@@ -590,9 +637,9 @@ TEST_F(V4l2SourceTest, MonotonicTimestampsBecomeWallClockMicroseconds) {
 }
 
 TEST_F(V4l2SourceTest, WallClockStepIsFollowedAfterResync) {
-  V4l2Source::Options o;
+  V4l2Options o = v4l2Config(320, 240, "GREY");
   o.clock_resync = 200ms;
-  make({}, v4l2Config(320, 240, "GREY"), o);
+  make({}, o);
   openOrDie();
   ASSERT_TRUE(next());
   fake_->stepRealtime(2'000'000'000);  // NTP steps the wall clock by +2 s
@@ -621,10 +668,10 @@ TEST_F(V4l2SourceTest, UnknownTimestampClockUsesTheDequeueTime) {
 // ---------------------------------------------------------------------------------------
 
 TEST_F(V4l2SourceTest, UnplugIsReportedThenRecoveredWithBackoff) {
-  V4l2Source::Options o;
+  V4l2Options o = v4l2Config(320, 240, "YUYV");
   o.reconnect_initial = 100ms;
   o.reconnect_max = 800ms;
-  make({}, v4l2Config(320, 240, "YUYV"), o);
+  make({}, o);
   openOrDie();
   std::uint64_t last_seq = 0;
   for (int i = 0; i < 3; ++i) {

@@ -1,0 +1,61 @@
+#include "common/streaming.hpp"
+
+#include <algorithm>
+#include <cmath>
+
+namespace omnipose::drivers {
+namespace {
+constexpr std::int64_t kNsPerMs = 1'000'000;
+}  // namespace
+
+void ReconnectSchedule::lost(std::int64_t now_ns) {
+  backoff_.reset();
+  retry_at_ns_ = now_ns + backoff_.next() * kNsPerMs;
+}
+
+ReconnectSchedule::Step ReconnectSchedule::step(std::int64_t now_ns,
+                                                std::int64_t deadline_ns) const {
+  if (now_ns >= retry_at_ns_) return {Action::kAttempt, 0};
+  if (retry_at_ns_ <= deadline_ns) return {Action::kWait, retry_at_ns_ - now_ns};
+  return {Action::kGiveBack, std::max<std::int64_t>(0, deadline_ns - now_ns)};
+}
+
+std::int64_t ReconnectSchedule::attemptFailed(std::int64_t now_ns) {
+  const std::int64_t delay_ms = backoff_.next();
+  retry_at_ns_ = now_ns + delay_ms * kNsPerMs;
+  return delay_ms;
+}
+
+std::uint32_t SequenceTracker::completed(std::uint32_t driver_sequence) {
+  std::uint32_t lost = 0;
+  if (have_completed_) {
+    const std::uint32_t step = driver_sequence - last_completed_;
+    if (step >= 1) lost = step - 1;
+  }
+  have_completed_ = true;
+  last_completed_ = driver_sequence;
+  return lost;
+}
+
+std::uint64_t SequenceTracker::delivered(std::uint32_t driver_sequence,
+                                         std::int64_t capture_time_us, double fps) {
+  if (!have_sequence_) {
+    sequence_ = driver_sequence;
+    have_sequence_ = true;
+  } else if (restarted_) {
+    std::uint64_t gap = 1;
+    if (fps > 0 && capture_time_us > last_capture_us_)
+      gap = std::max<std::uint64_t>(
+          1, static_cast<std::uint64_t>(std::llround(
+                 static_cast<double>(capture_time_us - last_capture_us_) * 1e-6 * fps)));
+    sequence_ += gap;
+  } else {
+    sequence_ += static_cast<std::uint32_t>(driver_sequence - last_delivered_driver_);
+  }
+  restarted_ = false;
+  last_delivered_driver_ = driver_sequence;
+  last_capture_us_ = capture_time_us;
+  return sequence_;
+}
+
+}  // namespace omnipose::drivers
