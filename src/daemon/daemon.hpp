@@ -30,7 +30,7 @@
 #include "daemon/message_sink.hpp"
 #include "daemon/processor.hpp"
 #include "daemon/status_board.hpp"
-#include "omnipose/config.hpp"
+#include "daemon/config.hpp"
 #include "omnipose/frame_source.hpp"
 
 namespace omnipose::daemon {

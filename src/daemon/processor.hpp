@@ -29,7 +29,7 @@
 #include "daemon/sample_ring.hpp"
 #include "daemon/status_board.hpp"
 #include "daemon/wall_clock.hpp"
-#include "omnipose/config.hpp"
+#include "daemon/config.hpp"
 #include "omnipose/pipeline.hpp"
 #include "omnipose/pose_chain.hpp"
 

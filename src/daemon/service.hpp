@@ -14,7 +14,7 @@
 
 #include <cstdio>
 
-#include "omnipose/config.hpp"
+#include "daemon/config.hpp"
 
 namespace omnipose::daemon {
 

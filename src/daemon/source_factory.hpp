@@ -10,7 +10,7 @@
 #include <string>
 #include <vector>
 
-#include "omnipose/config.hpp"
+#include "daemon/config.hpp"
 #include "omnipose/frame_source.hpp"
 
 namespace omnipose {

@@ -4,6 +4,7 @@
 #include <filesystem>
 #include <string>
 
+#include "daemon/source_factory.hpp"
 #include "omnipose/calibration.hpp"
 #include "omnipose/pipeline.hpp"
 
@@ -22,7 +23,15 @@ void checkSource(const DaemonConfig& config, StartupCheck& out) {
       return;
     }
     out.findings.push_back("source: file " + s.path.string());
+    return;
   }
+  const auto problems = checkSourceOptions(s);
+  for (const auto& p : problems) out.problems.push_back(origin + ": " + p);
+  if (problems.empty())
+    out.findings.push_back(std::string("source: ") + toString(s.type) + " " +
+                           (s.type == SourceConfig::Type::kV4l2 ? s.device : s.camera) + ", " +
+                           std::to_string(s.width) + "x" + std::to_string(s.height) + " " +
+                           s.format + ": options valid (the device is not opened by --check)");
 }
 
 }  // namespace

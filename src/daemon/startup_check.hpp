@@ -6,7 +6,7 @@
 #include <string>
 #include <vector>
 
-#include "omnipose/config.hpp"
+#include "daemon/config.hpp"
 
 namespace omnipose::daemon {
 
@@ -23,8 +23,8 @@ struct StartupCheck {
 /// Checks, for a configuration that DaemonConfig::load() accepted: the calibration file and
 /// what it names (lens model files, mask); the pipeline against its panorama (and builds the
 /// pipeline when that fits, so FFT plans and tables are proven too); the source's options as
-/// its driver will read them, without opening a device (a file source: that the dataset
-/// directory exists). Never throws for a problem of the configuration; std::bad_alloc and
+/// its driver will read them (checkSourceOptions(), source_factory.hpp), without opening a
+/// device (a file source: that the dataset directory exists). Never throws for a problem of the configuration; std::bad_alloc and
 /// the like propagate.
 StartupCheck checkStartup(const DaemonConfig& config);
 

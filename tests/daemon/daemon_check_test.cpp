@@ -113,5 +113,27 @@ TEST(DaemonCheck, EveryProblemIsListedAtOnceByTheKeyTheUserWrote) {
       << fixed.findings[1];
 }
 
+TEST(DaemonCheck, CameraOptionsAreCheckedWithoutOpeningTheDevice) {
+  TempDir tmp("check_v4l2");
+  Calibration{}.save(tmp / "calibration.yaml");
+  auto check = [&](const std::string& source) {
+    return daemon::checkStartup(DaemonConfig::parse(
+        "source: " + source + "\ncalibration: calibration.yaml\n", (tmp / "daemon.yaml").string(),
+        tmp.path()));
+  };
+  // A device that does not exist: --check does not open it, so only the options count.
+  const auto bad = check("{type: v4l2, device: /dev/no_such_video, format: RGB3}");
+  ASSERT_EQ(bad.problems.size(), 1u) << lines(bad.problems);
+  EXPECT_NE(bad.problems[0].find("daemon.yaml: source.format: 'RGB3' is not a V4L2 format"),
+            std::string::npos)
+      << bad.problems[0];
+  const auto good = check("{type: v4l2, device: /dev/no_such_video, format: GREY}");
+  EXPECT_TRUE(good.problems.empty()) << lines(good.problems);
+  ASSERT_FALSE(good.findings.empty());
+  EXPECT_NE(good.findings[0].find("source: v4l2 /dev/no_such_video, 1280x720 GREY: options valid"),
+            std::string::npos)
+      << good.findings[0];
+}
+
 }  // namespace
 }  // namespace omnipose

@@ -14,7 +14,7 @@
 #include "daemon/source_factory.hpp"
 #include "daemon/wall_clock.hpp"
 #include "daemon_test_support.hpp"
-#include "omnipose/config.hpp"
+#include "daemon/config.hpp"
 
 namespace omnipose {
 namespace {

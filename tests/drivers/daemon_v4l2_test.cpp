@@ -22,7 +22,7 @@
 #include "daemon/source_factory.hpp"
 #include "fake_v4l2_device.hpp"
 #include "omnipose/calibration.hpp"
-#include "omnipose/config.hpp"
+#include "daemon/config.hpp"
 #include "omnipose/pose_t.hpp"
 #include "omnipose/status_t.hpp"
 #include "omnipose/synth.hpp"

@@ -14,7 +14,7 @@
 #include "cli.hpp"
 #include "daemon/service.hpp"
 #include "daemon/startup_check.hpp"
-#include "omnipose/config.hpp"
+#include "daemon/config.hpp"
 
 namespace {
 

@@ -14,7 +14,7 @@
 
 #include "chart.hpp"
 #include "cli.hpp"
-#include "omnipose/config.hpp"
+#include "daemon/config.hpp"
 #include "omnipose/dataset.hpp"
 #include "omnipose/motion_fit.hpp"
 #include "omnipose/motion_model.hpp"

@@ -9,7 +9,7 @@
 #include <string>
 #include <vector>
 
-#include "omnipose/config.hpp"
+#include "daemon/config.hpp"
 #include "omnipose/dataset.hpp"
 #include "omnipose/motion_estimator.hpp"
 

@@ -1,7 +1,8 @@
 #pragma once
 /// \file config.hpp
 /// The daemon configuration (daemon.yaml, DESIGN.md section 7), parsed in this one place
-/// for the daemon and for `omnipose-replay --config`. Every key is optional except
+/// for the daemon and for `omnipose-replay --config` (library omnipose_daemon_config; the
+/// daemon's, not part of the installed API). Every key is optional except
 /// `source` and `calibration` (for the daemon); unknown keys are errors; every problem is
 /// collected and reported at once. describe() gives the effective values for the start-up
 /// log.

@@ -1,4 +1,4 @@
-#include "omnipose/config.hpp"
+#include "daemon/config.hpp"
 
 #include <yaml-cpp/yaml.h>
 
