@@ -50,8 +50,8 @@ nice -n "$nice_level" cmake -S . -B "$dir" -G Ninja -DCMAKE_BUILD_TYPE=RelWithDe
   -DOMNIPOSE_SANITIZE="$sanitize" -DOMNIPOSE_BUILD_BENCHMARKS=OFF >/dev/null
 if [ "$mode" = tsan ]; then
   # Only what the selected tests need.
-  targets=(daemon_test daemon_process_test omniposed omnipose-listen omnipose-synth v4l2_test
-           daemon_v4l2_test)
+  targets=(daemon_test daemon_config_test daemon_process_test daemon_check_test omniposed
+           omnipose-listen omnipose-synth driver_common_test v4l2_test daemon_v4l2_test)
   [ -n "$(grep -l 'libcamera_test' "$dir/build.ninja" 2>/dev/null)" ] && targets+=(libcamera_test)
   nice -n "$nice_level" cmake --build "$dir" -j"$jobs" --target "${targets[@]}"
 else
