@@ -26,6 +26,7 @@ function(omnipose_add_test name)
     return()
   endif()
   add_executable(${name} ${ARG_UNPARSED_ARGUMENTS})
+  omnipose_tsan_serial_opencv(${name})
   target_link_libraries(${name} PRIVATE ${ARG_LIBS} omnipose_synth omnipose_eval omnipose_io
                         GTest::gtest GTest::gtest_main)
   target_compile_definitions(${name} PRIVATE
@@ -57,3 +58,11 @@ endfunction()
 # allocator themselves (the counter is compiled out there and counts nothing).
 set(OMNIPOSE_ALLOCATION_COUNTING_TESTS pipeline_alloc_test registration_alloc_test
     daemon_alloc_test allocation_counter_test)
+
+# omnipose_tsan_serial_opencv(TARGET): in a ThreadSanitizer build, OpenCV runs its parallel
+# loops on the calling thread in TARGET (tests/sanitizers/opencv_serial.cpp says why).
+function(omnipose_tsan_serial_opencv target)
+  if(OMNIPOSE_SANITIZE STREQUAL "thread")
+    target_sources(${target} PRIVATE ${CMAKE_SOURCE_DIR}/tests/sanitizers/opencv_serial.cpp)
+  endif()
+endfunction()

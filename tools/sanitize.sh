@@ -8,7 +8,10 @@
 #                              so they would bypass it and count its bookkeeping).
 #   tools/sanitize.sh tsan     ThreadSanitizer (build-tsan/): the daemon and driver tests
 #                              (the two-thread daemon, its mailbox and status board, the
-#                              V4L2 / libcamera sources).
+#                              V4L2 / libcamera sources). Uninstrumented third-party code
+#                              that TSan misreads is suppressed in tests/sanitizers/tsan.supp
+#                              (GDAL, GLib, LCM's memq hand-over); OpenCV runs its loops on
+#                              the calling thread there (tests/sanitizers/opencv_serial.cpp).
 #
 # Any sanitizer report fails the run (halt_on_error, -fno-sanitize-recover=all).
 # UBSan's vptr check is off (-fno-sanitize=vptr): LCM 1.3.1's C++ subscription callbacks
@@ -37,7 +40,7 @@ case "$mode" in
     sanitize=thread
     select=(-L '^(daemon|drivers)$' -LE allocation)
     timeout=1800
-    export TSAN_OPTIONS="halt_on_error=1:second_deadlock_stack=1"
+    export TSAN_OPTIONS="halt_on_error=1:second_deadlock_stack=1:suppressions=$PWD/tests/sanitizers/tsan.supp"
     ;;
   *)
     echo "usage: tools/sanitize.sh [asan|tsan]" >&2
