@@ -1,0 +1,67 @@
+#!/usr/bin/env bash
+# Realtime check: omniposed replays a rendered recording with `realtime: true` at FPS frames
+# per second (the file source paces frames by their timestamps, as a camera would deliver
+# them) with a file:// LCM log, and the final status must show that no frame was dropped:
+# received = FRAMES, skipped (stale) = 0, lost upstream (not read in time) = 0, bad = 0.
+# Prints the final status (processing and latency percentiles included). Meant for an idle
+# machine: the verdict is about this machine at the moment of the run, so it is not a test.
+# Usage: tools/realtime_check.sh [FPS] [FRAMES]   (default 60 fps, 180 frames)
+# Environment: BUILD_DIR (default build; built with tools/build.sh when a program is missing),
+# THREADS (pipeline.threads, default 0 = all online cores), KEEP=1 keeps the working directory.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+fps=${1:-60}
+frames=${2:-180}
+if ! [[ "$fps" =~ ^[0-9]+$ && "$frames" =~ ^[0-9]+$ ]] || [ "$fps" -lt 1 ] || [ "$frames" -lt 2 ]; then
+  echo "usage: tools/realtime_check.sh [FPS] [FRAMES]" >&2
+  exit 2
+fi
+bin=${BUILD_DIR:-build}/bin
+threads=${THREADS:-0}
+if [ ! -x "$bin/omniposed" ] || [ ! -x "$bin/omnipose-synth" ] || [ ! -x "$bin/omnipose-listen" ]; then
+  bash tools/build.sh
+fi
+
+work=$(mktemp -d "${TMPDIR:-/tmp}/omnipose-realtime-XXXXXX")
+cleanup() { if [ "${KEEP:-0}" = 1 ]; then echo "realtime_check: kept $work"; else rm -rf "$work"; fi; }
+trap cleanup EXIT
+
+"$bin/omnipose-synth" --texture tests/data/equirect/indoor_1024x512.jpg --out "$work/data" \
+  --preset mixed --frames "$frames" --seed 11 --supersample 1 --quiet >"$work/synth.log" 2>&1
+# The renderer stamps frames at its script's rate; re-stamp them at FPS.
+awk -v fps="$fps" '{ printf "%s %.6f\n", $1, (NR - 1) / fps }' "$work/data/timestamps.txt" \
+  >"$work/timestamps.txt"
+mv "$work/timestamps.txt" "$work/data/timestamps.txt"
+cat >"$work/daemon.yaml" <<YAML
+source: {type: file, path: data, realtime: true, loop: false}
+calibration: data/calibration.yaml
+pipeline: {threads: $threads}
+lcm: {url: "file://$work/run.lcm?mode=w", status_hz: 1}
+YAML
+
+echo "realtime_check: $frames frames at $fps fps, pipeline.threads $threads, load $(cut -d' ' -f1-3 /proc/loadavg)"
+rc=0
+"$bin/omniposed" --config "$work/daemon.yaml" 2>"$work/daemon.err" || rc=$?
+if [ "$rc" -ne 0 ]; then
+  echo "realtime_check: FAIL: omniposed exited with $rc" >&2
+  tail -20 "$work/daemon.err" >&2
+  exit 1
+fi
+"$bin/omnipose-listen" --url "file://$work/run.lcm?speed=0" >"$work/listen.txt" 2>&1 || true
+final=$(grep '^status (final):' "$work/listen.txt" | tail -1)
+if [ -z "$final" ]; then
+  echo "realtime_check: FAIL: no final status in the LCM log" >&2
+  exit 1
+fi
+echo "realtime_check: $final"
+count() { sed -n "s/.* $1 \([0-9]*\).*/\1/p" <<<"$final"; }
+received=$(count received)
+skipped=$(count skipped)
+bad=$(count bad)
+lost=$(count upstream)
+if [ "$received" -eq "$frames" ] && [ "$skipped" -eq 0 ] && [ "$bad" -eq 0 ] && [ "$lost" -eq 0 ]; then
+  echo "realtime_check: PASS: all $frames frames processed at $fps fps, none dropped"
+else
+  echo "realtime_check: FAIL: received $received of $frames, skipped $skipped, lost upstream $lost, bad $bad" >&2
+  exit 1
+fi
