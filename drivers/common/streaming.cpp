@@ -8,6 +8,26 @@ namespace {
 constexpr std::int64_t kNsPerMs = 1'000'000;
 }  // namespace
 
+void appendStreamRequestProblems(std::vector<std::string>& problems, int width, int height,
+                                 double fps) {
+  if (width <= 0 || width > 16384)
+    problems.push_back("source.width: must be in [1, 16384], is " + std::to_string(width));
+  if (height <= 0 || height > 16384)
+    problems.push_back("source.height: must be in [1, 16384], is " + std::to_string(height));
+  if (!(fps > 0.0 && fps <= 1000.0))  // also NaN
+    problems.push_back("source.fps: must be in (0, 1000]");
+}
+
+void appendTimingProblems(std::vector<std::string>& problems,
+                          std::chrono::milliseconds reconnect_initial,
+                          std::chrono::milliseconds reconnect_max,
+                          std::chrono::milliseconds clock_resync) {
+  if (reconnect_initial.count() < 1) problems.push_back("reconnect_initial: must be >= 1 ms");
+  if (reconnect_max < reconnect_initial)
+    problems.push_back("reconnect_max: must be >= reconnect_initial");
+  if (clock_resync.count() < 1) problems.push_back("clock_resync: must be >= 1 ms");
+}
+
 void ReconnectSchedule::lost(std::int64_t now_ns) {
   backoff_.reset();
   retry_at_ns_ = now_ns + backoff_.next() * kNsPerMs;

@@ -18,8 +18,25 @@
 #include <chrono>
 #include <cstddef>
 #include <cstdint>
+#include <string>
+#include <vector>
 
 namespace omnipose::drivers {
+
+// ---------------------------------------------------------------------------------------
+// Options every camera driver shares
+// ---------------------------------------------------------------------------------------
+
+/// Appends the problems of the stream request, named by their daemon.yaml keys:
+/// source.width and source.height in [1, 16384] pixels, source.fps in (0, 1000] (NaN refused).
+void appendStreamRequestProblems(std::vector<std::string>& problems, int width, int height,
+                                 double fps);
+/// Appends the problems of the reconnect and clock timing, named by their option fields:
+/// reconnect_initial and clock_resync >= 1 ms, reconnect_max >= reconnect_initial.
+void appendTimingProblems(std::vector<std::string>& problems,
+                          std::chrono::milliseconds reconnect_initial,
+                          std::chrono::milliseconds reconnect_max,
+                          std::chrono::milliseconds clock_resync);
 
 // ---------------------------------------------------------------------------------------
 // Reconnect back-off

@@ -4,6 +4,7 @@
 #include <cctype>
 #include <cmath>
 
+#include "common/streaming.hpp"
 #include "libcamera/libcamera_source.hpp"
 
 namespace omnipose::libcam {
@@ -140,22 +141,14 @@ std::vector<std::string> validate(const LibcameraOptions& o) {
   std::vector<std::string> problems;
   if (o.camera.empty())
     problems.push_back("source.camera: must be an index (0, 1, ...) or a libcamera camera id");
-  if (o.width <= 0 || o.width > 16384)
-    problems.push_back("source.width: must be in [1, 16384], is " + std::to_string(o.width));
-  if (o.height <= 0 || o.height > 16384)
-    problems.push_back("source.height: must be in [1, 16384], is " + std::to_string(o.height));
-  if (!(o.fps > 0.0 && o.fps <= 1000.0))  // also NaN
-    problems.push_back("source.fps: must be in (0, 1000]");
+  drivers::appendStreamRequestProblems(problems, o.width, o.height, o.fps);
   if (!libcam::parseFormatName(o.format))
     problems.push_back("source.format: '" + o.format +
                        "' cannot be turned into grey (auto, R8/GREY, NV12, YUV420, YUYV, UYVY, "
                        "MJPEG, ...)");
   if (o.buffer_count < 1 || o.buffer_count > 32)
     problems.push_back("buffer_count: must be in [1, 32], is " + std::to_string(o.buffer_count));
-  if (o.reconnect_initial.count() < 1) problems.push_back("reconnect_initial: must be >= 1 ms");
-  if (o.reconnect_max < o.reconnect_initial)
-    problems.push_back("reconnect_max: must be >= reconnect_initial");
-  if (o.clock_resync.count() < 1) problems.push_back("clock_resync: must be >= 1 ms");
+  drivers::appendTimingProblems(problems, o.reconnect_initial, o.reconnect_max, o.clock_resync);
   return problems;
 }
 

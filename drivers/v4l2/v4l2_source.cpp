@@ -11,6 +11,7 @@
 #include <sys/mman.h>
 
 #include "common/grey_convert.hpp"
+#include "common/streaming.hpp"
 
 namespace omnipose {
 namespace {
@@ -84,22 +85,13 @@ const char* toString(V4l2PixelFormat format) {
 std::vector<std::string> validate(const V4l2Options& o) {
   std::vector<std::string> problems;
   if (o.device.empty()) problems.push_back("source.device: must not be empty");
-  if (o.width <= 0 || o.width > 16384)
-    problems.push_back("source.width: must be in [1, 16384], is " + std::to_string(o.width));
-  if (o.height <= 0 || o.height > 16384)
-    problems.push_back("source.height: must be in [1, 16384], is " + std::to_string(o.height));
-  if (!(o.fps > 0.0 && o.fps <= 1000.0))  // also NaN
-    problems.push_back("source.fps: must be in (0, 1000]");
+  drivers::appendStreamRequestProblems(problems, o.width, o.height, o.fps);
   if (!parseV4l2PixelFormat(o.format))
     problems.push_back("source.format: '" + o.format +
                        "' is not a V4L2 format this source converts (GREY, YUYV, MJPG)");
   if (o.buffer_count < 2 || o.buffer_count > 32)
     problems.push_back("buffer_count: must be in [2, 32], is " + std::to_string(o.buffer_count));
-  if (o.reconnect_initial.count() < 1)
-    problems.push_back("reconnect_initial: must be >= 1 ms");
-  if (o.reconnect_max < o.reconnect_initial)
-    problems.push_back("reconnect_max: must be >= reconnect_initial");
-  if (o.clock_resync.count() < 1) problems.push_back("clock_resync: must be >= 1 ms");
+  drivers::appendTimingProblems(problems, o.reconnect_initial, o.reconnect_max, o.clock_resync);
   if (o.clock_samples < 1 || o.clock_samples > drivers::kMaxClockSamples)
     problems.push_back("clock_samples: must be in [1, " +
                        std::to_string(drivers::kMaxClockSamples) + "]");
