@@ -39,12 +39,14 @@ if [ ${#need[@]} -gt 0 ]; then
   $SUDO apt-get install -y -qq --no-install-recommends "${need[@]}" >/dev/null
 fi
 
-# 2. arm64 sysroot from Debian 12 packages (once; delete build-arm64/sysroot to refresh).
+# 2. arm64 sysroot from Debian 12 packages (once per package list; delete build-arm64/sysroot
+# to refresh).
 ARM_PACKAGES=(libc6-dev libstdc++-12-dev libopencv-core-dev libopencv-imgproc-dev
   libopencv-imgcodecs-dev libopencv-features2d-dev libopencv-calib3d-dev libopencv-dev
   libeigen3-dev libfftw3-dev libyaml-cpp-dev libgtest-dev libgmock-dev libbenchmark-dev
-  liblcm-dev libglib2.0-dev libsystemd-dev libopengv-dev)
-if [ ! -f "$SYSROOT/.complete" ]; then
+  liblcm-dev libglib2.0-dev libsystemd-dev libopengv-dev libcli11-dev)
+# .complete records the package list it was made from: a changed list fetches again.
+if [ "$(cat "$SYSROOT/.complete" 2>/dev/null)" != "${ARM_PACKAGES[*]}" ]; then
   APTDIR=$OUT/apt
   mkdir -p "$APTDIR/etc/apt/sources.list.d" "$APTDIR/etc/apt/preferences.d" \
     "$APTDIR/var/lib/dpkg" "$APTDIR/var/cache/apt/archives/partial" \
@@ -68,7 +70,7 @@ if [ ! -f "$SYSROOT/.complete" ]; then
     target=$(readlink "$link")
     ln -sfn "$SYSROOT$target" "$link"
   done
-  touch "$SYSROOT/.complete"
+  echo "${ARM_PACKAGES[*]}" > "$SYSROOT/.complete"
 fi
 # Alternatives that maintainer scripts would have set (update-alternatives): BLAS / LAPACK.
 MA=$SYSROOT/usr/lib/aarch64-linux-gnu

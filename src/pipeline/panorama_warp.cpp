@@ -118,18 +118,24 @@ void PanoramaWarp::derotateRows(cv::Mat& out, int first, int last) const {
       simd::F4 wx[4], wy[4];
       weights(x - __builtin_convertvector(x0, simd::F4), wx);
       weights(y - y_floor, wy);
-      simd::F4 sum4 = simd::broadcast(0.0f);
-      for (int l = 0; l < 4 && u + l < W; ++l) {
+      // Per lane l, acc[l][t] = column tap t weighted over the rows; the four lanes'
+      // accumulators are transposed so that the column weights apply lane-wise:
+      // out[l] = (acc[l][0] wx0 + acc[l][1] wx1) + (acc[l][2] wx2 + acc[l][3] wx3), the
+      // same operations in the same order as a per-lane dot product. Lanes past the last
+      // column (W % 4 != 0) read clamped, valid pixels and are not stored.
+      simd::F4 acc[4];
+      for (int l = 0; l < 4; ++l) {
         for (int j = 0; j < 4; ++j) {
           const int row = std::clamp(y0[l] - 1 + j, 0, H - 1);  // beyond the edge: replicate
           rows[j] = padded_.ptr<float>(row) + x0[l] - 1;
         }
-        const simd::F4 acc = simd::broadcast(wy[0][l]) * simd::load(rows[0]) +
-                             simd::broadcast(wy[1][l]) * simd::load(rows[1]) +
-                             simd::broadcast(wy[2][l]) * simd::load(rows[2]) +
-                             simd::broadcast(wy[3][l]) * simd::load(rows[3]);
-        sum4[l] = simd::sum(acc * simd::F4{wx[0][l], wx[1][l], wx[2][l], wx[3][l]});
+        acc[l] = simd::broadcast(wy[0][l]) * simd::load(rows[0]) +
+                 simd::broadcast(wy[1][l]) * simd::load(rows[1]) +
+                 simd::broadcast(wy[2][l]) * simd::load(rows[2]) +
+                 simd::broadcast(wy[3][l]) * simd::load(rows[3]);
       }
+      simd::transpose(acc[0], acc[1], acc[2], acc[3]);
+      const simd::F4 sum4 = (acc[0] * wx[0] + acc[1] * wx[1]) + (acc[2] * wx[2] + acc[3] * wx[3]);
       if (u + 4 <= W) {
         simd::store(dst + u, sum4);
       } else {

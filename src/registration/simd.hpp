@@ -75,6 +75,18 @@ inline float sum(F4 v) { return (v[0] + v[1]) + (v[2] + v[3]); }
 /// Largest lane.
 inline float maxLane(F4 v) { return std::fmax(std::fmax(v[0], v[1]), std::fmax(v[2], v[3])); }
 
+/// Transposes the 4 x 4 matrix whose rows are a, b, c, d (afterwards a = column 0, ...).
+inline void transpose(F4& a, F4& b, F4& c, F4& d) {
+  const F4 t0 = __builtin_shuffle(a, b, I4{0, 4, 1, 5});  // a0 b0 a1 b1
+  const F4 t1 = __builtin_shuffle(a, b, I4{2, 6, 3, 7});  // a2 b2 a3 b3
+  const F4 t2 = __builtin_shuffle(c, d, I4{0, 4, 1, 5});  // c0 d0 c1 d1
+  const F4 t3 = __builtin_shuffle(c, d, I4{2, 6, 3, 7});  // c2 d2 c3 d3
+  a = __builtin_shuffle(t0, t2, I4{0, 1, 4, 5});
+  b = __builtin_shuffle(t0, t2, I4{2, 3, 6, 7});
+  c = __builtin_shuffle(t1, t3, I4{0, 1, 4, 5});
+  d = __builtin_shuffle(t1, t3, I4{2, 3, 6, 7});
+}
+
 /// For interleaved complex pairs (re0, im0, re1, im1): (|z0|^2, |z0|^2, |z1|^2, |z1|^2).
 inline F4 pairNorm(F4 z) {
   const F4 sq = z * z;
