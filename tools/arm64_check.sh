@@ -7,6 +7,8 @@
 # emulation: 20-40 min on the 2-core development VM). Run as root (or with sudo):
 #     bash tools/arm64_check.sh            # everything
 #     bash tools/arm64_check.sh --no-tests # sysroot + build + NEON check only
+#     bash tools/arm64_check.sh --instructions  # build + NEON check + arm64 instructions per
+#                                               # frame (no tests)
 #
 # How: the host gets g++-aarch64-linux-gnu and qemu-user-static (apt-get). The arm64
 # libraries (OpenCV, FFTW, yaml-cpp, GoogleTest, LCM, ...) are NOT installed into the host
@@ -22,8 +24,10 @@ OUT=$ROOT/build-arm64
 SYSROOT=$OUT/sysroot
 RUN_TESTS=1
 SYSROOT_ONLY=0
+INSTRUCTIONS=0
 [ "${1:-}" = "--no-tests" ] && RUN_TESTS=0
 [ "${1:-}" = "--sysroot-only" ] && SYSROOT_ONLY=1
+[ "${1:-}" = "--instructions" ] && { INSTRUCTIONS=1; RUN_TESTS=0; }
 
 SUDO=""
 if [ "$(id -u)" -ne 0 ]; then SUDO="sudo"; fi
@@ -68,7 +72,7 @@ if [ "$(cat "$SYSROOT/.complete" 2>/dev/null)" != "${ARM_PACKAGES[*]}" ]; then
   # Absolute symlinks inside the sysroot (e.g. libfoo.so -> /lib/...) made relative to it.
   find "$SYSROOT" -type l -lname '/*' | while read -r link; do
     target=$(readlink "$link")
-    ln -sfn "$SYSROOT$target" "$link"
+    ln -sfn "$(realpath -m --relative-to="$(dirname "$link")" "$SYSROOT$target")" "$link"
   done
   echo "${ARM_PACKAGES[*]}" > "$SYSROOT/.complete"
 fi
@@ -102,7 +106,8 @@ cmake -S . -B "$OUT/build" -G Ninja -DCMAKE_BUILD_TYPE=Release \
 TESTS=(registration_test registration_alloc_test simd_check_test fit_test pipeline_test
   pipeline_alloc_test calibration_test io_test)
 jobs=$(nproc 2>/dev/null || echo 2)
-nice -n 10 cmake --build "$OUT/build" -j"$jobs" --target "${TESTS[@]}" omnipose-bench-pipeline
+nice -n 10 cmake --build "$OUT/build" -j"$jobs" --target "${TESTS[@]}" omnipose-bench-pipeline \
+  omnipose-bench-instructions
 
 # 4. The NEON branch is the one compiled: simd.hpp defines OMNIPOSE_SIMD_BACKEND, the object
 # file of the registration records it (.comment-free: a string in .rodata), and the
@@ -129,5 +134,37 @@ if [ "$RUN_TESTS" = 1 ]; then
     fi
   done
   [ "$failed" = 0 ] || exit 1
+fi
+
+# 6. (--instructions) Guest instructions per frame, paper setting, one thread. Debian's qemu
+# 7.2 has no TCG plugins; instead qemu runs the benchmark in single-step mode (one guest
+# instruction per translation block) with -d exec,nochain, which logs one line per executed
+# instruction into a pipe that wc counts. Runs of 1 and 3 measured frames (same start-up,
+# one warm-up frame) differ by exactly two frames of work.
+if [ "$INSTRUCTIONS" = 1 ]; then
+  bench=$OUT/build/bin/omnipose-bench-instructions
+  frames_dir=$OUT/bench-frames
+  wisdom=$OUT/bench.wisdom
+  mkdir -p "$frames_dir"
+  # Render the two frames and write the arm64 FFTW wisdom (normal emulation, no logging).
+  qemu-aarch64-static -L "$SYSROOT" "$bench" --threads 1 --warmup 0 --frames 1 \
+    --wisdom "$wisdom" --save "$frames_dir" > /dev/null
+  count_run() {  # measured frames -> executed guest instructions of the whole run
+    local fifo=$OUT/qemu-exec.fifo
+    rm -f "$fifo"
+    mkfifo "$fifo"
+    wc -l < "$fifo" > "$OUT/qemu-exec.count" &
+    local counter=$!
+    qemu-aarch64-static -L "$SYSROOT" -singlestep -d exec,nochain -D "$fifo" "$bench" \
+      --threads 1 --warmup 1 --frames "$1" --wisdom "$wisdom" --load "$frames_dir" > /dev/null
+    wait "$counter"
+    rm -f "$fifo"
+    cat "$OUT/qemu-exec.count"
+  }
+  one=$(count_run 1)
+  three=$(count_run 3)
+  per_frame=$(( (three - one) / 2 ))
+  echo "arm64_check: instructions per frame (arm64, 1 thread, refine 1): $per_frame" \
+    "(runs of 1 and 3 frames: $one, $three)"
 fi
 echo "arm64_check: OK"

@@ -110,11 +110,9 @@ void PanoramaWarp::derotateRows(cv::Mat& out, int first, int last) const {
                           fy4 * ((one - fx) * dv1[gx] + fx * dv1[gx + 1]);
       const simd::F4 x = simd::min(simd::max(simd::broadcast(static_cast<float>(u + kPad)) + lane + du, x_lo), x_hi);
       const simd::F4 y = simd::broadcast(static_cast<float>(v)) + dv;
-      float yf[4];
-      for (int l = 0; l < 4; ++l) yf[l] = std::floor(y[l]);
-      const simd::F4 y_floor{yf[0], yf[1], yf[2], yf[3]};
       const simd::I4 x0 = __builtin_convertvector(x, simd::I4);  // x >= 1: truncation = floor
-      const simd::I4 y0 = __builtin_convertvector(y_floor, simd::I4);
+      const simd::I4 y0 = simd::floorToInt(y);
+      const simd::F4 y_floor = __builtin_convertvector(y0, simd::F4);
       simd::F4 wx[4], wy[4];
       weights(x - __builtin_convertvector(x0, simd::F4), wx);
       weights(y - y_floor, wy);

@@ -152,6 +152,13 @@ Expected<FrameMotion> Pipeline::process(const cv::Mat& frame) {
 
   // 4. Exact refinement: de-rotate the current panorama by the estimate (exact cylinder
   // projection), fit what is left (residual rotation + translation), compose the rotation.
+  // The windows' rotation/scale are searched again on the de-rotated panorama. Predicting
+  // them instead (the first pass's, searched on the un-warped windows, composed with the
+  // de-rotation's local similarity) would save a window FFT and the log-polar stage per
+  // window (omnipose-bench-pipeline, 1 thread: refinement 11.6 -> 9.0 ms, first pass 7.8 ->
+  // 8.9 ms for its log-polar search, 20.2 -> 19.1 ms in all), but those estimates are off by
+  // ~1 mrad and ~0.2 % in scale, and de-rotating by them made the accuracy benchmark's park
+  // roll eps RMSE 0.026 -> 0.134 mrad (tried 2026-11-23, issue 10): not taken.
   const auto t_refine = Clock::now();
   Eigen::Matrix3d R = rotationFromVector(est.omega);
   Eigen::Vector3d tau = est.tau;

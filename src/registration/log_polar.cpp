@@ -87,6 +87,21 @@ LogPolarMap::LogPolarMap(int n, int n_theta, int n_radius, double r_min, double 
       tap_offset_[i] = (first_v + reach_) * grid_cols_ + (first_u + 1);
     }
   }
+  // resample() interpolates four samples of a row at once: store their u weights tap-major
+  // (weight_u_[4 i0 + 4 t + l] = weight t of sample i0 + l); a row's last n_radius % 4
+  // samples keep theirs sample-major.
+  for (int a = 0; a < n_theta; ++a) {
+    for (int b = 0; b + 4 <= n_radius; b += 4) {
+      float* w = &weight_u_[4 * (static_cast<std::size_t>(a) * n_radius + b)];
+      simd::F4 t0 = simd::load(w), t1 = simd::load(w + 4), t2 = simd::load(w + 8),
+               t3 = simd::load(w + 12);
+      simd::transpose(t0, t1, t2, t3);
+      simd::store(w, t0);
+      simd::store(w + 4, t1);
+      simd::store(w + 8, t2);
+      simd::store(w + 12, t3);
+    }
+  }
   for (int b = 0; b < n_radius; ++b) taper_[b] = tukey(b, n_radius);
 }
 
@@ -109,20 +124,32 @@ double LogPolarMap::resample(const Complex* spectrum, float* out) {
   const std::size_t stride = grid_cols_;
   std::fill(column_mean_.begin(), column_mean_.end(), 0.0f);
   std::fill(column_gain_.begin(), column_gain_.end(), 0.0f);
+  // Taps of sample i weighted along v: one row vector of the four u taps.
+  const auto vertical = [&](std::size_t i) {
+    const float* p = grid_.data() + tap_offset_[i];
+    const float* wv = &weight_v_[4 * i];
+    return simd::broadcast(wv[0]) * simd::load(p) + simd::broadcast(wv[1]) * simd::load(p + stride) +
+           simd::broadcast(wv[2]) * simd::load(p + 2 * stride) +
+           simd::broadcast(wv[3]) * simd::load(p + 3 * stride);
+  };
   for (int a = 0; a < n_theta_; ++a) {
     float* row = out + static_cast<std::size_t>(a) * n_radius_;
-    for (int b = 0; b < n_radius_; ++b) {
-      const std::size_t i = static_cast<std::size_t>(a) * n_radius_ + b;
-      const float* p = grid_.data() + tap_offset_[i];
-      const float* wv = &weight_v_[4 * i];
-      const simd::F4 rows = simd::broadcast(wv[0]) * simd::load(p) +
-                            simd::broadcast(wv[1]) * simd::load(p + stride) +
-                            simd::broadcast(wv[2]) * simd::load(p + 2 * stride) +
-                            simd::broadcast(wv[3]) * simd::load(p + 3 * stride);
-      row[b] = simd::sum(rows * simd::load(&weight_u_[4 * i]));
-    }
-    // Per-radius sums over angle (for the mean and the RMS below).
+    const std::size_t first = static_cast<std::size_t>(a) * n_radius_;
     int b = 0;
+    // Four samples at a time: their tap vectors transposed, the u weights (tap-major)
+    // applied lane-wise: (t0 w0 + t1 w1) + (t2 w2 + t3 w3), as a per-sample dot product.
+    for (; b + 4 <= n_radius_; b += 4) {
+      const std::size_t i = first + b;
+      simd::F4 t0 = vertical(i), t1 = vertical(i + 1), t2 = vertical(i + 2), t3 = vertical(i + 3);
+      simd::transpose(t0, t1, t2, t3);
+      const float* wu = &weight_u_[4 * i];
+      simd::store(row + b, (t0 * simd::load(wu) + t1 * simd::load(wu + 4)) +
+                               (t2 * simd::load(wu + 8) + t3 * simd::load(wu + 12)));
+    }
+    for (; b < n_radius_; ++b)
+      row[b] = simd::sum(vertical(first + b) * simd::load(&weight_u_[4 * (first + b)]));
+    // Per-radius sums over angle (for the mean and the RMS below).
+    b = 0;
     for (; b + 4 <= n_radius_; b += 4) {
       const simd::F4 g = simd::load(row + b);
       simd::store(&column_mean_[b], simd::load(&column_mean_[b]) + g);

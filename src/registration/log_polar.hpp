@@ -56,7 +56,7 @@ class LogPolarMap {
   std::vector<int> spectrum_index_;  ///< half-plane bin per grid entry (mirrored for k_u < 0)
   // Per output sample: grid offset of the first tap and the separable B-spline weights.
   std::vector<int> tap_offset_;
-  std::vector<float> weight_u_;    ///< 4 per sample
+  std::vector<float> weight_u_;    ///< 4 per sample; tap-major per four samples of a row
   std::vector<float> weight_v_;    ///< 4 per sample
   std::vector<float> taper_;       ///< per output column
   std::vector<float> column_mean_;   ///< scratch, per output column

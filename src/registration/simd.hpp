@@ -67,6 +67,13 @@ inline F4 rsqrt(F4 x) {
 #endif
 }
 
+/// Lane-wise floor(x) as integers, for |x| < 2^31 (truncation, minus one where it rounded
+/// a negative non-integer up; no libm call per lane).
+inline I4 floorToInt(F4 x) {
+  const I4 t = __builtin_convertvector(x, I4);
+  return t + (__builtin_convertvector(t, F4) > x);  // a true comparison lane is -1
+}
+
 inline F4 max(F4 a, F4 b) { return a > b ? a : b; }
 inline F4 min(F4 a, F4 b) { return a < b ? a : b; }
 

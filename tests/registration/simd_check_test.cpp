@@ -49,5 +49,26 @@ TEST(Simd, LaneWiseHelpersMatchScalarArithmetic) {
   EXPECT_FLOAT_EQ(simd::maxLane(x), 1e4f);
 }
 
+TEST(Simd, TransposeSwapsRowsAndColumns) {
+  simd::F4 rows[4];
+  for (int i = 0; i < 4; ++i)
+    rows[i] = simd::F4{10.0f * i, 10.0f * i + 1, 10.0f * i + 2, 10.0f * i + 3};
+  simd::transpose(rows[0], rows[1], rows[2], rows[3]);
+  for (int i = 0; i < 4; ++i)
+    for (int j = 0; j < 4; ++j) EXPECT_EQ(rows[i][j], 10.0f * j + i) << "element " << i << ", " << j;
+}
+
+TEST(Simd, FloorToIntRoundsTowardsMinusInfinity) {
+  const float values[] = {-2.5f, -2.0f, -0.25f, -1e-7f, 0.0f, 0.75f, 3.0f, 1e6f + 0.5f, -1e6f - 0.5f,
+                          107.999f};
+  for (float v : values) {
+    const simd::I4 f = simd::floorToInt(simd::F4{v, -v, v + 1.0f, v - 1.0f});
+    EXPECT_EQ(f[0], static_cast<int>(std::floor(v))) << v;
+    EXPECT_EQ(f[1], static_cast<int>(std::floor(-v))) << -v;
+    EXPECT_EQ(f[2], static_cast<int>(std::floor(v + 1.0f))) << v + 1.0f;
+    EXPECT_EQ(f[3], static_cast<int>(std::floor(v - 1.0f))) << v - 1.0f;
+  }
+}
+
 }  // namespace
 }  // namespace omnipose::registration
