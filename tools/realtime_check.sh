@@ -10,6 +10,8 @@
 # THREADS (pipeline.threads, default 0 = all online cores), KEEP=1 keeps the working directory.
 set -euo pipefail
 cd "$(dirname "$0")/.."
+# shellcheck source=tools/common/final_status.sh
+source tools/common/final_status.sh
 fps=${1:-60}
 frames=${2:-180}
 if ! [[ "$fps" =~ ^[0-9]+$ && "$frames" =~ ^[0-9]+$ ]] || [ "$fps" -lt 1 ] || [ "$frames" -lt 2 ]; then
@@ -47,18 +49,12 @@ if [ "$rc" -ne 0 ]; then
   tail -20 "$work/daemon.err" >&2
   exit 1
 fi
-"$bin/omnipose-listen" --url "file://$work/run.lcm?speed=0" >"$work/listen.txt" 2>&1 || true
-final=$(grep '^status (final):' "$work/listen.txt" | tail -1)
-if [ -z "$final" ]; then
-  echo "realtime_check: FAIL: no final status in the LCM log" >&2
-  exit 1
-fi
-echo "realtime_check: $final"
-count() { sed -n "s/.* $1 \([0-9]*\).*/\1/p" <<<"$final"; }
-received=$(count received)
-skipped=$(count skipped)
-bad=$(count bad)
-lost=$(count upstream)
+read_final_status "$bin" "$work/run.lcm" "$work/listen.txt" realtime_check || exit 1
+echo "realtime_check: $FINAL_STATUS"
+received=$(status_count received)
+skipped=$(status_count skipped)
+bad=$(status_count bad)
+lost=$(status_count upstream)
 if [ "$received" -eq "$frames" ] && [ "$skipped" -eq 0 ] && [ "$bad" -eq 0 ] && [ "$lost" -eq 0 ]; then
   echo "realtime_check: PASS: all $frames frames processed at $fps fps, none dropped"
 else

@@ -14,6 +14,8 @@
 # KEEP=1 keeps the working directory.
 set -euo pipefail
 cd "$(dirname "$0")/.."
+# shellcheck source=tools/common/final_status.sh
+source tools/common/final_status.sh
 frames=${1:-10000}
 if ! [[ "$frames" =~ ^[0-9]+$ ]] || [ "$frames" -lt 1 ]; then
   echo "usage: tools/soak.sh [FRAMES]" >&2
@@ -96,17 +98,12 @@ if [ "$rc" -ne 0 ]; then
   exit 1
 fi
 
-"$bin/omnipose-listen" --url "file://$work/soak.lcm?speed=0" >"$work/listen.txt" 2>&1 || true
-final=$(grep '^status (final):' "$work/listen.txt" | tail -1)
-if [ -z "$final" ]; then
-  echo "soak: FAIL: no final status in the LCM log" >&2
-  exit 1
-fi
-field() { sed -n "s/.* $1 \([0-9]*\).*/\1/p" <<<"$final"; }
-received=$(field received)
-f_processed=$(field processed)
-skipped=$(field skipped)
-bad=$(field bad)
+read_final_status "$bin" "$work/soak.lcm" "$work/listen.txt" soak || exit 1
+final=$FINAL_STATUS
+received=$(status_count received)
+f_processed=$(status_count processed)
+skipped=$(status_count skipped)
+bad=$(status_count bad)
 poses=$(grep -c '^pose seq ' "$work/listen.txt" || true)
 seconds=$(awk -v a="$end" -v b="$start" 'BEGIN {print a - b}')
 
