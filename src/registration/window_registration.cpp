@@ -46,6 +46,11 @@ struct Tuning {
   /// Width (std) of the translation correlation peak, pixels. The Gaussian spectral weight
   /// keeps frequencies up to ~3 / sigma rad/px and sets the correlation surface size.
   double translation_sigma_px = 1.0;
+  // A wider peak (sigma 2 px: a 54 x 54 inverse transform instead of 108 x 108) for the
+  // pipeline's first, shift-only pass was tried (2026-11-23, issue 10): 222.3 -> 203.9 M
+  // instructions per frame (-8 %), accuracy benchmark eps RMSE -1 % on average but indoor
+  // large (6-12 deg steps) +7.0 % and the unmasked mast +5.3 %: a coarser first estimate
+  // leaves the single refinement a larger residual. Beyond the 5 % allowed: not taken.
   /// Log-polar grid: angles over [0, pi) and log-spaced radii.
   int log_polar_angles = 96;
   int log_polar_radii = 64;
