@@ -150,19 +150,27 @@ if [ "$INSTRUCTIONS" = 1 ]; then
   qemu-aarch64-static -L "$SYSROOT" "$bench" --threads 1 --warmup 0 --frames 1 \
     --wisdom "$wisdom" --save "$frames_dir" > /dev/null
   count_run() {  # measured frames -> executed guest instructions of the whole run
-    local fifo=$OUT/qemu-exec.fifo
+    local fifo=$OUT/qemu-exec.fifo rc=0
     rm -f "$fifo"
     mkfifo "$fifo"
     wc -l < "$fifo" > "$OUT/qemu-exec.count" &
     local counter=$!
     qemu-aarch64-static -L "$SYSROOT" -singlestep -d exec,nochain -D "$fifo" "$bench" \
-      --threads 1 --warmup 1 --frames "$1" --wisdom "$wisdom" --load "$frames_dir" > /dev/null
+      --threads 1 --warmup 1 --frames "$1" --wisdom "$wisdom" --load "$frames_dir" \
+      > /dev/null || rc=$?
+    # Open and close the pipe once more (read-write: never blocks), so that the counter sees
+    # an end of file even when qemu failed before opening its log.
+    : 1<>"$fifo"
     wait "$counter"
     rm -f "$fifo"
+    if [ "$rc" -ne 0 ]; then
+      echo "arm64_check: FAIL: the counted run of $1 frame(s) exited with $rc" >&2
+      return 1
+    fi
     cat "$OUT/qemu-exec.count"
   }
-  one=$(count_run 1)
-  three=$(count_run 3)
+  one=$(count_run 1) || exit 1
+  three=$(count_run 3) || exit 1
   per_frame=$(( (three - one) / 2 ))
   echo "arm64_check: instructions per frame (arm64, 1 thread, refine 1): $per_frame" \
     "(runs of 1 and 3 frames: $one, $three)"
