@@ -3,6 +3,9 @@
 #include <algorithm>
 #include <cmath>
 
+#include "common/clock_offset.hpp"
+#include "omnipose/limits.hpp"
+
 namespace omnipose::drivers {
 namespace {
 constexpr std::int64_t kNsPerMs = 1'000'000;
@@ -10,10 +13,11 @@ constexpr std::int64_t kNsPerMs = 1'000'000;
 
 void appendStreamRequestProblems(std::vector<std::string>& problems, int width, int height,
                                  double fps) {
-  if (width <= 0 || width > 16384)
-    problems.push_back("source.width: must be in [1, 16384], is " + std::to_string(width));
-  if (height <= 0 || height > 16384)
-    problems.push_back("source.height: must be in [1, 16384], is " + std::to_string(height));
+  constexpr int kMax = limits::kMaxImageSide;
+  const std::string range = "must be in [1, " + std::to_string(kMax) + "], is ";
+  if (width <= 0 || width > kMax) problems.push_back("source.width: " + range + std::to_string(width));
+  if (height <= 0 || height > kMax)
+    problems.push_back("source.height: " + range + std::to_string(height));
   if (!(fps > 0.0 && fps <= 1000.0))  // also NaN
     problems.push_back("source.fps: must be in (0, 1000]");
 }
@@ -21,11 +25,14 @@ void appendStreamRequestProblems(std::vector<std::string>& problems, int width, 
 void appendTimingProblems(std::vector<std::string>& problems,
                           std::chrono::milliseconds reconnect_initial,
                           std::chrono::milliseconds reconnect_max,
-                          std::chrono::milliseconds clock_resync) {
+                          std::chrono::milliseconds clock_resync, int clock_samples) {
   if (reconnect_initial.count() < 1) problems.push_back("reconnect_initial: must be >= 1 ms");
   if (reconnect_max < reconnect_initial)
     problems.push_back("reconnect_max: must be >= reconnect_initial");
   if (clock_resync.count() < 1) problems.push_back("clock_resync: must be >= 1 ms");
+  if (clock_samples < 1 || clock_samples > kMaxClockSamples)
+    problems.push_back("clock_samples: must be in [1, " + std::to_string(kMaxClockSamples) +
+                       "], is " + std::to_string(clock_samples));
 }
 
 void ReconnectSchedule::lost(std::int64_t now_ns) {

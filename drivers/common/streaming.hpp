@@ -32,11 +32,12 @@ namespace omnipose::drivers {
 void appendStreamRequestProblems(std::vector<std::string>& problems, int width, int height,
                                  double fps);
 /// Appends the problems of the reconnect and clock timing, named by their option fields:
-/// reconnect_initial and clock_resync >= 1 ms, reconnect_max >= reconnect_initial.
+/// reconnect_initial and clock_resync >= 1 ms, reconnect_max >= reconnect_initial,
+/// clock_samples (bracketed clock reads per offset measurement) in [1, kMaxClockSamples].
 void appendTimingProblems(std::vector<std::string>& problems,
                           std::chrono::milliseconds reconnect_initial,
                           std::chrono::milliseconds reconnect_max,
-                          std::chrono::milliseconds clock_resync);
+                          std::chrono::milliseconds clock_resync, int clock_samples);
 
 // ---------------------------------------------------------------------------------------
 // Reconnect back-off

@@ -143,7 +143,8 @@ struct LibcameraSource::Impl {
   const char* name() const { return camera_id.empty() ? options.camera.c_str() : camera_id.c_str(); }
 
   void resyncClock() {
-    const auto offset = drivers::measureClockOffset(readClockNs, CLOCK_BOOTTIME, 7);
+    const auto offset =
+        drivers::measureClockOffset(readClockNs, CLOCK_BOOTTIME, options.clock_samples);
     if (offset.valid) clock_offset = offset;
     last_clock_sync_ns = readClockNs(CLOCK_MONOTONIC);
   }

@@ -53,6 +53,7 @@ struct LibcameraOptions {
   std::chrono::milliseconds reconnect_initial{200};  ///< first reopen delay after unplug, >= 1
   std::chrono::milliseconds reconnect_max{5000};     ///< back-off cap, >= reconnect_initial
   std::chrono::milliseconds clock_resync{10000};     ///< re-measure the clock offset, >= 1
+  int clock_samples = 7;  ///< bracketed clock reads per offset measurement, [1, 16]
   bool drop_stale = true;  ///< when every request had completed, wait for a fresh frame
 };
 

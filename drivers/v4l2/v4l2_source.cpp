@@ -12,6 +12,7 @@
 
 #include "common/grey_convert.hpp"
 #include "common/streaming.hpp"
+#include "omnipose/limits.hpp"
 
 namespace omnipose {
 namespace {
@@ -91,10 +92,8 @@ std::vector<std::string> validate(const V4l2Options& o) {
                        "' is not a V4L2 format this source converts (GREY, YUYV, MJPG)");
   if (o.buffer_count < 2 || o.buffer_count > 32)
     problems.push_back("buffer_count: must be in [2, 32], is " + std::to_string(o.buffer_count));
-  drivers::appendTimingProblems(problems, o.reconnect_initial, o.reconnect_max, o.clock_resync);
-  if (o.clock_samples < 1 || o.clock_samples > drivers::kMaxClockSamples)
-    problems.push_back("clock_samples: must be in [1, " +
-                       std::to_string(drivers::kMaxClockSamples) + "]");
+  drivers::appendTimingProblems(problems, o.reconnect_initial, o.reconnect_max, o.clock_resync,
+                                o.clock_samples);
   return problems;
 }
 
@@ -321,7 +320,8 @@ Expected<void> V4l2Source::negotiateFormat() {
     return fail(ErrorCode::kUnsupportedFormat,
                 "v4l2 %s: delivers interlaced fields (v4l2_field %u), progressive needed", dev,
                 pix.field);
-  if (pix.width == 0 || pix.height == 0 || pix.width > 16384 || pix.height > 16384)
+  if (pix.width == 0 || pix.height == 0 || pix.width > limits::kMaxImageSide ||
+      pix.height > limits::kMaxImageSide)
     return fail(ErrorCode::kIoError, "v4l2 %s: driver answered a %ux%u format", dev, pix.width,
                 pix.height);
 

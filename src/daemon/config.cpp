@@ -10,6 +10,7 @@
 #include <sstream>
 
 #include "common/problem_list.hpp"
+#include "omnipose/limits.hpp"
 
 namespace omnipose {
 namespace {
@@ -114,8 +115,8 @@ void parseSource(Reader& r, const YAML::Node& node, const std::filesystem::path&
     r.problem("source.path", "missing (the dataset directory of a file source)");
   if (s.type == SourceConfig::Type::kV4l2 && s.device.empty())
     r.problem("source.device", "must not be empty");
-  r.range(s.width, "source.width", 1, DaemonConfig::kMaxFrameSide, " pixels");
-  r.range(s.height, "source.height", 1, DaemonConfig::kMaxFrameSide, " pixels");
+  r.range(s.width, "source.width", 1, limits::kMaxImageSide, " pixels");
+  r.range(s.height, "source.height", 1, limits::kMaxImageSide, " pixels");
   r.range(s.fps, "source.fps", 0.0, 1000.0, " frames per second", true);
 }
 

@@ -67,10 +67,10 @@ struct DaemonConfig {
   /// dataset comes from the command line).
   enum class Use { kDaemon, kReplay };
 
-  /// Upper bounds of the sizes in daemon.yaml (checked before anything is allocated).
-  /// (The pipeline section's bounds are the pipeline's: WindowRegistration::kMaxWindow,
-  /// kMaxStep, kMaxWindowSamples.)
-  static constexpr int kMaxFrameSide = 8192;  ///< source.width, source.height, pixels
+  /// Upper bounds of the sizes in daemon.yaml are checked before anything is allocated:
+  /// source.width and source.height in [1, limits::kMaxImageSide] (the drivers' bound too),
+  /// the pipeline section's those of the pipeline (WindowRegistration::kMaxWindow,
+  /// kMaxStep, kMaxWindowSamples).
 
   std::string origin;                 ///< where it was read from (named in messages)
   SourceConfig source;

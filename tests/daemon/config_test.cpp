@@ -126,9 +126,9 @@ TEST(DaemonConfig, EveryNumberMustBeFiniteAndInItsRangeNamingFileAndField) {
   };
   const std::vector<Case> cases = {
       {"source: {type: v4l2, width: 100000}\ncalibration: c.yaml\n", "daemon.yaml: source.width",
-       "[1, 8192]"},
+       "[1, 16384]"},
       {"source: {type: v4l2, height: -4}\ncalibration: c.yaml\n", "daemon.yaml: source.height",
-       "[1, 8192]"},
+       "[1, 16384]"},
       {"source: {type: v4l2, fps: .nan}\ncalibration: c.yaml\n", "daemon.yaml: source.fps",
        "finite"},
       {"source: {type: v4l2, fps: .inf}\ncalibration: c.yaml\n", "daemon.yaml: source.fps",
@@ -162,7 +162,7 @@ TEST(DaemonConfig, EveryNumberMustBeFiniteAndInItsRangeNamingFileAndField) {
                        << joined(problems);
   }
   // The upper bounds themselves are accepted.
-  EXPECT_TRUE(problemsOf("source: {type: v4l2, width: 8192, height: 8192, fps: 1000}\n"
+  EXPECT_TRUE(problemsOf("source: {type: v4l2, width: 16384, height: 16384, fps: 1000}\n"
                          "calibration: c.yaml\n")
                   .empty());
 }

@@ -343,7 +343,7 @@ TEST(V4l2OptionsTest, ValidateListsEveryProblemByItsKey) {
   EXPECT_EQ(problems[6], "reconnect_initial: must be >= 1 ms");
   EXPECT_EQ(problems[7], "reconnect_max: must be >= reconnect_initial");
   EXPECT_EQ(problems[8], "clock_resync: must be >= 1 ms");
-  EXPECT_EQ(problems[9], "clock_samples: must be in [1, 16]");
+  EXPECT_EQ(problems[9], "clock_samples: must be in [1, 16], is 17");
 
   // fps: NaN, infinity and above 1000 are refused like <= 0.
   for (double fps : {std::nan(""), HUGE_VAL, 1000.5, 0.0}) {

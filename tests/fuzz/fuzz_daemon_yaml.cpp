@@ -4,6 +4,7 @@
 #include <string>
 
 #include "daemon/config.hpp"
+#include "omnipose/limits.hpp"
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
   const std::string text(reinterpret_cast<const char*>(data), size);
@@ -14,8 +15,8 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
       const auto& r = c.pipeline.registration;
       if (r.window < 16 || r.window > omnipose::WindowRegistration::kMaxWindow || r.step < 1 ||
           r.step > omnipose::WindowRegistration::kMaxStep || c.source.width < 1 ||
-          c.source.width > DaemonConfig::kMaxFrameSide || c.source.height < 1 ||
-          c.source.height > DaemonConfig::kMaxFrameSide || !(c.lcm.status_hz > 0) ||
+          c.source.width > omnipose::limits::kMaxImageSide || c.source.height < 1 ||
+          c.source.height > omnipose::limits::kMaxImageSide || !(c.lcm.status_hz > 0) ||
           !(c.lcm.status_hz <= 100) || !(c.source.fps > 0) || !(c.source.fps <= 1000) ||
           !(c.pipeline.fit.huber_delta_px > 0) || !(c.pipeline.fit.huber_delta_px <= 100))
         __builtin_trap();

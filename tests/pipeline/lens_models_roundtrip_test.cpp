@@ -38,18 +38,12 @@ panorama: {width: 1100, height: 110}
                             name, kData);
 }
 
+/// Motion between frames rendered through `c` at identity and at `T1` (default pipeline).
 FrameMotion estimate(const Calibration& c, synth::SceneKind scene, const Eigen::Isometry3d& T1) {
   synth::RenderOptions o;
   o.supersample = 2;
   const synth::Renderer renderer(synth::Scene::load(indoorPhoto(), scene), c, o);
-  Pipeline pipeline(c, {});
-  cv::Mat f0, f1;
-  renderer.render(Eigen::Isometry3d::Identity()).convertTo(f0, CV_8U);
-  renderer.render(T1).convertTo(f1, CV_8U);
-  EXPECT_TRUE(pipeline.process(f0).has_value());
-  auto m = pipeline.process(f1);
-  EXPECT_TRUE(m.has_value());
-  return m ? *m : FrameMotion{};
+  return testing::estimatePair(renderer, c, {}, T1);
 }
 
 class LensRoundTrip : public ::testing::TestWithParam<std::string> {};

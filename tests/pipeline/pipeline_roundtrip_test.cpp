@@ -21,20 +21,12 @@ struct Case {
   Eigen::Vector3d t;      ///< metres (box room)
 };
 
-/// Renders frames at identity and at `T1` and runs them through a fresh pipeline.
+/// Motion between frames rendered at identity and at `T1`, for `input` frames.
 FrameMotion estimate(const synth::Renderer& renderer, const Calibration& calibration,
                      InputKind input, const Eigen::Isometry3d& T1) {
   PipelineOptions options;
   options.unwrap.input = input;
-  Pipeline pipeline(calibration, options);
-  cv::Mat f0, f1;
-  renderer.render(Eigen::Isometry3d::Identity()).convertTo(f0, CV_8U);
-  renderer.render(T1).convertTo(f1, CV_8U);
-  EXPECT_TRUE(pipeline.process(f0).has_value());
-  auto m = pipeline.process(f1);
-  EXPECT_TRUE(m.has_value());
-  EXPECT_TRUE(m->has_motion);
-  return *m;
+  return testing::estimatePair(renderer, calibration, options, T1);
 }
 
 class RoundTrip : public ::testing::TestWithParam<InputKind> {

@@ -1,9 +1,12 @@
 #pragma once
 // Shared helpers for tests that render frame pairs with the exact renderer.
 
+#include <gtest/gtest.h>
+
 #include <filesystem>
 #include <string>
 
+#include "omnipose/pipeline.hpp"
 #include "omnipose/synth.hpp"
 #include "omnipose/trajectory.hpp"
 
@@ -20,6 +23,23 @@ inline Eigen::Isometry3d relativePose(const Eigen::Vector3d& omega, const Eigen:
   T.linear() = rotationFromVector(omega);
   T.translation() = t;
   return T;
+}
+
+/// Renders frames at identity and at `T1` and runs them through a fresh pipeline built
+/// with `options`; the second frame's motion (a failure of either process() call is a test
+/// failure, and then an empty FrameMotion is returned).
+inline FrameMotion estimatePair(const synth::Renderer& renderer, const Calibration& calibration,
+                                const PipelineOptions& options, const Eigen::Isometry3d& T1) {
+  Pipeline pipeline(calibration, options);
+  cv::Mat f0, f1;
+  renderer.render(Eigen::Isometry3d::Identity()).convertTo(f0, CV_8U);
+  renderer.render(T1).convertTo(f1, CV_8U);
+  EXPECT_TRUE(pipeline.process(f0).has_value());
+  auto m = pipeline.process(f1);
+  EXPECT_TRUE(m.has_value()) << (m ? "" : m.error().c_str());
+  if (!m) return {};
+  EXPECT_TRUE(m->has_motion);
+  return *m;
 }
 
 }  // namespace omnipose::testing
