@@ -56,37 +56,69 @@ void FftwArray<T>::clear() {
 template class FftwArray<float>;
 template class FftwArray<Complex>;
 
+namespace {
+
+// FFTW_NO_BUFFERING: transforms of sizes that are not powers of two otherwise malloc a
+// scratch buffer on every execute (the realtime path must not).
+constexpr unsigned kPlanFlags = FFTW_MEASURE | FFTW_NO_BUFFERING;
+
+fftwf_complex* fftw(Complex* z) { return reinterpret_cast<fftwf_complex*>(z); }
+
+}  // namespace
+
+FftPlan::FftPlan(int rows, int cols)
+    : scratch_(static_cast<std::size_t>(rows) * (cols / 2 + 1)) {}
+
 FftPlan FftPlan::realToComplex(int rows, int cols, float* in, Complex* out) {
+  FftPlan plan(rows, cols);
+  const int bins = cols / 2 + 1;
   std::lock_guard lock(fftwPlannerMutex());
-  // FFTW_NO_BUFFERING: multi-dimensional real transforms of sizes that are not powers of
-  // two otherwise malloc a scratch buffer on every execute (the realtime path must not).
-  fftwf_plan plan = fftwf_plan_dft_r2c_2d(rows, cols, in, reinterpret_cast<fftwf_complex*>(out),
-                                          FFTW_MEASURE | FFTW_NO_BUFFERING);
-  if (plan == nullptr) throw std::runtime_error("FFTW could not plan a real-to-complex transform");
-  return FftPlan(plan);
+  // Rows: `rows` real transforms of length cols, in -> scratch (both row-major).
+  plan.first_ = fftwf_plan_many_dft_r2c(1, &cols, rows, in, nullptr, 1, cols,
+                                        fftw(plan.scratch_.data()), nullptr, 1, bins, kPlanFlags);
+  // Columns: `bins` complex transforms of length rows, stride bins, scratch -> out.
+  plan.second_ = fftwf_plan_many_dft(1, &rows, bins, fftw(plan.scratch_.data()), nullptr, bins, 1,
+                                     fftw(out), nullptr, bins, 1, FFTW_FORWARD, kPlanFlags);
+  if (plan.first_ == nullptr || plan.second_ == nullptr)
+    throw std::runtime_error("FFTW could not plan a real-to-complex transform");
+  return plan;
 }
 
 FftPlan FftPlan::complexToReal(int rows, int cols, Complex* in, float* out) {
+  FftPlan plan(rows, cols);
+  const int bins = cols / 2 + 1;
   std::lock_guard lock(fftwPlannerMutex());
-  fftwf_plan plan = fftwf_plan_dft_c2r_2d(rows, cols, reinterpret_cast<fftwf_complex*>(in), out,
-                                          FFTW_MEASURE | FFTW_NO_BUFFERING);
-  if (plan == nullptr) throw std::runtime_error("FFTW could not plan a complex-to-real transform");
-  return FftPlan(plan);
+  // Columns first (in -> scratch, `in` kept), then the rows' c2r (destroys scratch).
+  plan.first_ = fftwf_plan_many_dft(1, &rows, bins, fftw(in), nullptr, bins, 1,
+                                    fftw(plan.scratch_.data()), nullptr, bins, 1, FFTW_BACKWARD,
+                                    kPlanFlags);
+  plan.second_ = fftwf_plan_many_dft_c2r(1, &cols, rows, fftw(plan.scratch_.data()), nullptr, 1,
+                                         bins, out, nullptr, 1, cols, kPlanFlags);
+  if (plan.first_ == nullptr || plan.second_ == nullptr)
+    throw std::runtime_error("FFTW could not plan a complex-to-real transform");
+  return plan;
 }
 
-FftPlan::~FftPlan() {
-  if (plan_ != nullptr) {
-    std::lock_guard lock(fftwPlannerMutex());
-    fftwf_destroy_plan(plan_);
-  }
+void FftPlan::reset() {
+  if (first_ == nullptr && second_ == nullptr) return;
+  std::lock_guard lock(fftwPlannerMutex());
+  if (first_ != nullptr) fftwf_destroy_plan(std::exchange(first_, nullptr));
+  if (second_ != nullptr) fftwf_destroy_plan(std::exchange(second_, nullptr));
 }
 
-FftPlan::FftPlan(FftPlan&& other) noexcept : plan_(std::exchange(other.plan_, nullptr)) {}
+FftPlan::~FftPlan() { reset(); }
+
+FftPlan::FftPlan(FftPlan&& other) noexcept
+    : scratch_(std::move(other.scratch_)),
+      first_(std::exchange(other.first_, nullptr)),
+      second_(std::exchange(other.second_, nullptr)) {}
 
 FftPlan& FftPlan::operator=(FftPlan&& other) noexcept {
   if (this != &other) {
-    FftPlan old(std::move(*this));
-    plan_ = std::exchange(other.plan_, nullptr);
+    reset();
+    scratch_ = std::move(other.scratch_);
+    first_ = std::exchange(other.first_, nullptr);
+    second_ = std::exchange(other.second_, nullptr);
   }
   return *this;
 }

@@ -55,14 +55,19 @@ class FftwArray {
 extern template class FftwArray<float>;
 extern template class FftwArray<Complex>;
 
-/// A 2-D FFTW plan bound to the arrays it was made for (rows x cols real samples,
-/// rows x (cols/2+1) complex bins, row-major). Planned with FFTW_MEASURE, which scribbles
-/// on the arrays: clear them after planning. Move-only.
+/// A 2-D real transform bound to the arrays it was made for (rows x cols real samples,
+/// rows x (cols/2+1) complex bins, row-major), made of two batched 1-D FFTW plans through a
+/// scratch array the plan owns: r2c along the rows, then c2c along the columns (the
+/// inverse in the opposite order). At this project's sizes (a 112 x 112 window, 108 x 108
+/// correlation surface, 96 x 64 log-polar image) that is 1.2-1.5x faster than FFTW's own
+/// 2-D plan, whose faster variants (FFTW_EXHAUSTIVE) transpose in place through a buffer
+/// malloc'ed on every execute. Planned with FFTW_MEASURE, which scribbles on the arrays:
+/// clear them after planning. Move-only.
 class FftPlan {
  public:
   /// Forward real-to-complex transform of `in` (rows x cols) into `out`.
   static FftPlan realToComplex(int rows, int cols, float* in, Complex* out);
-  /// Inverse (unnormalised) complex-to-real transform; destroys `in`.
+  /// Inverse (unnormalised) complex-to-real transform of `in` into `out` (`in` is kept).
   static FftPlan complexToReal(int rows, int cols, Complex* in, float* out);
 
   FftPlan() = default;
@@ -72,12 +77,19 @@ class FftPlan {
   FftPlan(const FftPlan&) = delete;
   FftPlan& operator=(const FftPlan&) = delete;
 
-  /// Runs the transform on the bound arrays. Thread-safe, allocation-free.
-  void execute() const { fftwf_execute(plan_); }
+  /// Runs the transform on the bound arrays (and the plan's scratch array: one plan must
+  /// not run on two threads at once). Allocation-free.
+  void execute() const {
+    fftwf_execute(first_);
+    fftwf_execute(second_);
+  }
 
  private:
-  explicit FftPlan(fftwf_plan plan) : plan_(plan) {}
-  fftwf_plan plan_ = nullptr;
+  FftPlan(int rows, int cols);
+  void reset();
+
+  FftwArray<Complex> scratch_;  ///< rows x (cols/2+1) bins between the two passes
+  fftwf_plan first_ = nullptr, second_ = nullptr;
 };
 
 }  // namespace omnipose::registration

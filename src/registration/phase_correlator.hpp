@@ -55,7 +55,7 @@ class PhaseCorrelator {
   FftwArray<float> sqrt_w2_;  ///< sqrt(W) twice per band bin (re, im lanes); 0 on the band's Nyquist row/column
   double weight_sum_ = 0.0;   ///< sum of W over the full (Hermitian) band = ideal peak height
   double noise_sigma_ = 0.0;  ///< std of the surface for random phases / weight_sum_
-  FftwArray<Complex> band_;   ///< cross-power spectrum, c2r input (destroyed by it)
+  FftwArray<Complex> band_;   ///< cross-power spectrum, the c2r input
   FftwArray<float> surface_;  ///< s0 x s1 correlation surface
   FftPlan inverse_;
 };
