@@ -39,7 +39,8 @@
 namespace omnipose {
 
 namespace registration {
-class WorkerPool;  // private (src/registration/worker_pool.hpp)
+class WorkerPool;         // private (src/registration/worker_pool.hpp)
+enum class PlanEffort;    // private (src/registration/fft_plan.hpp)
 }
 
 class WindowRegistration {
@@ -81,8 +82,10 @@ class WindowRegistration {
   /// Throws std::invalid_argument listing every problem of validate(panorama, options).
   WindowRegistration(cv::Size panorama, const Options& options);
   /// Internal (the pipeline): runs on `pool` (shared with other stages) instead of a pool of
-  /// its own; options.threads is ignored. `pool` must outlive this object.
-  WindowRegistration(cv::Size panorama, const Options& options, registration::WorkerPool& pool);
+  /// its own; options.threads is ignored. `pool` must outlive this object. `effort`: how
+  /// long FFTW plans (the other constructor uses FFTW_MEASURE).
+  WindowRegistration(cv::Size panorama, const Options& options, registration::WorkerPool& pool,
+                     registration::PlanEffort effort);
   ~WindowRegistration();
   WindowRegistration(const WindowRegistration&) = delete;
   WindowRegistration& operator=(const WindowRegistration&) = delete;

@@ -2,6 +2,8 @@
 
 #include <algorithm>
 #include <stdexcept>
+#include <string>
+#include <utility>
 #include <vector>
 
 #include "common/problem_list.hpp"
@@ -33,6 +35,33 @@ cv::Size panoramaSize(const Calibration& calibration) {
   return {calibration.panorama.width, calibration.panorama.height};
 }
 
+/// The FFTW wisdom file of PipelineOptions::fftw_wisdom ("" = none), loaded before any
+/// plan is made.
+struct WisdomFile {
+  explicit WisdomFile(std::string file)
+      : path(std::move(file)),
+        loaded(registration::importWisdom(path)),
+        before(path.empty() ? std::string() : registration::wisdomText()) {}
+
+  /// Plans that a file keeps are made once per machine: search them patiently. Without a
+  /// file every start-up plans again, so it measures only.
+  registration::PlanEffort effort() const {
+    return path.empty() ? registration::PlanEffort::kMeasure : registration::PlanEffort::kPatient;
+  }
+
+  /// Writes the file when it was not read (first start) or planning added to the wisdom
+  /// (a file from other transform sizes or an older omnipose). Best effort: an unwritable
+  /// path only costs the determinism of the next start-up.
+  void saveIfPlanned() const {
+    if (!path.empty() && (!loaded || registration::wisdomText() != before))
+      (void)registration::exportWisdom(path);
+  }
+
+  std::string path;
+  bool loaded;         ///< the file was read
+  std::string before;  ///< the process's wisdom after reading it
+};
+
 }  // namespace
 
 std::vector<std::string> PipelineOptions::validate() const {
@@ -62,10 +91,10 @@ struct Pipeline::Impl {
   Impl(const Calibration& c, const PipelineOptions& o)
       : calibration(c),
         options(o),
-        wisdom_loaded(registration::importWisdom(o.fftw_wisdom)),
+        wisdom(o.fftw_wisdom),
         pool(o.threads > 0 ? o.threads : registration::WorkerPool::onlineCores()),
         unwrapper(c, o.unwrap),
-        registration(panoramaSize(c), o.registration, pool),
+        registration(panoramaSize(c), o.registration, pool, wisdom.effort()),
         fit(o.fit, c.panorama.gamma(), o.registration.window, registration.windowCount()),
         warp(c.panorama) {
     panorama = unwrapper.makePanorama();
@@ -75,9 +104,7 @@ struct Pipeline::Impl {
     windows.resize(registration.windowCount());
     refine_windows.resize(registration.windowCount());
     shifts_only.resize(registration.windowCount());  // rs_confidence 0: no rotation/scale
-    // First start with a wisdom file configured: keep what FFTW_MEASURE chose (best effort:
-    // an unwritable path only costs the determinism of the next start-up).
-    if (!o.fftw_wisdom.empty() && !wisdom_loaded) (void)registration::exportWisdom(o.fftw_wisdom);
+    wisdom.saveIfPlanned();
   }
 
   /// De-rotates `panorama` into `warped` on the pool, in bands of rows.
@@ -93,7 +120,7 @@ struct Pipeline::Impl {
 
   Calibration calibration;
   PipelineOptions options;
-  bool wisdom_loaded;
+  WisdomFile wisdom;
   registration::WorkerPool pool;
   Unwrapper unwrapper;
   WindowRegistration registration;
@@ -203,6 +230,6 @@ const Calibration& Pipeline::calibration() const { return impl_->calibration; }
 const PipelineOptions& Pipeline::options() const { return impl_->options; }
 int Pipeline::threads() const { return impl_->pool.size(); }
 double Pipeline::windowAttenuation() const { return impl_->fit.kappa(); }
-bool Pipeline::wisdomLoaded() const { return impl_->wisdom_loaded; }
+bool Pipeline::wisdomLoaded() const { return impl_->wisdom.loaded; }
 
 }  // namespace omnipose

@@ -1,6 +1,7 @@
 #include "registration/fft_plan.hpp"
 
 #include <algorithm>
+#include <cstdlib>
 #include <new>
 #include <stdexcept>
 #include <utility>
@@ -20,6 +21,15 @@ bool importWisdom(const std::string& path) {
 bool exportWisdom(const std::string& path) {
   std::lock_guard lock(fftwPlannerMutex());
   return !path.empty() && fftwf_export_wisdom_to_filename(path.c_str()) != 0;
+}
+
+std::string wisdomText() {
+  std::lock_guard lock(fftwPlannerMutex());
+  char* text = fftwf_export_wisdom_to_string();
+  if (text == nullptr) return {};
+  std::string copy(text);
+  std::free(text);  // FFTW allocates it with malloc
+  return copy;
 }
 
 template <class T>
@@ -60,7 +70,9 @@ namespace {
 
 // FFTW_NO_BUFFERING: transforms of sizes that are not powers of two otherwise malloc a
 // scratch buffer on every execute (the realtime path must not).
-constexpr unsigned kPlanFlags = FFTW_MEASURE | FFTW_NO_BUFFERING;
+unsigned planFlags(PlanEffort effort) {
+  return (effort == PlanEffort::kPatient ? FFTW_PATIENT : FFTW_MEASURE) | FFTW_NO_BUFFERING;
+}
 
 fftwf_complex* fftw(Complex* z) { return reinterpret_cast<fftwf_complex*>(z); }
 
@@ -69,31 +81,33 @@ fftwf_complex* fftw(Complex* z) { return reinterpret_cast<fftwf_complex*>(z); }
 FftPlan::FftPlan(int rows, int cols)
     : scratch_(static_cast<std::size_t>(rows) * (cols / 2 + 1)) {}
 
-FftPlan FftPlan::realToComplex(int rows, int cols, float* in, Complex* out) {
+FftPlan FftPlan::realToComplex(int rows, int cols, float* in, Complex* out, PlanEffort effort) {
   FftPlan plan(rows, cols);
+  const unsigned flags = planFlags(effort);
   const int bins = cols / 2 + 1;
   std::lock_guard lock(fftwPlannerMutex());
   // Rows: `rows` real transforms of length cols, in -> scratch (both row-major).
   plan.first_ = fftwf_plan_many_dft_r2c(1, &cols, rows, in, nullptr, 1, cols,
-                                        fftw(plan.scratch_.data()), nullptr, 1, bins, kPlanFlags);
+                                        fftw(plan.scratch_.data()), nullptr, 1, bins, flags);
   // Columns: `bins` complex transforms of length rows, stride bins, scratch -> out.
   plan.second_ = fftwf_plan_many_dft(1, &rows, bins, fftw(plan.scratch_.data()), nullptr, bins, 1,
-                                     fftw(out), nullptr, bins, 1, FFTW_FORWARD, kPlanFlags);
+                                     fftw(out), nullptr, bins, 1, FFTW_FORWARD, flags);
   if (plan.first_ == nullptr || plan.second_ == nullptr)
     throw std::runtime_error("FFTW could not plan a real-to-complex transform");
   return plan;
 }
 
-FftPlan FftPlan::complexToReal(int rows, int cols, Complex* in, float* out) {
+FftPlan FftPlan::complexToReal(int rows, int cols, Complex* in, float* out, PlanEffort effort) {
   FftPlan plan(rows, cols);
+  const unsigned flags = planFlags(effort);
   const int bins = cols / 2 + 1;
   std::lock_guard lock(fftwPlannerMutex());
   // Columns first (in -> scratch, `in` kept), then the rows' c2r (destroys scratch).
   plan.first_ = fftwf_plan_many_dft(1, &rows, bins, fftw(in), nullptr, bins, 1,
                                     fftw(plan.scratch_.data()), nullptr, bins, 1, FFTW_BACKWARD,
-                                    kPlanFlags);
+                                    flags);
   plan.second_ = fftwf_plan_many_dft_c2r(1, &cols, rows, fftw(plan.scratch_.data()), nullptr, 1,
-                                         bins, out, nullptr, 1, cols, kPlanFlags);
+                                         bins, out, nullptr, 1, cols, flags);
   if (plan.first_ == nullptr || plan.second_ == nullptr)
     throw std::runtime_error("FFTW could not plan a complex-to-real transform");
   return plan;

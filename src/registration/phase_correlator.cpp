@@ -35,7 +35,8 @@ int fastFftSize(int n) {
   }
 }
 
-PhaseCorrelator::PhaseCorrelator(int n0, int n1, double sigma0, double sigma1)
+PhaseCorrelator::PhaseCorrelator(int n0, int n1, double sigma0, double sigma1,
+                                 PlanEffort effort)
     : n0_(n0),
       n1_(n1),
       s0_(bandLength(n0, sigma0)),
@@ -44,7 +45,7 @@ PhaseCorrelator::PhaseCorrelator(int n0, int n1, double sigma0, double sigma1)
       sqrt_w2_(2 * static_cast<std::size_t>(s0_) * band_cols_),
       band_(static_cast<std::size_t>(s0_) * band_cols_),
       surface_(static_cast<std::size_t>(s0_) * s1_) {
-  inverse_ = FftPlan::complexToReal(s0_, s1_, band_.data(), surface_.data());
+  inverse_ = FftPlan::complexToReal(s0_, s1_, band_.data(), surface_.data(), effort);
   band_.clear();
   surface_.clear();
   // Gaussian weight W(w) = exp(-(sigma0^2 w0^2 + sigma1^2 w1^2) / 2) on the band.

@@ -29,8 +29,10 @@ struct CorrelationPeak {
 
 class PhaseCorrelator {
  public:
-  /// n0 x n1: size of the real signals (even); sigma0, sigma1: peak width, input samples.
-  PhaseCorrelator(int n0, int n1, double sigma0, double sigma1);
+  /// n0 x n1: size of the real signals (even); sigma0, sigma1: peak width, input samples;
+  /// `effort`: how the inverse transform is planned.
+  PhaseCorrelator(int n0, int n1, double sigma0, double sigma1,
+                  PlanEffort effort = PlanEffort::kMeasure);
 
   /// Number of complex bins a whitened band occupies (s0 * (s1/2 + 1)).
   std::size_t bandSize() const { return band_.size(); }

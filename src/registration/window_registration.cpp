@@ -240,7 +240,7 @@ struct TaperedWindow {
 /// What one worker thread owns: its FFTW plans and every buffer it writes while it
 /// registers a window. Built once; nothing is shared between workers but read-only state.
 struct Worker {
-  explicit Worker(int fft_size);
+  Worker(int fft_size, reg::PlanEffort effort);
 
   // Window stage: tapered window (n x n, zero padding) -> half spectrum.
   reg::FftwArray<float> window;
@@ -259,11 +259,13 @@ struct Worker {
   reg::FftwArray<reg::Complex> scratch_translation, scratch_log_polar, derotated;
 };
 
-Worker::Worker(int fft_size)
+Worker::Worker(int fft_size, reg::PlanEffort effort)
     : window(static_cast<std::size_t>(fft_size) * fft_size),
       spectrum(static_cast<std::size_t>(fft_size) * (fft_size / 2 + 1)),
-      window_fft(reg::FftPlan::realToComplex(fft_size, fft_size, window.data(), spectrum.data())),
-      translation(fft_size, fft_size, kTuning.translation_sigma_px, kTuning.translation_sigma_px),
+      window_fft(reg::FftPlan::realToComplex(fft_size, fft_size, window.data(), spectrum.data(),
+                                             effort)),
+      translation(fft_size, fft_size, kTuning.translation_sigma_px, kTuning.translation_sigma_px,
+                  effort),
       log_polar_map(fft_size, kTuning.log_polar_angles, kTuning.log_polar_radii,
                     kTuning.log_polar_r_min * fft_size / 2,
                     std::min(kTuning.log_polar_r_max * fft_size / 2, fft_size / 2 - 3.0)),
@@ -271,9 +273,10 @@ Worker::Worker(int fft_size)
       log_polar_spectrum(static_cast<std::size_t>(kTuning.log_polar_angles) *
                          (kTuning.log_polar_radii / 2 + 1)),
       log_polar_fft(reg::FftPlan::realToComplex(kTuning.log_polar_angles, kTuning.log_polar_radii,
-                                                log_polar.data(), log_polar_spectrum.data())),
+                                                log_polar.data(), log_polar_spectrum.data(),
+                                                effort)),
       rotation_scale(kTuning.log_polar_angles, kTuning.log_polar_radii, kTuning.log_polar_sigma,
-                     kTuning.log_polar_sigma),
+                     kTuning.log_polar_sigma, effort),
       scratch_translation(translation.bandSize()),
       scratch_log_polar(rotation_scale.bandSize()),
       derotated(translation.bandSize()) {
@@ -283,7 +286,8 @@ Worker::Worker(int fft_size)
 }
 
 struct WindowRegistration::Impl {
-  Impl(cv::Size panorama, const Options& o, reg::WorkerPool* shared_pool);
+  Impl(cv::Size panorama, const Options& o, reg::WorkerPool* shared_pool,
+       reg::PlanEffort effort);
 
   Options options;
   int width, height;  ///< panorama size, pixels
@@ -330,7 +334,7 @@ struct WindowRegistration::Impl {
 };
 
 WindowRegistration::Impl::Impl(cv::Size panorama, const Options& o,
-                                reg::WorkerPool* shared_pool)
+                                reg::WorkerPool* shared_pool, reg::PlanEffort effort)
     : options(o),
       width(panorama.width),
       height(panorama.height),
@@ -345,7 +349,7 @@ WindowRegistration::Impl::Impl(cv::Size panorama, const Options& o,
                          o.threads > 0 ? o.threads : reg::WorkerPool::onlineCores())),
       pool(shared_pool != nullptr ? shared_pool : own_pool.get()) {
   workers.reserve(pool->size());
-  for (int i = 0; i < pool->size(); ++i) workers.push_back(std::make_unique<Worker>(fft_size));
+  for (int i = 0; i < pool->size(); ++i) workers.push_back(std::make_unique<Worker>(fft_size, effort));
   translation_band = workers[0]->translation.bandSize();
   log_polar_band = workers[0]->rotation_scale.bandSize();
   angle_step = workers[0]->log_polar_map.angleStep();
@@ -589,13 +593,13 @@ void requireValid(cv::Size panorama, const WindowRegistration::Options& options)
 
 WindowRegistration::WindowRegistration(cv::Size panorama, const Options& options) {
   requireValid(panorama, options);
-  impl_ = std::make_unique<Impl>(panorama, options, nullptr);
+  impl_ = std::make_unique<Impl>(panorama, options, nullptr, reg::PlanEffort::kMeasure);
 }
 
 WindowRegistration::WindowRegistration(cv::Size panorama, const Options& options,
-                                       reg::WorkerPool& pool) {
+                                       reg::WorkerPool& pool, reg::PlanEffort effort) {
   requireValid(panorama, options);
-  impl_ = std::make_unique<Impl>(panorama, options, &pool);
+  impl_ = std::make_unique<Impl>(panorama, options, &pool, effort);
 }
 
 WindowRegistration::~WindowRegistration() = default;

@@ -3,8 +3,11 @@
 // 2 worker threads (PipelineOptions::threads), and the ORB rotation baseline (--method
 // orbrot, one core) on the same frames in the same run; at the end it prints the ratio of
 // each pipeline setting to orbrot (best repetition of each). Reports; never gates CI.
+// The FFT plans are made as the daemon makes them with its wisdom file (FFTW_PATIENT, once
+// per run; the file is a temporary one, removed at the end).
 // Run: build/bin/omnipose-bench-pipeline
 #include <benchmark/benchmark.h>
+#include <unistd.h>
 
 #include <algorithm>
 #include <array>
@@ -58,11 +61,20 @@ void record(const std::string& key, double seconds_per_frame) {
 
 using Clock = std::chrono::steady_clock;
 
+/// The run's FFTW wisdom file (PipelineOptions::fftw_wisdom), in the temporary directory.
+const std::filesystem::path& wisdomFile() {
+  static const std::filesystem::path path =
+      std::filesystem::temp_directory_path() /
+      ("omnipose-bench-pipeline-wisdom-" + std::to_string(::getpid()) + ".txt");
+  return path;
+}
+
 void BM_PipelineFrame(benchmark::State& state) {
   cv::setNumThreads(1);  // OpenCV itself on one core; the pipeline's own pool only
   PipelineOptions options;
   options.refine_iterations = static_cast<int>(state.range(0));
   options.threads = static_cast<int>(state.range(1));
+  options.fftw_wisdom = wisdomFile().string();
   Pipeline pipeline(Calibration{}, options);
   const auto& f = frames();
   (void)pipeline.process(f[0]);
@@ -130,6 +142,7 @@ int main(int argc, char** argv) {
   if (benchmark::ReportUnrecognizedArguments(argc, argv)) return 1;
   benchmark::RunSpecifiedBenchmarks();
   benchmark::Shutdown();
+  std::filesystem::remove(wisdomFile());
   const auto orb = best().find("orbrot");
   std::printf("\nBest repetition, ms per frame, and ratio to orbrot measured in this run:\n");
   for (const auto& [key, seconds] : best()) {

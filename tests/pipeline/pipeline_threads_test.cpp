@@ -3,6 +3,7 @@
 // Compared bit for bit (memcmp of the doubles), not within a tolerance.
 #include <gtest/gtest.h>
 
+#include <fftw3.h>
 #include <unistd.h>
 
 #include <cstring>
@@ -109,6 +110,49 @@ TEST(PipelineWisdom, WrittenOnFirstStartThenLoaded) {
     Pipeline second(Calibration{}, options);
     EXPECT_TRUE(second.wisdomLoaded());
   }
+  std::filesystem::remove(path);
+}
+
+std::string fileText(const std::filesystem::path& path) {
+  std::ifstream in(path);
+  return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
+}
+
+TEST(PipelineWisdom, AFileWithoutThePipelinesTransformsIsCompletedThenKeptAsItIs) {
+  const auto path = std::filesystem::temp_directory_path() /
+                    ("omnipose_wisdom_other_" + std::to_string(::getpid()) + ".txt");
+  std::filesystem::remove(path);
+  // A file holding other transforms only (64-pixel windows); fftwf_forget_wisdom() makes
+  // each start-up below see only what its file holds, as a fresh process would.
+  fftwf_forget_wisdom();
+  PipelineOptions other;
+  other.threads = 1;
+  other.registration.window = 64;
+  other.fftw_wisdom = path.string();
+  { Pipeline first(Calibration{}, other); }
+  const std::string small = fileText(path);
+  ASSERT_FALSE(small.empty());
+
+  // The default 110-pixel windows: the file is read, their plans are made and added to it.
+  fftwf_forget_wisdom();
+  PipelineOptions options;
+  options.threads = 1;
+  options.fftw_wisdom = path.string();
+  {
+    Pipeline second(Calibration{}, options);
+    EXPECT_TRUE(second.wisdomLoaded());
+  }
+  const std::string full = fileText(path);
+  EXPECT_GT(full.size(), small.size()) << "the new transforms were not added to the file";
+
+  // Everything is in the file now: a fresh start-up takes its plans from it and plans
+  // nothing, so the file stays byte for byte as it was.
+  fftwf_forget_wisdom();
+  {
+    Pipeline third(Calibration{}, options);
+    EXPECT_TRUE(third.wisdomLoaded());
+  }
+  EXPECT_EQ(fileText(path), full);
   std::filesystem::remove(path);
 }
 
