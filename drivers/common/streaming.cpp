@@ -15,7 +15,8 @@ void appendStreamRequestProblems(std::vector<std::string>& problems, int width, 
                                  double fps) {
   constexpr int kMax = limits::kMaxImageSide;
   const std::string range = "must be in [1, " + std::to_string(kMax) + "], is ";
-  if (width <= 0 || width > kMax) problems.push_back("source.width: " + range + std::to_string(width));
+  if (width <= 0 || width > kMax)
+    problems.push_back("source.width: " + range + std::to_string(width));
   if (height <= 0 || height > kMax)
     problems.push_back("source.height: " + range + std::to_string(height));
   if (!(fps > 0.0 && fps <= 1000.0))  // also NaN

@@ -18,7 +18,7 @@ using Complex = std::complex<float>;
 /// The mutex that guards every FFTW planner call made by omnipose.
 std::mutex& fftwPlannerMutex();
 
-/// FFTW wisdom (the plans FFTW_MEASURE chose), so that every start-up uses the same
+/// FFTW wisdom (the plans FFTW chose when it timed candidates), so every start-up uses the same
 /// algorithms: FFTW_MEASURE alone times candidates and picks differently from run to run
 /// (4 different r2c 112 x 112 plans in 12 start-ups), which changes both the speed and the
 /// last bits of the results. importWisdom() merges the file into the process's wisdom
@@ -69,8 +69,8 @@ extern template class FftwArray<Complex>;
 /// inverse in the opposite order). At this project's sizes (a 112 x 112 window, 108 x 108
 /// correlation surface, 96 x 64 log-polar image) that is 1.2-1.5x faster than FFTW's own
 /// 2-D plan, whose faster variants (FFTW_EXHAUSTIVE) transpose in place through a buffer
-/// malloc'ed on every execute. Planned with FFTW_MEASURE, which scribbles on the arrays:
-/// clear them after planning (FFTW_PATIENT too). Move-only.
+/// malloc'ed on every execute. Planning (FFTW_MEASURE or FFTW_PATIENT) scribbles on the
+/// arrays: clear them after planning. Move-only.
 class FftPlan {
  public:
   /// Forward real-to-complex transform of `in` (rows x cols) into `out`.

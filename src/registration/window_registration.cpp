@@ -349,7 +349,8 @@ WindowRegistration::Impl::Impl(cv::Size panorama, const Options& o,
                          o.threads > 0 ? o.threads : reg::WorkerPool::onlineCores())),
       pool(shared_pool != nullptr ? shared_pool : own_pool.get()) {
   workers.reserve(pool->size());
-  for (int i = 0; i < pool->size(); ++i) workers.push_back(std::make_unique<Worker>(fft_size, effort));
+  for (int i = 0; i < pool->size(); ++i)
+    workers.push_back(std::make_unique<Worker>(fft_size, effort));
   translation_band = workers[0]->translation.bandSize();
   log_polar_band = workers[0]->rotation_scale.bandSize();
   angle_step = workers[0]->log_polar_map.angleStep();
