@@ -579,16 +579,19 @@ TEST(OmniposedFaults, LogDiskFullMidRunIsReportedPipelineKeepsGoingAndLogRecover
     GTEST_SKIP() << "mount namespaces are not allowed here (unshare -rm / -m failed: "
                  << testing::readText(mnt / "u.err") << ")";
   }
-  const fs::path small = mnt.path();  // a 96 KiB tmpfs inside the namespace
+  const fs::path small = mnt.path();  // a 2 MiB tmpfs inside the namespace
   const fs::path lcm_log = small / "run.lcm";
   testing::writeText(tmp / "daemon.yaml",
                      testing::fileSourceConfig(mixedDataset(), logUrl(lcm_log), /*realtime=*/false,
                                                /*loop=*/true, "  status_hz: 10\n"));
-  // In the namespace: a 96 KiB tmpfs with a 48 KiB filler; the daemon fills the rest, then
-  // the test removes the filler (space comes back) and stops the daemon; the log is copied out.
+  // In the namespace: a 2 MiB tmpfs with a filler that leaves 48 KiB; the daemon fills
+  // those, then the test removes the filler and stops the daemon 1.5 s later; the log is
+  // copied out. The space that comes back (2000 KiB) must be far more than the daemon can
+  // fill in those 1.5 s (at ~100 frames/s, ~25 KiB/s of poses and statuses), or its final
+  // status finds the disk full again (a 48 KiB filler did, once the pipeline got faster).
   const std::string script =
-      "set -e; mount -t tmpfs -o size=96k tmpfs '" + small.string() + "'\n"
-      "head -c 49152 /dev/zero > '" + (small / "filler").string() + "'; set +e\n"
+      "set -e; mount -t tmpfs -o size=2048k tmpfs '" + small.string() + "'\n"
+      "head -c 2048000 /dev/zero > '" + (small / "filler").string() + "'; set +e\n"
       "'" + omniposed().string() + "' --config '" + (tmp / "daemon.yaml").string() + "' 2> '" +
       (tmp / "err").string() + "' & D=$!\n"
       "echo $D > '" + (tmp / "pid").string() + "'\n"
