@@ -67,9 +67,9 @@ extern template class FftwArray<Complex>;
 /// rows x (cols/2+1) complex bins, row-major), made of two batched 1-D FFTW plans through a
 /// scratch array the plan owns: r2c along the rows, then c2c along the columns (the
 /// inverse in the opposite order). At this project's sizes (a 112 x 112 window, 108 x 108
-/// correlation surface, 96 x 64 log-polar image) that is 1.2-1.5x faster than FFTW's own
-/// 2-D plan, whose faster variants (FFTW_EXHAUSTIVE) transpose in place through a buffer
-/// malloc'ed on every execute. Planning (FFTW_MEASURE or FFTW_PATIENT) scribbles on the
+/// correlation surface, 96 x 64 log-polar image) that is faster than FFTW's own 2-D plan
+/// (build/bin/omnipose-bench-fft), whose faster variants (FFTW_EXHAUSTIVE) transpose in
+/// place through a buffer malloc'ed on every execute. Planning (FFTW_MEASURE or FFTW_PATIENT) scribbles on the
 /// arrays: clear them after planning. Move-only.
 class FftPlan {
  public:
