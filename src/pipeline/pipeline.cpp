@@ -41,7 +41,7 @@ struct WisdomFile {
   explicit WisdomFile(std::string file)
       : path(std::move(file)),
         loaded(registration::importWisdom(path)),
-        before(path.empty() ? std::string() : registration::wisdomText()) {}
+        before(loaded ? registration::wisdomText() : std::string()) {}
 
   /// Plans that a file keeps are made once per machine: search them patiently. Without a
   /// file every start-up plans again, so it measures only.
@@ -59,7 +59,7 @@ struct WisdomFile {
 
   std::string path;
   bool loaded;         ///< the file was read
-  std::string before;  ///< the process's wisdom after reading it
+  std::string before;  ///< the process's wisdom after reading the file (when it was read)
 };
 
 }  // namespace

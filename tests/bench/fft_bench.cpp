@@ -10,8 +10,8 @@
 #include <cstddef>
 #include <cstring>
 #include <mutex>
-#include <vector>
 
+#include "bench_stats.hpp"
 #include "registration/fft_plan.hpp"
 
 namespace {
@@ -101,11 +101,7 @@ BENCHMARK(BM_Fft)
     ->Unit(benchmark::kMicrosecond)
     ->Repetitions(5)
     ->ReportAggregatesOnly(true)
-    ->ComputeStatistics("min", [](const std::vector<double>& v) {
-      double m = v.front();
-      for (double x : v) m = x < m ? x : m;
-      return m;
-    });
+    ->ComputeStatistics("min", omnipose::bench::minOf);
 
 }  // namespace
 

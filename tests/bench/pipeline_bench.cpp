@@ -20,6 +20,7 @@
 #include <string>
 #include <vector>
 
+#include "bench_stats.hpp"
 #include "omnipose/baselines/feature_motion_estimator.hpp"
 #include "omnipose/pipeline.hpp"
 #include "omnipose/synth.hpp"
@@ -100,7 +101,7 @@ void BM_PipelineFrame(benchmark::State& state) {
   state.counters["windows"] = static_cast<double>(pipeline.lastWindows().size());
 }
 
-double minOf(const std::vector<double>& v) { return *std::min_element(v.begin(), v.end()); }
+using omnipose::bench::minOf;
 
 BENCHMARK(BM_PipelineFrame)
     ->ArgNames({"refine_iterations", "threads"})

@@ -91,6 +91,11 @@ TEST(PipelineThreads, ZeroMeansAllOnlineCoresAndBadCountsAreRejected) {
   EXPECT_THROW(Pipeline(Calibration{}, options), std::invalid_argument);
 }
 
+std::string fileText(const std::filesystem::path& path) {
+  std::ifstream in(path);
+  return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
+}
+
 TEST(PipelineWisdom, WrittenOnFirstStartThenLoaded) {
   const auto path = std::filesystem::temp_directory_path() /
                     ("omnipose_wisdom_" + std::to_string(::getpid()) + ".txt");
@@ -103,19 +108,13 @@ TEST(PipelineWisdom, WrittenOnFirstStartThenLoaded) {
     EXPECT_FALSE(first.wisdomLoaded());
   }
   ASSERT_TRUE(std::filesystem::exists(path));
-  std::ifstream in(path);
-  const std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  const std::string text = fileText(path);
   EXPECT_NE(text.find("fftw"), std::string::npos) << "not an FFTW wisdom file:\n" << text;
   {
     Pipeline second(Calibration{}, options);
     EXPECT_TRUE(second.wisdomLoaded());
   }
   std::filesystem::remove(path);
-}
-
-std::string fileText(const std::filesystem::path& path) {
-  std::ifstream in(path);
-  return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
 }
 
 TEST(PipelineWisdom, AFileWithoutThePipelinesTransformsIsCompletedThenKeptAsItIs) {
