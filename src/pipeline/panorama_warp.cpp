@@ -92,6 +92,8 @@ void PanoramaWarp::derotateRows(cv::Mat& out, int first, int last) const {
     w[3] = far(simd::broadcast(2.0f) - t);
   };
   const float* rows[4];
+  const float* origin = padded_.ptr<float>(0);
+  const std::ptrdiff_t stride = static_cast<std::ptrdiff_t>(padded_.step1());
   for (int v = first; v < last; ++v) {
     const int gy = v / kGridStep;
     const float fy = static_cast<float>(v - gy * kGridStep) / kGridStep;
@@ -123,9 +125,16 @@ void PanoramaWarp::derotateRows(cv::Mat& out, int first, int last) const {
       // column (W % 4 != 0) read clamped, valid pixels and are not stored.
       simd::F4 acc[4];
       for (int l = 0; l < 4; ++l) {
-        for (int j = 0; j < 4; ++j) {
-          const int row = std::clamp(y0[l] - 1 + j, 0, H - 1);  // beyond the edge: replicate
-          rows[j] = padded_.ptr<float>(row) + x0[l] - 1;
+        const int first_row = y0[l] - 1;
+        const float* column = origin + x0[l] - 1;
+        if (first_row >= 0 && first_row + 3 < H) {  // all four rows inside: no clamping
+          rows[0] = column + static_cast<std::ptrdiff_t>(first_row) * stride;
+          rows[1] = rows[0] + stride;
+          rows[2] = rows[1] + stride;
+          rows[3] = rows[2] + stride;
+        } else {
+          for (int j = 0; j < 4; ++j)  // beyond the edge: replicate
+            rows[j] = column + static_cast<std::ptrdiff_t>(std::clamp(first_row + j, 0, H - 1)) * stride;
         }
         acc[l] = simd::broadcast(wy[0][l]) * simd::load(rows[0]) +
                  simd::broadcast(wy[1][l]) * simd::load(rows[1]) +

@@ -55,22 +55,13 @@ LogPolarMap::LogPolarMap(int n, int n_theta, int n_radius, double r_min, double 
       r_max > n / 2 - 3)
     throw std::invalid_argument("LogPolarMap: bad sizes or radii");
   // Extended grid: entry (row, col) is frequency (k_u, k_v) = (col - 1, row - reach).
-  const int rows = 2 * reach_ + 1, half_cols = n / 2 + 1;
+  const int rows = 2 * reach_ + 1;
   grid_.assign(static_cast<std::size_t>(rows) * grid_cols_, 0.0f);
   high_pass_.resize(grid_.size());
-  spectrum_index_.resize(grid_.size());
-  for (int row = 0; row < rows; ++row) {
-    for (int col = 0; col < grid_cols_; ++col) {
-      int ku = col - 1, kv = row - reach_;
-      const std::size_t e = static_cast<std::size_t>(row) * grid_cols_ + col;
-      high_pass_[e] = static_cast<float>(highPass(ku, kv, n));
-      if (ku < 0) {  // |F(-k)| = |F(k)|: read the mirrored bin of the half plane
-        ku = -ku;
-        kv = -kv;
-      }
-      spectrum_index_[e] = ((kv % n + n) % n) * half_cols + ku;
-    }
-  }
+  for (int row = 0; row < rows; ++row)
+    for (int col = 0; col < grid_cols_; ++col)
+      high_pass_[static_cast<std::size_t>(row) * grid_cols_ + col] =
+          static_cast<float>(highPass(col - 1, row - reach_, n));
   // Taps and separable weights of every output sample.
   const std::size_t samples = static_cast<std::size_t>(n_theta) * n_radius;
   tap_offset_.resize(samples);
@@ -106,16 +97,25 @@ LogPolarMap::LogPolarMap(int n, int n_theta, int n_radius, double r_min, double 
 }
 
 void LogPolarMap::fillGrid(const Complex* spectrum) {
-  // g = H |F| on the extended grid, four entries at a time.
-  const std::size_t size = grid_.size();
-  const int* index = spectrum_index_.data();
-  std::size_t e = 0;
-  for (; e + 4 <= size; e += 4) {
-    const simd::F4 norm{std::norm(spectrum[index[e]]), std::norm(spectrum[index[e + 1]]),
-                        std::norm(spectrum[index[e + 2]]), std::norm(spectrum[index[e + 3]])};
-    simd::store(&grid_[e], simd::load(&high_pass_[e]) * simd::sqrt(norm));
+  // g = H |F| on the extended grid, row by row. Grid row `row` is k_v = row - reach: its
+  // columns 1 .. reach + 1 (k_u = 0 .. reach) are the contiguous start of spectrum row
+  // k_v mod n, read four bins at a time; column 0 (k_u = -1) is |F(1, -k_v)|.
+  const int rows = 2 * reach_ + 1, half_cols = n_ / 2 + 1, count = grid_cols_ - 1;
+  for (int row = 0; row < rows; ++row) {
+    const int kv = row - reach_;
+    const Complex* src = spectrum + static_cast<std::size_t>((kv % n_ + n_) % n_) * half_cols;
+    const Complex mirrored = spectrum[static_cast<std::size_t>((-kv % n_ + n_) % n_) * half_cols + 1];
+    float* g = &grid_[static_cast<std::size_t>(row) * grid_cols_];
+    const float* h = &high_pass_[static_cast<std::size_t>(row) * grid_cols_];
+    g[0] = h[0] * std::sqrt(std::norm(mirrored));
+    const float* z = reinterpret_cast<const float*>(src);
+    int c = 0;
+    for (; c + 4 <= count; c += 4) {
+      const simd::F4 norm = simd::norms(simd::load(z + 2 * c), simd::load(z + 2 * c + 4));
+      simd::store(g + 1 + c, simd::load(h + 1 + c) * simd::sqrt(norm));
+    }
+    for (; c < count; ++c) g[1 + c] = h[1 + c] * std::sqrt(std::norm(src[c]));
   }
-  for (; e < size; ++e) grid_[e] = high_pass_[e] * std::sqrt(std::norm(spectrum[index[e]]));
 }
 
 double LogPolarMap::resample(const Complex* spectrum, float* out) {

@@ -43,7 +43,8 @@ class LogPolarMap {
   double resample(const Complex* spectrum, float* out);
 
  private:
-  /// Fills grid_ with H |F| over the disk the taps read, mirrored for k_u < 0.
+  /// Fills grid_ with H |F| over the disk the taps read, mirrored for k_u < 0
+  /// (|F(-k)| = |F(k)|).
   void fillGrid(const Complex* spectrum);
 
   int n_, n_theta_, n_radius_;
@@ -53,7 +54,6 @@ class LogPolarMap {
   int grid_cols_;                  ///< reach + 2
   std::vector<float> grid_;        ///< (2 reach + 1) x grid_cols_
   std::vector<float> high_pass_;   ///< H per grid entry
-  std::vector<int> spectrum_index_;  ///< half-plane bin per grid entry (mirrored for k_u < 0)
   // Per output sample: grid offset of the first tap and the separable B-spline weights.
   std::vector<int> tap_offset_;
   std::vector<float> weight_u_;    ///< 4 per sample; tap-major per four samples of a row

@@ -100,6 +100,17 @@ inline F4 pairNorm(F4 z) {
   return sq + __builtin_shuffle(sq, I4{1, 0, 3, 2});
 }
 
+/// For four interleaved complex numbers, z01 = (re0, im0, re1, im1) and z23 = (re2, im2, re3,
+/// im3): (|z0|^2, |z1|^2, |z2|^2, |z3|^2), each re^2 + im^2 as pairNorm() computes it.
+inline F4 norms(F4 z01, F4 z23) {
+  const F4 a = z01 * z01, b = z23 * z23;
+  return __builtin_shuffle(a, b, I4{0, 2, 4, 6}) + __builtin_shuffle(a, b, I4{1, 3, 5, 7});
+}
+
+/// (x0, x0, x1, x1) and (x2, x2, x3, x3): per-number factors back onto interleaved complex lanes.
+inline F4 lowPairs(F4 x) { return __builtin_shuffle(x, I4{0, 0, 1, 1}); }
+inline F4 highPairs(F4 x) { return __builtin_shuffle(x, I4{2, 2, 3, 3}); }
+
 /// For interleaved complex pairs: a * conj(b), lane-wise per complex number.
 inline F4 mulConj(F4 a, F4 b) {
   // (ar + i ai)(br - i bi) = (ar br + ai bi) + i (ai br - ar bi)

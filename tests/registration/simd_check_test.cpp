@@ -45,6 +45,16 @@ TEST(Simd, LaneWiseHelpersMatchScalarArithmetic) {
   EXPECT_FLOAT_EQ(n[0], 5.0f);
   EXPECT_FLOAT_EQ(n[1], 5.0f);
   EXPECT_FLOAT_EQ(n[2], 1.25f);
+  const simd::F4 n4 = simd::norms(a, b);  // |1+2i|^2, |0.5-i|^2, |3-i|^2, |2+2i|^2
+  EXPECT_FLOAT_EQ(n4[0], 5.0f);
+  EXPECT_FLOAT_EQ(n4[1], 1.25f);
+  EXPECT_FLOAT_EQ(n4[2], 10.0f);
+  EXPECT_FLOAT_EQ(n4[3], 8.0f);
+  const simd::F4 lo = simd::lowPairs(x), hi = simd::highPairs(x);
+  for (int l = 0; l < 4; ++l) {
+    EXPECT_EQ(lo[l], x[l / 2]) << "lowPairs lane " << l;
+    EXPECT_EQ(hi[l], x[2 + l / 2]) << "highPairs lane " << l;
+  }
   EXPECT_FLOAT_EQ(simd::sum(x), 0.25f + 2.0f + 9.0f + 1e4f);
   EXPECT_FLOAT_EQ(simd::maxLane(x), 1e4f);
 }
