@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cstdlib>
+#include <initializer_list>
 #include <new>
 #include <stdexcept>
 #include <utility>
@@ -97,27 +98,37 @@ FftPlan FftPlan::realToComplex(int rows, int cols, float* in, Complex* out, Plan
   return plan;
 }
 
-FftPlan FftPlan::complexToReal(int rows, int cols, Complex* in, float* out, PlanEffort effort) {
+FftPlan FftPlan::complexToReal(int rows, int cols, Complex* in, float* out, PlanEffort effort,
+                               int row_reach) {
   FftPlan plan(rows, cols);
   const unsigned flags = planFlags(effort);
   const int bins = cols / 2 + 1;
   std::lock_guard lock(fftwPlannerMutex());
-  // Columns first (in -> scratch, `in` kept), then the rows' c2r (destroys scratch).
+  // Columns first (in -> scratch, `in` kept), then the rows' c2r (destroys scratch): every
+  // row, or the runs [0, reach] and [rows - reach, rows).
   plan.first_ = fftwf_plan_many_dft(1, &rows, bins, fftw(in), nullptr, bins, 1,
                                     fftw(plan.scratch_.data()), nullptr, bins, 1, FFTW_BACKWARD,
                                     flags);
-  plan.second_ = fftwf_plan_many_dft_c2r(1, &cols, rows, fftw(plan.scratch_.data()), nullptr, 1,
-                                         bins, out, nullptr, 1, cols, flags);
-  if (plan.first_ == nullptr || plan.second_ == nullptr)
+  const auto row_pass = [&](int first_row, int count) {
+    return fftwf_plan_many_dft_c2r(1, &cols, count,
+                                   fftw(plan.scratch_.data() + static_cast<std::size_t>(first_row) * bins),
+                                   nullptr, 1, bins, out + static_cast<std::size_t>(first_row) * cols,
+                                   nullptr, 1, cols, flags);
+  };
+  const bool some_rows = row_reach >= 0 && 2 * row_reach + 1 < rows;
+  plan.second_ = row_pass(0, some_rows ? row_reach + 1 : rows);
+  if (some_rows && row_reach > 0) plan.third_ = row_pass(rows - row_reach, row_reach);
+  if (plan.first_ == nullptr || plan.second_ == nullptr ||
+      (some_rows && row_reach > 0 && plan.third_ == nullptr))
     throw std::runtime_error("FFTW could not plan a complex-to-real transform");
   return plan;
 }
 
 void FftPlan::reset() {
-  if (first_ == nullptr && second_ == nullptr) return;
+  if (first_ == nullptr && second_ == nullptr && third_ == nullptr) return;
   std::lock_guard lock(fftwPlannerMutex());
-  if (first_ != nullptr) fftwf_destroy_plan(std::exchange(first_, nullptr));
-  if (second_ != nullptr) fftwf_destroy_plan(std::exchange(second_, nullptr));
+  for (fftwf_plan* p : {&first_, &second_, &third_})
+    if (*p != nullptr) fftwf_destroy_plan(std::exchange(*p, nullptr));
 }
 
 FftPlan::~FftPlan() { reset(); }
@@ -125,7 +136,8 @@ FftPlan::~FftPlan() { reset(); }
 FftPlan::FftPlan(FftPlan&& other) noexcept
     : scratch_(std::move(other.scratch_)),
       first_(std::exchange(other.first_, nullptr)),
-      second_(std::exchange(other.second_, nullptr)) {}
+      second_(std::exchange(other.second_, nullptr)),
+      third_(std::exchange(other.third_, nullptr)) {}
 
 FftPlan& FftPlan::operator=(FftPlan&& other) noexcept {
   if (this != &other) {
@@ -133,6 +145,7 @@ FftPlan& FftPlan::operator=(FftPlan&& other) noexcept {
     scratch_ = std::move(other.scratch_);
     first_ = std::exchange(other.first_, nullptr);
     second_ = std::exchange(other.second_, nullptr);
+    third_ = std::exchange(other.third_, nullptr);
   }
   return *this;
 }

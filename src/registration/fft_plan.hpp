@@ -77,8 +77,12 @@ class FftPlan {
   static FftPlan realToComplex(int rows, int cols, float* in, Complex* out,
                                PlanEffort effort = PlanEffort::kMeasure);
   /// Inverse (unnormalised) complex-to-real transform of `in` into `out` (`in` is kept).
+  /// With `row_reach` in [0, rows/2), only the output rows r with |r| <= row_reach
+  /// (periodic: r in [0, row_reach] and [rows - row_reach, rows)) are computed, and the other
+  /// rows of `out` are left as they are: a correlation searched near zero shift skips most
+  /// of the row transforms. A negative `row_reach` (the default) computes every row.
   static FftPlan complexToReal(int rows, int cols, Complex* in, float* out,
-                               PlanEffort effort = PlanEffort::kMeasure);
+                               PlanEffort effort = PlanEffort::kMeasure, int row_reach = -1);
 
   FftPlan() = default;
   ~FftPlan();
@@ -92,6 +96,7 @@ class FftPlan {
   void execute() const {
     fftwf_execute(first_);
     fftwf_execute(second_);
+    if (third_ != nullptr) fftwf_execute(third_);
   }
 
  private:
@@ -99,7 +104,9 @@ class FftPlan {
   void reset();
 
   FftwArray<Complex> scratch_;  ///< rows x (cols/2+1) bins between the two passes
-  fftwf_plan first_ = nullptr, second_ = nullptr;
+  /// first_: the first pass; second_ (and third_, when only some output rows are computed:
+  /// the negative rows' run): the second.
+  fftwf_plan first_ = nullptr, second_ = nullptr, third_ = nullptr;
 };
 
 }  // namespace omnipose::registration

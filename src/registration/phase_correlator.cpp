@@ -36,16 +36,23 @@ int fastFftSize(int n) {
 }
 
 PhaseCorrelator::PhaseCorrelator(int n0, int n1, double sigma0, double sigma1,
-                                 PlanEffort effort)
+                                 PlanEffort effort, double max_reach0)
     : n0_(n0),
       n1_(n1),
       s0_(bandLength(n0, sigma0)),
       s1_(bandLength(n1, sigma1)),
       band_cols_(s1_ / 2 + 1),
+      max_reach0_(std::max(max_reach0, 0.0)),
       sqrt_w2_(2 * static_cast<std::size_t>(s0_) * band_cols_),
       band_(static_cast<std::size_t>(s0_) * band_cols_),
       surface_(static_cast<std::size_t>(s0_) * s1_) {
-  inverse_ = FftPlan::complexToReal(s0_, s1_, band_.data(), surface_.data(), effort);
+  // Surface rows read by correlate(): the searched |d0| <= floor(reach) (SearchRegion) and
+  // one more on each side for the sub-sample fit. (The same expression as in correlate(),
+  // so both round alike.)
+  const double reach_rows = max_reach0_ / (static_cast<double>(n0_) / s0_);
+  const int rows_read = reach_rows < s0_ ? static_cast<int>(std::floor(reach_rows)) + 1 : s0_;
+  inverse_ = FftPlan::complexToReal(s0_, s1_, band_.data(), surface_.data(), effort,
+                                    2 * rows_read + 1 < s0_ ? rows_read : -1);
   band_.clear();
   surface_.clear();
   // Gaussian weight W(w) = exp(-(sigma0^2 w0^2 + sigma1^2 w1^2) / 2) on the band.
@@ -123,7 +130,8 @@ CorrelationPeak PhaseCorrelator::correlate(const Complex* ref, const Complex* cu
   const double spacing0 = static_cast<double>(n0_) / s0_;
   const double spacing1 = static_cast<double>(n1_) / s1_;
   const SurfaceView view{surface_.data(), s0_, s1_};
-  const SearchRegion region = SearchRegion::around(view, reach0 / spacing0, reach1 / spacing1);
+  const SearchRegion region =
+      SearchRegion::around(view, std::min(reach0, max_reach0_) / spacing0, reach1 / spacing1);
   const SubpixelPeak peak = findPeak(view, region);
 
   CorrelationPeak out;

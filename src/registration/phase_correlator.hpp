@@ -13,6 +13,7 @@
 /// `ref` (the same as cv::phaseCorrelate(cur, ref)).
 
 #include <cstddef>
+#include <limits>
 
 #include "registration/fft_plan.hpp"
 
@@ -30,9 +31,12 @@ struct CorrelationPeak {
 class PhaseCorrelator {
  public:
   /// n0 x n1: size of the real signals (even); sigma0, sigma1: peak width, input samples;
-  /// `effort`: how the inverse transform is planned.
+  /// `effort`: how the inverse transform is planned. `max_reach0`: the largest reach0
+  /// correlate() will be asked for (input samples; infinity: any): the inverse transform
+  /// then computes only the surface rows that search and its sub-sample fit read.
   PhaseCorrelator(int n0, int n1, double sigma0, double sigma1,
-                  PlanEffort effort = PlanEffort::kMeasure);
+                  PlanEffort effort = PlanEffort::kMeasure,
+                  double max_reach0 = std::numeric_limits<double>::infinity());
 
   /// Number of complex bins a whitened band occupies (s0 * (s1/2 + 1)).
   std::size_t bandSize() const { return band_.size(); }
@@ -47,13 +51,15 @@ class PhaseCorrelator {
 
   /// Correlation peak of two whitened bands. The integer peak is searched within
   /// |shift0| <= reach0 and |shift1| <= reach1 (input samples; a reach beyond n/2 searches
-  /// everything, with wrap-around), then refined by a 3-point Gaussian fit per axis
-  /// (parabolic where a value is not positive). Allocation-free.
+  /// everything, with wrap-around; reach0 is capped at the constructor's max_reach0), then
+  /// refined by a 3-point Gaussian fit per axis (parabolic where a value is not positive).
+  /// Allocation-free.
   CorrelationPeak correlate(const Complex* ref, const Complex* cur, double reach0, double reach1);
 
  private:
   int n0_, n1_, s0_, s1_;
   int band_cols_;             ///< s1/2 + 1
+  double max_reach0_;         ///< cap on correlate()'s reach0, input samples
   FftwArray<float> sqrt_w2_;  ///< sqrt(W) twice per band bin (re, im lanes); 0 on the band's Nyquist row/column
   double weight_sum_ = 0.0;   ///< sum of W over the full (Hermitian) band = ideal peak height
   double noise_sigma_ = 0.0;  ///< std of the surface for random phases / weight_sum_

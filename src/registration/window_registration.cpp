@@ -240,7 +240,9 @@ struct TaperedWindow {
 /// What one worker thread owns: its FFTW plans and every buffer it writes while it
 /// registers a window. Built once; nothing is shared between workers but read-only state.
 struct Worker {
-  Worker(int fft_size, reg::PlanEffort effort);
+  /// max_rotation_rad: the rotation search's reach (Options), so that the log-polar
+  /// correlation computes only the surface rows it searches.
+  Worker(int fft_size, double max_rotation_rad, reg::PlanEffort effort);
 
   // Window stage: tapered window (n x n, zero padding) -> half spectrum.
   reg::FftwArray<float> window;
@@ -259,7 +261,7 @@ struct Worker {
   reg::FftwArray<reg::Complex> scratch_translation, scratch_log_polar, derotated;
 };
 
-Worker::Worker(int fft_size, reg::PlanEffort effort)
+Worker::Worker(int fft_size, double max_rotation_rad, reg::PlanEffort effort)
     : window(static_cast<std::size_t>(fft_size) * fft_size),
       spectrum(static_cast<std::size_t>(fft_size) * (fft_size / 2 + 1)),
       window_fft(reg::FftPlan::realToComplex(fft_size, fft_size, window.data(), spectrum.data(),
@@ -276,7 +278,7 @@ Worker::Worker(int fft_size, reg::PlanEffort effort)
                                                 log_polar.data(), log_polar_spectrum.data(),
                                                 effort)),
       rotation_scale(kTuning.log_polar_angles, kTuning.log_polar_radii, kTuning.log_polar_sigma,
-                     kTuning.log_polar_sigma, effort),
+                     kTuning.log_polar_sigma, effort, max_rotation_rad / log_polar_map.angleStep()),
       scratch_translation(translation.bandSize()),
       scratch_log_polar(rotation_scale.bandSize()),
       derotated(translation.bandSize()) {
@@ -350,7 +352,7 @@ WindowRegistration::Impl::Impl(cv::Size panorama, const Options& o,
       pool(shared_pool != nullptr ? shared_pool : own_pool.get()) {
   workers.reserve(pool->size());
   for (int i = 0; i < pool->size(); ++i)
-    workers.push_back(std::make_unique<Worker>(fft_size, effort));
+    workers.push_back(std::make_unique<Worker>(fft_size, o.max_rotation_rad, effort));
   translation_band = workers[0]->translation.bandSize();
   log_polar_band = workers[0]->rotation_scale.bandSize();
   angle_step = workers[0]->log_polar_map.angleStep();

@@ -1,0 +1,156 @@
+// The registration's FFT building blocks (src/registration): an inverse transform that
+// computes only the rows near zero shift agrees with the full one on those rows and leaves
+// the others alone, and a phase correlator planned for a limited rotation search finds the
+// same peak as an unrestricted one.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <limits>
+#include <numbers>
+#include <random>
+#include <utility>
+#include <vector>
+
+#include "registration/fft_plan.hpp"
+#include "registration/phase_correlator.hpp"
+
+namespace omnipose::registration {
+namespace {
+
+/// A random half spectrum of a real rows x cols signal (from its forward transform, so it
+/// is Hermitian where it must be).
+FftwArray<Complex> randomSpectrum(int rows, int cols, unsigned seed) {
+  FftwArray<float> signal(static_cast<std::size_t>(rows) * cols);
+  FftwArray<Complex> spectrum(static_cast<std::size_t>(rows) * (cols / 2 + 1));
+  const FftPlan forward = FftPlan::realToComplex(rows, cols, signal.data(), spectrum.data());
+  std::mt19937 rng(seed);
+  std::normal_distribution<float> noise(0.0f, 1.0f);
+  for (std::size_t i = 0; i < signal.size(); ++i) signal[i] = noise(rng);
+  forward.execute();
+  return spectrum;
+}
+
+TEST(FftPlan, AnInverseLimitedToRowsNearZeroMatchesTheFullOneThereAndSkipsTheRest) {
+  constexpr int kRows = 96, kCols = 64, kReach = 12;
+  const FftwArray<Complex> spectrum = randomSpectrum(kRows, kCols, 7);
+  FftwArray<Complex> in_full(spectrum.size()), in_part(spectrum.size());
+  FftwArray<float> full(static_cast<std::size_t>(kRows) * kCols), part(full.size());
+  const FftPlan all_rows = FftPlan::complexToReal(kRows, kCols, in_full.data(), full.data());
+  const FftPlan near_rows =
+      FftPlan::complexToReal(kRows, kCols, in_part.data(), part.data(), PlanEffort::kMeasure, kReach);
+  for (std::size_t i = 0; i < spectrum.size(); ++i) in_full[i] = in_part[i] = spectrum[i];
+  const float sentinel = std::numeric_limits<float>::quiet_NaN();
+  for (std::size_t i = 0; i < part.size(); ++i) part[i] = sentinel;
+  all_rows.execute();
+  near_rows.execute();
+
+  float scale = 0.0f;
+  for (std::size_t i = 0; i < full.size(); ++i) scale = std::max(scale, std::abs(full[i]));
+  ASSERT_GT(scale, 0.0f);
+  int computed = 0, skipped = 0;
+  for (int r = 0; r < kRows; ++r) {
+    const bool near = r <= kReach || r >= kRows - kReach;
+    for (int c = 0; c < kCols; ++c) {
+      const std::size_t i = static_cast<std::size_t>(r) * kCols + c;
+      if (near) {
+        EXPECT_NEAR(part[i], full[i], 1e-5f * scale) << "row " << r << ", column " << c;
+        ++computed;
+      } else {
+        EXPECT_TRUE(std::isnan(part[i])) << "row " << r << " was computed";
+        ++skipped;
+      }
+    }
+  }
+  EXPECT_EQ(computed, (2 * kReach + 1) * kCols);
+  EXPECT_EQ(skipped, (kRows - 2 * kReach - 1) * kCols);
+  // The input is kept (the caller's band is reused).
+  for (std::size_t i = 0; i < spectrum.size(); ++i) ASSERT_EQ(in_part[i], spectrum[i]) << i;
+}
+
+TEST(FftPlan, AReachCoveringEveryRowComputesEveryRow) {
+  constexpr int kRows = 16, kCols = 8;
+  const FftwArray<Complex> spectrum = randomSpectrum(kRows, kCols, 3);
+  // Reach 7 leaves out row 8 (shift -8) alone; 8 and beyond cover every row.
+  for (int reach : {7, 8, 100}) {
+    FftwArray<Complex> in(spectrum.size());
+    FftwArray<float> out(static_cast<std::size_t>(kRows) * kCols);
+    const FftPlan plan =
+        FftPlan::complexToReal(kRows, kCols, in.data(), out.data(), PlanEffort::kMeasure, reach);
+    for (std::size_t i = 0; i < spectrum.size(); ++i) in[i] = spectrum[i];
+    for (std::size_t i = 0; i < out.size(); ++i) out[i] = std::numeric_limits<float>::quiet_NaN();
+    plan.execute();
+    for (std::size_t i = 0; i < out.size(); ++i) {
+      const bool skipped = reach == 7 && i / kCols == 8;
+      ASSERT_EQ(std::isnan(out[i]), skipped) << "reach " << reach << ", sample " << i;
+    }
+  }
+}
+
+/// A smooth random texture sampled at (r + dr, c + dc), periodic in both axes.
+std::vector<float> texture(int rows, int cols, double dr, double dc) {
+  std::vector<float> out(static_cast<std::size_t>(rows) * cols);
+  std::mt19937 rng(11);
+  std::uniform_real_distribution<double> phase(0.0, 2.0 * std::numbers::pi);
+  struct Wave { int k0, k1; double phi; };
+  std::vector<Wave> waves;
+  for (int k0 = -6; k0 <= 6; ++k0)
+    for (int k1 = 0; k1 <= 6; ++k1) waves.push_back({k0, k1, phase(rng)});
+  for (int r = 0; r < rows; ++r)
+    for (int c = 0; c < cols; ++c) {
+      double v = 0.0;
+      for (const Wave& w : waves)
+        v += std::cos(2.0 * std::numbers::pi * (w.k0 * (r + dr) / rows + w.k1 * (c + dc) / cols) + w.phi);
+      out[static_cast<std::size_t>(r) * cols + c] = static_cast<float>(v);
+    }
+  return out;
+}
+
+TEST(PhaseCorrelator, APlanLimitedToTheSearchedRowsFindsTheSamePeak) {
+  constexpr int kRows = 96, kCols = 64;
+  // Content at x in `cur` appears at x + d in `ref`: ref(x) = cur(x - d).
+  const double d0 = -4.3, d1 = 2.6;
+  const std::vector<float> cur = texture(kRows, kCols, 0.0, 0.0);
+  const std::vector<float> ref = texture(kRows, kCols, -d0, -d1);
+  PhaseCorrelator full(kRows, kCols, 1.0, 1.0);
+  PhaseCorrelator limited(kRows, kCols, 1.0, 1.0, PlanEffort::kMeasure, 10.7);
+  ASSERT_EQ(full.bandSize(), limited.bandSize());
+
+  FftwArray<float> signal(static_cast<std::size_t>(kRows) * kCols);
+  FftwArray<Complex> spectrum(static_cast<std::size_t>(kRows) * (kCols / 2 + 1));
+  const FftPlan forward = FftPlan::realToComplex(kRows, kCols, signal.data(), spectrum.data());
+  FftwArray<Complex> band_ref(full.bandSize()), band_cur(full.bandSize());
+  for (auto [image, band] : {std::pair{&ref, &band_ref}, std::pair{&cur, &band_cur}}) {
+    double power = 0.0;
+    for (std::size_t i = 0; i < signal.size(); ++i) {
+      signal[i] = (*image)[i];
+      power += static_cast<double>(signal[i]) * signal[i];
+    }
+    forward.execute();
+    full.whiten(spectrum.data(), power, band->data());
+  }
+  const CorrelationPeak a = full.correlate(band_ref.data(), band_cur.data(), 10.7, 6.0);
+  const CorrelationPeak b = limited.correlate(band_ref.data(), band_cur.data(), 10.7, 6.0);
+  EXPECT_NEAR(a.shift0, d0, 0.05);
+  EXPECT_NEAR(a.shift1, d1, 0.05);
+  EXPECT_NEAR(b.shift0, a.shift0, 1e-5);
+  EXPECT_NEAR(b.shift1, a.shift1, 1e-5);
+  EXPECT_NEAR(b.height, a.height, 1e-5);
+  EXPECT_NEAR(b.confidence, a.confidence, 1e-5);
+  EXPECT_EQ(b.on_border, a.on_border);
+  // A larger reach is capped at the planned one: a shift beyond it is not found.
+  const std::vector<float> far = texture(kRows, kCols, 14.0, 0.0);  // d0 = -14
+  double power = 0.0;
+  for (std::size_t i = 0; i < signal.size(); ++i) {
+    signal[i] = far[i];
+    power += static_cast<double>(signal[i]) * signal[i];
+  }
+  forward.execute();
+  full.whiten(spectrum.data(), power, band_ref.data());
+  const CorrelationPeak unrestricted = full.correlate(band_ref.data(), band_cur.data(), 20.0, 6.0);
+  EXPECT_NEAR(unrestricted.shift0, -14.0, 0.05);
+  const CorrelationPeak capped = limited.correlate(band_ref.data(), band_cur.data(), 20.0, 6.0);
+  EXPECT_LE(std::abs(capped.shift0), 11.0);
+}
+
+}  // namespace
+}  // namespace omnipose::registration
