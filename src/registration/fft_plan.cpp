@@ -116,10 +116,10 @@ FftPlan FftPlan::complexToReal(int rows, int cols, Complex* in, float* out, Plan
                                    nullptr, 1, cols, flags);
   };
   const bool some_rows = row_reach >= 0 && 2 * row_reach + 1 < rows;
+  const bool negative_run = some_rows && row_reach > 0;
   plan.second_ = row_pass(0, some_rows ? row_reach + 1 : rows);
-  if (some_rows && row_reach > 0) plan.third_ = row_pass(rows - row_reach, row_reach);
-  if (plan.first_ == nullptr || plan.second_ == nullptr ||
-      (some_rows && row_reach > 0 && plan.third_ == nullptr))
+  if (negative_run) plan.third_ = row_pass(rows - row_reach, row_reach);
+  if (plan.first_ == nullptr || plan.second_ == nullptr || (negative_run && plan.third_ == nullptr))
     throw std::runtime_error("FFTW could not plan a complex-to-real transform");
   return plan;
 }

@@ -8,7 +8,6 @@
 #include <limits>
 #include <numbers>
 #include <random>
-#include <utility>
 #include <vector>
 
 #include "registration/fft_plan.hpp"
@@ -118,16 +117,19 @@ TEST(PhaseCorrelator, APlanLimitedToTheSearchedRowsFindsTheSamePeak) {
   FftwArray<float> signal(static_cast<std::size_t>(kRows) * kCols);
   FftwArray<Complex> spectrum(static_cast<std::size_t>(kRows) * (kCols / 2 + 1));
   const FftPlan forward = FftPlan::realToComplex(kRows, kCols, signal.data(), spectrum.data());
-  FftwArray<Complex> band_ref(full.bandSize()), band_cur(full.bandSize());
-  for (auto [image, band] : {std::pair{&ref, &band_ref}, std::pair{&cur, &band_cur}}) {
+  // The whitened band of an image (its energy is the spectrum's mean power, by Parseval).
+  const auto whitened = [&](const std::vector<float>& image, FftwArray<Complex>& band) {
     double power = 0.0;
     for (std::size_t i = 0; i < signal.size(); ++i) {
-      signal[i] = (*image)[i];
+      signal[i] = image[i];
       power += static_cast<double>(signal[i]) * signal[i];
     }
     forward.execute();
-    full.whiten(spectrum.data(), power, band->data());
-  }
+    full.whiten(spectrum.data(), power, band.data());
+  };
+  FftwArray<Complex> band_ref(full.bandSize()), band_cur(full.bandSize());
+  whitened(ref, band_ref);
+  whitened(cur, band_cur);
   const CorrelationPeak a = full.correlate(band_ref.data(), band_cur.data(), 10.7, 6.0);
   const CorrelationPeak b = limited.correlate(band_ref.data(), band_cur.data(), 10.7, 6.0);
   EXPECT_NEAR(a.shift0, d0, 0.05);
@@ -138,14 +140,7 @@ TEST(PhaseCorrelator, APlanLimitedToTheSearchedRowsFindsTheSamePeak) {
   EXPECT_NEAR(b.confidence, a.confidence, 1e-5);
   EXPECT_EQ(b.on_border, a.on_border);
   // A larger reach is capped at the planned one: a shift beyond it is not found.
-  const std::vector<float> far = texture(kRows, kCols, 14.0, 0.0);  // d0 = -14
-  double power = 0.0;
-  for (std::size_t i = 0; i < signal.size(); ++i) {
-    signal[i] = far[i];
-    power += static_cast<double>(signal[i]) * signal[i];
-  }
-  forward.execute();
-  full.whiten(spectrum.data(), power, band_ref.data());
+  whitened(texture(kRows, kCols, 14.0, 0.0), band_ref);  // d0 = -14
   const CorrelationPeak unrestricted = full.correlate(band_ref.data(), band_cur.data(), 20.0, 6.0);
   EXPECT_NEAR(unrestricted.shift0, -14.0, 0.05);
   const CorrelationPeak capped = limited.correlate(band_ref.data(), band_cur.data(), 20.0, 6.0);
