@@ -29,6 +29,7 @@ function(omnipose_add_test name)
   omnipose_tsan_serial_opencv(${name})
   target_link_libraries(${name} PRIVATE ${ARG_LIBS} omnipose_synth omnipose_eval omnipose_io
                         GTest::gtest GTest::gtest_main)
+  target_include_directories(${name} PRIVATE ${CMAKE_SOURCE_DIR}/tests/support)  # test_files.hpp
   target_compile_definitions(${name} PRIVATE
     OMNIPOSE_SOURCE_DIR="${CMAKE_SOURCE_DIR}"
     OMNIPOSE_BINARY_DIR="${CMAKE_BINARY_DIR}")

@@ -7,13 +7,12 @@
 #include <cmath>
 #include <cstdlib>
 #include <filesystem>
-#include <fstream>
 #include <numbers>
 #include <opencv2/imgcodecs.hpp>
-#include <sstream>
 
 #include "omnipose/calibrate/lens_calibrator.hpp"
 #include "synthetic.hpp"
+#include "test_files.hpp"
 
 namespace omnipose::calibrate {
 namespace {
@@ -226,13 +225,6 @@ int run(const std::string& args, const std::filesystem::path& log) {
   return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
 }
 
-std::string slurp(const std::filesystem::path& p) {
-  std::ifstream in(p);
-  std::stringstream ss;
-  ss << in.rdbuf();
-  return ss.str();
-}
-
 TEST(CalibrateCli, WritesCalibrationPreviewAndReport) {
   ASSERT_TRUE(std::filesystem::exists(kTool)) << kTool;
   const Sequence seq = turnLeftSequence(AzimuthDirection::kCcw, OuterEdge::kTop);
@@ -248,7 +240,7 @@ TEST(CalibrateCli, WritesCalibrationPreviewAndReport) {
                     yaml.string(),
                 log),
             0)
-      << slurp(log);
+      << omnipose::testing::readText(log);
   const Calibration cal = Calibration::load(yaml);
   EXPECT_NEAR(cal.omni.center_x, seq.truth.omni.center_x, 1.0);
   EXPECT_NEAR(cal.omni.center_y, seq.truth.omni.center_y, 1.0);
@@ -256,7 +248,7 @@ TEST(CalibrateCli, WritesCalibrationPreviewAndReport) {
   EXPECT_TRUE(std::filesystem::exists(dir / "cal_preview.png"));
   const cv::Mat preview = cv::imread((dir / "cal_preview.png").string());
   EXPECT_GT(preview.rows, seq.frames[0].rows);  // donut + panoramas + text
-  const std::string report = slurp(log);
+  const std::string report = omnipose::testing::readText(log);
   EXPECT_NE(report.find("omni.azimuth_direction"), std::string::npos);
   EXPECT_NE(report.find("measured: turn-left sequence"), std::string::npos) << report;
   EXPECT_NE(report.find("yaw"), std::string::npos);

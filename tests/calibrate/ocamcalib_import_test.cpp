@@ -7,8 +7,9 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
-#include <sstream>
 #include <sys/wait.h>
+
+#include "test_files.hpp"
 
 namespace omnipose::calibrate {
 namespace {
@@ -68,10 +69,7 @@ TEST(OcamCalibImport, PanoramaTooTallForTheRingIsRefusedWithAHint) {
 TEST(OcamCalibImport, NoRoiLineNeedsTheRing) {
   const fs::path dir = fs::temp_directory_path() / ("omnipose_ocam_import_" + std::to_string(::getpid()));
   fs::create_directories(dir);
-  std::ifstream in(kOffice);
-  std::stringstream text;
-  text << in.rdbuf();
-  std::string s = text.str();
+  std::string s = omnipose::testing::readText(kOffice);
   s = s.substr(0, s.find("#ROI"));
   std::ofstream(dir / "noroi.txt") << s;
   const std::string what = errorOf(dir / "noroi.txt", {});
@@ -104,12 +102,10 @@ TEST(OcamCalibImportCli, RefusesWhatReplayWouldRefuse) {
   int status = std::system((base + " --height 80 2> " + (dir / "err.txt").string()).c_str());
   EXPECT_EQ(WEXITSTATUS(status), 1);
   EXPECT_FALSE(fs::exists(dir / "cal.yaml"));
-  std::ifstream err(dir / "err.txt");
-  std::stringstream text;
-  text << err.rdbuf();
-  EXPECT_NE(text.str().find("registration.window: 110 is larger than the panorama (1100 x 80)"),
+  const std::string err = omnipose::testing::readText(dir / "err.txt");
+  EXPECT_NE(err.find("registration.window: 110 is larger than the panorama (1100 x 80)"),
             std::string::npos)
-      << text.str();
+      << err;
   status = std::system(base.c_str());
   EXPECT_EQ(WEXITSTATUS(status), 0);
   EXPECT_TRUE(fs::exists(dir / "cal.yaml"));

@@ -11,6 +11,7 @@
 
 #include "omnipose/calibration.hpp"
 #include "omnipose/lens_model.hpp"
+#include "test_files.hpp"
 
 namespace omnipose {
 namespace {
@@ -42,11 +43,6 @@ class TempDir {
  private:
   fs::path path_;
 };
-
-std::string slurp(const fs::path& p) {
-  std::ifstream in(p);
-  return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
-}
 
 std::string ocamYaml(const std::string& file, const std::string& extra = "") {
   return "omni:\n  model: ocamcalib\n  ocamcalib_file: " + file +
@@ -204,7 +200,7 @@ TEST(OcamCalib, FileIsRelativeToTheYamlAndSaveWritesItBeside) {
 
 TEST(OcamCalib, BadFilesNameTheFileAndTheLine) {
   TempDir dir;
-  const std::string good = slurp(kOffice);
+  const std::string good = omnipose::testing::readText(kOffice);
   // Truncated after the centre line.
   const std::string truncated = good.substr(0, good.find("#affine"));
   dir.write("truncated.txt", truncated);
@@ -236,7 +232,7 @@ TEST(OcamCalib, BadFilesNameTheFileAndTheLine) {
 
 TEST(OcamCalib, NonMonotonicPolynomialOverTheRingIsRefused) {
   TempDir dir;
-  std::string text = slurp(kSteep);
+  std::string text = omnipose::testing::readText(kSteep);
   // A large rho^2 term with a negative rho^3 term: the elevation turns inside the ring.
   const auto at = text.find("\n5 ") + 1;
   const auto end = text.find('\n', at);

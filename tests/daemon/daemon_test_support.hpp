@@ -32,6 +32,7 @@
 #include "omnipose/status_t.hpp"
 #include "omnipose/synth.hpp"
 #include "omnipose/trajectory.hpp"
+#include "test_files.hpp"
 
 extern char** environ;
 
@@ -142,13 +143,6 @@ inline void writeText(const fs::path& path, const std::string& text) {
   std::ofstream out(path);
   out << text;
   if (!out) throw std::runtime_error("cannot write " + path.string());
-}
-
-inline std::string readText(const fs::path& path) {
-  std::ifstream in(path);
-  std::stringstream ss;
-  ss << in.rdbuf();
-  return ss.str();
 }
 
 /// "name seconds" lines of DATASET/timestamps.txt.

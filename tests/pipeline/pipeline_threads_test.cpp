@@ -7,11 +7,10 @@
 #include <unistd.h>
 
 #include <cstring>
-#include <fstream>
-#include <iterator>
 
 #include "omnipose/pipeline.hpp"
 #include "render_fixture.hpp"
+#include "test_files.hpp"
 
 namespace omnipose {
 namespace {
@@ -91,11 +90,6 @@ TEST(PipelineThreads, ZeroMeansAllOnlineCoresAndBadCountsAreRejected) {
   EXPECT_THROW(Pipeline(Calibration{}, options), std::invalid_argument);
 }
 
-std::string fileText(const std::filesystem::path& path) {
-  std::ifstream in(path);
-  return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
-}
-
 TEST(PipelineWisdom, WrittenOnFirstStartThenLoaded) {
   const auto path = std::filesystem::temp_directory_path() /
                     ("omnipose_wisdom_" + std::to_string(::getpid()) + ".txt");
@@ -108,7 +102,7 @@ TEST(PipelineWisdom, WrittenOnFirstStartThenLoaded) {
     EXPECT_FALSE(first.wisdomLoaded());
   }
   ASSERT_TRUE(std::filesystem::exists(path));
-  const std::string text = fileText(path);
+  const std::string text = omnipose::testing::readText(path);
   EXPECT_NE(text.find("fftw"), std::string::npos) << "not an FFTW wisdom file:\n" << text;
   {
     Pipeline second(Calibration{}, options);
@@ -129,7 +123,7 @@ TEST(PipelineWisdom, AFileWithoutThePipelinesTransformsIsCompletedThenKeptAsItIs
   other.registration.window = 64;
   other.fftw_wisdom = path.string();
   { Pipeline first(Calibration{}, other); }
-  const std::string small = fileText(path);
+  const std::string small = omnipose::testing::readText(path);
   ASSERT_FALSE(small.empty());
 
   // The default 110-pixel windows: the file is read, their plans are made and added to it.
@@ -141,7 +135,7 @@ TEST(PipelineWisdom, AFileWithoutThePipelinesTransformsIsCompletedThenKeptAsItIs
     Pipeline second(Calibration{}, options);
     EXPECT_TRUE(second.wisdomLoaded());
   }
-  const std::string full = fileText(path);
+  const std::string full = omnipose::testing::readText(path);
   EXPECT_GT(full.size(), small.size()) << "the new transforms were not added to the file";
 
   // Everything is in the file now: a fresh start-up takes its plans from it and plans
@@ -151,7 +145,7 @@ TEST(PipelineWisdom, AFileWithoutThePipelinesTransformsIsCompletedThenKeptAsItIs
     Pipeline third(Calibration{}, options);
     EXPECT_TRUE(third.wisdomLoaded());
   }
-  EXPECT_EQ(fileText(path), full);
+  EXPECT_EQ(omnipose::testing::readText(path), full);
   std::filesystem::remove(path);
 }
 

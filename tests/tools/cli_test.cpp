@@ -9,13 +9,13 @@
 
 #include <cstdlib>
 #include <filesystem>
-#include <fstream>
 #include <map>
 #include <sstream>
 #include <string>
 #include <vector>
 
 #include "omnipose_version.hpp"
+#include "test_files.hpp"
 
 namespace {
 
@@ -25,13 +25,6 @@ struct Outcome {
   int exit_code = -1;
   std::string out, err;
 };
-
-std::string readText(const fs::path& p) {
-  std::ifstream in(p);
-  std::stringstream s;
-  s << in.rdbuf();
-  return s.str();
-}
 
 std::string quote(const std::string& s) {
   std::string q = "'";
@@ -49,8 +42,8 @@ Outcome run(const std::string& program, const std::vector<std::string>& args) {
   const int status = std::system(cmd.c_str());
   Outcome r;
   r.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-  r.out = readText(dir / "out");
-  r.err = readText(dir / "err");
+  r.out = omnipose::testing::readText(dir / "out");
+  r.err = omnipose::testing::readText(dir / "err");
   fs::remove_all(dir);
   return r;
 }
