@@ -4,8 +4,10 @@
 // orbrot, one core) on the same frames in the same run; at the end it prints the ratio of
 // each pipeline setting to orbrot (best repetition of each). Reports; never gates CI.
 // The FFT plans are made as the daemon makes them with its wisdom file (FFTW_PATIENT, once
-// per run; the file is a temporary one, removed at the end).
-// Run: build/bin/omnipose-bench-pipeline
+// per run; the file is a temporary one, removed at the end). FFTW_PATIENT times candidate
+// plans, so two runs can pick different plans and differ in speed: to compare two builds,
+// give both the same file with --wisdom FILE (written by the first run, kept).
+// Run: build/bin/omnipose-bench-pipeline [--wisdom FILE] [Google Benchmark flags]
 #include <benchmark/benchmark.h>
 #include <unistd.h>
 
@@ -62,12 +64,33 @@ void record(const std::string& key, double seconds_per_frame) {
 
 using Clock = std::chrono::steady_clock;
 
-/// The run's FFTW wisdom file (PipelineOptions::fftw_wisdom), in the temporary directory.
-const std::filesystem::path& wisdomFile() {
-  static const std::filesystem::path path =
-      std::filesystem::temp_directory_path() /
-      ("omnipose-bench-pipeline-wisdom-" + std::to_string(::getpid()) + ".txt");
+/// The run's FFTW wisdom file (PipelineOptions::fftw_wisdom): --wisdom FILE, else a
+/// temporary one that main() removes.
+std::filesystem::path& wisdomFile() {
+  static std::filesystem::path path;
   return path;
+}
+bool temporary_wisdom = true;
+
+/// Takes `--wisdom FILE` (or --wisdom=FILE) out of argv, before Google Benchmark parses it.
+void takeWisdomFlag(int& argc, char** argv) {
+  int kept = 1;
+  for (int i = 1; i < argc; ++i) {
+    const std::string arg = argv[i];
+    if (arg == "--wisdom" && i + 1 < argc) {
+      wisdomFile() = argv[++i];
+      temporary_wisdom = false;
+    } else if (arg.starts_with("--wisdom=")) {
+      wisdomFile() = arg.substr(9);
+      temporary_wisdom = false;
+    } else {
+      argv[kept++] = argv[i];
+    }
+  }
+  argc = kept;
+  if (temporary_wisdom)
+    wisdomFile() = std::filesystem::temp_directory_path() /
+                   ("omnipose-bench-pipeline-wisdom-" + std::to_string(::getpid()) + ".txt");
 }
 
 void BM_PipelineFrame(benchmark::State& state) {
@@ -139,11 +162,12 @@ BENCHMARK(BM_OrbRotFrame)
 }  // namespace
 
 int main(int argc, char** argv) {
+  takeWisdomFlag(argc, argv);
   benchmark::Initialize(&argc, argv);
   if (benchmark::ReportUnrecognizedArguments(argc, argv)) return 1;
   benchmark::RunSpecifiedBenchmarks();
   benchmark::Shutdown();
-  std::filesystem::remove(wisdomFile());
+  if (temporary_wisdom) std::filesystem::remove(wisdomFile());
   const auto orb = best().find("orbrot");
   std::printf("\nBest repetition, ms per frame, and ratio to orbrot measured in this run:\n");
   for (const auto& [key, seconds] : best()) {
