@@ -86,7 +86,6 @@ void PanoramaWarp::derotateRows(cv::Mat& out, int first, int last) const {
     w[2] = near(one - t);
     w[3] = far(simd::broadcast(2.0f) - t);
   };
-  const float* rows[4];
   const float* origin = padded_.ptr<float>(0);
   const std::ptrdiff_t stride = static_cast<std::ptrdiff_t>(padded_.step1());
   for (int v = first; v < last; ++v) {
@@ -122,19 +121,19 @@ void PanoramaWarp::derotateRows(cv::Mat& out, int first, int last) const {
       for (int l = 0; l < 4; ++l) {
         const int first_row = y0[l] - 1;
         const float* column = origin + x0[l] - 1;
-        if (first_row >= 0 && first_row + 3 < H) {  // all four rows inside: no clamping
-          rows[0] = column + static_cast<std::ptrdiff_t>(first_row) * stride;
-          rows[1] = rows[0] + stride;
-          rows[2] = rows[1] + stride;
-          rows[3] = rows[2] + stride;
-        } else {
-          for (int j = 0; j < 4; ++j)  // beyond the edge: replicate
-            rows[j] = column + static_cast<std::ptrdiff_t>(std::clamp(first_row + j, 0, H - 1)) * stride;
+        const auto taps = [&](const float* r0, const float* r1, const float* r2, const float* r3) {
+          return simd::broadcast(wy[0][l]) * simd::load(r0) + simd::broadcast(wy[1][l]) * simd::load(r1) +
+                 simd::broadcast(wy[2][l]) * simd::load(r2) + simd::broadcast(wy[3][l]) * simd::load(r3);
+        };
+        if (first_row >= 0 && first_row + 3 < H) [[likely]] {  // all four rows inside
+          const float* r0 = column + first_row * stride;
+          acc[l] = taps(r0, r0 + stride, r0 + 2 * stride, r0 + 3 * stride);
+        } else {  // beyond the edge: replicate
+          const auto row = [&](int j) {
+            return column + std::clamp(first_row + j, 0, H - 1) * stride;
+          };
+          acc[l] = taps(row(0), row(1), row(2), row(3));
         }
-        acc[l] = simd::broadcast(wy[0][l]) * simd::load(rows[0]) +
-                 simd::broadcast(wy[1][l]) * simd::load(rows[1]) +
-                 simd::broadcast(wy[2][l]) * simd::load(rows[2]) +
-                 simd::broadcast(wy[3][l]) * simd::load(rows[3]);
       }
       simd::transpose(acc[0], acc[1], acc[2], acc[3]);
       const simd::F4 sum4 = (acc[0] * wx[0] + acc[1] * wx[1]) + (acc[2] * wx[2] + acc[3] * wx[3]);
