@@ -124,61 +124,73 @@ double LogPolarMap::resample(const Complex* spectrum, float* out) {
   const std::size_t stride = grid_cols_;
   std::fill(column_mean_.begin(), column_mean_.end(), 0.0f);
   std::fill(column_gain_.begin(), column_gain_.end(), 0.0f);
+  // Locals: stores through `row` (float) could alias the members, so member access would
+  // reload the vectors' pointers and the sizes on every iteration.
+  float* const mean_sum = column_mean_.data();
+  float* const square_sum = column_gain_.data();
+  const float* const grid = grid_.data();
+  const int* const tap_offset = tap_offset_.data();
+  const float* const weight_v = weight_v_.data();
+  const float* const weight_u = weight_u_.data();
+  const int n_theta = n_theta_, n_radius = n_radius_;
   // Taps of sample i weighted along v: one row vector of the four u taps.
   const auto vertical = [&](std::size_t i) {
-    const float* p = grid_.data() + tap_offset_[i];
-    const float* wv = &weight_v_[4 * i];
+    const float* p = grid + tap_offset[i];
+    const float* wv = weight_v + 4 * i;
     return simd::broadcast(wv[0]) * simd::load(p) + simd::broadcast(wv[1]) * simd::load(p + stride) +
            simd::broadcast(wv[2]) * simd::load(p + 2 * stride) +
            simd::broadcast(wv[3]) * simd::load(p + 3 * stride);
   };
-  for (int a = 0; a < n_theta_; ++a) {
-    float* row = out + static_cast<std::size_t>(a) * n_radius_;
-    const std::size_t first = static_cast<std::size_t>(a) * n_radius_;
+  for (int a = 0; a < n_theta; ++a) {
+    float* row = out + static_cast<std::size_t>(a) * n_radius;
+    const std::size_t first = static_cast<std::size_t>(a) * n_radius;
     int b = 0;
     // Four samples at a time: their tap vectors transposed, the u weights (tap-major)
     // applied lane-wise: (t0 w0 + t1 w1) + (t2 w2 + t3 w3), as a per-sample dot product.
-    for (; b + 4 <= n_radius_; b += 4) {
+    for (; b + 4 <= n_radius; b += 4) {
       const std::size_t i = first + b;
       simd::F4 t0 = vertical(i), t1 = vertical(i + 1), t2 = vertical(i + 2), t3 = vertical(i + 3);
       simd::transpose(t0, t1, t2, t3);
-      const float* wu = &weight_u_[4 * i];
+      const float* wu = weight_u + 4 * i;
       simd::store(row + b, (t0 * simd::load(wu) + t1 * simd::load(wu + 4)) +
                                (t2 * simd::load(wu + 8) + t3 * simd::load(wu + 12)));
     }
-    for (; b < n_radius_; ++b)
-      row[b] = simd::sum(vertical(first + b) * simd::load(&weight_u_[4 * (first + b)]));
+    for (; b < n_radius; ++b)
+      row[b] = simd::sum(vertical(first + b) * simd::load(weight_u + 4 * (first + b)));
     // Per-radius sums over angle (for the mean and the RMS below).
     b = 0;
-    for (; b + 4 <= n_radius_; b += 4) {
+    for (; b + 4 <= n_radius; b += 4) {
       const simd::F4 g = simd::load(row + b);
-      simd::store(&column_mean_[b], simd::load(&column_mean_[b]) + g);
-      simd::store(&column_gain_[b], simd::load(&column_gain_[b]) + g * g);
+      simd::store(mean_sum + b, simd::load(mean_sum + b) + g);
+      simd::store(square_sum + b, simd::load(square_sum + b) + g * g);
     }
-    for (; b < n_radius_; ++b) {
-      column_mean_[b] += row[b];
-      column_gain_[b] += row[b] * row[b];
+    for (; b < n_radius; ++b) {
+      mean_sum[b] += row[b];
+      square_sum[b] += row[b] * row[b];
     }
   }
   // Per radius: remove the mean over angle, divide by the RMS about it, then taper.
-  for (int b = 0; b < n_radius_; ++b) {
-    const float mean = column_mean_[b] / n_theta_;
-    const float var = std::max(column_gain_[b] / n_theta_ - mean * mean, 0.0f);
-    column_mean_[b] = mean;
-    column_gain_[b] = var > 0.0f ? taper_[b] / std::sqrt(var) : 0.0f;
+  // The sums become the mean and the gain in place.
+  float* const mean = mean_sum;
+  float* const gain = square_sum;
+  for (int b = 0; b < n_radius; ++b) {
+    const float m = mean_sum[b] / n_theta;
+    const float var = std::max(square_sum[b] / n_theta - m * m, 0.0f);
+    mean[b] = m;
+    gain[b] = var > 0.0f ? taper_[b] / std::sqrt(var) : 0.0f;
   }
   simd::F4 energy4 = simd::broadcast(0.0f);
   double energy = 0.0;
-  for (int a = 0; a < n_theta_; ++a) {
-    float* row = out + static_cast<std::size_t>(a) * n_radius_;
+  for (int a = 0; a < n_theta; ++a) {
+    float* row = out + static_cast<std::size_t>(a) * n_radius;
     int b = 0;
-    for (; b + 4 <= n_radius_; b += 4) {
-      const simd::F4 v = (simd::load(row + b) - simd::load(&column_mean_[b])) * simd::load(&column_gain_[b]);
+    for (; b + 4 <= n_radius; b += 4) {
+      const simd::F4 v = (simd::load(row + b) - simd::load(mean + b)) * simd::load(gain + b);
       simd::store(row + b, v);
       energy4 += v * v;
     }
-    for (; b < n_radius_; ++b) {
-      row[b] = (row[b] - column_mean_[b]) * column_gain_[b];
+    for (; b < n_radius; ++b) {
+      row[b] = (row[b] - mean[b]) * gain[b];
       energy += static_cast<double>(row[b]) * row[b];
     }
   }

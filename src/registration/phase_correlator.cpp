@@ -80,6 +80,9 @@ void PhaseCorrelator::whiten(const Complex* spectrum, double mean_power, Complex
   const int spectrum_cols = n1_ / 2 + 1;
   const float floor2 = static_cast<float>(1e-8 * mean_power) + 1e-30f;
   const simd::F4 floor4 = simd::broadcast(floor2);
+  // A local row length: the stores (memcpy) may alias the members, which would otherwise be
+  // reloaded on every iteration.
+  const int row_floats = 2 * band_cols_;
   for (int r = 0; r < s0_; ++r) {
     // Band row r is frequency k0 = signedIndex(r, s0), stored at row k0 mod n0.
     const int k0 = signedIndex(r, s0_);
@@ -90,18 +93,18 @@ void PhaseCorrelator::whiten(const Complex* spectrum, double mean_power, Complex
     // P = sqrt(W) F / |F|: four bins at a time (one reciprocal square root for four), then
     // two; the same operations per bin either way.
     int f = 0;
-    for (; f + 8 <= 2 * band_cols_; f += 8) {
+    for (; f + 8 <= row_floats; f += 8) {
       const simd::F4 z01 = simd::load(src + f), z23 = simd::load(src + f + 4);
       const simd::F4 inv = simd::rsqrt(simd::max(simd::norms(z01, z23), floor4));
       simd::store(dst + f, z01 * (simd::load(sw + f) * simd::lowPairs(inv)));
       simd::store(dst + f + 4, z23 * (simd::load(sw + f + 4) * simd::highPairs(inv)));
     }
-    for (; f + 4 <= 2 * band_cols_; f += 4) {
+    for (; f + 4 <= row_floats; f += 4) {
       const simd::F4 z = simd::load(src + f);
       const simd::F4 norm = simd::max(simd::pairNorm(z), floor4);
       simd::store(dst + f, z * (simd::load(sw + f) * simd::rsqrt(norm)));
     }
-    for (; f < 2 * band_cols_; f += 2) {
+    for (; f < row_floats; f += 2) {
       const float re = src[f], im = src[f + 1];
       const float gain = sw[f] / std::sqrt(std::max(re * re + im * im, floor2));
       dst[f] = re * gain;
