@@ -98,21 +98,22 @@ float dot(const float* a, const float* b, int count) {
   return reg::simd::sum(acc) + tail;
 }
 
-/// row[j] = h * taper[j] * (row[j] - mean) for j < count; returns sum_j row[j]^2.
-float taperRow(float* row, const float* taper, float h, float mean, int count) {
+/// out[j] = h * taper[j] * (in[j] - mean) for j < count; returns sum_j out[j]^2. `out` may
+/// be `in` (in place).
+float taperRow(float* out, const float* in, const float* taper, float h, float mean, int count) {
   namespace simd = reg::simd;
   const simd::F4 h4 = simd::broadcast(h), m4 = simd::broadcast(mean);
   simd::F4 energy = simd::broadcast(0.0f);
   int j = 0;
   for (; j + 4 <= count; j += 4) {
-    const simd::F4 x = h4 * simd::load(taper + j) * (simd::load(row + j) - m4);
-    simd::store(row + j, x);
+    const simd::F4 x = h4 * simd::load(taper + j) * (simd::load(in + j) - m4);
+    simd::store(out + j, x);
     energy += x * x;
   }
   float tail = 0.0f;
   for (; j < count; ++j) {
-    row[j] = h * taper[j] * (row[j] - mean);
-    tail += row[j] * row[j];
+    out[j] = h * taper[j] * (in[j] - mean);
+    tail += out[j] * out[j];
   }
   return simd::sum(energy) + tail;
 }
@@ -326,8 +327,17 @@ struct WindowRegistration::Impl {
   TaperedWindow loadWindow(Worker& w, const cv::Mat& panorama, int k) const;
   TaperedWindow loadWarpedWindow(Worker& w, const cv::Mat& panorama, int k, double rotation,
                                  double scale) const;
-  TaperedWindow taperWindow(Worker& w, int k) const;
-  TaperedWindow taperMaskedWindow(Worker& w, int k) const;
+  /// The rows of window k to taper into w.window: row i at first + i * stride (the
+  /// panorama itself, or w.window after a copy or a re-sampling).
+  struct WindowRows {
+    const float* first;
+    std::size_t stride;
+  };
+  WindowRows bufferRows(const Worker& w) const {
+    return {w.window.data(), static_cast<std::size_t>(fft_size)};
+  }
+  TaperedWindow taperWindow(Worker& w, int k, WindowRows rows) const;
+  TaperedWindow taperMaskedWindow(Worker& w, int k, WindowRows rows) const;
   TaperedWindow transformWindow(Worker& w, const cv::Mat& panorama, int k,
                                 reg::Complex* log_polar_band) const;
   void measureWindow(Worker& w, const cv::Mat& panorama, int k, const TaperedWindow& cur,
@@ -383,13 +393,16 @@ TaperedWindow WindowRegistration::Impl::loadWindow(Worker& w, const cv::Mat& pan
   const int length = options.window;
   const int first_col = static_cast<int>((static_cast<long>(k) * options.step) % width);
   const int head = std::min(length, width - first_col);
+  // Not wrapping: tapered straight from the panorama's rows, without a copy.
+  if (head == length)
+    return taperWindow(w, k, {panorama.ptr<float>(top) + first_col, panorama.step1()});
   for (int i = 0; i < length; ++i) {
     const float* src = panorama.ptr<float>(top + i);
     float* dst = w.window.data() + static_cast<std::size_t>(i) * fft_size;
     std::memcpy(dst, src + first_col, sizeof(float) * head);
     std::memcpy(dst + head, src, sizeof(float) * (length - head));
   }
-  return taperWindow(w, k);
+  return taperWindow(w, k, bufferRows(w));
 }
 
 TaperedWindow WindowRegistration::Impl::loadWarpedWindow(Worker& w, const cv::Mat& panorama,
@@ -425,7 +438,7 @@ TaperedWindow WindowRegistration::Impl::loadWarpedWindow(Worker& w, const cv::Ma
       sampleRow(origin, stride, u0, static_cast<float>(m00), v0, static_cast<float>(m10), max_v,
                 dst, length);
   }
-  return taperWindow(w, k);
+  return taperWindow(w, k, bufferRows(w));
 }
 
 void WindowRegistration::Impl::setValidity(const cv::Mat& validity) {
@@ -470,21 +483,22 @@ void WindowRegistration::Impl::setValidity(const cv::Mat& validity) {
   }
 }
 
-TaperedWindow WindowRegistration::Impl::taperMaskedWindow(Worker& w, int k) const {
+TaperedWindow WindowRegistration::Impl::taperMaskedWindow(Worker& w, int k, WindowRows rows) const {
   // As taperWindow() with the window's own weights w_ij = h_i h_j m_ij (m: the feathered
   // usable map): mean m = sum w x / sum w, x <- w (x - m); masked pixels become 0.
   const int length = options.window;
   const float* wk = masked_taper.data() + static_cast<std::size_t>(k) * length * length;
   double weighted = 0.0;
   for (int i = 0; i < length; ++i)
-    weighted += dot(wk + static_cast<std::size_t>(i) * length,
-                    w.window.data() + static_cast<std::size_t>(i) * fft_size, length);
+    weighted +=
+        dot(wk + static_cast<std::size_t>(i) * length, rows.first + i * rows.stride, length);
   const double mean = weighted / masked_weight[k];
   double energy = 0.0;
   for (int i = 0; i < length; ++i) {
     float* row = w.window.data() + static_cast<std::size_t>(i) * fft_size;
-    energy += taperRow(row, wk + static_cast<std::size_t>(i) * length, 1.0f,
-                       static_cast<float>(mean), length);
+    energy += taperRow(row, rows.first + i * rows.stride,
+                       wk + static_cast<std::size_t>(i) * length, 1.0f, static_cast<float>(mean),
+                       length);
   }
   TaperedWindow out;
   out.energy = energy;
@@ -492,20 +506,21 @@ TaperedWindow WindowRegistration::Impl::taperMaskedWindow(Worker& w, int k) cons
   return out;
 }
 
-TaperedWindow WindowRegistration::Impl::taperWindow(Worker& w, int k) const {
+TaperedWindow WindowRegistration::Impl::taperWindow(Worker& w, int k, WindowRows rows) const {
   if (mostlyMasked(k)) return {};  // not measured
-  if (!masked_taper.empty()) return taperMaskedWindow(w, k);
+  if (!masked_taper.empty()) return taperMaskedWindow(w, k, rows);
   // Taper-weighted mean m = sum_ij h_i h_j x_ij / sum_ij h_i h_j: the tapered window has no DC.
   const int length = options.window;
   double weighted = 0.0;
   for (int i = 0; i < length; ++i)
-    weighted += taper[i] * dot(taper.data(), w.window.data() + static_cast<std::size_t>(i) * fft_size, length);
+    weighted += taper[i] * dot(taper.data(), rows.first + i * rows.stride, length);
   const double mean = weighted / taper_weight;
   // x <- h_i h_j (x - m); texture = taper-weighted standard deviation.
   double energy = 0.0;
   for (int i = 0; i < length; ++i) {
     float* row = w.window.data() + static_cast<std::size_t>(i) * fft_size;
-    energy += taperRow(row, taper.data(), taper[i], static_cast<float>(mean), length);
+    energy += taperRow(row, rows.first + i * rows.stride, taper.data(), taper[i],
+                       static_cast<float>(mean), length);
   }
   TaperedWindow out;
   out.energy = energy;
