@@ -79,8 +79,12 @@ inline F4 min(F4 a, F4 b) { return a < b ? a : b; }
 
 /// Sum of the four lanes.
 inline float sum(F4 v) { return (v[0] + v[1]) + (v[2] + v[3]); }
-/// Largest lane.
-inline float maxLane(F4 v) { return std::fmax(std::fmax(v[0], v[1]), std::fmax(v[2], v[3])); }
+/// Largest lane; NaN lanes are ignored, as std::fmax ignores them (all NaN: NaN). Written
+/// out because std::fmax is a libm call, not an instruction, without -ffast-math.
+inline float maxLane(F4 v) {
+  const auto fmax = [](float a, float b) { return (b > a || a != a) ? b : a; };
+  return fmax(fmax(v[0], v[1]), fmax(v[2], v[3]));
+}
 
 /// Transposes the 4 x 4 matrix whose rows are a, b, c, d (afterwards a = column 0, ...).
 inline void transpose(F4& a, F4& b, F4& c, F4& d) {

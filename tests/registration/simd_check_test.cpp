@@ -6,6 +6,7 @@
 #include <cmath>
 #include <cstdio>
 #include <cstring>
+#include <limits>
 
 #include "registration/simd.hpp"
 
@@ -57,6 +58,13 @@ TEST(Simd, LaneWiseHelpersMatchScalarArithmetic) {
   }
   EXPECT_FLOAT_EQ(simd::sum(x), 0.25f + 2.0f + 9.0f + 1e4f);
   EXPECT_FLOAT_EQ(simd::maxLane(x), 1e4f);
+  // NaN lanes are ignored wherever they are (std::fmax's rule); all NaN gives NaN.
+  const float nan = std::numeric_limits<float>::quiet_NaN();
+  EXPECT_EQ(simd::maxLane(simd::F4{nan, -1.0f, -3.0f, -2.0f}), -1.0f);
+  EXPECT_EQ(simd::maxLane(simd::F4{-4.0f, nan, nan, -5.0f}), -4.0f);
+  EXPECT_EQ(simd::maxLane(simd::F4{-4.0f, -6.0f, -5.0f, nan}), -4.0f);
+  EXPECT_TRUE(std::isnan(simd::maxLane(simd::F4{nan, nan, nan, nan})));
+  EXPECT_EQ(simd::maxLane(simd::F4{-7.0f, -7.0f, -7.0f, -7.0f}), -7.0f);
 }
 
 TEST(Simd, TransposeSwapsRowsAndColumns) {
