@@ -67,13 +67,11 @@ void FftwArray<T>::clear() {
 template class FftwArray<float>;
 template class FftwArray<Complex>;
 
-namespace {
-
-// FFTW_NO_BUFFERING: transforms of sizes that are not powers of two otherwise malloc a
-// scratch buffer on every execute (the realtime path must not).
 unsigned planFlags(PlanEffort effort) {
   return (effort == PlanEffort::kPatient ? FFTW_PATIENT : FFTW_MEASURE) | FFTW_NO_BUFFERING;
 }
+
+namespace {
 
 fftwf_complex* fftw(Complex* z) { return reinterpret_cast<fftwf_complex*>(z); }
 

@@ -35,6 +35,11 @@ std::string wisdomText();
 /// and plans about 6 % faster per frame; worth it when the plans are kept in a wisdom file.
 enum class PlanEffort { kMeasure, kPatient };
 
+/// The FFTW planner flags of every omnipose plan: FFTW_MEASURE or FFTW_PATIENT, with
+/// FFTW_NO_BUFFERING (transforms of sizes that are not powers of two otherwise malloc a
+/// scratch buffer on every execute; the realtime path must not).
+unsigned planFlags(PlanEffort effort);
+
 /// A zero-initialised array from fftwf_malloc (SIMD-aligned), owned. Move-only.
 template <class T>
 class FftwArray {

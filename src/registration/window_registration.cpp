@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "common/problem_list.hpp"
+#include "registration/column_spectra.hpp"
 #include "registration/fft_plan.hpp"
 #include "registration/log_polar.hpp"
 #include "registration/phase_correlator.hpp"
@@ -20,7 +21,9 @@
 
 // Per window (DESIGN.md section 4; Buelow & Birk, iFMI):
 //   1. cut the L x L window (wrapping around u), remove its taper-weighted mean, apply a
-//      separable Hann taper, zero-pad to n x n, r2c FFT -> F_c;
+//      separable Hann taper, zero-pad to n x n, r2c FFT -> F_c (windows without a static
+//      mask: the v-direction half of that FFT is done once per panorama for all of them,
+//      column_spectra.hpp);
 //   2. log-polar resample H |F_c| (high-pass H), r2c FFT -> L_c; phase-correlate with the
 //      reference's L_p inside the rotation/scale prior -> (phi, s);
 //   3. when (phi, s) moves the window corners noticeably, resample the current window from
@@ -80,6 +83,16 @@ constexpr int kMaskMarginPx = 3;
 constexpr double kMaskFeatherPx = 2.0;
 constexpr double kTextureFloorRel = 1e-4;
 constexpr double kTextureFloorAbs = 1e-6;
+
+/// Static masks: a window whose feathered usable map is at least this everywhere has the
+/// plain separable taper (the feathering's Gaussian leaves ~1e-7 below 1 on usable ground).
+constexpr float kFullyUsable = 1.0f - 1e-5f;
+
+/// Texture test of a tapered window: sum of squares `energy` over taper weights whose
+/// squares sum to `weight2`, taper-weighted mean `mean`. False for NaN.
+bool isTextured(double energy, double weight2, double mean) {
+  return std::sqrt(energy / weight2) > kTextureFloorRel * std::abs(mean) + kTextureFloorAbs;
+}
 
 /// The registration's taper (windowTaper(), window_motion.hpp) as floats.
 std::vector<float> taperTable(int length) {
@@ -245,10 +258,12 @@ struct Worker {
   /// correlation computes only the surface rows it searches.
   Worker(int fft_size, double max_rotation_rad, reg::PlanEffort effort);
 
-  // Window stage: tapered window (n x n, zero padding) -> half spectrum.
+  // Window stage: tapered window (n x n, zero padding) -> half spectrum; or the window's
+  // second stage from the panorama's column spectra.
   reg::FftwArray<float> window;
   reg::FftwArray<reg::Complex> spectrum;
   reg::FftPlan window_fft;
+  reg::WindowSpectrum from_columns;
   reg::PhaseCorrelator translation;
 
   // Log-polar stage: H |F| -> log-polar image -> half spectrum.
@@ -267,6 +282,7 @@ Worker::Worker(int fft_size, double max_rotation_rad, reg::PlanEffort effort)
       spectrum(static_cast<std::size_t>(fft_size) * (fft_size / 2 + 1)),
       window_fft(reg::FftPlan::realToComplex(fft_size, fft_size, window.data(), spectrum.data(),
                                              effort)),
+      from_columns(fft_size, effort),
       translation(fft_size, fft_size, kTuning.translation_sigma_px, kTuning.translation_sigma_px,
                   effort),
       log_polar_map(fft_size, kTuning.log_polar_angles, kTuning.log_polar_radii,
@@ -314,6 +330,10 @@ struct WindowRegistration::Impl {
   std::vector<float> masked_taper;
   std::vector<double> masked_weight, masked_weight2;  ///< per window: sum w, sum w^2
   std::vector<unsigned char> mostly_masked;           ///< per window: not measured
+  std::vector<unsigned char> window_masked;  ///< per window: has masked_taper weights (else plain)
+
+  // Shared first stage of the window FFTs of the unmasked windows (column_spectra.hpp).
+  std::unique_ptr<reg::ColumnSpectra> columns;
 
   // Reference (previous frame) and candidate next reference; advance() swaps them.
   std::unique_ptr<WindowSpectra> reference, next;
@@ -322,6 +342,12 @@ struct WindowRegistration::Impl {
 
   double windowCenter(int k) const;
   bool mostlyMasked(int k) const { return !mostly_masked.empty() && mostly_masked[k]; }
+  bool windowMasked(int k) const { return !window_masked.empty() && window_masked[k]; }
+  int firstColumn(int k) const {
+    return static_cast<int>((static_cast<long>(k) * options.step) % width);
+  }
+  /// The column stage of `panorama` on the pool (when some window uses it).
+  void transformColumns(const cv::Mat& panorama);
   void setValidity(const cv::Mat& validity);
   bool acceptsImage(const cv::Mat& panorama) const;
   TaperedWindow loadWindow(Worker& w, const cv::Mat& panorama, int k) const;
@@ -338,6 +364,8 @@ struct WindowRegistration::Impl {
   }
   TaperedWindow taperWindow(Worker& w, int k, WindowRows rows) const;
   TaperedWindow taperMaskedWindow(Worker& w, int k, WindowRows rows) const;
+  /// F_c of window k from the column spectra (transformColumns() of this panorama done).
+  TaperedWindow transformFromColumns(Worker& w, int k) const;
   TaperedWindow transformWindow(Worker& w, const cv::Mat& panorama, int k,
                                 reg::Complex* log_polar_band) const;
   void measureWindow(Worker& w, const cv::Mat& panorama, int k, const TaperedWindow& cur,
@@ -376,6 +404,24 @@ WindowRegistration::Impl::Impl(cv::Size panorama, const Options& o,
   }
   taper_weight = sum * sum;
   taper_weight2 = sum2 * sum2;
+  columns = std::make_unique<reg::ColumnSpectra>(width, fft_size, taper, effort);
+}
+
+void WindowRegistration::Impl::transformColumns(const cv::Mat& panorama) {
+  if (std::count(window_masked.begin(), window_masked.end(), 1) == windows) return;
+  const float* first_row = panorama.ptr<float>(top);
+  const std::size_t stride = panorama.step1();
+  auto task = [&](int, int chunk) { columns->transformChunk(first_row, stride, chunk); };
+  pool->run(columns->chunks(), task);
+}
+
+TaperedWindow WindowRegistration::Impl::transformFromColumns(Worker& w, int k) const {
+  const reg::WindowSpectrum::Stats stats =
+      w.from_columns.transform(*columns, firstColumn(k), w.spectrum.data());
+  TaperedWindow out;
+  out.energy = stats.energy;
+  out.textured = isTextured(stats.energy, taper_weight2, stats.mean);
+  return out;
 }
 
 double WindowRegistration::Impl::windowCenter(int k) const {
@@ -391,7 +437,7 @@ TaperedWindow WindowRegistration::Impl::loadWindow(Worker& w, const cv::Mat& pan
                                                    int k) const {
   // Window k covers columns k*step .. k*step + L - 1, wrapping around u.
   const int length = options.window;
-  const int first_col = static_cast<int>((static_cast<long>(k) * options.step) % width);
+  const int first_col = firstColumn(k);
   const int head = std::min(length, width - first_col);
   // Not wrapping: tapered straight from the panorama's rows, without a copy.
   if (head == length)
@@ -446,6 +492,7 @@ void WindowRegistration::Impl::setValidity(const cv::Mat& validity) {
   masked_weight.clear();
   masked_weight2.clear();
   mostly_masked.assign(windows, 0);
+  window_masked.assign(windows, 0);
   const int length = options.window;
   double minimum = 1.0;
   cv::minMaxLoc(validity, &minimum);
@@ -466,18 +513,22 @@ void WindowRegistration::Impl::setValidity(const cv::Mat& validity) {
   masked_weight.assign(windows, 0.0);
   masked_weight2.assign(windows, 0.0);
   for (int k = 0; k < windows; ++k) {
-    const int first_col = static_cast<int>((static_cast<long>(k) * options.step) % width);
+    const int first_col = firstColumn(k);
     float* wk = masked_taper.data() + static_cast<std::size_t>(k) * length * length;
     double usable_weight = 0.0;
+    float least = 1.0f;
     for (int i = 0; i < length; ++i) {
       const float* m = faded.ptr<float>(top + i);
       for (int j = 0; j < length; ++j) {
-        const float v = taper[i] * taper[j] * m[(first_col + j) % width];
+        const float usable_here = m[(first_col + j) % width];
+        const float v = taper[i] * taper[j] * usable_here;
         wk[i * length + j] = v;
         usable_weight += v;
         masked_weight2[k] += static_cast<double>(v) * v;
+        least = std::min(least, usable_here);
       }
     }
+    window_masked[k] = least < kFullyUsable;
     masked_weight[k] = usable_weight;
     mostly_masked[k] = usable_weight < options.min_usable_fraction * taper_weight;
   }
@@ -502,13 +553,13 @@ TaperedWindow WindowRegistration::Impl::taperMaskedWindow(Worker& w, int k, Wind
   }
   TaperedWindow out;
   out.energy = energy;
-  out.textured = std::sqrt(energy / masked_weight2[k]) > kTextureFloorRel * std::abs(mean) + kTextureFloorAbs;
+  out.textured = isTextured(energy, masked_weight2[k], mean);
   return out;
 }
 
 TaperedWindow WindowRegistration::Impl::taperWindow(Worker& w, int k, WindowRows rows) const {
   if (mostlyMasked(k)) return {};  // not measured
-  if (!masked_taper.empty()) return taperMaskedWindow(w, k, rows);
+  if (windowMasked(k)) return taperMaskedWindow(w, k, rows);
   // Taper-weighted mean m = sum_ij h_i h_j x_ij / sum_ij h_i h_j: the tapered window has no DC.
   const int length = options.window;
   double weighted = 0.0;
@@ -524,8 +575,7 @@ TaperedWindow WindowRegistration::Impl::taperWindow(Worker& w, int k, WindowRows
   }
   TaperedWindow out;
   out.energy = energy;
-  // (false for NaN input: such a window is never used)
-  out.textured = std::sqrt(energy / taper_weight2) > kTextureFloorRel * std::abs(mean) + kTextureFloorAbs;
+  out.textured = isTextured(energy, taper_weight2, mean);  // false for NaN: never used
   return out;
 }
 
@@ -533,8 +583,13 @@ TaperedWindow WindowRegistration::Impl::transformWindow(Worker& w, const cv::Mat
                                                         reg::Complex* log_polar_band) const {
   if (mostlyMasked(k)) return {};  // not measured, no FFT
   // Step 1: F_c of the tapered window (left in `spectrum`).
-  const TaperedWindow tw = loadWindow(w, panorama, k);
-  w.window_fft.execute();
+  TaperedWindow tw;
+  if (windowMasked(k)) {
+    tw = loadWindow(w, panorama, k);
+    w.window_fft.execute();
+  } else {
+    tw = transformFromColumns(w, k);
+  }
   if (options.estimate_rotation_scale && tw.textured && log_polar_band != nullptr) {
     // Step 2 (iFMI): the high-passed |F_c| in log-polar coordinates, then its own spectrum.
     const double energy = w.log_polar_map.resample(w.spectrum.data(), w.log_polar.data());
@@ -636,6 +691,7 @@ void WindowRegistration::setReference(const cv::Mat& panorama) {
   Impl& s = *impl_;
   if (!s.acceptsImage(panorama)) return;
   WindowSpectra& ref = *s.reference;
+  s.transformColumns(panorama);
   auto task = [&](int worker, int k) {
     Worker& w = *s.workers[worker];
     const TaperedWindow tw =
@@ -679,6 +735,7 @@ bool WindowRegistration::measure(const cv::Mat& current, std::span<WindowMotion>
       (known && known_rotation_scale.size() < static_cast<std::size_t>(s.windows)))
     return false;
   WindowSpectra& next = *s.next;
+  s.transformColumns(current);
   auto task = [&](int worker, int k) {
     Worker& w = *s.workers[worker];
     // Without a search for rotation/scale the current log-polar spectrum is not needed.
