@@ -54,7 +54,10 @@ struct Tuning {
   // instructions per frame (-8 %), accuracy benchmark eps RMSE -1 % on average but indoor
   // large (6-12 deg steps) +7.0 % and the unmasked mast +5.3 %: a coarser first estimate
   // leaves the single refinement a larger residual. Beyond the 5 % allowed: not taken.
-  /// Log-polar grid: angles over [0, pi) and log-spaced radii.
+  /// Log-polar grid: angles over [0, pi) and log-spaced radii. Smaller grids were tried
+  /// (2026-11-24, issue 10; instructions per frame from 133.1 M, accuracy benchmark ifmi,
+  /// every RMSE column): 64 x 48 -20 % instructions, mean +4.7 %, worst +39 %
+  /// (room_translate roll); 96 x 48 -12 %, mean +2.2 %, worst +16.9 %. Not taken.
   int log_polar_angles = 96;
   int log_polar_radii = 64;
   /// Radii of the log-polar ring, fractions of the FFT's Nyquist radius n/2.
