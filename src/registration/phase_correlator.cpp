@@ -11,7 +11,10 @@
 namespace omnipose::registration {
 namespace {
 
-/// W below exp(-kBandCut^2 / 2) ~ 1.1% is dropped from the band.
+/// W below exp(-kBandCut^2 / 2) ~ 1.1% is dropped from the band. 2.5 (W down to 4.4 %; the
+/// translation surface 90 x 90 instead of 108 x 108) was tried (2026-11-24, issue 10): -5.8 %
+/// instructions, but the accuracy benchmark's RMSE columns +22.5 % on average, up to +88 %
+/// (park yaw): the truncated Gaussian rings, and the sub-sample peak fit reads the ringing.
 constexpr double kBandCut = 3.0;
 
 /// Band size for one axis: keep frequencies with sigma * w <= kBandCut, i.e.
