@@ -7,8 +7,9 @@
 /// the v-direction transforms are done once per panorama, column by column (ColumnSpectra:
 /// W real FFTs of length n of the v-tapered columns), and a window needs only its n/2 + 1
 /// u-direction complex FFTs of length n (WindowSpectrum): about half of a full n x n r2c
-/// transform per window, for W / step extra real column FFTs per window (step 20, n 112:
-/// 6 of them). The window's taper-weighted mean m is removed in the frequency domain:
+/// transform per window. The W column FFTs are shared by the W / step windows, `step` real
+/// FFTs of length n per window (step 20, n 112: about a tenth of a window's direct
+/// transform). The window's taper-weighted mean m is removed in the frequency domain:
 /// the v-spectrum of column j of h_i (x_ij - m) is C_j(k_v) - m H(k_v), H the DFT of h.
 ///
 /// The result is the spectrum FftPlan::realToComplex(n, n) gives for the window
