@@ -127,10 +127,15 @@ class MotionFit {
   /// depthGaussNewton (twice, the second time with the depth model's own noise); returns x.
   Eigen::Matrix<double, 6, 1> fitDepth(std::span<const WindowMotion> windows, int n_rows,
                                        Eigen::Matrix<double, 6, 1> x, int& iterations);
-  /// Joint Gauss-Newton in (omega, tau) and the per-window inverse depths (in depth_).
+  /// Joint Gauss-Newton in (omega, tau) and the per-window inverse depths (in depth_),
+  /// backtracked on depthCost(); sigma: the shift rows' noise (radians), which sets when a
+  /// step is negligible.
   Eigen::Matrix<double, 6, 1> depthGaussNewton(std::span<const WindowMotion> windows,
                                                int n_rows, Eigen::Matrix<double, 6, 1> x,
-                                               int& iterations);
+                                               double sigma, int& iterations);
+  /// The robust objective depthGaussNewton() lowers, at x and the current depth_.
+  double depthCost(std::span<const WindowMotion> windows, int n_rows,
+                   const Eigen::Matrix<double, 6, 1>& x) const;
 
   Options options_;
   double gamma_;
