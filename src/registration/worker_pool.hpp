@@ -9,6 +9,9 @@
 ///
 /// Realtime: run() allocates nothing (a mutex, two condition variables and a function
 /// pointer); the threads are created in the constructor and joined in the destructor.
+/// A worker waiting for the next job, and run() waiting for the workers, spin for up to
+/// 50 microseconds before blocking on the condition variables (worker_pool.cpp): a frame's
+/// jobs come back to back, and a futex wake-up per job cost ~5 % of the 2-thread frame.
 /// One caller at a time (the pipeline's processing thread).
 
 #include <atomic>
@@ -56,8 +59,9 @@ class WorkerPool {
   void* context_ = nullptr;
   int count_ = 0;
   std::atomic<int> next_{0};
-  unsigned long generation_ = 0;
-  int busy_ = 0;      ///< pool threads still working on the current job
+  /// Bumped under mutex_ (release) for every job; read without it by spinning workers.
+  std::atomic<unsigned long> generation_{0};
+  std::atomic<int> busy_{0};  ///< pool threads still working on the current job
   bool stop_ = false;
 };
 
