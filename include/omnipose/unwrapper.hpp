@@ -43,6 +43,17 @@ class Unwrapper {
   /// allocation. Errors (kBadFrame): wrong size or type, all-black frame.
   Expected<void> unwrap(const cv::Mat& frame, cv::Mat& panorama);
 
+  /// unwrap() in two steps, so that the rows can be shared between threads (the pipeline
+  /// runs them on its worker pool); the result is the same.
+  /// toGrey() checks `frame` (the errors of unwrap()) and converts it to 8-bit grey. It
+  /// returns the image that unwrapRows() reads: `frame` itself or a buffer of this
+  /// unwrapper, valid until the next toGrey() or unwrap(). No allocation.
+  Expected<const cv::Mat*> toGrey(const cv::Mat& frame);
+  /// Writes panorama rows [first, last) from `grey` (the pointer toGrey() returned).
+  /// `panorama`: CV_32FC1, panoramaSize() (not checked here: unwrap() checks it). Safe to
+  /// call concurrently on disjoint row ranges.
+  void unwrapRows(const cv::Mat& grey, cv::Mat& panorama, int first, int last) const;
+
   /// A panorama buffer of the right size and type.
   cv::Mat makePanorama() const;
 

@@ -27,18 +27,11 @@ PanoramaWarp::PanoramaWarp(const PanoramaGeometry& geometry) : geometry_(geometr
   for (int gy = 0; gy < grid_rows_; ++gy) grid_h_.push_back(geometry.cylinderHeight(gy * kGridStep));
 }
 
-void PanoramaWarp::derotate(const cv::Mat& current, const Eigen::Matrix3d& R, cv::Mat& out) {
-  prepare(current, R);
-  derotateRows(out, 0, geometry_.height);
-}
-
-void PanoramaWarp::prepare(const cv::Mat& current, const Eigen::Matrix3d& R) {
-  const int W = geometry_.width, H = geometry_.height;
+void PanoramaWarp::projectGridRows(const Eigen::Matrix3d& R, int first, int last) {
   const double gamma = geometry_.gamma();
   const Eigen::Matrix3d Rt = R.transpose();
-
   // Exact displacement on the grid: X_prev on the unit cylinder -> X_cur = R^T X.
-  for (int gy = 0; gy < grid_rows_; ++gy) {
+  for (int gy = first; gy < last; ++gy) {
     const double v = gy * kGridStep;
     const double h = grid_h_[gy];
     for (int gx = 0; gx < grid_cols_; ++gx) {
@@ -55,8 +48,10 @@ void PanoramaWarp::prepare(const cv::Mat& current, const Eigen::Matrix3d& R) {
       grid_dv_[i] = static_cast<float>(geometry_.row(h_cur) - v);
     }
   }
+}
 
-  // Wrapped copy of the current panorama so that u needs no modulo per pixel.
+void PanoramaWarp::padCurrent(const cv::Mat& current) {
+  const int W = geometry_.width, H = geometry_.height;
   current.copyTo(padded_(cv::Rect(kPad, 0, W, H)));
   current(cv::Rect(W - kPad, 0, kPad, H)).copyTo(padded_(cv::Rect(0, 0, kPad, H)));
   current(cv::Rect(0, 0, kPad, H)).copyTo(padded_(cv::Rect(W + kPad, 0, kPad, H)));

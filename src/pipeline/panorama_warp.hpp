@@ -20,13 +20,20 @@ class PanoramaWarp {
  public:
   explicit PanoramaWarp(const PanoramaGeometry& geometry);
 
-  /// `current` and `out`: CV_32FC1, W x H; `out` must be allocated and distinct.
-  void derotate(const cv::Mat& current, const Eigen::Matrix3d& R, cv::Mat& out);
+  // The de-rotation runs in two stages, so that the work can be shared between threads:
+  // 1. padCurrent() and projectGridRows() over all gridRows(), concurrently (the latter on
+  //    disjoint ranges of grid rows);
+  // 2. when all of stage 1 has returned, derotateRows() over all rows of `out`,
+  //    concurrently on disjoint ranges.
+  // How the ranges are split does not change the result. `current` and `out`: CV_32FC1,
+  // W x H; `out` is allocated and distinct from `current`.
 
-  /// derotate() in two steps, so the rows can be shared between threads: prepare() (serial)
-  /// evaluates the projection on the grid and pads `current`; derotateRows() writes rows
-  /// [first, last) of `out` and may run concurrently on disjoint ranges. Same result.
-  void prepare(const cv::Mat& current, const Eigen::Matrix3d& R);
+  /// Copies `current` with wrapped borders (so that u needs no modulo per pixel).
+  void padCurrent(const cv::Mat& current);
+  /// Evaluates the exact projection of R at grid rows [first, last) of gridRows().
+  void projectGridRows(const Eigen::Matrix3d& R, int first, int last);
+  int gridRows() const { return grid_rows_; }
+  /// Writes rows [first, last) of `out`.
   void derotateRows(cv::Mat& out, int first, int last) const;
 
  private:
@@ -36,7 +43,7 @@ class PanoramaWarp {
   PanoramaGeometry geometry_;
   int grid_cols_ = 0, grid_rows_ = 0;
   std::vector<float> grid_du_, grid_dv_;  ///< displacement at grid points, pixels
-  // Start-up tables: the unit-cylinder point of every grid column and row, so prepare()
+  // Start-up tables: the unit-cylinder point of every grid column and row, so projectGridRows()
   // evaluates no sine or cosine per frame.
   std::vector<double> grid_theta_, grid_cos_, grid_sin_;  ///< per grid column
   std::vector<double> grid_h_;                            ///< per grid row

@@ -107,13 +107,38 @@ struct Pipeline::Impl {
     wisdom.saveIfPlanned();
   }
 
-  /// De-rotates `panorama` into `warped` on the pool, in bands of rows.
-  void derotate(const Eigen::Matrix3d& R) {
-    warp.prepare(panorama, R);
-    const int rows = panorama.rows;
-    const int bands = std::min(rows, 4 * pool.size());
+  /// Rows [0, rows) split into `bands` ranges: the first row of band b.
+  static int bandStart(int b, int bands, int rows) { return b * rows / bands; }
+
+  /// Unwraps `frame` into `panorama`, the lookup in bands of rows on the pool.
+  Expected<void> unwrap(const cv::Mat& frame) {
+    const auto grey = unwrapper.toGrey(frame);
+    if (!grey) return std::unexpected(grey.error());
+    const int rows = panorama.rows, bands = std::min(rows, 4 * pool.size());
     auto task = [&](int, int b) {
-      warp.derotateRows(warped, b * rows / bands, (b + 1) * rows / bands);
+      unwrapper.unwrapRows(**grey, panorama, bandStart(b, bands, rows),
+                           bandStart(b + 1, bands, rows));
+    };
+    pool.run(bands, task);
+    return {};
+  }
+
+  /// De-rotates `panorama` into `warped` on the pool: the projection grid in bands of grid
+  /// rows (and the padded copy as one more task), then the image in bands of rows.
+  void derotate(const Eigen::Matrix3d& R) {
+    const int grid_rows = warp.gridRows(), grid_bands = std::min(grid_rows, 2 * pool.size());
+    auto prepare = [&](int, int b) {
+      if (b == grid_bands) {
+        warp.padCurrent(panorama);
+      } else {
+        warp.projectGridRows(R, bandStart(b, grid_bands, grid_rows),
+                             bandStart(b + 1, grid_bands, grid_rows));
+      }
+    };
+    pool.run(grid_bands + 1, prepare);
+    const int rows = panorama.rows, bands = std::min(rows, 4 * pool.size());
+    auto task = [&](int, int b) {
+      warp.derotateRows(warped, bandStart(b, bands, rows), bandStart(b + 1, bands, rows));
     };
     pool.run(bands, task);
   }
@@ -147,7 +172,7 @@ Expected<FrameMotion> Pipeline::process(const cv::Mat& frame) {
   FrameMotion result;
 
   // 1. Unwrap through the table built at start-up.
-  if (auto ok = s.unwrapper.unwrap(frame, s.panorama); !ok) return std::unexpected(ok.error());
+  if (auto ok = s.unwrap(frame); !ok) return std::unexpected(ok.error());
   result.timing.unwrap = secondsSince(t_start);
 
   // First frame of a sequence: its windows become the reference.

@@ -81,6 +81,17 @@ double Unwrapper::usableFraction() const {
 cv::Mat Unwrapper::makePanorama() const { return cv::Mat(panoramaSize(), CV_32FC1, 0.0f); }
 
 Expected<void> Unwrapper::unwrap(const cv::Mat& frame, cv::Mat& panorama) {
+  const auto grey = toGrey(frame);
+  if (!grey) return std::unexpected(grey.error());
+  if (panorama.size() != panoramaSize() || panorama.type() != CV_32FC1) {
+    return fail(ErrorCode::kInvalidArgument, "panorama buffer must be CV_32FC1 %dx%d",
+                panoramaSize().width, panoramaSize().height);
+  }
+  unwrapRows(**grey, panorama, 0, panorama.rows);
+  return {};
+}
+
+Expected<const cv::Mat*> Unwrapper::toGrey(const cv::Mat& frame) {
   const cv::Size want = inputSize();
   if (frame.empty()) return fail(ErrorCode::kBadFrame, "empty frame");
   if (frame.size() != want) {
@@ -92,10 +103,6 @@ Expected<void> Unwrapper::unwrap(const cv::Mat& frame, cv::Mat& panorama) {
     return fail(ErrorCode::kBadFrame, "frame has type %d, expected 8-bit grey, BGR or BGRA",
                 frame.type());
   }
-  if (panorama.size() != panoramaSize() || panorama.type() != CV_32FC1) {
-    return fail(ErrorCode::kInvalidArgument, "panorama buffer must be CV_32FC1 %dx%d",
-                panoramaSize().width, panoramaSize().height);
-  }
   // Colour -> grey into the preallocated buffer (no allocation: grey_ has the size).
   const cv::Mat* grey = &frame;
   if (frame.channels() != 1) {
@@ -106,19 +113,24 @@ Expected<void> Unwrapper::unwrap(const cv::Mat& frame, cv::Mat& panorama) {
     return fail(ErrorCode::kBadFrame, "frame is black (mean grey level below %.1f)",
                 options_.min_mean_intensity);
   }
+  // The lookup's offsets assume a continuous image: copy ROI views (grey_ has the size).
+  if (options_.input == InputKind::kOmni && !grey->isContinuous()) {
+    grey->copyTo(grey_);
+    grey = &grey_;
+  }
+  return grey;
+}
+
+void Unwrapper::unwrapRows(const cv::Mat& grey, cv::Mat& panorama, int first, int last) const {
   if (options_.input == InputKind::kPanorama) {
-    grey->convertTo(panorama, CV_32F);
-    return {};
+    cv::Mat band = panorama.rowRange(first, last);  // a view: convertTo writes in place
+    grey.rowRange(first, last).convertTo(band, CV_32F);
+    return;
   }
-  // Bilinear lookup through the precomputed table (offsets assume a continuous image).
-  const cv::Mat* src_image = grey;
-  if (!grey->isContinuous()) {
-    grey->copyTo(grey_);  // ROI views: make it continuous, grey_ already has the size
-    src_image = &grey_;
-  }
-  const int W = panorama.cols, H = panorama.rows, stride = src_image->cols;
-  const uint8_t* src = src_image->ptr<uint8_t>(0);
-  for (int v = 0; v < H; ++v) {
+  // Bilinear lookup through the precomputed table.
+  const int W = panorama.cols, stride = grey.cols;
+  const uint8_t* src = grey.ptr<uint8_t>(0);
+  for (int v = first; v < last; ++v) {
     float* dst = panorama.ptr<float>(v);
     const std::size_t row = static_cast<std::size_t>(v) * W;
     for (int u = 0; u < W; ++u) {
@@ -128,7 +140,6 @@ Expected<void> Unwrapper::unwrap(const cv::Mat& frame, cv::Mat& panorama) {
       dst[u] = w[0] * p[0] + w[1] * p[1] + w[2] * q[0] + w[3] * q[1];
     }
   }
-  return {};
 }
 
 }  // namespace omnipose

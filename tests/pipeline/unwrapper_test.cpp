@@ -103,5 +103,40 @@ TEST(Unwrapper, PanoramaInputPassesThrough) {
   EXPECT_EQ(cv::norm(out, expected, cv::NORM_INF), 0.0);
 }
 
+// toGrey() + unwrapRows() over any split of the rows (as the pipeline runs them on its
+// pool) write exactly what unwrap() writes, for omni and panorama input, grey and colour;
+// toGrey() refuses what unwrap() refuses.
+TEST(Unwrapper, RowBandsGiveExactlyWhatUnwrapGives) {
+  Calibration c;
+  for (const InputKind input : {InputKind::kOmni, InputKind::kPanorama}) {
+    Unwrapper::Options o;
+    o.input = input;
+    Unwrapper unwrapper(c, o);
+    cv::Mat grey(unwrapper.inputSize(), CV_8UC1);
+    cv::randu(grey, 10, 250);
+    cv::Mat bgr;
+    cv::cvtColor(grey, bgr, cv::COLOR_GRAY2BGR);
+    for (const cv::Mat& frame : {grey, bgr}) {
+      cv::Mat whole = unwrapper.makePanorama();
+      ASSERT_TRUE(unwrapper.unwrap(frame, whole).has_value());
+      for (const int bands : {1, 3, 8, 110}) {
+        cv::Mat banded(whole.size(), CV_32FC1, cv::Scalar(-1.0f));
+        const auto source = unwrapper.toGrey(frame);
+        ASSERT_TRUE(source.has_value());
+        const int rows = banded.rows;
+        for (int b = bands - 1; b >= 0; --b)  // any order
+          unwrapper.unwrapRows(**source, banded, b * rows / bands, (b + 1) * rows / bands);
+        EXPECT_EQ(cv::norm(banded, whole, cv::NORM_INF), 0.0)
+            << "input " << static_cast<int>(input) << ", " << frame.channels() << " channels, "
+            << bands << " bands";
+      }
+    }
+    const auto black = unwrapper.toGrey(cv::Mat(unwrapper.inputSize(), CV_8UC1, cv::Scalar(0)));
+    ASSERT_FALSE(black.has_value());
+    EXPECT_EQ(black.error().code(), ErrorCode::kBadFrame);
+    EXPECT_FALSE(unwrapper.toGrey(cv::Mat(5, 5, CV_8UC1, cv::Scalar(50))).has_value());
+  }
+}
+
 }  // namespace
 }  // namespace omnipose
