@@ -243,6 +243,11 @@ Eigen::Matrix<double, 6, 1> MotionFit::depthGaussNewton(std::span<const WindowMo
   // mast sequence's pitch RMSE +17.8 % (yaw -15.7 %): tried 2026-11-25, not taken.
   constexpr double kNegligibleStep = 1e-3;
   constexpr int kMaxHalvings = 6;
+  double total = 0.0;
+  for (int k = 0; k < n; ++k) total += keep_[k] ? windows[k].confidence : 0.0;
+  const auto gauge = [&](int k) {
+    return keep_[k] && total > 0 ? windows[k].confidence / total : 0.0;
+  };
   double cost = depthCost(windows, n_rows, x);
   for (int pass = 0; pass < options_.max_iterations; ++pass) {
     Mat6 N = Mat6::Zero();
@@ -267,11 +272,6 @@ Eigen::Matrix<double, 6, 1> MotionFit::depthGaussNewton(std::span<const WindowMo
       h[k] += row.weight * Jl * Jl;
       g_lambda[k] += row.weight * Jl * r;
     }
-    double total = 0.0;
-    for (int k = 0; k < n; ++k) total += keep_[k] ? windows[k].confidence : 0.0;
-    const auto gauge = [&](int k) {
-      return keep_[k] && total > 0 ? windows[k].confidence / total : 0.0;
-    };
     // Gauge: sum_k c_k lambda_k = 1 (c_k = gauge(k)), a hard constraint that keeps
     // tau = t / (mean scene distance). Eliminating lambda and the multiplier:
     // (N - B D^-1 B^T + v v^T / q) dx = g_x - B D^-1 g_l + v (c^T D^-1 g_l - e) / q,

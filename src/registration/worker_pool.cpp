@@ -9,7 +9,8 @@ namespace omnipose::registration {
 namespace {
 
 /// How long a worker waiting for the next job, and the caller waiting for the workers, spin
-/// before they block on the condition variable. A pipeline frame is five jobs, most of them
+/// before they block on the condition variable. A pipeline frame is seven jobs (unwrap;
+/// column FFTs, windows; projection grid, de-rotated rows; column FFTs, windows), most of them
 /// back to back or a fit (~0.15 ms) apart; a futex wake-up costs tens of microseconds per job
 /// on the development VM. omnipose-bench-pipeline, 2 threads, refine 1, two alternated runs
 /// (2026-11-25): no spin 5.47 / 5.29 ms, 50 us 5.18 / 5.08 ms, 1 ms 5.14 / 5.03 ms. 50 us
