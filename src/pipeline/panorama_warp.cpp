@@ -2,7 +2,6 @@
 
 #include <algorithm>
 #include <cmath>
-#include <numbers>
 
 #include "registration/simd.hpp"
 
@@ -20,32 +19,40 @@ PanoramaWarp::PanoramaWarp(const PanoramaGeometry& geometry) : geometry_(geometr
   padded_.create(geometry.height, geometry.width + 2 * kPad, CV_32FC1);
   for (int gx = 0; gx < grid_cols_; ++gx) {
     const double theta = geometry.azimuth(gx * kGridStep);
-    grid_theta_.push_back(theta);
     grid_cos_.push_back(std::cos(theta));
     grid_sin_.push_back(std::sin(theta));
   }
   for (int gy = 0; gy < grid_rows_; ++gy) grid_h_.push_back(geometry.cylinderHeight(gy * kGridStep));
 }
 
+Eigen::Vector2d PanoramaWarp::displacement(const Eigen::Matrix3d& Rt, double cos_theta,
+                                           double sin_theta, double h, double v) const {
+  // X_prev on the unit cylinder -> X_cur = R^T X. The azimuth change is the angle from
+  // (cos theta, sin theta) to Y's horizontal part: atan2 of their cross and dot products,
+  // already in (-pi, pi].
+  const Eigen::Vector3d Y = Rt * Eigen::Vector3d(cos_theta, sin_theta, h);
+  const double dot = cos_theta * Y.x() + sin_theta * Y.y();
+  const double cross = cos_theta * Y.y() - sin_theta * Y.x();
+  const double rho = std::sqrt(Y.x() * Y.x() + Y.y() * Y.y());
+  const double h_cur = rho > 1e-9 ? Y.z() / rho : 0.0;
+  return {std::atan2(cross, dot) / geometry_.gamma(), geometry_.row(h_cur) - v};
+}
+
+Eigen::Vector2d PanoramaWarp::displacementAt(const Eigen::Matrix3d& R, double u, double v) const {
+  const double theta = geometry_.azimuth(u);
+  return displacement(R.transpose(), std::cos(theta), std::sin(theta),
+                      geometry_.cylinderHeight(v), v);
+}
+
 void PanoramaWarp::projectGridRows(const Eigen::Matrix3d& R, int first, int last) {
-  const double gamma = geometry_.gamma();
   const Eigen::Matrix3d Rt = R.transpose();
-  // Exact displacement on the grid: X_prev on the unit cylinder -> X_cur = R^T X.
   for (int gy = first; gy < last; ++gy) {
     const double v = gy * kGridStep;
-    const double h = grid_h_[gy];
     for (int gx = 0; gx < grid_cols_; ++gx) {
-      const double theta = grid_theta_[gx];
-      const Eigen::Vector3d X(grid_cos_[gx], grid_sin_[gx], h);
-      const Eigen::Vector3d Y = Rt * X;
-      const double rho = std::hypot(Y.x(), Y.y());
-      // Azimuth change relative to theta, wrapped to (-pi, pi].
-      double dtheta = std::atan2(Y.y(), Y.x()) - theta;
-      dtheta = std::remainder(dtheta, 2.0 * std::numbers::pi);
-      const double h_cur = rho > 1e-9 ? Y.z() / rho : 0.0;
+      const Eigen::Vector2d d = displacement(Rt, grid_cos_[gx], grid_sin_[gx], grid_h_[gy], v);
       const std::size_t i = static_cast<std::size_t>(gy) * grid_cols_ + gx;
-      grid_du_[i] = static_cast<float>(dtheta / gamma);
-      grid_dv_[i] = static_cast<float>(geometry_.row(h_cur) - v);
+      grid_du_[i] = static_cast<float>(d.x());
+      grid_dv_[i] = static_cast<float>(d.y());
     }
   }
 }

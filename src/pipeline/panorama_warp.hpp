@@ -36,7 +36,17 @@ class PanoramaWarp {
   /// Writes rows [first, last) of `out`.
   void derotateRows(cv::Mat& out, int first, int last) const;
 
+  /// The exact displacement (du, dv), pixels, of the de-rotation by R at panorama point
+  /// (u, v): `out` at (u, v) samples `current` at (u + du, v + dv) (the grid interpolates
+  /// this). du is the azimuth change wrapped to (-W/2, W/2].
+  Eigen::Vector2d displacementAt(const Eigen::Matrix3d& R, double u, double v) const;
+
  private:
+  /// displacementAt() for the unit-cylinder point (cos theta, sin theta, h) at row v, given
+  /// R^T.
+  Eigen::Vector2d displacement(const Eigen::Matrix3d& Rt, double cos_theta, double sin_theta,
+                               double h, double v) const;
+
   static constexpr int kGridStep = 4;
   static constexpr int kPad = 160;  ///< columns of wrap-around padding on each side
 
@@ -45,7 +55,7 @@ class PanoramaWarp {
   std::vector<float> grid_du_, grid_dv_;  ///< displacement at grid points, pixels
   // Start-up tables: the unit-cylinder point of every grid column and row, so projectGridRows()
   // evaluates no sine or cosine per frame.
-  std::vector<double> grid_theta_, grid_cos_, grid_sin_;  ///< per grid column
+  std::vector<double> grid_cos_, grid_sin_;  ///< per grid column
   std::vector<double> grid_h_;                            ///< per grid row
   cv::Mat padded_;                        ///< current panorama with wrapped borders
 };
