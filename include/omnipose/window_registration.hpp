@@ -71,6 +71,9 @@ class WindowRegistration {
   /// Most window samples of one frame (windows x L^2): 16 Mi, 25 times the paper's setting
   /// (55 windows of 110 x 110); bounds the memory of the reference spectra.
   static constexpr long long kMaxWindowSamples = 16LL << 20;
+  /// measure()'s `expected_dv`: a window with an expected vertical shift searches its
+  /// translation peak only within this many pixels of it, pixels.
+  static constexpr double kExpectedDvReachPx = 8.0;
 
   /// Every problem of `options` on a panorama of `panorama` pixels (width x height): those
   /// of Options::validate() plus the window against the panorama (taller or wider than it,
@@ -131,8 +134,16 @@ class WindowRegistration {
   /// log-polar spectra are still computed for the next reference. The pipeline's first
   /// pass uses it with all rs_confidence 0 (a fast shift-only estimate that the
   /// refinement pass then measures again in full).
+  ///
+  /// `expected_dv` (empty, or one entry per window, pixels): window k with a finite entry
+  /// searches its translation peak only within kExpectedDvReachPx of dv = expected_dv[k]
+  /// (every du still), which computes about a fifth of the inverse transform's rows; a
+  /// peak on the border of that band may be a cut-off one and leaves the window invalid.
+  /// NaN entries search every shift. The pipeline's refinement pass uses it with the dv
+  /// its first fit predicts.
   bool measure(const cv::Mat& current, std::span<WindowMotion> out, bool keep_as_next = true,
-               std::span<const WindowMotion> known_rotation_scale = {});
+               std::span<const WindowMotion> known_rotation_scale = {},
+               std::span<const double> expected_dv = {});
   /// Makes the last frame measured with keep_as_next the reference (a pointer swap, no
   /// recomputation). A no-op when no frame was measured with keep_as_next since the last
   /// setReference()/advance().

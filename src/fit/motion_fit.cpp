@@ -68,7 +68,7 @@ MotionFit::MotionFit(const Options& options, double gamma, int window_px, int ma
   rows_.resize(4 * static_cast<std::size_t>(max_windows));
   scratch_.resize(rows_.size());
   keep_.resize(max_windows);
-  depth_.resize(max_windows);
+  depth_.assign(max_windows, 1.0);
   depth_xl_.resize(max_windows);
 }
 
@@ -373,6 +373,7 @@ MotionEstimate MotionFit::fit(std::span<const WindowMotion> windows, double forw
     return est;
   }
   depth_prior_weight_ = 0.0;
+  std::fill(depth_.begin(), depth_.end(), 1.0);  // inverseDepth() when depth is not fitted
   int n_rows = buildTranslationRows(windows, forward_column);
   if (n_rows < 8) return est;  // fewer than 4 windows: nothing to fit
 

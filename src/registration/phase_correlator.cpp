@@ -39,23 +39,36 @@ int fastFftSize(int n) {
 }
 
 PhaseCorrelator::PhaseCorrelator(int n0, int n1, double sigma0, double sigma1,
-                                 PlanEffort effort, double max_reach0)
+                                 PlanEffort effort, double max_reach0, double near_reach0)
     : n0_(n0),
       n1_(n1),
       s0_(bandLength(n0, sigma0)),
       s1_(bandLength(n1, sigma1)),
       band_cols_(s1_ / 2 + 1),
       max_reach0_(std::max(max_reach0, 0.0)),
+      near_reach0_(std::isfinite(near_reach0) ? std::max(near_reach0, 0.0) : 0.0),
       sqrt_w2_(2 * static_cast<std::size_t>(s0_) * band_cols_),
       band_(static_cast<std::size_t>(s0_) * band_cols_),
       surface_(static_cast<std::size_t>(s0_) * s1_) {
-  // Surface rows read by correlate(): the searched |d0| <= floor(reach) (SearchRegion) and
-  // one more on each side for the sub-sample fit. (The same expression as in correlate(),
-  // so both round alike.)
-  const double reach_rows = max_reach0_ / (static_cast<double>(n0_) / s0_);
-  const int rows_read = reach_rows < s0_ ? static_cast<int>(std::floor(reach_rows)) + 1 : s0_;
+  // Surface rows read by a search of |d0| <= reach: the searched |d0| <= floor(reach / spacing)
+  // (SearchRegion) and one more on each side for the sub-sample fit. (The same expression
+  // as in peak(), so both round alike.)
+  const auto row_reach = [&](double reach) {
+    const double reach_rows = reach / (static_cast<double>(n0_) / s0_);
+    const int rows_read = reach_rows < s0_ ? static_cast<int>(std::floor(reach_rows)) + 1 : s0_;
+    return 2 * rows_read + 1 < s0_ ? rows_read : -1;
+  };
   inverse_ = FftPlan::complexToReal(s0_, s1_, band_.data(), surface_.data(), effort,
-                                    2 * rows_read + 1 < s0_ ? rows_read : -1);
+                                    row_reach(max_reach0_));
+  if (near_reach0_ > 0.0) {
+    near_ = FftPlan::complexToReal(s0_, s1_, band_.data(), surface_.data(), effort,
+                                   row_reach(near_reach0_));
+    unit_roots_ = FftwArray<Complex>(static_cast<std::size_t>(s0_));
+    for (int j = 0; j < s0_; ++j) {
+      const double angle = 2.0 * std::numbers::pi * j / s0_;
+      unit_roots_[j] = Complex(static_cast<float>(std::cos(angle)), static_cast<float>(std::sin(angle)));
+    }
+  }
   band_.clear();
   surface_.clear();
   // Gaussian weight W(w) = exp(-(sigma0^2 w0^2 + sigma1^2 w1^2) / 2) on the band.
@@ -116,41 +129,84 @@ void PhaseCorrelator::whiten(const Complex* spectrum, double mean_power, Complex
   }
 }
 
-CorrelationPeak PhaseCorrelator::correlate(const Complex* ref, const Complex* cur, double reach0,
-                                           double reach1) {
-  // Cross-power spectrum Q = W * F_ref * conj(F_cur) / (|F_ref| |F_cur|); both inputs
-  // already carry sqrt(W) / |F|.
-  const std::size_t floats = 2 * band_.size();
+void PhaseCorrelator::crossPower(const Complex* ref, const Complex* cur, int shift_rows) {
+  // Q = W * F_ref * conj(F_cur) / (|F_ref| |F_cur|); both inputs already carry sqrt(W) / |F|.
   const float* a = reinterpret_cast<const float*>(ref);
   const float* b = reinterpret_cast<const float*>(cur);
   float* q = reinterpret_cast<float*>(band_.data());
-  std::size_t f = 0;
-  for (; f + 4 <= floats; f += 4) simd::store(q + f, simd::mulConj(simd::load(a + f), simd::load(b + f)));
-  for (; f < floats; f += 2) {
-    q[f] = a[f] * b[f] + a[f + 1] * b[f + 1];
-    q[f + 1] = a[f + 1] * b[f] - a[f] * b[f + 1];
+  if (shift_rows == 0) {
+    const std::size_t floats = 2 * band_.size();
+    std::size_t f = 0;
+    for (; f + 4 <= floats; f += 4) simd::store(q + f, simd::mulConj(simd::load(a + f), simd::load(b + f)));
+    for (; f < floats; f += 2) {
+      q[f] = a[f] * b[f] + a[f + 1] * b[f + 1];
+      q[f + 1] = a[f + 1] * b[f] - a[f] * b[f + 1];
+    }
+    return;
   }
-  // Correlation surface r(x) = sum_k Q(k) exp(+i 2 pi k x / s), peak at the shift.
-  inverse_.execute();
+  // Row by row, times the row's ramp factor z = exp(+i 2 pi r c / s0) (band row r is
+  // frequency r mod s0): Q z = mulConj(Q, conj(z)).
+  const int row_floats = 2 * band_cols_;
+  for (int r = 0; r < s0_; ++r) {
+    const long phase = (static_cast<long>(r) * shift_rows) % s0_;
+    const Complex z = unit_roots_[static_cast<std::size_t>(phase < 0 ? phase + s0_ : phase)];
+    const simd::F4 z_conj{z.real(), -z.imag(), z.real(), -z.imag()};
+    const std::size_t row = static_cast<std::size_t>(r) * row_floats;
+    int f = 0;
+    for (; f + 4 <= row_floats; f += 4)
+      simd::store(q + row + f, simd::mulConj(simd::mulConj(simd::load(a + row + f), simd::load(b + row + f)), z_conj));
+    for (; f < row_floats; f += 2) {
+      const float* x = a + row + f;
+      const float* y = b + row + f;
+      const float re = x[0] * y[0] + x[1] * y[1], im = x[1] * y[0] - x[0] * y[1];
+      q[row + f] = re * z.real() - im * z.imag();
+      q[row + f + 1] = im * z.real() + re * z.imag();
+    }
+  }
+}
 
-  const double spacing0 = static_cast<double>(n0_) / s0_;
-  const double spacing1 = static_cast<double>(n1_) / s1_;
+CorrelationPeak PhaseCorrelator::peak(double reach0, double reach1, int offset_rows) const {
   const SurfaceView view{surface_.data(), s0_, s1_};
-  const SearchRegion region =
-      SearchRegion::around(view, std::min(reach0, max_reach0_) / spacing0, reach1 / spacing1);
-  const SubpixelPeak peak = findPeak(view, region);
+  const SearchRegion region = SearchRegion::around(view, reach0, reach1);
+  const SubpixelPeak p = findPeak(view, region);
 
   CorrelationPeak out;
-  out.shift0 = peak.x0 * spacing0;
-  out.shift1 = peak.x1 * spacing1;
-  out.height = peak.value / weight_sum_;
-  out.on_border = peak.on_border;
+  double x0 = p.x0;
+  if (offset_rows != 0) {  // back onto one period, [-s0/2, s0/2)
+    x0 += offset_rows;
+    if (x0 >= s0_ / 2) x0 -= s0_;
+    if (x0 < -(s0_ / 2)) x0 += s0_;
+  }
+  out.shift0 = x0 * (static_cast<double>(n0_) / s0_);
+  out.shift1 = p.x1 * (static_cast<double>(n1_) / s1_);
+  out.height = p.value / weight_sum_;
+  out.on_border = p.on_border;
   // Confidence: height above the expected maximum of a random-phase surface over the
   // searched samples (noise_sigma * sqrt(2 ln M)), rescaled so that a perfect peak is 1.
   const double samples = static_cast<double>(region.count0()) * region.count1();
   const double floor = noise_sigma_ * std::sqrt(2.0 * std::log(std::max(samples, 2.0)));
   out.confidence = std::clamp((out.height - floor) / (1.0 - floor), 0.0, 1.0);
   return out;
+}
+
+CorrelationPeak PhaseCorrelator::correlate(const Complex* ref, const Complex* cur, double reach0,
+                                           double reach1) {
+  crossPower(ref, cur, 0);
+  // Correlation surface r(x) = sum_k Q(k) exp(+i 2 pi k x / s), peak at the shift.
+  inverse_.execute();
+  return peak(std::min(reach0, max_reach0_) / (static_cast<double>(n0_) / s0_),
+              reach1 / (static_cast<double>(n1_) / s1_), 0);
+}
+
+CorrelationPeak PhaseCorrelator::correlateNear(const Complex* ref, const Complex* cur,
+                                               double centre0, double reach1) {
+  const double spacing0 = static_cast<double>(n0_) / s0_;
+  // The centre as a whole surface row on one period (r(x + c) = sum_k Q(k) z^k exp(..)).
+  const double rows = std::isfinite(centre0) ? std::remainder(std::round(centre0 / spacing0), s0_) : 0.0;
+  const int shift = static_cast<int>(rows);
+  crossPower(ref, cur, shift);
+  near_.execute();
+  return peak(near_reach0_ / spacing0, reach1 / (static_cast<double>(n1_) / s1_), shift);
 }
 
 }  // namespace omnipose::registration

@@ -34,9 +34,13 @@ class PhaseCorrelator {
   /// `effort`: how the inverse transform is planned. `max_reach0`: the largest reach0
   /// correlate() will be asked for (input samples; infinity: any): the inverse transform
   /// then computes only the surface rows that search and its sub-sample fit read.
+  /// `near_reach0` > 0: correlateNear() is planned too (input samples; a second inverse
+  /// transform that computes the 2 floor(near_reach0 / spacing) + 3 surface rows around a
+  /// given centre).
   PhaseCorrelator(int n0, int n1, double sigma0, double sigma1,
                   PlanEffort effort = PlanEffort::kMeasure,
-                  double max_reach0 = std::numeric_limits<double>::infinity());
+                  double max_reach0 = std::numeric_limits<double>::infinity(),
+                  double near_reach0 = 0.0);
 
   /// Number of complex bins a whitened band occupies (s0 * (s1/2 + 1)).
   std::size_t bandSize() const { return band_.size(); }
@@ -56,16 +60,36 @@ class PhaseCorrelator {
   /// Allocation-free.
   CorrelationPeak correlate(const Complex* ref, const Complex* cur, double reach0, double reach1);
 
+  /// As correlate(), searching |shift0 - centre0| <= nearReach0() (the centre rounded to a
+  /// whole surface row) and |shift1| <= reach1: the cross-power spectrum is multiplied by
+  /// the phase ramp that moves that centre row to row 0 (an exact cyclic shift of the
+  /// surface), and only the rows the search and its sub-sample fit read are computed. A
+  /// peak on the border of the band of rows (on_border) means the true peak may lie
+  /// outside it. Requires nearReach0() > 0. Allocation-free.
+  CorrelationPeak correlateNear(const Complex* ref, const Complex* cur, double centre0,
+                                double reach1);
+  double nearReach0() const { return near_reach0_; }
+
  private:
+  /// band_ = ref * conj(cur) (both carry sqrt(W) / |F|), times exp(+i 2 pi k0 c / s0) on
+  /// band row k0 when `shift_rows` c != 0 (the surface then peaks c rows earlier).
+  void crossPower(const Complex* ref, const Complex* cur, int shift_rows);
+  /// Peak of the surface the last inverse transform computed, searched within |d0| <=
+  /// reach0 and |d1| <= reach1 (surface samples), reported `offset_rows` rows further.
+  CorrelationPeak peak(double reach0, double reach1, int offset_rows) const;
+
   int n0_, n1_, s0_, s1_;
   int band_cols_;             ///< s1/2 + 1
   double max_reach0_;         ///< cap on correlate()'s reach0, input samples
+  double near_reach0_;        ///< correlateNear()'s reach, input samples (0: not planned)
   FftwArray<float> sqrt_w2_;  ///< sqrt(W) twice per band bin (re, im lanes); 0 on the band's Nyquist row/column
   double weight_sum_ = 0.0;   ///< sum of W over the full (Hermitian) band = ideal peak height
   double noise_sigma_ = 0.0;  ///< std of the surface for random phases / weight_sum_
   FftwArray<Complex> band_;   ///< cross-power spectrum, the c2r input
   FftwArray<float> surface_;  ///< s0 x s1 correlation surface
   FftPlan inverse_;
+  FftPlan near_;                   ///< correlateNear()'s inverse transform (rows around 0)
+  FftwArray<Complex> unit_roots_;  ///< exp(+i 2 pi j / s0), j < s0 (correlateNear()'s ramp)
 };
 
 /// Smallest even size >= n whose only prime factors are 2, 3, 5, 7 (fast for FFTW).

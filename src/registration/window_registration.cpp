@@ -287,7 +287,8 @@ Worker::Worker(int fft_size, double max_rotation_rad, reg::PlanEffort effort)
                                              effort)),
       from_columns(fft_size, effort),
       translation(fft_size, fft_size, kTuning.translation_sigma_px, kTuning.translation_sigma_px,
-                  effort),
+                  effort, std::numeric_limits<double>::infinity(),
+                  WindowRegistration::kExpectedDvReachPx),
       log_polar_map(fft_size, kTuning.log_polar_angles, kTuning.log_polar_radii,
                     kTuning.log_polar_r_min * fft_size / 2,
                     std::min(kTuning.log_polar_r_max * fft_size / 2, fft_size / 2 - 3.0)),
@@ -373,7 +374,7 @@ struct WindowRegistration::Impl {
                                 reg::Complex* log_polar_band) const;
   void measureWindow(Worker& w, const cv::Mat& panorama, int k, const TaperedWindow& cur,
                      const reg::Complex* cur_translation, const reg::Complex* cur_log_polar,
-                     const WindowMotion* known, WindowMotion& out) const;
+                     const WindowMotion* known, double expected_dv, WindowMotion& out) const;
 };
 
 WindowRegistration::Impl::Impl(cv::Size panorama, const Options& o,
@@ -606,7 +607,8 @@ void WindowRegistration::Impl::measureWindow(Worker& w, const cv::Mat& panorama,
                                              const TaperedWindow& cur,
                                              const reg::Complex* cur_translation,
                                              const reg::Complex* cur_log_polar,
-                                             const WindowMotion* known, WindowMotion& out) const {
+                                             const WindowMotion* known, double expected_dv,
+                                             WindowMotion& out) const {
   out = WindowMotion{};
   out.center_u = windowCenter(k);
   out.masked = mostlyMasked(k);
@@ -649,16 +651,20 @@ void WindowRegistration::Impl::measureWindow(Worker& w, const cv::Mat& panorama,
     translation_band_ptr = w.scratch_translation.data();
   }
 
-  // Step 4: translation, phase correlation of the whitened spectra over the whole surface.
+  // Step 4: translation, phase correlation of the whitened spectra over the whole surface,
+  // or within kExpectedDvReachPx of an expected dv (a peak on that band's border may be
+  // cut off: the window is then not used).
   const double everywhere = std::numeric_limits<double>::infinity();
-  const reg::CorrelationPeak t = w.translation.correlate(
-      reference->translation.data() + k * translation_band, translation_band_ptr, everywhere,
-      everywhere);
+  const reg::Complex* reference_band = reference->translation.data() + k * translation_band;
+  const reg::CorrelationPeak t =
+      std::isfinite(expected_dv)
+          ? w.translation.correlateNear(reference_band, translation_band_ptr, expected_dv, everywhere)
+          : w.translation.correlate(reference_band, translation_band_ptr, everywhere, everywhere);
   if (!std::isfinite(t.shift0) || !std::isfinite(t.shift1) || !std::isfinite(t.confidence)) return;
   out.du = t.shift1;
   out.dv = t.shift0;
   out.confidence = t.confidence;
-  out.valid = t.confidence > 0.0 && t.confidence >= options.min_confidence;
+  out.valid = t.confidence > 0.0 && t.confidence >= options.min_confidence && !t.on_border;
 }
 
 namespace {
@@ -730,12 +736,14 @@ int WindowRegistration::maskedWindowCount() const {
 
 bool WindowRegistration::measure(const cv::Mat& current, std::span<WindowMotion> out,
                                  bool keep_as_next,
-                                 std::span<const WindowMotion> known_rotation_scale) {
+                                 std::span<const WindowMotion> known_rotation_scale,
+                                 std::span<const double> expected_dv) {
   Impl& s = *impl_;
   const bool known = !known_rotation_scale.empty();
-  if (!s.has_reference || !s.acceptsImage(current) ||
-      out.size() < static_cast<std::size_t>(s.windows) ||
-      (known && known_rotation_scale.size() < static_cast<std::size_t>(s.windows)))
+  const auto windows = static_cast<std::size_t>(s.windows);
+  if (!s.has_reference || !s.acceptsImage(current) || out.size() < windows ||
+      (known && known_rotation_scale.size() < windows) ||
+      (!expected_dv.empty() && expected_dv.size() < windows))
     return false;
   WindowSpectra& next = *s.next;
   s.transformColumns(current);
@@ -757,7 +765,9 @@ bool WindowRegistration::measure(const cv::Mat& current, std::span<WindowMotion>
       }
     }
     s.measureWindow(w, current, k, tw, cur_translation, cur_log_polar,
-                    known ? &known_rotation_scale[k] : nullptr, out[k]);
+                    known ? &known_rotation_scale[k] : nullptr,
+                    expected_dv.empty() ? std::numeric_limits<double>::quiet_NaN() : expected_dv[k],
+                    out[k]);
   };
   s.pool->run(s.windows, task);
   if (keep_as_next) s.next_ready = true;

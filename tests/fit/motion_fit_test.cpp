@@ -158,6 +158,14 @@ TEST(MotionFit, PerWindowDepthRemovesTheYawBiasOfForwardMotionInARoom) {
   EXPECT_LT(dir_p, 0.5 * dir_u);
   EXPECT_LT(dir_p, 0.02);
   EXPECT_NE(p.status, FitStatus::kLost);
+  // The fitted relative inverse depths (what the pipeline predicts the refinement pass's
+  // shifts from) follow the room's; the uniform fit keeps them at 1.
+  double worst = 0.0;
+  for (int k = 0; k < kWindows; ++k) {
+    EXPECT_EQ(uniform.inverseDepth(k), 1.0) << k;
+    worst = std::max(worst, std::abs(per_window.inverseDepth(k) - lambda[k]));
+  }
+  EXPECT_LT(worst, 0.2);  // 0.068 (2026-11-25)
 }
 
 // A pure rotation: tau = 0 within the noise, so the per-window inverse depths are barely

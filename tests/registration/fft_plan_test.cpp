@@ -147,5 +147,47 @@ TEST(PhaseCorrelator, APlanLimitedToTheSearchedRowsFindsTheSamePeak) {
   EXPECT_LE(std::abs(capped.shift0), 11.0);
 }
 
+TEST(PhaseCorrelator, ASearchNearAGivenRowFindsTheFullSearchPeakThere) {
+  constexpr int kRows = 96, kCols = 64;
+  constexpr double kNear = 8.0;
+  const double inf = std::numeric_limits<double>::infinity();
+  PhaseCorrelator full(kRows, kCols, 1.0, 1.0);
+  PhaseCorrelator near(kRows, kCols, 1.0, 1.0, PlanEffort::kMeasure, inf, kNear);
+  ASSERT_EQ(near.nearReach0(), kNear);
+  FftwArray<float> signal(static_cast<std::size_t>(kRows) * kCols);
+  FftwArray<Complex> spectrum(static_cast<std::size_t>(kRows) * (kCols / 2 + 1));
+  const FftPlan forward = FftPlan::realToComplex(kRows, kCols, signal.data(), spectrum.data());
+  const auto whitened = [&](const std::vector<float>& image, FftwArray<Complex>& band) {
+    double power = 0.0;
+    for (std::size_t i = 0; i < signal.size(); ++i) {
+      signal[i] = image[i];
+      power += static_cast<double>(signal[i]) * signal[i];
+    }
+    forward.execute();
+    full.whiten(spectrum.data(), power, band.data());
+  };
+  FftwArray<Complex> band_ref(full.bandSize()), band_cur(full.bandSize());
+  whitened(texture(kRows, kCols, 0.0, 0.0), band_cur);
+  // Shifts far from zero, one across the wrap-around at +-48 rows from its centre row.
+  for (const double d0 : {17.4, -44.6, 3.2}) {
+    whitened(texture(kRows, kCols, -d0, -2.6), band_ref);
+    const CorrelationPeak a = full.correlate(band_ref.data(), band_cur.data(), inf, inf);
+    ASSERT_NEAR(a.shift0, d0, 0.05);
+    for (const double centre : {d0 - 5.3, d0, d0 + 6.0}) {
+      const CorrelationPeak b = near.correlateNear(band_ref.data(), band_cur.data(), centre, inf);
+      EXPECT_NEAR(b.shift0, a.shift0, 1e-4) << d0 << " near " << centre;
+      EXPECT_NEAR(b.shift1, a.shift1, 1e-4) << d0 << " near " << centre;
+      EXPECT_NEAR(b.height, a.height, 1e-4) << d0 << " near " << centre;
+      EXPECT_FALSE(b.on_border);
+      // Fewer samples searched, a lower noise floor: at least as confident.
+      EXPECT_GE(b.confidence, a.confidence - 1e-6);
+    }
+    // A band that does not reach the peak does not find it.
+    const CorrelationPeak off = near.correlateNear(band_ref.data(), band_cur.data(), d0 + 20.0, inf);
+    EXPECT_GT(std::abs(std::remainder(off.shift0 - d0, kRows)), kNear);
+    EXPECT_LT(off.height, 0.25 * a.height);  // 0.13 (2026-11-25)
+  }
+}
+
 }  // namespace
 }  // namespace omnipose::registration

@@ -10,6 +10,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <numbers>
 #include <opencv2/core.hpp>
 #include <opencv2/imgproc.hpp>
@@ -129,6 +130,9 @@ TEST(WindowRegistration, MeasureRejectsMissingReferenceAndBadInput) {
   std::vector<WindowMotion> short_out(reg.windowCount() - 1);
   EXPECT_FALSE(reg.measure(good, short_out));
   EXPECT_EQ(out[0].du, 42.0) << "a rejected call must not write";
+  const std::vector<double> short_expected(reg.windowCount() - 1, 0.0);
+  EXPECT_FALSE(reg.measure(good, out, true, {}, short_expected));
+  EXPECT_EQ(out[0].du, 42.0) << "a rejected call must not write";
 }
 
 TEST(WindowRegistration, AcceptsRoiViewsOfLargerImages) {
@@ -212,6 +216,47 @@ TEST(WindowRegistrationSigns, RotationIsCounterClockwiseOnScreenAndScaleIsRefere
 
 // ---------------------------------------------------------------------------------------
 // (a) Sub-pixel shifts
+TEST(WindowRegistration, AnExpectedDvSearchesOnlyABandOfShiftsAroundIt) {
+  const cv::Mat& eq = equirect(kPark);
+  REQUIRE_IMAGE(eq, kPark);
+  const int centre = eq.rows / 2;
+  WindowRegistration reg(kPaperPanorama, paperOptions());
+  reg.setReference(test::fourierShiftedBand(eq, centre, 110, 0.0, 0.0));
+  // Content of the current panorama appears at (+1.3, +12.4) px in the reference: a shift
+  // beyond the band around zero, as a vertical translation gives.
+  const cv::Mat current = test::fourierShiftedBand(eq, centre, 110, -1.3, -12.4);
+  const int n = reg.windowCount();
+  const auto full = measureAll(reg, current, false);
+  std::vector<WindowMotion> near(n);
+  // Expected 1.7 px below the true shift (inside the band): the same peaks.
+  std::vector<double> expected(n, 10.7);
+  ASSERT_TRUE(reg.measure(current, near, false, {}, expected));
+  int valid = 0;
+  for (int k = 0; k < n; ++k) {
+    ASSERT_TRUE(full[k].valid) << k;
+    EXPECT_NEAR(full[k].dv, 12.4, 0.05) << k;
+    EXPECT_TRUE(near[k].valid) << k;
+    EXPECT_NEAR(near[k].du, full[k].du, 1e-4) << k;
+    EXPECT_NEAR(near[k].dv, full[k].dv, 1e-4) << k;
+    EXPECT_GE(near[k].confidence, full[k].confidence - 1e-6) << k;
+    valid += near[k].valid;
+  }
+  EXPECT_EQ(valid, n);
+  // NaN: every shift searched, the same result bit for bit.
+  std::fill(expected.begin(), expected.end(), std::numeric_limits<double>::quiet_NaN());
+  ASSERT_TRUE(reg.measure(current, near, false, {}, expected));
+  for (int k = 0; k < n; ++k) {
+    EXPECT_EQ(near[k].dv, full[k].dv) << k;
+    EXPECT_EQ(near[k].confidence, full[k].confidence) << k;
+  }
+  // A band that misses the true shift cannot report it.
+  std::fill(expected.begin(), expected.end(), 12.4 + 2.5 * WindowRegistration::kExpectedDvReachPx);
+  ASSERT_TRUE(reg.measure(current, near, false, {}, expected));
+  for (int k = 0; k < n; ++k)
+    EXPECT_TRUE(!near[k].valid || std::abs(near[k].dv - 12.4) > WindowRegistration::kExpectedDvReachPx)
+        << k << ": dv " << near[k].dv;
+}
+
 // ---------------------------------------------------------------------------------------
 
 struct ShiftStats {
