@@ -16,7 +16,7 @@ PanoramaWarp::PanoramaWarp(const PanoramaGeometry& geometry) : geometry_(geometr
   grid_rows_ = (geometry.height - 1) / kGridStep + 2;
   grid_du_.resize(static_cast<std::size_t>(grid_cols_) * grid_rows_);
   grid_dv_.resize(grid_du_.size());
-  padded_.create(geometry.height, geometry.width + 2 * kPad, CV_32FC1);
+  padded_.create(geometry.height + 2 * kPadRows, geometry.width + 2 * kPad, CV_32FC1);
   for (int gx = 0; gx < grid_cols_; ++gx) {
     const double theta = geometry.azimuth(gx * kGridStep);
     grid_cos_.push_back(std::cos(theta));
@@ -59,9 +59,14 @@ void PanoramaWarp::projectGridRows(const Eigen::Matrix3d& R, int first, int last
 
 void PanoramaWarp::padCurrent(const cv::Mat& current) {
   const int W = geometry_.width, H = geometry_.height;
-  current.copyTo(padded_(cv::Rect(kPad, 0, W, H)));
-  current(cv::Rect(W - kPad, 0, kPad, H)).copyTo(padded_(cv::Rect(0, 0, kPad, H)));
-  current(cv::Rect(0, 0, kPad, H)).copyTo(padded_(cv::Rect(W + kPad, 0, kPad, H)));
+  current.copyTo(padded_(cv::Rect(kPad, kPadRows, W, H)));
+  current(cv::Rect(W - kPad, 0, kPad, H)).copyTo(padded_(cv::Rect(0, kPadRows, kPad, H)));
+  current(cv::Rect(0, 0, kPad, H)).copyTo(padded_(cv::Rect(W + kPad, kPadRows, kPad, H)));
+  // Rows beyond the edges repeat the edge rows (wrapped columns included).
+  for (int i = 0; i < kPadRows; ++i) {
+    padded_.row(kPadRows).copyTo(padded_.row(i));
+    padded_.row(kPadRows + H - 1).copyTo(padded_.row(kPadRows + H + i));
+  }
 }
 
 void PanoramaWarp::derotateRows(cv::Mat& out, int first, int last) const {
@@ -78,6 +83,7 @@ void PanoramaWarp::derotateRows(cv::Mat& out, int first, int last) const {
   const simd::F4 one = simd::broadcast(1.0f);
   const simd::F4 x_lo = simd::broadcast(1.0f), x_hi = simd::broadcast(static_cast<float>(PW - 2.001f));
   const simd::F4 lane{0.0f, 1.0f, 2.0f, 3.0f};
+  const simd::F4 y_lo = simd::broadcast(-2.0f), y_hi = simd::broadcast(static_cast<float>(H));
   // Keys cubic (a = -0.75) weights of the taps at -1, 0, 1, 2 for offsets t (lane-wise).
   const auto weights = [&](simd::F4 t, simd::F4 w[4]) {
     constexpr float a = -0.75f;
@@ -112,7 +118,10 @@ void PanoramaWarp::derotateRows(cv::Mat& out, int first, int last) const {
       const simd::F4 dv = gy4 * ((one - fx) * dv0[gx] + fx * dv0[gx + 1]) +
                           fy4 * ((one - fx) * dv1[gx] + fx * dv1[gx + 1]);
       const simd::F4 x = simd::min(simd::max(simd::broadcast(static_cast<float>(u + kPad)) + lane + du, x_lo), x_hi);
-      const simd::F4 y = simd::broadcast(static_cast<float>(v)) + dv;
+      // Rows beyond the edges replicate the edge rows: with y clamped to [-2, H] every tap
+      // (rows floor(y) - 1 .. floor(y) + 2) is inside the padded image (row offset
+      // kPadRows), and a y further out reads the edge row four times, as it would unclamped.
+      const simd::F4 y = simd::min(simd::max(simd::broadcast(static_cast<float>(v)) + dv, y_lo), y_hi);
       const simd::I4 x0 = __builtin_convertvector(x, simd::I4);  // x >= 1: truncation = floor
       const simd::I4 y0 = simd::floorToInt(y);
       const simd::F4 y_floor = __builtin_convertvector(y0, simd::F4);
@@ -124,24 +133,14 @@ void PanoramaWarp::derotateRows(cv::Mat& out, int first, int last) const {
       // out[l] = (acc[l][0] wx0 + acc[l][1] wx1) + (acc[l][2] wx2 + acc[l][3] wx3), the
       // same operations in the same order as a per-lane dot product. Lanes past the last
       // column (W % 4 != 0) read clamped, valid pixels and are not stored.
-      simd::F4 acc[4];
-      for (int l = 0; l < 4; ++l) {
-        const int first_row = y0[l] - 1;
-        const float* column = origin + x0[l] - 1;
-        const auto taps = [&](const float* r0, const float* r1, const float* r2, const float* r3) {
-          return simd::broadcast(wy[0][l]) * simd::load(r0) + simd::broadcast(wy[1][l]) * simd::load(r1) +
-                 simd::broadcast(wy[2][l]) * simd::load(r2) + simd::broadcast(wy[3][l]) * simd::load(r3);
-        };
-        if (first_row >= 0 && first_row + 3 < H) [[likely]] {  // all four rows inside
-          const float* r0 = column + first_row * stride;
-          acc[l] = taps(r0, r0 + stride, r0 + 2 * stride, r0 + 3 * stride);
-        } else {  // beyond the edge: replicate
-          const auto row = [&](int j) {
-            return column + std::clamp(first_row + j, 0, H - 1) * stride;
-          };
-          acc[l] = taps(row(0), row(1), row(2), row(3));
-        }
-      }
+      const auto taps = [&]<int l>() {
+        const float* r0 = origin + (y0[l] + (kPadRows - 1)) * stride + (x0[l] - 1);
+        return simd::splat<l>(wy[0]) * simd::load(r0) + simd::splat<l>(wy[1]) * simd::load(r0 + stride) +
+               simd::splat<l>(wy[2]) * simd::load(r0 + 2 * stride) +
+               simd::splat<l>(wy[3]) * simd::load(r0 + 3 * stride);
+      };
+      simd::F4 acc[4] = {taps.template operator()<0>(), taps.template operator()<1>(),
+                         taps.template operator()<2>(), taps.template operator()<3>()};
       simd::transpose(acc[0], acc[1], acc[2], acc[3]);
       const simd::F4 sum4 = (acc[0] * wx[0] + acc[1] * wx[1]) + (acc[2] * wx[2] + acc[3] * wx[3]);
       if (u + 4 <= W) {

@@ -28,7 +28,8 @@ class PanoramaWarp {
   // How the ranges are split does not change the result. `current` and `out`: CV_32FC1,
   // W x H; `out` is allocated and distinct from `current`.
 
-  /// Copies `current` with wrapped borders (so that u needs no modulo per pixel).
+  /// Copies `current` with wrapped columns and repeated edge rows (so that no pixel needs a
+  /// modulo or a clamp).
   void padCurrent(const cv::Mat& current);
   /// Evaluates the exact projection of R at grid rows [first, last) of gridRows().
   void projectGridRows(const Eigen::Matrix3d& R, int first, int last);
@@ -49,6 +50,7 @@ class PanoramaWarp {
 
   static constexpr int kGridStep = 4;
   static constexpr int kPad = 160;  ///< columns of wrap-around padding on each side
+  static constexpr int kPadRows = 3;  ///< rows repeating the edge row above and below
 
   PanoramaGeometry geometry_;
   int grid_cols_ = 0, grid_rows_ = 0;
@@ -57,7 +59,7 @@ class PanoramaWarp {
   // evaluates no sine or cosine per frame.
   std::vector<double> grid_cos_, grid_sin_;  ///< per grid column
   std::vector<double> grid_h_;                            ///< per grid row
-  cv::Mat padded_;                        ///< current panorama with wrapped borders
+  cv::Mat padded_;  ///< current panorama with wrapped columns and repeated edge rows
 };
 
 }  // namespace omnipose

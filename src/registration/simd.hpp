@@ -111,6 +111,13 @@ inline F4 norms(F4 z01, F4 z23) {
   return __builtin_shuffle(a, b, I4{0, 2, 4, 6}) + __builtin_shuffle(a, b, I4{1, 3, 5, 7});
 }
 
+/// Lane L of v in all four lanes (one shuffle).
+template <int L>
+inline F4 splat(F4 v) {
+  static_assert(L >= 0 && L < 4);
+  return __builtin_shuffle(v, I4{L, L, L, L});
+}
+
 /// (x0, x0, x1, x1) and (x2, x2, x3, x3): per-number factors back onto interleaved complex lanes.
 inline F4 lowPairs(F4 x) { return __builtin_shuffle(x, I4{0, 0, 1, 1}); }
 inline F4 highPairs(F4 x) { return __builtin_shuffle(x, I4{2, 2, 3, 3}); }

@@ -98,5 +98,32 @@ TEST(PanoramaWarp, PureYawIsAWrappedWholePixelColumnShift) {
   EXPECT_LT(worst, 1e-3);
 }
 
+TEST(PanoramaWarp, RowsFarBeyondTheEdgesRepeatTheEdgeRows) {
+  Calibration c;
+  PanoramaWarp warp(c.panorama);
+  const int W = c.panorama.width, H = c.panorama.height;
+  cv::Mat current(H, W, CV_32FC1);
+  cv::randu(current, 0.0, 255.0);
+  // A pitch of 0.6 rad moves rows by up to ~105 px: many output pixels sample rows far
+  // above or below the panorama (ASan checks that nothing is read outside the padding).
+  const Eigen::Matrix3d R = rotationFromVector(Eigen::Vector3d(0.0, 0.6, 0.0));
+  const cv::Mat out = derotate(warp, current, R);
+  int beyond = 0;
+  for (int v = 0; v < H; ++v)
+    for (int u = 0; u < W; ++u) {
+      const Eigen::Vector2d d = warp.displacementAt(R, u, v);
+      const double y = v + d.y();
+      if (y > -3.0 && y < H + 2.0) continue;
+      ++beyond;
+      // All four row taps are the edge row: a 1-D cubic along u of that row, which stays
+      // within the kernel's overshoot (Keys a = -0.75: at most 1.5 x the data range).
+      const float value = out.at<float>(v, u);
+      ASSERT_TRUE(std::isfinite(value)) << u << ", " << v;
+      EXPECT_GT(value, -0.25f * 255.0f) << u << ", " << v;
+      EXPECT_LT(value, 1.25f * 255.0f) << u << ", " << v;
+    }
+  EXPECT_GT(beyond, W * H / 10) << "the rotation should reach far beyond the edges";
+}
+
 }  // namespace
 }  // namespace omnipose
