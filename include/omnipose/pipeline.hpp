@@ -11,6 +11,10 @@
 /// R <- R_res R, and tau is the residual fit's translation (de-rotation does not move the
 /// camera centre). The residual rotation is small, so its first-order error is negligible;
 /// translation stays first order (it is small per frame), with per-window inverse depth.
+/// The re-registration searches each window's translation within
+/// WindowRegistration::kExpectedDvReachPx of the dv the last fit predicts for it (the
+/// translation part of its model; every shift when that prediction is looser, or the fit
+/// was not kOk): a cut-off peak leaves the window out instead of giving a wrong shift.
 ///
 /// Realtime: the constructor allocates everything (the worker threads included); process()
 /// allocates nothing and never throws. Not thread-safe: one caller at a time.
