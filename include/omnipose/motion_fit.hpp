@@ -99,8 +99,8 @@ class MotionFit {
   /// The window attenuation kappa the model rows use (motion_model.hpp).
   double kappa() const { return kappa_; }
   /// Relative inverse depth lambda_k (mean 1) of window k after the last fit(); 1 when the
-  /// depths were not fitted (per_window_depth off, no translation, a lost fit) and before
-  /// any fit. Requires 0 <= k < maxWindows().
+  /// depths were not fitted (per_window_depth off, or a fit that stopped before its depth
+  /// step) and before any fit. Requires 0 <= k < maxWindows().
   double inverseDepth(int k) const { return depth_[k]; }
   /// Most windows one fit() accepts.
   int maxWindows() const { return static_cast<int>(keep_.size()); }

@@ -137,8 +137,9 @@ class WindowRegistration {
   ///
   /// `expected_dv` (empty, or one entry per window, pixels): window k with a finite entry
   /// searches its translation peak only within kExpectedDvReachPx of dv = expected_dv[k]
-  /// (every du still), which computes about a fifth of the inverse transform's rows; a
-  /// peak on the border of that band may be a cut-off one and leaves the window invalid.
+  /// (every du still), so the inverse transform's row pass computes 17 of its 108 rows at
+  /// the paper setting; a peak on the border of that band may be a cut-off one and leaves
+  /// the window invalid.
   /// NaN entries search every shift. The pipeline's refinement pass uses it with the dv
   /// its first fit predicts.
   bool measure(const cv::Mat& current, std::span<WindowMotion> out, bool keep_as_next = true,

@@ -58,7 +58,7 @@ class PanoramaWarp {
   // Start-up tables: the unit-cylinder point of every grid column and row, so projectGridRows()
   // evaluates no sine or cosine per frame.
   std::vector<double> grid_cos_, grid_sin_;  ///< per grid column
-  std::vector<double> grid_h_;                            ///< per grid row
+  std::vector<double> grid_h_;               ///< per grid row
   cv::Mat padded_;  ///< current panorama with wrapped columns and repeated edge rows
 };
 

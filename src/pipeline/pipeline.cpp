@@ -144,12 +144,12 @@ struct Pipeline::Impl {
   /// de-rotation removed), NaN where the band search would not cover its uncertainty, and
   /// everywhere after a fit that was not kOk (few windows or a large residual).
   void predictRefinementShifts(const Eigen::Vector3d& tau, FitStatus last_fit) {
+    if (last_fit != FitStatus::kOk) {
+      std::fill(expected_dv.begin(), expected_dv.end(), std::numeric_limits<double>::quiet_NaN());
+      return;
+    }
     const double gamma = calibration.panorama.gamma();
     for (int k = 0; k < registration.windowCount(); ++k) {
-      if (last_fit != FitStatus::kOk) {
-        expected_dv[k] = std::numeric_limits<double>::quiet_NaN();
-        continue;
-      }
       Eigen::Matrix<double, 6, 1> x;
       x << Eigen::Vector3d::Zero(), fit.inverseDepth(k) * tau;
       const double theta = calibration.panorama.azimuth(registration.windowCenter(k));
@@ -159,6 +159,7 @@ struct Pipeline::Impl {
       expected_dv[k] = tight ? dv : std::numeric_limits<double>::quiet_NaN();
     }
   }
+
   /// De-rotates `panorama` into `warped` on the pool: the projection grid in bands of grid
   /// rows (and the padded copy as one more task), then the image in bands of rows.
   void derotate(const Eigen::Matrix3d& R) {

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <initializer_list>
+#include <limits>
 #include <numbers>
 
 #include "registration/simd.hpp"
@@ -200,6 +201,8 @@ CorrelationPeak PhaseCorrelator::correlate(const Complex* ref, const Complex* cu
 
 CorrelationPeak PhaseCorrelator::correlateNear(const Complex* ref, const Complex* cur,
                                                double centre0, double reach1) {
+  if (!(near_reach0_ > 0.0))  // not planned: search everything
+    return correlate(ref, cur, std::numeric_limits<double>::infinity(), reach1);
   const double spacing0 = static_cast<double>(n0_) / s0_;
   // The centre as a whole surface row on one period (r(x + c) = sum_k Q(k) z^k exp(..)).
   const double rows = std::isfinite(centre0) ? std::remainder(std::round(centre0 / spacing0), s0_) : 0.0;

@@ -65,7 +65,8 @@ class PhaseCorrelator {
   /// the phase ramp that moves that centre row to row 0 (an exact cyclic shift of the
   /// surface), and only the rows the search and its sub-sample fit read are computed. A
   /// peak on the border of the band of rows (on_border) means the true peak may lie
-  /// outside it. Requires nearReach0() > 0. Allocation-free.
+  /// outside it. Without a planned band (nearReach0() 0) it searches every row, as
+  /// correlate(). Allocation-free.
   CorrelationPeak correlateNear(const Complex* ref, const Complex* cur, double centre0,
                                 double reach1);
   double nearReach0() const { return near_reach0_; }

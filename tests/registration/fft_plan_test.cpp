@@ -182,6 +182,10 @@ TEST(PhaseCorrelator, ASearchNearAGivenRowFindsTheFullSearchPeakThere) {
       // Fewer samples searched, a lower noise floor: at least as confident.
       EXPECT_GE(b.confidence, a.confidence - 1e-6);
     }
+    // Without a planned band, correlateNear() searches every row.
+    const CorrelationPeak unplanned = full.correlateNear(band_ref.data(), band_cur.data(), d0 + 30.0, inf);
+    EXPECT_EQ(unplanned.shift0, a.shift0);
+    EXPECT_EQ(unplanned.confidence, a.confidence);
     // A band that does not reach the peak does not find it.
     const CorrelationPeak off = near.correlateNear(band_ref.data(), band_cur.data(), d0 + 20.0, inf);
     EXPECT_GT(std::abs(std::remainder(off.shift0 - d0, kRows)), kNear);
