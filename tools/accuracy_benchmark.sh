@@ -18,7 +18,13 @@
 #   DATA_DIR  [../shared/data/equirect]  the equirect photos
 #   FRAMES    [24]     frames per sequence      METHODS ["ifmi orb5pt akaze5pt orbrot akazerot"]
 #   SUPERSAMPLE [2]    renderer anti-aliasing: K x K rays per pixel
-# Everything is seeded: the same build gives the same datasets and estimates.
+#   WISDOM    [BUILD_DIR/accuracy.wisdom]  FFTW wisdom of every ifmi replay: the first replay
+#                      that lacks a plan makes it (FFTW_PATIENT) and writes the file, later
+#                      replays and runs reuse it (it is kept outside OUTDIR)
+# Everything is seeded, and the ifmi replays share one set of FFT plans (without it FFTW
+# picked plans per replay, and two runs of one build differed by up to 1.5 % in a column):
+# with the same WISDOM, the same build gives the same datasets and estimates, and two builds
+# differ only by their code.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 root=$(pwd)
@@ -44,6 +50,7 @@ command_line="tools/accuracy_benchmark.sh $*"
 [ -n "${BUILD_DIR:-}" ] && command_line="BUILD_DIR=$BUILD_DIR $command_line"
 [ -n "${FRAMES:-}" ] && command_line="FRAMES=$FRAMES $command_line"
 [ -n "${SUPERSAMPLE:-}" ] && command_line="SUPERSAMPLE=$SUPERSAMPLE $command_line"
+[ -n "${WISDOM:-}" ] && command_line="WISDOM=$WISDOM $command_line"
 
 tools=(omnipose-synth omnipose-replay omnipose-eval omnipose-plot-fit omnipose-plot-angles
        omnipose-results)
@@ -70,6 +77,11 @@ esac
 rm -rf "$out"
 mkdir -p "$out/motions" "$out/report"
 report=$out/report
+# The ifmi replays' configuration: only the FFTW wisdom file (see WISDOM above), as an
+# absolute path (a relative one would be taken relative to the configuration's directory).
+wisdom=$(realpath -m "${WISDOM:-$build/accuracy.wisdom}")
+replay_config=$out/replay.yaml
+printf 'pipeline:\n  fftw_wisdom: "%s"\n' "$wisdom" > "$replay_config"
 
 # ---------------------------------------------------------------------------- motions
 # Single-axis sequences use the renderer's presets (the paper's protocol: 1..6 deg per
@@ -150,7 +162,9 @@ for entry in "${suite[@]}"; do
     "$motion" "$seed" "$flags"
   for m in $methods; do
     t0=$(date +%s)
-    line=$("$bin/omnipose-replay" "$dir/dataset" --method "$m" --quiet \
+    config=()
+    [ "$m" = ifmi ] && config=(--config "$replay_config")
+    line=$("$bin/omnipose-replay" "$dir/dataset" --method "$m" --quiet "${config[@]}" \
              --out "$dir/$m.tum" --relative "$dir/$m.csv" 2> "$dir/$m.log" | tail -n 1) || {
       echo "   $m: replay failed, see $dir/$m.log" >&2; cat "$dir/$m.log" >&2; exit 1; }
     spf=$(sed -n 's/.*seconds_per_frame=\([0-9.eE+-]*\).*/\1/p' <<< "$line")
@@ -200,8 +214,8 @@ for entry in "${lens_suite[@]}"; do
   "$bin/omnipose-synth" --texture "$photo" --out "$dir/dataset" "${motion_args[@]}" \
     --frames "$frames" --seed "$seed" --supersample "$supersample" $flags $extra \
     "${cal_args[@]}" > "$dir.synth.log"
-  line=$("$bin/omnipose-replay" "$dir/dataset" --method ifmi --quiet --out "$dir/ifmi.tum" \
-           2> "$dir/ifmi.log" | tail -n 1) || {
+  line=$("$bin/omnipose-replay" "$dir/dataset" --method ifmi --quiet --config "$replay_config" \
+           --out "$dir/ifmi.tum" 2> "$dir/ifmi.log" | tail -n 1) || {
     echo "   $name: replay failed, see $dir/ifmi.log" >&2; cat "$dir/ifmi.log" >&2; exit 1; }
   "$bin/omnipose-eval" "$dir/dataset/groundtruth.tum" "$dir/ifmi.tum" --json "$dir/eval.json" \
     > "$dir/eval.txt"
