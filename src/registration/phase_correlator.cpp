@@ -55,7 +55,7 @@ PhaseCorrelator::PhaseCorrelator(int n0, int n1, double sigma0, double sigma1,
   // (SearchRegion) and one more on each side for the sub-sample fit. (The same expression
   // as in peak(), so both round alike.)
   const auto row_reach = [&](double reach) {
-    const double reach_rows = reach / (static_cast<double>(n0_) / s0_);
+    const double reach_rows = reach / spacing0();
     const int rows_read = reach_rows < s0_ ? static_cast<int>(std::floor(reach_rows)) + 1 : s0_;
     return 2 * rows_read + 1 < s0_ ? rows_read : -1;
   };
@@ -178,8 +178,8 @@ CorrelationPeak PhaseCorrelator::peak(double reach0, double reach1, int offset_r
     if (x0 >= s0_ / 2) x0 -= s0_;
     if (x0 < -(s0_ / 2)) x0 += s0_;
   }
-  out.shift0 = x0 * (static_cast<double>(n0_) / s0_);
-  out.shift1 = p.x1 * (static_cast<double>(n1_) / s1_);
+  out.shift0 = x0 * spacing0();
+  out.shift1 = p.x1 * spacing1();
   out.height = p.value / weight_sum_;
   out.on_border = p.on_border;
   // Confidence: height above the expected maximum of a random-phase surface over the
@@ -195,21 +195,19 @@ CorrelationPeak PhaseCorrelator::correlate(const Complex* ref, const Complex* cu
   crossPower(ref, cur, 0);
   // Correlation surface r(x) = sum_k Q(k) exp(+i 2 pi k x / s), peak at the shift.
   inverse_.execute();
-  return peak(std::min(reach0, max_reach0_) / (static_cast<double>(n0_) / s0_),
-              reach1 / (static_cast<double>(n1_) / s1_), 0);
+  return peak(std::min(reach0, max_reach0_) / spacing0(), reach1 / spacing1(), 0);
 }
 
 CorrelationPeak PhaseCorrelator::correlateNear(const Complex* ref, const Complex* cur,
                                                double centre0, double reach1) {
   if (!(near_reach0_ > 0.0))  // not planned: search everything
     return correlate(ref, cur, std::numeric_limits<double>::infinity(), reach1);
-  const double spacing0 = static_cast<double>(n0_) / s0_;
   // The centre as a whole surface row on one period (r(x + c) = sum_k Q(k) z^k exp(..)).
-  const double rows = std::isfinite(centre0) ? std::remainder(std::round(centre0 / spacing0), s0_) : 0.0;
+  const double rows = std::isfinite(centre0) ? std::remainder(std::round(centre0 / spacing0()), s0_) : 0.0;
   const int shift = static_cast<int>(rows);
   crossPower(ref, cur, shift);
   near_.execute();
-  return peak(near_reach0_ / spacing0, reach1 / (static_cast<double>(n1_) / s1_), shift);
+  return peak(near_reach0_ / spacing0(), reach1 / spacing1(), shift);
 }
 
 }  // namespace omnipose::registration

@@ -72,6 +72,9 @@ class PhaseCorrelator {
   double nearReach0() const { return near_reach0_; }
 
  private:
+  /// Input samples per surface row / column.
+  double spacing0() const { return static_cast<double>(n0_) / s0_; }
+  double spacing1() const { return static_cast<double>(n1_) / s1_; }
   /// band_ = ref * conj(cur) (both carry sqrt(W) / |F|), times exp(+i 2 pi k0 c / s0) on
   /// band row k0 when `shift_rows` c != 0 (the surface then peaks c rows earlier).
   void crossPower(const Complex* ref, const Complex* cur, int shift_rows);

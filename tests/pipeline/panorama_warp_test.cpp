@@ -22,6 +22,14 @@ cv::Mat derotate(PanoramaWarp& warp, const cv::Mat& current, const Eigen::Matrix
   return out;
 }
 
+/// A panorama of uniform noise in [0, 255) (every column differs from its neighbours, so a
+/// shift or a wrong row shows).
+cv::Mat randomPanorama(const PanoramaGeometry& geometry) {
+  cv::Mat panorama(geometry.height, geometry.width, CV_32FC1);
+  cv::randu(panorama, 0.0, 255.0);
+  return panorama;
+}
+
 /// Mean absolute difference of two panoramas over rows [margin, H - margin), after a light
 /// blur of both (the renders are box-filtered, the warp is bicubic).
 double meanAbsDifference(const cv::Mat& a, const cv::Mat& b, int margin) {
@@ -73,8 +81,7 @@ TEST(PanoramaWarp, PureYawIsAWrappedWholePixelColumnShift) {
   Calibration c;
   PanoramaWarp warp(c.panorama);
   const int W = c.panorama.width, H = c.panorama.height;
-  cv::Mat current(H, W, CV_32FC1);
-  cv::randu(current, 0.0, 255.0);
+  const cv::Mat current = randomPanorama(c.panorama);
   // A yaw of exactly 7 columns: du = +-7 everywhere, dv = 0.
   const double yaw = 7 * c.panorama.gamma();
   const Eigen::Matrix3d R = rotationFromVector(Eigen::Vector3d(0.0, 0.0, yaw));
@@ -102,8 +109,7 @@ TEST(PanoramaWarp, RowsFarBeyondTheEdgesRepeatTheEdgeRows) {
   Calibration c;
   PanoramaWarp warp(c.panorama);
   const int W = c.panorama.width, H = c.panorama.height;
-  cv::Mat current(H, W, CV_32FC1);
-  cv::randu(current, 0.0, 255.0);
+  const cv::Mat current = randomPanorama(c.panorama);
   // A pitch of 0.6 rad moves rows by up to ~105 px: many output pixels sample rows far
   // above or below the panorama (ASan checks that nothing is read outside the padding).
   const Eigen::Matrix3d R = rotationFromVector(Eigen::Vector3d(0.0, 0.6, 0.0));

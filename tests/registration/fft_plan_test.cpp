@@ -104,6 +104,33 @@ std::vector<float> texture(int rows, int cols, double dr, double dc) {
   return out;
 }
 
+/// The whitened band of a rows x cols image, as the registration makes it: forward r2c,
+/// then `correlator`'s whitening (the energy is the spectrum's mean power, by Parseval).
+class Whitener {
+ public:
+  Whitener(int rows, int cols, const PhaseCorrelator& correlator)
+      : signal_(static_cast<std::size_t>(rows) * cols),
+        spectrum_(static_cast<std::size_t>(rows) * (cols / 2 + 1)),
+        forward_(FftPlan::realToComplex(rows, cols, signal_.data(), spectrum_.data())),
+        correlator_(correlator) {}
+
+  void operator()(const std::vector<float>& image, FftwArray<Complex>& band) {
+    double power = 0.0;
+    for (std::size_t i = 0; i < signal_.size(); ++i) {
+      signal_[i] = image[i];
+      power += static_cast<double>(signal_[i]) * signal_[i];
+    }
+    forward_.execute();
+    correlator_.whiten(spectrum_.data(), power, band.data());
+  }
+
+ private:
+  FftwArray<float> signal_;
+  FftwArray<Complex> spectrum_;
+  FftPlan forward_;
+  const PhaseCorrelator& correlator_;
+};
+
 TEST(PhaseCorrelator, APlanLimitedToTheSearchedRowsFindsTheSamePeak) {
   constexpr int kRows = 96, kCols = 64;
   // Content at x in `cur` appears at x + d in `ref`: ref(x) = cur(x - d).
@@ -114,19 +141,7 @@ TEST(PhaseCorrelator, APlanLimitedToTheSearchedRowsFindsTheSamePeak) {
   PhaseCorrelator limited(kRows, kCols, 1.0, 1.0, PlanEffort::kMeasure, 10.7);
   ASSERT_EQ(full.bandSize(), limited.bandSize());
 
-  FftwArray<float> signal(static_cast<std::size_t>(kRows) * kCols);
-  FftwArray<Complex> spectrum(static_cast<std::size_t>(kRows) * (kCols / 2 + 1));
-  const FftPlan forward = FftPlan::realToComplex(kRows, kCols, signal.data(), spectrum.data());
-  // The whitened band of an image (its energy is the spectrum's mean power, by Parseval).
-  const auto whitened = [&](const std::vector<float>& image, FftwArray<Complex>& band) {
-    double power = 0.0;
-    for (std::size_t i = 0; i < signal.size(); ++i) {
-      signal[i] = image[i];
-      power += static_cast<double>(signal[i]) * signal[i];
-    }
-    forward.execute();
-    full.whiten(spectrum.data(), power, band.data());
-  };
+  Whitener whitened(kRows, kCols, full);
   FftwArray<Complex> band_ref(full.bandSize()), band_cur(full.bandSize());
   whitened(ref, band_ref);
   whitened(cur, band_cur);
@@ -154,18 +169,7 @@ TEST(PhaseCorrelator, ASearchNearAGivenRowFindsTheFullSearchPeakThere) {
   PhaseCorrelator full(kRows, kCols, 1.0, 1.0);
   PhaseCorrelator near(kRows, kCols, 1.0, 1.0, PlanEffort::kMeasure, inf, kNear);
   ASSERT_EQ(near.nearReach0(), kNear);
-  FftwArray<float> signal(static_cast<std::size_t>(kRows) * kCols);
-  FftwArray<Complex> spectrum(static_cast<std::size_t>(kRows) * (kCols / 2 + 1));
-  const FftPlan forward = FftPlan::realToComplex(kRows, kCols, signal.data(), spectrum.data());
-  const auto whitened = [&](const std::vector<float>& image, FftwArray<Complex>& band) {
-    double power = 0.0;
-    for (std::size_t i = 0; i < signal.size(); ++i) {
-      signal[i] = image[i];
-      power += static_cast<double>(signal[i]) * signal[i];
-    }
-    forward.execute();
-    full.whiten(spectrum.data(), power, band.data());
-  };
+  Whitener whitened(kRows, kCols, full);
   FftwArray<Complex> band_ref(full.bandSize()), band_cur(full.bandSize());
   whitened(texture(kRows, kCols, 0.0, 0.0), band_cur);
   // Shifts far from zero, one across the wrap-around at +-48 rows from its centre row.
