@@ -68,10 +68,12 @@ class Unwrapper {
  private:
   Calibration calibration_;
   Options options_;
-  /// Per panorama pixel: index of the top-left source pixel and the 4 bilinear weights;
-  /// pixels whose footprint leaves the image get weight 0 (black).
+  /// Per panorama pixel: index of the top-left source pixel (kOutside: the footprint leaves
+  /// the image or the lens model; the pixel is black) and the position within the 2 x 2
+  /// footprint, in [0, 1).
+  static constexpr int kOutside = -1;
   std::vector<int> offset_;
-  std::vector<cv::Vec4f> weight_;
+  std::vector<float> frac_x_, frac_y_;
   cv::Mat grey_;  ///< colour frames are converted here (allocated once)
   cv::Mat validity_;
 };

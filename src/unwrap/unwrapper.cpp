@@ -1,11 +1,13 @@
 #include "omnipose/unwrapper.hpp"
 
 #include <cmath>
+#include <cstring>
 #include <opencv2/imgproc.hpp>
 #include <stdexcept>
 #include <string>
 
 #include "common/problem_list.hpp"
+#include "registration/simd.hpp"
 
 namespace omnipose {
 
@@ -31,7 +33,8 @@ Unwrapper::Unwrapper(const Calibration& calibration, const Options& options)
   if (options.input == InputKind::kOmni) {
     const cv::Mat& mask = calibration.omni.mask;
     offset_.resize(static_cast<std::size_t>(W) * H);
-    weight_.resize(offset_.size());
+    frac_x_.resize(offset_.size());
+    frac_y_.resize(offset_.size());
     for (int v = 0; v < H; ++v) {
       for (int u = 0; u < W; ++u) {
         const Eigen::Vector2d p = calibration.omniPixel(u, v);
@@ -43,20 +46,21 @@ Unwrapper::Unwrapper(const Calibration& calibration, const Options& options)
         const int x0 = inside ? static_cast<int>(fx) : 0, y0 = inside ? static_cast<int>(fy) : 0;
         const float ax = static_cast<float>(p.x() - fx), ay = static_cast<float>(p.y() - fy);
         if (!inside) {
-          offset_[i] = 0;  // outside the image or the lens model: black, unusable
-          weight_[i] = cv::Vec4f(0, 0, 0, 0);
+          offset_[i] = kOutside;  // outside the image or the lens model: black, unusable
+          frac_x_[i] = frac_y_[i] = 0.0f;
           validity_.at<float>(v, u) = 0.0f;
           continue;
         }
         offset_[i] = y0 * iw + x0;
-        weight_[i] = cv::Vec4f((1 - ax) * (1 - ay), ax * (1 - ay), (1 - ax) * ay, ax * ay);
+        frac_x_[i] = ax;
+        frac_y_[i] = ay;
         // Masked: any tap of the bilinear footprint that carries weight is masked.
         if (!mask.empty()) {
           const uint8_t* m0 = mask.ptr<uint8_t>(y0) + x0;
           const uint8_t* m1 = mask.ptr<uint8_t>(y0 + 1) + x0;
-          const cv::Vec4f& w = weight_[i];
-          if ((w[0] > 0 && m0[0] == 0) || (w[1] > 0 && m0[1] == 0) || (w[2] > 0 && m1[0] == 0) ||
-              (w[3] > 0 && m1[1] == 0))
+          const bool right = ax > 0, below = ay > 0;
+          if (m0[0] == 0 || (right && m0[1] == 0) || (below && m1[0] == 0) ||
+              (right && below && m1[1] == 0))
             validity_.at<float>(v, u) = 0.0f;
         }
       }
@@ -127,17 +131,51 @@ void Unwrapper::unwrapRows(const cv::Mat& grey, cv::Mat& panorama, int first, in
     grey.rowRange(first, last).convertTo(band, CV_32F);
     return;
   }
-  // Bilinear lookup through the precomputed table.
-  const int W = panorama.cols, stride = grey.cols;
+  // Bilinear lookup through the precomputed table: a = p00 + ax (p01 - p00), b likewise on
+  // the row below, a + ay (b - a); four pixels at a time, the same operations per pixel in
+  // the last W % 4.
+  namespace simd = registration::simd;
+  const int W = panorama.cols;
+  const std::size_t stride = static_cast<std::size_t>(grey.cols);  // continuous (toGrey())
   const uint8_t* src = grey.ptr<uint8_t>(0);
+  const simd::I4 outside = {kOutside, kOutside, kOutside, kOutside};
   for (int v = first; v < last; ++v) {
     float* dst = panorama.ptr<float>(v);
     const std::size_t row = static_cast<std::size_t>(v) * W;
-    for (int u = 0; u < W; ++u) {
-      const uint8_t* p = src + offset_[row + u];
-      const uint8_t* q = p + stride;
-      const cv::Vec4f& w = weight_[row + u];
-      dst[u] = w[0] * p[0] + w[1] * p[1] + w[2] * q[0] + w[3] * q[1];
+    const int* offset = offset_.data() + row;
+    const float* ax = frac_x_.data() + row;
+    const float* ay = frac_y_.data() + row;
+    int u = 0;
+    for (; u + 4 <= W; u += 4) {
+      simd::I4 off;
+      std::memcpy(&off, offset + u, sizeof off);
+      const simd::I4 inside = off != outside;  // -1 where the pixel has a footprint
+      off &= inside;                            // black pixels read pixel 0, then are cleared
+      const uint8_t* p0 = src + off[0];
+      const uint8_t* p1 = src + off[1];
+      const uint8_t* p2 = src + off[2];
+      const uint8_t* p3 = src + off[3];
+      const simd::I4 i00{p0[0], p1[0], p2[0], p3[0]}, i01{p0[1], p1[1], p2[1], p3[1]};
+      const simd::I4 i10{p0[stride], p1[stride], p2[stride], p3[stride]};
+      const simd::I4 i11{p0[stride + 1], p1[stride + 1], p2[stride + 1], p3[stride + 1]};
+      const simd::F4 p00 = __builtin_convertvector(i00, simd::F4);
+      const simd::F4 p01 = __builtin_convertvector(i01, simd::F4);
+      const simd::F4 p10 = __builtin_convertvector(i10, simd::F4);
+      const simd::F4 p11 = __builtin_convertvector(i11, simd::F4);
+      const simd::F4 fx = simd::load(ax + u), fy = simd::load(ay + u);
+      const simd::F4 a = p00 + fx * (p01 - p00), b = p10 + fx * (p11 - p10);
+      const simd::F4 out = a + fy * (b - a);
+      simd::store(dst + u, reinterpret_cast<simd::F4>(reinterpret_cast<simd::I4>(out) & inside));
+    }
+    for (; u < W; ++u) {
+      if (offset[u] == kOutside) {
+        dst[u] = 0.0f;
+        continue;
+      }
+      const uint8_t* p = src + offset[u];
+      const float p00 = p[0], p01 = p[1], p10 = p[stride], p11 = p[stride + 1];
+      const float a = p00 + ax[u] * (p01 - p00), b = p10 + ax[u] * (p11 - p10);
+      dst[u] = a + ay[u] * (b - a);
     }
   }
 }
