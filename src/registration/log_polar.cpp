@@ -78,6 +78,12 @@ LogPolarMap::LogPolarMap(int n, int n_theta, int n_radius, double r_min, double 
       tap_offset_[i] = (first_v + reach_) * grid_cols_ + (first_u + 1);
     }
   }
+  // Grid columns the taps read, per row: fillGrid() computes no others.
+  row_columns_.assign(rows, 0);
+  for (const int offset : tap_offset_) {
+    const int row = offset / grid_cols_, last_col = offset % grid_cols_ + 3;
+    for (int t = 0; t < 4; ++t) row_columns_[row + t] = std::max(row_columns_[row + t], last_col + 1);
+  }
   // resample() interpolates four samples of a row at once: store their u weights tap-major
   // (weight_u_[4 i0 + 4 t + l] = weight t of sample i0 + l); a row's last n_radius % 4
   // samples keep theirs sample-major.
@@ -97,11 +103,14 @@ LogPolarMap::LogPolarMap(int n, int n_theta, int n_radius, double r_min, double 
 }
 
 void LogPolarMap::fillGrid(const Complex* spectrum) {
-  // g = H |F| on the extended grid, row by row. Grid row `row` is k_v = row - reach: its
-  // columns 1 .. reach + 1 (k_u = 0 .. reach) are the contiguous start of spectrum row
-  // k_v mod n, read four bins at a time; column 0 (k_u = -1) is |F(1, -k_v)|.
-  const int rows = 2 * reach_ + 1, half_cols = n_ / 2 + 1, count = grid_cols_ - 1;
+  // g = H |F| on the extended grid, row by row, as far as the taps read (row_columns_).
+  // Grid row `row` is k_v = row - reach: its columns 1 .. reach + 1 (k_u = 0 .. reach) are
+  // the contiguous start of spectrum row k_v mod n, read four bins at a time (the last group
+  // may pass the columns read, not the grid); column 0 (k_u = -1) is |F(1, -k_v)|.
+  const int rows = 2 * reach_ + 1, half_cols = n_ / 2 + 1;
   for (int row = 0; row < rows; ++row) {
+    if (row_columns_[row] == 0) continue;
+    const int count = std::min(grid_cols_ - 1, (row_columns_[row] - 1 + 3) / 4 * 4);
     const int kv = row - reach_;
     const Complex* src = spectrum + static_cast<std::size_t>((kv % n_ + n_) % n_) * half_cols;
     const Complex mirrored = spectrum[static_cast<std::size_t>((-kv % n_ + n_) % n_) * half_cols + 1];
@@ -179,22 +188,29 @@ double LogPolarMap::resample(const Complex* spectrum, float* out) {
     mean[b] = m;
     gain[b] = var > 0.0f ? taper_[b] / std::sqrt(var) : 0.0f;
   }
-  simd::F4 energy4 = simd::broadcast(0.0f);
+  // The energy in two running sums (one chain of additions would wait on each one's
+  // latency).
+  simd::F4 energy4 = simd::broadcast(0.0f), energy4b = simd::broadcast(0.0f);
   double energy = 0.0;
+  const auto normalised = [&](float* row, int b) {
+    const simd::F4 v = (simd::load(row + b) - simd::load(mean + b)) * simd::load(gain + b);
+    simd::store(row + b, v);
+    return v * v;
+  };
   for (int a = 0; a < n_theta; ++a) {
     float* row = out + static_cast<std::size_t>(a) * n_radius;
     int b = 0;
-    for (; b + 4 <= n_radius; b += 4) {
-      const simd::F4 v = (simd::load(row + b) - simd::load(mean + b)) * simd::load(gain + b);
-      simd::store(row + b, v);
-      energy4 += v * v;
+    for (; b + 8 <= n_radius; b += 8) {
+      energy4 += normalised(row, b);
+      energy4b += normalised(row, b + 4);
     }
+    for (; b + 4 <= n_radius; b += 4) energy4 += normalised(row, b);
     for (; b < n_radius; ++b) {
       row[b] = (row[b] - mean[b]) * gain[b];
       energy += static_cast<double>(row[b]) * row[b];
     }
   }
-  return energy + simd::sum(energy4);
+  return energy + simd::sum(energy4 + energy4b);
 }
 
 }  // namespace omnipose::registration

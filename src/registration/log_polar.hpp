@@ -65,6 +65,7 @@ class LogPolarMap {
   std::vector<float> high_pass_;   ///< H per grid entry
   // Per output sample: grid offset of the first tap and the separable B-spline weights.
   std::vector<int> tap_offset_;
+  std::vector<int> row_columns_;   ///< per grid row: 1 + the last column a tap reads (0: none)
   std::vector<float> weight_u_;    ///< 4 per sample; tap-major per four samples of a row
   std::vector<float> weight_v_;    ///< 4 per sample
   std::vector<float> taper_;       ///< per output column

@@ -63,10 +63,19 @@ Vertex1d fitVertex(double m, double c, double p) {
   return v;
 }
 
-/// Largest value of p[0 .. count).
+/// Largest value of p[0 .. count). Four independent running maxima over 16 values at a
+/// time: one chain of vector maxima would wait on each one's latency.
 float segmentMax(const float* p, int count) {
-  simd::F4 best4 = simd::broadcast(-std::numeric_limits<float>::infinity());
+  const simd::F4 lowest = simd::broadcast(-std::numeric_limits<float>::infinity());
+  simd::F4 b0 = lowest, b1 = lowest, b2 = lowest, b3 = lowest;
   int j = 0;
+  for (; j + 16 <= count; j += 16) {
+    b0 = simd::max(b0, simd::load(p + j));
+    b1 = simd::max(b1, simd::load(p + j + 4));
+    b2 = simd::max(b2, simd::load(p + j + 8));
+    b3 = simd::max(b3, simd::load(p + j + 12));
+  }
+  simd::F4 best4 = simd::max(simd::max(b0, b1), simd::max(b2, b3));
   for (; j + 4 <= count; j += 4) best4 = simd::max(best4, simd::load(p + j));
   float best = simd::maxLane(best4);
   for (; j < count; ++j) best = std::max(best, p[j]);
