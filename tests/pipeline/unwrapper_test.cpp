@@ -2,6 +2,8 @@
 
 #include <gtest/gtest.h>
 
+#include <cmath>
+
 #include <opencv2/imgproc.hpp>
 
 #include "render_fixture.hpp"
@@ -86,6 +88,45 @@ TEST(Unwrapper, ColourAndGreyGiveTheSamePanoramaAndTableMatchesTheFormula) {
       EXPECT_NEAR(a.at<float>(v, u), patch.at<float>(0, 0), 0.05) << u << "," << v;
     }
   }
+}
+
+// Every pixel, including the last W % 4 columns (the lookup runs four at a time) and pixels
+// whose footprint leaves the frame (black, unusable), against bilinear interpolation at
+// the calibration's omniPixel().
+TEST(Unwrapper, EveryPixelIsTheBilinearSampleOrBlackOutsideTheFrame) {
+  Calibration c;
+  c.panorama.width = 1103;  // 1103 % 4 = 3
+  c.omni.center_x = 120.0;  // the outer ring leaves the frame on the left
+  cv::Mat grey(720, 720, CV_8UC1);
+  cv::randu(grey, 10, 250);
+  Unwrapper unwrapper(c, {});
+  cv::Mat out = unwrapper.makePanorama();
+  ASSERT_TRUE(unwrapper.unwrap(grey, out).has_value());
+  int outside = 0, tail = 0;
+  for (int v = 0; v < out.rows; ++v) {
+    for (int u = 0; u < out.cols; ++u) {
+      const Eigen::Vector2d p = c.omniPixel(u, v);
+      const double x0 = std::floor(p.x()), y0 = std::floor(p.y());
+      const bool inside = x0 >= 0 && y0 >= 0 && x0 + 1 < grey.cols && y0 + 1 < grey.rows;
+      EXPECT_EQ(unwrapper.validity().at<float>(v, u), inside ? 1.0f : 0.0f) << u << "," << v;
+      if (!inside) {
+        ++outside;
+        EXPECT_EQ(out.at<float>(v, u), 0.0f) << u << "," << v;
+        continue;
+      }
+      const auto at = [&](double x, double y) {
+        return static_cast<double>(grey.at<uint8_t>(static_cast<int>(y), static_cast<int>(x)));
+      };
+      const double ax = p.x() - x0, ay = p.y() - y0;
+      const double expected =
+          (1 - ay) * ((1 - ax) * at(x0, y0) + ax * at(x0 + 1, y0)) +
+          ay * ((1 - ax) * at(x0, y0 + 1) + ax * at(x0 + 1, y0 + 1));
+      EXPECT_NEAR(out.at<float>(v, u), expected, 1e-3) << u << "," << v;
+      if (u >= out.cols - out.cols % 4) ++tail;
+    }
+  }
+  EXPECT_GT(outside, 1000);
+  EXPECT_GT(tail, 100);
 }
 
 TEST(Unwrapper, PanoramaInputPassesThrough) {
