@@ -158,21 +158,19 @@ WindowSpectrum::Stats WindowSpectrum::transform(const ColumnSpectra& columns, in
     float* y = reinterpret_cast<float*>(rows_.data() + static_cast<std::size_t>(kv) * n);
     // Two running sums (one chain of additions would wait on each one's latency).
     simd::F4 sum4 = simd::broadcast(0.0f), sum4b = simd::broadcast(0.0f);
+    // y at floats [f, f + 4), stored; returns its squares.
+    const auto taper4 = [&](int f) {
+      const simd::F4 v = (simd::load(c + f) - mh4) * simd::load(paired + f);
+      simd::store(y + f, v);
+      return v * v;
+    };
     int f = 0;  // float index: 2 per complex value
     for (; f + 8 <= 2 * length; f += 8) {
-      const simd::F4 v = (simd::load(c + f) - mh4) * simd::load(paired + f);
-      const simd::F4 w = (simd::load(c + f + 4) - mh4) * simd::load(paired + f + 4);
-      simd::store(y + f, v);
-      simd::store(y + f + 4, w);
-      sum4 += v * v;
-      sum4b += w * w;
+      sum4 += taper4(f);
+      sum4b += taper4(f + 4);
     }
     sum4 += sum4b;
-    for (; f + 4 <= 2 * length; f += 4) {
-      const simd::F4 v = (simd::load(c + f) - mh4) * simd::load(paired + f);
-      simd::store(y + f, v);
-      sum4 += v * v;
-    }
+    for (; f + 4 <= 2 * length; f += 4) sum4 += taper4(f);
     float tail = 0.0f;
     for (; f < 2 * length; f += 2) {  // an odd L: the last value
       y[f] = paired[f] * (c[f] - mh.real());
