@@ -3,7 +3,10 @@
 /// Four-lane float vectors (GCC/Clang vector extensions: SSE on x86-64, NEON on AArch64,
 /// plain scalar code elsewhere) for the hot loops of the registration. The project builds
 /// with -O2, where GCC 12 auto-vectorises almost nothing; these keep the per-window work
-/// small without target-specific flags. Results are IEEE-exact per lane (no fast-math).
+/// small without target-specific flags. Results are IEEE-exact per lane (no fast-math),
+/// except that on AArch64 GCC fuses a * b + c into one multiply-add (NEON fmla, one rounding;
+/// C++'s default -ffp-contract=fast), which x86-64's SSE2 does not have: arm64 and x86
+/// results differ in the last bits, each deterministic for any thread count.
 
 #include <cmath>
 #include <cstring>
