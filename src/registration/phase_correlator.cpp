@@ -34,7 +34,7 @@ int signedIndex(int i, int n) { return i < n / 2 ? i : i - n; }
 /// than a core's L2) are written by whiten() and read back by crossPower() a frame later,
 /// from L3 or memory; with the hardware prefetcher alone, crossPower() took 9 % of the wall
 /// time for 5 % of the instructions, waiting on those loads (perf, 1 thread). 2026-11-25,
-/// issue 10: 1 thread -3 to -5 % (medians of 30 alternated runs, three series).
+/// issue 10: 1 thread 9.83 -> 9.33 and 9.57 -> 9.27 ms (medians of 30 alternated runs).
 constexpr int kPrefetchFloats = 512;
 constexpr int kFloatsPerLine = 16;  ///< 64-byte cache lines
 
