@@ -21,6 +21,11 @@
 #   WISDOM    [BUILD_DIR/accuracy.wisdom]  FFTW wisdom of every ifmi replay: the first replay
 #                      that lacks a plan makes it (FFTW_PATIENT) and writes the file, later
 #                      replays and runs reuse it (it is kept outside OUTDIR)
+#   IFMI_PIPELINE [""]  more keys of the ifmi replays' `pipeline:` section (daemon.yaml's),
+#                      "key: value" entries separated by ';', e.g.
+#                      IFMI_PIPELINE="estimate_rotation_scale: false; refine_iterations: 2"
+#                      to measure what a setting is worth (not with --publish: the published
+#                      results are those of the defaults)
 # Everything is seeded, and the ifmi replays share one set of FFT plans (without it FFTW
 # picked plans per replay, and two runs of one build differed by up to 1.5 % in a column):
 # with the same WISDOM, the same build gives the same datasets and estimates, and two builds
@@ -51,6 +56,14 @@ command_line="tools/accuracy_benchmark.sh $*"
 [ -n "${FRAMES:-}" ] && command_line="FRAMES=$FRAMES $command_line"
 [ -n "${SUPERSAMPLE:-}" ] && command_line="SUPERSAMPLE=$SUPERSAMPLE $command_line"
 [ -n "${WISDOM:-}" ] && command_line="WISDOM=$WISDOM $command_line"
+ifmi_pipeline=${IFMI_PIPELINE:-}
+if [ -n "$ifmi_pipeline" ]; then
+  command_line="IFMI_PIPELINE=\"$ifmi_pipeline\" $command_line"
+  if [ "$publish" = 1 ]; then
+    echo "accuracy_benchmark: --publish publishes the defaults; unset IFMI_PIPELINE" >&2
+    exit 2
+  fi
+fi
 
 tools=(omnipose-synth omnipose-replay omnipose-eval omnipose-plot-fit omnipose-plot-angles
        omnipose-results)
@@ -77,11 +90,19 @@ esac
 rm -rf "$out"
 mkdir -p "$out/motions" "$out/report"
 report=$out/report
-# The ifmi replays' configuration: only the FFTW wisdom file (see WISDOM above), as an
-# absolute path (a relative one would be taken relative to the configuration's directory).
+# The ifmi replays' configuration: the FFTW wisdom file (see WISDOM above), as an absolute
+# path (a relative one would be taken relative to the configuration's directory), and the
+# entries of IFMI_PIPELINE (omnipose-replay rejects an unknown key or a bad value).
 wisdom=$(realpath -m "${WISDOM:-$build/accuracy.wisdom}")
 replay_config=$out/replay.yaml
-printf 'pipeline:\n  fftw_wisdom: "%s"\n' "$wisdom" > "$replay_config"
+{
+  printf 'pipeline:\n  fftw_wisdom: "%s"\n' "$wisdom"
+  IFS=';' read -ra entries <<< "$ifmi_pipeline"
+  for entry in "${entries[@]}"; do
+    entry=$(sed 's/^[[:space:]]*//; s/[[:space:]]*$//' <<< "$entry")
+    [ -n "$entry" ] && printf '  %s\n' "$entry"
+  done
+} > "$replay_config"
 
 # ---------------------------------------------------------------------------- motions
 # Single-axis sequences use the renderer's presets (the paper's protocol: 1..6 deg per
