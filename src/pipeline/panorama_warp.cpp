@@ -69,6 +69,7 @@ void PanoramaWarp::padCurrent(const cv::Mat& current) {
   }
 }
 
+OMNIPOSE_SIMD_CLONES
 void PanoramaWarp::derotateRows(cv::Mat& out, int first, int last) const {
   const int W = geometry_.width, H = geometry_.height;
   // Bilinear interpolation of the (smooth) displacement; bicubic sampling of the image

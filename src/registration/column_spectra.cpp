@@ -93,6 +93,7 @@ ColumnSpectra::~ColumnSpectra() {
   destroy(last_);
 }
 
+OMNIPOSE_SIMD_CLONES
 void ColumnSpectra::transformChunk(const float* first_row, std::size_t stride, int chunk) {
   const int u0 = chunk * chunk_width_;
   const int count = std::min(chunk_width_, width_ - u0);
@@ -135,6 +136,7 @@ WindowSpectrum::WindowSpectrum(int fft_size, PlanEffort effort)
 
 WindowSpectrum::~WindowSpectrum() { destroy(plan_); }
 
+OMNIPOSE_SIMD_CLONES
 WindowSpectrum::Stats WindowSpectrum::transform(const ColumnSpectra& columns, int first_col,
                                                 Complex* spectrum) {
   const int n = n_, bins = n / 2 + 1, length = columns.length();

@@ -102,6 +102,7 @@ LogPolarMap::LogPolarMap(int n, int n_theta, int n_radius, double r_min, double 
   for (int b = 0; b < n_radius; ++b) taper_[b] = tukey(b, n_radius);
 }
 
+OMNIPOSE_SIMD_CLONES
 void LogPolarMap::fillGrid(const Complex* spectrum) {
   // g = H |F| on the extended grid, row by row, as far as the taps read (row_columns_).
   // Grid row `row` is k_v = row - reach: its columns 1 .. reach + 1 (k_u = 0 .. reach) are
@@ -127,6 +128,7 @@ void LogPolarMap::fillGrid(const Complex* spectrum) {
   }
 }
 
+OMNIPOSE_SIMD_CLONES
 double LogPolarMap::resample(const Complex* spectrum, float* out) {
   fillGrid(spectrum);
   // g(a, b) = sum_ij w_v[i] w_u[j] grid(v0 + i, u0 + j): separable cubic B-spline.

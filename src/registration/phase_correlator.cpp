@@ -114,6 +114,7 @@ PhaseCorrelator::PhaseCorrelator(int n0, int n1, double sigma0, double sigma1,
   noise_sigma_ = std::sqrt(sum_w2) / sum_w;
 }
 
+OMNIPOSE_SIMD_CLONES
 void PhaseCorrelator::whiten(const Complex* spectrum, double mean_power, Complex* band) const {
   const int spectrum_cols = n1_ / 2 + 1;
   const float floor2 = static_cast<float>(1e-8 * mean_power) + 1e-30f;
@@ -152,6 +153,7 @@ void PhaseCorrelator::whiten(const Complex* spectrum, double mean_power, Complex
   }
 }
 
+OMNIPOSE_SIMD_CLONES
 void PhaseCorrelator::crossPower(const Complex* ref, const Complex* cur, int shift_rows) {
   // Q = W * F_ref * conj(F_cur) / (|F_ref| |F_cur|); both inputs already carry sqrt(W) / |F|.
   const float* a = reinterpret_cast<const float*>(ref);

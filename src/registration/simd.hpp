@@ -24,6 +24,21 @@
 #error "AArch64 without __ARM_NEON: simd.hpp would fall back to its scalar branch"
 #endif
 
+/// OMNIPOSE_SIMD_CLONES, on the functions that hold the hot loops: on x86-64 with GCC, two
+/// copies of the function, one for the x86-64 baseline (SSE2) and one for x86-64-v3 (AVX2,
+/// FMA: VEX encoding, and a * b + c fused into one multiply-add), of which the dynamic loader
+/// picks the second on CPUs that have it (GCC's target_clones, an ifunc), as FFTW and OpenCV
+/// pick their kernels; the binary still runs on any x86-64. One process always runs one copy,
+/// so results stay bit-identical for any thread count; a CPU without AVX2 and FMA computes
+/// the last bits differently, as arm64 does. Elsewhere (AArch64 has its multiply-add in the
+/// baseline) and under OMNIPOSE_NO_SIMD_CLONES it is empty.
+#if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__) && \
+    !defined(OMNIPOSE_NO_SIMD_CLONES)
+#define OMNIPOSE_SIMD_CLONES __attribute__((target_clones("arch=x86-64-v3", "default")))
+#else
+#define OMNIPOSE_SIMD_CLONES
+#endif
+
 namespace omnipose::registration::simd {
 
 /// Which branch of this header was compiled: "sse2", "neon" or "scalar"

@@ -64,8 +64,9 @@ Vertex1d fitVertex(double m, double c, double p) {
 }
 
 /// Largest value of p[0 .. count). Four independent running maxima over 16 values at a
-/// time: one chain of vector maxima would wait on each one's latency.
-float segmentMax(const float* p, int count) {
+/// time: one chain of vector maxima would wait on each one's latency. Inlined into each copy
+/// of findPeak() (OMNIPOSE_SIMD_CLONES).
+[[gnu::always_inline]] inline float segmentMax(const float* p, int count) {
   const simd::F4 lowest = simd::broadcast(-std::numeric_limits<float>::infinity());
   simd::F4 b0 = lowest, b1 = lowest, b2 = lowest, b3 = lowest;
   int j = 0;
@@ -82,6 +83,7 @@ float segmentMax(const float* p, int count) {
   return best;
 }
 
+OMNIPOSE_SIMD_CLONES
 SubpixelPeak findPeak(const SurfaceView& surface, const SearchRegion& region) {
   // Columns d1 in [lo1, hi1] are two contiguous runs: [0, hi1] and [cols + lo1, cols).
   const int cols = surface.cols;

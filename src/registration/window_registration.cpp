@@ -105,6 +105,7 @@ std::vector<float> taperTable(int length) {
 }
 
 /// sum_j a[j] b[j] (four lanes, so no serial chain of additions).
+OMNIPOSE_SIMD_CLONES
 float dot(const float* a, const float* b, int count) {
   reg::simd::F4 acc = reg::simd::broadcast(0.0f);
   int j = 0;
@@ -116,6 +117,7 @@ float dot(const float* a, const float* b, int count) {
 
 /// out[j] = h * taper[j] * (in[j] - mean) for j < count; returns sum_j out[j]^2. `out` may
 /// be `in` (in place).
+OMNIPOSE_SIMD_CLONES
 float taperRow(float* out, const float* in, const float* taper, float h, float mean, int count) {
   namespace simd = reg::simd;
   const simd::F4 h4 = simd::broadcast(h), m4 = simd::broadcast(mean);
@@ -137,6 +139,7 @@ float taperRow(float* out, const float* in, const float* taper, float h, float m
 /// One row of an affine resampling with bilinear interpolation: out[j] = image(u0 + j du,
 /// v0 + j dv), with u >= 0 and v clamped to [0, max_v] (both neighbours inside the image).
 /// Columns wrap modulo `width` (the panorama is periodic in u).
+OMNIPOSE_SIMD_CLONES
 void sampleRowWrapped(const float* image, std::size_t stride, int width, float u0, float du,
                       float v0, float dv, float max_v, float* out, int count) {
   for (int j = 0; j < count; ++j) {
@@ -157,6 +160,7 @@ void sampleRowWrapped(const float* image, std::size_t stride, int width, float u
 
 /// As sampleRowWrapped() for a row whose columns stay inside the image (no wrap), four
 /// pixels at a time.
+OMNIPOSE_SIMD_CLONES
 void sampleRow(const float* image, std::size_t stride, float u0, float du, float v0, float dv,
                float max_v, float* out, int count) {
   namespace simd = reg::simd;

@@ -125,6 +125,7 @@ Expected<const cv::Mat*> Unwrapper::toGrey(const cv::Mat& frame) {
   return grey;
 }
 
+OMNIPOSE_SIMD_CLONES
 void Unwrapper::unwrapRows(const cv::Mat& grey, cv::Mat& panorama, int first, int last) const {
   if (options_.input == InputKind::kPanorama) {
     cv::Mat band = panorama.rowRange(first, last);  // a view: convertTo writes in place

@@ -27,6 +27,27 @@ TEST(Simd, TheArchitecturesVectorBranchIsCompiled) {
 #endif
 }
 
+// a * b + c, compiled once per target of OMNIPOSE_SIMD_CLONES, as the hot loops are.
+OMNIPOSE_SIMD_CLONES
+float multiplyAdd(float a, float b, float c) { return a * b + c; }
+
+TEST(Simd, HotLoopsRunTheMultiplyAddCopyOnCpusThatHaveIt) {
+  // (1 + 2^-12)^2 = 1 + 2^-11 + 2^-24 does not fit a float (ties to 1 + 2^-11): minus
+  // 1 + 2^-11 it is 2^-24 when the multiply-add is fused, 0 when the product is rounded first.
+  volatile float a = 1.0f + 0x1p-12f;
+  const float got = multiplyAdd(a, a, -(1.0f + 0x1p-11f));
+#if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__) && \
+    !defined(OMNIPOSE_NO_SIMD_CLONES)
+  __builtin_cpu_init();
+  const bool v3 = __builtin_cpu_supports("x86-64-v3");
+  std::printf("x86-64-v3 copy: %s\n", v3 ? "yes" : "no (baseline copy)");
+  EXPECT_EQ(got, v3 ? 0x1p-24f : 0.0f);
+#else
+  (void)got;
+  GTEST_SKIP() << "OMNIPOSE_SIMD_CLONES is empty here: one copy";
+#endif
+}
+
 TEST(Simd, LaneWiseHelpersMatchScalarArithmetic) {
   const simd::F4 x{0.25f, 2.0f, 9.0f, 1e4f};
   const simd::F4 r = simd::sqrt(x);
