@@ -4,9 +4,10 @@
 /// plain scalar code elsewhere) for the hot loops of the registration. The project builds
 /// with -O2, where GCC 12 auto-vectorises almost nothing; these keep the per-window work
 /// small without target-specific flags. Results are IEEE-exact per lane (no fast-math),
-/// except that on AArch64 GCC fuses a * b + c into one multiply-add (NEON fmla, one rounding;
-/// C++'s default -ffp-contract=fast), which x86-64's SSE2 does not have: arm64 and x86
-/// results differ in the last bits, each deterministic for any thread count.
+/// except that GCC fuses a * b + c into one multiply-add (one rounding; C++'s default
+/// -ffp-contract=fast) where the target has one: on AArch64 (NEON fmla) and in the x86-64-v3
+/// copies of OMNIPOSE_SIMD_CLONES, not in x86-64's SSE2 baseline. So results differ in the
+/// last bits between those, each deterministic for any thread count.
 
 #include <cmath>
 #include <cstring>
