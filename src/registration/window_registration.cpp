@@ -54,6 +54,10 @@ struct Tuning {
   // instructions per frame (-8 %), accuracy benchmark eps RMSE -1 % on average but indoor
   // large (6-12 deg steps) +7.0 % and the unmasked mast +5.3 %: a coarser first estimate
   // leaves the single refinement a larger residual. Beyond the 5 % allowed: not taken.
+  // Sigma 1.12 px, for a 96 x 96 surface instead of 108 x 108 (2026-11-26, issue 10): the
+  // surface's samples 112/96 = 1.17 px apart instead of 1.04; accuracy benchmark mean +12 %,
+  // worst park yaw +100 % and indoor yaw +50 % (yaw moves every window by the same shift, so
+  // a sub-sample bias of the peak fit does not average out). Not taken.
   /// Log-polar grid: angles over [0, pi) and log-spaced radii. Smaller grids were tried
   /// (2026-11-24, issue 10; instructions per frame from 133.1 M, accuracy benchmark ifmi,
   /// every RMSE column): 64 x 48 -20 % instructions, mean +4.7 %, worst +39 %
