@@ -32,12 +32,15 @@
 /// pick their kernels; the binary still runs on any x86-64. One process always runs one copy,
 /// so results stay bit-identical for any thread count; a CPU without AVX2 and FMA computes
 /// the last bits differently, as arm64 does. Elsewhere (AArch64 has its multiply-add in the
-/// baseline) and under OMNIPOSE_NO_SIMD_CLONES it is empty.
+/// baseline) and under OMNIPOSE_NO_SIMD_CLONES it is empty; OMNIPOSE_HAS_SIMD_CLONES says which
+/// (1: two copies, 0: one).
 #if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__) && \
     !defined(OMNIPOSE_NO_SIMD_CLONES)
 #define OMNIPOSE_SIMD_CLONES __attribute__((target_clones("arch=x86-64-v3", "default")))
+#define OMNIPOSE_HAS_SIMD_CLONES 1
 #else
 #define OMNIPOSE_SIMD_CLONES
+#define OMNIPOSE_HAS_SIMD_CLONES 0
 #endif
 
 namespace omnipose::registration::simd {

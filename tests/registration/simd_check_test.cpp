@@ -36,8 +36,7 @@ TEST(Simd, HotLoopsRunTheMultiplyAddCopyOnCpusThatHaveIt) {
   // 1 + 2^-11 it is 2^-24 when the multiply-add is fused, 0 when the product is rounded first.
   volatile float a = 1.0f + 0x1p-12f;
   const float got = multiplyAdd(a, a, -(1.0f + 0x1p-11f));
-#if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__) && \
-    !defined(OMNIPOSE_NO_SIMD_CLONES)
+#if OMNIPOSE_HAS_SIMD_CLONES  // x86-64: __builtin_cpu_supports knows "x86-64-v3"
   __builtin_cpu_init();
   const bool v3 = __builtin_cpu_supports("x86-64-v3");
   std::printf("x86-64-v3 copy: %s\n", v3 ? "yes" : "no (baseline copy)");
