@@ -234,13 +234,8 @@ Eigen::Matrix<double, 6, 1> MotionFit::depthGaussNewton(std::span<const WindowMo
   // information matrix S and the shift noise `sigma`, radians); it used to stop on
   // |dx| < 1e-9, which it almost never reached: where tau is small against the noise,
   // lambda and tau are barely observable and the steps crept along that valley until the
-  // 20-iteration cap (omnipose-bench-instructions: the fit 15.8 -> 11.6 M instructions per
-  // 6 frames; accuracy benchmark mean -0.1 %, worst column +2.0 %). kNegligibleStep 1e-2
-  // saved twice as much but made indoor_yaw's roll RMSE 5.9 % worse.
-  // Newton's Hessian (Gauss-Newton's plus the model's curvature d2/dlambda_k dtau =
-  // -sum w r a_tr, with Gauss-Newton where it is not positive definite) converges in 3.6
-  // instead of 9.5 iterations on the demo sequence, but that minimum moved the unmasked
-  // mast sequence's pitch RMSE +17.8 % (yaw -15.7 %): tried 2026-11-25, not taken.
+  // 20-iteration cap. A looser kNegligibleStep (1e-2) and Newton's Hessian cost accuracy
+  // (docs/PERFORMANCE.md).
   constexpr double kNegligibleStep = 1e-3;
   constexpr int kMaxHalvings = 6;
   double total = 0.0;

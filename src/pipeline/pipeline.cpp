@@ -28,8 +28,8 @@ double secondsSince(Clock::time_point start) {
 /// last fit predicts (WindowRegistration::measure(), expected_dv) when that prediction is
 /// good to within the band: kPredictionSlackPx for the fit's error and the first-order
 /// model, plus kDepthSpread times the predicted dv for the window's depth. Measured on the
-/// accuracy benchmark's 18 sequences (2026-11-25, every window valid in the refinement pass,
-/// 22,600 windows): |full-search dv - predicted dv| p99 0.02-1.09 px, at most 1.6 px except
+/// accuracy benchmark's 18 sequences (every window valid in the refinement pass, 22,600
+/// windows): |full-search dv - predicted dv| p99 0.02-1.09 px, at most 1.6 px except
 /// 1 window each of the kogeto sequences (5.6, 7.6 px) and the mast's windows in the unmasked
 /// sequence (up to 17 px: the mast does not move with the scene; those windows are
 /// outliers either way).
@@ -240,24 +240,16 @@ Expected<FrameMotion> Pipeline::process(const cv::Mat& frame) {
   MotionEstimate est = s.fit.fit(s.windows, u0);
   result.timing.fit = secondsSince(t_fit);
 
-  // A first pass fitted with uniform depth (its translation is not used when a refinement
-  // follows) was tried (2026-11-25, issue 10): fit stage 0.14 -> 0.017 ms, 2 threads 5.03 ->
-  // 4.89 ms, but the refined estimates got worse (accuracy benchmark, 73 RMSE columns: mean
-  // +1.7 %, mast_park_mixed roll +10.8 %, steep_park_mixed pitch +7.2 %). Not taken.
+  // The first pass keeps the per-window depth even when a refinement follows: a uniform
+  // depth there made the refined estimates worse (docs/PERFORMANCE.md).
 
   // 4. Exact refinement: de-rotate the current panorama by the estimate (exact cylinder
   // projection), fit what is left (residual rotation + translation), compose the rotation.
-  // The windows' rotation/scale are searched again on the de-rotated panorama. Predicting
-  // them instead (the first pass's, searched on the un-warped windows, composed with the
-  // de-rotation's local similarity) would save a window FFT and the log-polar stage per
-  // window (omnipose-bench-pipeline, 1 thread: refinement 11.6 -> 9.0 ms, first pass 7.8 ->
-  // 8.9 ms for its log-polar search, 20.2 -> 19.1 ms in all), but those estimates are off by
-  // ~1 mrad and ~0.2 % in scale, and de-rotating by them made the accuracy benchmark's park
-  // roll eps RMSE 0.026 -> 0.134 mrad (tried 2026-11-23, issue 10): not taken.
-  // The windows' translation peaks are searched within a band of rows around the dv the
-  // last fit predicts (predictRefinementShifts(); 2026-11-25, issue 10: 1 thread 9.08 / 8.93
-  // -> 8.13 / 8.64 ms, accuracy benchmark mean -0.7 %, the unmasked mast up to -16 %: its
-  // windows, which do not move with the scene, no longer find the mast).
+  // The windows' rotation/scale are searched again on the de-rotated panorama: predicting
+  // them from the first pass instead is off by ~1 mrad and ~0.2 % in scale, too much for
+  // the accuracy (docs/PERFORMANCE.md). The windows' translation peaks are searched within
+  // a band of rows around the dv the last fit predicts (predictRefinementShifts()); windows
+  // that do not move with the scene (a robot's mast) then rarely lock onto it.
   const auto t_refine = Clock::now();
   Eigen::Matrix3d R = rotationFromVector(est.omega);
   Eigen::Vector3d tau = est.tau;

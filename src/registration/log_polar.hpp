@@ -10,16 +10,9 @@
 /// Interpolation is a cubic B-spline (4 x 4 taps), not bilinear: bilinear interpolation
 /// blurs by f (1 - f) (f = sub-bin position), a blur pattern fixed to the FFT grid that
 /// pulls the rotation/scale estimates towards zero (0.35 deg and 0.6 % on 110 px windows);
-/// the B-spline's blur does not depend on f (errors 0.09 deg, 0.2 %).
-/// The quadratic B-spline (3 x 3 taps; its blur does not depend on f either) was tried
-/// (2026-11-24, issue 10): accuracy benchmark RMSE columns -1.6 % on average but up to +6.6 %
-/// (room_translate yaw; five columns beyond +5 %), outside the 5 % the project allows for a
-/// speed-up (it would have saved about a quarter of the resampling). Not taken.
-/// A table of the 16 products w_v[t] w_u[j] per sample (so each tap is one multiply and no
-/// weight is broadcast) was tried too (2026-11-25): resampling 150.0 -> 125.6 M
-/// instructions per 6 frames (-3.4 % of the frame), but wall time unchanged in alternated
-/// runs (1 thread 9.09 / 8.93 / 8.96 ms before, 9.15 / 8.88 / 9.00 after) for a table
-/// 1.9x larger (64 instead of 36 bytes per sample, per worker). Not taken.
+/// the B-spline's blur does not depend on f (errors 0.09 deg, 0.2 %). The quadratic
+/// B-spline cost accuracy beyond the 5 % allowed, and a table of the 16 weight products per
+/// sample saved instructions but no time (docs/PERFORMANCE.md).
 ///
 /// A rotation of the window content by phi (counter-clockwise on screen) and a scaling by s
 /// shift the log-polar image by (-phi / angleStep(), -ln s / logRadiusStep()) samples

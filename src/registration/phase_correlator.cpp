@@ -13,10 +13,9 @@
 namespace omnipose::registration {
 namespace {
 
-/// W below exp(-kBandCut^2 / 2) ~ 1.1% is dropped from the band. 2.5 (W down to 4.4 %; the
-/// translation surface 90 x 90 instead of 108 x 108) was tried (2026-11-24, issue 10): -5.8 %
-/// instructions, but the accuracy benchmark's RMSE columns +22.5 % on average, up to +88 %
-/// (park yaw): the truncated Gaussian rings, and the sub-sample peak fit reads the ringing.
+/// W below exp(-kBandCut^2 / 2) ~ 1.1% is dropped from the band. A narrower band (2.5)
+/// truncates the Gaussian so that it rings, and the sub-sample peak fit reads the ringing
+/// (accuracy far worse: docs/PERFORMANCE.md).
 constexpr double kBandCut = 3.0;
 
 /// Band size for one axis: keep frequencies with sigma * w <= kBandCut, i.e.
@@ -33,8 +32,8 @@ int signedIndex(int i, int n) { return i < n / 2 ? i : i - n; }
 /// The bands a frame keeps for the next one (55 windows x 72 KB at the paper setting, more
 /// than a core's L2) are written by whiten() and read back by crossPower() a frame later,
 /// from L3 or memory; with the hardware prefetcher alone, crossPower() took 9 % of the wall
-/// time for 5 % of the instructions, waiting on those loads (perf, 1 thread). 2026-11-25,
-/// issue 10: 1 thread 9.83 -> 9.33 and 9.57 -> 9.27 ms (medians of 30 alternated runs).
+/// time for 5 % of the instructions, waiting on those loads (perf, 1 thread; the gain is in
+/// docs/PERFORMANCE.md).
 constexpr int kPrefetchFloats = 512;
 constexpr int kFloatsPerLine = 16;  ///< 64-byte cache lines
 

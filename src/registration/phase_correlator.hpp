@@ -51,11 +51,8 @@ class PhaseCorrelator {
   /// `mean_power`: mean of |F|^2 over all n0 x n1 bins (= the signal's energy, by
   /// Parseval); |F| is floored at 1e-4 sqrt(mean_power) so near-empty bins are not
   /// amplified. Allocation-free.
-  // Whitening the current spectrum inside the cross-power loop, a band row at a time
-  // (no band buffer written and read back; 120 KB less per registration worker) was tried
-  // (2026-11-25, issue 10): bit-identical, -1.1 % instructions per frame, but 1 thread
-  // +1.6 to +2.1 % slower in two series of alternated runs (8.09 -> 8.26, 8.21 -> 8.34 ms;
-  // a first version through a row buffer was within noise). Not taken.
+  // A separate band buffer: whitening inside the cross-power loop instead was slower
+  // (docs/PERFORMANCE.md).
   void whiten(const Complex* spectrum, double mean_power, Complex* band) const;
 
   /// Correlation peak of two whitened bands. The integer peak is searched within

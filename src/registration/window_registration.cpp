@@ -49,19 +49,10 @@ struct Tuning {
   /// Width (std) of the translation correlation peak, pixels. The Gaussian spectral weight
   /// keeps frequencies up to ~3 / sigma rad/px and sets the correlation surface size.
   double translation_sigma_px = 1.0;
-  // A wider peak (sigma 2 px: a 54 x 54 inverse transform instead of 108 x 108) for the
-  // pipeline's first, shift-only pass was tried (2026-11-23, issue 10): 222.3 -> 203.9 M
-  // instructions per frame (-8 %), accuracy benchmark eps RMSE -1 % on average but indoor
-  // large (6-12 deg steps) +7.0 % and the unmasked mast +5.3 %: a coarser first estimate
-  // leaves the single refinement a larger residual. Beyond the 5 % allowed: not taken.
-  // Sigma 1.12 px, for a 96 x 96 surface instead of 108 x 108 (2026-11-26, issue 10): the
-  // surface's samples 112/96 = 1.17 px apart instead of 1.04; accuracy benchmark mean +12 %,
-  // worst park yaw +100 % and indoor yaw +50 % (yaw moves every window by the same shift, so
-  // a sub-sample bias of the peak fit does not average out). Not taken.
-  /// Log-polar grid: angles over [0, pi) and log-spaced radii. Smaller grids were tried
-  /// (2026-11-24, issue 10; instructions per frame from 133.1 M, accuracy benchmark ifmi,
-  /// every RMSE column): 64 x 48 -20 % instructions, mean +4.7 %, worst +39 %
-  /// (room_translate roll); 96 x 48 -12 %, mean +2.2 %, worst +16.9 %. Not taken.
+  // Wider peaks (smaller surfaces, also for the first pass only) cost accuracy beyond the
+  // 5 % allowed: docs/PERFORMANCE.md, "Tried and not taken".
+  /// Log-polar grid: angles over [0, pi) and log-spaced radii. Smaller grids cost accuracy
+  /// beyond the 5 % allowed (docs/PERFORMANCE.md).
   int log_polar_angles = 96;
   int log_polar_radii = 64;
   /// Radii of the log-polar ring, fractions of the FFT's Nyquist radius n/2.
@@ -71,10 +62,8 @@ struct Tuning {
   double log_polar_sigma = 1.0;
   /// Translation stage: de-rotate/de-scale the current window only when the measured
   /// rotation/scale moves the window corners by more than this, pixels. Raising it skips
-  /// the re-sampling and its FFT for more refinement windows, but costs accuracy
-  /// (tools/accuracy_benchmark.sh, ifmi): 0.5 px saved 10 % of the instructions and made
-  /// avg roll 8 % and kogeto roll 11 % worse; 0.25 px saved as much on indoor roll and made
-  /// indoor roll 5.8 % worse. Both beyond the 5 % the project allows: kept at 0.1 px.
+  /// the re-sampling and its FFT for more refinement windows, but 0.25 and 0.5 px cost
+  /// accuracy beyond the 5 % allowed (docs/PERFORMANCE.md).
   double derotate_min_px = 0.1;
 };
 

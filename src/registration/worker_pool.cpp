@@ -12,9 +12,8 @@ namespace {
 /// before they block on the condition variable. A pipeline frame is seven jobs (unwrap;
 /// column FFTs, windows; projection grid, de-rotated rows; column FFTs, windows), most of them
 /// back to back or a fit (~0.15 ms) apart; a futex wake-up costs tens of microseconds per job
-/// on the development VM. omnipose-bench-pipeline, 2 threads, refine 1, two alternated runs
-/// (2026-11-25): no spin 5.47 / 5.29 ms, 50 us 5.18 / 5.08 ms, 1 ms 5.14 / 5.03 ms. 50 us
-/// takes most of the gain and leaves the core to the daemon's capture thread between frames.
+/// on the development VM. 50 us takes most of the gain of spinning (docs/PERFORMANCE.md)
+/// and leaves the core to the daemon's capture thread between frames.
 constexpr auto kSpin = std::chrono::microseconds(50);
 
 /// Spins while `waiting()` holds, for at most kSpin; returns true when it stopped holding.
