@@ -9,7 +9,7 @@ PACKAGES=(
   libgtest-dev libgmock-dev libbenchmark-dev libcli11-dev
   liblcm-dev liblcm-bin libglib2.0-dev
   libcamera-dev libopengv-dev libsystemd-dev
-  valgrind iproute2 util-linux python3
+  zlib1g-dev valgrind iproute2 util-linux python3
 )
 
 missing=()

@@ -1,7 +1,9 @@
 #include "common/grey_convert.hpp"
 
 #include <cstring>
-#include <opencv2/imgcodecs.hpp>
+#include <cstdio>
+
+#include "omnipose/image_decode.hpp"
 
 namespace omnipose::drivers {
 
@@ -32,18 +34,15 @@ Expected<void> decodeJpegToGrey(const std::uint8_t* data, std::size_t size, cv::
   if (size < 4 || data[0] != 0xFF || data[1] != 0xD8)
     return fail(ErrorCode::kBadFrame, "MJPG frame of %zu bytes does not start with a JPEG SOI marker",
                 size);
-  const cv::Mat encoded(1, static_cast<int>(size), CV_8UC1, const_cast<std::uint8_t*>(data));
-  try {
-    cv::imdecode(encoded, cv::IMREAD_GRAYSCALE | cv::IMREAD_IGNORE_ORIENTATION, &scratch);
-  } catch (const cv::Exception& e) {
-    return fail(ErrorCode::kBadFrame, "MJPG frame of %zu bytes could not be decoded: %s", size,
-                e.what());
+  char label[48];
+  std::snprintf(label, sizeof label, "MJPG frame of %zu bytes", size);
+  ImageLimits limits;
+  limits.exact_size = out.size();
+  if (Expected<void> decoded = decodeImage(std::span<const std::uint8_t>(data, size),
+                                           ImageColour::kGrey, limits, label, scratch);
+      !decoded) {
+    return decoded;
   }
-  if (scratch.empty())
-    return fail(ErrorCode::kBadFrame, "MJPG frame of %zu bytes could not be decoded", size);
-  if (scratch.type() != CV_8UC1 || scratch.size() != out.size())
-    return fail(ErrorCode::kBadFrame, "MJPG frame decodes to %dx%d, expected %dx%d", scratch.cols,
-                scratch.rows, out.cols, out.rows);
   scratch.copyTo(out);
   return {};
 }

@@ -43,8 +43,12 @@ struct Dataset {
 /// True for the image file endings a dataset may use (case-insensitive).
 bool isImageFile(const std::filesystem::path& path);
 
-/// Reads one frame as stored (grey stays grey, colour stays BGR). kNotFound when the file
-/// is missing, kBadFrame naming the file when it cannot be decoded.
-Expected<cv::Mat> readFrame(const std::filesystem::path& path);
+/// Reads one 8-bit frame as stored (grey stays grey, colour stays BGR) through
+/// decodeImage() (image_decode.hpp): the header's size is checked before any pixel is
+/// decoded. `expected_size`, when not empty, is the only size accepted (the calibration's
+/// frame size). kNotFound when the file is missing, kBadFrame naming the file for every
+/// other problem (not an image, corrupt, truncated, wrong or oversized declared size, not
+/// 8-bit), kIoError when reading fails. Never throws.
+Expected<cv::Mat> readFrame(const std::filesystem::path& path, cv::Size expected_size = {});
 
 }  // namespace omnipose

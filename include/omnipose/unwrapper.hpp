@@ -16,6 +16,10 @@ namespace omnipose {
 /// What the frames given to the pipeline are.
 enum class InputKind { kOmni, kPanorama };
 
+/// The size of the frames the pipeline takes: the omni image (omni.image_width x
+/// image_height) or, for `input: panorama`, the panorama (panorama.width x height).
+cv::Size inputFrameSize(const Calibration& calibration, InputKind input);
+
 class Unwrapper {
  public:
   struct Options {

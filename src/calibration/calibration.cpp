@@ -10,6 +10,7 @@
 #include <sstream>
 
 #include "common/problem_list.hpp"
+#include "omnipose/image_decode.hpp"
 #include "omnipose/limits.hpp"
 
 namespace omnipose {
@@ -436,16 +437,17 @@ Calibration Calibration::parse(const std::string& text, const std::string& origi
     else r.problem("omni.azimuth_direction", "'" + direction + "' is not cw or ccw");
     if (r.read(omni, "omni", "mask", c.omni.mask_file, false)) {
       const std::filesystem::path file = resolve(c.omni.mask_file);
-      cv::Mat mask;
-      try {
-        mask = cv::imread(file.string(), cv::IMREAD_UNCHANGED);
-      } catch (const cv::Exception&) {
-        mask.release();
-      }
-      if (mask.empty()) r.problem("omni.mask", file.string() + ": cannot read the mask image");
-      else if (mask.type() != CV_8UC1)
+      const Expected<cv::Mat> mask = readImage(file, ImageColour::kAsStored);
+      if (!mask) {
+        // The decoder's message starts with the path: keep only its reason.
+        std::string why(mask.error().message());
+        if (why.starts_with(file.string() + ": ")) why.erase(0, file.string().size() + 2);
+        r.problem("omni.mask", file.string() + ": cannot read the mask image (" + why + ")");
+      } else if (mask->type() != CV_8UC1) {
         r.problem("omni.mask", file.string() + ": must be an 8-bit grey image (0 = never use)");
-      else c.omni.mask = mask;
+      } else {
+        c.omni.mask = *mask;
+      }
     }
 
     const YAML::Node pano =

@@ -70,8 +70,18 @@ MeiModel MeiModel::loadFileStorage(const std::filesystem::path& path) {
       return m;
     }
     try {
-      if (n.isReal() || n.isInt()) m = (cv::Mat_<double>(1, 1) << static_cast<double>(n));
-      else n >> m;
+      if (n.isReal() || n.isInt()) {
+        m = (cv::Mat_<double>(1, 1) << static_cast<double>(n));
+      } else if (n.isMap()) {
+        // An opencv-matrix: its declared shape must hold `count` numbers before OpenCV
+        // allocates it (a crafted "cols" would make it allocate gigabytes).
+        const cv::FileNode rows = n["rows"], cols = n["cols"], data = n["data"];
+        const bool shaped = rows.isInt() && cols.isInt() && data.isSeq() &&
+                            static_cast<int>(rows) >= 1 && static_cast<int>(cols) >= 1 &&
+                            static_cast<long long>(static_cast<int>(rows)) * static_cast<int>(cols) == count &&
+                            static_cast<int>(data.size()) == count;
+        if (shaped) n >> m;
+      }
     } catch (const cv::Exception&) {
       m.release();
     }

@@ -1,10 +1,11 @@
 #include "omnipose/dataset.hpp"
 
+#include "omnipose/image_decode.hpp"
+
 #include <algorithm>
 #include <cmath>
 #include <fstream>
 #include <map>
-#include <opencv2/imgcodecs.hpp>
 #include <sstream>
 #include <stdexcept>
 
@@ -88,14 +89,14 @@ Dataset Dataset::open(const fs::path& root, const std::optional<fs::path>& calib
   return d;
 }
 
-Expected<cv::Mat> readFrame(const fs::path& path) {
-  std::error_code ec;
-  if (!fs::exists(path, ec)) return fail(ErrorCode::kNotFound, "%s: no such file", path.c_str());
-  cv::Mat image = cv::imread(path.string(), cv::IMREAD_UNCHANGED);
-  if (image.empty()) return fail(ErrorCode::kBadFrame, "%s: cannot decode image", path.c_str());
-  if (image.depth() != CV_8U) {
+Expected<cv::Mat> readFrame(const fs::path& path, cv::Size expected_size) {
+  ImageLimits limits;
+  limits.exact_size = expected_size;
+  Expected<cv::Mat> image = readImage(path, ImageColour::kAsStored, limits);
+  if (!image) return image;
+  if (image->depth() != CV_8U) {
     return fail(ErrorCode::kBadFrame, "%s: %d-bit image, expected 8-bit", path.c_str(),
-                image.depth() == CV_16U ? 16 : 32);
+                image->depth() == CV_16U ? 16 : 32);
   }
   return image;
 }

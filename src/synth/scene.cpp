@@ -1,5 +1,5 @@
 #include <limits>
-#include <opencv2/imgcodecs.hpp>
+#include "omnipose/image_decode.hpp"
 
 #include "omnipose/synth.hpp"
 
@@ -52,13 +52,15 @@ Scene Scene::load(const std::filesystem::path& photo, SceneKind kind, const Box&
   if (!std::filesystem::is_regular_file(photo)) {
     throw std::runtime_error(photo.string() + ": texture image not found");
   }
-  const cv::Mat grey = cv::imread(photo.string(), cv::IMREAD_GRAYSCALE);
-  if (grey.empty()) throw std::runtime_error(photo.string() + ": cannot read texture image");
+  ImageLimits limits;
+  limits.apply_exif_orientation = true;  // a photo, as a viewer shows it
+  const Expected<cv::Mat> grey = readImage(photo, ImageColour::kGrey, limits);
+  if (!grey) throw std::runtime_error("texture image " + std::string(grey.error().message()));
   if (const auto problems = box.validate(); !problems.empty()) {
     throw std::runtime_error("invalid box room:" + joinLines(problems));
   }
   Scene scene;
-  grey.convertTo(scene.texture, CV_32FC1);
+  grey->convertTo(scene.texture, CV_32FC1);
   scene.kind = kind;
   scene.box = box;
   return scene;

@@ -69,10 +69,12 @@ Unwrapper::Unwrapper(const Calibration& calibration, const Options& options)
   grey_.create(inputSize(), CV_8UC1);
 }
 
-cv::Size Unwrapper::inputSize() const {
-  if (options_.input == InputKind::kPanorama) return panoramaSize();
-  return {calibration_.omni.image_width, calibration_.omni.image_height};
+cv::Size inputFrameSize(const Calibration& calibration, InputKind input) {
+  if (input == InputKind::kPanorama) return {calibration.panorama.width, calibration.panorama.height};
+  return {calibration.omni.image_width, calibration.omni.image_height};
 }
+
+cv::Size Unwrapper::inputSize() const { return inputFrameSize(calibration_, options_.input); }
 
 cv::Size Unwrapper::panoramaSize() const {
   return {calibration_.panorama.width, calibration_.panorama.height};

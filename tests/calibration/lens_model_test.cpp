@@ -340,6 +340,27 @@ TEST(Mei, ReadsAnOmnidirFileStorage) {
   }
 }
 
+TEST(Mei, AMatrixDeclaringAHugeShapeIsRefusedBeforeItIsAllocated) {
+  // Found by fuzz_lens_mask: "cols: *" (and any shape that does not hold the expected count)
+  // made OpenCV allocate a 17 GB matrix while reading K.
+  TempDir dir;
+  dir.write("huge.yml", "%YAML:1.0\nK: !!opencv-matrix\n   rows: 3\n   cols: 1000000000\n   dt: d\n"
+                        "   data: [ 205., 0., 401.5, 0., 204.2, 398., 0., 0., 1. ]\n"
+                        "D: !!opencv-matrix\n   rows: 1\n   cols: 4\n   dt: d\n"
+                        "   data: [ -0.04, 0.006, 0.0004, -0.0003 ]\nxi: 0.92\n");
+  dir.write("cal.yaml", "omni:\n  model: mei\n  omnidir_file: huge.yml\n  image_width: 800\n"
+                        "  image_height: 800\n  radius_inner: 90\n  radius_outer: 330\n"
+                        "panorama: {width: 1100, height: 110}\n");
+  try {
+    Calibration::load(dir.path() / "cal.yaml");
+    FAIL() << "expected an error";
+  } catch (const CalibrationError& e) {
+    const std::string what = e.what();
+    EXPECT_NE(what.find("huge.yml: K: expected 9 numbers"), std::string::npos) << what;
+    EXPECT_EQ(what.find("D:"), std::string::npos) << "D is well-formed: " << what;
+  }
+}
+
 TEST(Mei, SaveLoadRoundTripInline) {
   TempDir dir;
   const Calibration c = Calibration::parse(kMeiYaml, "cal.yaml");

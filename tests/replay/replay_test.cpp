@@ -10,6 +10,7 @@
 #include <string>
 #include <unistd.h>
 
+#include "bad_images.hpp"
 #include "omnipose/evaluation.hpp"
 #include "omnipose/synth.hpp"
 
@@ -81,6 +82,36 @@ TEST_F(ReplayTest, BadFramesAreSkippedNamedAndCountedAndTheRestIsRight) {
   int lines = 0;
   for (std::string line; std::getline(csv, line);) ++lines;
   EXPECT_EQ(lines, 1 + 5);  // header + one row per pair
+}
+
+TEST_F(ReplayTest, BombsTruncatedAndGarbageFramesAreSkippedNamedAndCounted) {
+  const fs::path data = root_ / "hostile";
+  fs::remove_all(data);
+  fs::copy(root_ / "data", data, fs::copy_options::recursive);
+  const cv::Mat good = cv::imread((data / "frames/000000.png").string(), cv::IMREAD_UNCHANGED);
+  std::vector<testing::BadImageFile> rejected;
+  for (auto& f : testing::badImageFiles(good))
+    if (f.must_reject) rejected.push_back(std::move(f));
+  testing::insertFrames(data, 1, rejected);
+
+  replay::ReplayOptions o;
+  o.dataset = data;
+  o.out_tum = root_ / "hostile.tum";
+  o.progress = false;
+  std::FILE* log = std::tmpfile();
+  const replay::ReplaySummary s = replay::run(o, log);
+  std::rewind(log);
+  std::string text(1 << 16, '\0');
+  text.resize(std::fread(text.data(), 1, text.size(), log));
+  std::fclose(log);
+
+  EXPECT_EQ(s.frames, 8 + static_cast<int>(rejected.size()));
+  EXPECT_EQ(s.skipped, 2 + static_cast<int>(rejected.size()));  // and the two of the fixture
+  EXPECT_EQ(s.pairs, 5);
+  for (const auto& f : rejected) EXPECT_NE(text.find("000001_" + f.name), std::string::npos) << f.name;
+  EXPECT_NE(text.find("000001_bomb_60000.png: 60000x60000, expected 720x720"), std::string::npos) << text;
+  const auto result = evaluate(readTum(data / "groundtruth.tum"), readTum(root_ / "hostile.tum"));
+  EXPECT_LT(result.angle.max, 1e-3);
 }
 
 TEST_F(ReplayTest, MissingDatasetOrCalibrationIsAClearError) {

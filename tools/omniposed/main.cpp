@@ -15,6 +15,7 @@
 #include "daemon/service.hpp"
 #include "daemon/startup_check.hpp"
 #include "daemon/config.hpp"
+#include "quiet_opencv.hpp"
 
 namespace {
 
@@ -27,6 +28,7 @@ constexpr const char* kDescription =
 }  // namespace
 
 int main(int argc, char** argv) {
+  omnipose::tools::quietOpenCvWarnings();
   // Before anything can start a thread: every thread inherits the blocked stop signals and
   // the main thread collects them with sigtimedwait().
   omnipose::daemon::blockStopSignals();

@@ -20,6 +20,7 @@
 #include "omnipose/motion_model.hpp"
 #include "omnipose/pipeline.hpp"
 #include "omnipose/trajectory.hpp"
+#include "quiet_opencv.hpp"
 
 namespace {
 
@@ -109,7 +110,7 @@ int run(int argc, char** argv) {
   cv::Mat previous_panorama;
   FrameMotion motion;
   for (int k : {pair - 1, pair}) {
-    auto image = readFrame(d.frames[k].path);
+    auto image = readFrame(d.frames[k].path, inputFrameSize(d.calibration, options.unwrap.input));
     if (!image) throw std::runtime_error(std::string(image.error().message()));
     auto m = pipeline.process(*image);
     if (!m) throw std::runtime_error(d.frames[k].path.string() + ": " + m.error().c_str());
@@ -210,6 +211,7 @@ int run(int argc, char** argv) {
 }  // namespace
 
 int main(int argc, char** argv) {
+  omnipose::tools::quietOpenCvWarnings();
   try {
     return run(argc, argv);
   } catch (const std::exception& e) {

@@ -6,8 +6,10 @@
 
 #include "cli.hpp"
 #include "replay.hpp"
+#include "quiet_opencv.hpp"
 
 int main(int argc, char** argv) {
+  omnipose::tools::quietOpenCvWarnings();
   omnipose::replay::ReplayOptions options;
   std::string dataset, input, out_tum, relative_csv, config, calibration;
   bool quiet = false;

@@ -71,6 +71,7 @@ ReplaySummary run(const ReplayOptions& options, std::FILE* log) {
     writeCsvHeader(csv);
   }
 
+  const cv::Size frame_size = inputFrameSize(dataset.calibration, pipeline_options.unwrap.input);
   ReplaySummary summary;
   summary.frames = static_cast<int>(dataset.frames.size());
   PoseChain chain;
@@ -82,7 +83,7 @@ ReplaySummary run(const ReplayOptions& options, std::FILE* log) {
 
   for (int i = 0; i < summary.frames; ++i) {
     const DatasetFrame& f = dataset.frames[i];
-    auto image = readFrame(f.path);
+    auto image = readFrame(f.path, frame_size);
     Expected<FrameMotion> motion = image ? estimator->process(*image)
                                          : Expected<FrameMotion>(std::unexpected(image.error()));
     if (!motion) {

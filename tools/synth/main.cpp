@@ -10,6 +10,7 @@
 #include "omnipose/synth.hpp"
 #include "cli.hpp"
 #include "progress_line.hpp"
+#include "quiet_opencv.hpp"
 
 namespace {
 
@@ -196,6 +197,7 @@ int run(const Args& a) {
 }  // namespace
 
 int main(int argc, char** argv) {
+  omnipose::tools::quietOpenCvWarnings();
   Args args;
   Raw raw;
   tools::Cli cli("omnipose-synth", kUsage, kDescription);
