@@ -1,17 +1,24 @@
 #!/usr/bin/env bash
-# Soak run: omniposed on a looping file source (a rendered 60-frame recording, realtime off:
-# every frame is processed, as fast as the pipeline goes) for at least FRAMES frames, with a
-# file:// LCM log. Every SAMPLE seconds it sends SIGHUP (the daemon logs its counters) and
-# samples the daemon's resident set size (VmRSS). Then SIGTERM, and the checks:
+# Soak run with faults: omniposed on a looping file source, paced in realtime, for at least
+# FRAMES received frames, with a file:// LCM log. The recording (60 rendered frames at 30 fps)
+# is made hostile by tools/common/hostile_dataset.py: bad frames between the good ones
+# (decompression bombs that declare 60000 x 60000 pixels, a complete 32000 x 32000 PNG,
+# truncated and garbage PNG, JPEG, PGM and BMP files, an empty file), a timestamp step
+# backwards and a forward jump of 1e6 s (each crossed on every loop); half way through, the
+# dataset directory vanishes for VANISH seconds. Every SAMPLE seconds it sends SIGHUP (the
+# daemon logs its counters) and samples the daemon's resident set size (VmRSS). Then SIGTERM,
+# and the checks:
 #   - the daemon stops with exit code 0;
-#   - no frame is unaccounted for: received = processed + skipped + bad, from the final status
-#     in the LCM log, and the log holds exactly `processed` poses;
+#   - every frame is counted once: received = processed + skipped + bad + lost upstream, from
+#     the final status in the LCM log, and the log holds exactly `processed` poses;
+#   - the faults were met and reported: bad frames counted, the bomb, the timestamp jump and
+#     the vanished directory named in the daemon's log, at least one source failure;
 #   - memory is flat: after the warm-up (the first max(1000, FRAMES/10) frames), no RSS
 #     sample exceeds the first post-warm-up sample by more than RSS_TOLERANCE_KB.
-# Usage: tools/soak.sh [FRAMES]   (default 10000)
+# Usage: tools/soak.sh [FRAMES]   (default 10000: about 6 minutes)
 # Environment: BUILD_DIR (default build; built with tools/build.sh when omniposed is missing),
 # SAMPLE (seconds between samples, default 5), RSS_TOLERANCE_KB (default 512), NICE (default 10),
-# KEEP=1 keeps the working directory.
+# VANISH (seconds the directory is away, default 2), KEEP=1 keeps the working directory.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 # shellcheck source=tools/common/final_status.sh
@@ -26,6 +33,7 @@ bin=$build/bin
 sample=${SAMPLE:-5}
 tolerance_kb=${RSS_TOLERANCE_KB:-512}
 nice_level=${NICE:-10}
+vanish=${VANISH:-2}
 if [ ! -x "$bin/omniposed" ] || [ ! -x "$bin/omnipose-synth" ] || [ ! -x "$bin/omnipose-listen" ]; then
   bash tools/build.sh
 fi
@@ -41,8 +49,9 @@ trap cleanup EXIT
 echo "soak: rendering the recording"
 "$bin/omnipose-synth" --texture tests/data/equirect/indoor_1024x512.jpg --out "$work/data" \
   --preset mixed --frames 60 --seed 7 --supersample 1 >"$work/synth.log" 2>&1
+python3 tools/common/hostile_dataset.py "$work/data" --seed 7
 cat >"$work/daemon.yaml" <<YAML
-source: {type: file, path: data, realtime: false, loop: true}
+source: {type: file, path: data, realtime: true, loop: true}
 calibration: data/calibration.yaml
 lcm: {url: "file://$work/soak.lcm?mode=w", status_hz: 1}
 YAML
@@ -54,9 +63,10 @@ warmup=$(( frames / 10 > 1000 ? frames / 10 : 1000 ))
 baseline_kb=""
 max_after_kb=0
 last_kb=0
-processed=0
+received=0
+vanished=0
 samples=0
-printf 'soak: %8s %10s %10s\n' seconds processed rss_kB
+printf 'soak: %8s %10s %10s\n' seconds received rss_kB
 while :; do
   sleep "$sample"
   if ! kill -0 "$pid" 2>/dev/null; then
@@ -71,20 +81,26 @@ while :; do
     [ "$(grep -c 'SIGHUP received' "$work/daemon.err" || true)" -gt "$hups" ] && break
     sleep 0.05
   done
-  processed=$(sed -n 's/.*SIGHUP received.*processed \([0-9]*\),.*/\1/p' "$work/daemon.err" | tail -1)
-  processed=${processed:-0}
+  received=$(sed -n 's/.*SIGHUP received.*: received \([0-9]*\),.*/\1/p' "$work/daemon.err" | tail -1)
+  received=${received:-0}
   now=$(date +%s.%N)
-  printf 'soak: %8.0f %10d %10d\n' "$(awk -v a="$now" -v b="$start" 'BEGIN {print a - b}')" "$processed" "$rss_kb"
+  printf 'soak: %8.0f %10d %10d\n' "$(awk -v a="$now" -v b="$start" 'BEGIN {print a - b}')" "$received" "$rss_kb"
+  if [ "$vanished" -eq 0 ] && [ "$received" -ge $((frames / 2)) ]; then
+    mv "$work/data" "$work/data.away"
+    sleep "$vanish"
+    mv "$work/data.away" "$work/data"
+    vanished=1
+  fi
   samples=$((samples + 1))
   last_kb=$rss_kb
-  if [ "$processed" -ge "$warmup" ]; then
+  if [ "$received" -ge "$warmup" ]; then
     if [ -z "$baseline_kb" ]; then
       baseline_kb=$rss_kb
     elif [ "$rss_kb" -gt "$max_after_kb" ]; then
       max_after_kb=$rss_kb
     fi
   fi
-  if [ "$processed" -ge "$frames" ]; then break; fi
+  if [ "$received" -ge "$frames" ]; then break; fi
 done
 
 kill -TERM "$pid"
@@ -104,21 +120,33 @@ received=$(status_count received)
 f_processed=$(status_count processed)
 skipped=$(status_count skipped)
 bad=$(status_count bad)
+lost=$(status_count upstream)
+failures=$(sed -n 's/.* source failures \([0-9]*\).*/\1/p' <<<"$final")
 poses=$(grep -c '^pose seq ' "$work/listen.txt" || true)
 seconds=$(awk -v a="$end" -v b="$start" 'BEGIN {print a - b}')
 
 fail=0
 echo "soak: final status: $final"
-if [ "$received" -ne $((f_processed + skipped + bad)) ]; then
-  echo "soak: FAIL: received $received != processed $f_processed + skipped $skipped + bad $bad" >&2
+if [ "$received" -ne $((f_processed + skipped + bad + lost)) ]; then
+  echo "soak: FAIL: received $received != processed $f_processed + skipped $skipped + bad $bad + lost $lost" >&2
   fail=1
 fi
+if [ "$bad" -eq 0 ] || [ "${failures:-0}" -eq 0 ]; then
+  echo "soak: FAIL: the faults were not all met: bad frames $bad, source failures ${failures:-?}" >&2
+  fail=1
+fi
+for fault in "60000x60000" "32000x32000" "resynchronised" "vanished"; do
+  if ! grep -q "$fault" "$work/daemon.err"; then
+    echo "soak: FAIL: the daemon's log never mentions '$fault'" >&2
+    fail=1
+  fi
+done
 if [ "$poses" -ne "$f_processed" ]; then
   echo "soak: FAIL: the log holds $poses poses, the final status says $f_processed processed" >&2
   fail=1
 fi
-if [ "$f_processed" -lt "$frames" ]; then
-  echo "soak: FAIL: only $f_processed frames processed, wanted $frames" >&2
+if [ "$received" -lt "$frames" ]; then
+  echo "soak: FAIL: only $received frames received, wanted $frames" >&2
   fail=1
 fi
 if [ -z "$baseline_kb" ] || [ "$max_after_kb" -eq 0 ]; then
@@ -131,9 +159,9 @@ else
     fail=1
   fi
 fi
-printf 'soak: %d frames in %.0f s (%.1f frames/s); received %d = processed %d + skipped %d + bad %d; %d poses in the log; RSS after warm-up (%d frames) %s kB, max later %s kB, last %s kB (growth %s kB, tolerance %d kB); %d samples\n' \
+printf 'soak: %d frames in %.0f s (%.1f frames/s); received %d = processed %d + skipped %d + bad %d + lost upstream %d; source failures %s; %d poses in the log; RSS after warm-up (%d frames) %s kB, max later %s kB, last %s kB (growth %s kB, tolerance %d kB); %d samples\n' \
   "$f_processed" "$seconds" "$(awk -v n="$f_processed" -v s="$seconds" 'BEGIN {print n / s}')" "$received" "$f_processed" \
-  "$skipped" "$bad" "$poses" "$warmup" "${baseline_kb:-?}" "$max_after_kb" "$last_kb" \
+  "$skipped" "$bad" "$lost" "${failures:-?}" "$poses" "$warmup" "${baseline_kb:-?}" "$max_after_kb" "$last_kb" \
   "${growth:-?}" "$tolerance_kb" "$samples"
 if [ "$fail" -ne 0 ]; then exit 1; fi
 echo "soak: PASS"

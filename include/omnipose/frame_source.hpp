@@ -12,6 +12,7 @@
 #include <chrono>
 #include <cstdint>
 #include <opencv2/core.hpp>
+#include <optional>
 #include <string>
 
 #include "omnipose/error.hpp"
@@ -24,6 +25,10 @@ struct FrameInfo {
   std::uint64_t sequence = 0;        ///< source's frame counter (gaps = frames lost upstream)
   double source_timestamp = 0.0;     ///< file sources: the recorded timestamp, seconds
   int index = -1;                    ///< file sources: frame index in the dataset
+  /// The source's clock jumped forward by more than its pacing bound before this frame (a
+  /// recording with a gap in its timestamps): pacing was resynchronised to this frame
+  /// instead of waiting the gap out. The capture loop reports it.
+  bool resynchronised = false;
 };
 
 class FrameSource {
@@ -52,6 +57,12 @@ class FrameSource {
 
   /// One line naming the source for logs and status ("v4l2 /dev/video0 1280x720 YUYV").
   virtual std::string describe() const = 0;
+
+  /// The sequence number the first frame after the last open() carries when nothing is
+  /// dropped before it, so that frames passed over before the first delivered one are
+  /// counted as lost. std::nullopt when the source cannot know (a camera whose driver
+  /// numbers frames from an unknown start): then only gaps between delivered frames count.
+  virtual std::optional<std::uint64_t> sequenceOrigin() const { return std::nullopt; }
 };
 
 }  // namespace omnipose

@@ -1,6 +1,7 @@
 #include "daemon/capture_loop.hpp"
 
 #include <algorithm>
+#include <optional>
 #include <thread>
 
 #include "daemon/wall_clock.hpp"
@@ -45,10 +46,12 @@ void CaptureLoop::run() {
   board_.setSourceState(SourceState::kStreaming);
   bool open = true;
   bool have_last = false;
-  std::uint64_t last_sequence = 0;
   int last_index = -1;
   std::int64_t last_capture_us = 0;
   double last_source_timestamp = 0.0;
+  // The sequence number the next frame should carry: a larger one means frames were lost
+  // upstream (unknown after a camera's re-open until its first frame arrives).
+  std::optional<std::uint64_t> expected_sequence = source_.sequenceOrigin();
   auto backoff = options_.reconnect_initial;
 
   while (!mailbox_.stopRequested()) {
@@ -61,6 +64,7 @@ void CaptureLoop::run() {
         continue;
       }
       open = true;
+      expected_sequence = source_.sequenceOrigin();
       backoff = options_.reconnect_initial;
       board_.setSourceState(SourceState::kStreaming);
       board_.logInfo("source re-opened: %s", description_.c_str());
@@ -72,8 +76,17 @@ void CaptureLoop::run() {
 
     Expected<FrameInfo> got = source_.next(mailbox_.writeBuffer(), options_.poll);
     if (got) {
-      if (have_last && got->sequence > last_sequence + 1)
-        board_.frames_lost_upstream += static_cast<std::int64_t>(got->sequence - last_sequence - 1);
+      if (expected_sequence && got->sequence > *expected_sequence) {
+        const auto lost = static_cast<std::int64_t>(got->sequence - *expected_sequence);
+        board_.frames_lost_upstream += lost;
+        board_.frames_received += lost;
+      }
+      expected_sequence = got->sequence + 1;
+      if (got->resynchronised) {
+        board_.reportError("%s: frame %d: timestamp %.6f s is more than the pacing bound after "
+                           "the previous frame's: pacing resynchronised, not waited out",
+                           description_.c_str(), got->index, got->source_timestamp);
+      }
       if (have_last && got->index >= 0 && got->index <= last_index) mailbox_.markGap();
       // Time must move forward: a frame stamped at or before its predecessor (a camera
       // clock step, a broken recording) cannot be linked to it (the pose stream would go
@@ -94,7 +107,6 @@ void CaptureLoop::run() {
         mailbox_.markGap();
       }
       have_last = true;
-      last_sequence = got->sequence;
       last_index = got->index;
       last_capture_us = got->capture_time_us;
       last_source_timestamp = got->source_timestamp;
@@ -107,8 +119,9 @@ void CaptureLoop::run() {
       case ErrorCode::kTimeout:
         break;
       case ErrorCode::kBadFrame:
+        ++board_.frames_received;
         ++board_.frames_bad;
-        if (have_last) ++last_sequence;  // the bad frame used a sequence number: not lost
+        if (expected_sequence) ++*expected_sequence;  // the bad frame used a sequence number: not lost
         board_.reportError(error);
         mailbox_.markGap();
         break;
@@ -126,6 +139,7 @@ void CaptureLoop::run() {
         source_.close();
         open = false;
         have_last = false;
+        expected_sequence.reset();
         mailbox_.markGap();
         break;
     }

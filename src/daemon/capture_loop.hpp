@@ -4,6 +4,8 @@
 /// slot and post them; turn every source failure into status and a gap, never into a crash.
 ///
 ///  - kTimeout: nothing yet, call again (the loop wakes at least every `poll`).
+///  - every frame the source delivers, reports bad, or is known to have dropped counts as
+///    received (DaemonStats: received = processed + skipped + bad + lost upstream);
 ///  - kBadFrame: counted (frames_bad), reported with the source's text (which names the
 ///    file or frame), gap marked; streaming goes on.
 ///  - kDisconnected or any other error: counted (source_failures), reported, the source is
@@ -16,6 +18,10 @@
 ///    nobody read them in time) is counted (frames_lost_upstream) but is not a gap: like a
 ///    stale frame skipped by the mailbox, the next frame is registered directly against the
 ///    last processed one, and a motion too large for that makes the fit report lost.
+///    Frames passed over before the first one after (re-)opening count too when the source
+///    knows where its numbering starts (FrameSource::sequenceOrigin()).
+///  - A frame the source resynchronised its pacing on (a forward jump in recorded
+///    timestamps beyond its bound) is reported once and processed.
 ///
 /// Allocation: none in this loop (the source's own work aside).
 

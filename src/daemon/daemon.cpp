@@ -6,16 +6,6 @@
 #include "daemon/source_factory.hpp"
 
 namespace omnipose::daemon {
-namespace {
-
-cv::Size expectedFrameSize(const Calibration& calibration, InputKind input) {
-  return input == InputKind::kOmni
-             ? cv::Size(calibration.omni.image_width, calibration.omni.image_height)
-             : cv::Size(calibration.panorama.width, calibration.panorama.height);
-}
-
-}  // namespace
-
 Daemon::Daemon(const DaemonConfig& config, std::FILE* log, std::unique_ptr<FrameSource> source,
                std::unique_ptr<MessageSink> sink, DaemonOptions options)
     : config_(config), options_(options), log_(log), board_(log) {
@@ -29,7 +19,7 @@ Daemon::Daemon(const DaemonConfig& config, std::FILE* log, std::unique_ptr<Frame
     for (const auto& p : problems) what += "\n  " + p;
     throw ConfigError(what, problems);
   }
-  const cv::Size frame_size = expectedFrameSize(calibration, config_.pipeline.unwrap.input);
+  const cv::Size frame_size = inputFrameSize(calibration, config_.pipeline.unwrap.input);
 
   source_ = source ? std::move(source)
                    : makeFrameSource(config_.source, {frame_size, config_.calibration});

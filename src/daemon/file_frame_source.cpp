@@ -1,10 +1,10 @@
 #include "daemon/file_frame_source.hpp"
 
-#include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 #include <thread>
 
 #include "daemon/wall_clock.hpp"
+#include "omnipose/image_decode.hpp"
 
 namespace omnipose::daemon {
 namespace fs = std::filesystem;
@@ -80,6 +80,7 @@ Expected<FrameInfo> FileFrameSource::next(cv::Mat& out, std::chrono::millisecond
 
   // Pacing: wait for the frame's due time, at most `timeout`.
   std::int64_t capture_us = 0;
+  bool resynchronised = false;
   if (options_.realtime) {
     if (!has_origin_) {
       origin_wall_us_ = wallClockMicros();
@@ -89,7 +90,13 @@ Expected<FrameInfo> FileFrameSource::next(cv::Mat& out, std::chrono::millisecond
     // A frame stamped before its predecessor (a broken recording): pacing starts again
     // from it (it is due now) instead of treating every frame up to the old time as late.
     auto backwards = [&](std::size_t i) { return i > 0 && frames[i].timestamp < frames[i - 1].timestamp; };
-    if (backwards(next_index_)) {
+    // A gap in the recording longer than the pacing bound: pacing starts again from the
+    // frame after it too, instead of the daemon sleeping through the gap.
+    auto jumped = [&](std::size_t i) {
+      return i > 0 && frames[i].timestamp - frames[i - 1].timestamp > options_.max_pacing_gap_s;
+    };
+    if (backwards(next_index_) || jumped(next_index_)) {
+      resynchronised = jumped(next_index_) && origin_stamp_ != frames[next_index_].timestamp;
       origin_wall_us_ = wallClockMicros();
       origin_stamp_ = frames[next_index_].timestamp;
     }
@@ -128,23 +135,24 @@ Expected<FrameInfo> FileFrameSource::next(cv::Mat& out, std::chrono::millisecond
   info.sequence = sequence_++;
   info.index = static_cast<int>(next_index_);
   info.source_timestamp = frame.timestamp;
+  info.resynchronised = resynchronised;
   ++next_index_;
 
-  Expected<cv::Mat> image = readFrame(frame.path);
-  if (!image) {
+  ImageLimits limits;
+  limits.exact_size = options_.frame_size;
+  if (Expected<void> read = readImage(frame.path, ImageColour::kAsStored, limits, bytes_, decoded_);
+      !read) {
     if (!fs::is_directory(frame.path.parent_path(), ec)) {  // vanished while reading
       --next_index_;
       --sequence_;
       return fail(ErrorCode::kDisconnected, "%s: dataset directory vanished",
                   options_.directory.c_str());
     }
-    return fail(ErrorCode::kBadFrame, "%s", image.error().c_str());
+    return fail(ErrorCode::kBadFrame, "%s", read.error().c_str());
   }
-  decoded_ = *image;
-  if (decoded_.size() != options_.frame_size) {
-    return fail(ErrorCode::kBadFrame, "%s: %dx%d, expected %dx%d", frame.path.c_str(),
-                decoded_.cols, decoded_.rows, options_.frame_size.width,
-                options_.frame_size.height);
+  if (decoded_.depth() != CV_8U) {
+    return fail(ErrorCode::kBadFrame, "%s: %d-bit image, expected 8-bit", frame.path.c_str(),
+                decoded_.depth() == CV_16U ? 16 : 32);
   }
   if (out.size() != options_.frame_size || out.type() != CV_8UC1) {
     return fail(ErrorCode::kInvalidArgument, "output buffer must be %dx%d CV_8UC1",

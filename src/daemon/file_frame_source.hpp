@@ -4,7 +4,9 @@
 /// camera: frames in name order, converted to 8-bit grey, stamped on the wall clock.
 ///
 /// Pacing: `realtime` delivers frame i at origin + (t_i - t_0) on the wall clock (t from
-/// timestamps.txt, else i / 30 s) and stamps it with that due time; when the caller is late
+/// timestamps.txt, else i / 30 s) and stamps it with that due time; a frame stamped more than
+/// `max_pacing_gap_s` after its predecessor is not waited for: pacing restarts from it (it
+/// is due at once) and its FrameInfo says `resynchronised`; when the caller is late
 /// (busy for more than a frame interval) the frames whose successor is already due are
 /// passed over unread, as a camera overwrites frames nobody dequeued, and the sequence
 /// number jumps over them (so the recorded timeline is kept); otherwise frames are
@@ -50,6 +52,9 @@ class FileFrameSource final : public FrameSource {
     cv::Size frame_size;                ///< size every frame must have, pixels
     bool realtime = true;               ///< pace by the recorded timestamps
     bool loop = false;                  ///< start again after the last frame
+    /// Longest wait between two consecutive recorded frames that realtime pacing honours,
+    /// seconds; a longer gap in timestamps.txt is resynchronised instead.
+    double max_pacing_gap_s = 10.0;
   };
 
   explicit FileFrameSource(Options options);
@@ -63,6 +68,10 @@ class FileFrameSource final : public FrameSource {
   void close() override;
   std::string describe() const override;
 
+  /// The sequence number next() gives the next frame it reads (frames it passes over while
+  /// catching up with realtime pacing count as lost).
+  std::optional<std::uint64_t> sequenceOrigin() const override { return sequence_; }
+
   /// Frames listed by the last successful open(); 0 before.
   int frameCount() const;
 
@@ -75,6 +84,7 @@ class FileFrameSource final : public FrameSource {
   std::int64_t origin_wall_us_ = 0;
   double origin_stamp_ = 0.0;    ///< recorded timestamp that maps to origin_wall_us_
   cv::Mat decoded_;              ///< decoder output, reused when the size does not change
+  std::vector<std::uint8_t> bytes_;  ///< the file being decoded, reused frame to frame
 };
 
 }  // namespace omnipose::daemon

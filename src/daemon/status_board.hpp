@@ -30,12 +30,14 @@ enum class SourceState : std::int8_t {
 };
 const char* toString(SourceState state);
 
-/// A snapshot of the counters (totals since start-up).
+/// A snapshot of the counters (totals since start-up). Every frame is counted once: once
+/// both threads have finished, frames_received = frames_processed + frames_skipped +
+/// frames_bad + frames_lost_upstream.
 struct DaemonStats {
-  std::int64_t frames_received = 0;   ///< good frames posted by the capture thread
+  std::int64_t frames_received = 0;   ///< frames delivered by the source or known dropped
   std::int64_t frames_processed = 0;  ///< frames the pipeline ran on (= poses published)
-  std::int64_t frames_skipped = 0;    ///< stale frames overwritten before processing
-  std::int64_t frames_bad = 0;        ///< corrupt / wrong-size / rejected frames
+  std::int64_t frames_skipped = 0;    ///< stale frames overwritten or left at the stop
+  std::int64_t frames_bad = 0;        ///< corrupt / wrong-size / pipeline-rejected frames
   std::int64_t frames_lost_upstream = 0;  ///< sequence numbers the source skipped
   std::int64_t poses_lost = 0;        ///< poses published with status lost
   std::int64_t source_failures = 0;   ///< source failures that needed a re-open

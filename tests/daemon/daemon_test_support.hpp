@@ -5,6 +5,7 @@
 
 #include <fcntl.h>
 #include <spawn.h>
+#include <sys/resource.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -277,9 +278,11 @@ class Child {
     const auto deadline = std::chrono::steady_clock::now() + timeout;
     for (;;) {
       int status = 0;
-      const pid_t r = waitpid(pid_, &status, WNOHANG);
+      rusage usage{};
+      const pid_t r = wait4(pid_, &status, WNOHANG, &usage);
       if (r == pid_) {
         exited_ = true;
+        max_rss_kb_ = usage.ru_maxrss;
         if (WIFEXITED(status)) return WEXITSTATUS(status);
         if (WIFSIGNALED(status)) return 128 + WTERMSIG(status);
         return -1;
@@ -292,10 +295,13 @@ class Child {
     int status = 0;
     return waitpid(pid_, &status, WNOHANG) == 0;
   }
+  /// The child's peak resident set size in kB, once wait() has seen it exit.
+  long maxRssKb() const { return max_rss_kb_; }
 
  private:
   pid_t pid_ = -1;
   bool exited_ = false;
+  long max_rss_kb_ = 0;
 };
 
 /// Runs a command line, returns its exit code; output in the given files.
