@@ -70,17 +70,18 @@ cv::Mat donut(const cv::Mat& pano, int w, int h, double turn_deg, bool mast = fa
       double a = std::atan2(y - cy, x - cx) + turn_deg * CV_PI / 180.0;
       a = std::fmod(a + 4 * CV_PI, 2 * CV_PI);
       mapx.at<float>(y, x) = static_cast<float>(a / (2 * CV_PI) * (pano.cols - 1));
-      // Outer edge = up: r_out -> row 0.2 H, r_in -> row 0.75 H of the equirectangular photo.
+      // Outer edge = up: r_out -> row 0.36 H, r_in -> row 0.64 H of the equirectangular
+      // photo (its textured band about the horizon, so the ring's edges are the lens's).
       const double t = (r - r_in) / (r_out - r_in);
-      mapy.at<float>(y, x) = static_cast<float>((0.75 - 0.55 * t) * (pano.rows - 1));
+      mapy.at<float>(y, x) = static_cast<float>((0.64 - 0.28 * t) * (pano.rows - 1));
     }
   cv::Mat out;
   cv::remap(pano, out, mapx, mapy, cv::INTER_LINEAR, cv::BORDER_REPLICATE);
   for (int y = 0; y < h; ++y)
     for (int x = 0; x < w; ++x) {
       const double r = std::hypot(x - cx, y - cy);
-      if (r < r_in) out.at<std::uint8_t>(y, x) = 18;
-      else if (r > r_out) out.at<std::uint8_t>(y, x) = 70;
+      if (r < r_in) out.at<std::uint8_t>(y, x) = 12;
+      else if (r > r_out) out.at<std::uint8_t>(y, x) = 4;
       else if (mast && std::abs(x - cx) < 3 && y > cy) out.at<std::uint8_t>(y, x) = 5;
     }
   return out;
