@@ -62,6 +62,14 @@ nice -n "$nice_level" cmake -S . -B "$dir" -G Ninja -DCMAKE_BUILD_TYPE=RelWithDe
 nice -n "$nice_level" cmake --build "$dir" -j"$jobs" --target "${targets[@]}"
 echo "fuzz.sh: built ${#targets[@]} target(s) in $(( $(date +%s) - build_start )) s"
 
+# Stack traces with function names and lines (clang-16's own symbolizer, else any on PATH).
+if [ -z "${ASAN_SYMBOLIZER_PATH:-}" ]; then
+  for s in /usr/lib/llvm-16/bin/llvm-symbolizer "$(command -v llvm-symbolizer-16 || true)" \
+           "$(command -v llvm-symbolizer || true)"; do
+    if [ -n "$s" ] && [ -x "$s" ]; then export ASAN_SYMBOLIZER_PATH=$s; break; fi
+  done
+fi
+
 mkdir -p "$dir/artifacts" "$dir/logs"
 failed=0
 summary=$dir/logs/summary.txt
