@@ -7,7 +7,7 @@ PACKAGES=(
   build-essential cmake ninja-build pkg-config git
   libopencv-dev libopencv-contrib-dev libeigen3-dev libfftw3-dev libyaml-cpp-dev
   libgtest-dev libgmock-dev libbenchmark-dev libcli11-dev
-  liblcm-dev liblcm-bin libglib2.0-dev
+  liblcm-dev liblcm-bin libglib2.0-dev liblcm-java default-jdk-headless
   libcamera-dev libopengv-dev libsystemd-dev
   zlib1g-dev valgrind iproute2 util-linux python3
 )

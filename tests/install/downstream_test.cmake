@@ -1,6 +1,9 @@
 # ctest script: installs this build into a fresh prefix, configures and builds
 # tests/install/downstream against it with find_package(omnipose), and runs the program.
+# The libraries and the CMake package are in <prefix>/LIBDIR (lib/<triplet> on multiarch).
 # -D BUILD_DIR=<this build> -D SOURCE_DIR=<tests/install/downstream> -D WORK_DIR=<scratch>
+include(${BUILD_DIR}/omnipose_install_dirs.cmake)  # OMNIPOSE_INSTALL_LIBDIR
+set(LIBDIR ${OMNIPOSE_INSTALL_LIBDIR})
 file(REMOVE_RECURSE ${WORK_DIR})
 file(MAKE_DIRECTORY ${WORK_DIR})
 function(run)
@@ -13,6 +16,17 @@ endfunction()
 run(${CMAKE_COMMAND} --install ${BUILD_DIR} --prefix ${WORK_DIR}/prefix)
 run(${CMAKE_COMMAND} -S ${SOURCE_DIR} -B ${WORK_DIR}/build -DCMAKE_BUILD_TYPE=Release
     -DCMAKE_PREFIX_PATH=${WORK_DIR}/prefix)
+file(STRINGS ${WORK_DIR}/build/CMakeCache.txt omnipose_dir REGEX "^omnipose_DIR:")
+if(NOT omnipose_dir STREQUAL "omnipose_DIR:PATH=${WORK_DIR}/prefix/${LIBDIR}/cmake/omnipose")
+  message(FATAL_ERROR "find_package(omnipose) found: ${omnipose_dir}")
+endif()
+foreach(file ${LIBDIR}/libomnipose.a ${LIBDIR}/libomnipose_io.a
+             lib/python3/dist-packages/omnipose/pose_t.py share/omnipose/lcm_types/pose_t.lcm
+             include/omnipose/lcm/omnipose/pose_t.hpp)
+  if(NOT EXISTS ${WORK_DIR}/prefix/${file})
+    message(FATAL_ERROR "the installed copy lacks ${file}")
+  endif()
+endforeach()
 run(${CMAKE_COMMAND} --build ${WORK_DIR}/build)
 run(${WORK_DIR}/build/downstream)
 message(STATUS "${last_output}")
