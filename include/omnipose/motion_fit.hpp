@@ -60,6 +60,10 @@ struct MotionEstimate {
 
 class MotionFit {
  public:
+  /// Fewest measured windows the fit solves from (their du and dv rows over-determine the
+  /// six unknowns); with fewer, every estimate is lost.
+  static constexpr int kMinWindows = 4;
+
   struct Options {
     double huber_delta_px = 2.0;    ///< pseudo-Huber delta, pixels (paper: 2)
     int median = 5;                 ///< median pre-filter length in windows (odd, 0/1 = off)

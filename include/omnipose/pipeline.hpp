@@ -69,7 +69,9 @@ class Pipeline final : public MotionEstimator {
   static std::vector<std::string> validate(const Calibration& calibration,
                                            const PipelineOptions& options);
 
-  /// Throws std::invalid_argument listing every problem of validate(calibration, options).
+  /// Throws std::invalid_argument listing every problem of validate(calibration, options),
+  /// or saying how many windows are left when the mask and the lens's domain leave fewer
+  /// than MotionFit::kMinWindows measurable (every frame would be lost).
   Pipeline(const Calibration& calibration, const PipelineOptions& options);
   ~Pipeline();
   Pipeline(const Pipeline&) = delete;

@@ -370,7 +370,7 @@ MotionEstimate MotionFit::fit(std::span<const WindowMotion> windows, double forw
   depth_prior_weight_ = 0.0;
   std::fill(depth_.begin(), depth_.end(), 1.0);  // inverseDepth() when depth is not fitted
   int n_rows = buildTranslationRows(windows, forward_column);
-  if (n_rows < 8) return est;  // fewer than 4 windows: nothing to fit
+  if (n_rows < 2 * kMinWindows) return est;  // du and dv rows of too few windows: nothing to fit
 
   bool ok = false;
   Vec6 x = irls(n_rows, est.iterations, ok);

@@ -116,6 +116,13 @@ struct Pipeline::Impl {
     warped = unwrapper.makePanorama();
     // Mask, frame border, lens domain: what the windows must leave out.
     registration.setValidity(unwrapper.validity());
+    if (const int measurable = registration.windowCount() - registration.maskedWindowCount();
+        measurable < MotionFit::kMinWindows) {
+      throw std::invalid_argument(
+          "the mask and the lens's domain leave " + std::to_string(measurable) + " of " +
+          std::to_string(registration.windowCount()) + " windows measurable; the fit needs at least " +
+          std::to_string(MotionFit::kMinWindows) + " (omni.mask, registration.min_usable_fraction)");
+    }
     windows.resize(registration.windowCount());
     refine_windows.resize(registration.windowCount());
     shifts_only.resize(registration.windowCount());  // rs_confidence 0: no rotation/scale

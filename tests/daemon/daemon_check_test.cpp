@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 
 #include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
 
 #include "daemon/startup_check.hpp"
 #include "daemon_test_support.hpp"
@@ -64,6 +65,24 @@ TEST(DaemonCheck, AMaskOfTheWrongSizeFailsNamingTheFile) {
                                 t.tmp / "out", t.tmp / "err", 60s),
             1);
   EXPECT_NE(t.err().find("omni.mask: mask.png is 10x10"), std::string::npos) << t.err();
+}
+
+TEST(DaemonCheck, AMaskThatLeavesTooFewWindowsFailsSayingHowManyAreLeft) {
+  // Everything masked but a 15-degree sector: fewer than 4 of the 55 windows keep enough usable pixels;
+  // the daemon would otherwise start and lose every frame.
+  CheckCase t;
+  Calibration c;
+  cv::Mat mask(720, 720, CV_8UC1, cv::Scalar(0));
+  cv::ellipse(mask, {360, 360}, {360, 360}, 0, 0, 15, cv::Scalar(255), cv::FILLED);
+  c.omni.mask = mask;
+  c.omni.mask_file = "mask.png";
+  EXPECT_EQ(t.run(c), 1) << t.err();
+  EXPECT_NE(t.err().find("windows measurable; the fit needs at least 4"), std::string::npos)
+      << t.err();
+  // The same mask over half the ring starts.
+  cv::ellipse(mask, {360, 360}, {360, 360}, 0, 0, 180, cv::Scalar(255), cv::FILLED);
+  c.omni.mask = mask;
+  EXPECT_EQ(t.run(c), 0) << t.err();
 }
 
 TEST(DaemonCheck, APanoramaLowerThanTheWindowFails) {
