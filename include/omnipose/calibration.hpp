@@ -30,6 +30,7 @@
 #include <string>
 #include <vector>
 
+#include "omnipose/config_error.hpp"
 #include "omnipose/lens_model.hpp"
 
 namespace omnipose {
@@ -95,17 +96,9 @@ struct PanoramaGeometry {
   Eigen::Vector3d bearing(double u, double v) const;
 };
 
-/// Thrown by Calibration::load / validate at start-up; what() lists every problem, one
-/// per line, each naming the file and the field.
-class CalibrationError : public std::runtime_error {
- public:
-  CalibrationError(const std::string& what, std::vector<std::string> problems)
-      : std::runtime_error(what), problems_(std::move(problems)) {}
-  const std::vector<std::string>& problems() const { return problems_; }
-
- private:
-  std::vector<std::string> problems_;
-};
+/// Thrown by Calibration::load / parse at start-up: the configuration error (problems()
+/// lists every problem, each naming the file and the field).
+using CalibrationError = ConfigError;
 
 /// calibration.yaml: the lens and the panorama it is unwrapped to.
 struct Calibration {

@@ -251,12 +251,9 @@ struct MotionSegment {
   std::optional<TranslationStep> translation;
 };
 
-/// Thrown by MotionScript::load/parse; what() lists every problem, each naming the
+/// Thrown by MotionScript::load/parse: the configuration error, each problem naming the
 /// file and the field (e.g. "m.yaml: segments[1].rotation.axis: 'w' is not x, y, z or random").
-class MotionError : public std::runtime_error {
- public:
-  using std::runtime_error::runtime_error;
-};
+using MotionError = ConfigError;
 
 /// A motion script. YAML format (every key but `segments` optional; defaults shown):
 /// ```yaml

@@ -6,10 +6,10 @@
 #include <fstream>
 #include <numbers>
 #include <opencv2/imgcodecs.hpp>
-#include <set>
 #include <sstream>
 
 #include "common/problem_list.hpp"
+#include "common/yaml_reader.hpp"
 #include "omnipose/image_decode.hpp"
 #include "omnipose/limits.hpp"
 
@@ -20,111 +20,8 @@ constexpr double kPi = std::numbers::pi;
 constexpr double kDegToRad = kPi / 180.0;
 constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 
-/// Collects every problem of a YAML document instead of stopping at the first.
-class YamlReader {
- public:
-  explicit YamlReader(std::string origin) : origin_(std::move(origin)) {}
-
-  void problem(const std::string& key, const std::string& what) {
-    problems_.push_back(origin_ + ": " + key + ": " + what);
-  }
-  std::vector<std::string>& problems() { return problems_; }
-
-  /// Section `name` of `root` as a map; reports unknown keys against `known`.
-  YAML::Node section(const YAML::Node& root, const std::string& name,
-                     const std::set<std::string>& known) {
-    const YAML::Node node = root[name];
-    if (!node) {
-      problem(name, "missing section");
-      return {};
-    }
-    if (!node.IsMap()) {
-      problem(name, "must be a map");
-      return {};
-    }
-    for (const auto& kv : node) {
-      if (!kv.first.IsScalar()) {
-        problem(name, "keys must be plain names, not '" + YAML::Dump(kv.first) + "'");
-        continue;
-      }
-      const auto key = kv.first.Scalar();
-      if (!known.contains(key)) problem(name + "." + key, "unknown key");
-    }
-    return node;
-  }
-
-  /// Reads `section.key` into `value`; returns whether it was present and read. Numbers
-  /// must be finite.
-  template <typename T>
-  bool read(const YAML::Node& section, const std::string& section_name, const std::string& key,
-            T& value, bool required = true) {
-    if (!section) return false;
-    const YAML::Node node = section[key];
-    if (!node) {
-      if (required) problem(section_name + "." + key, "missing");
-      return false;
-    }
-    try {
-      const T v = node.as<T>();
-      if constexpr (std::is_floating_point_v<T>) {
-        if (!std::isfinite(v)) {
-          problem(section_name + "." + key, "must be a finite number, not '" + YAML::Dump(node) + "'");
-          return false;
-        }
-      }
-      value = v;
-      return true;
-    } catch (const YAML::Exception&) {
-      problem(section_name + "." + key, "cannot read '" + YAML::Dump(node) + "' as " + typeName<T>());
-      return false;
-    }
-  }
-
-  /// Reads a flat list of `count` finite numbers (a nested list is flattened row by row).
-  bool readNumbers(const YAML::Node& section, const std::string& section_name,
-                   const std::string& key, std::size_t count, std::vector<double>& out) {
-    const YAML::Node node = section ? section[key] : YAML::Node();
-    if (!node) {
-      problem(section_name + "." + key, "missing");
-      return false;
-    }
-    std::vector<double> values;
-    const auto take = [&](const YAML::Node& n) {
-      try {
-        values.push_back(n.as<double>());
-        return std::isfinite(values.back());
-      } catch (const YAML::Exception&) {
-        return false;
-      }
-    };
-    bool ok = node.IsSequence();
-    for (std::size_t i = 0; ok && i < node.size(); ++i) {
-      if (node[i].IsSequence()) {
-        for (std::size_t j = 0; ok && j < node[i].size(); ++j) ok = take(node[i][j]);
-      } else {
-        ok = take(node[i]);
-      }
-    }
-    if (!ok || values.size() != count) {
-      problem(section_name + "." + key, "must be a list of " + std::to_string(count) + " finite numbers");
-      return false;
-    }
-    out = std::move(values);
-    return true;
-  }
-
- private:
-  template <typename T>
-  static const char* typeName() {
-    if constexpr (std::is_same_v<T, int>) return "an integer";
-    if constexpr (std::is_same_v<T, double>) return "a number";
-    if constexpr (std::is_same_v<T, std::string>) return "a string";
-    return "the expected type";
-  }
-
-  std::string origin_;
-  std::vector<std::string> problems_;
-};
+using detail::YamlReader;
+using Need = YamlReader::Need;
 
 std::string fixed(double v, int digits = 1) {
   char buf[64];
@@ -303,12 +200,8 @@ std::vector<std::string> Calibration::validate() const {
 Calibration Calibration::parse(const std::string& text, const std::string& origin,
                                const std::filesystem::path& base_dir) {
   YamlReader r(origin);
-  YAML::Node root;
-  try {
-    root = YAML::Load(text);
-  } catch (const YAML::Exception& e) {
-    throw CalibrationError(origin + ": not valid YAML: " + e.what(), {origin + ": " + e.what()});
-  }
+  const YAML::Node root = detail::loadYaml(text, origin);
+  r.checkDuplicateKeys(root);
   Calibration c;
   const auto resolve = [&](const std::string& file) {
     const std::filesystem::path p(file);
@@ -317,25 +210,34 @@ Calibration Calibration::parse(const std::string& text, const std::string& origi
   if (!root || !root.IsMap()) {
     r.problem("(document)", "expected a map with sections 'omni' and 'panorama'");
   } else {
-    for (const auto& kv : root) {
-      if (!kv.first.IsScalar()) {
-        r.problem("(document)", "keys must be plain names, not '" + YAML::Dump(kv.first) + "'");
-        continue;
+    r.checkMap(root, "", {"omni", "panorama"}, "unknown section");
+    const auto section = [&](const std::string& name, const std::vector<std::string>& known) {
+      const YAML::Node node = YamlReader::child(root, name);
+      if (!node) {
+        r.problem(name, "missing section");
+        return YAML::Node(YAML::NodeType::Undefined);
       }
-      const auto key = kv.first.Scalar();
-      if (key != "omni" && key != "panorama") r.problem(key, "unknown section");
-    }
-    const YAML::Node omni = r.section(
-        root, "omni",
-        {"model", "image_width", "image_height", "center", "radius_inner", "radius_outer",
-         "azimuth_zero_deg", "azimuth_direction", "outer_edge", "ocamcalib_file", "omnidir_file",
-         "xi", "K", "D", "mask"});
+      return r.checkMap(node, name, known) ? node : YAML::Node(YAML::NodeType::Undefined);
+    };
+    const YAML::Node omni = section(
+        "omni", {"model", "image_width", "image_height", "center", "radius_inner", "radius_outer",
+                 "azimuth_zero_deg", "azimuth_direction", "outer_edge", "ocamcalib_file",
+                 "omnidir_file", "xi", "K", "D", "mask"});
+    // A lens model file's own problems, each under the key that names the file.
+    const auto fileProblems = [&](const std::string& key, const std::exception& e) {
+      const auto* listed = dynamic_cast<const ConfigError*>(&e);
+      if (!listed || listed->problems().empty()) {
+        r.problem(key, e.what());
+        return;
+      }
+      for (const auto& p : listed->problems()) r.problem(key, p);
+    };
     std::string model = "linear";
-    r.read(omni, "omni", "model", model, false);
+    r.get(omni, "omni", "model", model, Need::kOptional);
     if (model == "linear") c.omni.model = LensModelKind::kLinear;
     else if (model == "ocamcalib") c.omni.model = LensModelKind::kOcamCalib;
     else if (model == "mei") c.omni.model = LensModelKind::kMei;
-    else r.problem("omni.model", "'" + model + "' is not linear, ocamcalib or mei");
+    else r.problem("omni.model", "'" + detail::shown(model) + "' is not linear, ocamcalib or mei");
     const bool linear = c.omni.model == LensModelKind::kLinear;
     const bool ocam = c.omni.model == LensModelKind::kOcamCalib;
     const bool mei = c.omni.model == LensModelKind::kMei;
@@ -346,7 +248,7 @@ Calibration Calibration::parse(const std::string& text, const std::string& origi
     if (ocam) {
       notWith("center", "the centre comes from ocamcalib_file");
       notWith("outer_edge", "the polynomial gives every radius its elevation");
-      if (r.read(omni, "omni", "ocamcalib_file", c.omni.ocamcalib_file)) {
+      if (r.get(omni, "omni", "ocamcalib_file", c.omni.ocamcalib_file, Need::kRequired)) {
         try {
           c.omni.ocamcalib = OcamCalibModel::load(resolve(c.omni.ocamcalib_file));
           const OcamCalibModel& m = *c.omni.ocamcalib;
@@ -357,43 +259,44 @@ Calibration Calibration::parse(const std::string& text, const std::string& origi
           if (m.roi_min_radius) c.omni.radius_inner = *m.roi_min_radius;
           if (m.roi_max_radius) c.omni.radius_outer = *m.roi_max_radius;
         } catch (const std::exception& e) {
-          r.problem("omni.ocamcalib_file", e.what());
+          fileProblems("omni.ocamcalib_file", e);
         }
       }
       int w = c.omni.image_width, h = c.omni.image_height;
-      if (r.read(omni, "omni", "image_width", w, false) && c.omni.ocamcalib && w != c.omni.image_width)
+      if (r.get(omni, "omni", "image_width", w, Need::kOptional) && c.omni.ocamcalib && w != c.omni.image_width)
         r.problem("omni.image_width", std::to_string(w) + " disagrees with the OCamCalib file (" +
                                           std::to_string(c.omni.image_width) + " with its crops)");
-      if (r.read(omni, "omni", "image_height", h, false) && c.omni.ocamcalib && h != c.omni.image_height)
+      if (r.get(omni, "omni", "image_height", h, Need::kOptional) && c.omni.ocamcalib && h != c.omni.image_height)
         r.problem("omni.image_height", std::to_string(h) + " disagrees with the OCamCalib file (" +
                                            std::to_string(c.omni.image_height) + ")");
       const bool has_roi = c.omni.ocamcalib && c.omni.ocamcalib->roi_max_radius;
-      r.read(omni, "omni", "radius_inner", c.omni.radius_inner, !has_roi && c.omni.ocamcalib.has_value());
-      r.read(omni, "omni", "radius_outer", c.omni.radius_outer, !has_roi && c.omni.ocamcalib.has_value());
+      const Need need_radii = !has_roi && c.omni.ocamcalib ? Need::kRequired : Need::kOptional;
+      r.get(omni, "omni", "radius_inner", c.omni.radius_inner, need_radii);
+      r.get(omni, "omni", "radius_outer", c.omni.radius_outer, need_radii);
     } else {
       notWith("ocamcalib_file", "it is the ocamcalib model's file");
-      r.read(omni, "omni", "image_width", c.omni.image_width);
-      r.read(omni, "omni", "image_height", c.omni.image_height);
-      r.read(omni, "omni", "radius_inner", c.omni.radius_inner);
-      r.read(omni, "omni", "radius_outer", c.omni.radius_outer);
+      r.get(omni, "omni", "image_width", c.omni.image_width, Need::kRequired);
+      r.get(omni, "omni", "image_height", c.omni.image_height, Need::kRequired);
+      r.get(omni, "omni", "radius_inner", c.omni.radius_inner, Need::kRequired);
+      r.get(omni, "omni", "radius_outer", c.omni.radius_outer, Need::kRequired);
     }
     if (mei) {
       notWith("center", "the centre is K's principal point");
       notWith("outer_edge", "the model gives every radius its elevation");
       const bool inline_model = omni && (omni["xi"] || omni["K"] || omni["D"]);
-      if (r.read(omni, "omni", "omnidir_file", c.omni.omnidir_file, false)) {
+      if (r.get(omni, "omni", "omnidir_file", c.omni.omnidir_file, Need::kOptional)) {
         if (inline_model) r.problem("omni.omnidir_file", "give either omnidir_file or xi, K and D, not both");
         try {
           c.omni.mei = MeiModel::loadFileStorage(resolve(c.omni.omnidir_file));
         } catch (const std::exception& e) {
-          r.problem("omni.omnidir_file", e.what());
+          fileProblems("omni.omnidir_file", e);
         }
       } else {
         MeiModel m;
         std::vector<double> K, D;
-        const bool ok_xi = r.read(omni, "omni", "xi", m.xi);
-        const bool ok_k = r.readNumbers(omni, "omni", "K", 9, K);
-        const bool ok_d = r.readNumbers(omni, "omni", "D", 4, D);
+        const bool ok_xi = r.get(omni, "omni", "xi", m.xi, Need::kRequired);
+        const bool ok_k = r.getNumbers(omni, "omni", "K", 9, K);
+        const bool ok_d = r.getNumbers(omni, "omni", "D", 4, D);
         if (ok_xi && ok_k && ok_d) {
           m.fx = K[0], m.s = K[1], m.cx = K[2], m.fy = K[4], m.cy = K[5];
           m.k1 = D[0], m.k2 = D[1], m.p1 = D[2], m.p2 = D[3];
@@ -424,18 +327,18 @@ Calibration Calibration::parse(const std::string& text, const std::string& origi
         }
       }
       std::string edge = "top";
-      r.read(omni, "omni", "outer_edge", edge, false);
+      r.get(omni, "omni", "outer_edge", edge, Need::kOptional);
       if (edge == "top") c.omni.outer_edge = OuterEdge::kTop;
       else if (edge == "bottom") c.omni.outer_edge = OuterEdge::kBottom;
-      else r.problem("omni.outer_edge", "'" + edge + "' is not top or bottom");
+      else r.problem("omni.outer_edge", "'" + detail::shown(edge) + "' is not top or bottom");
     }
-    r.read(omni, "omni", "azimuth_zero_deg", c.omni.azimuth_zero_deg, false);
+    r.get(omni, "omni", "azimuth_zero_deg", c.omni.azimuth_zero_deg, Need::kOptional);
     std::string direction = "cw";
-    r.read(omni, "omni", "azimuth_direction", direction, false);
+    r.get(omni, "omni", "azimuth_direction", direction, Need::kOptional);
     if (direction == "cw") c.omni.azimuth_direction = AzimuthDirection::kCw;
     else if (direction == "ccw") c.omni.azimuth_direction = AzimuthDirection::kCcw;
-    else r.problem("omni.azimuth_direction", "'" + direction + "' is not cw or ccw");
-    if (r.read(omni, "omni", "mask", c.omni.mask_file, false)) {
+    else r.problem("omni.azimuth_direction", "'" + detail::shown(direction) + "' is not cw or ccw");
+    if (r.get(omni, "omni", "mask", c.omni.mask_file, Need::kOptional)) {
       const std::filesystem::path file = resolve(c.omni.mask_file);
       const Expected<cv::Mat> mask = readImage(file, ImageColour::kAsStored);
       if (!mask) {
@@ -450,30 +353,25 @@ Calibration Calibration::parse(const std::string& text, const std::string& origi
       }
     }
 
-    const YAML::Node pano =
-        r.section(root, "panorama", {"width", "height", "horizon_row", "forward_column"});
-    r.read(pano, "panorama", "width", c.panorama.width);
-    r.read(pano, "panorama", "height", c.panorama.height);
+    const YAML::Node pano = section("panorama", {"width", "height", "horizon_row", "forward_column"});
+    r.get(pano, "panorama", "width", c.panorama.width, Need::kRequired);
+    r.get(pano, "panorama", "height", c.panorama.height, Need::kRequired);
     c.panorama.horizon_row = 0.5 * c.panorama.height - 0.5;  // default: the middle
-    r.read(pano, "panorama", "horizon_row", c.panorama.horizon_row, false);
-    r.read(pano, "panorama", "forward_column", c.panorama.forward_column, false);
+    r.get(pano, "panorama", "horizon_row", c.panorama.horizon_row, Need::kOptional);
+    r.get(pano, "panorama", "forward_column", c.panorama.forward_column, Need::kOptional);
   }
   // Range checks only make sense on values that were read.
   if (r.problems().empty()) {
-    for (const auto& p : c.validate()) r.problems().push_back(origin + ": " + p);
+    for (const auto& p : c.validate()) r.add(p);
   }
-  if (!r.problems().empty()) {
-    throw CalibrationError(origin + ": invalid calibration:\n  " + detail::joinProblems(r.problems()),
-                           r.problems());
-  }
+  r.throwIfProblems("invalid calibration");
   return c;
 }
 
 Calibration Calibration::load(const std::filesystem::path& path) {
   std::ifstream in(path);
   if (!in) {
-    throw CalibrationError(path.string() + ": cannot open calibration file",
-                           {path.string() + ": cannot open calibration file"});
+    throw ConfigError(path.string() + ": cannot open calibration file");
   }
   std::stringstream ss;
   ss << in.rdbuf();

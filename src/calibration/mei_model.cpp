@@ -5,6 +5,7 @@
 #include <stdexcept>
 
 #include "common/problem_list.hpp"
+#include "omnipose/config_error.hpp"
 #include "omnipose/lens_model.hpp"
 
 namespace omnipose {
@@ -112,7 +113,7 @@ MeiModel MeiModel::loadFileStorage(const std::filesystem::path& path) {
   }
   if (problems.empty())
     for (const auto& p : model.validate()) problem(p);
-  if (!problems.empty()) throw std::runtime_error(detail::joinProblems(problems));
+  if (!problems.empty()) throw ConfigError(detail::joinProblems(problems), problems);
   return model;
 }
 

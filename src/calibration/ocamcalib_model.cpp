@@ -7,6 +7,7 @@
 #include <stdexcept>
 
 #include "common/problem_list.hpp"
+#include "omnipose/config_error.hpp"
 #include "omnipose/limits.hpp"
 #include "omnipose/lens_model.hpp"
 
@@ -93,10 +94,10 @@ OcamCalibModel OcamCalibModel::parse(const std::string& text, const std::string&
     if (i >= lines.size()) {
       problem(0, std::string("truncated: expected the ") + kFields[i] + " line, found the end of the file");
     } else if (!lines[i].parsed) {
-      problem(lines[i].number, std::string(kFields[i]) + ": '" + lines[i].bad_token + "' is not a number");
+      problem(lines[i].number, std::string(kFields[i]) + ": '" + detail::shown(lines[i].bad_token) + "' is not a number");
     }
   }
-  if (!problems.empty()) throw std::runtime_error(detail::joinProblems(problems));
+  if (!problems.empty()) throw ConfigError(detail::joinProblems(problems), problems);
 
   const auto finite = [&](const DataLine& d, const char* what) {
     for (double v : d.values) {
@@ -158,7 +159,7 @@ OcamCalibModel OcamCalibModel::parse(const std::string& text, const std::string&
   for (std::size_t i = 5; i < lines.size(); ++i) {
     const DataLine& d = lines[i];
     if (!d.parsed) {
-      problem(d.number, "'" + d.bad_token + "' is not a number");
+      problem(d.number, "'" + detail::shown(d.bad_token) + "' is not a number");
     } else if (mentions(d.comment, "roi")) {
       if (d.values.size() != 2 || !finite(d, "ROI")) {
         if (d.values.size() != 2) problem(d.number, "ROI: expected 2 numbers (max min radius)");
@@ -186,13 +187,13 @@ OcamCalibModel OcamCalibModel::parse(const std::string& text, const std::string&
                         "are known, each below a comment naming it)");
     }
   }
-  if (!problems.empty()) throw std::runtime_error(detail::joinProblems(problems));
+  if (!problems.empty()) throw ConfigError(detail::joinProblems(problems), problems);
   m.height = static_cast<int>(height);
   m.width = static_cast<int>(width) + m.crop_left + m.crop_right;
   m.yc += m.crop_left;
   if (m.width > limits::kMaxImageSide) {
     problem(lines[4].number, "image size: width plus crops exceeds " + std::to_string(limits::kMaxImageSide));
-    throw std::runtime_error(detail::joinProblems(problems));
+    throw ConfigError(detail::joinProblems(problems), problems);
   }
   return m;
 }

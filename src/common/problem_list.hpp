@@ -1,7 +1,10 @@
 #pragma once
-/// Formatting of collected start-up problems (private to the core library's stages).
+/// Formatting of collected start-up problems (private to the libraries): the one place that
+/// turns a problem list into text, bounds it and makes every echoed input printable.
 
+#include <algorithm>
 #include <cmath>
+#include <cstddef>
 #include <sstream>
 #include <stdexcept>
 #include <type_traits>
@@ -11,10 +14,54 @@
 
 namespace omnipose::detail {
 
-/// The problems, one per line, each indented: what a start-up error's what() lists.
+/// At most this many problems are listed; the rest are counted ("and N more").
+inline constexpr std::size_t kMaxListedProblems = 20;
+/// At most this many characters of an input are echoed in a message.
+inline constexpr std::size_t kMaxEchoedChars = 60;
+
+/// `text` with every control character written as an escape (\0, \t, \n, \r, \x01 ...,
+/// \x7f), so that no byte of an input can cut or break a message line.
+inline std::string escapeControl(std::string_view text) {
+  std::string out;
+  out.reserve(text.size());
+  for (const char ch : text) {
+    const auto c = static_cast<unsigned char>(ch);
+    if (c >= 0x20 && c != 0x7f) {
+      out += ch;
+      continue;
+    }
+    switch (c) {
+      case 0: out += "\\0"; break;
+      case '\t': out += "\\t"; break;
+      case '\n': out += "\\n"; break;
+      case '\r': out += "\\r"; break;
+      default: {
+        static constexpr char kHex[] = "0123456789abcdef";
+        out += "\\x";
+        out += kHex[c >> 4];
+        out += kHex[c & 0xf];
+      }
+    }
+  }
+  return out;
+}
+
+/// An input as a message echoes it: control characters escaped, and when longer than
+/// kMaxEchoedChars bytes its first kMaxEchoedChars followed by "... (N bytes)".
+inline std::string shown(std::string_view text) {
+  if (text.size() <= kMaxEchoedChars) return escapeControl(text);
+  return escapeControl(text.substr(0, kMaxEchoedChars)) + "... (" + std::to_string(text.size()) +
+         " bytes)";
+}
+
+/// The problems, one per line, each indented: what a start-up error's what() lists. At most
+/// kMaxListedProblems of them, then "and N more"; control characters escaped.
 inline std::string joinProblems(const std::vector<std::string>& problems) {
   std::string out;
-  for (const auto& p : problems) out += (out.empty() ? "" : "\n  ") + p;
+  const std::size_t listed = std::min(problems.size(), kMaxListedProblems);
+  for (std::size_t i = 0; i < listed; ++i) out += (i == 0 ? "" : "\n  ") + escapeControl(problems[i]);
+  if (problems.size() > listed)
+    out += "\n  and " + std::to_string(problems.size() - listed) + " more";
   return out;
 }
 
@@ -23,7 +70,7 @@ inline std::string joinProblems(const std::vector<std::string>& problems) {
 inline void throwIfProblems(std::string_view heading, const std::vector<std::string>& problems) {
   if (problems.empty()) return;
   std::string what(heading);
-  what += problems.size() == 1 ? ": " + problems.front() : ":\n  " + joinProblems(problems);
+  what += problems.size() == 1 ? ": " + escapeControl(problems.front()) : ":\n  " + joinProblems(problems);
   throw std::invalid_argument(what);
 }
 

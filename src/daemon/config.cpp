@@ -6,86 +6,17 @@
 #include <fstream>
 #include <set>
 #include <string_view>
-#include <type_traits>
 #include <sstream>
 
 #include "common/problem_list.hpp"
+#include "common/yaml_reader.hpp"
 #include "omnipose/limits.hpp"
 
 namespace omnipose {
 namespace {
 
-template <typename T>
-const char* typeName() {
-  if constexpr (std::is_same_v<T, bool>) return "true or false";
-  else if constexpr (std::is_integral_v<T>) return "an integer";
-  else if constexpr (std::is_floating_point_v<T>) return "a number";
-  else return "text";
-}
-
-/// Reads typed values out of a YAML map, collecting every problem with its key path.
-class Reader {
- public:
-  Reader(std::string origin, std::vector<std::string>& problems)
-      : origin_(std::move(origin)), problems_(problems) {}
-
-  void problem(const std::string& key, const std::string& what) {
-    problems_.push_back(origin_ + ": " + key + ": " + what);
-  }
-
-  /// Reports keys of `node` (a map at `prefix`) that are not in `known`.
-  bool checkMap(const YAML::Node& node, const std::string& prefix,
-                const std::set<std::string>& known) {
-    if (!node.IsMap()) {
-      problem(prefix, "must be a map");
-      return false;
-    }
-    for (const auto& kv : node) {
-      if (!kv.first.IsScalar()) {
-        problem(prefix.empty() ? "(top level)" : prefix, "keys must be plain names");
-        continue;
-      }
-      const auto key = kv.first.Scalar();
-      if (!known.contains(key)) problem(join(prefix, key), "unknown key");
-    }
-    return true;
-  }
-
-  static std::string join(const std::string& prefix, const std::string& key) {
-    return prefix.empty() ? key : prefix + "." + key;
-  }
-
-  template <typename T>
-  void get(const YAML::Node& map, const std::string& prefix, const std::string& key, T& value) {
-    const YAML::Node node = map[key];
-    if (!node) return;
-    try {
-      value = node.as<T>();
-    } catch (const YAML::Exception&) {
-      std::string text = node.IsScalar() ? node.Scalar() : YAML::Dump(node);
-      if (text.size() > 60) text = text.substr(0, 60) + "...";
-      problem(join(prefix, key), "cannot read '" + text + "' as " + typeName<T>());
-    }
-  }
-
-  /// A number in [lo, hi] ((lo, hi] with `open_below`); NaN and infinities are refused.
-  template <typename T>
-  void range(T value, const std::string& key, T lo, T hi, const char* unit = "",
-             bool open_below = false) {
-    std::vector<std::string> found;
-    detail::checkRange(found, key, value, lo, hi, unit, open_below);
-    for (const auto& p : found) problems_.push_back(origin_ + ": " + p);
-  }
-
-  /// Range check helper: reports `what` when `ok` is false.
-  void require(bool ok, const std::string& key, const std::string& what) {
-    if (!ok) problem(key, what);
-  }
-
- private:
-  std::string origin_;
-  std::vector<std::string>& problems_;
-};
+using detail::YamlReader;
+using Reader = YamlReader;
 
 void parseSource(Reader& r, const YAML::Node& node, const std::filesystem::path& base,
                  SourceConfig& s) {
@@ -97,7 +28,7 @@ void parseSource(Reader& r, const YAML::Node& node, const std::filesystem::path&
   if (type == "file") s.type = SourceConfig::Type::kFile;
   else if (type == "v4l2") s.type = SourceConfig::Type::kV4l2;
   else if (type == "libcamera") s.type = SourceConfig::Type::kLibcamera;
-  else r.problem("source.type", "'" + type + "' is not file, v4l2 or libcamera");
+  else r.problem("source.type", "'" + detail::shown(type) + "' is not file, v4l2 or libcamera");
   std::string path;
   r.get(node, "source", "path", path);
   if (!path.empty()) {
@@ -155,10 +86,10 @@ std::string yamlProblem(const std::string& problem) {
 
 void parsePipeline(Reader& r, const YAML::Node& node, const std::filesystem::path& base_dir,
                    PipelineOptions& p) {
-  std::set<std::string> known;
+  std::vector<std::string> known;
   for (const PipelineKey& k : kPipelineKeys) {
     const std::string_view yaml = k.yaml;
-    if (yaml.starts_with("pipeline.")) known.insert(std::string(yaml.substr(9)));
+    if (yaml.starts_with("pipeline.")) known.emplace_back(yaml.substr(9));
   }
   if (!r.checkMap(node, "pipeline", known)) return;
   r.get(node, "pipeline", "window", p.registration.window);
@@ -190,8 +121,8 @@ void parseLcm(Reader& r, const YAML::Node& node, LcmConfig& l) {
   r.get(node, "lcm", "status_channel", l.status_channel);
   r.get(node, "lcm", "fit_channel", l.fit_channel);
   r.get(node, "lcm", "status_hz", l.status_hz);
-  r.require(!l.pose_channel.empty(), "lcm.pose_channel", "must not be empty");
-  r.require(!l.status_channel.empty(), "lcm.status_channel", "must not be empty");
+  if (l.pose_channel.empty()) r.problem("lcm.pose_channel", "must not be empty");
+  if (l.status_channel.empty()) r.problem("lcm.status_channel", "must not be empty");
   r.range(l.status_hz, "lcm.status_hz", 0.0, 100.0, " Hz", true);
 }
 
@@ -208,17 +139,11 @@ const char* toString(SourceConfig::Type type) {
 
 DaemonConfig DaemonConfig::parse(const std::string& text, const std::string& origin,
                                  const std::filesystem::path& base_dir, Use use) {
-  std::vector<std::string> problems;
-  Reader r(origin, problems);
+  Reader r(origin);
   DaemonConfig c;
   c.origin = origin;
-  YAML::Node root;
-  try {
-    root = YAML::Load(text);
-  } catch (const YAML::Exception& e) {
-    problems.push_back(origin + ": not valid YAML: " + e.what());
-    throw ConfigError(origin + ": invalid configuration:\n  " + problems.front(), problems);
-  }
+  YAML::Node root = detail::loadYaml(text, origin);
+  r.checkDuplicateKeys(root);
   if (!root || root.IsNull()) root = YAML::Node(YAML::NodeType::Map);
   if (r.checkMap(root, "", {"source", "calibration", "input", "pipeline", "lcm"})) {
     if (root["source"]) parseSource(r, root["source"], base_dir, c.source);
@@ -238,17 +163,13 @@ DaemonConfig DaemonConfig::parse(const std::string& text, const std::string& ori
     r.get(root, "", "input", input);
     if (input == "omni") c.pipeline.unwrap.input = InputKind::kOmni;
     else if (input == "panorama") c.pipeline.unwrap.input = InputKind::kPanorama;
-    else r.problem("input", "'" + input + "' is not omni or panorama");
+    else r.problem("input", "'" + detail::shown(input) + "' is not omni or panorama");
 
     if (root["pipeline"]) parsePipeline(r, root["pipeline"], base_dir, c.pipeline);
     if (root["lcm"]) parseLcm(r, root["lcm"], c.lcm);
-    for (const auto& p : c.pipeline.validate()) problems.push_back(origin + ": " + yamlProblem(p));
+    for (const auto& p : c.pipeline.validate()) r.add(yamlProblem(p));
   }
-  if (!problems.empty()) {
-    std::string what = origin + ": invalid configuration:";
-    for (const auto& p : problems) what += "\n  " + p;
-    throw ConfigError(what, problems);
-  }
+  r.throwIfProblems("invalid configuration");
   return c;
 }
 
@@ -268,8 +189,7 @@ std::vector<std::string> DaemonConfig::checkAgainst(const Calibration& cal,
 DaemonConfig DaemonConfig::load(const std::filesystem::path& path, Use use) {
   std::ifstream in(path);
   if (!in) {
-    const std::string msg = path.string() + ": cannot open configuration file";
-    throw ConfigError(msg, {msg});
+    throw ConfigError(path.string() + ": cannot open configuration file");
   }
   std::stringstream ss;
   ss << in.rdbuf();

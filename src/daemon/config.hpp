@@ -22,6 +22,7 @@
 #include <string>
 #include <vector>
 
+#include "omnipose/config_error.hpp"
 #include "omnipose/pipeline.hpp"
 
 namespace omnipose {
@@ -49,17 +50,6 @@ struct LcmConfig {
   std::string status_channel = "OMNI_STATUS";
   std::string fit_channel;          ///< "" = diagnostics off
   double status_hz = 1.0;
-};
-
-/// Thrown on an invalid configuration; what() lists every problem, one per line.
-class ConfigError : public std::runtime_error {
- public:
-  ConfigError(const std::string& what, std::vector<std::string> problems)
-      : std::runtime_error(what), problems_(std::move(problems)) {}
-  const std::vector<std::string>& problems() const { return problems_; }
-
- private:
-  std::vector<std::string> problems_;
 };
 
 struct DaemonConfig {

@@ -5,9 +5,10 @@
 #include <map>
 #include <numbers>
 #include <random>
-#include <set>
 #include <sstream>
 
+#include "common/problem_list.hpp"
+#include "common/yaml_reader.hpp"
 #include "omnipose/synth.hpp"
 
 namespace omnipose::synth {
@@ -64,72 +65,9 @@ const std::map<std::string, std::string>& presets() {
 
 // ------------------------------------------------------------------ YAML reading
 
-/// Collects every problem of a motion script instead of stopping at the first.
-class Reader {
- public:
-  explicit Reader(std::string origin) : origin_(std::move(origin)) {}
-
-  void problem(const std::string& field, const std::string& what) {
-    problems_.push_back(origin_ + ": " + field + ": " + what);
-  }
-  const std::vector<std::string>& problems() const { return problems_; }
-
-  /// Reports keys of map `node` (at `path`) that are not in `known`.
-  void checkKeys(const YAML::Node& node, const std::string& path,
-                 const std::set<std::string>& known) {
-    for (const auto& kv : node) {
-      const auto key = kv.first.as<std::string>();
-      if (!known.contains(key)) problem(prefix(path) + key, "unknown key");
-    }
-  }
-
-  /// Reads node[key] as T into value if present (or reports it missing when required).
-  template <typename T>
-  void read(const YAML::Node& node, const std::string& path, const std::string& key, T& value,
-            bool required = false) {
-    const YAML::Node child = node[key];
-    if (!child) {
-      if (required) problem(prefix(path) + key, "missing");
-      return;
-    }
-    try {
-      value = child.as<T>();
-    } catch (const YAML::Exception&) {
-      problem(prefix(path) + key, "cannot read '" + YAML::Dump(child) + "' as " + typeName<T>());
-    }
-  }
-
-  /// Reads node[key] as a range [lo, hi] or a single number (lo = hi).
-  void readRange(const YAML::Node& node, const std::string& path, const std::string& key,
-                 double& lo, double& hi) {
-    const YAML::Node child = node[key];
-    if (!child) return;
-    try {
-      if (child.IsSequence() && child.size() == 2) {
-        lo = child[0].as<double>();
-        hi = child[1].as<double>();
-      } else {
-        lo = hi = child.as<double>();
-      }
-    } catch (const YAML::Exception&) {
-      problem(prefix(path) + key, "must be a number or a list [min, max]");
-    }
-  }
-
-  static std::string prefix(const std::string& path) { return path.empty() ? "" : path + "."; }
-
- private:
-  template <typename T>
-  static const char* typeName() {
-    if constexpr (std::is_same_v<T, int>) return "an integer";
-    if constexpr (std::is_same_v<T, std::uint64_t>) return "a non-negative integer";
-    if constexpr (std::is_same_v<T, double>) return "a number";
-    return "a string";
-  }
-
-  std::string origin_;
-  std::vector<std::string> problems_;
-};
+using detail::YamlReader;
+using Reader = YamlReader;
+using Need = YamlReader::Need;
 
 RotationStep readRotation(Reader& r, const YAML::Node& node, const std::string& path) {
   RotationStep s;
@@ -137,12 +75,12 @@ RotationStep readRotation(Reader& r, const YAML::Node& node, const std::string& 
     r.problem(path, "must be a map");
     return s;
   }
-  r.checkKeys(node, path, {"axis", "step_deg", "sign", "bound_deg"});
+  r.checkMap(node, path, {"axis", "step_deg", "sign", "bound_deg"});
   std::string axis, sign = "random";
-  r.read(node, path, "axis", axis, true);
-  r.readRange(node, path, "step_deg", s.min_deg, s.max_deg);
-  r.read(node, path, "sign", sign);
-  r.read(node, path, "bound_deg", s.bound_deg);
+  r.get(node, path, "axis", axis, Need::kRequired);
+  r.getInterval(node, path, "step_deg", s.min_deg, s.max_deg);
+  r.get(node, path, "sign", sign);
+  r.get(node, path, "bound_deg", s.bound_deg);
   static const std::map<std::string, RotationStep::Axis> axes = {
       {"x", RotationStep::Axis::kX}, {"y", RotationStep::Axis::kY},
       {"z", RotationStep::Axis::kZ}, {"random", RotationStep::Axis::kRandom}};
@@ -150,9 +88,9 @@ RotationStep readRotation(Reader& r, const YAML::Node& node, const std::string& 
       {"random", RotationStep::Sign::kRandom}, {"alternate", RotationStep::Sign::kAlternate},
       {"positive", RotationStep::Sign::kPositive}, {"negative", RotationStep::Sign::kNegative}};
   if (const auto it = axes.find(axis); it != axes.end()) s.axis = it->second;
-  else if (!axis.empty()) r.problem(path + ".axis", "'" + axis + "' is not x, y, z or random");
+  else if (!axis.empty()) r.problem(path + ".axis", "'" + detail::shown(axis) + "' is not x, y, z or random");
   if (const auto it = signs.find(sign); it != signs.end()) s.sign = it->second;
-  else r.problem(path + ".sign", "'" + sign + "' is not random, alternate, positive or negative");
+  else r.problem(path + ".sign", "'" + detail::shown(sign) + "' is not random, alternate, positive or negative");
   return s;
 }
 
@@ -162,8 +100,8 @@ TranslationStep readTranslation(Reader& r, const YAML::Node& node, const std::st
     r.problem(path, "must be a map");
     return s;
   }
-  r.checkKeys(node, path, {"step_m", "direction"});
-  r.readRange(node, path, "step_m", s.min_m, s.max_m);
+  r.checkMap(node, path, {"step_m", "direction"});
+  r.getInterval(node, path, "step_m", s.min_m, s.max_m);
   const YAML::Node direction = node["direction"];
   if (!direction) return s;
   if (direction.IsScalar() && direction.as<std::string>() == "random_horizontal") return s;
@@ -188,19 +126,13 @@ MotionSegment readSegment(Reader& r, const YAML::Node& node, const std::string& 
     r.problem(path, "must be a map");
     return s;
   }
-  r.checkKeys(node, path, {"frames", "rotation", "translation"});
-  r.read(node, path, "frames", s.frames, true);
+  r.checkMap(node, path, {"frames", "rotation", "translation"});
+  r.get(node, path, "frames", s.frames, Need::kRequired);
   if (node["rotation"]) s.rotation = readRotation(r, node["rotation"], path + ".rotation");
   if (node["translation"]) {
     s.translation = readTranslation(r, node["translation"], path + ".translation");
   }
   return s;
-}
-
-std::string joinLines(const std::vector<std::string>& lines) {
-  std::string out;
-  for (const auto& l : lines) out += "\n  " + l;
-  return out;
 }
 
 // ------------------------------------------------------------------ generation
@@ -322,22 +254,18 @@ bool MotionScript::translates() const {
 }
 
 MotionScript MotionScript::parse(const std::string& yaml_text, const std::string& origin) {
-  YAML::Node root;
-  try {
-    root = YAML::Load(yaml_text);
-  } catch (const YAML::Exception& e) {
-    throw MotionError(origin + ": not valid YAML: " + e.what());
-  }
+  const YAML::Node root = detail::loadYaml(yaml_text, origin);
   Reader r(origin);
+  r.checkDuplicateKeys(root);
   MotionScript script;
   if (!root || !root.IsMap()) {
     r.problem("(document)", "expected a map with a 'segments' list");
   } else {
-    r.checkKeys(root, "", {"seed", "frame_rate", "frames", "wall_margin_m", "segments"});
-    r.read(root, "", "seed", script.seed);
-    r.read(root, "", "frame_rate", script.frame_rate);
-    r.read(root, "", "frames", script.frames);
-    r.read(root, "", "wall_margin_m", script.wall_margin_m);
+    r.checkMap(root, "", {"seed", "frame_rate", "frames", "wall_margin_m", "segments"});
+    r.get(root, "", "seed", script.seed);
+    r.get(root, "", "frame_rate", script.frame_rate);
+    r.get(root, "", "frames", script.frames);
+    r.get(root, "", "wall_margin_m", script.wall_margin_m);
     const YAML::Node segments = root["segments"];
     if (!segments) {
       r.problem("segments", "missing");
@@ -350,13 +278,10 @@ MotionScript MotionScript::parse(const std::string& yaml_text, const std::string
       }
     }
   }
-  std::vector<std::string> problems = r.problems();
-  if (problems.empty()) {
-    for (const auto& p : script.validate()) problems.push_back(origin + ": " + p);
+  if (r.problems().empty()) {
+    for (const auto& p : script.validate()) r.add(p);
   }
-  if (!problems.empty()) {
-    throw MotionError(origin + ": invalid motion script:" + joinLines(problems));
-  }
+  r.throwIfProblems("invalid motion script");
   return script;
 }
 
@@ -373,7 +298,7 @@ std::string MotionScript::presetYaml(const std::string& name) {
   if (it == presets().end()) {
     std::string known;
     for (const auto& n : presetNames()) known += " " + n;
-    throw MotionError("unknown preset '" + name + "' (known:" + known + ")");
+    throw MotionError("unknown preset '" + detail::shown(name) + "' (known:" + known + ")");
   }
   return it->second;
 }
@@ -390,9 +315,7 @@ std::vector<std::string> MotionScript::presetNames() {
 
 std::vector<StampedPose> generateTrajectory(const MotionScript& script,
                                             const std::optional<Eigen::AlignedBox3d>& region) {
-  if (const auto problems = script.validate(); !problems.empty()) {
-    throw std::invalid_argument("generateTrajectory: invalid script:" + joinLines(problems));
-  }
+  detail::throwIfProblems("generateTrajectory: invalid script", script.validate());
   Generator g{std::mt19937_64(script.seed)};
   const int n = script.frameCount();
   std::vector<StampedPose> poses(n);

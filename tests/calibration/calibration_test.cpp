@@ -2,6 +2,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <filesystem>
 #include <numbers>
@@ -153,6 +154,77 @@ TEST(PanoramaGeometry, BearingConventions) {
   EXPECT_NEAR(up.z() / up.x(), 10 * g.gamma(), 1e-12);
   EXPECT_NEAR(g.column(-g.gamma()), 99.0, 1e-9);
   EXPECT_NEAR(g.row(g.cylinderHeight(3.25)), 3.25, 1e-12);
+}
+
+}  // namespace
+}  // namespace omnipose
+
+namespace omnipose {
+namespace {
+
+/// The ConfigError of parsing `text` as calibration.yaml ("" and no problems when valid).
+std::pair<std::string, std::vector<std::string>> calibrationError(const std::string& text) {
+  try {
+    Calibration::parse(text, "cal.yaml");
+  } catch (const ConfigError& e) {
+    return {e.what(), e.problems()};
+  }
+  return {};
+}
+
+int lineCount(const std::string& text) {
+  return static_cast<int>(std::count(text.begin(), text.end(), '\n')) + 1;
+}
+
+TEST(CalibrationYaml, DuplicateKeysAtEveryLevelNameTheKeyAndBothLines) {
+  const std::string text = std::string(kValid) + "omni:\n  image_width: 720\n";  // omni again
+  auto [what, problems] = calibrationError(text);
+  EXPECT_NE(what.find("cal.yaml: omni: given twice, lines 1 and 15"), std::string::npos) << what;
+  std::string nested = kValid;
+  nested.insert(nested.find("panorama:"), "  radius_inner: -5\n");  // line 10, first at 5
+  std::tie(what, problems) = calibrationError(nested);
+  EXPECT_NE(what.find("cal.yaml: omni.radius_inner: given twice, lines 5 and 10"), std::string::npos)
+      << what;
+  std::tie(what, problems) =
+      calibrationError("omni: {image_width: 720, image_width: abc}\npanorama: {width: 1, width: [1, 2]}\n");
+  EXPECT_NE(what.find("omni.image_width: given twice, lines 1 and 1"), std::string::npos) << what;
+  EXPECT_NE(what.find("panorama.width: given twice, lines 2 and 2"), std::string::npos) << what;
+}
+
+TEST(CalibrationYaml, LongStringsAreProblemsAndEchoedShort) {
+  std::string text = kValid;
+  text.insert(text.find("panorama:"), "  mask: " + std::string(5'000'000, 'm') + "\n");
+  const auto [what, problems] = calibrationError(text);
+  EXPECT_LT(what.size(), 1024u) << what.substr(0, 2000);
+  EXPECT_NE(what.find("omni.mask: '" + std::string(60, 'm') + "... (5000000 bytes)' is longer than 4096 bytes"),
+            std::string::npos)
+      << what.substr(0, 2000);
+  // At the bound: accepted as a string (the mask file itself does not exist).
+  std::string at_bound = kValid;
+  at_bound.insert(at_bound.find("panorama:"), "  mask: " + std::string(4096, 'm') + "\n");
+  EXPECT_EQ(calibrationError(at_bound).first.find("longer than"), std::string::npos);
+}
+
+TEST(CalibrationYaml, ControlCharactersAreEscapedSoNothingCutsTheMessage) {
+  std::string text = kValid;
+  text.replace(text.find("azimuth_direction: cw"), 21, "azimuth_direction: \"c\\x01w\"");
+  text.insert(text.find("panorama:"), "  \"col\\0our\\t\": 1\n");
+  const auto [what, problems] = calibrationError(text);
+  EXPECT_EQ(std::string(what.c_str()), what) << "a NUL in what()";
+  EXPECT_NE(what.find("omni.col\\0our\\t: unknown key"), std::string::npos) << what;
+  EXPECT_NE(what.find("omni.azimuth_direction: 'c\\x01w' is not cw or ccw"), std::string::npos) << what;
+  for (const auto& p : problems) EXPECT_EQ(std::string(p.c_str()), p);
+}
+
+TEST(CalibrationYaml, AtMostTwentyProblemsAreListedThenHowManyMore) {
+  std::string text = kValid;
+  for (int i = 0; i < 30; ++i) text += "extra" + std::to_string(i) + ": 1\n";
+  const auto [what, problems] = calibrationError(text);
+  EXPECT_EQ(problems.size(), 30u);
+  EXPECT_EQ(lineCount(what), 22) << what;  // heading, 20 problems, "and 10 more"
+  EXPECT_NE(what.find("\n  and 10 more"), std::string::npos) << what;
+  EXPECT_NE(what.find("extra19: unknown section"), std::string::npos) << what;
+  EXPECT_EQ(what.find("extra20: unknown section"), std::string::npos) << what;
 }
 
 }  // namespace

@@ -2,10 +2,13 @@
 // start-up errors for bad lens files.
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
 #include <numbers>
+#include <sstream>
 #include <opencv2/core.hpp>
 #include <opencv2/imgcodecs.hpp>
 
@@ -428,6 +431,77 @@ TEST(CalibrationYaml, KeysThatAreNotPlainNamesAreReportedNotThrown) {
       EXPECT_NE(std::string(e.what()).find("fuzz.yaml"), std::string::npos) << e.what();
       EXPECT_NE(std::string(e.what()).find("keys must be plain names"), std::string::npos) << e.what();
     }
+  }
+}
+
+}  // namespace
+}  // namespace omnipose
+
+namespace omnipose {
+namespace {
+
+std::string fileText(const fs::path& path) {
+  std::ifstream in(path);
+  std::stringstream ss;
+  ss << in.rdbuf();
+  return ss.str();
+}
+
+int lineCount(const std::string& text) {
+  return static_cast<int>(std::count(text.begin(), text.end(), '\n')) + 1;
+}
+
+// A hostile calib_results.txt: the real file followed by 150,000 garbled lines (each with a
+// NUL and a control character). Every line is a problem; the message lists 20 of them, then
+// how many more, escaped and short, and parsing stays fast.
+TEST(OcamCalib, GarbledFileGivesABoundedMessage) {
+  std::string text = fileText(kOffice);
+  for (int i = 0; i < 150'000; ++i) text += std::string("7 gar\0bled\x01", 11) + "\n";
+  const auto start = std::chrono::steady_clock::now();
+  try {
+    OcamCalibModel::parse(text, "calib.txt");
+    FAIL() << "expected a ConfigError";
+  } catch (const ConfigError& e) {
+    const double seconds =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    EXPECT_LT(seconds, 5.0);
+    const std::string what = e.what();
+    EXPECT_EQ(e.problems().size(), 150'000u);
+    EXPECT_LE(lineCount(what), 21) << what;
+    EXPECT_LT(what.size(), 4096u) << what;
+    EXPECT_NE(what.find("'gar\\0bled\\x01' is not a number"), std::string::npos) << what;
+    EXPECT_NE(what.find("and 149980 more"), std::string::npos) << what;
+  }
+  // Named by calibration.yaml: the same bound, each problem under omni.ocamcalib_file.
+  TempDir dir;
+  dir.write("garbled.txt", text);
+  dir.write("cal.yaml", ocamYaml("garbled.txt"));
+  try {
+    Calibration::load(dir.path() / "cal.yaml");
+    FAIL() << "expected a ConfigError";
+  } catch (const ConfigError& e) {
+    const std::string what = e.what();
+    EXPECT_LE(lineCount(what), 22) << what;  // heading, 20 problems, "and N more"
+    EXPECT_LT(what.size(), 8192u) << what;
+    EXPECT_NE(what.find("omni.ocamcalib_file: " + (dir.path() / "garbled.txt").string() + ": line"),
+              std::string::npos)
+        << what;
+    EXPECT_NE(what.find("more"), std::string::npos) << what;
+  }
+}
+
+TEST(OcamCalib, LongTokenIsEchoedShort) {
+  std::string text = fileText(kOffice);
+  text += "# ROI\n" + std::string(1'000'000, 'z') + " 1\n";
+  try {
+    OcamCalibModel::parse(text, "calib.txt");
+    FAIL() << "expected a ConfigError";
+  } catch (const ConfigError& e) {
+    const std::string what = e.what();
+    EXPECT_LT(what.size(), 512u) << what.substr(0, 1000);
+    EXPECT_NE(what.find("'" + std::string(60, 'z') + "... (1000000 bytes)' is not a number"),
+              std::string::npos)
+        << what.substr(0, 1000);
   }
 }
 

@@ -2,6 +2,8 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
+
 #include "omnipose/calibration.hpp"
 
 namespace omnipose {
@@ -209,6 +211,75 @@ TEST(DaemonConfig, PipelineSizesAreCheckedAgainstTheCalibrationBeforeAnythingIsA
   ASSERT_EQ(p2.size(), 1u);
   EXPECT_NE(p2[0].find("/etc/d.yaml: pipeline.step: 1 gives 8000 windows"), std::string::npos) << p2[0];
   EXPECT_NE(p2[0].find("largest supported is 16777216"), std::string::npos) << p2[0];
+}
+
+int lineCount(const std::string& text) {
+  return static_cast<int>(std::count(text.begin(), text.end(), '\n')) + 1;
+}
+
+/// what() of parsing `text` as daemon.yaml ("" when valid).
+std::string whatOf(const std::string& text) {
+  try {
+    DaemonConfig::parse(text, "daemon.yaml", "/tmp");
+  } catch (const ConfigError& e) {
+    return e.what();
+  }
+  return "";
+}
+
+TEST(DaemonConfig, DuplicateKeysAtEveryLevelAreProblemsNamingBothLines) {
+  const std::string head = "source: {type: file, path: run1}\ncalibration: cal.yaml\n";
+  const std::string text = head +
+                           "pipeline:\n"
+                           "  window: 110\n"
+                           "  step: 20\n"
+                           "  window: abc\n"
+                           "lcm: {status_hz: 1, status_hz: [1, 2]}\n"
+                           "calibration: other.yaml\n";
+  const auto problems = problemsOf(text);
+  EXPECT_TRUE(mentions(problems, "daemon.yaml: pipeline.window: given twice, lines 4 and 6"));
+  EXPECT_TRUE(mentions(problems, "daemon.yaml: lcm.status_hz: given twice, lines 7 and 7"));
+  EXPECT_TRUE(mentions(problems, "daemon.yaml: calibration: given twice, lines 2 and 8"));
+  EXPECT_EQ(problems.size(), 3u);
+  EXPECT_TRUE(problemsOf(head + "pipeline: {window: 110}\nlcm: {status_hz: 1}\n").empty());
+}
+
+TEST(DaemonConfig, AFiftyMegabyteValueGivesAShortMessage) {
+  const std::string big(50u << 20, 'p');
+  const std::string what = whatOf("source: {type: file, path: " + big + "}\ncalibration: c.yaml\n");
+  EXPECT_LT(what.size(), 1024u) << what.substr(0, 300);
+  EXPECT_NE(what.find("source.path: '" + std::string(60, 'p') +
+                      "... (52428800 bytes)' is longer than 4096 bytes"),
+            std::string::npos)
+      << what.substr(0, 300);
+  // A long number and a long (explicit) key are echoed short too.
+  const std::string mb(1u << 20, 'p');
+  for (const std::string& text :
+       {"source: {type: file, path: run1}\ncalibration: c.yaml\npipeline: {window: " + mb + "}\n",
+        "source: {type: file, path: run1}\ncalibration: c.yaml\n? " + mb + "\n: 1\n"}) {
+    const std::string short_what = whatOf(text);
+    SCOPED_TRACE(short_what.substr(0, 300));
+    EXPECT_LT(short_what.size(), 1024u);
+    EXPECT_NE(short_what.find(std::string(60, 'p') + "... (1048576 bytes)"), std::string::npos);
+  }
+}
+
+TEST(DaemonConfig, ControlCharactersInKeysAndValuesAreEscaped) {
+  const std::string what =
+      whatOf("source: {type: \"fi\\0le\", path: run1}\ncalibration: c.yaml\n\"bo\\0gus\\r\": 1\n");
+  EXPECT_EQ(std::string(what.c_str()), what) << "a NUL in what()";
+  EXPECT_NE(what.find("source.type: 'fi\\0le' is not file, v4l2 or libcamera"), std::string::npos)
+      << what;
+  EXPECT_NE(what.find("bo\\0gus\\r: unknown key"), std::string::npos) << what;
+}
+
+TEST(DaemonConfig, AtMostTwentyProblemsAreListed) {
+  std::string text = "source: {type: file, path: run1}\ncalibration: c.yaml\n";
+  for (int i = 0; i < 25; ++i) text += "bogus" + std::to_string(i) + ": 1\n";
+  EXPECT_EQ(problemsOf(text).size(), 25u);
+  const std::string what = whatOf(text);
+  EXPECT_EQ(lineCount(what), 22) << what;
+  EXPECT_NE(what.find("\n  and 5 more"), std::string::npos) << what;
 }
 
 }  // namespace

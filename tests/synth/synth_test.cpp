@@ -4,6 +4,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <fstream>
 #include <numbers>
@@ -642,6 +643,57 @@ TEST(SynthMotionScript, RegionTooSmallIsReported) {
   const MotionScript script = MotionScript::preset("translate");
   const Eigen::AlignedBox3d point(Eigen::Vector3d::Zero(), Eigen::Vector3d::Zero());
   EXPECT_THROW(generateTrajectory(script, point), MotionError);
+}
+
+/// what() of parsing `text` as a motion script ("" when valid).
+std::string motionError(const std::string& text) {
+  try {
+    MotionScript::parse(text, "m.yaml");
+  } catch (const MotionError& e) {
+    return e.what();
+  }
+  return "";
+}
+
+TEST(SynthMotionScript, DuplicateKeysAtEveryLevelNameBothLines) {
+  const std::string what = motionError(
+      "segments:\n"
+      "  - frames: 3\n"
+      "    rotation: {axis: z, step_deg: 1, axis: x}\n"
+      "    frames: -1\n"
+      "seed: 1\n"
+      "seed: abc\n");
+  EXPECT_NE(what.find("m.yaml: segments[0].rotation.axis: given twice, lines 3 and 3"),
+            std::string::npos) << what;
+  EXPECT_NE(what.find("m.yaml: segments[0].frames: given twice, lines 2 and 4"), std::string::npos)
+      << what;
+  EXPECT_NE(what.find("m.yaml: seed: given twice, lines 5 and 6"), std::string::npos) << what;
+  EXPECT_EQ(motionError("segments:\n  - {frames: 3, rotation: {axis: z, step_deg: 1}}\n"), "");
+}
+
+TEST(SynthMotionScript, LongAndControlCharacterValuesAreBoundedAndEscaped) {
+  const std::string long_axis = motionError(
+      "segments:\n  - frames: 3\n    rotation: {axis: " + std::string(10'000, 'a') + "}\n");
+  EXPECT_LT(long_axis.size(), 512u) << long_axis.substr(0, 1000);
+  EXPECT_NE(long_axis.find("segments[0].rotation.axis: '" + std::string(60, 'a') +
+                           "... (10000 bytes)' is longer than 4096 bytes"),
+            std::string::npos)
+      << long_axis.substr(0, 1000);
+  const std::string control = motionError(
+      "segments:\n  - frames: 3\n    rotation: {axis: \"z\\0\", \"si\\x02gn\": random}\n");
+  EXPECT_EQ(std::string(control.c_str()), control) << "a NUL in what()";
+  EXPECT_NE(control.find("segments[0].rotation.axis: 'z\\0' is not x, y, z or random"),
+            std::string::npos) << control;
+  EXPECT_NE(control.find("segments[0].rotation.si\\x02gn: unknown key"), std::string::npos)
+      << control;
+}
+
+TEST(SynthMotionScript, AtMostTwentyProblemsAreListed) {
+  std::string text = "segments:\n";
+  for (int i = 0; i < 40; ++i) text += "  - {frames: 1, rotation: {axis: w}}\n";
+  const std::string what = motionError(text);
+  EXPECT_EQ(std::count(what.begin(), what.end(), '\n'), 21) << what;
+  EXPECT_NE(what.find("\n  and 20 more"), std::string::npos) << what;
 }
 
 }  // namespace
