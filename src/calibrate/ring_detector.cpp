@@ -380,16 +380,20 @@ bool edgeNear(const PolarDeriv& pd, const Eigen::Vector2d& c, double rr, int pol
 
 /// Step 6 on one or more frames of the same lens (pooled M), about the common centre c.
 /// Moves r_in outward / r_out inward past stacked lens-body edges and updates each
-/// detection's edge to the per-ray points of its own frame there.
-void applyStacked(std::span<const cv::Mat> greys, std::span<RingDetection*> dets,
+/// detection's edge to the per-ray points of its own frame there. `frames[f]` is the image
+/// of `dets[f]`; each is converted to grey on its own and only its polar derivative kept.
+void applyStacked(std::span<const cv::Mat* const> frames, std::span<RingDetection*> dets,
                   const Eigen::Vector2d& c, double& r_in, double& r_out,
                   const RingDetectorOptions& o) {
   std::vector<PolarDeriv> pds;
-  for (const auto& g : greys) {
+  pds.reserve(frames.size());
+  for (const cv::Mat* frame : frames) {
+    const cv::Mat g = frame->type() == CV_32FC1 ? *frame : toGreyFloat(*frame);
     const double corner = std::max({c.norm(), (c - Eigen::Vector2d(g.cols - 1, 0)).norm(),
                                     (c - Eigen::Vector2d(0, g.rows - 1)).norm(),
                                     (c - Eigen::Vector2d(g.cols - 1, g.rows - 1)).norm()});
     pds.push_back(polarDeriv(g, c, o, std::min(corner, r_out + 20.0)));
+    pds.back().polar.p.release();  // only the smoothed copy and the derivative are searched
   }
   const std::vector<double> m = medianDerivative(pds);
   for (int dir : {+1, -1}) {
@@ -715,7 +719,8 @@ Expected<RingDetection> detectRing(const cv::Mat& image, const RingDetectorOptio
   det.outer.first_radius = det.radius_outer;
   if (o.stacked_edges) {
     RingDetection* d = &det;
-    applyStacked(std::span<const cv::Mat>(&grey, 1), std::span<RingDetection*>(&d, 1), det.center,
+    const cv::Mat* g = &grey;
+    applyStacked(std::span<const cv::Mat* const>(&g, 1), std::span<RingDetection*>(&d, 1), det.center,
                  det.radius_inner, det.radius_outer, o);
   }
   return det;
@@ -761,12 +766,12 @@ MultiRingDetection detectRings(std::span<const cv::Mat> frames, const RingDetect
   MultiRingDetection out;
   RingDetectorOptions per_frame = o;
   per_frame.stacked_edges = false;
-  std::vector<cv::Mat> greys;
+  std::vector<const cv::Mat*> detected;  // the frames of out.detections
   for (const auto& f : frames) {
     auto d = detectRing(f, per_frame);
     if (d) {
       out.detections.push_back(std::move(*d));
-      greys.push_back(toGreyFloat(f));
+      detected.push_back(&f);
       out.errors.emplace_back();
     } else {
       out.errors.emplace_back(d.error().message());
@@ -778,7 +783,7 @@ MultiRingDetection detectRings(std::span<const cv::Mat> frames, const RingDetect
     std::vector<RingDetection*> dets;
     for (auto& d : out.detections) dets.push_back(&d);
     double r_in = e.radius_inner, r_out = e.radius_outer;
-    applyStacked(greys, dets, e.center, r_in, r_out, o);
+    applyStacked(detected, dets, e.center, r_in, r_out, o);
     e = combineDetections(out.detections);
     e.radius_inner = r_in;
     e.radius_outer = r_out;
