@@ -307,17 +307,26 @@ PolarDeriv polarDeriv(const cv::Mat& grey, const Eigen::Vector2d& c, const RingD
   return pd;
 }
 
-/// Step 6, coherence across rays: M(r) = median over all rays (of all frames) of dP/dr.
+/// dP/dr of a polar resampling, NaN where the sample lies outside the image: all that
+/// step 6 keeps of a frame for M(r).
+cv::Mat derivativeInside(const PolarDeriv& pd) {
+  cv::Mat d = pd.deriv.clone();
+  d.setTo(std::numeric_limits<float>::quiet_NaN(), pd.polar.valid == 0);
+  return d;
+}
+
+/// Step 6, coherence across rays: M(r) = median over all rays (of all frames) of dP/dr
+/// (`derivs` from derivativeInside, one per frame, rays x samples).
 /// A lens-body edge has the same sign and place on every ray; scene edges average out.
-std::vector<double> medianDerivative(std::span<const PolarDeriv> pds) {
-  const int samples = pds.front().polar.samples;
+std::vector<double> medianDerivative(std::span<const cv::Mat> derivs) {
+  const int samples = derivs.front().cols;
   std::vector<double> m(static_cast<std::size_t>(samples), 0.0);
   std::vector<double> v;
   for (int k = 0; k < samples; ++k) {
     v.clear();
-    for (const auto& pd : pds)
-      for (int i = 0; i < pd.polar.rays; ++i)
-        if (pd.polar.valid.at<std::uint8_t>(i, k)) v.push_back(pd.deriv.at<float>(i, k));
+    for (const cv::Mat& d : derivs)
+      for (int i = 0; i < d.rows; ++i)
+        if (const float x = d.at<float>(i, k); !std::isnan(x)) v.push_back(x);
     m[static_cast<std::size_t>(k)] = v.size() >= 16 ? median(v) : 0.0;
   }
   return m;
@@ -381,21 +390,27 @@ bool edgeNear(const PolarDeriv& pd, const Eigen::Vector2d& c, double rr, int pol
 /// Step 6 on one or more frames of the same lens (pooled M), about the common centre c.
 /// Moves r_in outward / r_out inward past stacked lens-body edges and updates each
 /// detection's edge to the per-ray points of its own frame there. `frames[f]` is the image
-/// of `dets[f]`; each is converted to grey on its own and only its polar derivative kept.
+/// of `dets[f]`. Memory per frame: its radial derivative only (for M); a frame's full polar
+/// resampling is made again when its edge is searched.
 void applyStacked(std::span<const cv::Mat* const> frames, std::span<RingDetection*> dets,
                   const Eigen::Vector2d& c, double& r_in, double& r_out,
                   const RingDetectorOptions& o) {
-  std::vector<PolarDeriv> pds;
-  pds.reserve(frames.size());
+  auto greyOf = [](const cv::Mat& frame) {
+    return frame.type() == CV_32FC1 ? frame : toGreyFloat(frame);
+  };
+  std::vector<double> r_max;  // per frame, fixed before r_out moves
+  std::vector<cv::Mat> derivs;
+  r_max.reserve(frames.size());
+  derivs.reserve(frames.size());
   for (const cv::Mat* frame : frames) {
-    const cv::Mat g = frame->type() == CV_32FC1 ? *frame : toGreyFloat(*frame);
-    const double corner = std::max({c.norm(), (c - Eigen::Vector2d(g.cols - 1, 0)).norm(),
-                                    (c - Eigen::Vector2d(0, g.rows - 1)).norm(),
-                                    (c - Eigen::Vector2d(g.cols - 1, g.rows - 1)).norm()});
-    pds.push_back(polarDeriv(g, c, o, std::min(corner, r_out + 20.0)));
-    pds.back().polar.p.release();  // only the smoothed copy and the derivative are searched
+    const double w1 = frame->cols - 1, h1 = frame->rows - 1;
+    const double corner = std::max({c.norm(), (c - Eigen::Vector2d(w1, 0)).norm(),
+                                    (c - Eigen::Vector2d(0, h1)).norm(),
+                                    (c - Eigen::Vector2d(w1, h1)).norm()});
+    r_max.push_back(std::min(corner, r_out + 20.0));
+    derivs.push_back(derivativeInside(polarDeriv(greyOf(*frame), c, o, r_max.back())));
   }
-  const std::vector<double> m = medianDerivative(pds);
+  const std::vector<double> m = medianDerivative(derivs);
   for (int dir : {+1, -1}) {
     double& radius = dir > 0 ? r_in : r_out;
     const double first = radius;
@@ -411,7 +426,8 @@ void applyStacked(std::span<const cv::Mat* const> frames, std::span<RingDetectio
       std::vector<RingEdge> updated;
       for (std::size_t f = 0; f < dets.size() && all; ++f) {
         RingEdge e = dir > 0 ? dets[f]->inner : dets[f]->outer;
-        all = edgeNear(pds[f], c, *next, polarity, o, e);
+        const PolarDeriv pd = polarDeriv(greyOf(*frames[f]), c, o, r_max[f]);
+        all = edgeNear(pd, c, *next, polarity, o, e);
         updated.push_back(std::move(e));
       }
       if (!all) break;
@@ -573,7 +589,8 @@ Expected<RingDetection> detectRing(const cv::Mat& image, const RingDetectorOptio
         cv::Mat smooth0, deriv0;
         radialDerivative(polar, o.edge_sigma, smooth0, deriv0);
         PolarDeriv pd{polar, smooth0, deriv0};
-        const std::vector<double> m = medianDerivative(std::span<const PolarDeriv>(&pd, 1));
+        const cv::Mat inside = derivativeInside(pd);
+        const std::vector<double> m = medianDerivative(std::span<const cv::Mat>(&inside, 1));
         struct Step {
           double strength = 0.0;  ///< |M|
           double radius = 0.0;
