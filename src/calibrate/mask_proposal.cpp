@@ -25,12 +25,10 @@ MaskProposal proposeMask(std::span<const cv::Mat> frames, const MaskProposalOpti
     throw std::runtime_error("--propose-mask needs at least 3 frames of a moving robot, got " +
                              std::to_string(frames.size()));
   const cv::Size size = frames.front().size();
-  std::vector<cv::Mat> grey;
   for (std::size_t k = 0; k < frames.size(); ++k) {
     if (frames[k].size() != size || frames[k].depth() != CV_8U)
       throw std::runtime_error("--propose-mask: frame " + std::to_string(k) +
                                " differs in size or depth from the first");
-    grey.push_back(toGreyFloat(frames[k]));
   }
   // Evidence per patch (pool_px square about each pixel), so that weak texture counts:
   //   C2 = mean over frame pairs and the patch of the squared frame-to-frame change,
@@ -38,16 +36,21 @@ MaskProposal proposeMask(std::span<const cv::Mat> frames, const MaskProposalOpti
   // Noise alone gives C2 = 2 s^2 (s: sensor noise); a patch that moves by more than its
   // texture's correlation length gives about 2 V. Still patches stay near 2 s^2.
   const cv::Size pool(o.pool_px, o.pool_px);
+  // The frames one at a time: only the previous grey image is kept.
   cv::Mat c2(size, CV_32F, cv::Scalar(0)), variance(size, CV_32F, cv::Scalar(0));
-  for (std::size_t k = 0; k < grey.size(); ++k) {
+  cv::Mat prev;
+  for (std::size_t k = 0; k < frames.size(); ++k) {
+    const cv::Mat grey = toGreyFloat(frames[k]);
     cv::Mat mean, mean_sq, square;
-    cv::boxFilter(grey[k], mean, CV_32F, pool);
-    cv::boxFilter(grey[k].mul(grey[k]), mean_sq, CV_32F, pool);
-    variance += (mean_sq - mean.mul(mean)) / static_cast<double>(grey.size());
-    if (k == 0) continue;
-    const cv::Mat diff = grey[k] - grey[k - 1];
-    cv::boxFilter(diff.mul(diff), square, CV_32F, pool);
-    c2 += square / static_cast<double>(grey.size() - 1);
+    cv::boxFilter(grey, mean, CV_32F, pool);
+    cv::boxFilter(grey.mul(grey), mean_sq, CV_32F, pool);
+    variance += (mean_sq - mean.mul(mean)) / static_cast<double>(frames.size());
+    if (k > 0) {
+      const cv::Mat diff = grey - prev;
+      cv::boxFilter(diff.mul(diff), square, CV_32F, pool);
+      c2 += square / static_cast<double>(frames.size() - 1);
+    }
+    prev = grey;
   }
   // Sensor noise 2 s^2: the 10th percentile of C2 (still, flat parts: lens body, centre).
   std::vector<float> all(c2.begin<float>(), c2.end<float>());

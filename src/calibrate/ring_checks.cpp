@@ -22,26 +22,39 @@ std::string format(const char* fmt, double a = 0, double b = 0, double c = 0, do
 std::vector<double> motionProfile(std::span<const cv::Mat> frames, const Eigen::Vector2d& c,
                                   int radii) {
   constexpr int kRays = 720;
-  std::vector<cv::Mat> grey;
-  for (const auto& f : frames) grey.push_back(toGreyFloat(f));
-  std::vector<double> sum(radii, 0.0);
-  std::vector<int> count(radii, 0);
+  // The sample positions (per radius, the rays inside the image), then the frames one at a
+  // time: only the samples of the previous frame are kept.
+  std::vector<std::vector<cv::Point>> points(radii);
+  const cv::Size size = frames.front().size();
   for (int r = 0; r < radii; ++r) {
     for (int i = 0; i < kRays; ++i) {
       const double a = 2.0 * std::numbers::pi * i / kRays;
       const int x = static_cast<int>(std::lround(c.x() + r * std::cos(a)));
       const int y = static_cast<int>(std::lround(c.y() + r * std::sin(a)));
-      if (x < 0 || y < 0 || x >= grey[0].cols || y >= grey[0].rows) continue;
-      for (std::size_t k = 1; k < grey.size(); ++k) {
-        const double d = grey[k].at<float>(y, x) - grey[k - 1].at<float>(y, x);
+      if (x < 0 || y < 0 || x >= size.width || y >= size.height) continue;
+      points[r].emplace_back(x, y);
+    }
+  }
+  std::vector<double> sum(radii, 0.0);
+  std::vector<int> count(radii, 0);
+  std::vector<std::vector<float>> prev(radii), cur(radii);
+  for (std::size_t k = 0; k < frames.size(); ++k) {
+    const cv::Mat grey = toGreyFloat(frames[k]);
+    for (int r = 0; r < radii; ++r) {
+      cur[r].clear();
+      for (const cv::Point& p : points[r]) cur[r].push_back(grey.at<float>(p));
+      if (k == 0) continue;
+      for (std::size_t j = 0; j < cur[r].size(); ++j) {
+        const double d = cur[r][j] - prev[r][j];
         sum[r] += d * d;
         ++count[r];
       }
     }
+    std::swap(prev, cur);
   }
   std::vector<double> t(radii);
   for (int r = 0; r < radii; ++r)
-    t[r] = count[r] >= static_cast<int>(kRays / 4 * (grey.size() - 1))
+    t[r] = count[r] >= static_cast<int>(kRays / 4 * (frames.size() - 1))
                ? sum[r] / count[r]
                : std::numeric_limits<double>::quiet_NaN();
   return t;

@@ -307,17 +307,26 @@ PolarDeriv polarDeriv(const cv::Mat& grey, const Eigen::Vector2d& c, const RingD
   return pd;
 }
 
-/// Step 6, coherence across rays: M(r) = median over all rays (of all frames) of dP/dr.
+/// dP/dr of a polar resampling, NaN where the sample lies outside the image: all that
+/// step 6 keeps of a frame for M(r).
+cv::Mat derivativeInside(const PolarDeriv& pd) {
+  cv::Mat d = pd.deriv.clone();
+  d.setTo(std::numeric_limits<float>::quiet_NaN(), pd.polar.valid == 0);
+  return d;
+}
+
+/// Step 6, coherence across rays: M(r) = median over all rays (of all frames) of dP/dr
+/// (`derivs` from derivativeInside, one per frame, rays x samples).
 /// A lens-body edge has the same sign and place on every ray; scene edges average out.
-std::vector<double> medianDerivative(std::span<const PolarDeriv> pds) {
-  const int samples = pds.front().polar.samples;
+std::vector<double> medianDerivative(std::span<const cv::Mat> derivs) {
+  const int samples = derivs.front().cols;
   std::vector<double> m(static_cast<std::size_t>(samples), 0.0);
   std::vector<double> v;
   for (int k = 0; k < samples; ++k) {
     v.clear();
-    for (const auto& pd : pds)
-      for (int i = 0; i < pd.polar.rays; ++i)
-        if (pd.polar.valid.at<std::uint8_t>(i, k)) v.push_back(pd.deriv.at<float>(i, k));
+    for (const cv::Mat& d : derivs)
+      for (int i = 0; i < d.rows; ++i)
+        if (const float x = d.at<float>(i, k); !std::isnan(x)) v.push_back(x);
     m[static_cast<std::size_t>(k)] = v.size() >= 16 ? median(v) : 0.0;
   }
   return m;
@@ -380,18 +389,28 @@ bool edgeNear(const PolarDeriv& pd, const Eigen::Vector2d& c, double rr, int pol
 
 /// Step 6 on one or more frames of the same lens (pooled M), about the common centre c.
 /// Moves r_in outward / r_out inward past stacked lens-body edges and updates each
-/// detection's edge to the per-ray points of its own frame there.
-void applyStacked(std::span<const cv::Mat> greys, std::span<RingDetection*> dets,
+/// detection's edge to the per-ray points of its own frame there. `frames[f]` is the image
+/// of `dets[f]`. Memory per frame: its radial derivative only (for M); a frame's full polar
+/// resampling is made again when its edge is searched.
+void applyStacked(std::span<const cv::Mat* const> frames, std::span<RingDetection*> dets,
                   const Eigen::Vector2d& c, double& r_in, double& r_out,
                   const RingDetectorOptions& o) {
-  std::vector<PolarDeriv> pds;
-  for (const auto& g : greys) {
-    const double corner = std::max({c.norm(), (c - Eigen::Vector2d(g.cols - 1, 0)).norm(),
-                                    (c - Eigen::Vector2d(0, g.rows - 1)).norm(),
-                                    (c - Eigen::Vector2d(g.cols - 1, g.rows - 1)).norm()});
-    pds.push_back(polarDeriv(g, c, o, std::min(corner, r_out + 20.0)));
+  auto greyOf = [](const cv::Mat& frame) {
+    return frame.type() == CV_32FC1 ? frame : toGreyFloat(frame);
+  };
+  std::vector<double> r_max;  // per frame, fixed before r_out moves
+  std::vector<cv::Mat> derivs;
+  r_max.reserve(frames.size());
+  derivs.reserve(frames.size());
+  for (const cv::Mat* frame : frames) {
+    const double w1 = frame->cols - 1, h1 = frame->rows - 1;
+    const double corner = std::max({c.norm(), (c - Eigen::Vector2d(w1, 0)).norm(),
+                                    (c - Eigen::Vector2d(0, h1)).norm(),
+                                    (c - Eigen::Vector2d(w1, h1)).norm()});
+    r_max.push_back(std::min(corner, r_out + 20.0));
+    derivs.push_back(derivativeInside(polarDeriv(greyOf(*frame), c, o, r_max.back())));
   }
-  const std::vector<double> m = medianDerivative(pds);
+  const std::vector<double> m = medianDerivative(derivs);
   for (int dir : {+1, -1}) {
     double& radius = dir > 0 ? r_in : r_out;
     const double first = radius;
@@ -407,7 +426,8 @@ void applyStacked(std::span<const cv::Mat> greys, std::span<RingDetection*> dets
       std::vector<RingEdge> updated;
       for (std::size_t f = 0; f < dets.size() && all; ++f) {
         RingEdge e = dir > 0 ? dets[f]->inner : dets[f]->outer;
-        all = edgeNear(pds[f], c, *next, polarity, o, e);
+        const PolarDeriv pd = polarDeriv(greyOf(*frames[f]), c, o, r_max[f]);
+        all = edgeNear(pd, c, *next, polarity, o, e);
         updated.push_back(std::move(e));
       }
       if (!all) break;
@@ -569,7 +589,8 @@ Expected<RingDetection> detectRing(const cv::Mat& image, const RingDetectorOptio
         cv::Mat smooth0, deriv0;
         radialDerivative(polar, o.edge_sigma, smooth0, deriv0);
         PolarDeriv pd{polar, smooth0, deriv0};
-        const std::vector<double> m = medianDerivative(std::span<const PolarDeriv>(&pd, 1));
+        const cv::Mat inside = derivativeInside(pd);
+        const std::vector<double> m = medianDerivative(std::span<const cv::Mat>(&inside, 1));
         struct Step {
           double strength = 0.0;  ///< |M|
           double radius = 0.0;
@@ -715,7 +736,8 @@ Expected<RingDetection> detectRing(const cv::Mat& image, const RingDetectorOptio
   det.outer.first_radius = det.radius_outer;
   if (o.stacked_edges) {
     RingDetection* d = &det;
-    applyStacked(std::span<const cv::Mat>(&grey, 1), std::span<RingDetection*>(&d, 1), det.center,
+    const cv::Mat* g = &grey;
+    applyStacked(std::span<const cv::Mat* const>(&g, 1), std::span<RingDetection*>(&d, 1), det.center,
                  det.radius_inner, det.radius_outer, o);
   }
   return det;
@@ -761,12 +783,12 @@ MultiRingDetection detectRings(std::span<const cv::Mat> frames, const RingDetect
   MultiRingDetection out;
   RingDetectorOptions per_frame = o;
   per_frame.stacked_edges = false;
-  std::vector<cv::Mat> greys;
+  std::vector<const cv::Mat*> detected;  // the frames of out.detections
   for (const auto& f : frames) {
     auto d = detectRing(f, per_frame);
     if (d) {
       out.detections.push_back(std::move(*d));
-      greys.push_back(toGreyFloat(f));
+      detected.push_back(&f);
       out.errors.emplace_back();
     } else {
       out.errors.emplace_back(d.error().message());
@@ -778,7 +800,7 @@ MultiRingDetection detectRings(std::span<const cv::Mat> frames, const RingDetect
     std::vector<RingDetection*> dets;
     for (auto& d : out.detections) dets.push_back(&d);
     double r_in = e.radius_inner, r_out = e.radius_outer;
-    applyStacked(greys, dets, e.center, r_in, r_out, o);
+    applyStacked(detected, dets, e.center, r_in, r_out, o);
     e = combineDetections(out.detections);
     e.radius_inner = r_in;
     e.radius_outer = r_out;

@@ -4,9 +4,12 @@
 
 #include <gtest/gtest.h>
 
+#include <chrono>
 #include <cmath>
+#include <cstdio>
 #include <cstdlib>
 #include <filesystem>
+#include <fstream>
 #include <numbers>
 #include <opencv2/imgcodecs.hpp>
 
@@ -257,6 +260,146 @@ TEST(CalibrateCli, WritesCalibrationPreviewAndReport) {
   EXPECT_EQ(run("--out " + yaml.string(), log), 2);
   EXPECT_EQ(run((dir / "frames").string() + " --out " + yaml.string() + " --direction up", log), 2);
   EXPECT_EQ(run((dir / "missing.png").string() + " --out " + yaml.string(), log), 1);
+  std::filesystem::remove_all(dir);
+}
+
+/// A file with an image's name that no decoder reads.
+void writeGarbage(const std::filesystem::path& file) {
+  std::ofstream(file) << "not an image\n";
+}
+
+std::string frameName(std::size_t k) {
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "f%03zu.png", k);
+  return buf;
+}
+
+TEST(CalibrateCli, UsesAtMostMaxFramesEvenlySpreadAndReadsOnlyThose) {
+  ASSERT_TRUE(std::filesystem::exists(kTool)) << kTool;
+  const Sequence seq = turnLeftSequence(AzimuthDirection::kCcw, OuterEdge::kTop);
+  ASSERT_EQ(seq.frames.size(), 3u);
+  const auto dir = std::filesystem::temp_directory_path() / "omnipose_calibrate_max_frames_test";
+  std::filesystem::remove_all(dir);
+  std::filesystem::create_directories(dir / "frames");
+  // 21 frames: only 0, 10 and 20 (the 3 an even spread picks) are images; any other one
+  // read would be reported as unreadable.
+  for (std::size_t k = 0; k <= 20; ++k) {
+    const auto file = dir / "frames" / frameName(k);
+    if (k % 10 == 0) ASSERT_TRUE(cv::imwrite(file.string(), seq.frames[k / 10]));
+    else writeGarbage(file);
+  }
+  const auto yaml = dir / "cal.yaml";
+  const auto log = dir / "log.txt";
+  const std::string base = (dir / "frames").string() + " --turn-left --forward-angle 35 --out " +
+                           yaml.string();
+  {
+    SCOPED_TRACE("--max-frames 3 of 21");
+    ASSERT_EQ(run(base + " --max-frames 3", log), 0) << omnipose::testing::readText(log);
+    const std::string text = omnipose::testing::readText(log);
+    EXPECT_NE(text.find("using 3 of 21 frames, every 10.0th"), std::string::npos) << text;
+    EXPECT_EQ(text.find("cannot read"), std::string::npos) << "a frame not selected was read:\n" << text;
+    EXPECT_NE(text.find("3 frame(s)"), std::string::npos) << text;
+    const Calibration cal = Calibration::load(yaml);
+    EXPECT_NEAR(cal.omni.center_x, seq.truth.omni.center_x, 1.0);
+    EXPECT_EQ(cal.omni.azimuth_direction, AzimuthDirection::kCcw);
+  }
+  {
+    // 5 of 21 are 0, 5, 10, 15, 20: the unreadable 5 and 15 are named and skipped.
+    SCOPED_TRACE("--max-frames 5 of 21");
+    std::filesystem::remove(yaml);
+    ASSERT_EQ(run(base + " --max-frames 5", log), 0) << omnipose::testing::readText(log);
+    const std::string text = omnipose::testing::readText(log);
+    EXPECT_NE(text.find("using 5 of 21 frames"), std::string::npos) << text;
+    for (std::size_t k = 0; k <= 20; ++k) {
+      const bool named = text.find(frameName(k) + ": cannot read image, skipped") != std::string::npos;
+      EXPECT_EQ(named, k == 5 || k == 15) << frameName(k) << "\n" << text;
+    }
+    EXPECT_NE(text.find("2 of 5 selected frames could not be read"), std::string::npos) << text;
+    EXPECT_TRUE(std::filesystem::exists(yaml));
+  }
+  {
+    // The default (60) keeps all 21; the 18 unreadable ones are skipped.
+    SCOPED_TRACE("default of 21");
+    ASSERT_EQ(run(base, log), 0) << omnipose::testing::readText(log);
+    const std::string text = omnipose::testing::readText(log);
+    EXPECT_NE(text.find("using all 21 frames"), std::string::npos) << text;
+    EXPECT_NE(text.find(frameName(1) + ": cannot read image, skipped"), std::string::npos) << text;
+  }
+  {
+    // None readable: a clear error (exit 1), nothing written.
+    SCOPED_TRACE("none readable");
+    std::filesystem::create_directories(dir / "bad");
+    writeGarbage(dir / "bad" / "a.png");
+    writeGarbage(dir / "bad" / "b.png");
+    const auto none = dir / "none.yaml";
+    EXPECT_EQ(run((dir / "bad").string() + " --out " + none.string(), log), 1);
+    const std::string text = omnipose::testing::readText(log);
+    EXPECT_NE(text.find("none of the 2 frames selected could be read"), std::string::npos) << text;
+    EXPECT_FALSE(std::filesystem::exists(none));
+  }
+  std::filesystem::remove_all(dir);
+}
+
+TEST(CalibrateCli, MaxFramesMustBeAWholeNumberInRange) {
+  ASSERT_TRUE(std::filesystem::exists(kTool)) << kTool;
+  const auto dir = std::filesystem::temp_directory_path() / "omnipose_calibrate_max_frames_flag";
+  std::filesystem::create_directories(dir);
+  const auto log = dir / "log.txt";
+  for (const std::string bad : {"0", "-3", "abc", "2.5", "12x", "501", "99999999999999999999"}) {
+    SCOPED_TRACE("--max-frames " + bad);
+    EXPECT_EQ(run("frames --out " + (dir / "c.yaml").string() + " --max-frames '" + bad + "'", log), 2);
+    const std::string text = omnipose::testing::readText(log);
+    EXPECT_NE(text.find("--max-frames"), std::string::npos) << text;
+    EXPECT_NE(text.find("whole number from 1 to 500"), std::string::npos) << text;
+  }
+  std::filesystem::remove_all(dir);
+}
+
+TEST(CalibrateCli, OutputPathsAreCheckedBeforeAnyFrameIsRead) {
+  ASSERT_TRUE(std::filesystem::exists(kTool)) << kTool;
+  const auto dir = std::filesystem::temp_directory_path() / "omnipose_calibrate_out_check";
+  std::filesystem::remove_all(dir);
+  std::filesystem::create_directories(dir / "frames");
+  // 200 real frames (hard links to one rendered image).
+  const Calibration truth = makeCalibration(720, 600, 347.6, 318.2, 72.0, 252.0, 35.0,
+                                            AzimuthDirection::kCcw, OuterEdge::kTop, 110);
+  const auto first = dir / "frames" / frameName(0);
+  ASSERT_TRUE(cv::imwrite(first.string(), renderOmni(kIndoor, truth, 0.0)));
+  for (std::size_t k = 1; k < 200; ++k)
+    std::filesystem::create_hard_link(first, dir / "frames" / frameName(k));
+  const auto log = dir / "log.txt";
+  const std::string frames = (dir / "frames").string();
+  struct Case {
+    std::string args;
+    std::string option;  ///< named in the message
+    std::string path;    ///< named in the message
+  };
+  const std::string missing = (dir / "missing" / "cal.yaml").string();
+  const std::vector<Case> cases = {
+      {frames + " --out " + missing, "--out", missing},
+      {frames + " --out " + (dir / "cal.yaml").string() + " --preview " +
+           (dir / "nowhere" / "p.png").string(),
+       "--preview", (dir / "nowhere" / "p.png").string()},
+      {frames + " --out " + (dir / "frames").string(), "--out", "is a directory"},
+      {"--propose-mask " + frames + " --out " + (dir / "missing" / "mask.png").string(), "--out",
+       (dir / "missing" / "mask.png").string()},
+      {"--checkerboard 9x6 --square 0.025 " + frames + " --out " + missing, "--out", missing},
+      {"--from-ocamcalib calib_results.txt --out " + missing, "--out", missing},
+  };
+  for (const Case& c : cases) {
+    SCOPED_TRACE(c.args);
+    const auto start = std::chrono::steady_clock::now();
+    EXPECT_EQ(run(c.args, log), 2);
+    const double seconds =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    EXPECT_LT(seconds, 1.0) << "the check must come before the 200 frames are read";
+    const std::string text = omnipose::testing::readText(log);
+    EXPECT_NE(text.find(c.option), std::string::npos) << text;
+    EXPECT_NE(text.find(c.path), std::string::npos) << text;
+    EXPECT_EQ(text.find("using "), std::string::npos) << "no frame selection before the check:\n" << text;
+  }
+  EXPECT_FALSE(std::filesystem::exists(dir / "cal.yaml")) << "nothing written on a failed check";
+  EXPECT_FALSE(std::filesystem::exists(dir / "missing"));
   std::filesystem::remove_all(dir);
 }
 

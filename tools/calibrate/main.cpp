@@ -3,6 +3,8 @@
 // calibration YAML, the preview PNG and the report.
 #include <algorithm>
 #include <cctype>
+#include <cerrno>
+#include <cstring>
 #include <cstdlib>
 #include <cstdio>
 #include <exception>
@@ -13,10 +15,12 @@
 #include <optional>
 #include <set>
 #include <string>
+#include <unistd.h>
 #include <vector>
 
 #include "cli.hpp"
 #include "omnipose/calibrate/checkerboard.hpp"
+#include "omnipose/calibrate/frame_selection.hpp"
 #include "omnipose/calibrate/lens_calibrator.hpp"
 #include "omnipose/calibrate/mask_proposal.hpp"
 #include "omnipose/calibrate/ocamcalib_import.hpp"
@@ -40,13 +44,10 @@ constexpr const char* kDescription =
     "Finds the donut's centre and the used inner/outer radii (robust circle fits on the ring\n"
     "edges, median over the frames), proposes the panorama size and writes the calibration\n"
     "YAML (DESIGN.md section 6) with a note on how each value was determined, plus a preview.\n"
-    "Lengths are in omni-image pixels, angles in degrees.\n"
+    "Lengths are in omni-image pixels, angles in degrees. Of many FRAMES (or checkerboard\n"
+    "IMAGES) at most --max-frames are used, evenly spread over the sorted list; only those\n"
+    "are read.\n"
     "Exit codes: 0 written, 1 calibration failed, 2 usage error.";
-
-/// A command-line mistake found after parsing: exit code 2.
-struct UsageError : std::runtime_error {
-  using std::runtime_error::runtime_error;
-};
 
 /// "X,Y" (pixels); a malformed value is a usage error naming `option`.
 Eigen::Vector2d parsePoint(const std::string& option, const std::string& text) {
@@ -62,6 +63,40 @@ Eigen::Vector2d parsePoint(const std::string& option, const std::string& text) {
   };
   if (comma == std::string::npos) throw CLI::ValidationError(option, "expected X,Y, got '" + text + "'");
   return {number(text.substr(0, comma)), number(text.substr(comma + 1))};
+}
+
+/// --max-frames N: a whole number in [1, kMaxFramesLimit]; anything else names the flag.
+std::size_t parseMaxFrames(const std::string& text) {
+  const std::size_t limit = omnipose::calibrate::kMaxFramesLimit;
+  const std::string expected = "must be a whole number from 1 to " + std::to_string(limit);
+  long long v = 0;
+  try {
+    std::size_t pos = 0;
+    v = std::stoll(text, &pos);
+    if (pos != text.size()) throw std::invalid_argument(text);
+  } catch (const std::exception&) {
+    throw CLI::ValidationError("--max-frames", expected + ", not '" + text + "'");
+  }
+  if (v < 1 || v > static_cast<long long>(limit))
+    throw CLI::ValidationError("--max-frames", expected + ", not " + text);
+  return static_cast<std::size_t>(v);
+}
+
+/// An output file must be creatable before any work starts: its directory exists and is
+/// writable, and the path is not a directory or a read-only file. Returns the problem
+/// ("--out: a/b.yaml: directory a does not exist"), empty when writable. Creates nothing.
+std::string outputProblem(const std::string& option, const fs::path& file) {
+  const std::string what = option + ": " + file.string() + ": ";
+  std::error_code ec;
+  if (fs::is_directory(file, ec)) return what + "is a directory";
+  const fs::path dir = file.parent_path().empty() ? fs::path(".") : file.parent_path();
+  if (!fs::exists(dir, ec)) return what + "directory " + dir.string() + " does not exist";
+  if (!fs::is_directory(dir, ec)) return what + dir.string() + " is not a directory";
+  if (::access(dir.c_str(), W_OK | X_OK) != 0)
+    return what + "cannot create files in " + dir.string() + " (" + std::strerror(errno) + ")";
+  if (fs::exists(file, ec) && ::access(file.c_str(), W_OK) != 0)
+    return what + "cannot overwrite it (" + std::strerror(errno) + ")";
+  return {};
 }
 
 bool isImage(const fs::path& p) {
@@ -164,6 +199,7 @@ int main(int argc, char** argv) {
   std::string checkerboard;
   std::optional<double> square;
   bool quiet = false, propose_mask = false, no_replay = false;
+  std::size_t max_frames = omnipose::calibrate::kDefaultMaxFrames;
 
   omnipose::tools::Cli cli("omnipose-calibrate", kUsage, kDescription);
   auto& app = cli.app();
@@ -311,6 +347,15 @@ int main(int argc, char** argv) {
                "moves (mast, body, cables, bezel), and a preview; name it in calibration.yaml "
                "(omni.mask)")
       ->group("Masks");
+  app.add_option_function<std::string>(
+         "--max-frames", [&](const std::string& v) { max_frames = parseMaxFrames(v); },
+         "use at most N of the FRAMES (or checkerboard IMAGES), evenly spread over them in "
+         "the given order (directories sorted by name), first and last included; only those "
+         "are read (default " +
+             std::to_string(omnipose::calibrate::kDefaultMaxFrames) + ", at most " +
+             std::to_string(omnipose::calibrate::kMaxFramesLimit) + ")")
+      ->type_name("N")
+      ->group("Other");
   app.add_flag("--no-replay", no_replay, "skip the Pipeline replay of consecutive frames")
       ->group("Other");
   app.add_flag("--quiet", quiet, "print only errors")->group("Other");
@@ -324,10 +369,30 @@ int main(int argc, char** argv) {
   if (int(propose_mask) + int(!from_ocamcalib.empty()) + int(!checkerboard.empty()) > 1)
     return cli.usageError("--propose-mask, --from-ocamcalib and --checkerboard are separate "
                           "steps: run them one by one");
-  if (preview.empty()) {
+  const bool preview_given = !preview.empty();
+  if (!preview_given) {
     preview = out_yaml;
     preview.replace_filename(out_yaml.stem().string() + "_preview.png");
   }
+  omnipose::calibrate::CheckerboardOptions board;
+  if (!checkerboard.empty()) {
+    try {
+      omnipose::calibrate::parsePatternSize(checkerboard, board);
+    } catch (const std::exception& e) {
+      return cli.usageError(std::string("--checkerboard: ") + e.what());
+    }
+    if (!square) return cli.usageError("--checkerboard needs --square METRES");
+    board.square_m = *square;
+  }
+  // Every file written is checked before a frame is read: --out (the OCamCalib file is
+  // copied into its directory) and the preview, written whenever frames are given.
+  if (const auto problem = outputProblem("--out", out_yaml); !problem.empty())
+    return cli.usageError(problem);
+  if (!inputs.empty())
+    if (const auto problem = outputProblem(
+            preview_given ? "--preview" : "--preview (default, beside --out)", preview);
+        !problem.empty())
+      return cli.usageError(problem);
 
   try {
     // Frames: files as given, directories expanded (sorted by name).
@@ -346,11 +411,36 @@ int main(int argc, char** argv) {
         throw std::runtime_error(in.string() + ": no such file or directory");
       }
     }
+    // At most max_frames of them, evenly spread; only those are decoded. A frame that
+    // cannot be read is named and skipped.
     std::vector<cv::Mat> frames;
-    for (const auto& f : files) {
-      cv::Mat m = cv::imread(f.string(), cv::IMREAD_COLOR);
-      if (m.empty()) throw std::runtime_error(f.string() + ": cannot read image");
-      frames.push_back(std::move(m));
+    if (!files.empty()) {
+      const auto chosen = omnipose::calibrate::selectEvenly(files.size(), max_frames);
+      if (!quiet)
+        std::fprintf(stderr, "omnipose-calibrate: %s\n",
+                     omnipose::calibrate::selectionMessage(files.size(), chosen.size()).c_str());
+      std::vector<fs::path> used;
+      std::size_t unreadable = 0;
+      for (const std::size_t i : chosen) {
+        cv::Mat m = cv::imread(files[i].string(), cv::IMREAD_COLOR);
+        if (m.empty()) {
+          std::fprintf(stderr, "omnipose-calibrate: %s: cannot read image, skipped\n",
+                       files[i].c_str());
+          ++unreadable;
+          continue;
+        }
+        frames.push_back(std::move(m));
+        used.push_back(files[i]);
+      }
+      if (frames.empty())
+        throw std::runtime_error(
+            chosen.size() == 1 ? files[chosen.front()].string() + ": cannot read image"
+                               : "none of the " + std::to_string(chosen.size()) +
+                                     " frames selected could be read as an image");
+      if (unreadable > 0 && !quiet)
+        std::fprintf(stderr, "omnipose-calibrate: %zu of %zu selected frames could not be read; "
+                     "using the other %zu\n", unreadable, chosen.size(), frames.size());
+      files = std::move(used);
     }
     if (propose_mask) return writeMaskProposal(frames, out_yaml, preview, quiet);
     if (!from_ocamcalib.empty()) {
@@ -358,10 +448,6 @@ int main(int argc, char** argv) {
                                    frames, out_yaml, preview, quiet);
     }
     if (!checkerboard.empty()) {
-      omnipose::calibrate::CheckerboardOptions board;
-      omnipose::calibrate::parsePatternSize(checkerboard, board);
-      if (!square) throw UsageError("--checkerboard needs --square METRES");
-      board.square_m = *square;
       return writeModelCalibration(
           omnipose::calibrate::importCheckerboard(frames, board, modelImportOptions(options)),
           frames, out_yaml, preview, quiet);
@@ -395,8 +481,6 @@ int main(int argc, char** argv) {
       std::printf("wrote %s and %s\n", out_yaml.c_str(), preview.c_str());
     }
     return 0;
-  } catch (const UsageError& e) {
-    return cli.usageError(e.what());
   } catch (const std::exception& e) {
     std::fprintf(stderr, "omnipose-calibrate: %s\n", e.what());
     return 1;
