@@ -24,8 +24,10 @@
 #include "omnipose/calibrate/lens_calibrator.hpp"
 #include "omnipose/calibrate/mask_proposal.hpp"
 #include "omnipose/calibrate/ocamcalib_import.hpp"
+#include "omnipose/image_decode.hpp"
 #include "omnipose/pipeline.hpp"
 #include "omnipose/calibrate/preview.hpp"
+#include "quiet_opencv.hpp"
 
 namespace {
 
@@ -193,6 +195,7 @@ omnipose::calibrate::ModelImport importOcamCalibFile(const fs::path& file,
 }  // namespace
 
 int main(int argc, char** argv) {
+  omnipose::tools::quietOpenCvWarnings();
   LensCalibratorOptions options;
   std::vector<std::string> inputs_text;
   std::string out_text, preview_text, ocamcalib_text;
@@ -422,14 +425,15 @@ int main(int argc, char** argv) {
       std::vector<fs::path> used;
       std::size_t unreadable = 0;
       for (const std::size_t i : chosen) {
-        cv::Mat m = cv::imread(files[i].string(), cv::IMREAD_COLOR);
-        if (m.empty()) {
-          std::fprintf(stderr, "omnipose-calibrate: %s: cannot read image, skipped\n",
-                       files[i].c_str());
+        omnipose::ImageLimits limits;
+        limits.apply_exif_orientation = true;  // photos of the lens, as a viewer shows them
+        omnipose::Expected<cv::Mat> m = omnipose::readImage(files[i], omnipose::ImageColour::kBgr, limits);
+        if (!m) {
+          std::fprintf(stderr, "omnipose-calibrate: %s, skipped\n", m.error().c_str());
           ++unreadable;
           continue;
         }
-        frames.push_back(std::move(m));
+        frames.push_back(std::move(*m));
         used.push_back(files[i]);
       }
       if (frames.empty())
