@@ -58,7 +58,7 @@ endfunction()
 # (tools/sanitize.sh) excludes them with `ctest -LE allocation`, because ASan/TSan replace the
 # allocator themselves (the counter is compiled out there and counts nothing).
 set(OMNIPOSE_ALLOCATION_COUNTING_TESTS pipeline_alloc_test registration_alloc_test
-    daemon_alloc_test allocation_counter_test)
+    daemon_alloc_test allocation_counter_test libcamera_alloc_test)
 
 # omnipose_tsan_serial_opencv(TARGET): in a ThreadSanitizer build, OpenCV runs its parallel
 # loops on the calling thread in TARGET (tests/sanitizers/opencv_serial.cpp says why).

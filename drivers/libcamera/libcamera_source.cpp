@@ -1,14 +1,5 @@
 #include "libcamera/libcamera_source.hpp"
 
-#include <libcamera/camera.h>
-#include <libcamera/camera_manager.h>
-#include <libcamera/control_ids.h>
-#include <libcamera/controls.h>
-#include <libcamera/formats.h>
-#include <libcamera/framebuffer.h>
-#include <libcamera/framebuffer_allocator.h>
-#include <libcamera/request.h>
-#include <libcamera/stream.h>
 #include <sys/mman.h>
 
 #include <algorithm>
@@ -18,58 +9,23 @@
 #include <ctime>
 #include <mutex>
 #include <sstream>
-#include <thread>
 
 #include "common/clock_offset.hpp"
 #include "common/grey_convert.hpp"
 #include "common/streaming.hpp"
-#include "libcamera/libcamera_compat.hpp"
+#include "libcamera/libcamera_camera.hpp"
 #include "libcamera/libcamera_formats.hpp"
 
 namespace omnipose {
 namespace {
 
-// The fourccs of libcamera_formats.cpp are libcamera's own.
-static_assert(libcam::fourcc('R', '8', ' ', ' ') == libcamera::formats::R8.fourcc());
-static_assert(libcam::fourcc('N', 'V', '1', '2') == libcamera::formats::NV12.fourcc());
-static_assert(libcam::fourcc('Y', 'U', '1', '2') == libcamera::formats::YUV420.fourcc());
-static_assert(libcam::fourcc('Y', 'U', 'Y', 'V') == libcamera::formats::YUYV.fourcc());
-static_assert(libcam::fourcc('U', 'Y', 'V', 'Y') == libcamera::formats::UYVY.fourcc());
-static_assert(libcam::fourcc('M', 'J', 'P', 'G') == libcamera::formats::MJPEG.fourcc());
-
 constexpr std::int64_t kNsPerMs = 1'000'000;
-
-std::int64_t readClockNs(clockid_t clock) {
-  timespec ts{};
-  if (::clock_gettime(clock, &ts) != 0) return -1;
-  return drivers::toNanoseconds(ts);
-}
-
-/// libcamera allows one CameraManager per process: every source shares it, and it stops
-/// when the last source lets go.
-Expected<std::shared_ptr<libcamera::CameraManager>> sharedCameraManager() {
-  static std::mutex mutex;
-  static std::weak_ptr<libcamera::CameraManager> shared;
-  std::lock_guard lock(mutex);
-  if (auto existing = shared.lock()) return existing;
-  auto manager = std::make_unique<libcamera::CameraManager>();
-  if (const int r = manager->start(); r < 0)
-    return fail(ErrorCode::kIoError, "libcamera: CameraManager::start failed: %s",
-                std::strerror(-r));
-  std::shared_ptr<libcamera::CameraManager> started(manager.release(),
-                                                    [](libcamera::CameraManager* m) {
-                                                      m->stop();
-                                                      delete m;
-                                                    });
-  shared = started;
-  return started;
-}
 
 }  // namespace
 
 // ---------------------------------------------------------------------------------------
 
-struct LibcameraSource::Impl {
+struct LibcameraSource::Impl final : libcam::CameraListener {
   enum class State { kClosed, kStreaming, kDisconnected };
   enum class Step { kDelivered, kRetry, kFailed };
   struct Region {
@@ -81,23 +37,23 @@ struct LibcameraSource::Impl {
     std::size_t length = 0;
   };
 
-  explicit Impl(Options o)
-      : options(std::move(o)), reconnect(options.reconnect_initial, options.reconnect_max) {}
+  Impl(Options o, ManagerOpener opener)
+      : options(std::move(o)),
+        open_manager(std::move(opener)),
+        reconnect(options.reconnect_initial, options.reconnect_max) {}
 
   Options options;
+  ManagerOpener open_manager;
   State state = State::kClosed;
 
-  std::shared_ptr<libcamera::CameraManager> manager;
-  std::shared_ptr<libcamera::Camera> camera;
+  std::shared_ptr<libcam::CameraManager> manager;
+  std::shared_ptr<libcam::Camera> camera;
   bool acquired = false;
   bool started = false;
-  bool signals_connected = false;
-  std::unique_ptr<libcamera::CameraConfiguration> camera_config;
-  libcamera::Stream* stream = nullptr;
-  std::unique_ptr<libcamera::FrameBufferAllocator> allocator;
-  std::vector<std::unique_ptr<libcamera::Request>> requests;
+  bool listening = false;
+  bool buffers_allocated = false;
   std::vector<Region> regions;  // every mmap, unmapped at teardown
-  std::vector<Plane0> planes;   // plane 0 of buffer i (cookie i)
+  std::vector<Plane0> planes;   // plane 0 of buffer i (request cookie i)
   int in_flight = 0;            // requests queued to the camera (capture thread)
 
   const libcam::GreyFormat* format = nullptr;
@@ -112,9 +68,9 @@ struct LibcameraSource::Impl {
   // callback never allocates.
   std::mutex mutex;
   std::condition_variable cond;
-  std::vector<libcamera::Request*> completed;
+  std::vector<libcam::Completion> completed;
   bool camera_gone = false;
-  std::vector<libcamera::Request*> taken;  // capture thread's side of the swap
+  std::vector<libcam::Completion> taken;  // capture thread's side of the swap
 
   drivers::ClockOffset clock_offset;
   std::int64_t last_clock_sync_ns = 0;
@@ -124,15 +80,18 @@ struct LibcameraSource::Impl {
   cv::Mat jpeg_scratch;
   Stats stats;
 
-  // Callbacks (libcamera's thread): hand over, nothing else.
-  void onRequestCompleted(libcamera::Request* request) {
+  // libcam::CameraListener (libcamera's thread): hand over, nothing else.
+  void requestCompleted(const libcam::Completion& completion) override {
     {
       std::lock_guard lock(mutex);
-      completed.push_back(request);
+      // Every request completes once per queueing and the capacity is the request count:
+      // full means a completion the source never queued for; it is not taken.
+      if (completed.size() == completed.capacity()) return;
+      completed.push_back(completion);
     }
     cond.notify_one();
   }
-  void onDisconnected() {
+  void disconnected() override {
     {
       std::lock_guard lock(mutex);
       camera_gone = true;
@@ -142,30 +101,34 @@ struct LibcameraSource::Impl {
 
   const char* name() const { return camera_id.empty() ? options.camera.c_str() : camera_id.c_str(); }
 
+  std::int64_t clockNs(clockid_t clock) const { return manager ? manager->clockNs(clock) : -1; }
+
   void resyncClock() {
-    const auto offset =
-        drivers::measureClockOffset(readClockNs, CLOCK_BOOTTIME, options.clock_samples);
+    const auto offset = drivers::measureClockOffset(
+        [this](clockid_t c) { return clockNs(c); }, CLOCK_BOOTTIME, options.clock_samples);
     if (offset.valid) clock_offset = offset;
-    last_clock_sync_ns = readClockNs(CLOCK_MONOTONIC);
+    last_clock_sync_ns = clockNs(CLOCK_MONOTONIC);
   }
 
   Expected<void> start();
-  Expected<void> mapBuffers();
+  Expected<void> mapBuffers(const std::vector<std::vector<libcam::BufferPlane>>& buffers);
   void teardown();
-  bool requeue(libcamera::Request* request);
+  bool requeue(std::uint64_t cookie);
   Error disconnect(const char* why);
   Expected<void> recover(std::int64_t deadline_ns);
   Step take(cv::Mat& out, FrameInfo& info, Error& error);
-  Expected<void> convert(const libcamera::FrameBuffer& buffer, cv::Mat& out);
+  Expected<void> convert(const libcam::Completion& completion, cv::Mat& out);
 };
 
 Expected<void> LibcameraSource::Impl::start() {
-  auto m = sharedCameraManager();
-  if (!m) return std::unexpected(m.error());
-  manager = *m;
+  if (!manager) {
+    auto m = open_manager();
+    if (!m) return std::unexpected(m.error());
+    manager = *m;
+  }
 
   // The camera, by index or id.
-  const std::vector<std::shared_ptr<libcamera::Camera>> cameras = manager->cameras();
+  const std::vector<std::shared_ptr<libcam::Camera>> cameras = manager->cameras();
   std::vector<std::string> ids;
   for (const auto& c : cameras) ids.push_back(c->id());
   auto index = libcam::selectCamera(libcam::parseCameraSelector(options.camera), ids);
@@ -173,7 +136,7 @@ Expected<void> LibcameraSource::Impl::start() {
     return fail(index.error().code(), "libcamera camera %s: %s", options.camera.c_str(),
                 index.error().c_str());
   camera = cameras[*index];
-  camera_id = camera->id();
+  camera_id = ids[*index];
   if (const int r = camera->acquire(); r < 0)
     return fail(r == -EBUSY ? ErrorCode::kBusy : ErrorCode::kIoError,
                 "libcamera camera %s: cannot acquire it (%s; in use by another process?)", name(),
@@ -181,31 +144,27 @@ Expected<void> LibcameraSource::Impl::start() {
   acquired = true;
 
   // One video stream in a grey-convertible format, read back after validate().
-  camera_config =
-      libcam::generateOneStreamConfiguration(*camera, libcamera::StreamRole::VideoRecording);
-  if (!camera_config || camera_config->size() != 1)
+  libcam::StreamSettings sc;
+  std::vector<std::uint32_t> offered;
+  if (!camera->generateVideoConfiguration(sc, offered))
     return fail(ErrorCode::kUnsupportedFormat, "libcamera camera %s: offers no video stream",
                 name());
-  libcamera::StreamConfiguration& sc = camera_config->at(0);
-  std::vector<std::uint32_t> offered;
-  for (const libcamera::PixelFormat& pf : sc.formats().pixelformats())
-    offered.push_back(pf.fourcc());
   auto choice = libcam::chooseFormat(options.format, offered);
   if (!choice)
     return fail(choice.error().code(), "libcamera camera %s: %s", name(), choice.error().c_str());
-  sc.pixelFormat = libcamera::PixelFormat(choice->fourcc);
-  sc.size = libcamera::Size(static_cast<unsigned>(options.width),
-                            static_cast<unsigned>(options.height));
-  sc.bufferCount = static_cast<unsigned>(options.buffer_count);
-  if (camera_config->validate() == libcamera::CameraConfiguration::Invalid)
+  sc.fourcc = choice->fourcc;
+  sc.width = static_cast<unsigned>(options.width);
+  sc.height = static_cast<unsigned>(options.height);
+  sc.buffer_count = static_cast<unsigned>(options.buffer_count);
+  if (camera->validate(sc) == libcam::ConfigStatus::kInvalid)
     return fail(ErrorCode::kUnsupportedFormat, "libcamera camera %s: rejects %s %dx%d", name(),
                 libcam::formatName(choice->fourcc).c_str(), options.width, options.height);
-  format = libcam::findGreyFormat(sc.pixelFormat.fourcc());
+  format = libcam::findGreyFormat(sc.fourcc);
   if (format == nullptr)
     return fail(ErrorCode::kUnsupportedFormat,
                 "libcamera camera %s: adjusted the format to %s, which does not convert to grey",
-                name(), sc.pixelFormat.toString().c_str());
-  size = cv::Size(static_cast<int>(sc.size.width), static_cast<int>(sc.size.height));
+                name(), libcam::formatName(sc.fourcc).c_str());
+  size = cv::Size(static_cast<int>(sc.width), static_cast<int>(sc.height));
   stride = sc.stride;
   if (format->conversion != libcam::GreyConversion::kJpeg && stride == 0)
     stride = static_cast<std::size_t>(size.width) *
@@ -214,42 +173,42 @@ Expected<void> LibcameraSource::Impl::start() {
     return fail(ErrorCode::kUnsupportedFormat, "libcamera camera %s: came back as %dx%d, was %dx%d",
                 name(), size.width, size.height, first_size->width, first_size->height);
 
-  if (const int r = camera->configure(camera_config.get()); r < 0)
+  if (const int r = camera->configure(); r < 0)
     return fail(r == -EBUSY ? ErrorCode::kBusy : ErrorCode::kIoError,
                 "libcamera camera %s: configure failed: %s", name(), std::strerror(-r));
-  stream = sc.stream();
 
-  allocator = std::make_unique<libcamera::FrameBufferAllocator>(camera);
-  if (const int r = allocator->allocate(stream); r < 0)
+  std::vector<std::vector<libcam::BufferPlane>> buffers;
+  buffers_allocated = true;
+  if (const int r = camera->allocate(buffers); r < 0)
     return fail(ErrorCode::kIoError, "libcamera camera %s: buffer allocation failed: %s", name(),
                 std::strerror(-r));
-  if (auto mapped = mapBuffers(); !mapped) return mapped;
+  if (auto mapped = mapBuffers(buffers); !mapped) return mapped;
 
-  completed.clear();
-  completed.reserve(requests.size());
+  {
+    std::lock_guard lock(mutex);
+    completed.clear();
+    completed.reserve(planes.size());
+    camera_gone = false;
+  }
   taken.clear();
-  taken.reserve(requests.size());
-  camera_gone = false;
-  camera->requestCompleted.connect(this, &Impl::onRequestCompleted);
-  camera->disconnected.connect(this, &Impl::onDisconnected);
-  signals_connected = true;
+  taken.reserve(planes.size());
+  camera->setListener(this);
+  listening = true;
 
   // The frame rate, where the camera lets us fix the frame duration.
-  libcamera::ControlList controls(libcamera::controls::controls);
   fps = 0.0;
-  if (camera->controls().count(&libcamera::controls::FrameDurationLimits) != 0) {
-    const std::int64_t d = libcam::frameDurationUs(options.fps);
-    controls.set(libcamera::controls::FrameDurationLimits,
-                 libcamera::Span<const std::int64_t, 2>({d, d}));
-    fps = 1e6 / static_cast<double>(d);
+  std::int64_t frame_duration_us = 0;
+  if (camera->canSetFrameDuration()) {
+    frame_duration_us = libcam::frameDurationUs(options.fps);
+    fps = 1e6 / static_cast<double>(frame_duration_us);
   }
-  if (const int r = camera->start(&controls); r < 0)
+  if (const int r = camera->start(frame_duration_us); r < 0)
     return fail(ErrorCode::kIoError, "libcamera camera %s: start failed: %s", name(),
                 std::strerror(-r));
   started = true;
   in_flight = 0;
-  for (auto& request : requests)
-    if (!requeue(request.get()))
+  for (std::size_t i = 0; i < planes.size(); ++i)
+    if (!requeue(i))
       return fail(ErrorCode::kIoError, "libcamera camera %s: queueing a request failed", name());
   resyncClock();
   // The camera's counter starts over with the stream (after a reconnect, or the caller's
@@ -262,7 +221,7 @@ Expected<void> LibcameraSource::Impl::start() {
     << format->name;
   if (fps > 0) d << " " << fps << " fps";
   else d << " (frame rate not settable)";
-  d << ", " << requests.size() << " buffers";
+  d << ", " << planes.size() << " buffers";
   if (choice->substituted) d << " (" << options.format << " not offered)";
   if (size != cv::Size(options.width, options.height))
     d << " (asked " << options.width << "x" << options.height << ")";
@@ -270,8 +229,8 @@ Expected<void> LibcameraSource::Impl::start() {
   return {};
 }
 
-Expected<void> LibcameraSource::Impl::mapBuffers() {
-  const auto& buffers = allocator->buffers(stream);
+Expected<void> LibcameraSource::Impl::mapBuffers(
+    const std::vector<std::vector<libcam::BufferPlane>>& buffers) {
   if (buffers.empty())
     return fail(ErrorCode::kIoError, "libcamera camera %s: no buffers allocated", name());
   const std::size_t bpp = format->conversion == libcam::GreyConversion::kLumaPlane ? 1 : 2;
@@ -280,22 +239,18 @@ Expected<void> LibcameraSource::Impl::mapBuffers() {
           ? 1
           : drivers::minimumFrameBytes(stride, bpp * static_cast<std::size_t>(size.width),
                                        size.height);
+  regions.reserve(buffers.size());
+  planes.reserve(buffers.size());
   for (std::size_t i = 0; i < buffers.size(); ++i) {
-    libcamera::FrameBuffer& buffer = *buffers[i];
-    buffer.setCookie(i);
-    const auto& buffer_planes = buffer.planes();
+    const std::vector<libcam::BufferPlane>& buffer_planes = buffers[i];
     if (buffer_planes.empty())
       return fail(ErrorCode::kIoError, "libcamera camera %s: buffer without planes", name());
     // Map plane 0's dmabuf once, far enough to cover every plane that shares it.
-    const libcamera::FrameBuffer::Plane& p0 = buffer_planes[0];
-    const int fd = p0.fd.get();
-    auto offsetOf = [](const libcamera::FrameBuffer::Plane& p) -> std::size_t {
-      return p.offset == libcamera::FrameBuffer::Plane::kInvalidOffset ? 0 : p.offset;
-    };
+    const libcam::BufferPlane& p0 = buffer_planes[0];
     std::size_t extent = 0;
     for (const auto& p : buffer_planes)
-      if (p.fd.get() == fd) extent = std::max(extent, offsetOf(p) + p.length);
-    void* addr = ::mmap(nullptr, extent, PROT_READ, MAP_SHARED, fd, 0);
+      if (p.fd == p0.fd) extent = std::max<std::size_t>(extent, std::size_t{p.offset} + p.length);
+    void* addr = ::mmap(nullptr, extent, PROT_READ, MAP_SHARED, p0.fd, 0);
     if (addr == MAP_FAILED)
       return fail(ErrorCode::kIoError, "libcamera camera %s: mmap of buffer %zu: %s", name(), i,
                   std::strerror(errno));
@@ -303,15 +258,7 @@ Expected<void> LibcameraSource::Impl::mapBuffers() {
     if (p0.length < needed)
       return fail(ErrorCode::kIoError, "libcamera camera %s: plane of %u bytes, a frame needs %zu",
                   name(), p0.length, needed);
-    planes.push_back({static_cast<const std::uint8_t*>(addr) + offsetOf(p0), p0.length});
-
-    std::unique_ptr<libcamera::Request> request = camera->createRequest(i);
-    if (!request)
-      return fail(ErrorCode::kIoError, "libcamera camera %s: createRequest failed", name());
-    if (const int r = request->addBuffer(stream, &buffer); r < 0)
-      return fail(ErrorCode::kIoError, "libcamera camera %s: addBuffer: %s", name(),
-                  std::strerror(-r));
-    requests.push_back(std::move(request));
+    planes.push_back({static_cast<const std::uint8_t*>(addr) + p0.offset, p0.length});
   }
   return {};
 }
@@ -319,34 +266,27 @@ Expected<void> LibcameraSource::Impl::mapBuffers() {
 void LibcameraSource::Impl::teardown() {
   if (camera && started) camera->stop();  // completes (cancels) every pending request
   started = false;
-  if (camera && signals_connected) {
-    camera->requestCompleted.disconnect(this);
-    camera->disconnected.disconnect(this);
-  }
-  signals_connected = false;
+  if (camera && listening) camera->setListener(nullptr);
+  listening = false;
   {
     std::lock_guard lock(mutex);
     completed.clear();
     camera_gone = false;
   }
   taken.clear();
-  requests.clear();
   in_flight = 0;
   for (const Region& r : regions) ::munmap(r.addr, r.length);
   regions.clear();
   planes.clear();
-  if (allocator && stream) allocator->free(stream);
-  allocator.reset();
-  stream = nullptr;
-  camera_config.reset();
+  if (camera && buffers_allocated) camera->freeBuffers();
+  buffers_allocated = false;
   if (camera && acquired) camera->release();
   acquired = false;
   camera.reset();
 }
 
-bool LibcameraSource::Impl::requeue(libcamera::Request* request) {
-  request->reuse(libcamera::Request::ReuseBuffers);
-  if (camera->queueRequest(request) < 0) return false;
+bool LibcameraSource::Impl::requeue(std::uint64_t cookie) {
+  if (camera->queueRequest(cookie) < 0) return false;
   ++in_flight;
   return true;
 }
@@ -355,7 +295,7 @@ Error LibcameraSource::Impl::disconnect(const char* why) {
   teardown();
   state = State::kDisconnected;
   ++stats.disconnects;
-  reconnect.lost(readClockNs(CLOCK_MONOTONIC));
+  reconnect.lost(clockNs(CLOCK_MONOTONIC));
   return Error::format(ErrorCode::kDisconnected,
                        "libcamera camera %s: %s; reopening with back-off", name(), why);
 }
@@ -363,9 +303,9 @@ Error LibcameraSource::Impl::disconnect(const char* why) {
 Expected<void> LibcameraSource::Impl::recover(std::int64_t deadline_ns) {
   using Action = drivers::ReconnectSchedule::Action;
   for (;;) {
-    const auto step = reconnect.step(readClockNs(CLOCK_MONOTONIC), deadline_ns);
+    const auto step = reconnect.step(clockNs(CLOCK_MONOTONIC), deadline_ns);
     if (step.action == Action::kAttempt) break;
-    if (step.sleep_ns > 0) std::this_thread::sleep_for(std::chrono::nanoseconds(step.sleep_ns));
+    if (step.sleep_ns > 0) manager->sleepNs(step.sleep_ns);
     if (step.action == Action::kGiveBack)
       return fail(ErrorCode::kDisconnected, "libcamera camera %s: disconnected; reopening later",
                   name());
@@ -379,21 +319,18 @@ Expected<void> LibcameraSource::Impl::recover(std::int64_t deadline_ns) {
   }
   teardown();
   ++stats.reopen_failures;
-  const std::int64_t delay = reconnect.attemptFailed(readClockNs(CLOCK_MONOTONIC));
+  const std::int64_t delay = reconnect.attemptFailed(clockNs(CLOCK_MONOTONIC));
   return fail(ErrorCode::kDisconnected,
               "libcamera camera %s: still disconnected (%s); next attempt in %lld ms", name(),
               started_again.error().c_str(), static_cast<long long>(delay));
 }
 
-Expected<void> LibcameraSource::Impl::convert(const libcamera::FrameBuffer& buffer,
+Expected<void> LibcameraSource::Impl::convert(const libcam::Completion& completion,
                                               cv::Mat& out) {
-  const std::size_t index = static_cast<std::size_t>(buffer.cookie());
-  if (index >= planes.size())
-    return fail(ErrorCode::kBadFrame, "libcamera camera %s: unknown buffer", name());
-  const Plane0& plane = planes[index];
-  const auto meta_planes = buffer.metadata().planes();
-  const std::size_t used =
-      meta_planes.empty() ? plane.length : std::min<std::size_t>(meta_planes[0].bytesused, plane.length);
+  const Plane0& plane = planes[static_cast<std::size_t>(completion.cookie)];
+  const std::size_t used = completion.bytes_used == 0
+                               ? plane.length
+                               : std::min<std::size_t>(completion.bytes_used, plane.length);
   switch (format->conversion) {
     case libcam::GreyConversion::kLumaPlane:
       drivers::copyLumaPlane(plane.data, stride, out);
@@ -419,29 +356,25 @@ LibcameraSource::Impl::Step LibcameraSource::Impl::take(cv::Mat& out, FrameInfo&
   // taken: completed requests, oldest first (the callback appends in completion order).
   const int in_flight_before = in_flight;
   in_flight -= static_cast<int>(taken.size());
-  for (libcamera::Request* r : taken) {
-    libcamera::FrameBuffer* b = r->findBuffer(stream);
-    if (b == nullptr) continue;
-    stats.lost_upstream += sequence.completed(b->metadata().sequence);
-  }
-  auto good = [this](libcamera::Request* r) {
-    libcamera::FrameBuffer* b = r->findBuffer(stream);
-    return r->status() == libcamera::Request::RequestComplete && b != nullptr &&
-           b->metadata().status == libcamera::FrameMetadata::FrameSuccess;
+  for (const libcam::Completion& c : taken)
+    if (!c.cancelled) stats.lost_upstream += sequence.completed(c.sequence);
+  auto good = [this](const libcam::Completion& c) {
+    return !c.cancelled && c.frame_ok && c.cookie < planes.size();
   };
 
   // The newest good frame is delivered, the rest go back. When every request had
   // completed, frames after the newest were lost: all go back, wait for a fresh one.
   const auto plan = drivers::planDrain(
-      taken.size(), static_cast<std::size_t>(std::max(in_flight_before, 0)), requests.size(),
+      taken.size(), static_cast<std::size_t>(std::max(in_flight_before, 0)), planes.size(),
       options.drop_stale, [&](std::size_t i) { return good(taken[i]); });
   const int chosen = plan.deliver;
   for (int i = 0; i < static_cast<int>(taken.size()); ++i) {
     if (i == chosen) continue;
-    libcamera::Request* r = taken[static_cast<std::size_t>(i)];
-    if (good(r)) ++stats.stale_dropped;
+    const libcam::Completion& c = taken[static_cast<std::size_t>(i)];
+    if (good(c)) ++stats.stale_dropped;
     else ++stats.error_frames;
-    if (!requeue(r)) {
+    if (c.cookie >= planes.size()) continue;  // not one of ours
+    if (!requeue(c.cookie)) {
       error = disconnect("queueing a request failed");
       return Step::kFailed;
     }
@@ -457,18 +390,16 @@ LibcameraSource::Impl::Step LibcameraSource::Impl::take(cv::Mat& out, FrameInfo&
     taken.clear();
     return Step::kFailed;
   }
-  libcamera::Request* request = taken[static_cast<std::size_t>(chosen)];
+  const libcam::Completion request = taken[static_cast<std::size_t>(chosen)];
   taken.clear();
-  const libcamera::FrameBuffer& buffer = *request->findBuffer(stream);
-  const std::uint32_t buffer_seq = buffer.metadata().sequence;
 
   // SensorTimestamp: ns on CLOCK_BOOTTIME; the buffer's own timestamp when absent.
-  std::int64_t ts_ns = static_cast<std::int64_t>(buffer.metadata().timestamp);
-  if (const auto sensor = request->metadata().get(libcamera::controls::SensorTimestamp))
-    ts_ns = *sensor;
+  const std::int64_t ts_ns = request.has_sensor_timestamp
+                                 ? request.sensor_timestamp_ns
+                                 : static_cast<std::int64_t>(request.timestamp_ns);
 
-  auto converted = convert(buffer, out);
-  const bool requeued = requeue(request);
+  auto converted = convert(request, out);
+  const bool requeued = requeue(request.cookie);
   if (!converted) {
     ++stats.bad_frames;
     error = requeued ? converted.error() : disconnect("queueing a request failed");
@@ -477,8 +408,8 @@ LibcameraSource::Impl::Step LibcameraSource::Impl::take(cv::Mat& out, FrameInfo&
 
   info = FrameInfo{};
   info.capture_time_us = drivers::captureTimeUs(ts_ns, clock_offset,
-                                                [] { return readClockNs(CLOCK_REALTIME); });
-  info.sequence = sequence.delivered(buffer_seq, info.capture_time_us, fps);
+                                                [this] { return clockNs(CLOCK_REALTIME); });
+  info.sequence = sequence.delivered(request.sequence, info.capture_time_us, fps);
   ++stats.delivered;
   if (!requeued) disconnect("queueing a request failed");
   return Step::kDelivered;
@@ -486,15 +417,10 @@ LibcameraSource::Impl::Step LibcameraSource::Impl::take(cv::Mat& out, FrameInfo&
 
 // ---------------------------------------------------------------------------------------
 
-LibcameraSource::LibcameraSource(Options options)
-    : impl_(std::make_unique<Impl>(std::move(options))) {}
+LibcameraSource::LibcameraSource(Options options, ManagerOpener opener)
+    : impl_(std::make_unique<Impl>(std::move(options), std::move(opener))) {}
 
 LibcameraSource::~LibcameraSource() { close(); }
-
-std::string LibcameraSource::libcameraVersion() {
-  return std::to_string(LIBCAMERA_VERSION_MAJOR) + "." + std::to_string(LIBCAMERA_VERSION_MINOR) +
-         "." + std::to_string(LIBCAMERA_VERSION_PATCH);
-}
 
 Expected<void> LibcameraSource::open() {
   Impl& d = *impl_;
@@ -527,12 +453,12 @@ Expected<FrameInfo> LibcameraSource::next(cv::Mat& out, std::chrono::millisecond
                 "libcamera camera %s: output must be %dx%d CV_8UC1, is %dx%d", d.name(),
                 d.size.width, d.size.height, out.cols, out.rows);
   const std::int64_t timeout_ns = std::max<std::int64_t>(0, timeout.count()) * kNsPerMs;
-  const std::int64_t deadline_ns = readClockNs(CLOCK_MONOTONIC) + timeout_ns;
+  const std::int64_t deadline_ns = d.clockNs(CLOCK_MONOTONIC) + timeout_ns;
   const auto deadline = std::chrono::steady_clock::now() + std::chrono::nanoseconds(timeout_ns);
   if (d.state == Impl::State::kDisconnected) {
     if (auto r = d.recover(deadline_ns); !r) return std::unexpected(r.error());
   }
-  if (readClockNs(CLOCK_MONOTONIC) - d.last_clock_sync_ns >=
+  if (d.clockNs(CLOCK_MONOTONIC) - d.last_clock_sync_ns >=
       d.options.clock_resync.count() * kNsPerMs)
     d.resyncClock();
 

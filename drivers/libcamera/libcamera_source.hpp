@@ -2,7 +2,9 @@
 /// \file libcamera_source.hpp
 /// A FrameSource on a libcamera camera (Raspberry Pi camera modules, UVC cameras through
 /// libcamera's uvcvideo pipeline), written for Debian 12's libcamera 0.0.3 and guarded for
-/// later versions (libcamera_compat.hpp). No libcamera header leaks through this one.
+/// later versions (libcamera_compat.hpp). No libcamera header leaks through this one:
+/// the source talks to libcamera through the seam of libcamera_camera.hpp
+/// (libcamera_real.cpp adapts libcamera; tests run the same code on a fake).
 ///
 /// open(): the process-wide CameraManager (libcamera allows one) -> the camera by index or
 /// id -> acquire -> one VideoRecording stream in a grey-convertible format (chooseFormat():
@@ -11,8 +13,8 @@
 /// every buffer's planes mmap-ed once -> start with FrameDurationLimits = 1 / fps ->
 /// queue every request.
 ///
-/// next(): the completion callback (libcamera's thread) only hands the finished request
-/// to the capture thread through a fixed-capacity queue; next() takes the newest, requeues
+/// next(): the completion callback (libcamera's thread) only hands the finished request's
+/// result (libcam::Completion) to the capture thread through a fixed-capacity queue; next() takes the newest, requeues
 /// the older ones (stale), converts (luma plane copy / packed luma / JPEG decode) into the
 /// caller's buffer and requeues. Timestamps: controls::SensorTimestamp (ns, CLOCK_BOOTTIME;
 /// the buffer's timestamp when absent) + a measured CLOCK_BOOTTIME -> CLOCK_REALTIME offset.
@@ -29,6 +31,7 @@
 
 #include <chrono>
 #include <cstdint>
+#include <functional>
 #include <memory>
 #include <string>
 #include <vector>
@@ -36,6 +39,9 @@
 #include "omnipose/frame_source.hpp"
 
 namespace omnipose {
+namespace libcam {
+class CameraManager;
+}
 
 /// Everything LibcameraSource needs. The first five fields are what daemon.yaml's
 /// `source:` section sets (src/daemon/source_factory.cpp maps them, the key is named beside
@@ -53,7 +59,10 @@ struct LibcameraOptions {
   std::chrono::milliseconds reconnect_initial{200};  ///< first reopen delay after unplug, >= 1
   std::chrono::milliseconds reconnect_max{5000};     ///< back-off cap, >= reconnect_initial
   std::chrono::milliseconds clock_resync{10000};     ///< re-measure the clock offset, >= 1
-  int clock_samples = 7;  ///< bracketed clock reads per offset measurement, [1, 16]
+  /// Bracketed clock reads (CLOCK_BOOTTIME, CLOCK_REALTIME, CLOCK_BOOTTIME) per offset
+  /// measurement, [1, 16] (drivers::kMaxClockSamples): the least preempted read wins, so
+  /// more samples make a preempted measurement less likely; each costs three clock reads.
+  int clock_samples = 7;
   bool drop_stale = true;  ///< when every request had completed, wait for a fresh frame
 };
 
@@ -77,8 +86,15 @@ class LibcameraSource final : public FrameSource {
     std::uint64_t reopen_failures = 0;
   };
 
-  /// The options are checked by open() (validate()).
+  /// Returns the started camera manager; open() calls it.
+  using ManagerOpener =
+      std::function<Expected<std::shared_ptr<libcam::CameraManager>>()>;
+
+  /// On libcamera (the process-wide CameraManager). The options are checked by open()
+  /// (validate()).
   explicit LibcameraSource(Options options);
+  /// On the manager `opener` gives (a fake in tests).
+  LibcameraSource(Options options, ManagerOpener opener);
   ~LibcameraSource() override;
   LibcameraSource(const LibcameraSource&) = delete;
   LibcameraSource& operator=(const LibcameraSource&) = delete;
