@@ -4,6 +4,7 @@
 #include <filesystem>
 #include <string>
 
+#include "common/problem_list.hpp"
 #include "daemon/source_factory.hpp"
 #include "omnipose/calibration.hpp"
 #include "omnipose/pipeline.hpp"
@@ -68,5 +69,7 @@ StartupCheck checkStartup(const DaemonConfig& config) {
   }
   return out;
 }
+
+std::string StartupCheck::listing() const { return detail::joinProblems(problems); }
 
 }  // namespace omnipose::daemon

@@ -18,6 +18,10 @@ struct StartupCheck {
   std::vector<std::string> problems;
   /// One line per thing checked and found usable (for the operator's log).
   std::vector<std::string> findings;
+
+  /// The problems as printed: one per line, at most 20 (then "and N more"), control
+  /// characters escaped.
+  std::string listing() const;
 };
 
 /// Checks, for a configuration that DaemonConfig::load() accepted: the calibration file and

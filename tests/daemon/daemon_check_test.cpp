@@ -3,6 +3,8 @@
 // exit naming the file and the field.
 #include <gtest/gtest.h>
 
+#include <algorithm>
+
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
@@ -83,6 +85,18 @@ TEST(DaemonCheck, AMaskThatLeavesTooFewWindowsFailsSayingHowManyAreLeft) {
   cv::ellipse(mask, {360, 360}, {360, 360}, 0, 0, 180, cv::Scalar(255), cv::FILLED);
   c.omni.mask = mask;
   EXPECT_EQ(t.run(c), 0) << t.err();
+}
+
+TEST(DaemonCheck, TheListingShowsAtMostTwentyProblemsEscaped) {
+  daemon::StartupCheck check;
+  for (int i = 0; i < 25; ++i) check.problems.push_back("cal.yaml: key" + std::to_string(i) + ": bad");
+  check.problems[0] += std::string("\0hidden", 7);
+  const std::string listing = check.listing();
+  EXPECT_EQ(std::count(listing.begin(), listing.end(), '\n'), 20) << listing;
+  EXPECT_NE(listing.find("key19: bad"), std::string::npos) << listing;
+  EXPECT_EQ(listing.find("key20: bad"), std::string::npos) << listing;
+  EXPECT_NE(listing.find("and 5 more"), std::string::npos) << listing;
+  EXPECT_NE(listing.find("bad\\0hidden"), std::string::npos) << listing;
 }
 
 TEST(DaemonCheck, APanoramaLowerThanTheWindowFails) {

@@ -60,8 +60,8 @@ int main(int argc, char** argv) {
       // The whole start-up validation that needs no hardware, every problem at once.
       const auto check = omnipose::daemon::checkStartup(config);
       for (const auto& f : check.findings) std::fprintf(stderr, "omniposed: %s\n", f.c_str());
-      for (const auto& p : check.problems) std::fprintf(stderr, "omniposed: %s\n", p.c_str());
       if (!check.problems.empty()) {
+        std::fprintf(stderr, "omniposed: %s\n", check.listing().c_str());
         std::fprintf(stderr, "omniposed: --check: %zu problem(s)\n", check.problems.size());
         return 1;
       }
