@@ -1,23 +1,27 @@
 // The calibration tool on the scene types that defeat a texture-based ring search (issue 9):
 // dark floor, textureless bands at either ring edge, night, bright sky, rich texture. For
 // each: the centre within 1 px and both ring edges within 2 px of the rendered lens, or a
-// refusal (std::runtime_error naming the reason) - never a silently wrong calibration.
+// refusal (std::runtime_error naming the reason and what to try) - never a silently wrong
+// calibration. The scenes the tool gets right today must calibrate (mustCalibrate()).
 
 #include <gtest/gtest.h>
 
 #include <cmath>
 #include <filesystem>
+#include <optional>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
 #include "omnipose/calibrate/lens_calibrator.hpp"
 #include "synthetic.hpp"
+#include "test_figures.hpp"
 
 namespace omnipose::calibrate {
 namespace {
 
 using testing::kIndoor;
 using testing::makeCalibration;
+using omnipose::testing::recordFigure;
 using testing::renderOmni;
 
 /// Latitude (degrees, +90 = zenith) of texture row y of an equirect of `rows` rows.
@@ -67,31 +71,48 @@ SceneCase makeScene(const std::string& name) {
   return {name, {}};
 }
 
+/// The scenes that must be calibrated, not refused: all but the dark floor and the night,
+/// whose inner edge the tool finds inside the ring and so refuses (the renders are
+/// deterministic, seed 7; each of these is within 0.02 px of the lens today).
+bool mustCalibrate(const std::string& scene) {
+  return scene == "rich_texture" || scene == "textureless_outer" ||
+         scene == "textureless_inner" || scene == "bright_sky";
+}
+
 TEST_P(SceneTypes, RightOrRefuses) {
   if (!std::filesystem::exists(kIndoor)) GTEST_SKIP() << "missing " << kIndoor;
   const SceneCase scene = makeScene(GetParam());
   const Calibration truth = lens();
   std::vector<cv::Mat> frames;
   for (double yaw : {0.0, 7.0, 14.0, 21.0}) frames.push_back(renderOmni(scene.texture, truth, yaw, 2.0, 0.7));
+  if (scene.texture != kIndoor) std::filesystem::remove(scene.texture);
   LensCalibratorOptions options;
   options.replay = false;
+  std::optional<LensCalibrationResult> r;
+  std::string refusal;
   try {
-    const LensCalibrationResult r = calibrateLens(frames, options);
-    ASSERT_TRUE(r.ring);
-    const double centre = (r.ring->center - Eigen::Vector2d(truth.omni.center_x, truth.omni.center_y)).norm();
-    const double inner = std::abs(r.ring->radius_inner - truth.omni.radius_inner);
-    const double outer = std::abs(r.ring->radius_outer - truth.omni.radius_outer);
-    std::printf("%s: calibrated; centre off by %.2f px, inner edge %.2f px, outer edge %.2f px\n",
-                scene.name.c_str(), centre, inner, outer);
-    EXPECT_LT(centre, 1.0) << scene.name;
-    EXPECT_LT(inner, 2.0) << scene.name;
-    EXPECT_LT(outer, 2.0) << scene.name;
+    r = calibrateLens(frames, options);
   } catch (const std::runtime_error& e) {
-    std::printf("%s: refused: %s\n", scene.name.c_str(), e.what());
-    EXPECT_NE(std::string(e.what()).find("try"), std::string::npos)
-        << "a refusal says what to try: " << e.what();
+    refusal = e.what();
   }
-  if (scene.texture != kIndoor) std::filesystem::remove(scene.texture);
+  if (!r) {
+    RecordProperty("outcome", "refused");
+    RecordProperty("refusal", refusal);
+    EXPECT_FALSE(mustCalibrate(scene.name)) << scene.name << " must calibrate, was refused: " << refusal;
+    EXPECT_NE(refusal.find("try"), std::string::npos) << "a refusal says what to try: " << refusal;
+    return;
+  }
+  RecordProperty("outcome", "calibrated");
+  ASSERT_TRUE(r->ring) << scene.name;
+  const double centre = (r->ring->center - Eigen::Vector2d(truth.omni.center_x, truth.omni.center_y)).norm();
+  const double inner = std::abs(r->ring->radius_inner - truth.omni.radius_inner);
+  const double outer = std::abs(r->ring->radius_outer - truth.omni.radius_outer);
+  recordFigure("centre_error_px", centre, 3);
+  recordFigure("inner_edge_error_px", inner, 3);
+  recordFigure("outer_edge_error_px", outer, 3);
+  EXPECT_LT(centre, 1.0) << scene.name << ": centre off by " << centre << " px";
+  EXPECT_LT(inner, 2.0) << scene.name << ": inner edge off by " << inner << " px";
+  EXPECT_LT(outer, 2.0) << scene.name << ": outer edge off by " << outer << " px";
 }
 
 INSTANTIATE_TEST_SUITE_P(Scenes, SceneTypes,
