@@ -7,6 +7,9 @@
 #include <Eigen/Geometry>
 #include <cmath>
 #include <numbers>
+#include <string>
+
+#include "test_figures.hpp"
 
 namespace omnipose::calibrate {
 namespace {
@@ -94,7 +97,10 @@ TEST(Checkerboard, RecoversAMeiLensFromRenderedViews) {
   o.rows = 6;
   o.square_m = 0.04;
   const CheckerboardCalibration c = calibrateCheckerboard(views, o);
-  for (const auto& n : c.notes) std::printf("%s\n", n.c_str());
+  std::string notes;
+  for (const auto& n : c.notes) notes += (notes.empty() ? "" : "\n") + n;
+  RecordProperty("notes", notes);
+  SCOPED_TRACE("calibration notes:\n" + notes);
   EXPECT_GE(c.views_found, 6);
   EXPECT_LT(c.rms_px, 0.5);
   // Compare where the two models put the bearings of the ring (the parameters xi and f are
@@ -106,8 +112,8 @@ TEST(Checkerboard, RecoversAMeiLensFromRenderedViews) {
       ASSERT_TRUE(p && q);
       worst = std::max(worst, (*p - *q).norm());
     }
-  std::printf("largest pixel difference over elevations -17..17 deg: %.3f px\n", worst);
-  EXPECT_LT(worst, 1.0);
+  testing::recordFigure("max_pixel_difference_px", worst, 3);
+  EXPECT_LT(worst, 1.0) << "largest pixel difference over elevations -17..17 deg, px";
 }
 
 // The whole --checkerboard path: a mei calibration.yaml the pipeline accepts.

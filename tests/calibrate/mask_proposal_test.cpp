@@ -9,6 +9,7 @@
 
 #include "omnipose/synth.hpp"
 #include "omnipose/trajectory.hpp"
+#include "test_figures.hpp"
 
 namespace omnipose::calibrate {
 namespace {
@@ -57,10 +58,11 @@ TEST(MaskProposal, CoversTheMastAndLittleElse) {
     }
   const double recall = static_cast<double>(on_mast_masked) / on_mast;
   const double false_positive = static_cast<double>(elsewhere_masked) / elsewhere;
-  std::printf("mast covered %.1f %%, rest of the ring masked %.2f %%, %.0f %% of patches moved\n",
-              100 * recall, 100 * false_positive, 100 * p.moving_fraction);
-  EXPECT_GT(recall, 0.95);
-  EXPECT_LT(false_positive, 0.03);
+  testing::recordFigure("mast_covered_percent", 100 * recall, 1);
+  testing::recordFigure("rest_of_ring_masked_percent", 100 * false_positive, 2);
+  testing::recordFigure("patches_moved_percent", 100 * p.moving_fraction, 0);
+  EXPECT_GT(recall, 0.95) << "fraction of the mast masked";
+  EXPECT_LT(false_positive, 0.03) << "fraction of the rest of the ring masked";
 }
 
 TEST(MaskProposal, RefusesFramesWithoutMotion) {

@@ -14,6 +14,7 @@
 
 #include "omnipose/calibrate/lens_calibrator.hpp"
 #include "omnipose/calibrate/preview.hpp"
+#include "test_figures.hpp"
 
 namespace omnipose::calibrate {
 namespace {
@@ -96,9 +97,11 @@ TEST(RealKogetoDot, ARotatedFrameIsAPureYawOfTheMeasuredSign) {
         << res.direction->how;
     ASSERT_EQ(res.motions.size(), 1u);
     ASSERT_TRUE(res.motions[0].ok) << res.motions[0].error;
-    std::printf("  rotated %+.0f deg on screen: roll %+.2f pitch %+.2f yaw %+.2f deg\n",
-                sign * alpha, res.motions[0].omega_deg.x(), res.motions[0].omega_deg.y(),
-                res.motions[0].omega_deg.z());
+    const std::string turn = sign > 0 ? "ccw" : "cw";  // on screen
+    testing::recordFigure("rotated_" + turn + "_roll_deg", res.motions[0].omega_deg.x(), 2);
+    testing::recordFigure("rotated_" + turn + "_pitch_deg", res.motions[0].omega_deg.y(), 2);
+    testing::recordFigure("rotated_" + turn + "_yaw_deg", res.motions[0].omega_deg.z(), 2);
+    SCOPED_TRACE("rotated " + testing::fixed(sign * alpha, 0) + " deg on screen");
     EXPECT_NEAR(res.motions[0].omega_deg.z(), alpha, 0.3);
     EXPECT_LT(std::abs(res.motions[0].omega_deg.x()), 0.3);
     EXPECT_LT(std::abs(res.motions[0].omega_deg.y()), 0.3);

@@ -9,12 +9,14 @@
 
 #include "omnipose/calibrate/ring_detector.hpp"
 #include "synthetic.hpp"
+#include "test_figures.hpp"
 
 namespace omnipose::calibrate {
 namespace {
 
 using testing::kIndoor;
 using testing::makeCalibration;
+using omnipose::testing::recordFigure;
 using testing::renderOmni;
 
 constexpr double kCentreTolerance = 1.0;  ///< pixels (issue 6)
@@ -50,12 +52,13 @@ TEST_P(RingDetectorRendered, RecoversCentreAndRadii) {
   const double dc = (det->center - truth).norm();
   const double di = det->radius_inner - c.cal.omni.radius_inner;
   const double dout = det->radius_outer - c.cal.omni.radius_outer;
-  RecordProperty("centre_error_px", std::to_string(dc));
-  std::printf("  %s: centre error %.3f px, inner %+.3f px, outer %+.3f px, rms %.2f px\n", c.name,
-              dc, di, dout, det->rms);
-  EXPECT_LT(dc, kCentreTolerance);
-  EXPECT_LT(std::abs(di), kRadiusTolerance);
-  EXPECT_LT(std::abs(dout), kRadiusTolerance);
+  recordFigure("centre_error_px", dc, 3);
+  recordFigure("inner_edge_error_px", di, 3);
+  recordFigure("outer_edge_error_px", dout, 3);
+  recordFigure("edge_fit_rms_px", det->rms, 2);
+  EXPECT_LT(dc, kCentreTolerance) << "centre error, px";
+  EXPECT_LT(std::abs(di), kRadiusTolerance) << "inner edge error " << di << " px";
+  EXPECT_LT(std::abs(dout), kRadiusTolerance) << "outer edge error " << dout << " px";
   // The independent fits of the two edges agree with the truth too.
   EXPECT_LT((det->inner.circle.center - truth).norm(), kCentreTolerance);
   EXPECT_LT((det->outer.circle.center - truth).norm(), kCentreTolerance);
@@ -125,8 +128,10 @@ TEST(RingDetector, MovesPastAStackedBezelEdge) {
   const cv::Mat img = withBezel(renderOmni(kIndoor, cal, 0.0), cal.omni, bezel);
   const auto det = detectRing(img, {});
   ASSERT_TRUE(det) << det.error().c_str();
-  std::printf("  bezel: inner %.2f (first %.2f, stacked %d), outer %.2f\n", det->radius_inner,
-              det->inner.first_radius, det->inner.stacked, det->radius_outer);
+  recordFigure("inner_radius_px", det->radius_inner, 2);
+  recordFigure("first_inner_edge_radius_px", det->inner.first_radius, 2);
+  RecordProperty("stacked_inner_edges", det->inner.stacked);
+  recordFigure("outer_radius_px", det->radius_outer, 2);
   // The scene starts at the bezel's outer edge; the strongest edge is the bezel's inner one.
   EXPECT_NEAR(det->radius_inner, cal.omni.radius_inner + bezel, kRadiusTolerance);
   EXPECT_EQ(det->inner.stacked, 1);
