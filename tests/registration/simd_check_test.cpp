@@ -1,10 +1,10 @@
 // Which branch of src/registration/simd.hpp this build compiled, and that its lane-wise
 // helpers agree with scalar arithmetic. tools/arm64_check.sh runs this binary under
-// qemu-aarch64 and also greps it for the backend marker string below.
+// qemu-aarch64 and also greps the binary itself (strings, not its output) for the backend
+// marker string below.
 #include <gtest/gtest.h>
 
 #include <cmath>
-#include <cstdio>
 #include <cstring>
 #include <limits>
 
@@ -13,11 +13,12 @@
 namespace omnipose::registration {
 namespace {
 
-// Kept in the binary's read-only data: "omnipose-simd-backend=neon" on arm64.
-const char kMarker[] = "omnipose-simd-backend=" OMNIPOSE_SIMD_BACKEND;
+// Kept whole in the binary's read-only data (gnu::used: emitted even if the compiler could
+// drop or split it) for tools/arm64_check.sh: "omnipose-simd-backend=neon" on arm64.
+[[gnu::used]] const char kMarker[] = "omnipose-simd-backend=" OMNIPOSE_SIMD_BACKEND;
 
 TEST(Simd, TheArchitecturesVectorBranchIsCompiled) {
-  std::printf("%s\n", kMarker);
+  RecordProperty("simd_backend", kMarker);
 #if defined(__aarch64__)
   EXPECT_STREQ(simd::kBackend, "neon");
 #elif defined(__x86_64__)
@@ -39,8 +40,8 @@ TEST(Simd, HotLoopsRunTheMultiplyAddCopyOnCpusThatHaveIt) {
 #if OMNIPOSE_HAS_SIMD_CLONES  // x86-64: __builtin_cpu_supports knows "x86-64-v3"
   __builtin_cpu_init();
   const bool v3 = __builtin_cpu_supports("x86-64-v3");
-  std::printf("x86-64-v3 copy: %s\n", v3 ? "yes" : "no (baseline copy)");
-  EXPECT_EQ(got, v3 ? 0x1p-24f : 0.0f);
+  RecordProperty("x86_64_v3_copy", v3 ? "yes" : "no (baseline copy)");
+  EXPECT_EQ(got, v3 ? 0x1p-24f : 0.0f) << "x86-64-v3 copy: " << (v3 ? "yes" : "no (baseline copy)");
 #else
   (void)got;
   GTEST_SKIP() << "OMNIPOSE_SIMD_CLONES is empty here: one copy";

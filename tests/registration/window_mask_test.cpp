@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "omnipose/window_registration.hpp"
+#include "test_figures.hpp"
 #include "test_images.hpp"
 
 namespace omnipose {
@@ -74,10 +75,10 @@ TEST(WindowMask, MaskedMastNoLongerPullsTheShiftToZero) {
   masked.setReference(p.previous);
   ASSERT_TRUE(masked.measure(p.current, m));
   const double with_mask = worstErrorNearMast(m, masked, du, dv);
-  std::printf("worst shift error of windows over the mast: %.3f px unmasked, %.3f px masked\n",
-              unmasked, with_mask);
+  testing::recordFigure("worst_mast_window_shift_error_unmasked_px", unmasked, 3);
+  testing::recordFigure("worst_mast_window_shift_error_masked_px", with_mask, 3);
   EXPECT_GT(unmasked, 0.3) << "the static mast should pull the unmasked windows";
-  EXPECT_LT(with_mask, 0.05);
+  EXPECT_LT(with_mask, 0.05) << "worst shift error of the masked windows over the mast, px";
 
   // Windows mostly over the mast (60 of 110 columns near the taper's peak) are dropped.
   EXPECT_GE(masked.maskedWindowCount(), 1);

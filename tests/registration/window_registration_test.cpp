@@ -18,6 +18,7 @@
 #include <vector>
 
 #include "omnipose/window_registration.hpp"
+#include "test_figures.hpp"
 #include "test_images.hpp"
 
 namespace omnipose {
@@ -182,8 +183,15 @@ TEST(WindowRegistrationSigns, TranslationMatchesPhaseCorrelateOfCurrentThenRefer
     cv::Mat hann;
     cv::createHanningWindow(hann, roi.size(), CV_32F);
     const cv::Point2d cv_shift = cv::phaseCorrelate(current(roi), reference(roi), hann);
-    std::printf("[ signs    ] shift (%.1f, %.1f): ours (%.3f, %.3f), cv::phaseCorrelate (%.3f, %.3f)\n",
-                du, dv, out[20].du, out[20].dv, cv_shift.x, cv_shift.y);
+    const std::string shift = "shift_u" + testing::fixed(du, 0) + "_v" + testing::fixed(dv, 0);
+    testing::recordFigure(shift + "_ours_du_px", out[20].du, 3);
+    testing::recordFigure(shift + "_ours_dv_px", out[20].dv, 3);
+    testing::recordFigure(shift + "_phase_correlate_du_px", cv_shift.x, 3);
+    testing::recordFigure(shift + "_phase_correlate_dv_px", cv_shift.y, 3);
+    SCOPED_TRACE("shift (" + testing::fixed(du, 1) + ", " + testing::fixed(dv, 1) + "): ours (" +
+                 testing::fixed(out[20].du, 3) + ", " + testing::fixed(out[20].dv, 3) +
+                 "), cv::phaseCorrelate (" + testing::fixed(cv_shift.x, 3) + ", " +
+                 testing::fixed(cv_shift.y, 3) + ")");
     EXPECT_GT(cv_shift.x * du, 0.0);
     EXPECT_GT(cv_shift.y * dv, 0.0);
     EXPECT_NEAR(out[20].du, cv_shift.x, 0.1);
@@ -301,15 +309,15 @@ TEST_P(SubpixelShift, EveryWindowWithin0p04Pixel) {
   const char* name = image.c_str();
   REQUIRE_IMAGE(equirect(name), name);
   const ShiftStats s = shiftSweep(name, along_u);
+  testing::recordFigure("max_error_px", s.max_error, 4);
+  testing::recordFigure("rms_error_px", std::sqrt(s.sum_sq / s.count), 4);
+  RecordProperty("windows", s.count);
   // Achieved: max 0.027 px (indoor, u), 0.020 (indoor, v), 0.017 (park, u), 0.013 (park, v);
   // RMS 0.004 - 0.006 px. Target 0.05 px.
   EXPECT_EQ(s.invalid, 0);
   EXPECT_LT(s.max_error, 0.04);
   EXPECT_LT(std::sqrt(s.sum_sq / s.count), 0.01);
   EXPECT_GT(s.min_confidence, 0.5);
-  RecordProperty("max_error_px", std::to_string(s.max_error));
-  std::printf("[ shift    ] %s along %s: max %.4f px, rms %.4f px, %d windows\n", name,
-              along_u ? "u" : "v", s.max_error, std::sqrt(s.sum_sq / s.count), s.count);
 }
 
 INSTANTIATE_TEST_SUITE_P(RealTexture, SubpixelShift,
@@ -403,8 +411,11 @@ TEST_P(SimilarityAccuracy, RotationsAndScales) {
   const double rot_max = percentile(rotation_errors, 1.0), rot_p90 = percentile(rotation_errors, 0.9);
   const double scale_max = percentile(scale_errors, 1.0), scale_p90 = percentile(scale_errors, 0.9);
   const double shift_max = percentile(shifts, 1.0);
-  std::printf("[ similar  ] %s: rotation max %.3f p90 %.3f deg; scale max %.4f p90 %.4f; shift max %.3f px\n",
-              bounds.image, rot_max, rot_p90, scale_max, scale_p90, shift_max);
+  testing::recordFigure("rotation_error_max_deg", rot_max, 3);
+  testing::recordFigure("rotation_error_p90_deg", rot_p90, 3);
+  testing::recordFigure("scale_error_max", scale_max, 4);
+  testing::recordFigure("scale_error_p90", scale_p90, 4);
+  testing::recordFigure("shift_max_px", shift_max, 3);
   EXPECT_LT(rot_max, bounds.rotation_max_deg);
   EXPECT_LT(rot_p90, bounds.rotation_p90_deg);
   EXPECT_LT(scale_max, bounds.scale_max);
