@@ -148,11 +148,12 @@ TEST(DaemonAllocation, PerFramePathAllocatesNothingLcmFileLogAttributedSeparatel
       measure(frames, "file://" + (tmp / "alloc.lcm").string() + "?mode=w", calibrationPath(tmp), log);
   std::fclose(log);
   ASSERT_TRUE(m.ok) << "only " << m.processed << " frames processed in time";
-  std::printf("[ counted ] %ld frames processed, %ld skipped (stale), %ld bad, %ld source "
-              "re-opens, %ld messages published: %ld allocations outside the LCM publish call (daemon, "
-              "pipeline and the libraries they call), %ld "
-              "inside the sink's publish (file:// log)\n",
-              m.processed, m.skipped, m.bad, m.failures, m.publishes, m.own, m.lcm);
+  // own: allocations outside the LCM publish call (daemon, pipeline and the libraries they
+  // call); lcm: inside the sink's publish (file:// log).
+  RecordProperty("frames_processed", static_cast<int>(m.processed));
+  RecordProperty("frames_skipped_stale", static_cast<int>(m.skipped));
+  RecordProperty("frames_bad", static_cast<int>(m.bad));
+  RecordProperty("source_reopens", static_cast<int>(m.failures));
   RecordProperty("own_allocations", static_cast<int>(m.own));
   RecordProperty("lcm_file_allocations", static_cast<int>(m.lcm));
   RecordProperty("publishes", static_cast<int>(m.publishes));
@@ -250,10 +251,13 @@ TEST(DaemonAllocation, WholeProcessIncludingLcmUdpmPublishAllocatesNothing) {
             7)
       << result;
   ASSERT_EQ(ok, 1) << "only " << processed << " frames processed in time";
-  std::printf("[ counted ] udpm: %ld frames processed, %ld skipped, %ld bad, %ld messages "
-              "published: %ld allocations outside the LCM publish call, %ld inside it\n",
-              processed, skipped, bad, publishes, own, lcm);
-  EXPECT_EQ(own, 0);
+  RecordProperty("frames_processed", static_cast<int>(processed));
+  RecordProperty("frames_skipped_stale", static_cast<int>(skipped));
+  RecordProperty("frames_bad", static_cast<int>(bad));
+  RecordProperty("publishes", static_cast<int>(publishes));
+  RecordProperty("own_allocations", static_cast<int>(own));
+  RecordProperty("lcm_udpm_allocations", static_cast<int>(lcm));
+  EXPECT_EQ(own, 0) << "allocations outside the LCM publish call";
   EXPECT_EQ(lcm, 0) << "LCM's udpm publish allocated";
 }
 

@@ -14,6 +14,7 @@
 
 #include "bad_images.hpp"
 #include "daemon_test_support.hpp"
+#include "test_figures.hpp"
 
 namespace omnipose {
 namespace {
@@ -127,8 +128,9 @@ TEST(Omniposed, EndToEndFileLogDecodesAndMatchesGroundTruth) {
     }
   }
   EXPECT_LT(max_chain_error, 0.02) << "chained orientation after " << kFrames << " frames";
-  std::printf("[ e2e ] max rotation error per pair %.5f rad, chained %.5f rad after %d frames\n",
-              max_pair_error, max_chain_error, kFrames);
+  testing::recordFigure("max_pair_error_rad", max_pair_error, 5);
+  testing::recordFigure("max_chained_error_rad", max_chain_error, 5);
+  RecordProperty("frames", kFrames);
 
   // Status: at least the final one, which is the last message of the log.
   ASSERT_FALSE(log.statuses.empty());
@@ -222,17 +224,14 @@ TEST(Omniposed, RealtimeReplayAt30FpsKeepsTheRecordedTimingAndReportsLatency) {
     EXPECT_NEAR(static_cast<double>(p.utime - first.utime),
                 (p.source_timestamp - first.source_timestamp) * 1e6, 2.0);
   }
-  std::printf("[ rt30 ] %d frames at 30 fps: processed %lld, skipped %lld, not read in time "
-              "%lld; processing p50 %.1f p99 %.1f ms; capture-to-publish latency p50 %.1f p99 "
-              "%.1f ms\n",
-              kFrames, static_cast<long long>(last.frames_processed),
-              static_cast<long long>(last.frames_skipped_stale),
-              static_cast<long long>(last.frames_lost_upstream), last.processing_ms_p50,
-              last.processing_ms_p99, last.latency_ms_p50, last.latency_ms_p99);
-  RecordProperty("processing_ms_p50", std::to_string(last.processing_ms_p50));
-  RecordProperty("processing_ms_p99", std::to_string(last.processing_ms_p99));
-  RecordProperty("latency_ms_p50", std::to_string(last.latency_ms_p50));
-  RecordProperty("latency_ms_p99", std::to_string(last.latency_ms_p99));
+  RecordProperty("frames", kFrames);
+  RecordProperty("frames_processed", static_cast<int>(last.frames_processed));
+  RecordProperty("frames_skipped_stale", static_cast<int>(last.frames_skipped_stale));
+  RecordProperty("frames_not_read_in_time", static_cast<int>(last.frames_lost_upstream));
+  testing::recordFigure("processing_ms_p50", last.processing_ms_p50, 1);
+  testing::recordFigure("processing_ms_p99", last.processing_ms_p99, 1);
+  testing::recordFigure("latency_ms_p50", last.latency_ms_p50, 1);
+  testing::recordFigure("latency_ms_p99", last.latency_ms_p99, 1);
   EXPECT_GT(last.processing_ms_p50, 0.0f);
   EXPECT_GE(last.latency_ms_p50, last.processing_ms_p50 * 0.5f);
   // Fresh pose, not a backlog: the latency is bounded by about two processing times.
