@@ -3,13 +3,13 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
-#include <cstdio>
 #include <limits>
 #include <numbers>
 #include <random>
 #include <vector>
 
 #include "omnipose/motion_model.hpp"
+#include "test_figures.hpp"
 
 namespace omnipose {
 namespace {
@@ -189,11 +189,13 @@ TEST(MotionFit, PerWindowDepthConvergesQuicklyOnAPureRotation) {
     err_p += (p.omega - x.head<3>()).squaredNorm();
   }
   extra_iterations /= trials;
-  std::printf("[ pure rotation ] Gauss-Newton iterations per fit %.1f (cap 2 x 20), rotation "
-              "RMSE uniform %.3g rad, per-window depth %.3g rad\n",
-              extra_iterations, std::sqrt(err_u / trials), std::sqrt(err_p / trials));
-  EXPECT_LT(extra_iterations, 20.0);
-  EXPECT_LT(err_p, 1.5 * 1.5 * err_u);
+  const double rmse_u = std::sqrt(err_u / trials), rmse_p = std::sqrt(err_p / trials);
+  testing::recordFigure("depth_gauss_newton_iterations_per_fit", extra_iterations, 1);
+  testing::recordFigure("rotation_rmse_uniform_rad", rmse_u, 7);
+  testing::recordFigure("rotation_rmse_per_window_depth_rad", rmse_p, 7);
+  EXPECT_LT(extra_iterations, 20.0) << "Gauss-Newton iterations per fit (cap 2 x 20)";
+  EXPECT_LT(err_p, 1.5 * 1.5 * err_u) << "rotation RMSE: uniform " << rmse_u
+                                      << " rad, per-window depth " << rmse_p << " rad";
 }
 
 TEST(MotionFit, HonoursTheForwardColumn) {

@@ -10,6 +10,7 @@
 
 #include "omnipose/calibration.hpp"
 #include "omnipose/unwrapper.hpp"
+#include "test_figures.hpp"
 
 namespace omnipose {
 namespace {
@@ -86,16 +87,18 @@ SlantSummary unwrapAndMeasure(double centre_shift_px) {
 
 TEST(RealMirror, VerticalEdgesAreVerticalWithItsOcamCalibFile) {
   const SlantSummary right = unwrapAndMeasure(0.0);
-  std::printf("OCamCalib file: %zu vertical edges, |slant| median %.2f deg, 75th pct %.2f deg\n",
-              right.edges, right.median, right.p75);
+  RecordProperty("vertical_edges", static_cast<int>(right.edges));
+  testing::recordFigure("slant_median_deg", right.median, 2);
+  testing::recordFigure("slant_p75_deg", right.p75, 2);
   ASSERT_GE(right.edges, 12u);
   EXPECT_LT(right.median, 2.5);
   EXPECT_LT(right.p75, 3.5);
   // The measure sees a wrong axis: 40 px off in x and y slants the same edges clearly.
   const SlantSummary wrong = unwrapAndMeasure(-40.0);
-  std::printf("centre 40 px off: %zu edges, |slant| median %.2f deg, 75th pct %.2f deg\n",
-              wrong.edges, wrong.median, wrong.p75);
-  EXPECT_GT(wrong.median, right.median + 1.5);
+  RecordProperty("centre_40px_off_vertical_edges", static_cast<int>(wrong.edges));
+  testing::recordFigure("centre_40px_off_slant_median_deg", wrong.median, 2);
+  testing::recordFigure("centre_40px_off_slant_p75_deg", wrong.p75, 2);
+  EXPECT_GT(wrong.median, right.median + 1.5) << "|slant| median with the centre 40 px off";
 }
 
 // Where the ring leaves the 1920 x 1080 frame (top of the outer ring) the panorama has no
