@@ -18,7 +18,8 @@
 # Usage: tools/soak.sh [FRAMES]   (default 10000: about 6 minutes)
 # Environment: BUILD_DIR (default build; built with tools/build.sh when omniposed is missing),
 # SAMPLE (seconds between samples, default 5), RSS_TOLERANCE_KB (default 512), NICE (default 10),
-# VANISH (seconds the directory is away, default 2), KEEP=1 keeps the working directory.
+# VANISH (seconds the directory is away, default 2), STALL (seconds without a new frame that
+# fail the run, default 60), KEEP=1 keeps the working directory.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 # shellcheck source=tools/common/final_status.sh
@@ -34,6 +35,7 @@ sample=${SAMPLE:-5}
 tolerance_kb=${RSS_TOLERANCE_KB:-512}
 nice_level=${NICE:-10}
 vanish=${VANISH:-2}
+stall=${STALL:-60}
 if [ ! -x "$bin/omniposed" ] || [ ! -x "$bin/omnipose-synth" ] || [ ! -x "$bin/omnipose-listen" ]; then
   bash tools/build.sh
 fi
@@ -64,6 +66,8 @@ baseline_kb=""
 max_after_kb=0
 last_kb=0
 received=0
+last_received=0
+last_progress=$start
 vanished=0
 samples=0
 printf 'soak: %8s %10s %10s\n' seconds received rss_kB
@@ -81,9 +85,18 @@ while :; do
     [ "$(grep -c 'SIGHUP received' "$work/daemon.err" || true)" -gt "$hups" ] && break
     sleep 0.05
   done
-  received=$(sed -n 's/.*SIGHUP received.*: received \([0-9]*\),.*/\1/p' "$work/daemon.err" | tail -1)
+  # "SIGHUP received: ...; received N, processed N, ..."
+  received=$(sed -n 's/.*SIGHUP received.* received \([0-9]*\),.*/\1/p' "$work/daemon.err" | tail -1)
   received=${received:-0}
   now=$(date +%s.%N)
+  if [ "$received" -gt "$last_received" ]; then
+    last_received=$received
+    last_progress=$now
+  elif awk -v a="$now" -v b="$last_progress" -v s="$stall" 'BEGIN {exit !(a - b > s)}'; then
+    echo "soak: FAIL: no frame received for $stall s (stuck at $received)" >&2
+    tail -5 "$work/daemon.err" >&2
+    exit 1
+  fi
   printf 'soak: %8.0f %10d %10d\n' "$(awk -v a="$now" -v b="$start" 'BEGIN {print a - b}')" "$received" "$rss_kb"
   if [ "$vanished" -eq 0 ] && [ "$received" -ge $((frames / 2)) ]; then
     mv "$work/data" "$work/data.away"

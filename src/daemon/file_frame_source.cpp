@@ -90,16 +90,11 @@ Expected<FrameInfo> FileFrameSource::next(cv::Mat& out, std::chrono::millisecond
     // A frame stamped before its predecessor (a broken recording): pacing starts again
     // from it (it is due now) instead of treating every frame up to the old time as late.
     auto backwards = [&](std::size_t i) { return i > 0 && frames[i].timestamp < frames[i - 1].timestamp; };
-    // A gap in the recording longer than the pacing bound: pacing starts again from the
-    // frame after it too, instead of the daemon sleeping through the gap.
-    auto jumped = [&](std::size_t i) {
-      return i > 0 && frames[i].timestamp - frames[i - 1].timestamp > options_.max_pacing_gap_s;
-    };
-    if (backwards(next_index_) || jumped(next_index_)) {
-      resynchronised = jumped(next_index_) && origin_stamp_ != frames[next_index_].timestamp;
+    auto restartAt = [&](std::size_t i) {
       origin_wall_us_ = wallClockMicros();
-      origin_stamp_ = frames[next_index_].timestamp;
-    }
+      origin_stamp_ = frames[i].timestamp;
+    };
+    if (backwards(next_index_)) restartAt(next_index_);
     auto dueOf = [&](std::size_t i) {
       return origin_wall_us_ + static_cast<std::int64_t>((frames[i].timestamp - origin_stamp_) * 1e6);
     };
@@ -111,6 +106,13 @@ Expected<FrameInfo> FileFrameSource::next(cv::Mat& out, std::chrono::millisecond
            dueOf(next_index_ + 1) <= now_us) {
       ++next_index_;
       ++sequence_;
+    }
+    // A gap in the recording longer than the pacing bound (a jump in timestamps.txt, or a
+    // loop whose mean interval such a jump inflated): pacing starts again from this frame,
+    // which is due now, instead of the daemon sleeping through the gap.
+    if (dueOf(next_index_) - now_us > static_cast<std::int64_t>(options_.max_pacing_gap_s * 1e6)) {
+      restartAt(next_index_);
+      resynchronised = true;
     }
     const std::int64_t due_us = dueOf(next_index_);
     const std::int64_t wait_us = due_us - wallClockMicros();

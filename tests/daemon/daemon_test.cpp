@@ -300,6 +300,37 @@ TEST(FileFrameSource, LoopStartsAgainWithTheSequenceCounting) {
   }
 }
 
+TEST(FileFrameSource, RealtimeResynchronisesOnAJumpInsteadOfSleepingThroughIt) {
+  // Frames 0-2 at 30 fps, frame 3 a day later; looping, the mean interval the loop would wait
+  // is inflated by the jump too. Every frame comes at once, the jumped ones flagged.
+  TempDir tmp("file-jump");
+  testing::copyDataset(yawDataset(), tmp / "d");
+  for (int i = 4; i < kFrames; ++i) {
+    char name[16];
+    std::snprintf(name, sizeof name, "%06d.png", i);
+    fs::remove(tmp / "d/frames" / name);
+  }
+  testing::writeText(tmp / "d/timestamps.txt",
+                     "000000.png 0\n000001.png 0.0333\n000002.png 0.0667\n000003.png 86400\n");
+  FileFrameSource::Options options = fileOptions(tmp / "d", /*realtime=*/true, /*loop=*/true);
+  FileFrameSource source(options);
+  ASSERT_TRUE(source.open().has_value());
+  cv::Mat buffer(omniSize(), CV_8UC1);
+  const auto start = SteadyClockNow();
+  std::vector<bool> flagged;
+  while (flagged.size() < 9 && SteadyClockNow() - start < 10s) {
+    auto got = source.next(buffer, 50ms);
+    if (!got && got.error().code() == ErrorCode::kTimeout) continue;
+    ASSERT_TRUE(got.has_value()) << got.error().c_str();
+    EXPECT_EQ(got->index, static_cast<int>(flagged.size() % 4));
+    flagged.push_back(got->resynchronised);
+  }
+  ASSERT_EQ(flagged.size(), 9u) << "a frame was waited for instead of resynchronised";
+  EXPECT_LT(SteadyClockNow() - start, 3s);
+  // The day-long jump (frames 3 and 7) and the inflated loop interval (frames 4 and 8).
+  EXPECT_EQ(flagged, (std::vector<bool>{false, false, false, true, true, false, false, true, true}));
+}
+
 TEST(SourceFactory, BuildsTheConfiguredSourceOrSaysWhatIsNotBuiltIn) {
   SourceConfig config;
   config.type = SourceConfig::Type::kFile;
