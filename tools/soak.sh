@@ -11,8 +11,9 @@
 #   - the daemon stops with exit code 0;
 #   - every frame is counted once: received = processed + skipped + bad + lost upstream, from
 #     the final status in the LCM log, and the log holds exactly `processed` poses;
-#   - the faults were met and reported: bad frames counted, the bomb, the timestamp jump and
-#     the vanished directory named in the daemon's log, at least one source failure;
+#   - the faults were met and reported: bad frames and a source failure counted, the bombs,
+#     the resynchronised jump and the re-opened source in the daemon's log (fault lines are
+#     rate-limited, so not every one is printed);
 #   - memory is flat: after the warm-up (the first max(1000, FRAMES/10) frames), no RSS
 #     sample exceeds the first post-warm-up sample by more than RSS_TOLERANCE_KB.
 # Usage: tools/soak.sh [FRAMES]   (default 10000: about 6 minutes)
@@ -148,7 +149,7 @@ if [ "$bad" -eq 0 ] || [ "${failures:-0}" -eq 0 ]; then
   echo "soak: FAIL: the faults were not all met: bad frames $bad, source failures ${failures:-?}" >&2
   fail=1
 fi
-for fault in "60000x60000" "32000x32000" "resynchronised" "vanished"; do
+for fault in "60000x60000" "resynchronised" "source re-opened"; do
   if ! grep -q "$fault" "$work/daemon.err"; then
     echo "soak: FAIL: the daemon's log never mentions '$fault'" >&2
     fail=1

@@ -133,6 +133,15 @@ Expected<ImageHeader> bmpHeader(std::span<const std::uint8_t> b, const char* lab
   return sized(ImageFormat::kBmp, width, rows, label);
 }
 
+/// Whether a PNG's IEND chunk is there (looked for near the end: a few writers append bytes
+/// after it). libpng reports a truncated file on stderr before OpenCV returns.
+bool hasPngEnd(std::span<const std::uint8_t> b) {
+  static constexpr std::uint8_t kIend[4] = {'I', 'E', 'N', 'D'};
+  const std::size_t window = std::min<std::size_t>(b.size(), 4096);
+  const auto tail = b.last(window);
+  return std::search(tail.begin(), tail.end(), kIend, kIend + 4) != tail.end();
+}
+
 }  // namespace
 
 Expected<ImageHeader> readImageHeader(std::span<const std::uint8_t> b, const char* label) {
@@ -165,6 +174,9 @@ Expected<void> decodeImage(std::span<const std::uint8_t> bytes, ImageColour colo
                 bytes.size(), static_cast<std::uintmax_t>(limits.max_file_bytes));
   }
 
+  if (header->format == ImageFormat::kPng && !hasPngEnd(bytes)) {
+    return fail(ErrorCode::kBadFrame, "%s: cannot decode: PNG without its IEND chunk (truncated?)", label);
+  }
   if (header->format == ImageFormat::kJpeg && !hasJpegEnd(bytes)) {
     // libjpeg fills a truncated scan with grey and only warns: refuse it here.
     return fail(ErrorCode::kBadFrame, "%s: cannot decode: JPEG without its end-of-image marker (truncated?)",
