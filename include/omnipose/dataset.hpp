@@ -6,6 +6,7 @@
 ///   DATASET/timestamps.txt     optional "<file name> <seconds>" per line; else i / 30 s
 ///   DATASET/groundtruth.tum    optional camera poses (TUM)
 
+#include <cstdint>
 #include <filesystem>
 #include <opencv2/core.hpp>
 #include <optional>
@@ -50,5 +51,10 @@ bool isImageFile(const std::filesystem::path& path);
 /// other problem (not an image, corrupt, truncated, wrong or oversized declared size, not
 /// 8-bit), kIoError when reading fails. Never throws.
 Expected<cv::Mat> readFrame(const std::filesystem::path& path, cv::Size expected_size = {});
+
+/// readFrame() into `out`, reusing `buffer` for the file's bytes and `out` when its size and
+/// type already match (a replay's steady state decodes without new buffers).
+Expected<void> readFrame(const std::filesystem::path& path, cv::Size expected_size,
+                         std::vector<std::uint8_t>& buffer, cv::Mat& out);
 
 }  // namespace omnipose

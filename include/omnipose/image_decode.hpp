@@ -61,6 +61,11 @@ struct ImageLimits {
 /// PNG, JPEG, PNM or BMP, or the header is truncated or declares an empty or negative size.
 Expected<ImageHeader> readImageHeader(std::span<const std::uint8_t> bytes, const char* label);
 
+/// Reads an image file (with readImage()'s file checks, into `buffer`) and returns the header
+/// it declares, decoding no pixel.
+Expected<ImageHeader> readImageHeader(const std::filesystem::path& path, const ImageLimits& limits,
+                                      std::vector<std::uint8_t>& buffer);
+
 /// Decodes an image into `out` after the header checks above. `out` is reused when its size
 /// and type already match (a camera's steady state allocates nothing then). On failure `out`
 /// is left empty or unchanged and the error names `label`.

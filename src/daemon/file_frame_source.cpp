@@ -29,15 +29,16 @@ Expected<void> FileFrameSource::open() {
   has_origin_ = false;  // pacing restarts from the moment of (re-)opening
 
   // Fail early when the frames cannot be what the pipeline expects (e.g. omni frames with
-  // `input: panorama`). An undecodable first frame is left to next() (a bad frame).
+  // `input: panorama`): the size the first frame's header declares, nothing decoded. A frame
+  // whose header cannot be read is left to next() (a bad frame).
   const std::size_t probe = next_index_ < dataset_->frames.size() ? next_index_ : 0;
-  if (Expected<cv::Mat> first = readFrame(dataset_->frames[probe].path);
-      first && first->size() != options_.frame_size) {
-    const cv::Size size = first->size();
+  if (const Expected<ImageHeader> first =
+          readImageHeader(dataset_->frames[probe].path, ImageLimits{}, bytes_);
+      first && cv::Size(first->width, first->height) != options_.frame_size) {
     dataset_.reset();
     return fail(ErrorCode::kUnsupportedFormat, "%s: frames are %dx%d, expected %dx%d",
-                options_.directory.c_str(), size.width, size.height, options_.frame_size.width,
-                options_.frame_size.height);
+                options_.directory.c_str(), first->width, first->height,
+                options_.frame_size.width, options_.frame_size.height);
   }
   return {};
 }
@@ -140,10 +141,7 @@ Expected<FrameInfo> FileFrameSource::next(cv::Mat& out, std::chrono::millisecond
   info.resynchronised = resynchronised;
   ++next_index_;
 
-  ImageLimits limits;
-  limits.exact_size = options_.frame_size;
-  if (Expected<void> read = readImage(frame.path, ImageColour::kAsStored, limits, bytes_, decoded_);
-      !read) {
+  if (Expected<void> read = readFrame(frame.path, options_.frame_size, bytes_, decoded_); !read) {
     if (!fs::is_directory(frame.path.parent_path(), ec)) {  // vanished while reading
       --next_index_;
       --sequence_;
@@ -151,10 +149,6 @@ Expected<FrameInfo> FileFrameSource::next(cv::Mat& out, std::chrono::millisecond
                   options_.directory.c_str());
     }
     return fail(ErrorCode::kBadFrame, "%s", read.error().c_str());
-  }
-  if (decoded_.depth() != CV_8U) {
-    return fail(ErrorCode::kBadFrame, "%s: %d-bit image, expected 8-bit", frame.path.c_str(),
-                decoded_.depth() == CV_16U ? 16 : 32);
   }
   if (out.size() != options_.frame_size || out.type() != CV_8UC1) {
     return fail(ErrorCode::kInvalidArgument, "output buffer must be %dx%d CV_8UC1",

@@ -14,7 +14,7 @@
 /// starts again at the first frame after the last (the sequence number keeps counting, the
 /// dataset index restarts at 0, the pacing continues one mean frame interval later).
 ///
-/// open() also fails (kUnsupportedFormat) when the first frame decodes to another size
+/// open() also fails (kUnsupportedFormat) when the first frame declares another size
 /// than `frame_size`, so a wrong `input:` or calibration fails at start-up, not per frame.
 ///
 /// Faults (errors as values, never exceptions, DESIGN.md section 5):

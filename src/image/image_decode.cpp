@@ -216,9 +216,13 @@ Expected<void> decodeImage(std::span<const std::uint8_t> bytes, ImageColour colo
   return {};
 }
 
-Expected<void> readImage(const std::filesystem::path& path, ImageColour colour,
-                         const ImageLimits& limits, std::vector<std::uint8_t>& buffer,
-                         cv::Mat& out) {
+namespace {
+
+/// The bytes of an image file into `buffer`, with the file checks of readImage(): a regular
+/// file of at most limits.max_file_bytes, read whole.
+Expected<std::span<const std::uint8_t>> readFileBytes(const std::filesystem::path& path,
+                                                      const ImageLimits& limits,
+                                                      std::vector<std::uint8_t>& buffer) {
   std::error_code ec;
   const auto status = std::filesystem::status(path, ec);
   if (ec || !std::filesystem::exists(status)) {
@@ -242,8 +246,24 @@ Expected<void> readImage(const std::filesystem::path& path, ImageColour colour,
   std::fclose(file);
   if (read_error) return fail(ErrorCode::kIoError, "%s: read failed", path.c_str());
   if (got > size) return fail(ErrorCode::kBadFrame, "%s: changed while being read", path.c_str());
-  return decodeImage(std::span<const std::uint8_t>(buffer.data(), got), colour, limits,
-                     path.c_str(), out);
+  return std::span<const std::uint8_t>(buffer.data(), got);
+}
+
+}  // namespace
+
+Expected<ImageHeader> readImageHeader(const std::filesystem::path& path, const ImageLimits& limits,
+                                      std::vector<std::uint8_t>& buffer) {
+  const Expected<std::span<const std::uint8_t>> bytes = readFileBytes(path, limits, buffer);
+  if (!bytes) return std::unexpected(bytes.error());
+  return readImageHeader(*bytes, path.c_str());
+}
+
+Expected<void> readImage(const std::filesystem::path& path, ImageColour colour,
+                         const ImageLimits& limits, std::vector<std::uint8_t>& buffer,
+                         cv::Mat& out) {
+  const Expected<std::span<const std::uint8_t>> bytes = readFileBytes(path, limits, buffer);
+  if (!bytes) return std::unexpected(bytes.error());
+  return decodeImage(*bytes, colour, limits, path.c_str(), out);
 }
 
 Expected<cv::Mat> readImage(const std::filesystem::path& path, ImageColour colour,

@@ -89,15 +89,24 @@ Dataset Dataset::open(const fs::path& root, const std::optional<fs::path>& calib
   return d;
 }
 
-Expected<cv::Mat> readFrame(const fs::path& path, cv::Size expected_size) {
+Expected<void> readFrame(const fs::path& path, cv::Size expected_size,
+                         std::vector<std::uint8_t>& buffer, cv::Mat& out) {
   ImageLimits limits;
   limits.exact_size = expected_size;
-  Expected<cv::Mat> image = readImage(path, ImageColour::kAsStored, limits);
-  if (!image) return image;
-  if (image->depth() != CV_8U) {
+  if (Expected<void> read = readImage(path, ImageColour::kAsStored, limits, buffer, out); !read)
+    return read;
+  if (out.depth() != CV_8U) {
     return fail(ErrorCode::kBadFrame, "%s: %d-bit image, expected 8-bit", path.c_str(),
-                image->depth() == CV_16U ? 16 : 32);
+                out.depth() == CV_16U ? 16 : 32);
   }
+  return {};
+}
+
+Expected<cv::Mat> readFrame(const fs::path& path, cv::Size expected_size) {
+  std::vector<std::uint8_t> buffer;
+  cv::Mat image;
+  if (Expected<void> read = readFrame(path, expected_size, buffer, image); !read)
+    return std::unexpected(read.error());
   return image;
 }
 
