@@ -12,13 +12,7 @@
 # -D JAVA_TYPES=<ON when omnipose_lcm_types.jar is built>
 file(REMOVE_RECURSE ${WORK_DIR})
 file(MAKE_DIRECTORY ${WORK_DIR})
-function(run)
-  execute_process(COMMAND ${ARGN} RESULT_VARIABLE rc OUTPUT_VARIABLE out ERROR_VARIABLE err)
-  if(NOT rc EQUAL 0)
-    message(FATAL_ERROR "failed (${rc}): ${ARGN}\n${out}\n${err}")
-  endif()
-  set(last_output "${out}" PARENT_SCOPE)
-endfunction()
+include(${CMAKE_CURRENT_LIST_DIR}/run_step.cmake)  # run()
 # Each of `paths` must (or with NOT, must not) be in the listing `listing` of `package`.
 function(expect_in package listing)
   set(negate OFF)
