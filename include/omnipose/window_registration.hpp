@@ -142,13 +142,32 @@ class WindowRegistration {
   /// the window invalid.
   /// NaN entries search every shift. The pipeline's refinement pass uses it with the dv
   /// its first fit predicts.
+  ///
+  /// `against`: kPreviousFrame (the reference), or a keyframe slot (storeKeyframe()) to
+  /// register against instead; false (nothing written) for an empty or unknown slot.
   bool measure(const cv::Mat& current, std::span<WindowMotion> out, bool keep_as_next = true,
                std::span<const WindowMotion> known_rotation_scale = {},
-               std::span<const double> expected_dv = {});
+               std::span<const double> expected_dv = {}, int against = kPreviousFrame);
   /// Makes the last frame measured with keep_as_next the reference (a pointer swap, no
   /// recomputation). A no-op when no frame was measured with keep_as_next since the last
   /// setReference()/advance().
   void advance();
+
+  /// measure()'s `against` for the reference (the previous frame).
+  static constexpr int kPreviousFrame = -1;
+  /// Start-up only: allocates `slots` keyframe slots (spectra of a whole panorama each,
+  /// as much memory as the reference). Drops any stored keyframe. Throws
+  /// std::invalid_argument outside [0, 16].
+  void reserveKeyframes(int slots);
+  /// Keyframe slots reserved.
+  int keyframeSlots() const;
+  /// Makes the reference keyframe `slot` (replacing what the slot held). No copy is made:
+  /// the spectra move into the slot when the reference is replaced (advance(),
+  /// setReference()). False, and nothing stored, without a reference or for an unknown slot.
+  bool storeKeyframe(int slot);
+  /// Whether keyframe slot `slot` holds spectra (storeKeyframe() since the last
+  /// reserveKeyframes()/setValidity()).
+  bool hasKeyframe(int slot) const;
 
  private:
   struct Impl;

@@ -4,6 +4,7 @@
 
 #include <cmath>
 #include <fstream>
+#include <numbers>
 #include <set>
 #include <string_view>
 #include <sstream>
@@ -112,6 +113,21 @@ void parsePipeline(Reader& r, const YAML::Node& node, const std::filesystem::pat
   // before anything is sized by them).
 }
 
+void parseKeyframes(Reader& r, const YAML::Node& node, KeyframeOptions& k) {
+  if (!r.checkMap(node, "keyframes", {"slots", "max_translation", "max_tilt_deg", "min_ring_peak"}))
+    return;
+  r.get(node, "keyframes", "slots", k.slots);
+  r.get(node, "keyframes", "max_translation", k.max_translation);
+  double tilt_deg = k.max_tilt_rad * 180.0 / std::numbers::pi;
+  r.get(node, "keyframes", "max_tilt_deg", tilt_deg);
+  k.max_tilt_rad = tilt_deg * std::numbers::pi / 180.0;
+  r.get(node, "keyframes", "min_ring_peak", k.min_ring_peak);
+  r.range(k.slots, "keyframes.slots", 0, 16, " (0 = no keyframes)");
+  r.range(k.max_translation, "keyframes.max_translation", 0.0, 1.0, " scene distances");
+  r.range(tilt_deg, "keyframes.max_tilt_deg", 0.0, 28.0, " degrees");
+  r.range(k.min_ring_peak, "keyframes.min_ring_peak", 0.001, 0.999, "");
+}
+
 void parseLcm(Reader& r, const YAML::Node& node, LcmConfig& l) {
   if (!r.checkMap(node, "lcm", {"url", "pose_channel", "status_channel", "fit_channel",
                                 "status_hz"}))
@@ -145,7 +161,7 @@ DaemonConfig DaemonConfig::parse(const std::string& text, const std::string& ori
   YAML::Node root = detail::loadYaml(text, origin);
   r.checkDuplicateKeys(root);
   if (!root || root.IsNull()) root = YAML::Node(YAML::NodeType::Map);
-  if (r.checkMap(root, "", {"source", "calibration", "input", "pipeline", "lcm"})) {
+  if (r.checkMap(root, "", {"source", "calibration", "input", "pipeline", "keyframes", "lcm"})) {
     if (root["source"]) parseSource(r, root["source"], base_dir, c.source);
     else if (use == Use::kDaemon) r.problem("source", "missing section");
 
@@ -166,6 +182,7 @@ DaemonConfig DaemonConfig::parse(const std::string& text, const std::string& ori
     else r.problem("input", "'" + detail::shown(input) + "' is not omni or panorama");
 
     if (root["pipeline"]) parsePipeline(r, root["pipeline"], base_dir, c.pipeline);
+    if (root["keyframes"]) parseKeyframes(r, root["keyframes"], c.keyframes);
     if (root["lcm"]) parseLcm(r, root["lcm"], c.lcm);
     for (const auto& p : c.pipeline.validate()) r.add(yamlProblem(p));
   }
@@ -219,6 +236,10 @@ std::string DaemonConfig::describe() const {
     << "\n  min_confidence: " << p.registration.min_confidence
     << "\n  inlier_sigmas: " << p.fit.inlier_sigmas << "\n  threads: " << p.threads
     << "\n  fftw_wisdom: \"" << p.fftw_wisdom << "\"\n"
+    << "keyframes:\n  slots: " << keyframes.slots
+    << "\n  max_translation: " << keyframes.max_translation
+    << "\n  max_tilt_deg: " << keyframes.max_tilt_rad * 180.0 / std::numbers::pi
+    << "\n  min_ring_peak: " << keyframes.min_ring_peak << "\n"
     << "lcm:\n  url: \"" << lcm.url << "\"\n  pose_channel: " << lcm.pose_channel
     << "\n  status_channel: " << lcm.status_channel << "\n  fit_channel: \"" << lcm.fit_channel
     << "\"\n  status_hz: " << lcm.status_hz << "\n";

@@ -13,6 +13,7 @@
 /// input: omni                                    # omni | panorama
 /// pipeline: {window: 110, step: 20, huber_delta_px: 2.0, median: 5,
 ///            refine_iterations: 1, use_rotation_scale: true}
+/// keyframes: {slots: 4, max_translation: 0.02, max_tilt_deg: 5.0, min_ring_peak: 0.03}
 /// lcm: {url: "", pose_channel: OMNI_POSE, status_channel: OMNI_STATUS, fit_channel: "",
 ///       status_hz: 1.0}
 /// ```
@@ -23,6 +24,7 @@
 #include <vector>
 
 #include "omnipose/config_error.hpp"
+#include "omnipose/odometry.hpp"
 #include "omnipose/pipeline.hpp"
 
 namespace omnipose {
@@ -66,7 +68,11 @@ struct DaemonConfig {
   SourceConfig source;
   std::filesystem::path calibration;  ///< resolved against the config file's folder
   PipelineOptions pipeline;           ///< includes the input kind (pipeline.unwrap.input)
+  KeyframeOptions keyframes;          ///< keyframes section (max_tilt_deg in degrees there)
   LcmConfig lcm;
+
+  /// The pipeline and keyframe settings as the Odometry takes them.
+  OdometryOptions odometry() const { return {pipeline, keyframes}; }
 
   /// Reads and validates `path`. Throws ConfigError listing every problem, each prefixed
   /// with the path and the key (e.g. "daemon.yaml: pipeline.step: must be > 0").

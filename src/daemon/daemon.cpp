@@ -43,7 +43,7 @@ Daemon::Daemon(const DaemonConfig& config, std::FILE* log, std::unique_ptr<Frame
                              std::to_string(frame_size.height));
   }
   source_description_ = source_->describe();
-  processor_ = std::make_unique<Processor>(calibration, config_.pipeline, config_.lcm, *sink_,
+  processor_ = std::make_unique<Processor>(calibration, config_.odometry(), config_.lcm, *sink_,
                                            board_, *mailbox_, source_description_);
   capture_ = std::make_unique<CaptureLoop>(*source_, *mailbox_, board_, options_.capture);
 }

@@ -29,10 +29,10 @@ double millisSince(SteadyClock::time_point start) {
 
 }  // namespace
 
-Processor::Processor(const Calibration& calibration, const PipelineOptions& pipeline,
+Processor::Processor(const Calibration& calibration, const OdometryOptions& odometry,
                      const LcmConfig& lcm, MessageSink& sink, StatusBoard& board,
                      const FrameMailbox& mailbox, const std::string& source_description)
-    : pipeline_(calibration, pipeline),
+    : odometry_(calibration, odometry),
       lcm_(lcm),
       sink_(sink),
       board_(board),
@@ -57,7 +57,7 @@ Processor::Processor(const Calibration& calibration, const PipelineOptions& pipe
   // Diagnostics arrays are sized once for the (constant) window count.
   fit_diagnostics_t& d = *diagnostics_msg_;
   d = fit_diagnostics_t{};
-  const int windows = static_cast<int>(pipeline_.lastWindows().size());
+  const int windows = odometry_.windowCount();
   d.num_windows = static_cast<std::int16_t>(windows);
   for (auto* v : {&d.center_u, &d.du, &d.dv, &d.rotation, &d.scale, &d.confidence,
                   &d.model_du, &d.model_dv}) {
@@ -87,14 +87,10 @@ bool Processor::publish(const std::string& channel, std::vector<std::uint8_t>& b
 void Processor::handleFrame(const MailboxFrame& frame) {
   const auto t_start = SteadyClock::now();
   const FrameInfo& info = frame.info;
+  const double t = static_cast<double>(info.capture_time_us) * 1e-6;
 
-  // A gap (bad frame, reconnect, lost frames) breaks the link to the previous frame.
-  if (frame.gap_before) {
-    pipeline_.reset();
-    last_sequence_ = -1;
-  }
-
-  Expected<FrameMotion> result = pipeline_.process(*frame.image);
+  Expected<OdometryResult> result =
+      odometry_.process(*frame.image, {t, static_cast<std::int64_t>(info.sequence), frame.gap_before});
   if (!result) {
     ++board_.frames_bad;
     if (info.index >= 0) {
@@ -105,13 +101,11 @@ void Processor::handleFrame(const MailboxFrame& frame) {
       board_.reportError("frame %llu: %s", static_cast<unsigned long long>(info.sequence),
                          result.error().c_str());
     }
-    pipeline_.reset();  // the next good frame starts a new segment
-    last_sequence_ = -1;
-    return;
+    return;  // the odometry bridges the next good frame
   }
-  const FrameMotion& motion = *result;
+  const OdometryResult& r = *result;
+  const FrameMotion& motion = r.relative;
   const MotionEstimate& est = motion.estimate;
-  const double t = static_cast<double>(info.capture_time_us) * 1e-6;
 
   pose_t& p = *pose_;
   p.utime = info.capture_time_us;
@@ -119,12 +113,13 @@ void Processor::handleFrame(const MailboxFrame& frame) {
   p.source_index = info.index;
   p.source_timestamp = info.source_timestamp;
   p.frames_skipped = static_cast<std::int32_t>(frame.skipped_before);
-  p.windows_total = static_cast<std::int16_t>(pipeline_.lastWindows().size());
+  p.windows_total = static_cast<std::int16_t>(odometry_.windowCount());
+  p.track_state = static_cast<std::int8_t>(r.state);
+  p.keyframe_sequence = r.keyframe_sequence;
+  p.frames_since_keyframe = r.frames_since_keyframe;
 
-  const bool lost = !motion.has_motion || est.status == FitStatus::kLost;
-  if (lost) {
+  if (!r.tracked()) {
     // Segment start: no relative motion, infinite uncertainty, pose held.
-    chain_.start(t);
     p.status = pose_t::STATUS_LOST;
     p.reference_sequence = -1;
     for (int i = 0; i < 3; ++i) p.rotation_vector[i] = p.translation_direction[i] = 0.0;
@@ -133,31 +128,29 @@ void Processor::handleFrame(const MailboxFrame& frame) {
       p.covariance[i] = (i % 7 == 0) ? std::numeric_limits<double>::infinity() : 0.0;
     }
     p.residual_px = static_cast<float>(est.residual_rms_px);
-    p.windows_used = static_cast<std::int16_t>(motion.has_motion ? est.windows_used : 0);
+    p.windows_used = 0;
     ++board_.poses_lost;
   } else {
-    chain_.append(t, motion.rotation, est.tau);
     p.status = toLcmStatus(est.status);
-    p.reference_sequence = last_sequence_;
+    p.reference_sequence = r.reference_sequence;
     for (int i = 0; i < 3; ++i) {
       p.rotation_vector[i] = est.omega[i];
       p.translation_direction[i] = motion.translation_direction[i];
     }
     p.tau_norm = motion.tau_norm;
-    for (int r = 0; r < 6; ++r)
-      for (int c = 0; c < 6; ++c) p.covariance[r * 6 + c] = est.covariance(r, c);
+    for (int row = 0; row < 6; ++row)
+      for (int c = 0; c < 6; ++c) p.covariance[row * 6 + c] = est.covariance(row, c);
     p.residual_px = static_cast<float>(est.residual_rms_px);
     p.windows_used = static_cast<std::int16_t>(est.windows_used);
   }
-  p.segment = chain_.segment();
-  const Eigen::Quaterniond q(chain_.pose().rotation());
+  p.segment = r.segment;
+  const Eigen::Quaterniond q(r.pose.rotation());
   p.orientation[0] = q.w();
   p.orientation[1] = q.x();
   p.orientation[2] = q.y();
   p.orientation[3] = q.z();
-  for (int i = 0; i < 3; ++i) p.position[i] = chain_.pose().translation()[i];
+  for (int i = 0; i < 3; ++i) p.position[i] = r.pose.translation()[i];
   p.processing_time_s = static_cast<float>(motion.timing.total);
-  last_sequence_ = p.sequence;
 
   const int size = p.encode(pose_buffer_.data(), 0, static_cast<int>(pose_buffer_.size()));
   publish(lcm_.pose_channel, pose_buffer_, size);
@@ -165,8 +158,8 @@ void Processor::handleFrame(const MailboxFrame& frame) {
   ++board_.frames_processed;
   latency_ms_.add(static_cast<float>(wallClockMicros() - info.capture_time_us) * 1e-3f);
 
-  if (diagnostics_ && motion.has_motion) {
-    fillDiagnostics(info, motion, p.status);
+  if (diagnostics_ && r.tracked()) {
+    fillDiagnostics(info, r, p.status);
     const int n = diagnostics_msg_->encode(diagnostics_buffer_.data(), 0,
                                            static_cast<int>(diagnostics_buffer_.size()));
     publish(lcm_.fit_channel, diagnostics_buffer_, n);
@@ -174,10 +167,10 @@ void Processor::handleFrame(const MailboxFrame& frame) {
   processing_ms_.add(static_cast<float>(millisSince(t_start)));
 }
 
-void Processor::fillDiagnostics(const FrameInfo& info, const FrameMotion& motion,
+void Processor::fillDiagnostics(const FrameInfo& info, const OdometryResult& r,
                                 std::int8_t status) {
   fit_diagnostics_t& d = *diagnostics_msg_;
-  const MotionEstimate& est = motion.estimate;
+  const MotionEstimate& est = r.relative.estimate;
   d.utime = info.capture_time_us;
   d.sequence = static_cast<std::int64_t>(info.sequence);
   d.status = status;
@@ -187,11 +180,11 @@ void Processor::fillDiagnostics(const FrameInfo& info, const FrameMotion& motion
   }
   d.residual_px = static_cast<float>(est.residual_rms_px);
   d.windows_masked = static_cast<std::int16_t>(est.windows_masked);
-  const Eigen::Matrix<double, 6, 1> x = est.vector();
-  const auto windows = pipeline_.lastWindows();
-  const std::size_t n = std::min(windows.size(), d.du.size());
+  d.refined = r.windows_refined;
+  d.reference_sequence = r.keyframe_sequence;
+  const std::size_t n = std::min(r.windows.size(), d.du.size());
   for (std::size_t k = 0; k < n; ++k) {
-    const WindowMotion& w = windows[k];
+    const WindowMotion& w = r.windows[k];
     d.center_u[k] = static_cast<float>(w.center_u);
     d.du[k] = static_cast<float>(w.du);
     d.dv[k] = static_cast<float>(w.dv);
@@ -201,8 +194,8 @@ void Processor::fillDiagnostics(const FrameInfo& info, const FrameMotion& motion
     d.valid[k] = w.valid ? 1 : 0;
     d.masked[k] = w.masked ? 1 : 0;
     // Eq. 3, linear form, at the window's azimuth, converted to pixels.
-    const ModelMotion m = predictMotion(x, (w.center_u - d.forward_column) * d.gamma,
-                                          pipeline_.windowAttenuation());
+    const ModelMotion m = predictMotion(r.window_model, (w.center_u - d.forward_column) * d.gamma,
+                                        odometry_.windowAttenuation());
     d.model_du[k] = static_cast<float>(m.du_rad / d.gamma);
     d.model_dv[k] = static_cast<float>(m.dv_rad / d.gamma);
   }

@@ -1,18 +1,18 @@
 #pragma once
 /// \file processor.hpp
-/// The processing thread's work: for each frame taken from the mailbox, run the pipeline,
-/// chain the pose, encode an omnipose::pose_t (and, when enabled, a fit_diagnostics_t)
+/// The processing thread's work: for each frame taken from the mailbox, run the odometry
+/// (omnipose/odometry.hpp: the same frame-to-pose policy as omnipose-replay), encode an omnipose::pose_t (and, when enabled, a fit_diagnostics_t)
 /// into preallocated structs and buffers, and publish them; at the status rate, encode and
 /// publish an omnipose::status_t.
 ///
-/// Pose semantics (see lcm_types/pose_t.lcm): a frame after a gap (mailbox gap flag: bad
-/// frame, source reconnect, looped recording), the first frame, and a frame whose fit
-/// is lost start a new chain segment and are published with STATUS_LOST, zero relative
-/// motion and an infinite covariance: motion is never invented across a gap. Stale frames
-/// skipped by the mailbox are not a gap: the next frame is registered directly against the
-/// last processed one (`reference_sequence`), and `frames_skipped` says how many were
-/// dropped in between. A frame the pipeline rejects (all black, wrong size) is counted as
-/// bad, reported, and produces no pose; the next frame starts a new segment.
+/// Pose semantics (see lcm_types/pose_t.lcm and odometry.hpp): a gap (mailbox gap flag:
+/// a bad frame, a source reconnect, a looped recording) or a frame the pipeline rejects
+/// (counted as bad, reported, no pose) makes the odometry register the next frame against
+/// its keyframe, with the heading found by a whole-ring search; only when that fails, and
+/// for the first frame, is a new chain segment started and the frame published with
+/// STATUS_LOST, zero relative motion and an infinite covariance. Stale frames skipped by the
+/// mailbox are not a gap: the next frame is registered directly against the last processed
+/// one (`reference_sequence`), and `frames_skipped` says how many were dropped in between.
 ///
 /// Realtime: the constructor allocates everything (pipeline, messages sized for the
 /// window count, encode buffers, sample rings); handleFrame() and publishStatus() allocate
@@ -30,8 +30,7 @@
 #include "daemon/status_board.hpp"
 #include "daemon/wall_clock.hpp"
 #include "daemon/config.hpp"
-#include "omnipose/pipeline.hpp"
-#include "omnipose/pose_chain.hpp"
+#include "omnipose/odometry.hpp"
 
 namespace omnipose {
 class pose_t;
@@ -49,7 +48,7 @@ class Processor {
   /// Builds the pipeline (throws std::invalid_argument listing bad options) and sizes
   /// every message. `sink`, `board` and `mailbox` are borrowed and must outlive this.
   /// `source_description` goes into status_t.source.
-  Processor(const Calibration& calibration, const PipelineOptions& pipeline,
+  Processor(const Calibration& calibration, const OdometryOptions& odometry,
             const LcmConfig& lcm, MessageSink& sink, StatusBoard& board,
             const FrameMailbox& mailbox, const std::string& source_description);
   ~Processor();
@@ -63,10 +62,9 @@ class Processor {
 
  private:
   bool publish(const std::string& channel, std::vector<std::uint8_t>& buffer, int size);
-  void fillDiagnostics(const FrameInfo& info, const FrameMotion& motion, std::int8_t status);
+  void fillDiagnostics(const FrameInfo& info, const OdometryResult& result, std::int8_t status);
 
-  Pipeline pipeline_;
-  PoseChain chain_;
+  Odometry odometry_;
   LcmConfig lcm_;
   MessageSink& sink_;
   StatusBoard& board_;
@@ -81,7 +79,6 @@ class Processor {
   std::vector<std::uint8_t> diagnostics_buffer_;
   std::vector<char> error_text_;
 
-  std::int64_t last_sequence_ = -1;  ///< last frame processed, -1 = none / after a gap
   SampleRing<kSamples> processing_ms_;
   SampleRing<kSamples> latency_ms_;
   SteadyClock::time_point started_;

@@ -340,6 +340,24 @@ struct WindowRegistration::Impl {
   std::unique_ptr<WindowSpectra> reference, next;
   bool has_reference = false;
   bool next_ready = false;
+  // Keyframe slots (reserveKeyframes): copies of earlier references.
+  std::vector<std::unique_ptr<WindowSpectra>> keyframes;
+  std::vector<unsigned char> keyframe_stored;
+  /// Slot whose keyframe is still the reference itself (no copy is made: the reference's
+  /// spectra move into the slot when the reference is replaced); -1 for none.
+  int pending_keyframe = -1;
+
+  /// The spectra of keyframe `slot` (the reference while it is the pending keyframe).
+  const WindowSpectra& keyframe(int slot) const {
+    return slot == pending_keyframe ? *reference : *keyframes[static_cast<std::size_t>(slot)];
+  }
+  /// Moves the reference into the pending keyframe's slot (a pointer swap); the reference
+  /// then points to spectra about to be overwritten.
+  void keepPendingKeyframe() {
+    if (pending_keyframe < 0) return;
+    std::swap(keyframes[static_cast<std::size_t>(pending_keyframe)], reference);
+    pending_keyframe = -1;
+  }
 
   double windowCenter(int k) const;
   bool mostlyMasked(int k) const { return !mostly_masked.empty() && mostly_masked[k]; }
@@ -371,7 +389,8 @@ struct WindowRegistration::Impl {
                                 reg::Complex* log_polar_band) const;
   void measureWindow(Worker& w, const cv::Mat& panorama, int k, const TaperedWindow& cur,
                      const reg::Complex* cur_translation, const reg::Complex* cur_log_polar,
-                     const WindowMotion* known, double expected_dv, WindowMotion& out) const;
+                     const WindowMotion* known, double expected_dv, const WindowSpectra& ref,
+                     WindowMotion& out) const;
 };
 
 WindowRegistration::Impl::Impl(cv::Size panorama, const Options& o,
@@ -605,11 +624,11 @@ void WindowRegistration::Impl::measureWindow(Worker& w, const cv::Mat& panorama,
                                              const reg::Complex* cur_translation,
                                              const reg::Complex* cur_log_polar,
                                              const WindowMotion* known, double expected_dv,
-                                             WindowMotion& out) const {
+                                             const WindowSpectra& ref, WindowMotion& out) const {
   out = WindowMotion{};
   out.center_u = windowCenter(k);
   out.masked = mostlyMasked(k);
-  if (!cur.textured || !reference->textured[k]) return;
+  if (!cur.textured || !ref.textured[k]) return;
 
   // Step 2: rotation and scale, log-polar phase correlation searched only inside the prior
   // (no 180-degree ambiguity); the peak is at (-phi, -ln s) (see the top of this file).
@@ -623,7 +642,7 @@ void WindowRegistration::Impl::measureWindow(Worker& w, const cv::Mat& panorama,
     }
   } else if (options.estimate_rotation_scale) {
     const reg::CorrelationPeak rs = w.rotation_scale.correlate(
-        reference->log_polar.data() + k * log_polar_band, cur_log_polar,
+        ref.log_polar.data() + k * log_polar_band, cur_log_polar,
         options.max_rotation_rad / angle_step, options.max_log_scale / log_step);
     if (!rs.on_border && rs.confidence >= options.min_confidence && rs.confidence > 0.0) {
       rotation = -rs.shift0 * angle_step;
@@ -652,7 +671,7 @@ void WindowRegistration::Impl::measureWindow(Worker& w, const cv::Mat& panorama,
   // or within kExpectedDvReachPx of an expected dv (a peak on that band's border may be
   // cut off: the window is then not used).
   const double everywhere = std::numeric_limits<double>::infinity();
-  const reg::Complex* reference_band = reference->translation.data() + k * translation_band;
+  const reg::Complex* reference_band = ref.translation.data() + k * translation_band;
   const reg::CorrelationPeak t =
       std::isfinite(expected_dv)
           ? w.translation.correlateNear(reference_band, translation_band_ptr, expected_dv, everywhere)
@@ -696,6 +715,7 @@ double WindowRegistration::windowCenter(int k) const { return impl_->windowCente
 void WindowRegistration::setReference(const cv::Mat& panorama) {
   Impl& s = *impl_;
   if (!s.acceptsImage(panorama)) return;
+  s.keepPendingKeyframe();
   WindowSpectra& ref = *s.reference;
   s.transformColumns(panorama);
   auto task = [&](int worker, int k) {
@@ -724,6 +744,8 @@ void WindowRegistration::setValidity(const cv::Mat& validity) {
   s.setValidity(validity);
   s.has_reference = false;  // reference spectra were tapered with the old weights
   s.next_ready = false;
+  std::fill(s.keyframe_stored.begin(), s.keyframe_stored.end(), 0);
+  s.pending_keyframe = -1;
 }
 
 int WindowRegistration::maskedWindowCount() const {
@@ -734,15 +756,17 @@ int WindowRegistration::maskedWindowCount() const {
 bool WindowRegistration::measure(const cv::Mat& current, std::span<WindowMotion> out,
                                  bool keep_as_next,
                                  std::span<const WindowMotion> known_rotation_scale,
-                                 std::span<const double> expected_dv) {
+                                 std::span<const double> expected_dv, int against) {
   Impl& s = *impl_;
   const bool known = !known_rotation_scale.empty();
   const auto windows = static_cast<std::size_t>(s.windows);
+  if (against != kPreviousFrame && !hasKeyframe(against)) return false;
   if (!s.has_reference || !s.acceptsImage(current) || out.size() < windows ||
       (known && known_rotation_scale.size() < windows) ||
       (!expected_dv.empty() && expected_dv.size() < windows))
     return false;
   WindowSpectra& next = *s.next;
+  const WindowSpectra& ref = against == kPreviousFrame ? *s.reference : s.keyframe(against);
   s.transformColumns(current);
   auto task = [&](int worker, int k) {
     Worker& w = *s.workers[worker];
@@ -764,7 +788,7 @@ bool WindowRegistration::measure(const cv::Mat& current, std::span<WindowMotion>
     s.measureWindow(w, current, k, tw, cur_translation, cur_log_polar,
                     known ? &known_rotation_scale[k] : nullptr,
                     expected_dv.empty() ? std::numeric_limits<double>::quiet_NaN() : expected_dv[k],
-                    out[k]);
+                    ref, out[k]);
   };
   s.pool->run(s.windows, task);
   if (keep_as_next) s.next_ready = true;
@@ -774,9 +798,48 @@ bool WindowRegistration::measure(const cv::Mat& current, std::span<WindowMotion>
 void WindowRegistration::advance() {
   Impl& s = *impl_;
   if (!s.next_ready) return;
+  s.keepPendingKeyframe();
   std::swap(s.reference, s.next);
   s.next_ready = false;
   s.has_reference = true;
+}
+
+void WindowRegistration::reserveKeyframes(int slots) {
+  if (slots < 0 || slots > 16)
+    throw std::invalid_argument("WindowRegistration::reserveKeyframes: " + std::to_string(slots) +
+                                " slots is outside [0, 16]");
+  Impl& s = *impl_;
+  s.keyframes.clear();
+  for (int i = 0; i < slots; ++i)
+    s.keyframes.push_back(
+        std::make_unique<WindowSpectra>(s.windows, s.translation_band, s.log_polar_band));
+  s.keyframe_stored.assign(static_cast<std::size_t>(slots), 0);
+  s.pending_keyframe = -1;
+}
+
+int WindowRegistration::keyframeSlots() const {
+  return static_cast<int>(impl_->keyframes.size());
+}
+
+bool WindowRegistration::storeKeyframe(int slot) {
+  Impl& s = *impl_;
+  if (!s.has_reference || slot < 0 || slot >= keyframeSlots()) return false;
+  if (s.pending_keyframe >= 0 && s.pending_keyframe != slot) {
+    // The same reference becomes a second keyframe: the first gets a copy.
+    WindowSpectra& to = *s.keyframes[static_cast<std::size_t>(s.pending_keyframe)];
+    std::copy_n(s.reference->translation.data(), to.translation.size(), to.translation.data());
+    std::copy_n(s.reference->log_polar.data(), to.log_polar.size(), to.log_polar.data());
+    to.textured = s.reference->textured;
+  }
+  // The reference is the keyframe until it is replaced: it moves into the slot then.
+  s.pending_keyframe = slot;
+  s.keyframe_stored[static_cast<std::size_t>(slot)] = 1;
+  return true;
+}
+
+bool WindowRegistration::hasKeyframe(int slot) const {
+  const Impl& s = *impl_;
+  return slot >= 0 && slot < keyframeSlots() && s.keyframe_stored[static_cast<std::size_t>(slot)];
 }
 
 }  // namespace omnipose

@@ -443,6 +443,31 @@ void expectPosesMatchGroundTruth(const std::vector<pose_t>& poses, const fs::pat
   }
 }
 
+/// The chained orientation of every pose of segment 0 against the ground truth's attitude
+/// relative to the segment's first frame.
+void expectChainMatchesGroundTruth(const std::vector<pose_t>& poses, const fs::path& dataset,
+                                   double max_error_rad) {
+  const auto gt = readTum(dataset / "groundtruth.tum");
+  auto gtAt = [&](double stamp) -> const StampedPose* {
+    for (const auto& g : gt)
+      if (std::abs(g.timestamp - stamp) < 1e-6) return &g;
+    return nullptr;
+  };
+  ASSERT_FALSE(poses.empty());
+  const StampedPose* first = gtAt(poses.front().source_timestamp);
+  ASSERT_NE(first, nullptr);
+  for (const auto& p : poses) {
+    if (p.segment != 0) continue;
+    const StampedPose* g = gtAt(p.source_timestamp);
+    ASSERT_NE(g, nullptr);
+    const Eigen::Matrix3d truth = first->pose.linear().transpose() * g->pose.linear();
+    const Eigen::Quaterniond q(p.orientation[0], p.orientation[1], p.orientation[2],
+                               p.orientation[3]);
+    EXPECT_LT(testing::rotationError(q.toRotationMatrix(), truth), max_error_rad)
+        << "frame " << p.source_index;
+  }
+}
+
 TEST(Daemon, PublishesOnePosePerFrameStatusAtItsRateAndAFinalStatus) {
   const auto frames = testing::renderFrames("yaw", 6);
   Bus bus;
@@ -521,26 +546,30 @@ TEST(Daemon, CorruptFramesMidStreamAreSkippedReportedAndMarkTheGap) {
   std::fclose(log);
   EXPECT_NE(logged.find("000008.png"), std::string::npos) << logged;
 
-  // The frame after each bad one starts a new segment with status lost: no motion is
-  // invented across the gap.
-  int segment = 0;
+  // The frame after each bad one is found again against the keyframe: the chain goes on in
+  // segment 0, its relative pose spans the gap (checked against the ground truth below).
   for (const pose_t& p : bus.poses) {
     const bool after_gap = p.source_index == 9 || p.source_index == 16;
-    if (p.source_index == 0 || after_gap) {
-      EXPECT_EQ(p.status, pose_t::STATUS_LOST) << p.source_index;
+    if (p.source_index == 0) {
+      EXPECT_EQ(p.status, pose_t::STATUS_LOST);
+      EXPECT_EQ(p.track_state, pose_t::TRACK_START);
       EXPECT_EQ(p.reference_sequence, -1);
       EXPECT_TRUE(std::isinf(p.covariance[0]));
       EXPECT_EQ(p.rotation_vector[2], 0.0);
-      if (after_gap) ++segment;
     } else {
       EXPECT_EQ(p.status, pose_t::STATUS_OK) << p.source_index;
-      EXPECT_EQ(p.reference_sequence, p.sequence - 1) << "never across a bad frame";
+      EXPECT_EQ(p.track_state, after_gap ? pose_t::TRACK_BRIDGED : pose_t::TRACK_TRACKED)
+          << p.source_index;
+      EXPECT_EQ(p.reference_sequence, p.sequence - (after_gap ? 2 : 1)) << p.source_index;
+      EXPECT_GE(p.keyframe_sequence, 0);
+      EXPECT_EQ(p.frames_since_keyframe, p.sequence - p.keyframe_sequence);
     }
-    EXPECT_EQ(p.segment, segment) << p.source_index;
+    EXPECT_EQ(p.segment, 0) << p.source_index;
   }
-  EXPECT_EQ(last.segment, 2);
-  EXPECT_EQ(last.poses_lost, 3);
+  EXPECT_EQ(last.segment, 0);
+  EXPECT_EQ(last.poses_lost, 1) << "only the first frame has no motion";
   expectPosesMatchGroundTruth(bus.poses, tmp / "d", 0.01);
+  expectChainMatchesGroundTruth(bus.poses, tmp / "d", 0.01);
 }
 
 TEST(Daemon, VanishingDirectoryIsReportedRetriedWithBackoffAndMarksTheGap) {
@@ -579,21 +608,18 @@ TEST(Daemon, VanishingDirectoryIsReportedRetriedWithBackoffAndMarksTheGap) {
   }
   EXPECT_TRUE(saw_reconnecting);
   EXPECT_EQ(bus.statuses.back().source_state, status_t::SOURCE_ENDED);
-  // Exactly one gap: the first pose after the outage is lost and opens segment 1.
+  // The outage is bridged: one pose spans it, the chain stays in segment 0.
   ASSERT_EQ(bus.poses.size(), static_cast<std::size_t>(kFrames));
-  int lost_after_start = 0;
+  int bridged = 0;
   for (std::size_t k = 1; k < bus.poses.size(); ++k) {
     const pose_t& p = bus.poses[k];
-    if (p.status == pose_t::STATUS_LOST) {
-      ++lost_after_start;
-      EXPECT_EQ(p.segment, 1);
-      EXPECT_EQ(p.reference_sequence, -1);
-    } else {
-      EXPECT_EQ(p.segment, bus.poses[k - 1].segment);
-      EXPECT_EQ(p.reference_sequence, bus.poses[k - 1].sequence);
-    }
+    EXPECT_NE(p.status, pose_t::STATUS_LOST) << k;
+    EXPECT_EQ(p.segment, 0);
+    EXPECT_EQ(p.reference_sequence, bus.poses[k - 1].sequence);
+    if (p.track_state == pose_t::TRACK_BRIDGED) ++bridged;
   }
-  EXPECT_EQ(lost_after_start, 1);
+  EXPECT_EQ(bridged, 1);
+  expectChainMatchesGroundTruth(bus.poses, tmp / "d", 0.01);
   expectPosesMatchGroundTruth(bus.poses, tmp / "d", 0.01);
 }
 
@@ -735,7 +761,7 @@ class ClockStepSource final : public FrameSource {
   long step_at_;
 };
 
-TEST(DaemonFaults, CaptureClockGoingBackwardsStartsANewSegmentAndIsReported) {
+TEST(DaemonFaults, CaptureClockGoingBackwardsIsAGapBridgedAndReported) {
   const auto frames = testing::renderFrames("yaw", 6);
   Bus bus;
   const auto config = parseConfig("source: {type: file, path: /nonexistent}\ncalibration: " +
@@ -746,19 +772,20 @@ TEST(DaemonFaults, CaptureClockGoingBackwardsStartsANewSegmentAndIsReported) {
   ASSERT_EQ(bus.poses.size(), 12u);
   for (const pose_t& p : bus.poses) {
     SCOPED_TRACE(p.sequence);
-    if (p.sequence == 0 || p.sequence == 5) {
+    if (p.sequence == 0) {
       EXPECT_EQ(p.status, pose_t::STATUS_LOST);
       EXPECT_EQ(p.reference_sequence, -1);
     } else {
       EXPECT_NE(p.status, pose_t::STATUS_LOST);
       EXPECT_EQ(p.reference_sequence, p.sequence - 1);
+      EXPECT_EQ(p.track_state, p.sequence == 5 ? pose_t::TRACK_BRIDGED : pose_t::TRACK_TRACKED);
     }
-    EXPECT_EQ(p.segment, p.sequence < 5 ? 0 : 1);
+    EXPECT_EQ(p.segment, 0);
   }
   ASSERT_FALSE(bus.statuses.empty());
   const status_t& last = bus.statuses.back();
   EXPECT_EQ(last.frames_processed, 12);
-  EXPECT_EQ(last.poses_lost, 2);
+  EXPECT_EQ(last.poses_lost, 1);
   EXPECT_NE(last.last_error.find("time went backwards"), std::string::npos) << last.last_error;
   EXPECT_NE(last.last_error.find("clock-step source"), std::string::npos) << last.last_error;
 }

@@ -67,8 +67,8 @@ int main(int argc, char** argv) {
   else if (input == "panorama") options.input = omnipose::InputKind::kPanorama;
   try {
     const auto s = omnipose::replay::run(options, stderr);
-    std::printf("frames=%d pairs=%d skipped=%d seconds_per_frame=%.6f\n", s.frames, s.pairs,
-                s.skipped, s.median_seconds_per_frame);
+    std::printf("frames=%d pairs=%d skipped=%d lost=%d bridged=%d seconds_per_frame=%.6f\n",
+                s.frames, s.pairs, s.skipped, s.lost, s.bridged, s.median_seconds_per_frame);
     return s.pairs > 0 || s.frames == 1 ? 0 : 1;
   } catch (const std::exception& e) {
     std::fprintf(stderr, "omnipose-replay: %s\n", e.what());

@@ -6,8 +6,8 @@
 #include <stdexcept>
 
 #include "omnipose/baselines/feature_motion_estimator.hpp"
+#include "omnipose/odometry.hpp"
 #include "omnipose/pipeline.hpp"
-#include "omnipose/pose_chain.hpp"
 #include "omnipose/trajectory.hpp"
 #include "progress_line.hpp"
 
@@ -37,32 +37,41 @@ namespace {
 
 void writeCsvHeader(std::ofstream& csv) {
   csv << "frame,timestamp,file,prev_frame,status,rx,ry,rz,tdir_x,tdir_y,tdir_z,tau_norm,"
-         "residual_px,windows_used,windows_total,seconds\n";
+         "residual_px,windows_used,windows_total,seconds,state,segment,keyframe\n";
 }
 
-void writeCsvRow(std::ofstream& csv, int frame, const DatasetFrame& f, int prev,
-                 const FrameMotion& m) {
+void writeCsvRow(std::ofstream& csv, int frame, const DatasetFrame& f, const OdometryResult& r) {
+  const FrameMotion& m = r.relative;
   const MotionEstimate& e = m.estimate;
-  char buf[512];
+  char buf[600];
   std::snprintf(buf, sizeof(buf),
-                "%d,%.6f,%s,%d,%s,%.9g,%.9g,%.9g,%.9g,%.9g,%.9g,%.9g,%.4f,%d,%d,%.6f\n", frame,
-                f.timestamp, f.path.filename().c_str(), prev, toString(e.status), e.omega.x(),
+                "%d,%.6f,%s,%lld,%s,%.9g,%.9g,%.9g,%.9g,%.9g,%.9g,%.9g,%.4f,%d,%d,%.6f,%s,%d,%lld\n",
+                frame, f.timestamp, f.path.filename().c_str(),
+                static_cast<long long>(r.reference_sequence), toString(e.status), e.omega.x(),
                 e.omega.y(), e.omega.z(), m.translation_direction.x(),
                 m.translation_direction.y(), m.translation_direction.z(), m.tau_norm,
-                e.residual_rms_px, e.windows_used, e.windows_total, m.timing.total);
+                e.residual_rms_px, e.windows_used, e.windows_total, m.timing.total,
+                toString(r.state), r.segment, static_cast<long long>(r.keyframe_sequence));
   csv << buf;
 }
 
 }  // namespace
 
+std::unique_ptr<Odometry> makeOdometry(const std::string& method, const Calibration& calibration,
+                                       const OdometryOptions& options) {
+  if (method == "ifmi") return std::make_unique<Odometry>(calibration, options);
+  return std::make_unique<Odometry>(makeEstimator(method, calibration, options.pipeline));
+}
+
 ReplaySummary run(const ReplayOptions& options, std::FILE* log) {
-  PipelineOptions pipeline_options;
+  OdometryOptions odometry_options;
   if (options.config) {
-    pipeline_options = DaemonConfig::load(*options.config, DaemonConfig::Use::kReplay).pipeline;
+    odometry_options =
+        DaemonConfig::load(*options.config, DaemonConfig::Use::kReplay).odometry();
   }
-  if (options.input) pipeline_options.unwrap.input = *options.input;
+  if (options.input) odometry_options.pipeline.unwrap.input = *options.input;
   const Dataset dataset = Dataset::open(options.dataset, options.calibration);
-  auto estimator = makeEstimator(options.method, dataset.calibration, pipeline_options);
+  auto odometry = makeOdometry(options.method, dataset.calibration, odometry_options);
 
   std::ofstream csv;
   if (options.relative_csv) {
@@ -71,47 +80,51 @@ ReplaySummary run(const ReplayOptions& options, std::FILE* log) {
     writeCsvHeader(csv);
   }
 
-  const cv::Size frame_size = inputFrameSize(dataset.calibration, pipeline_options.unwrap.input);
+  const cv::Size frame_size =
+      inputFrameSize(dataset.calibration, odometry_options.pipeline.unwrap.input);
   ReplaySummary summary;
   summary.frames = static_cast<int>(dataset.frames.size());
-  PoseChain chain;
   std::vector<StampedPose> trajectory;
   std::vector<double> seconds;
   seconds.reserve(dataset.frames.size());
-  int prev = -1;
   tools::ProgressLine progress(log, summary.frames, "frames", options.progress);
 
   for (int i = 0; i < summary.frames; ++i) {
     const DatasetFrame& f = dataset.frames[i];
     auto image = readFrame(f.path, frame_size);
-    Expected<FrameMotion> motion = image ? estimator->process(*image)
-                                         : Expected<FrameMotion>(std::unexpected(image.error()));
-    if (!motion) {
+    if (!image) {
+      odometry->markGap();
       ++summary.skipped;
-      std::fprintf(log, "skipped %s: %s\n", f.path.c_str(), motion.error().c_str());
+      std::fprintf(log, "skipped %s: %s\n", f.path.c_str(), image.error().c_str());
       continue;
     }
-    seconds.push_back(motion->timing.total);
-    if (!motion->has_motion) {
-      chain.start(f.timestamp);
-      trajectory.push_back({f.timestamp, chain.pose()});
-    } else if (motion->estimate.status == FitStatus::kLost) {
-      ++summary.lost;
-      std::fprintf(log, "lost %s: fit failed, starting a new chain segment\n", f.path.c_str());
-      chain.start(f.timestamp);  // no pose written: the link across the gap is unknown
-    } else {
-      ++summary.pairs;
-      chain.append(f.timestamp, motion->rotation,
-                   motion->translation_direction * motion->tau_norm);
-      trajectory.push_back({f.timestamp, chain.pose()});
+    Expected<OdometryResult> result = odometry->process(*image, {f.timestamp, i});
+    if (!result) {
+      ++summary.skipped;
+      std::fprintf(log, "skipped %s: %s\n", f.path.c_str(), result.error().c_str());
+      continue;
     }
-    if (csv.is_open() && motion->has_motion) writeCsvRow(csv, i, f, prev, *motion);
-    prev = i;
-
+    seconds.push_back(result->relative.timing.total);
+    switch (result->state) {
+      case TrackState::kSegmentStart:
+        trajectory.push_back({f.timestamp, result->pose});
+        break;
+      case TrackState::kLost:
+        ++summary.lost;
+        std::fprintf(log, "lost %s: fit failed, starting a new chain segment\n", f.path.c_str());
+        break;  // no pose written: the link across the gap is unknown
+      case TrackState::kBridged:
+        ++summary.bridged;
+        [[fallthrough]];
+      case TrackState::kTracked:
+        ++summary.pairs;
+        trajectory.push_back({f.timestamp, result->pose});
+        break;
+    }
+    if (csv.is_open() && result->relative.has_motion) writeCsvRow(csv, i, f, *result);
     progress.update(i + 1);
   }
   progress.finish();
-
   if (options.out_tum) writeTum(*options.out_tum, trajectory);
   if (!seconds.empty()) {
     std::nth_element(seconds.begin(), seconds.begin() + seconds.size() / 2, seconds.end());

@@ -12,6 +12,7 @@
 #include "daemon/config.hpp"
 #include "omnipose/dataset.hpp"
 #include "omnipose/motion_estimator.hpp"
+#include "omnipose/odometry.hpp"
 
 namespace omnipose::replay {
 
@@ -30,7 +31,8 @@ struct ReplaySummary {
   int frames = 0;   ///< frames in the dataset
   int pairs = 0;    ///< relative poses estimated (fit not lost)
   int skipped = 0;  ///< unreadable / wrong-size / black frames
-  int lost = 0;     ///< pairs whose fit failed (a new chain segment follows)
+  int lost = 0;     ///< frames whose fit failed and could not be bridged (new segment)
+  int bridged = 0;  ///< pairs found again across a gap or a lost fit (in pairs)
   double median_seconds_per_frame = 0.0;
 };
 
@@ -39,6 +41,10 @@ struct ReplaySummary {
 std::unique_ptr<MotionEstimator> makeEstimator(const std::string& method,
                                                const Calibration& calibration,
                                                const PipelineOptions& options);
+/// The frame-to-pose policy for `method`: the iFMI odometry with keyframes, or a feature
+/// method's pairs chained by the same policy. Throws as makeEstimator.
+std::unique_ptr<Odometry> makeOdometry(const std::string& method, const Calibration& calibration,
+                                       const OdometryOptions& options);
 /// Names makeEstimator accepts.
 std::vector<std::string> methodNames();
 

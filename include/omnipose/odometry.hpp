@@ -1,0 +1,162 @@
+#pragma once
+/// \file odometry.hpp
+/// The frame-to-pose policy of omnipose: timestamped frames in, per frame the motion since
+/// the previous frame and the chained pose out. omniposed publishes what it returns and
+/// omnipose-replay writes it to files, so what the accuracy benchmark measures is what the
+/// daemon runs.
+///
+/// Keyframes. Every frame is first registered against the previous frame (a shift-only
+/// pass and a linear fit). The refinement pass then registers it against a keyframe, at
+/// the pose predicted by chaining that estimate to the keyframe's, so a robot that stands
+/// still or turns in place compares every frame with the same keyframe: the chained
+/// error does not grow with the number of frames while the keyframe holds. A frame that the
+/// prediction puts too far from every kept keyframe (KeyframeOptions: translation, tilt) is
+/// refined against the previous frame instead and becomes the new keyframe; so does a frame
+/// whose keyframe refinement is not kOk. A few recent keyframes are kept (the least
+/// recently used one is replaced): when the robot turns or drives back, the oldest one in
+/// reach is used again.
+///
+/// Gaps. After a bad frame (process() returned an error), a gap the caller reports
+/// (FrameStamp::gap_before: lost frames, a reconnect), or a frame whose fit is lost, the
+/// motion since the last good frame is unknown: the next frame is registered against the
+/// keyframe, its yaw first found by a search over the whole ring (a circular correlation of
+/// the panoramas), roll and pitch by the fit. The chain goes on with the heading kept.
+/// Only when that fails too does a new segment start (status kLost, segment + 1, the pose
+/// held): the link across the gap is then unknown.
+///
+/// Realtime: the constructor allocates everything (worker threads, keyframe slots: each
+/// holds the spectra of one panorama); process() allocates nothing and never throws. Not
+/// thread-safe: one caller at a time.
+///
+/// Example: the motion between two images (see README, "Use it as a library")
+/// ```
+///   omnipose::Odometry odometry(omnipose::Calibration::load("calibration.yaml"), {});
+///   odometry.process(cv::imread("a.png"), {0.0});
+///   auto step = odometry.process(cv::imread("b.png"), {0.033});
+///   if (step && step->tracked()) std::cout << step->relative.omega.transpose() << "\n";
+/// ```
+
+#include <Eigen/Geometry>
+#include <cstdint>
+#include <memory>
+#include <opencv2/core.hpp>
+#include <span>
+#include <string>
+#include <vector>
+
+#include "omnipose/calibration.hpp"
+#include "omnipose/error.hpp"
+#include "omnipose/motion_estimator.hpp"
+#include "omnipose/pipeline.hpp"
+#include "omnipose/window_motion.hpp"
+
+namespace omnipose {
+
+struct KeyframeOptions {
+  /// Keyframes kept, the current one included (1..16; each holds a panorama's spectra,
+  /// about 5 MB at the default window settings). 0 = no keyframes: every frame is refined
+  /// against the previous one (frame-to-frame chaining).
+  int slots = 4;
+  /// A frame is refined against a keyframe only while the predicted translation from it is
+  /// at most this, in scene distances (|t| / rho, the unit of MotionEstimate::tau): beyond
+  /// it, parallax changes the view.
+  double max_translation = 0.02;
+  /// ... and while the predicted tilt from it (the angle between the two cameras' z axes:
+  /// roll and pitch, not yaw) is at most this, radians: beyond it, rows leave the panorama.
+  double max_tilt_rad = 0.09;
+  /// Whole-ring yaw search after a gap: the correlation peak below which the search has
+  /// failed (a peak of ~0.01 is what unrelated panoramas give).
+  double min_ring_peak = 0.03;
+
+  /// One message per bad field, each starting with its name; empty when valid.
+  std::vector<std::string> validate() const;
+};
+
+struct OdometryOptions {
+  PipelineOptions pipeline;
+  KeyframeOptions keyframes;
+  /// Every problem of the options, each starting with the field's path
+  /// ("pipeline.registration.window: ...", "keyframes.slots: ..."); empty when valid.
+  std::vector<std::string> validate() const;
+};
+
+/// What the caller knows of a frame besides its pixels.
+struct FrameStamp {
+  double time_s = 0.0;         ///< capture time of the frame, seconds (any epoch)
+  std::int64_t sequence = -1;  ///< the frame's number (-1: numbered by the odometry)
+  bool gap_before = false;     ///< frames were lost since the previous call (or a reconnect)
+};
+
+/// How a frame's pose was obtained.
+enum class TrackState : std::int8_t {
+  kSegmentStart = 0,  ///< first frame, or the first after a failed gap: no motion, pose held
+  kTracked = 1,       ///< registered against the previous frame's prediction
+  kBridged = 2,       ///< after a gap or a lost fit: found again against the keyframe
+  kLost = 3,          ///< the fit failed and the gap could not be bridged: new segment
+};
+const char* toString(TrackState state);
+
+struct OdometryResult {
+  TrackState state = TrackState::kSegmentStart;
+  /// Frame's motion relative to the frame `reference_sequence` (the last good one):
+  /// rotation, translation direction and |tau|, with the status, covariance (of the
+  /// estimate as fitted, in the keyframe's frame: 6 x 6 over (omega, tau)), residual and
+  /// windows used of the pass that made it. has_motion false at a segment start.
+  FrameMotion relative;
+  /// Chained pose of the frame (camera to segment origin; positions in scene distances).
+  Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
+  int segment = 0;                        ///< 0 for the first, +1 at every new segment
+  std::int64_t sequence = -1;             ///< this frame's
+  std::int64_t reference_sequence = -1;   ///< the frame the motion is relative to; -1 at a start
+  std::int64_t keyframe_sequence = -1;    ///< the keyframe the estimate was refined against
+  int frames_since_keyframe = 0;          ///< frames from that keyframe to this one
+  /// The windows of the pass that made the estimate (valid until the next process()), and
+  /// the motion that pass fitted to them (relative to the panorama it registered, which is
+  /// de-rotated after a refinement: Eq. 3's model gives each window's fitted du/dv).
+  std::span<const WindowMotion> windows;
+  bool windows_refined = false;  ///< the windows are the refinement pass's (de-rotated)
+  Eigen::Matrix<double, 6, 1> window_model = Eigen::Matrix<double, 6, 1>::Zero();
+
+  /// A pose with motion (kTracked or kBridged).
+  bool tracked() const { return state == TrackState::kTracked || state == TrackState::kBridged; }
+};
+
+class Odometry {
+ public:
+  /// Every problem that would stop the constructor (Pipeline::validate's, prefixed
+  /// "pipeline.", and the keyframe options'); empty when valid.
+  static std::vector<std::string> validate(const Calibration& calibration,
+                                           const OdometryOptions& options);
+  /// The iFMI pipeline with keyframes. Throws std::invalid_argument listing every problem.
+  Odometry(const Calibration& calibration, const OdometryOptions& options);
+  /// Chains another per-pair method (a feature baseline): the same gap and segment policy,
+  /// without keyframes or ring search (a frame after a gap is paired with the last good one).
+  explicit Odometry(std::unique_ptr<MotionEstimator> pairwise);
+  ~Odometry();
+  Odometry(const Odometry&) = delete;
+  Odometry& operator=(const Odometry&) = delete;
+
+  /// Processes the next frame. An error (kBadFrame: wrong size or type, black) leaves the
+  /// state as it was, and the next frame is treated as after a gap.
+  Expected<OdometryResult> process(const cv::Mat& frame, const FrameStamp& stamp);
+  /// Reports a frame that could not be read (decode error): the next frame is bridged.
+  void markGap();
+  /// Forgets everything: the next frame starts segment 0 again at the identity.
+  void reset();
+
+  const char* methodName() const;
+  /// The iFMI pipeline's threads (1 for a pairwise method's chaining).
+  int threads() const;
+  /// Whether the FFTW wisdom file was read (false for a pairwise method).
+  bool wisdomLoaded() const;
+  /// Windows per panorama (0 for a pairwise method).
+  int windowCount() const;
+  /// The motion model's window attenuation kappa (motion_model.hpp).
+  double windowAttenuation() const;
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace omnipose

@@ -1,0 +1,129 @@
+#pragma once
+/// \file frame_registrar.hpp
+/// The registration machinery of one frame (private to the core library), shared by
+/// Pipeline (frame pairs) and Odometry (keyframes): the unwrap, the shift-only first pass
+/// against the previous frame, the warp-and-refit refinement against the previous frame or
+/// a keyframe, keyframe slots and the whole-ring yaw search. Pipeline::process() and
+/// Odometry::process() are the two ways these steps are composed.
+///
+/// Realtime: the constructor allocates everything (the worker threads included); nothing
+/// else allocates or throws. Not thread-safe.
+
+#include <Eigen/Core>
+#include <optional>
+#include <span>
+#include <string>
+#include <vector>
+
+#include "omnipose/calibration.hpp"
+#include "omnipose/error.hpp"
+#include "omnipose/motion_fit.hpp"
+#include "omnipose/pipeline.hpp"
+#include "omnipose/unwrapper.hpp"
+#include "omnipose/window_registration.hpp"
+#include "pipeline/panorama_warp.hpp"
+#include "pipeline/ring_alignment.hpp"
+#include "registration/worker_pool.hpp"
+
+namespace omnipose::pipeline {
+
+/// What a sequence of fit passes produced.
+struct PassResult {
+  /// omega and tau of the whole estimate (first pass and refinements composed); status,
+  /// covariance, residual and windows_used of the last pass that succeeded.
+  MotionEstimate estimate;
+  Eigen::Matrix3d rotation = Eigen::Matrix3d::Identity();  ///< exp([estimate.omega]x)
+  bool refined = false;  ///< at least one refinement pass succeeded
+  /// The windows of the pass that made the estimate and the motion that pass fitted to
+  /// them (relative to the panorama it registered: a residual after a de-rotation).
+  std::span<const WindowMotion> windows;
+  Eigen::Matrix<double, 6, 1> window_model = Eigen::Matrix<double, 6, 1>::Zero();
+};
+
+class FrameRegistrar {
+ public:
+  /// Throws std::invalid_argument as Pipeline's constructor. `keyframe_slots` in [0, 16].
+  FrameRegistrar(const Calibration& calibration, const PipelineOptions& options,
+                 int keyframe_slots);
+
+  /// Unwraps `frame` into the current panorama (kBadFrame / kInvalidArgument on a frame of
+  /// the wrong size or type, or black).
+  Expected<void> unwrap(const cv::Mat& frame);
+
+  /// Whether a previous frame is set (the first pass can run).
+  bool hasPrevious() const { return has_previous_; }
+  /// The current panorama becomes the previous frame (its spectra computed anew).
+  void makeCurrentPrevious();
+  /// Forgets the previous frame.
+  void forgetPrevious() { has_previous_ = false; }
+
+  /// Shift-only (when refinement follows) registration of the current panorama against the
+  /// previous frame and the robust linear fit. Keeps the current spectra as the candidate
+  /// next reference (advance()). nullopt when the registration rejects the panorama or no
+  /// previous frame is set. `fit_seconds` (optional): the fit's wall time.
+  std::optional<MotionEstimate> firstPass(double* fit_seconds = nullptr);
+  /// The same against keyframe `slot`, of the current panorama de-rotated by `R`
+  /// (the current frame's spectra are not kept): the fit is the residual after R.
+  std::optional<MotionEstimate> alignedPass(const Eigen::Matrix3d& R, int slot);
+  /// Refinement passes of PipelineOptions::refine_iterations starting from `start` (the
+  /// estimate whose windows() are the first pass's) at rotation `R` and translation `tau`,
+  /// against `against` (WindowRegistration::kPreviousFrame or a keyframe slot).
+  PassResult refine(const MotionEstimate& start, const Eigen::Matrix3d& R,
+                    const Eigen::Vector3d& tau, int against);
+  /// The candidate next reference (firstPass()) becomes the previous frame.
+  void advance() { registration_.advance(); }
+
+  /// Makes the previous frame (after advance() or makeCurrentPrevious(): the current one)
+  /// keyframe `slot`, with the current panorama for the ring search. The panorama moves
+  /// into the slot: panorama() is stale until the next unwrap(). Requires a previous frame.
+  bool storeKeyframe(int slot);
+  /// Yaw of the current panorama relative to keyframe `slot` from the whole-ring search,
+  /// radians, about the camera's z axis; nullopt when the correlation peak is below
+  /// `min_peak` or the slot is empty.
+  std::optional<double> ringYaw(int slot, double min_peak);
+
+  const Calibration& calibration() const { return calibration_; }
+  const PipelineOptions& options() const { return options_; }
+  const cv::Mat& panorama() const { return panorama_; }
+  /// Windows of the last first pass (firstPass(), alignedPass()).
+  std::span<const WindowMotion> firstPassWindows() const { return windows_; }
+  int windowCount() const { return registration_.windowCount(); }
+  double windowAttenuation() const { return fit_.kappa(); }
+  int threads() const { return pool_.size(); }
+  bool wisdomLoaded() const { return wisdom_.loaded; }
+
+ private:
+  /// The FFTW wisdom file of PipelineOptions::fftw_wisdom ("" = none), read before any plan
+  /// is made; written after planning when it was not read or planning added to it (best
+  /// effort: an unwritable path only costs the determinism of the next start-up).
+  struct WisdomFile {
+    explicit WisdomFile(std::string file);
+    registration::PlanEffort effort() const;
+    void saveIfPlanned() const;
+    std::string path;
+    bool loaded;         ///< the file was read
+    std::string before;  ///< the process's wisdom after reading the file
+  };
+
+  static int bandStart(int b, int bands, int rows) { return b * rows / bands; }
+  void predictRefinementShifts(const Eigen::Vector3d& tau, FitStatus last_fit);
+  void derotate(const Eigen::Matrix3d& R);
+
+  Calibration calibration_;
+  PipelineOptions options_;
+  WisdomFile wisdom_;
+  registration::WorkerPool pool_;
+  Unwrapper unwrapper_;
+  WindowRegistration registration_;
+  MotionFit fit_;
+  PanoramaWarp warp_;
+  std::optional<RingAlignment> ring_;
+  cv::Mat panorama_, warped_;
+  std::vector<cv::Mat> keyframe_panoramas_;  ///< per keyframe slot
+  std::vector<WindowMotion> windows_, refine_windows_;
+  std::vector<WindowMotion> shifts_only_;  ///< "known" rotation/scale for a shift-only pass
+  std::vector<double> expected_dv_;        ///< refinement pass: dv per window, or NaN
+  bool has_previous_ = false;
+};
+
+}  // namespace omnipose::pipeline

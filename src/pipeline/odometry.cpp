@@ -1,0 +1,381 @@
+#include "omnipose/odometry.hpp"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <optional>
+#include <stdexcept>
+
+#include "common/problem_list.hpp"
+#include "omnipose/so3.hpp"
+#include "pipeline/frame_registrar.hpp"
+
+namespace omnipose {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+double secondsSince(Clock::time_point start) {
+  return std::chrono::duration<double>(Clock::now() - start).count();
+}
+
+Eigen::Isometry3d isometry(const Eigen::Matrix3d& R, const Eigen::Vector3d& t) {
+  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+  T.linear() = R;
+  T.translation() = t;
+  return T;
+}
+
+/// Angle between the z axes of two cameras whose relative rotation is R: their tilt.
+double tilt(const Eigen::Matrix3d& R) { return std::acos(std::clamp(R(2, 2), -1.0, 1.0)); }
+
+/// The motion `T` (pose of the frame in the reference) as a FrameMotion.
+void setMotion(FrameMotion& m, const Eigen::Isometry3d& T) {
+  m.has_motion = true;
+  m.rotation = T.linear();
+  m.estimate.omega = rotationVector(m.rotation);
+  m.estimate.tau = T.translation();
+  m.tau_norm = m.estimate.tau.norm();
+  m.translation_direction =
+      m.tau_norm > 0.0 ? Eigen::Vector3d(m.estimate.tau / m.tau_norm) : Eigen::Vector3d::Zero();
+}
+
+}  // namespace
+
+const char* toString(TrackState state) {
+  switch (state) {
+    case TrackState::kSegmentStart: return "start";
+    case TrackState::kTracked: return "tracked";
+    case TrackState::kBridged: return "bridged";
+    case TrackState::kLost: return "lost";
+  }
+  return "?";
+}
+
+std::vector<std::string> KeyframeOptions::validate() const {
+  std::vector<std::string> problems;
+  detail::checkRange(problems, "slots", slots, 0, 16, " (0 = no keyframes)");
+  if (!(max_translation >= 0.0 && max_translation <= 1.0))
+    problems.push_back("max_translation: " + std::to_string(max_translation) +
+                       " is outside [0, 1] scene distances");
+  if (!(max_tilt_rad >= 0.0 && max_tilt_rad <= 0.5))
+    problems.push_back("max_tilt_rad: " + std::to_string(max_tilt_rad) +
+                       " is outside [0, 0.5] radians");
+  if (!(min_ring_peak > 0.0 && min_ring_peak < 1.0))
+    problems.push_back("min_ring_peak: " + std::to_string(min_ring_peak) + " is outside (0, 1)");
+  return problems;
+}
+
+std::vector<std::string> OdometryOptions::validate() const {
+  std::vector<std::string> problems;
+  for (const auto& p : pipeline.validate()) problems.push_back("pipeline." + p);
+  for (const auto& p : keyframes.validate()) problems.push_back("keyframes." + p);
+  return problems;
+}
+
+std::vector<std::string> Odometry::validate(const Calibration& calibration,
+                                            const OdometryOptions& options) {
+  std::vector<std::string> problems;
+  for (const auto& p : Pipeline::validate(calibration, options.pipeline))
+    problems.push_back(p.starts_with("calibration") ? p : "pipeline." + p);
+  for (const auto& p : options.keyframes.validate()) problems.push_back("keyframes." + p);
+  return problems;
+}
+
+struct Odometry::Impl {
+  /// A kept keyframe: its frame and its chained pose in the current segment.
+  struct Keyframe {
+    bool valid = false;
+    std::int64_t sequence = -1;
+    Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
+    long last_used = 0;
+  };
+
+  Impl(const Calibration& c, const OdometryOptions& o)
+      : keyframe_options(o.keyframes),
+        registrar(std::in_place, c, o.pipeline, std::max(o.keyframes.slots, 1)),
+        keyframes(static_cast<std::size_t>(std::max(o.keyframes.slots, 1))) {}
+  explicit Impl(std::unique_ptr<MotionEstimator> method)
+      : keyframe_options{.slots = 0}, pairwise(std::move(method)) {}
+
+  Expected<OdometryResult> process(const cv::Mat& frame, const FrameStamp& stamp);
+  Expected<OdometryResult> processPairwise(const cv::Mat& frame, OdometryResult& out);
+
+  /// The current frame starts a segment: its pose is held, it becomes the only keyframe.
+  void startSegment(OdometryResult& out, TrackState state);
+  /// Registration of the current frame after a gap or a lost fit: ring search and fit
+  /// against the last keyframe. False when it fails.
+  bool bridge(OdometryResult& out);
+  /// The kept keyframe to refine against at the predicted pose `predicted` of the current
+  /// frame: the last one used while it is in reach, else the oldest in reach; -1 for none.
+  int chooseKeyframe(const Eigen::Isometry3d& predicted) const;
+  bool inReach(const Keyframe& k, const Eigen::Isometry3d& predicted) const;
+  /// Makes the previous frame (the current one after advance()) a keyframe, in the least
+  /// recently used slot.
+  void addKeyframe(const Eigen::Isometry3d& pose);
+  void useKeyframe(int slot) {
+    active = slot;
+    keyframes[static_cast<std::size_t>(slot)].last_used = ++use_clock;
+  }
+  /// Fills `out` for the current frame at pose `T` with the estimate `pass`.
+  void finish(OdometryResult& out, const Eigen::Isometry3d& T, const pipeline::PassResult& pass,
+              TrackState state);
+
+  KeyframeOptions keyframe_options;
+  std::optional<pipeline::FrameRegistrar> registrar;  ///< the iFMI pipeline
+  std::unique_ptr<MotionEstimator> pairwise;          ///< or another per-pair method
+  std::vector<Keyframe> keyframes;
+  int active = -1;  ///< slot of the keyframe the last frame used
+  long use_clock = 0;
+
+  bool started = false;  ///< a frame of the current segment has been processed
+  bool gap = false;      ///< the link to the last good frame is broken
+  int segment = -1;
+  Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();  ///< last good frame's
+  std::int64_t last_sequence = -1;
+  std::int64_t auto_sequence = 0;
+  std::int64_t sequence = -1;  ///< the frame being processed
+  Clock::time_point t_start;
+};
+
+void Odometry::Impl::startSegment(OdometryResult& out, TrackState state) {
+  ++segment;
+  started = true;
+  gap = false;
+  for (auto& k : keyframes) k.valid = false;
+  out.state = state;
+  out.relative = FrameMotion{};
+  if (registrar) {
+    registrar->makeCurrentPrevious();
+    addKeyframe(pose);
+    out.keyframe_sequence = sequence;
+  }
+  out.pose = pose;
+  last_sequence = sequence;
+}
+
+bool Odometry::Impl::inReach(const Keyframe& k, const Eigen::Isometry3d& predicted) const {
+  if (!k.valid) return false;
+  const Eigen::Isometry3d relative = k.pose.inverse() * predicted;
+  return relative.translation().norm() <= keyframe_options.max_translation &&
+         tilt(relative.linear()) <= keyframe_options.max_tilt_rad;
+}
+
+int Odometry::Impl::chooseKeyframe(const Eigen::Isometry3d& predicted) const {
+  if (keyframe_options.slots == 0) return -1;
+  if (active >= 0 && inReach(keyframes[static_cast<std::size_t>(active)], predicted)) return active;
+  int best = -1;
+  for (int i = 0; i < static_cast<int>(keyframes.size()); ++i) {
+    if (inReach(keyframes[static_cast<std::size_t>(i)], predicted) &&
+        (best < 0 || keyframes[i].sequence < keyframes[static_cast<std::size_t>(best)].sequence))
+      best = i;
+  }
+  return best;
+}
+
+void Odometry::Impl::addKeyframe(const Eigen::Isometry3d& at) {
+  int slot = 0;
+  for (int i = 1; i < static_cast<int>(keyframes.size()); ++i) {
+    const Keyframe& k = keyframes[static_cast<std::size_t>(i)];
+    const Keyframe& s = keyframes[static_cast<std::size_t>(slot)];
+    if (!k.valid ? s.valid : (s.valid && k.last_used < s.last_used)) slot = i;
+  }
+  if (!registrar->storeKeyframe(slot)) return;
+  keyframes[static_cast<std::size_t>(slot)] = {true, sequence, at, 0};
+  useKeyframe(slot);
+}
+
+void Odometry::Impl::finish(OdometryResult& out, const Eigen::Isometry3d& T,
+                            const pipeline::PassResult& pass, TrackState state) {
+  out.state = state;
+  const FrameMotion keep_timing = out.relative;
+  out.relative.estimate = pass.estimate;
+  setMotion(out.relative, pose.inverse() * T);
+  out.relative.timing = keep_timing.timing;
+  out.reference_sequence = last_sequence;
+  out.windows = pass.windows;
+  out.windows_refined = pass.refined;
+  out.window_model = pass.window_model;
+  pose = T;
+  out.pose = T;
+  last_sequence = sequence;
+}
+
+bool Odometry::Impl::bridge(OdometryResult& out) {
+  if (active < 0) return false;
+  const Keyframe& key = keyframes[static_cast<std::size_t>(active)];
+  const std::optional<double> yaw = registrar->ringYaw(active, keyframe_options.min_ring_peak);
+  if (!yaw) return false;
+  const Eigen::Matrix3d R0 = rotationFromVector(Eigen::Vector3d(0.0, 0.0, *yaw));
+  const std::optional<MotionEstimate> aligned = registrar->alignedPass(R0, active);
+  if (!aligned || aligned->status == FitStatus::kLost) return false;
+  const pipeline::PassResult pass = registrar->refine(
+      *aligned, rotationFromVector(aligned->omega) * R0, aligned->tau, active);
+  if (!pass.refined || pass.estimate.status == FitStatus::kLost) return false;
+  const Eigen::Isometry3d T = key.pose * isometry(pass.rotation, pass.estimate.tau);
+  out.keyframe_sequence = key.sequence;
+  useKeyframe(active);
+  registrar->makeCurrentPrevious();
+  finish(out, T, pass, TrackState::kBridged);
+  gap = false;
+  return true;
+}
+
+Expected<OdometryResult> Odometry::Impl::process(const cv::Mat& frame, const FrameStamp& stamp) {
+  t_start = Clock::now();
+  sequence = stamp.sequence >= 0 ? stamp.sequence : auto_sequence;
+  auto_sequence = sequence + 1;
+  if (stamp.gap_before) gap = true;
+  OdometryResult out;
+  out.sequence = sequence;
+  if (pairwise) return processPairwise(frame, out);
+
+  pipeline::FrameRegistrar& r = *registrar;
+  FrameMotion& m = out.relative;
+  if (auto ok = r.unwrap(frame); !ok) {
+    gap = true;
+    return std::unexpected(ok.error());
+  }
+  m.timing.unwrap = secondsSince(t_start);
+  const auto finishTiming = [&] {
+    m.timing.total = secondsSince(t_start);
+    out.segment = segment;
+    if (out.keyframe_sequence >= 0) out.frames_since_keyframe = static_cast<int>(sequence - out.keyframe_sequence);
+  };
+
+  if (!started) {
+    startSegment(out, TrackState::kSegmentStart);
+    finishTiming();
+    return out;
+  }
+  if (gap) {
+    const auto t_bridge = Clock::now();
+    if (!bridge(out)) startSegment(out, TrackState::kLost);
+    m.timing.refine = secondsSince(t_bridge);
+    finishTiming();
+    return out;
+  }
+
+  // First pass against the previous frame.
+  const auto t_reg = Clock::now();
+  const std::optional<MotionEstimate> first = r.firstPass(&m.timing.fit);
+  if (!first) {
+    gap = true;
+    return fail(ErrorCode::kInvalidArgument, "window registration rejected the panorama");
+  }
+  m.timing.registration = secondsSince(t_reg) - m.timing.fit;
+  const auto t_refine = Clock::now();
+  if (first->status == FitStatus::kLost) {
+    // A lost fit: the motion since the previous frame is unknown.
+    if (!bridge(out)) startSegment(out, TrackState::kLost);
+    m.timing.refine = secondsSince(t_refine);
+    finishTiming();
+    return out;
+  }
+
+  // Refinement against a keyframe at the predicted pose, or against the previous frame.
+  const Eigen::Matrix3d R1 = rotationFromVector(first->omega);
+  const Eigen::Isometry3d predicted = pose * isometry(R1, first->tau);
+  const int slot = chooseKeyframe(predicted);
+  if (slot >= 0) {
+    const Keyframe& key = keyframes[static_cast<std::size_t>(slot)];
+    const Eigen::Isometry3d from_key = key.pose.inverse() * predicted;
+    const pipeline::PassResult pass =
+        r.refine(*first, from_key.linear(), from_key.translation(), slot);
+    const bool worse = !pass.refined || pass.estimate.status == FitStatus::kLost ||
+                       (pass.estimate.status != FitStatus::kOk && first->status == FitStatus::kOk);
+    if (!worse) {
+      out.keyframe_sequence = key.sequence;
+      const Eigen::Isometry3d T = key.pose * isometry(pass.rotation, pass.estimate.tau);
+      useKeyframe(slot);
+      r.advance();
+      finish(out, T, pass, TrackState::kTracked);
+      m.timing.refine = secondsSince(t_refine);
+      finishTiming();
+      return out;
+    }
+  }
+  // Frame-to-frame refinement; the frame becomes the keyframe.
+  const pipeline::PassResult pass =
+      r.refine(*first, R1, first->tau, WindowRegistration::kPreviousFrame);
+  out.keyframe_sequence = last_sequence;
+  const Eigen::Isometry3d T = pose * isometry(pass.rotation, pass.estimate.tau);
+  r.advance();
+  finish(out, T, pass, TrackState::kTracked);
+  addKeyframe(T);  // without keyframes (slots 0) its one slot follows the previous frame
+  m.timing.refine = secondsSince(t_refine);
+  finishTiming();
+  return out;
+}
+
+Expected<OdometryResult> Odometry::Impl::processPairwise(const cv::Mat& frame,
+                                                         OdometryResult& out) {
+  Expected<FrameMotion> motion = pairwise->process(frame);
+  if (!motion) return std::unexpected(motion.error());
+  const StageTiming timing = motion->timing;
+  if (!motion->has_motion) {
+    startSegment(out, TrackState::kSegmentStart);
+  } else if (motion->estimate.status == FitStatus::kLost) {
+    startSegment(out, TrackState::kLost);
+  } else {
+    pipeline::PassResult pass;
+    pass.estimate = motion->estimate;
+    pass.rotation = motion->rotation;
+    pass.window_model = motion->estimate.vector();
+    finish(out, pose * isometry(motion->rotation, motion->estimate.tau), pass, TrackState::kTracked);
+  }
+  out.relative.timing = timing;
+  out.segment = segment;
+  return out;
+}
+
+Odometry::Odometry(const Calibration& calibration, const OdometryOptions& options) {
+  detail::throwIfProblems("invalid odometry configuration", validate(calibration, options));
+  impl_ = std::make_unique<Impl>(calibration, options);
+}
+
+Odometry::Odometry(std::unique_ptr<MotionEstimator> pairwise) {
+  if (!pairwise) throw std::invalid_argument("Odometry: no motion estimator");
+  impl_ = std::make_unique<Impl>(std::move(pairwise));
+}
+
+Odometry::~Odometry() = default;
+
+Expected<OdometryResult> Odometry::process(const cv::Mat& frame, const FrameStamp& stamp) {
+  return impl_->process(frame, stamp);
+}
+
+void Odometry::markGap() {
+  impl_->gap = true;
+  ++impl_->auto_sequence;
+}
+
+void Odometry::reset() {
+  Impl& s = *impl_;
+  s.started = false;
+  s.gap = false;
+  s.segment = -1;
+  s.pose = Eigen::Isometry3d::Identity();
+  s.last_sequence = -1;
+  s.auto_sequence = 0;
+  s.active = -1;
+  for (auto& k : s.keyframes) k.valid = false;
+  if (s.registrar) s.registrar->forgetPrevious();
+  if (s.pairwise) s.pairwise->reset();
+}
+
+const char* Odometry::methodName() const {
+  return impl_->pairwise ? impl_->pairwise->name() : "ifmi";
+}
+int Odometry::threads() const { return impl_->registrar ? impl_->registrar->threads() : 1; }
+bool Odometry::wisdomLoaded() const {
+  return impl_->registrar && impl_->registrar->wisdomLoaded();
+}
+int Odometry::windowCount() const {
+  return impl_->registrar ? impl_->registrar->windowCount() : 0;
+}
+double Odometry::windowAttenuation() const {
+  return impl_->registrar ? impl_->registrar->windowAttenuation() : 1.0;
+}
+
+}  // namespace omnipose

@@ -1,0 +1,289 @@
+// The frame-to-pose policy (omnipose/odometry.hpp) against the exact renderer: keyframes
+// hold while the robot stands still or turns in place, so the chained attitude does not
+// drift; a frame after a gap (one bad frame, ten, a 2-second outage during a turn) is found
+// again against the keyframe with the heading kept; only an unrelated view starts a new
+// segment; translation and tilt switch the keyframe.
+#include <gtest/gtest.h>
+
+#include <array>
+#include <cmath>
+#include <map>
+#include <numbers>
+#include <vector>
+
+#include "allocation_counter.hpp"
+#include "omnipose/odometry.hpp"
+#include "omnipose/so3.hpp"
+#include "omnipose/synth.hpp"
+#include "render_fixture.hpp"
+
+namespace omnipose {
+namespace {
+
+constexpr double kDeg = std::numbers::pi / 180.0;
+
+/// Renders omni frames (8-bit) at the given camera poses, each with its own sensor noise.
+/// A pose is rendered once (the tests revisit poses; only the noise differs).
+class Renderings {
+ public:
+  explicit Renderings(synth::SceneKind kind = synth::SceneKind::kSphere)
+      : renderer_(synth::Scene::load(testing::indoorPhoto(), kind), Calibration{}, {}) {}
+
+  cv::Mat frame(const Eigen::Isometry3d& pose, int seed) {
+    std::array<double, 12> key;
+    Eigen::Map<Eigen::Matrix<double, 3, 4>>(key.data()) = pose.matrix().topRows<3>();
+    auto it = rendered_.find(key);
+    if (it == rendered_.end()) it = rendered_.emplace(key, renderer_.render(pose)).first;
+    synth::DegradeOptions noise;
+    noise.noise_sigma = 2.0;
+    return synth::degrade(it->second, noise, static_cast<std::uint64_t>(seed));
+  }
+
+ private:
+  synth::Renderer renderer_;
+  std::map<std::array<double, 12>, cv::Mat> rendered_;
+};
+
+Eigen::Isometry3d attitude(double roll, double pitch, double yaw) {
+  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+  T.linear() = (Eigen::AngleAxisd(yaw, Eigen::Vector3d::UnitZ()) *
+                Eigen::AngleAxisd(pitch, Eigen::Vector3d::UnitY()) *
+                Eigen::AngleAxisd(roll, Eigen::Vector3d::UnitX()))
+                   .toRotationMatrix();
+  return T;
+}
+
+double rotationError(const Eigen::Isometry3d& estimate, const Eigen::Isometry3d& truth) {
+  return rotationVector(estimate.linear().transpose() * truth.linear()).norm();
+}
+
+OdometryResult processOk(Odometry& odometry, const cv::Mat& frame, double t,
+                         bool gap_before = false) {
+  auto r = odometry.process(frame, {t, -1, gap_before});
+  EXPECT_TRUE(r.has_value()) << (r ? "" : r.error().c_str());
+  return r ? *r : OdometryResult{};
+}
+
+TEST(Odometry, StandingStillKeepsItsFirstKeyframeAndDoesNotDrift) {
+  Renderings scene;
+  Odometry odometry(Calibration{}, {});
+  double worst = 0.0;
+  for (int k = 0; k < 40; ++k) {
+    const OdometryResult r = processOk(odometry, scene.frame(Eigen::Isometry3d::Identity(), k), k / 30.0);
+    EXPECT_EQ(r.keyframe_sequence, 0) << "frame " << k;
+    EXPECT_EQ(r.frames_since_keyframe, k);
+    EXPECT_EQ(r.segment, 0);
+    if (k > 0) EXPECT_EQ(r.state, TrackState::kTracked);
+    worst = std::max(worst, rotationError(r.pose, Eigen::Isometry3d::Identity()));
+  }
+  ::testing::Test::RecordProperty("worst_chained_error_rad", std::to_string(worst));
+  EXPECT_LT(worst, 3e-4) << "each frame is one registration away from the keyframe";
+}
+
+TEST(Odometry, AYawSwingAndBackStaysOnOneKeyframeAndEndsWhereItBegan) {
+  Renderings scene;
+  Odometry odometry(Calibration{}, {});
+  std::vector<double> yaw;
+  for (int k = 0; k <= 10; ++k) yaw.push_back(6.0 * k * kDeg);      // to +60 degrees
+  for (int k = 9; k >= -10; --k) yaw.push_back(6.0 * k * kDeg);     // to -60
+  for (int k = -9; k <= 0; ++k) yaw.push_back(6.0 * k * kDeg);      // back to 0
+  OdometryResult r;
+  double worst = 0.0;
+  for (std::size_t k = 0; k < yaw.size(); ++k) {
+    const Eigen::Isometry3d truth = attitude(0, 0, yaw[k]);
+    r = processOk(odometry, scene.frame(truth, static_cast<int>(k)), k / 30.0);
+    EXPECT_EQ(r.keyframe_sequence, 0) << "a yaw does not change the view";
+    worst = std::max(worst, rotationError(r.pose, truth));
+  }
+  ::testing::Test::RecordProperty("worst_chained_error_rad", std::to_string(worst));
+  EXPECT_LT(rotationError(r.pose, Eigen::Isometry3d::Identity()), 3e-4);
+  EXPECT_LT(worst, 5e-4);
+}
+
+/// A yaw turn of `step_deg` per frame for `frames` frames, with frames [gap_from, gap_to)
+/// replaced by `bad` (an error) or left out (`bad` empty: an outage the caller reports).
+struct GapRun {
+  std::vector<OdometryResult> results;  ///< of the frames processed without error
+  int errors = 0;
+};
+
+GapRun runTurnWithGap(Renderings& scene, double step_deg, int frames, int gap_from,
+                      int gap_to, const cv::Mat& bad) {
+  Odometry odometry(Calibration{}, {});
+  GapRun run;
+  bool gap = false;
+  for (int k = 0; k < frames; ++k) {
+    const double t = k / 30.0;
+    if (k >= gap_from && k < gap_to) {
+      if (bad.empty()) {
+        gap = true;
+        continue;
+      }
+      auto r = odometry.process(bad, {t, k});
+      EXPECT_FALSE(r.has_value()) << "frame " << k;
+      ++run.errors;
+      continue;
+    }
+    auto r = odometry.process(scene.frame(attitude(0, 0, step_deg * k * kDeg), k), {t, k, gap});
+    gap = false;
+    EXPECT_TRUE(r.has_value()) << (r ? "" : r.error().c_str());
+    if (r) run.results.push_back(*r);
+  }
+  return run;
+}
+
+void expectBridgedWithHeadingKept(const GapRun& run, double step_deg, int gap_from, int gap_to) {
+  ASSERT_FALSE(run.results.empty());
+  for (const OdometryResult& r : run.results) {
+    SCOPED_TRACE(r.sequence);
+    EXPECT_EQ(r.segment, 0) << "the gap did not start a new segment";
+    if (r.sequence == gap_to) {
+      EXPECT_EQ(r.state, TrackState::kBridged);
+      EXPECT_EQ(r.reference_sequence, gap_from - 1);
+    } else if (r.sequence > 0) {
+      EXPECT_EQ(r.state, TrackState::kTracked);
+    }
+    const Eigen::Isometry3d truth = attitude(0, 0, step_deg * static_cast<double>(r.sequence) * kDeg);
+    EXPECT_LT(rotationError(r.pose, truth), 1e-3);
+  }
+  // The relative motion across the gap is the turn made during it.
+  for (const OdometryResult& r : run.results) {
+    if (r.sequence != gap_to) continue;
+    EXPECT_NEAR(r.relative.estimate.omega.z(), step_deg * (gap_to - gap_from + 1) * kDeg, 1e-3);
+  }
+}
+
+TEST(Odometry, OneCorruptFrameDuringATurnIsBridgedWithTheHeadingKept) {
+  Renderings scene;
+  const cv::Mat black(Calibration{}.omni.image_height, Calibration{}.omni.image_width, CV_8UC1,
+                      cv::Scalar(0));
+  const GapRun run = runTurnWithGap(scene, 2.0, 12, 6, 7, black);
+  EXPECT_EQ(run.errors, 1);
+  expectBridgedWithHeadingKept(run, 2.0, 6, 7);
+}
+
+TEST(Odometry, TenCorruptFramesInARowAreBridged) {
+  Renderings scene;
+  const cv::Mat wrong_size(100, 100, CV_8UC1, cv::Scalar(90));
+  const GapRun run = runTurnWithGap(scene, 2.0, 20, 5, 15, wrong_size);
+  EXPECT_EQ(run.errors, 10);
+  expectBridgedWithHeadingKept(run, 2.0, 5, 15);
+}
+
+TEST(Odometry, ATwoSecondOutageDuringATurnIsBridgedByTheRingSearch) {
+  Renderings scene;
+  // 60 frames missing at 1.5 degrees per frame: 91.5 degrees turned across the gap, far
+  // beyond any window's reach.
+  const GapRun run = runTurnWithGap(scene, 1.5, 70, 5, 65, cv::Mat());
+  expectBridgedWithHeadingKept(run, 1.5, 5, 65);
+}
+
+TEST(Odometry, AnUnrelatedViewAfterAGapStartsANewSegmentWithThePoseHeld) {
+  Renderings scene;
+  Odometry odometry(Calibration{}, {});
+  const Eigen::Isometry3d turned = attitude(0, 0, 4 * kDeg);
+  processOk(odometry, scene.frame(Eigen::Isometry3d::Identity(), 0), 0.0);
+  const OdometryResult before = processOk(odometry, scene.frame(turned, 1), 1 / 30.0);
+  ASSERT_EQ(before.state, TrackState::kTracked);
+  // A lens cap: noise only.
+  cv::Mat noise(Calibration{}.omni.image_height, Calibration{}.omni.image_width, CV_8UC1);
+  cv::randu(noise, 0, 255);
+  const OdometryResult lost = processOk(odometry, noise, 2 / 30.0, /*gap_before=*/true);
+  EXPECT_EQ(lost.state, TrackState::kLost);
+  EXPECT_EQ(lost.segment, 1);
+  EXPECT_FALSE(lost.relative.has_motion);
+  EXPECT_LT(rotationError(lost.pose, before.pose), 1e-12) << "the pose is held";
+  // The next frame goes on from the new segment's start.
+  const OdometryResult next = processOk(odometry, scene.frame(turned, 3), 3 / 30.0);
+  EXPECT_EQ(next.segment, 1);
+  EXPECT_EQ(next.reference_sequence, 2);
+}
+
+TEST(Odometry, TranslationAndTiltSwitchTheKeyframe) {
+  {
+    // 10 cm per frame in a 6 x 5 m room (|tau| about 0.04 > max_translation): every frame is
+    // refined against the previous one, which becomes the keyframe.
+    Renderings room(synth::SceneKind::kBox);
+    Odometry odometry(Calibration{}, {});
+    for (int k = 0; k < 6; ++k) {
+      Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
+      pose.translation() = Eigen::Vector3d(0.1 * k, 0.0, 0.0);
+      const OdometryResult r = processOk(odometry, room.frame(pose, k), k / 30.0);
+      if (k > 0) {
+        EXPECT_EQ(r.keyframe_sequence, k - 1) << k;
+        EXPECT_EQ(r.frames_since_keyframe, 1);
+      }
+    }
+  }
+  {
+    // Rolling 2 degrees per frame: the keyframe holds while the tilt from it is within
+    // max_tilt_rad, then the frame becomes the keyframe.
+    Renderings scene;
+    OdometryOptions options;
+    options.keyframes.max_tilt_rad = 5 * kDeg;
+    Odometry odometry(Calibration{}, options);
+    std::vector<std::int64_t> keyframes;
+    for (int k = 0; k < 8; ++k) {
+      const OdometryResult r = processOk(odometry, scene.frame(attitude(2.0 * k * kDeg, 0, 0), k), k / 30.0);
+      keyframes.push_back(r.keyframe_sequence);
+      EXPECT_LT(rotationError(r.pose, attitude(2.0 * k * kDeg, 0, 0)), 5e-4) << k;
+    }
+    // Frames 1, 2 reach 4 degrees from frame 0; frame 3 (6 degrees) is refined against
+    // frame 2 and becomes the keyframe; and so on.
+    EXPECT_EQ(keyframes, (std::vector<std::int64_t>{0, 0, 0, 2, 3, 3, 5, 6}));
+  }
+}
+
+TEST(Odometry, WithoutKeyframesEveryFrameIsRefinedAgainstThePreviousOne) {
+  Renderings scene;
+  OdometryOptions options;
+  options.keyframes.slots = 0;
+  Odometry odometry(Calibration{}, options);
+  for (int k = 0; k < 5; ++k) {
+    const OdometryResult r = processOk(odometry, scene.frame(Eigen::Isometry3d::Identity(), k), k / 30.0);
+    if (k > 0) EXPECT_EQ(r.keyframe_sequence, k - 1);
+  }
+}
+
+TEST(Odometry, BadOptionsAreListedByField) {
+  OdometryOptions options;
+  options.keyframes.slots = 17;
+  options.keyframes.max_tilt_rad = -1;
+  options.pipeline.refine_iterations = 9;
+  const auto problems = Odometry::validate(Calibration{}, options);
+  ASSERT_EQ(problems.size(), 3u);
+  EXPECT_NE(problems[0].find("pipeline.refine_iterations"), std::string::npos) << problems[0];
+  EXPECT_NE(problems[1].find("keyframes.slots"), std::string::npos) << problems[1];
+  EXPECT_NE(problems[2].find("keyframes.max_tilt_rad"), std::string::npos) << problems[2];
+  EXPECT_THROW(Odometry(Calibration{}, options), std::invalid_argument);
+}
+
+TEST(Odometry, ProcessAllocatesNothingAfterWarmUpThroughKeyframesAndGaps) {
+  if (!testing::AllocationCounter::available())
+    GTEST_SKIP() << "sanitizer build: the sanitizer owns malloc, allocations are not counted";
+  cv::setNumThreads(1);
+  Renderings scene;
+  std::vector<cv::Mat> frames;
+  for (int k = 0; k < 6; ++k) frames.push_back(scene.frame(attitude(0.02 * k, 0, 0.05 * k), k));
+  const cv::Mat wrong_size(100, 100, CV_8UC1, cv::Scalar(7));
+  OdometryOptions options;
+  options.pipeline.threads = 2;
+  Odometry odometry(Calibration{}, options);
+  for (int k = 0; k < 6; ++k) ASSERT_TRUE(odometry.process(frames[k], {k / 30.0}).has_value());
+  (void)odometry.process(wrong_size, {0.2});
+  ASSERT_TRUE(odometry.process(frames[0], {0.25}).has_value());  // bridged: warms that path
+
+  testing::AllocationCounter counter;
+  int ok = 0;
+  for (int i = 0; i < 120; ++i) {
+    const bool gap = i % 40 == 20;
+    if (i % 40 == 10) (void)odometry.process(wrong_size, {i / 30.0});
+    if (odometry.process(frames[(i * 5) % 6], {i / 30.0, -1, gap}).has_value()) ++ok;
+  }
+  const std::int64_t allocations = counter.stop();
+  EXPECT_EQ(ok, 120);
+  EXPECT_EQ(allocations, 0) << "heap allocations in 120 frames of Odometry::process";
+}
+
+}  // namespace
+}  // namespace omnipose
