@@ -367,9 +367,9 @@ struct MotionScript {
 };
 
 /// The camera poses T_world_camera of a script (the scripted poses times the vibration, if
-/// any; MotionScript), timestamps i / frame_rate. `region`: where the camera may be (world frame); translation steps
-/// respect it (see TranslationStep). Throws MotionError if no step keeps the camera
-/// inside the region, std::invalid_argument on an invalid script.
+/// any; see MotionScript), timestamps i / frame_rate. `region`: where the camera may be
+/// (world frame); translation steps respect it (see TranslationStep). Throws MotionError if
+/// no step keeps the camera inside the region, std::invalid_argument on an invalid script.
 std::vector<StampedPose> generateTrajectory(const MotionScript& script,
                                             const std::optional<Eigen::AlignedBox3d>& region = {});
 

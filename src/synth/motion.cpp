@@ -267,14 +267,20 @@ std::vector<std::string> vibrationProblems(const Vibration& v, int frames, doubl
 VibrationAxis drawAxis(const Vibration& v, double duration, int frames, double frame_rate,
                        std::mt19937_64& rng) {
   const auto [lo, hi] = wholeCycleRange(v, duration);
-  std::vector<long> cycles;
-  for (long m = lo; m <= hi; ++m) cycles.push_back(m);
+  // Without repetition: a partial Fisher-Yates shuffle of lo .. hi, kept sparse (position ->
+  // value where a swap moved it), so a long sequence's wide band costs no memory.
+  std::map<long, long> moved;
+  const auto at = [&](long i) {
+    const auto it = moved.find(i);
+    return it == moved.end() ? lo + i : it->second;
+  };
   VibrationAxis axis;
-  for (int i = 0; i < v.components; ++i) {
-    // Without repetition: a partial Fisher-Yates shuffle.
-    const long j = std::uniform_int_distribution<long>(i, static_cast<long>(cycles.size()) - 1)(rng);
-    std::swap(cycles[static_cast<std::size_t>(i)], cycles[static_cast<std::size_t>(j)]);
-    axis.frequency_hz.push_back(static_cast<double>(cycles[static_cast<std::size_t>(i)]) / duration);
+  for (long i = 0; i < v.components; ++i) {
+    const long j = std::uniform_int_distribution<long>(i, hi - lo)(rng);
+    const long drawn = at(j);
+    moved[j] = at(i);
+    moved[i] = drawn;
+    axis.frequency_hz.push_back(static_cast<double>(drawn) / duration);
     axis.phase_rad.push_back(std::uniform_real_distribution<>(0.0, 2.0 * std::numbers::pi)(rng));
     axis.weight.push_back(std::uniform_real_distribution<>(0.5, 1.0)(rng));
   }

@@ -10,9 +10,9 @@
 
 #include <lcm/lcm-cpp.hpp>
 
+#include <cerrno>
 #include <chrono>
 #include <cinttypes>
-#include <cerrno>
 #include <cmath>
 #include <csignal>
 #include <cstdio>
