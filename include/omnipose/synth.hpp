@@ -244,6 +244,56 @@ struct TranslationStep {
   Eigen::Vector3d direction = Eigen::Vector3d::UnitX();
 };
 
+/// Track vibration: a roll and pitch perturbation of the camera's attitude on top of the
+/// scripted trajectory, as a tracked robot's chassis shakes on the ground. It does not
+/// accumulate: frame k's pose is T_k = S_k * [R_vib(t_k) | 0], with S_k the scripted pose,
+/// t_k = k / frame_rate and R_vib(t) = exp([roll(t), pitch(t), 0]x) (a rotation about the
+/// camera centre; the position is the scripted one).
+///
+/// Each of roll and pitch is a sum of `components` sinusoids,
+///   angle(t) = scale * sum_i w_i sin(2 pi f_i t + phi_i),
+/// with weights w_i uniform in [0.5, 1], phases phi_i uniform in [0, 2 pi) and frequencies
+/// f_i = m_i / D drawn without repetition from the whole numbers m_i of cycles over the
+/// sequence's duration D = (frames - 1) / frame_rate whose frequency lies in
+/// [min_hz, max_hz]. The vibration is therefore periodic over the sequence: it ends with the
+/// attitude it began with, and its mean over frames 0 .. frames - 2 (one period) is zero.
+/// `scale` makes the largest |angle(t_k)| over the sequence's frames exactly amplitude_deg.
+/// Roll and pitch are drawn independently (roll first) from a generator seeded by `seed`
+/// alone, so the scripted trajectory does not depend on the vibration.
+struct Vibration {
+  double amplitude_deg = 0.5;  ///< peak |roll| and peak |pitch| over the frames, degrees
+  double min_hz = 1.0;         ///< lowest frequency, Hz
+  double max_hz = 9.0;         ///< highest frequency, Hz (below half the frame rate)
+  int components = 3;          ///< sinusoids per axis
+  std::uint64_t seed = 0;
+
+  /// One message per bad field (empty = valid), each starting with "vibration.<field>":
+  /// amplitude_deg in (0, 10], 0 < min_hz <= max_hz, components in [1, 16].
+  std::vector<std::string> validate() const;
+};
+
+/// One axis of a drawn vibration: angle(t) = scale_rad * sum_i weight[i] *
+/// sin(2 pi frequency_hz[i] t + phase_rad[i]), radians.
+struct VibrationAxis {
+  std::vector<double> frequency_hz, phase_rad, weight;
+  double scale_rad = 0.0;
+  /// The angle at time t (seconds), radians.
+  double angle(double t) const;
+};
+
+/// The vibration a script draws for its frames (see Vibration).
+struct VibrationSignal {
+  VibrationAxis roll, pitch;
+  /// R_vib(t) = exp([roll.angle(t), pitch.angle(t), 0]x); t in seconds.
+  Eigen::Matrix3d rotation(double t) const;
+};
+
+/// Draws the vibration of a sequence of `frames` frames at `frame_rate` Hz. Throws
+/// std::invalid_argument naming the field when `vibration` is invalid, when frames < 2,
+/// when max_hz is not below frame_rate / 2, or when the band holds fewer whole-cycle
+/// frequencies over the sequence than `components`.
+VibrationSignal drawVibration(const Vibration& vibration, int frames, double frame_rate);
+
 /// `frames` consecutive increments, each with an optional rotation and translation.
 struct MotionSegment {
   int frames = 1;
@@ -262,6 +312,12 @@ using MotionError = ConfigError;
 /// frames: 0              # total frames including the first; 0 = 1 + sum of segment frames,
 ///                        #   else the segments are cycled (or cut) to give exactly this many
 /// wall_margin_m: 1.0     # box scene: the camera stays this far from the walls
+/// vibration:             # optional track vibration (struct Vibration), on top of the segments
+///   amplitude_deg: 0.5   #   peak |roll| and |pitch|, degrees
+///   min_hz: 1            #   frequency band, Hz
+///   max_hz: 9
+///   components: 3        #   sinusoids per axis
+///   seed: 0              #   its own random draws
 /// segments:
 ///   - frames: 50                 # increments in this segment
 ///     rotation:                  # optional
@@ -273,18 +329,23 @@ using MotionError = ConfigError;
 ///       step_m: [0.05, 0.15]     # per-frame distance range, metres (or one number)
 ///       direction: random_horizontal   # or [x, y, z] in the camera frame
 /// ```
-/// The first frame is at the identity; frame k's pose is T_k = T_{k-1} * [exp(omega_k), t_k].
+/// The scripted poses: S_0 = identity, S_k = S_{k-1} * [exp(omega_k), t_k]. Without
+/// vibration T_k = S_k; with it T_k = S_k * [R_vib(t_k) | 0] (so T_0 = R_vib(0)).
 struct MotionScript {
   std::uint64_t seed = 0;
   double frame_rate = 30.0;  ///< Hz
   int frames = 0;            ///< total frame count, 0 = 1 + sum of segment frames
   double wall_margin_m = 1.0;
   std::vector<MotionSegment> segments;
+  std::optional<Vibration> vibration;  ///< track vibration, none by default
 
   /// One message per bad field (empty = valid).
   std::vector<std::string> validate() const;
   /// Number of frames generateTrajectory() produces.
   int frameCount() const;
+  /// The vibration generateTrajectory() applies (drawVibration() for frameCount() frames),
+  /// or none. Throws std::invalid_argument like drawVibration().
+  std::optional<VibrationSignal> vibrationSignal() const;
   /// Whether any segment translates (needs a box scene to be visible).
   bool translates() const;
 
@@ -305,10 +366,10 @@ struct MotionScript {
   static std::vector<std::string> presetNames();
 };
 
-/// The camera poses T_world_camera of a script, first at the identity, timestamps
-/// i / frame_rate. `region`: where the camera may be (world frame); translation steps
-/// respect it (see TranslationStep). Throws MotionError if no step keeps the camera
-/// inside the region, std::invalid_argument on an invalid script.
+/// The camera poses T_world_camera of a script (the scripted poses times the vibration, if
+/// any; see MotionScript), timestamps i / frame_rate. `region`: where the camera may be
+/// (world frame); translation steps respect it (see TranslationStep). Throws MotionError if
+/// no step keeps the camera inside the region, std::invalid_argument on an invalid script.
 std::vector<StampedPose> generateTrajectory(const MotionScript& script,
                                             const std::optional<Eigen::AlignedBox3d>& region = {});
 

@@ -4,6 +4,10 @@
 #include <cmath>
 #include <cstdio>
 #include <numbers>
+#include <optional>
+#include <stdexcept>
+#include <string>
+#include <vector>
 
 namespace omnipose {
 namespace {
@@ -66,6 +70,97 @@ EvaluationResult evaluate(const std::vector<StampedPose>& groundtruth,
   }
   for (ErrorStats* s : {&r.roll, &r.pitch, &r.yaw, &r.angle, &r.translation_direction}) finish(*s);
   return r;
+}
+
+DriftResult evaluateDrift(const std::vector<StampedPose>& groundtruth,
+                          const std::vector<StampedPose>& estimate,
+                          const EvaluationOptions& options) {
+  std::vector<StampedPose> est = estimate;
+  std::sort(est.begin(), est.end(),
+            [](const StampedPose& a, const StampedPose& b) { return a.timestamp < b.timestamp; });
+  DriftResult r;
+  r.poses_expected = static_cast<int>(groundtruth.size());
+  std::optional<Eigen::Matrix3d> align;
+  double sum_squares = 0.0;
+  for (std::size_t k = 0; k < groundtruth.size(); ++k) {
+    const int i = findPose(est, groundtruth[k].timestamp, options.time_tolerance);
+    if (i < 0) continue;
+    const Eigen::Matrix3d R_gt = groundtruth[k].pose.rotation();
+    const Eigen::Matrix3d R_est = est[static_cast<std::size_t>(i)].pose.rotation();
+    if (!align) {
+      align = R_gt * R_est.transpose();
+      r.start_timestamp = groundtruth[k].timestamp;
+    }
+    const Eigen::Vector3d e = rotationVector(R_gt.transpose() * *align * R_est);
+    const double angle = e.norm();
+    ++r.poses_matched;
+    r.timestamps.push_back(groundtruth[k].timestamp);
+    r.errors.push_back(angle);
+    sum_squares += angle * angle;
+    if (angle > r.max_error || r.poses_matched == 1) {
+      r.max_error = angle;
+      r.max_timestamp = groundtruth[k].timestamp;
+    }
+    r.end_timestamp = groundtruth[k].timestamp;
+    r.end_error = angle;
+    r.end_error_rotvec = e;
+    r.end_is_last = k + 1 == groundtruth.size();
+  }
+  if (r.poses_matched == 0) {
+    throw std::invalid_argument("evaluateDrift: no estimated pose has the timestamp of a "
+                                "ground-truth pose (tolerance " +
+                                std::to_string(options.time_tolerance) + " s)");
+  }
+  r.ate_rmse = std::sqrt(sum_squares / r.poses_matched);
+  return r;
+}
+
+std::string formatDriftTable(const DriftResult& d, const EvaluationResult& pairs,
+                             const std::string& title) {
+  constexpr double kDeg = 180.0 / std::numbers::pi;
+  std::vector<char> buf(title.size() + 512);
+  std::snprintf(buf.data(), buf.size(),
+                "%s: %d of %d poses matched, aligned at t = %.6f s\n"
+                "  end-point rotation error  %10.4f deg at t = %.6f s%s"
+                " (rotvec %+.4f %+.4f %+.4f deg)\n"
+                "  ATE rotation RMSE         %10.4f deg\n"
+                "  max rotation error        %10.4f deg at t = %.6f s\n"
+                "  per-pair eps RMSE         %10.4f mrad (%d pairs, %d missing)\n",
+                title.c_str(), d.poses_matched, d.poses_expected, d.start_timestamp,
+                d.end_error * kDeg, d.end_timestamp, d.end_is_last ? "" : " (not the last frame)",
+                d.end_error_rotvec.x() * kDeg, d.end_error_rotvec.y() * kDeg,
+                d.end_error_rotvec.z() * kDeg, d.ate_rmse * kDeg, d.max_error * kDeg,
+                d.max_timestamp, pairs.angle.rmse * 1e3, static_cast<int>(pairs.pairs.size()),
+                pairs.pairs_missing);
+  return buf.data();
+}
+
+std::string formatDriftJson(const DriftResult& d, const EvaluationResult& pairs,
+                            const std::string& name) {
+  std::vector<char> buf(name.size() + 1024);
+  std::snprintf(buf.data(), buf.size(),
+                "{\"name\": \"%s\", \"poses_expected\": %d, \"poses_matched\": %d, "
+                "\"start_timestamp\": %.6f, \"end_timestamp\": %.6f, \"end_is_last\": %s, "
+                "\"end_error\": %.9g, \"end_error_rotvec\": [%.9g, %.9g, %.9g], "
+                "\"ate_rmse\": %.9g, \"max_error\": %.9g, \"max_timestamp\": %.6f, "
+                "\"eps\": {\"rmse\": %.9g, \"max\": %.9g, \"count\": %d}, "
+                "\"pairs_missing\": %d}",
+                name.c_str(), d.poses_expected, d.poses_matched, d.start_timestamp,
+                d.end_timestamp, d.end_is_last ? "true" : "false", d.end_error,
+                d.end_error_rotvec.x(), d.end_error_rotvec.y(), d.end_error_rotvec.z(),
+                d.ate_rmse, d.max_error, d.max_timestamp, pairs.angle.rmse, pairs.angle.max,
+                pairs.angle.count, pairs.pairs_missing);
+  return buf.data();
+}
+
+std::string formatDriftCsv(const DriftResult& d) {
+  std::string out = "t,error_rad\n";
+  char buf[64];
+  for (std::size_t i = 0; i < d.errors.size(); ++i) {
+    std::snprintf(buf, sizeof(buf), "%.6f,%.9g\n", d.timestamps[i], d.errors[i]);
+    out += buf;
+  }
+  return out;
 }
 
 std::string formatTable(const EvaluationResult& r, const std::string& title) {

@@ -1,11 +1,13 @@
 #include <yaml-cpp/yaml.h>
 
+#include <algorithm>
 #include <cmath>
 #include <fstream>
 #include <map>
 #include <numbers>
 #include <random>
 #include <sstream>
+#include <utility>
 
 #include "common/problem_list.hpp"
 #include "common/yaml_reader.hpp"
@@ -120,6 +122,21 @@ TranslationStep readTranslation(Reader& r, const YAML::Node& node, const std::st
   return s;
 }
 
+Vibration readVibration(Reader& r, const YAML::Node& node, const std::string& path) {
+  Vibration v;
+  if (!node.IsMap()) {
+    r.problem(path, "must be a map");
+    return v;
+  }
+  r.checkMap(node, path, {"amplitude_deg", "min_hz", "max_hz", "components", "seed"});
+  r.get(node, path, "amplitude_deg", v.amplitude_deg);
+  r.get(node, path, "min_hz", v.min_hz);
+  r.get(node, path, "max_hz", v.max_hz);
+  r.get(node, path, "components", v.components);
+  r.get(node, path, "seed", v.seed);
+  return v;
+}
+
 MotionSegment readSegment(Reader& r, const YAML::Node& node, const std::string& path) {
   MotionSegment s;
   if (!node.IsMap()) {
@@ -209,7 +226,108 @@ Eigen::Vector3d drawTranslation(const TranslationStep& s, Generator& g,
                     " m, step " + std::to_string(distance) + " m): room too small for the margin?");
 }
 
+// ------------------------------------------------------------------ vibration
+
+/// Duration of a sequence of `frames` frames, seconds: the vibration's period.
+double sequenceDuration(int frames, double frame_rate) { return (frames - 1) / frame_rate; }
+
+/// Whole numbers of cycles over `duration` whose frequency lies in [min_hz, max_hz].
+std::pair<long, long> wholeCycleRange(const Vibration& v, double duration) {
+  constexpr double kSlack = 1e-9;  // a band edge that is a whole-cycle frequency counts
+  const long lo = std::max(1L, static_cast<long>(std::ceil(v.min_hz * duration - kSlack)));
+  const long hi = static_cast<long>(std::floor(v.max_hz * duration + kSlack));
+  return {lo, hi};
+}
+
+/// Every problem of drawing `v` for `frames` frames at `frame_rate` Hz.
+std::vector<std::string> vibrationProblems(const Vibration& v, int frames, double frame_rate) {
+  std::vector<std::string> p = v.validate();
+  if (!p.empty() || !(frame_rate > 0)) return p;
+  if (v.max_hz >= frame_rate / 2) {
+    p.push_back("vibration.max_hz: must be below half the frame rate (" +
+                std::to_string(frame_rate / 2) + " Hz)");
+    return p;
+  }
+  if (frames < 2) {
+    p.push_back("vibration: needs a sequence of at least 2 frames");
+    return p;
+  }
+  const double duration = sequenceDuration(frames, frame_rate);
+  const auto [lo, hi] = wholeCycleRange(v, duration);
+  const long available = std::max(0L, hi - lo + 1);
+  if (available < v.components) {
+    p.push_back("vibration.components: the band [min_hz, max_hz] holds " +
+                std::to_string(available) + " frequencies of whole cycles over the " +
+                std::to_string(duration) + " s sequence, fewer than " +
+                std::to_string(v.components) + " (widen the band or lengthen the sequence)");
+  }
+  return p;
+}
+
+VibrationAxis drawAxis(const Vibration& v, double duration, int frames, double frame_rate,
+                       std::mt19937_64& rng) {
+  const auto [lo, hi] = wholeCycleRange(v, duration);
+  // Without repetition: a partial Fisher-Yates shuffle of lo .. hi, kept sparse (position ->
+  // value where a swap moved it), so a long sequence's wide band costs no memory.
+  std::map<long, long> moved;
+  const auto at = [&](long i) {
+    const auto it = moved.find(i);
+    return it == moved.end() ? lo + i : it->second;
+  };
+  VibrationAxis axis;
+  for (long i = 0; i < v.components; ++i) {
+    const long j = std::uniform_int_distribution<long>(i, hi - lo)(rng);
+    const long drawn = at(j);
+    moved[j] = at(i);
+    moved[i] = drawn;
+    axis.frequency_hz.push_back(static_cast<double>(drawn) / duration);
+    axis.phase_rad.push_back(std::uniform_real_distribution<>(0.0, 2.0 * std::numbers::pi)(rng));
+    axis.weight.push_back(std::uniform_real_distribution<>(0.5, 1.0)(rng));
+  }
+  axis.scale_rad = 1.0;
+  double peak = 0.0;
+  for (int k = 0; k < frames; ++k) peak = std::max(peak, std::abs(axis.angle(k / frame_rate)));
+  if (!(peak > 0)) throw std::invalid_argument("vibration: the drawn sinusoids vanish at every frame");
+  axis.scale_rad = v.amplitude_deg * kDegToRad / peak;
+  return axis;
+}
+
 }  // namespace
+
+std::vector<std::string> Vibration::validate() const {
+  std::vector<std::string> p;
+  if (!(amplitude_deg > 0 && amplitude_deg <= 10)) {
+    p.push_back("vibration.amplitude_deg: must be in (0, 10] degrees");
+  }
+  if (!(min_hz > 0)) p.push_back("vibration.min_hz: must be > 0");
+  if (!(max_hz >= min_hz)) p.push_back("vibration.max_hz: must be >= min_hz");
+  if (components < 1 || components > 16) p.push_back("vibration.components: must be in [1, 16]");
+  return p;
+}
+
+double VibrationAxis::angle(double t) const {
+  double sum = 0.0;
+  for (std::size_t i = 0; i < frequency_hz.size(); ++i) {
+    sum += weight[i] * std::sin(2.0 * std::numbers::pi * frequency_hz[i] * t + phase_rad[i]);
+  }
+  return scale_rad * sum;
+}
+
+Eigen::Matrix3d VibrationSignal::rotation(double t) const {
+  return rotationFromVector(Eigen::Vector3d(roll.angle(t), pitch.angle(t), 0.0));
+}
+
+VibrationSignal drawVibration(const Vibration& vibration, int frames, double frame_rate) {
+  if (!(frame_rate > 0)) throw std::invalid_argument("drawVibration: frame_rate must be > 0");
+  detail::throwIfProblems("drawVibration: invalid vibration",
+                          vibrationProblems(vibration, frames, frame_rate));
+  std::mt19937_64 rng(vibration.seed);
+  const double duration = sequenceDuration(frames, frame_rate);
+  VibrationSignal signal;
+  signal.roll = drawAxis(vibration, duration, frames, frame_rate, rng);
+  signal.pitch = drawAxis(vibration, duration, frames, frame_rate, rng);
+  return signal;
+}
 
 std::vector<std::string> MotionScript::validate() const {
   std::vector<std::string> p;
@@ -236,7 +354,17 @@ std::vector<std::string> MotionScript::validate() const {
       }
     }
   }
+  if (vibration && frames >= 0 && !segments.empty()) {
+    for (auto& problem : vibrationProblems(*vibration, frameCount(), frame_rate)) {
+      p.push_back(std::move(problem));
+    }
+  }
   return p;
+}
+
+std::optional<VibrationSignal> MotionScript::vibrationSignal() const {
+  if (!vibration) return std::nullopt;
+  return drawVibration(*vibration, frameCount(), frame_rate);
 }
 
 int MotionScript::frameCount() const {
@@ -261,11 +389,15 @@ MotionScript MotionScript::parse(const std::string& yaml_text, const std::string
   if (!root || !root.IsMap()) {
     r.problem("(document)", "expected a map with a 'segments' list");
   } else {
-    r.checkMap(root, "", {"seed", "frame_rate", "frames", "wall_margin_m", "segments"});
+    r.checkMap(root, "", {"seed", "frame_rate", "frames", "wall_margin_m", "segments",
+                          "vibration"});
     r.get(root, "", "seed", script.seed);
     r.get(root, "", "frame_rate", script.frame_rate);
     r.get(root, "", "frames", script.frames);
     r.get(root, "", "wall_margin_m", script.wall_margin_m);
+    if (const YAML::Node vibration = Reader::child(root, "vibration")) {
+      script.vibration = readVibration(r, vibration, "vibration");
+    }
     const YAML::Node segments = root["segments"];
     if (!segments) {
       r.problem("segments", "missing");
@@ -344,6 +476,9 @@ std::vector<StampedPose> generateTrajectory(const MotionScript& script,
     poses[k].pose = T_prev * step;
     poses[k].timestamp = k / script.frame_rate;
     ++step_in_segment;
+  }
+  if (const std::optional<VibrationSignal> vibration = script.vibrationSignal()) {
+    for (auto& p : poses) p.pose.linear() = p.pose.linear() * vibration->rotation(p.timestamp);
   }
   return poses;
 }

@@ -158,6 +158,29 @@ TEST(Omniposed, EndToEndFileLogDecodesAndMatchesGroundTruth) {
     ++pose_lines;
   EXPECT_EQ(pose_lines, kFrames) << printed;
   EXPECT_NE(printed.find("pose seq 29 "), std::string::npos) << printed;
+
+  // --tum: every pose's chained pose at its recorded timestamp, as published.
+  const int tum_rc = testing::runProcess(
+      {(testing::binaryDir() / "omnipose-listen").string(), "--url",
+       "file://" + lcm_log.string() + "?speed=0", "--status-channel", "", "--tum",
+       (tmp / "poses.tum").string()},
+      tmp / "listen-tum.out", tmp / "listen-tum.err", 60s);
+  EXPECT_EQ(tum_rc, 0) << testing::readText(tmp / "listen-tum.err");
+  const auto written = readTum(tmp / "poses.tum");
+  ASSERT_EQ(written.size(), static_cast<std::size_t>(kFrames));
+  for (int k = 0; k < kFrames; ++k) {
+    const pose_t& p = log.poses[static_cast<std::size_t>(k)];
+    EXPECT_NEAR(written[k].timestamp, p.source_timestamp, 5e-7) << k;
+    EXPECT_LT(testing::rotationError(written[k].pose.rotation(), testing::poseRotation(p)), 1e-9) << k;
+    for (int i = 0; i < 3; ++i) EXPECT_NEAR(written[k].pose.translation()[i], p.position[i], 1e-6) << k;
+  }
+  EXPECT_EQ(testing::runProcess({(testing::binaryDir() / "omnipose-listen").string(), "--url",
+                                 "file://" + lcm_log.string() + "?speed=0", "--tum",
+                                 "/nonexistent/dir/poses.tum"},
+                                tmp / "listen-bad.out", tmp / "listen-bad.err", 60s),
+            1);
+  EXPECT_NE(testing::readText(tmp / "listen-bad.err").find("/nonexistent/dir/poses.tum: cannot write"),
+            std::string::npos);
 }
 
 TEST(Omniposed, AThirtyTwoThousandPixelPngCostsTheDaemonAndTheReplayNoMemory) {

@@ -2,6 +2,8 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <cmath>
 #include <numbers>
 
 namespace omnipose {
@@ -63,6 +65,90 @@ TEST(Evaluation, MissingPosesAreCountedNotGuessed) {
   EXPECT_EQ(r.pairs.size(), 3u);
   EXPECT_NE(formatJson(r, "x").find("\"pairs_missing\": 2"), std::string::npos);
   EXPECT_NE(formatTable(r, "x").find("3 of 5 pairs"), std::string::npos);
+}
+
+/// Rotation about z by `angle` radians as a pose.
+Eigen::Isometry3d yaw(double angle) {
+  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+  T.linear() = rotationFromVector(Eigen::Vector3d(0, 0, angle));
+  return T;
+}
+
+TEST(EvaluationDrift, ConstantYawBiasGrowsLinearlyAndTheStartOffsetIsAlignedAway) {
+  // Ground truth turns about every axis; the estimate starts in an arbitrary frame Q and
+  // gains a yaw bias b per frame in the camera frame: R_est(k) = Q R_gt(k) Rz(k b), so the
+  // aligned error rotation is exactly Rz(k b).
+  constexpr int kFrames = 41;
+  constexpr double kBias = 2e-4;  // radians per frame
+  const auto gt = trajectory(kFrames, Eigen::Vector3d(0.01, -0.02, 0.03), Eigen::Vector3d(0.1, 0, 0));
+  Eigen::Isometry3d offset = Eigen::Isometry3d::Identity();
+  offset.linear() = rotationFromVector(Eigen::Vector3d(0.3, -1.1, 2.0));
+  offset.translation() = Eigen::Vector3d(5, 6, 7);
+  std::vector<StampedPose> est;
+  for (int k = 0; k < kFrames; ++k) {
+    est.push_back({gt[k].timestamp, offset * gt[k].pose * yaw(k * kBias)});
+  }
+  const DriftResult d = evaluateDrift(gt, est);
+  EXPECT_EQ(d.poses_expected, kFrames);
+  EXPECT_EQ(d.poses_matched, kFrames);
+  EXPECT_TRUE(d.end_is_last);
+  EXPECT_DOUBLE_EQ(d.start_timestamp, 0.0);
+  EXPECT_DOUBLE_EQ(d.end_timestamp, gt.back().timestamp);
+  EXPECT_NEAR(d.end_error, (kFrames - 1) * kBias, 1e-12);
+  EXPECT_NEAR(d.end_error_rotvec.z(), (kFrames - 1) * kBias, 1e-12);
+  EXPECT_NEAR(d.end_error_rotvec.head<2>().norm(), 0.0, 1e-12);
+  // RMS of k b over k = 0 .. n-1: b sqrt((n-1)(2n-1)/6).
+  EXPECT_NEAR(d.ate_rmse, kBias * std::sqrt((kFrames - 1) * (2.0 * kFrames - 1) / 6.0), 1e-12);
+  EXPECT_NEAR(d.max_error, (kFrames - 1) * kBias, 1e-12);
+  EXPECT_DOUBLE_EQ(d.max_timestamp, gt.back().timestamp);
+  ASSERT_EQ(d.errors.size(), static_cast<std::size_t>(kFrames));
+  for (int k = 0; k < kFrames; ++k) EXPECT_NEAR(d.errors[k], k * kBias, 1e-12) << k;
+
+  // The same bias on a pure-yaw truth: every pair is off by exactly b.
+  const auto gt_yaw = trajectory(kFrames, Eigen::Vector3d(0, 0, 0.05), Eigen::Vector3d::Zero());
+  std::vector<StampedPose> est_yaw;
+  for (int k = 0; k < kFrames; ++k) est_yaw.push_back({gt_yaw[k].timestamp, gt_yaw[k].pose * yaw(k * kBias)});
+  const EvaluationResult pairs = evaluate(gt_yaw, est_yaw);
+  EXPECT_NEAR(pairs.angle.rmse, kBias, 1e-12);
+  const DriftResult dy = evaluateDrift(gt_yaw, est_yaw);
+  EXPECT_NEAR(dy.end_error, (kFrames - 1) * kBias, 1e-12);
+  const std::string table = formatDriftTable(dy, pairs, "yaw");
+  EXPECT_NE(table.find("end-point rotation error      0.4584 deg"), std::string::npos) << table;
+  EXPECT_NE(table.find("per-pair eps RMSE             0.2000 mrad (40 pairs, 0 missing)"),
+            std::string::npos) << table;
+  const std::string json = formatDriftJson(dy, pairs, "yaw");
+  EXPECT_NE(json.find("\"end_error\": 0.008"), std::string::npos) << json;
+  EXPECT_NE(json.find("\"end_is_last\": true"), std::string::npos) << json;
+  const std::string csv = formatDriftCsv(dy);
+  EXPECT_EQ(std::count(csv.begin(), csv.end(), '\n'), kFrames + 1);
+}
+
+TEST(EvaluationDrift, AlignsAtTheFirstMatchAndEndsAtTheLastMatch) {
+  // A yaw drift that reverses: 0 at frames 0 and 20, largest at frame 10; the estimate
+  // lacks frames 0 and 20 (so it is aligned at frame 1 and ends at frame 19).
+  const auto gt = trajectory(21, Eigen::Vector3d(0, 0, 0.02), Eigen::Vector3d::Zero());
+  std::vector<StampedPose> est;
+  for (int k = 1; k < 20; ++k) {
+    const double drift = 1e-3 * (10 - std::abs(10 - k));
+    est.push_back({gt[k].timestamp, gt[k].pose * yaw(drift)});
+  }
+  const DriftResult d = evaluateDrift(gt, est);
+  EXPECT_EQ(d.poses_matched, 19);
+  EXPECT_DOUBLE_EQ(d.start_timestamp, gt[1].timestamp);
+  EXPECT_DOUBLE_EQ(d.end_timestamp, gt[19].timestamp);
+  EXPECT_FALSE(d.end_is_last);
+  // Aligned at frame 1 (drift 1e-3 there): all rotations are about z, so the errors are
+  // |drift(k) - 1e-3|.
+  EXPECT_NEAR(d.end_error, 0.0, 1e-12);
+  EXPECT_NEAR(d.max_error, 9e-3, 1e-12);
+  EXPECT_DOUBLE_EQ(d.max_timestamp, gt[10].timestamp);
+  EXPECT_NE(formatDriftTable(d, evaluate(gt, est), "x").find("(not the last frame)"),
+            std::string::npos);
+  // No common timestamp: an error, not a zero.
+  std::vector<StampedPose> shifted = est;
+  for (auto& p : shifted) p.timestamp += 0.05;
+  EXPECT_THROW(evaluateDrift(gt, shifted), std::invalid_argument);
+  EXPECT_THROW(evaluateDrift(gt, {}), std::invalid_argument);
 }
 
 }  // namespace

@@ -696,5 +696,181 @@ TEST(SynthMotionScript, AtMostTwentyProblemsAreListed) {
   EXPECT_NE(what.find("\n  and 20 more"), std::string::npos) << what;
 }
 
+// ---------------------------------------------------------------------- track vibration
+
+/// A 10 s yaw swing (300 steps at 30 fps) with the drift benchmark's vibration.
+const char* kVibratedSwing =
+    "vibration: {amplitude_deg: 0.5, max_hz: 9, seed: 27}\n"
+    "segments:\n"
+    "  - {frames: 75, rotation: {axis: z, step_deg: 1.6, sign: positive}}\n"
+    "  - {frames: 150, rotation: {axis: z, step_deg: 1.6, sign: negative}}\n"
+    "  - {frames: 75, rotation: {axis: z, step_deg: 1.6, sign: positive}}\n";
+
+TEST(SynthVibration, IsItsDefinitionOnTopOfTheScriptedTrajectory) {
+  const MotionScript script = MotionScript::parse(kVibratedSwing);
+  ASSERT_TRUE(script.vibration);
+  MotionScript plain_script = script;
+  plain_script.vibration.reset();
+  const std::vector<StampedPose> poses = generateTrajectory(script);
+  const std::vector<StampedPose> plain = generateTrajectory(plain_script);
+  ASSERT_EQ(poses.size(), 301u);
+  ASSERT_EQ(plain.size(), poses.size());
+  const std::optional<VibrationSignal> signal = script.vibrationSignal();
+  ASSERT_TRUE(signal);
+
+  // Removing R_vib(t_k) from pose k gives the scripted pose; the vibration is
+  // exp([roll(t), pitch(t), 0]x), evaluated from its own sinusoids.
+  const double duration = 10.0;
+  for (std::size_t k = 0; k < poses.size(); ++k) {
+    const double t = static_cast<double>(k) / 30.0;
+    EXPECT_DOUBLE_EQ(poses[k].timestamp, plain[k].timestamp);
+    EXPECT_EQ(poses[k].pose.translation(), plain[k].pose.translation());
+    const Eigen::Matrix3d removed =
+        poses[k].pose.rotation() * signal->rotation(t).transpose();
+    EXPECT_LT((removed - plain[k].pose.rotation()).norm(), 1e-12) << k;
+    for (const auto* axis : {&signal->roll, &signal->pitch}) {
+      double sum = 0.0;
+      for (std::size_t i = 0; i < axis->frequency_hz.size(); ++i) {
+        sum += axis->weight[i] * std::sin(2 * kPi * axis->frequency_hz[i] * t + axis->phase_rad[i]);
+      }
+      EXPECT_NEAR(axis->angle(t), axis->scale_rad * sum, 1e-15);
+    }
+    const Eigen::Vector3d v = rotationVector(plain[k].pose.rotation().transpose() *
+                                             poses[k].pose.rotation());
+    EXPECT_NEAR(v.x(), signal->roll.angle(t), 1e-12) << k;
+    EXPECT_NEAR(v.y(), signal->pitch.angle(t), 1e-12) << k;
+    EXPECT_NEAR(v.z(), 0.0, 1e-12) << k;
+  }
+
+  const double amplitude = 0.5 * kPi / 180;
+  for (const auto* axis : {&signal->roll, &signal->pitch}) {
+    SCOPED_TRACE(axis == &signal->roll ? "roll" : "pitch");
+    // Three distinct frequencies in the band, each a whole number of cycles over 10 s.
+    ASSERT_EQ(axis->frequency_hz.size(), 3u);
+    std::vector<long> cycles;
+    for (std::size_t i = 0; i < 3; ++i) {
+      const double f = axis->frequency_hz[i];
+      EXPECT_GE(f, 1.0 - 1e-12);
+      EXPECT_LE(f, 9.0 + 1e-12);
+      EXPECT_NEAR(f * duration, std::round(f * duration), 1e-9);
+      cycles.push_back(std::lround(f * duration));
+      EXPECT_GE(axis->weight[i], 0.5);
+      EXPECT_LE(axis->weight[i], 1.0);
+      EXPECT_GE(axis->phase_rad[i], 0.0);
+      EXPECT_LT(axis->phase_rad[i], 2 * kPi);
+    }
+    std::sort(cycles.begin(), cycles.end());
+    EXPECT_EQ(std::adjacent_find(cycles.begin(), cycles.end()), cycles.end()) << "repeated";
+
+    // Peak exactly the amplitude over the frames; zero mean over one period (frames 0..299);
+    // the last frame repeats the first.
+    std::vector<double> samples;
+    for (int k = 0; k < 301; ++k) samples.push_back(axis->angle(k / 30.0));
+    double peak = 0.0, sum = 0.0;
+    for (double a : samples) peak = std::max(peak, std::abs(a));
+    for (int k = 0; k < 300; ++k) sum += samples[static_cast<std::size_t>(k)];
+    EXPECT_NEAR(peak, amplitude, 1e-15);
+    EXPECT_LT(std::abs(sum / 300), 1e-12 * amplitude);
+    EXPECT_NEAR(samples.back(), samples.front(), 1e-12);
+
+    // Spectrum of one period (300 samples): energy in exactly the three drawn bins.
+    for (int m = 1; m < 150; ++m) {
+      double re = 0.0, im = 0.0;
+      for (int k = 0; k < 300; ++k) {
+        re += samples[static_cast<std::size_t>(k)] * std::cos(2 * kPi * m * k / 300.0);
+        im -= samples[static_cast<std::size_t>(k)] * std::sin(2 * kPi * m * k / 300.0);
+      }
+      const double magnitude = std::hypot(re, im);
+      const bool drawn = std::binary_search(cycles.begin(), cycles.end(), m);
+      if (drawn) {
+        // 150 * scale * weight, with scale >= amplitude / (sum of weights) and weight >= 0.5.
+        EXPECT_GT(magnitude, 0.99 * 150 * amplitude / 6) << "bin " << m;
+      } else {
+        EXPECT_LT(magnitude, 1e-9 * amplitude * 300) << "bin " << m << " (" << m / duration << " Hz)";
+      }
+    }
+  }
+
+  // The swing ends where it began, vibration included.
+  EXPECT_LT(rotationVector(poses.front().pose.rotation().transpose() * poses.back().pose.rotation()).norm(),
+            1e-9);
+  // Seeded by vibration.seed alone: the same draws again, other draws for another seed,
+  // and the scripted trajectory's seed does not change the vibration.
+  MotionScript other = script;
+  other.seed = 99;
+  EXPECT_EQ(other.vibrationSignal()->roll.phase_rad, signal->roll.phase_rad);
+  EXPECT_EQ(script.vibrationSignal()->pitch.frequency_hz, signal->pitch.frequency_hz);
+  other.vibration->seed = 28;
+  EXPECT_NE(other.vibrationSignal()->roll.phase_rad, signal->roll.phase_rad);
+}
+
+TEST(SynthVibration, PresetsHaveNone) {
+  for (const auto& name : MotionScript::presetNames()) {
+    EXPECT_FALSE(MotionScript::preset(name).vibration) << name;
+  }
+}
+
+TEST(SynthVibration, BadKeysAreReportedWithTheirPath) {
+  const std::string segments = "segments: [{frames: 300}]\n";
+  auto error = [&](const std::string& vibration) {
+    return motionError("vibration: " + vibration + "\n" + segments);
+  };
+  EXPECT_EQ(error("{amplitude_deg: 0.5, max_hz: 9, seed: 1}"), "");
+  EXPECT_NE(error("{amplitude_deg: 0.5, bogus: 1}").find("m.yaml: vibration.bogus: unknown key"),
+            std::string::npos);
+  EXPECT_NE(error("{amplitude_deg: abc}").find("m.yaml: vibration.amplitude_deg: cannot read 'abc'"),
+            std::string::npos) << error("{amplitude_deg: abc}");
+  EXPECT_NE(error("{seed: -1}").find("m.yaml: vibration.seed: cannot read '-1'"), std::string::npos);
+  EXPECT_NE(error("5").find("m.yaml: vibration: must be a map"), std::string::npos) << error("5");
+  const std::string ranges = error("{amplitude_deg: -1, min_hz: 0, components: 0}");
+  EXPECT_NE(ranges.find("m.yaml: vibration.amplitude_deg: must be in (0, 10] degrees"),
+            std::string::npos) << ranges;
+  EXPECT_NE(ranges.find("m.yaml: vibration.min_hz: must be > 0"), std::string::npos) << ranges;
+  EXPECT_NE(ranges.find("m.yaml: vibration.components: must be in [1, 16]"), std::string::npos)
+      << ranges;
+  EXPECT_NE(error("{min_hz: 5, max_hz: 2}").find("m.yaml: vibration.max_hz: must be >= min_hz"),
+            std::string::npos);
+  EXPECT_NE(error("{max_hz: 15}").find("m.yaml: vibration.max_hz: must be below half the frame rate"),
+            std::string::npos) << error("{max_hz: 15}");
+  // 301 frames at 30 fps last 10 s: 1.0 .. 1.15 Hz holds two whole-cycle frequencies (10
+  // and 11 cycles).
+  EXPECT_NE(error("{min_hz: 1.0, max_hz: 1.15, components: 3}")
+                .find("m.yaml: vibration.components: the band [min_hz, max_hz] holds 2 "),
+            std::string::npos) << error("{min_hz: 1.0, max_hz: 1.15, components: 3}");
+  EXPECT_EQ(error("{min_hz: 1.0, max_hz: 1.15, components: 2}"), "");
+  EXPECT_NE(motionError("vibration: {}\nsegments: [{frames: 1}]\nframes: 1\n")
+                .find("m.yaml: vibration: needs a sequence of at least 2 frames"),
+            std::string::npos);
+  EXPECT_THROW(drawVibration(Vibration{}, 1, 30.0), std::invalid_argument);
+  EXPECT_THROW(drawVibration(Vibration{.amplitude_deg = 0}, 100, 30.0), std::invalid_argument);
+}
+
+// ---------------------------------------------------------------------- drift benchmark motions
+
+TEST(SynthMotionScript, DriftBenchmarkSequencesEndWhereTheyBegan) {
+  const std::filesystem::path dir = kSourceDir / "tools/drift";
+  const std::vector<std::pair<std::string, int>> sequences = {
+      {"still.yaml", 240}, {"swing.yaml", 301}, {"rectangle.yaml", 461}};
+  for (const auto& [file, frames] : sequences) {
+    SCOPED_TRACE(file);
+    const MotionScript script = MotionScript::load(dir / file);
+    EXPECT_EQ(script.frame_rate, 30.0);
+    std::optional<Eigen::AlignedBox3d> region;
+    if (script.translates()) region = Box{}.interior(script.wall_margin_m);
+    const std::vector<StampedPose> poses = generateTrajectory(script, region);
+    ASSERT_EQ(poses.size(), static_cast<std::size_t>(frames));
+    const Eigen::Isometry3d back = poses.front().pose.inverse() * poses.back().pose;
+    EXPECT_LT(rotationVector(back.rotation()).norm(), 1e-9);
+    EXPECT_LT(back.translation().norm(), 1e-9);
+  }
+  // The swing turns +-120 deg about yaw; the rectangle's far corner is (2.0, 1.4) m.
+  const auto swing = generateTrajectory(MotionScript::load(dir / "swing.yaml"));
+  EXPECT_NEAR(rotationVector(swing[75].pose.rotation()).z(), 120 * kPi / 180, 0.01);
+  EXPECT_NEAR(rotationVector(swing[225].pose.rotation()).z(), -120 * kPi / 180, 0.01);
+  const MotionScript rectangle = MotionScript::load(dir / "rectangle.yaml");
+  const auto loop = generateTrajectory(rectangle, Box{}.interior(rectangle.wall_margin_m));
+  EXPECT_LT((loop[230].pose.translation() - Eigen::Vector3d(2.0, 1.4, 0.0)).norm(), 1e-9);
+}
+
 }  // namespace
 }  // namespace omnipose::synth

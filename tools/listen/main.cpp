@@ -2,15 +2,22 @@
 /// publishes, one line per message, as a user or a controller developer would watch them.
 ///
 ///   omnipose-listen [--url URL] [--channel OMNI_POSE] [--status-channel OMNI_STATUS]
-///                   [--count N] [--timeout SECONDS]
+///                   [--count N] [--timeout SECONDS] [--tum OUT.tum]
+///
+/// --tum also writes every pose's chained pose as a TUM line (`timestamp tx ty tz qx qy qz
+/// qw`): the timestamp is the recorded one (source_timestamp) for a file source, else the
+/// capture time utime in seconds; position in units of rho, full precision.
 
 #include <lcm/lcm-cpp.hpp>
 
+#include <cerrno>
 #include <chrono>
 #include <cinttypes>
 #include <cmath>
 #include <csignal>
 #include <cstdio>
+#include <cstring>
+#include <memory>
 #include <string>
 
 #include "cli.hpp"
@@ -45,6 +52,8 @@ const char* sourceStateName(std::int8_t state) {
 struct Printer {
   long poses = 0;
   bool got_message = false;
+  std::FILE* tum = nullptr;  ///< --tum file, or none
+  bool tum_failed = false;
 
   void onPose(const lcm::ReceiveBuffer*, const std::string&, const omnipose::pose_t* p) {
     got_message = true;
@@ -63,6 +72,15 @@ struct Printer {
                 p->translation_direction[2], p->tau_norm, p->residual_px, p->windows_used,
                 p->windows_total, p->frames_skipped);
     std::fflush(stdout);
+    if (tum) {
+      const double t = p->source_index >= 0 ? p->source_timestamp
+                                            : static_cast<double>(p->utime) * 1e-6;
+      if (std::fprintf(tum, "%.6f %.9g %.9g %.9g %.12g %.12g %.12g %.12g\n", t, p->position[0],
+                       p->position[1], p->position[2], p->orientation[1], p->orientation[2],
+                       p->orientation[3], p->orientation[0]) < 0) {
+        tum_failed = true;
+      }
+    }
   }
 
   void onStatus(const lcm::ReceiveBuffer*, const std::string&, const omnipose::status_t* s) {
@@ -85,15 +103,15 @@ struct Printer {
 }  // namespace
 
 int main(int argc, char** argv) {
-  std::string url, pose_channel = "OMNI_POSE", status_channel = "OMNI_STATUS";
+  std::string url, pose_channel = "OMNI_POSE", status_channel = "OMNI_STATUS", tum_path;
   double count = 0, timeout = 0;
   omnipose::tools::Cli cli(
       "omnipose-listen",
       "usage: omnipose-listen [--url URL] [--channel OMNI_POSE] [--status-channel OMNI_STATUS]\n"
-      "                       [--count N] [--timeout SECONDS]",
+      "                       [--count N] [--timeout SECONDS] [--tum OUT.tum]",
       "Prints the poses (and status) omniposed publishes over LCM, one line per message.\n"
-      "Exit codes: 0 done (Ctrl-C, --count reached, end of a log), 1 LCM failed, 2 bad command\n"
-      "line, 3 --timeout expired.");
+      "Exit codes: 0 done (Ctrl-C, --count reached, end of a log), 1 LCM failed or OUT.tum\n"
+      "cannot be written, 2 bad command line, 3 --timeout expired.");
   auto& app = cli.app();
   app.add_option("--url", url,
                  "LCM URL (default: LCM's default, udpm multicast; a log file: "
@@ -112,7 +130,28 @@ int main(int argc, char** argv) {
                  "exit (code 3) when no message arrived for this long, seconds (default: never)")
       ->type_name("SECONDS")
       ->check(omnipose::tools::nonNegative());
+  app.add_option("--tum", tum_path,
+                 "also write every pose's chained pose to OUT.tum (TUM: timestamp tx ty tz qx "
+                 "qy qz qw; the recorded timestamp for a file source, else utime in seconds)")
+      ->type_name("OUT.tum");
   if (const auto exit_code = cli.parse(argc, argv)) return *exit_code;
+
+  Printer printer;
+  struct FileCloser {
+    void operator()(std::FILE* f) const { std::fclose(f); }
+  };
+  std::unique_ptr<std::FILE, FileCloser> tum;
+  if (!tum_path.empty()) {
+    tum.reset(std::fopen(tum_path.c_str(), "w"));
+    if (!tum) {
+      std::fprintf(stderr, "omnipose-listen: %s: cannot write: %s\n", tum_path.c_str(),
+                   std::strerror(errno));
+      return 1;
+    }
+    std::fprintf(tum.get(), "# timestamp tx ty tz qx qy qz qw (omnipose-listen, channel %s)\n",
+                 pose_channel.c_str());
+    printer.tum = tum.get();
+  }
 
   lcm::LCM lcm(url);
   if (!lcm.good()) {
@@ -122,7 +161,6 @@ int main(int argc, char** argv) {
   std::signal(SIGINT, onSignal);
   std::signal(SIGTERM, onSignal);
 
-  Printer printer;
   lcm.subscribe(pose_channel, &Printer::onPose, &printer);
   if (!status_channel.empty()) lcm.subscribe(status_channel, &Printer::onStatus, &printer);
 
@@ -139,6 +177,10 @@ int main(int argc, char** argv) {
       return 3;
     }
     if (count > 0 && printer.poses >= static_cast<long>(count)) break;
+  }
+  if (tum && (printer.tum_failed || std::fclose(tum.release()) != 0)) {
+    std::fprintf(stderr, "omnipose-listen: %s: cannot write\n", tum_path.c_str());
+    return 1;
   }
   return 0;
 }

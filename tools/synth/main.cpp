@@ -73,7 +73,8 @@ void addOptions(CLI::App& app, Args& a, Raw& raw) {
   app.add_option("--frames", raw.frames, "total frame count (segments are cycled or cut to fit)")
       ->type_name("N");
   app.add_option("--seed", raw.seed,
-                 "seed of the motion and the degradations (default: the script's)")
+                 "seed of the motion and the degradations (default: the script's; a vibration "
+                 "keeps its own seed)")
       ->type_name("S");
   app.add_option("--noise", a.noise, "Gaussian sensor noise sigma, grey levels (default 0)")
       ->type_name("SIGMA");
@@ -153,7 +154,12 @@ int run(const Args& a) {
   const synth::Scene scene = synth::Scene::load(a.texture, kind);
   std::optional<Eigen::AlignedBox3d> region;
   if (kind == synth::SceneKind::kBox) region = scene.box.interior(script.wall_margin_m);
-  const std::vector<StampedPose> poses = synth::generateTrajectory(script, region);
+  std::vector<StampedPose> poses;
+  try {
+    poses = synth::generateTrajectory(script, region);
+  } catch (const std::invalid_argument& e) {  // e.g. --frames too few for the vibration's band
+    throw std::runtime_error(motion_name + ": " + e.what());
+  }
 
   const synth::Renderer renderer(scene, calibration, {a.output, a.supersample});
   synth::DegradeOptions degrade{.noise_sigma = a.noise,
@@ -185,12 +191,20 @@ int run(const Args& a) {
       std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
 
   const cv::Size size = renderer.outputSize();
-  std::printf("omnipose-synth: wrote %zu %s frames %dx%d (%s scene, %s, seed %llu) to %s "
+  std::string vibration;
+  if (script.vibration) {
+    char text[128];
+    std::snprintf(text, sizeof(text), ", vibration %.2f deg at %.3g..%.3g Hz",
+                  script.vibration->amplitude_deg, script.vibration->min_hz,
+                  script.vibration->max_hz);
+    vibration = text;
+  }
+  std::printf("omnipose-synth: wrote %zu %s frames %dx%d (%s scene, %s, seed %llu%s) to %s "
               "in %.1f s (%.0f ms/frame)\n",
               poses.size(), synth::toString(a.output), size.width, size.height,
               synth::toString(kind), motion_name.c_str(),
-              static_cast<unsigned long long>(script.seed), a.out.c_str(), seconds,
-              1000.0 * seconds / poses.size());
+              static_cast<unsigned long long>(script.seed), vibration.c_str(), a.out.c_str(),
+              seconds, 1000.0 * seconds / poses.size());
   return 0;
 }
 

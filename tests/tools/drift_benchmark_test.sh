@@ -1,0 +1,62 @@
+#!/usr/bin/env bash
+# The drift benchmark's parts that CI can afford (the benchmark itself takes minutes): the
+# script parses and prints its usage, and tools/drift/damage_frames.py damages a small
+# dataset exactly as documented without touching a hard-linked copy.
+# Usage: drift_benchmark_test.sh SOURCE_DIR
+set -euo pipefail
+src=$1
+fail() { echo "FAIL: $*" >&2; exit 1; }
+
+bash -n "$src/tools/drift_benchmark.sh" || fail "tools/drift_benchmark.sh: syntax"
+help=$(bash "$src/tools/drift_benchmark.sh" --help)
+grep -q 'Usage: tools/drift_benchmark.sh \[--publish\] \[--evo\] \[OUTDIR\]' <<< "$help" ||
+  fail "--help does not show the usage: $help"
+rc=0
+bash "$src/tools/drift_benchmark.sh" --bogus 2> /dev/null || rc=$?
+[ "$rc" = 2 ] || fail "an unknown option exits with $rc, not 2"
+
+work=$(mktemp -d "${TMPDIR:-/tmp}/omnipose-drift-test-XXXXXX")
+trap 'rm -rf "$work"' EXIT
+mkdir -p "$work/a/frames"
+# A real 8-bit grey PNG: the all-zero image hostile_dataset.py builds, 4 x 3 pixels.
+python3 -c "
+import sys; sys.path.insert(0, '$src/tools/common')
+from hostile_dataset import zero_png
+open('$work/frame.png', 'wb').write(zero_png(4, 3) + b'x' * 100)"
+for i in $(seq 0 11); do
+  name=$(printf '%06d.png' "$i")
+  cp "$work/frame.png" "$work/a/frames/$name"
+  awk -v n="$name" -v i="$i" 'BEGIN { printf "%s %.6f\n", n, i / 30 }' >> "$work/a/timestamps.txt"
+done
+cp -al "$work/a" "$work/b"
+python3 "$src/tools/drift/damage_frames.py" "$work/b" --corrupt 1 --corrupt 3-6 --remove 8-9 > "$work/log"
+grep -q 'corrupted frames 3-6 (000003.png .. 000006.png)' "$work/log" || fail "log: $(cat "$work/log")"
+grep -q 'removed frames 8-9' "$work/log" || fail "log: $(cat "$work/log")"
+# The copy is untouched.
+[ "$(ls "$work/a/frames" | wc -l)" = 12 ] || fail "the original lost frames"
+[ "$(wc -l < "$work/a/timestamps.txt")" = 12 ] || fail "the original lost timestamps"
+for i in 1 3 4 5 6; do
+  cmp -s "$work/frame.png" "$work/a/frames/$(printf '%06d.png' "$i")" || fail "original frame $i changed"
+done
+# Damaged: five files differ from the good one (cycling truncated, empty, random, black PNG).
+for i in 1 3 4 5 6; do
+  f=$work/b/frames/$(printf '%06d.png' "$i")
+  cmp -s "$work/frame.png" "$f" && fail "frame $i not corrupted"
+done
+[ "$(stat -c %s "$work/b/frames/000003.png")" = 0 ] || fail "frame 3 should be the empty file"
+[ "$(stat -c %s "$work/b/frames/000001.png")" = $(( $(stat -c %s "$work/frame.png") / 2 )) ] ||
+  fail "frame 1 should be the truncated half"
+[ "$(stat -c %s "$work/b/frames/000004.png")" = 4096 ] || fail "frame 4 should be 4096 random bytes"
+# Removed: files and timestamps, nothing else.
+[ ! -e "$work/b/frames/000008.png" ] && [ ! -e "$work/b/frames/000009.png" ] || fail "frames 8-9 remain"
+[ "$(ls "$work/b/frames" | wc -l)" = 10 ] || fail "frames left: $(ls "$work/b/frames")"
+grep -q '^000008.png\|^000009.png' "$work/b/timestamps.txt" && fail "timestamps of 8-9 remain"
+[ "$(wc -l < "$work/b/timestamps.txt")" = 10 ] || fail "timestamps left: $(cat "$work/b/timestamps.txt")"
+# Bad input is named.
+out=$(python3 "$src/tools/drift/damage_frames.py" "$work/b" --corrupt 40 2>&1) && fail "range past the end accepted"
+grep -q 'range 40-40 is past the last frame' <<< "$out" || fail "message: $out"
+out=$(python3 "$src/tools/drift/damage_frames.py" "$work/b" --remove 5-2 2>&1) && fail "5-2 accepted"
+grep -q "need 0 <= A <= B" <<< "$out" || fail "message: $out"
+out=$(python3 "$src/tools/drift/damage_frames.py" "$work/none" --remove 1 2>&1) && fail "missing dataset accepted"
+grep -q "$work/none/frames: no such directory" <<< "$out" || fail "message: $out"
+echo "drift_benchmark_test: PASS"
