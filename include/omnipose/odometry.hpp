@@ -5,7 +5,7 @@
 /// omnipose-replay writes it to files, so what the accuracy benchmark measures is what the
 /// daemon runs.
 ///
-/// Keyframes. Every frame is first registered against the previous frame (a shift-only
+/// Keyframes (KeyframeOptions::slots > 0). Every frame is first registered against the previous frame (a shift-only
 /// pass and a linear fit). The refinement pass then registers it against a keyframe, at
 /// the pose predicted by chaining that estimate to the keyframe's, so a robot that stands
 /// still or turns in place compares every frame with the same keyframe: the chained
@@ -55,8 +55,11 @@ namespace omnipose {
 struct KeyframeOptions {
   /// Keyframes kept, the current one included (1..16; each holds a panorama's spectra,
   /// about 5 MB at the default window settings). 0 = no keyframes: every frame is refined
-  /// against the previous one (frame-to-frame chaining).
-  int slots = 4;
+  /// against the previous one (frame-to-frame chaining; a gap is still bridged against the
+  /// last good frame). Off by default: with keyframes the chain does not drift, but each
+  /// frame pair's motion (the difference of two keyframe-relative estimates) is 1.3-1.9x
+  /// less accurate on the accuracy benchmark (docs/results/DRIFT.md).
+  int slots = 0;
   /// A frame is refined against a keyframe only while the predicted translation from it is
   /// at most this, in scene distances (|t| / rho, the unit of MotionEstimate::tau): beyond
   /// it, parallax changes the view.

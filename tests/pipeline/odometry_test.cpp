@@ -57,6 +57,13 @@ double rotationError(const Eigen::Isometry3d& estimate, const Eigen::Isometry3d&
   return rotationVector(estimate.linear().transpose() * truth.linear()).norm();
 }
 
+/// The default options with keyframes on.
+OdometryOptions withKeyframes() {
+  OdometryOptions options;
+  options.keyframes.slots = 4;
+  return options;
+}
+
 OdometryResult processOk(Odometry& odometry, const cv::Mat& frame, double t,
                          bool gap_before = false) {
   auto r = odometry.process(frame, {t, -1, gap_before});
@@ -66,7 +73,7 @@ OdometryResult processOk(Odometry& odometry, const cv::Mat& frame, double t,
 
 TEST(Odometry, StandingStillKeepsItsFirstKeyframeAndDoesNotDrift) {
   Renderings scene;
-  Odometry odometry(Calibration{}, {});
+  Odometry odometry(Calibration{}, withKeyframes());
   double worst = 0.0;
   for (int k = 0; k < 40; ++k) {
     const OdometryResult r = processOk(odometry, scene.frame(Eigen::Isometry3d::Identity(), k), k / 30.0);
@@ -82,7 +89,7 @@ TEST(Odometry, StandingStillKeepsItsFirstKeyframeAndDoesNotDrift) {
 
 TEST(Odometry, AYawSwingAndBackStaysOnOneKeyframeAndEndsWhereItBegan) {
   Renderings scene;
-  Odometry odometry(Calibration{}, {});
+  Odometry odometry(Calibration{}, withKeyframes());
   std::vector<double> yaw;
   for (int k = 0; k <= 10; ++k) yaw.push_back(6.0 * k * kDeg);      // to +60 degrees
   for (int k = 9; k >= -10; --k) yaw.push_back(6.0 * k * kDeg);     // to -60
@@ -108,8 +115,8 @@ struct GapRun {
 };
 
 GapRun runTurnWithGap(Renderings& scene, double step_deg, int frames, int gap_from,
-                      int gap_to, const cv::Mat& bad) {
-  Odometry odometry(Calibration{}, {});
+                      int gap_to, const cv::Mat& bad, const OdometryOptions& options = {}) {
+  Odometry odometry(Calibration{}, options);
   GapRun run;
   bool gap = false;
   for (int k = 0; k < frames; ++k) {
@@ -165,7 +172,7 @@ TEST(Odometry, OneCorruptFrameDuringATurnIsBridgedWithTheHeadingKept) {
 TEST(Odometry, TenCorruptFramesInARowAreBridged) {
   Renderings scene;
   const cv::Mat wrong_size(100, 100, CV_8UC1, cv::Scalar(90));
-  const GapRun run = runTurnWithGap(scene, 2.0, 20, 5, 15, wrong_size);
+  const GapRun run = runTurnWithGap(scene, 2.0, 20, 5, 15, wrong_size, withKeyframes());
   EXPECT_EQ(run.errors, 10);
   expectBridgedWithHeadingKept(run, 2.0, 5, 15);
 }
@@ -204,7 +211,7 @@ TEST(Odometry, TranslationAndTiltSwitchTheKeyframe) {
     // 10 cm per frame in a 6 x 5 m room (|tau| about 0.04 > max_translation): every frame is
     // refined against the previous one, which becomes the keyframe.
     Renderings room(synth::SceneKind::kBox);
-    Odometry odometry(Calibration{}, {});
+    Odometry odometry(Calibration{}, withKeyframes());
     for (int k = 0; k < 6; ++k) {
       Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
       pose.translation() = Eigen::Vector3d(0.1 * k, 0.0, 0.0);
@@ -219,7 +226,7 @@ TEST(Odometry, TranslationAndTiltSwitchTheKeyframe) {
     // Rolling 2 degrees per frame: the keyframe holds while the tilt from it is within
     // max_tilt_rad, then the frame becomes the keyframe.
     Renderings scene;
-    OdometryOptions options;
+    OdometryOptions options = withKeyframes();
     options.keyframes.max_tilt_rad = 5 * kDeg;
     Odometry odometry(Calibration{}, options);
     std::vector<std::int64_t> keyframes;
@@ -236,9 +243,7 @@ TEST(Odometry, TranslationAndTiltSwitchTheKeyframe) {
 
 TEST(Odometry, WithoutKeyframesEveryFrameIsRefinedAgainstThePreviousOne) {
   Renderings scene;
-  OdometryOptions options;
-  options.keyframes.slots = 0;
-  Odometry odometry(Calibration{}, options);
+  Odometry odometry(Calibration{}, {});  // the default: slots 0
   for (int k = 0; k < 5; ++k) {
     const OdometryResult r = processOk(odometry, scene.frame(Eigen::Isometry3d::Identity(), k), k / 30.0);
     if (k > 0) EXPECT_EQ(r.keyframe_sequence, k - 1);
@@ -266,7 +271,7 @@ TEST(Odometry, ProcessAllocatesNothingAfterWarmUpThroughKeyframesAndGaps) {
   std::vector<cv::Mat> frames;
   for (int k = 0; k < 6; ++k) frames.push_back(scene.frame(attitude(0.02 * k, 0, 0.05 * k), k));
   const cv::Mat wrong_size(100, 100, CV_8UC1, cv::Scalar(7));
-  OdometryOptions options;
+  OdometryOptions options = withKeyframes();
   options.pipeline.threads = 2;
   Odometry odometry(Calibration{}, options);
   for (int k = 0; k < 6; ++k) ASSERT_TRUE(odometry.process(frames[k], {k / 30.0}).has_value());
