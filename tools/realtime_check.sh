@@ -52,7 +52,7 @@ fi
 read_final_status "$bin" "$work/run.lcm" "$work/listen.txt" realtime_check || exit 1
 echo "realtime_check: $FINAL_STATUS"
 received=$(status_count received)
-skipped=$(status_count skipped)
+skipped=$(status_count "skipped (stale)")
 bad=$(status_count bad)
 lost=$(status_count upstream)
 if [ "$received" -eq "$frames" ] && [ "$skipped" -eq 0 ] && [ "$bad" -eq 0 ] && [ "$lost" -eq 0 ]; then

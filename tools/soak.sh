@@ -132,7 +132,7 @@ read_final_status "$bin" "$work/soak.lcm" "$work/listen.txt" soak || exit 1
 final=$FINAL_STATUS
 received=$(status_count received)
 f_processed=$(status_count processed)
-skipped=$(status_count skipped)
+skipped=$(status_count "skipped (stale)")
 bad=$(status_count bad)
 lost=$(status_count upstream)
 failures=$(sed -n 's/.* source failures \([0-9]*\).*/\1/p' <<<"$final")

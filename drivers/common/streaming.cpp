@@ -7,9 +7,6 @@
 #include "omnipose/limits.hpp"
 
 namespace omnipose::drivers {
-namespace {
-constexpr std::int64_t kNsPerMs = 1'000'000;
-}  // namespace
 
 void appendStreamRequestProblems(std::vector<std::string>& problems, int width, int height,
                                  double fps) {
@@ -23,35 +20,12 @@ void appendStreamRequestProblems(std::vector<std::string>& problems, int width, 
     problems.push_back("source.fps: must be in (0, 1000]");
 }
 
-void appendTimingProblems(std::vector<std::string>& problems,
-                          std::chrono::milliseconds reconnect_initial,
-                          std::chrono::milliseconds reconnect_max,
-                          std::chrono::milliseconds clock_resync, int clock_samples) {
-  if (reconnect_initial.count() < 1) problems.push_back("reconnect_initial: must be >= 1 ms");
-  if (reconnect_max < reconnect_initial)
-    problems.push_back("reconnect_max: must be >= reconnect_initial");
+void appendClockProblems(std::vector<std::string>& problems,
+                         std::chrono::milliseconds clock_resync, int clock_samples) {
   if (clock_resync.count() < 1) problems.push_back("clock_resync: must be >= 1 ms");
   if (clock_samples < 1 || clock_samples > kMaxClockSamples)
     problems.push_back("clock_samples: must be in [1, " + std::to_string(kMaxClockSamples) +
                        "], is " + std::to_string(clock_samples));
-}
-
-void ReconnectSchedule::lost(std::int64_t now_ns) {
-  backoff_.reset();
-  retry_at_ns_ = now_ns + backoff_.next() * kNsPerMs;
-}
-
-ReconnectSchedule::Step ReconnectSchedule::step(std::int64_t now_ns,
-                                                std::int64_t deadline_ns) const {
-  if (now_ns >= retry_at_ns_) return {Action::kAttempt, 0};
-  if (retry_at_ns_ <= deadline_ns) return {Action::kWait, retry_at_ns_ - now_ns};
-  return {Action::kGiveBack, std::max<std::int64_t>(0, deadline_ns - now_ns)};
-}
-
-std::int64_t ReconnectSchedule::attemptFailed(std::int64_t now_ns) {
-  const std::int64_t delay_ms = backoff_.next();
-  retry_at_ns_ = now_ns + delay_ms * kNsPerMs;
-  return delay_ms;
 }
 
 std::uint32_t SequenceTracker::completed(std::uint32_t driver_sequence) {

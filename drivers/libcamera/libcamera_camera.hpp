@@ -24,8 +24,8 @@
 /// queued request; the adapter copies a request's result into a Completion on libcamera's
 /// thread (no allocation).
 ///
-/// The clocks (CLOCK_BOOTTIME, CLOCK_REALTIME, CLOCK_MONOTONIC) and the reconnect sleep go
-/// through CameraManager too, so a fake can run them on virtual time.
+/// The clocks (CLOCK_BOOTTIME, CLOCK_REALTIME, CLOCK_MONOTONIC) go through CameraManager
+/// too, so a fake can run them on virtual time.
 
 #include <ctime>
 #include <cstdint>
@@ -119,8 +119,6 @@ class CameraManager {
   virtual std::vector<std::shared_ptr<Camera>> cameras() = 0;
   /// clock_gettime(clock) in nanoseconds; negative when the read failed.
   virtual std::int64_t clockNs(clockid_t clock) = 0;
-  /// Sleeps (the reconnect back-off).
-  virtual void sleepNs(std::int64_t ns) = 0;
 };
 
 }  // namespace omnipose::libcam

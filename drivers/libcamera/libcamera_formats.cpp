@@ -148,8 +148,7 @@ std::vector<std::string> validate(const LibcameraOptions& o) {
                        "MJPEG, ...)");
   if (o.buffer_count < 1 || o.buffer_count > 32)
     problems.push_back("buffer_count: must be in [1, 32], is " + std::to_string(o.buffer_count));
-  drivers::appendTimingProblems(problems, o.reconnect_initial, o.reconnect_max, o.clock_resync,
-                                o.clock_samples);
+  drivers::appendClockProblems(problems, o.clock_resync, o.clock_samples);
   return problems;
 }
 

@@ -15,7 +15,6 @@
 #include <cerrno>
 #include <cstring>
 #include <mutex>
-#include <thread>
 
 #include "common/clock_offset.hpp"
 #include "libcamera/libcamera_camera.hpp"
@@ -202,9 +201,6 @@ class RealCameraManager final : public libcam::CameraManager {
     timespec ts{};
     if (::clock_gettime(clock, &ts) != 0) return -1;
     return drivers::toNanoseconds(ts);
-  }
-  void sleepNs(std::int64_t ns) override {
-    std::this_thread::sleep_for(std::chrono::nanoseconds(ns));
   }
 
  private:

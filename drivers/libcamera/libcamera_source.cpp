@@ -20,6 +20,8 @@ namespace omnipose {
 namespace {
 
 constexpr std::int64_t kNsPerMs = 1'000'000;
+/// Longest wait at teardown for the requests a camera still holds to come back.
+constexpr std::chrono::milliseconds kReturnWait{1000};
 
 }  // namespace
 
@@ -37,10 +39,7 @@ struct LibcameraSource::Impl final : libcam::CameraListener {
     std::size_t length = 0;
   };
 
-  Impl(Options o, ManagerOpener opener)
-      : options(std::move(o)),
-        open_manager(std::move(opener)),
-        reconnect(options.reconnect_initial, options.reconnect_max) {}
+  Impl(Options o, ManagerOpener opener) : options(std::move(o)), open_manager(std::move(opener)) {}
 
   Options options;
   ManagerOpener open_manager;
@@ -58,7 +57,6 @@ struct LibcameraSource::Impl final : libcam::CameraListener {
 
   const libcam::GreyFormat* format = nullptr;
   cv::Size size;
-  std::optional<cv::Size> first_size;  // what a reopen must reproduce
   std::size_t stride = 0;
   double fps = 0.0;
   std::string camera_id;
@@ -74,7 +72,6 @@ struct LibcameraSource::Impl final : libcam::CameraListener {
 
   drivers::ClockOffset clock_offset;
   std::int64_t last_clock_sync_ns = 0;
-  drivers::ReconnectSchedule reconnect;
   drivers::SequenceTracker sequence;
 
   cv::Mat jpeg_scratch;
@@ -115,7 +112,6 @@ struct LibcameraSource::Impl final : libcam::CameraListener {
   void teardown();
   bool requeue(std::uint64_t cookie);
   Error disconnect(const char* why);
-  Expected<void> recover(std::int64_t deadline_ns);
   Step take(cv::Mat& out, FrameInfo& info, Error& error);
   Expected<void> convert(const libcam::Completion& completion, cv::Mat& out);
 };
@@ -169,9 +165,6 @@ Expected<void> LibcameraSource::Impl::start() {
   if (format->conversion != libcam::GreyConversion::kJpeg && stride == 0)
     stride = static_cast<std::size_t>(size.width) *
              (format->conversion == libcam::GreyConversion::kLumaPlane ? 1 : 2);
-  if (first_size && *first_size != size)
-    return fail(ErrorCode::kUnsupportedFormat, "libcamera camera %s: came back as %dx%d, was %dx%d",
-                name(), size.width, size.height, first_size->width, first_size->height);
 
   if (const int r = camera->configure(); r < 0)
     return fail(r == -EBUSY ? ErrorCode::kBusy : ErrorCode::kIoError,
@@ -211,10 +204,9 @@ Expected<void> LibcameraSource::Impl::start() {
     if (!requeue(i))
       return fail(ErrorCode::kIoError, "libcamera camera %s: queueing a request failed", name());
   resyncClock();
-  // The camera's counter starts over with the stream (after a reconnect, or the caller's
-  // close() and open()): ours goes on.
+  // The camera's counter starts over with the stream (after the caller's close() and
+  // open()): ours goes on.
   sequence.restart();
-  if (!first_size) first_size = size;
 
   std::ostringstream d;
   d << "libcamera " << camera_id << " " << size.width << "x" << size.height << " "
@@ -266,6 +258,15 @@ Expected<void> LibcameraSource::Impl::mapBuffers(
 void LibcameraSource::Impl::teardown() {
   if (camera && started) camera->stop();  // completes (cancels) every pending request
   started = false;
+  if (camera && listening && in_flight > 0) {
+    // A disconnected camera is not running, so stop() returns at once, and it completes its
+    // pending requests (cancelled) afterwards on libcamera's thread: their buffers are freed
+    // below only once every request is back (or after kReturnWait).
+    std::unique_lock lock(mutex);
+    cond.wait_for(lock, kReturnWait, [this] {
+      return completed.size() >= static_cast<std::size_t>(in_flight);
+    });
+  }
   if (camera && listening) camera->setListener(nullptr);
   listening = false;
   {
@@ -295,34 +296,7 @@ Error LibcameraSource::Impl::disconnect(const char* why) {
   teardown();
   state = State::kDisconnected;
   ++stats.disconnects;
-  reconnect.lost(clockNs(CLOCK_MONOTONIC));
-  return Error::format(ErrorCode::kDisconnected,
-                       "libcamera camera %s: %s; reopening with back-off", name(), why);
-}
-
-Expected<void> LibcameraSource::Impl::recover(std::int64_t deadline_ns) {
-  using Action = drivers::ReconnectSchedule::Action;
-  for (;;) {
-    const auto step = reconnect.step(clockNs(CLOCK_MONOTONIC), deadline_ns);
-    if (step.action == Action::kAttempt) break;
-    if (step.sleep_ns > 0) manager->sleepNs(step.sleep_ns);
-    if (step.action == Action::kGiveBack)
-      return fail(ErrorCode::kDisconnected, "libcamera camera %s: disconnected; reopening later",
-                  name());
-  }
-  auto started_again = start();
-  if (started_again) {
-    state = State::kStreaming;
-    ++stats.reconnects;
-    reconnect.reconnected();
-    return {};
-  }
-  teardown();
-  ++stats.reopen_failures;
-  const std::int64_t delay = reconnect.attemptFailed(clockNs(CLOCK_MONOTONIC));
-  return fail(ErrorCode::kDisconnected,
-              "libcamera camera %s: still disconnected (%s); next attempt in %lld ms", name(),
-              started_again.error().c_str(), static_cast<long long>(delay));
+  return Error::format(ErrorCode::kDisconnected, "libcamera camera %s: %s", name(), why);
 }
 
 Expected<void> LibcameraSource::Impl::convert(const libcam::Completion& completion,
@@ -428,7 +402,6 @@ Expected<void> LibcameraSource::open() {
   if (const auto problems = validate(d.options); !problems.empty())
     return fail(ErrorCode::kInvalidArgument, "libcamera camera %s: %s", d.options.camera.c_str(),
                 problems.front().c_str());
-  d.first_size.reset();
   auto started = d.start();
   if (!started) {
     d.teardown();
@@ -452,12 +425,11 @@ Expected<FrameInfo> LibcameraSource::next(cv::Mat& out, std::chrono::millisecond
     return fail(ErrorCode::kInvalidArgument,
                 "libcamera camera %s: output must be %dx%d CV_8UC1, is %dx%d", d.name(),
                 d.size.width, d.size.height, out.cols, out.rows);
+  if (d.state == Impl::State::kDisconnected)
+    return fail(ErrorCode::kDisconnected,
+                "libcamera camera %s: disconnected; close() and open() it again", d.name());
   const std::int64_t timeout_ns = std::max<std::int64_t>(0, timeout.count()) * kNsPerMs;
-  const std::int64_t deadline_ns = d.clockNs(CLOCK_MONOTONIC) + timeout_ns;
   const auto deadline = std::chrono::steady_clock::now() + std::chrono::nanoseconds(timeout_ns);
-  if (d.state == Impl::State::kDisconnected) {
-    if (auto r = d.recover(deadline_ns); !r) return std::unexpected(r.error());
-  }
   if (d.clockNs(CLOCK_MONOTONIC) - d.last_clock_sync_ns >=
       d.options.clock_resync.count() * kNsPerMs)
     d.resyncClock();
@@ -472,6 +444,7 @@ Expected<FrameInfo> LibcameraSource::next(cv::Mat& out, std::chrono::millisecond
       std::swap(d.taken, d.completed);  // both reserved: no allocation
     }
     if (gone) {
+      d.in_flight -= static_cast<int>(d.taken.size());  // back, not to be requeued
       d.taken.clear();
       return std::unexpected(d.disconnect("camera disconnected"));
     }

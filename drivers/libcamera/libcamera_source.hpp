@@ -21,10 +21,12 @@
 /// Our per-frame code allocates nothing for luma/packed formats; libcamera itself allocates
 /// inside Request::reuse()/queueRequest().
 ///
-/// Unplug: the camera's `disconnected` signal makes next() return kDisconnected; the
-/// following next() calls reopen with exponential back-off (or the caller closes/opens).
-/// Draining, back-off and sequence numbers follow the policy both camera drivers share
-/// (common/streaming.hpp).
+/// Unplug: the camera's `disconnected` signal (or a failed requeue) releases the camera
+/// (stopped, buffers unmapped and freed, released) and next() returns kDisconnected, then
+/// keeps returning it without touching libcamera. The source does not retry: its owner
+/// closes and opens it again when it wants to (the daemon's capture loop does, with its
+/// back-off); after open() the sequence numbers continue across the time away. Draining and
+/// sequence numbers follow the policy both camera drivers share (common/streaming.hpp).
 ///
 /// Threading: one capture thread calls open/next/close; the callbacks run on libcamera's
 /// thread and only touch the hand-over queue.
@@ -56,8 +58,6 @@ struct LibcameraOptions {
   std::string format = "auto";
 
   int buffer_count = 4;                              ///< requests / buffers in flight, [1, 32]
-  std::chrono::milliseconds reconnect_initial{200};  ///< first reopen delay after unplug, >= 1
-  std::chrono::milliseconds reconnect_max{5000};     ///< back-off cap, >= reconnect_initial
   std::chrono::milliseconds clock_resync{10000};     ///< re-measure the clock offset, >= 1
   /// Bracketed clock reads (CLOCK_BOOTTIME, CLOCK_REALTIME, CLOCK_BOOTTIME) per offset
   /// measurement, [1, 16] (drivers::kMaxClockSamples): the least preempted read wins, so
@@ -68,7 +68,7 @@ struct LibcameraOptions {
 
 /// Every problem of `options`, without touching libcamera (empty = valid). The daemon's
 /// fields are named by their daemon.yaml key ("source.camera: ..."), the tuning fields by
-/// their name ("reconnect_max: must be >= reconnect_initial").
+/// their name ("buffer_count: must be in [1, 32], is 0").
 std::vector<std::string> validate(const LibcameraOptions& options);
 
 class LibcameraSource final : public FrameSource {
@@ -81,9 +81,7 @@ class LibcameraSource final : public FrameSource {
     std::uint64_t error_frames = 0;    ///< FrameMetadata status error / cancelled
     std::uint64_t bad_frames = 0;      ///< too short or undecodable
     std::uint64_t lost_upstream = 0;   ///< gaps in the buffers' sequence numbers
-    std::uint64_t disconnects = 0;
-    std::uint64_t reconnects = 0;
-    std::uint64_t reopen_failures = 0;
+    std::uint64_t disconnects = 0;     ///< unplugs / failed requeues seen
   };
 
   /// Returns the started camera manager; open() calls it.

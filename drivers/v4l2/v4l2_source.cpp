@@ -92,15 +92,12 @@ std::vector<std::string> validate(const V4l2Options& o) {
                        "' is not a V4L2 format this source converts (GREY, YUYV, MJPG)");
   if (o.buffer_count < 2 || o.buffer_count > 32)
     problems.push_back("buffer_count: must be in [2, 32], is " + std::to_string(o.buffer_count));
-  drivers::appendTimingProblems(problems, o.reconnect_initial, o.reconnect_max, o.clock_resync,
-                                o.clock_samples);
+  drivers::appendClockProblems(problems, o.clock_resync, o.clock_samples);
   return problems;
 }
 
 V4l2Source::V4l2Source(Options options, V4l2Io* io)
-    : options_(std::move(options)),
-      io_(io != nullptr ? io : &SystemV4l2Io::instance()),
-      reconnect_(options_.reconnect_initial, options_.reconnect_max) {}
+    : options_(std::move(options)), io_(io != nullptr ? io : &SystemV4l2Io::instance()) {}
 
 V4l2Source::~V4l2Source() { close(); }
 
@@ -122,12 +119,6 @@ std::int64_t V4l2Source::nowNs(clockid_t clock) {
   return drivers::toNanoseconds(ts);
 }
 
-void V4l2Source::sleepMs(std::int64_t ms) {
-  if (ms <= 0) return;
-  // poll() without descriptors is the kernel's sleep; EINTR just ends it early.
-  io_->poll(nullptr, 0, static_cast<int>(std::min<std::int64_t>(ms, 1 << 30)));
-}
-
 void V4l2Source::resyncClock() {
   const drivers::ClockOffset offset = drivers::measureClockOffset(
       [this](clockid_t clock) { return nowNs(clock); }, CLOCK_MONOTONIC, options_.clock_samples);
@@ -144,7 +135,6 @@ Expected<void> V4l2Source::open() {
   if (const auto problems = validate(options_); !problems.empty())
     return fail(ErrorCode::kInvalidArgument, "v4l2 %s: %s", options_.device.c_str(),
                 problems.front().c_str());
-  first_negotiated_.reset();
   auto started = start();
   if (!started) return started;
   state_ = State::kStreaming;
@@ -218,19 +208,6 @@ Expected<void> V4l2Source::start() {
   negotiateFrameRate();
   if (auto r = setUpBuffers(); !r) return fail_and_release(r.error());
 
-  // A reopened device must deliver what the caller's buffers were sized for.
-  if (first_negotiated_) {
-    if (first_negotiated_->size != negotiated_.size ||
-        first_negotiated_->format != negotiated_.format)
-      return fail_and_release(Error::format(
-          ErrorCode::kUnsupportedFormat, "v4l2 %s: came back as %dx%d %s, was %dx%d %s", dev,
-          negotiated_.size.width, negotiated_.size.height, toString(negotiated_.format),
-          first_negotiated_->size.width, first_negotiated_->size.height,
-          toString(first_negotiated_->format)));
-  } else {
-    first_negotiated_ = negotiated_;
-  }
-
   int type = V4L2_BUF_TYPE_VIDEO_CAPTURE;
   if (xioctl(VIDIOC_STREAMON, &type) != 0) {
     const int e = errno;
@@ -240,8 +217,8 @@ Expected<void> V4l2Source::start() {
   }
   streaming_ = true;
   resyncClock();
-  // The driver's counter starts over with the stream (after a reconnect, or the caller's
-  // close() and open()): ours goes on.
+  // The driver's counter starts over with the stream (after the caller's close() and
+  // open()): ours goes on.
   sequence_.restart();
 
   std::ostringstream d;
@@ -490,37 +467,8 @@ Error V4l2Source::disconnect(const char* what, int err) {
   teardown();
   state_ = State::kDisconnected;
   ++stats_.disconnects;
-  reconnect_.lost(nowNs(CLOCK_MONOTONIC));
-  return Error::format(ErrorCode::kDisconnected,
-                       "v4l2 %s: device disconnected (%s: %s); reopening with back-off",
+  return Error::format(ErrorCode::kDisconnected, "v4l2 %s: device disconnected (%s: %s)",
                        options_.device.c_str(), what, std::strerror(err));
-}
-
-Expected<void> V4l2Source::recover(std::int64_t deadline_ns) {
-  const char* dev = options_.device.c_str();
-  using Action = drivers::ReconnectSchedule::Action;
-  for (;;) {
-    // Not yet due: sleep until it is, or give the caller its time back.
-    const auto step = reconnect_.step(nowNs(CLOCK_MONOTONIC), deadline_ns);
-    if (step.action == Action::kAttempt) break;
-    sleepMs((step.sleep_ns + kNsPerMs - 1) / kNsPerMs);
-    if (step.action == Action::kGiveBack)
-      return fail(ErrorCode::kDisconnected,
-                  "v4l2 %s: disconnected; next reopen attempt in %lld ms", dev,
-                  static_cast<long long>((reconnect_.retryAtNs() - nowNs(CLOCK_MONOTONIC)) /
-                                         kNsPerMs));
-  }
-  auto started = start();
-  if (started) {
-    state_ = State::kStreaming;
-    ++stats_.reconnects;
-    reconnect_.reconnected();
-    return {};
-  }
-  ++stats_.reopen_failures;
-  const std::int64_t delay = reconnect_.attemptFailed(nowNs(CLOCK_MONOTONIC));
-  return fail(ErrorCode::kDisconnected, "v4l2 %s: still disconnected (%s); next attempt in %lld ms",
-              dev, started.error().c_str(), static_cast<long long>(delay));
 }
 
 Expected<FrameInfo> V4l2Source::next(cv::Mat& out, std::chrono::milliseconds timeout) {
@@ -530,12 +478,11 @@ Expected<FrameInfo> V4l2Source::next(cv::Mat& out, std::chrono::milliseconds tim
   if (out.type() != CV_8UC1 || out.size() != negotiated_.size)
     return fail(ErrorCode::kInvalidArgument, "v4l2 %s: output must be %dx%d CV_8UC1, is %dx%d",
                 dev, negotiated_.size.width, negotiated_.size.height, out.cols, out.rows);
-
+  if (state_ == State::kDisconnected)
+    return fail(ErrorCode::kDisconnected, "v4l2 %s: disconnected; close() and open() it again",
+                dev);
   const std::int64_t timeout_ns = std::max<std::int64_t>(0, timeout.count()) * kNsPerMs;
   const std::int64_t deadline = nowNs(CLOCK_MONOTONIC) + timeout_ns;
-  if (state_ == State::kDisconnected) {
-    if (auto r = recover(deadline); !r) return std::unexpected(r.error());
-  }
   if (nowNs(CLOCK_MONOTONIC) - last_clock_sync_ns_ >= options_.clock_resync.count() * kNsPerMs)
     resyncClock();
 
@@ -668,8 +615,8 @@ V4l2Source::Step V4l2Source::drain(cv::Mat& out, FrameInfo& info, Error& error) 
   info = FrameInfo{};
   info.capture_time_us = drivers::captureTimeUs(d.timestamp_ns, clock_offset_,
                                                 [this] { return nowNs(CLOCK_REALTIME); });
-  // Sequence: the driver's 32-bit counter, extended to 64 bits; across a reconnect (the
-  // counter restarts) it continues with the gap the frame rate implies.
+  // Sequence: the driver's 32-bit counter, extended to 64 bits; across a close() and
+  // open() (the counter restarts) it continues with the gap the frame rate implies.
   info.sequence = sequence_.delivered(d.sequence, info.capture_time_us, negotiated_.fps);
   ++stats_.delivered;
 

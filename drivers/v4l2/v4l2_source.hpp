@@ -17,18 +17,18 @@
 /// and delivers the newest; when *every* buffer had completed, the driver had nothing to
 /// capture into and newer frames were lost, so even the newest one is old: all are
 /// requeued and next() waits for a fresh frame (Options::drop_stale). The policy is the one
-/// both camera drivers share (common/streaming.hpp: planDrain, ReconnectSchedule,
-/// SequenceTracker).
+/// both camera drivers share (common/streaming.hpp: planDrain, SequenceTracker).
 ///
 /// Timestamps: buffers stamped on CLOCK_MONOTONIC are converted to the wall clock with an
 /// offset measured at stream start (the least-preempted of a few bracketed reads) and
 /// re-measured every Options::clock_resync; other buffers get the wall time of dequeue.
 ///
-/// Unplug: ENODEV from any call, or POLLERR/POLLHUP, releases the device and next()
-/// returns kDisconnected; the following next() calls reopen it with exponential back-off
-/// (Options::reconnect_initial .. reconnect_max) and carry on streaming, with the sequence
-/// numbers continuing (the outage shows as a gap estimated from the frame rate). A caller
-/// may as well close() and open() itself.
+/// Unplug: ENODEV from any call, POLLERR/POLLHUP, or a broken stream (EIO from DQBUF, a
+/// failed QBUF) releases the device (fd closed, buffers unmapped and freed) and next()
+/// returns kDisconnected, then keeps returning it without touching the device. The source
+/// does not retry: its owner closes and opens it again when it wants to (the daemon's
+/// capture loop does, with its back-off). After open() the sequence numbers continue (the
+/// time away shows as a gap estimated from the frame rate).
 ///
 /// Threading: one thread drives a source (the capture thread); stats() from that thread.
 
@@ -66,8 +66,6 @@ struct V4l2Options {
   std::string format = "YUYV";         ///< source.format: parseV4l2PixelFormat()
 
   int buffer_count = 4;  ///< buffers requested with REQBUFS, [2, 32] (the driver may grant more)
-  std::chrono::milliseconds reconnect_initial{100};  ///< first reopen delay after unplug, >= 1
-  std::chrono::milliseconds reconnect_max{2000};     ///< back-off cap, >= reconnect_initial
   std::chrono::milliseconds clock_resync{10000};     ///< re-measure the clock offset, >= 1
   int clock_samples = 7;   ///< bracketed reads per measurement, [1, 16]
   bool drop_stale = true;  ///< see the file comment ("Freshness")
@@ -82,7 +80,7 @@ class V4l2Source final : public FrameSource {
  public:
   using Options = V4l2Options;
 
-  /// Counters since construction (they survive close()/open() and reconnects).
+  /// Counters since construction (they survive close() and open()).
   struct Stats {
     std::uint64_t delivered = 0;        ///< frames returned by next()
     std::uint64_t stale_dropped = 0;    ///< good frames drained from the queue, not delivered
@@ -91,8 +89,6 @@ class V4l2Source final : public FrameSource {
     std::uint64_t lost_upstream = 0;    ///< frames the driver dropped (sequence gaps in DQBUF)
     std::uint64_t interrupted = 0;      ///< calls retried after EINTR
     std::uint64_t disconnects = 0;      ///< unplugs / stream failures seen
-    std::uint64_t reconnects = 0;       ///< successful reopens after a disconnect
-    std::uint64_t reopen_failures = 0;  ///< reopen attempts that failed
   };
 
   /// What open() agreed with the driver.
@@ -133,7 +129,7 @@ class V4l2Source final : public FrameSource {
   const Negotiated& negotiated() const { return negotiated_; }
   /// The CLOCK_MONOTONIC -> CLOCK_REALTIME offset in use.
   const drivers::ClockOffset& clockOffset() const { return clock_offset_; }
-  /// True between an unplug and the successful reopen.
+  /// True between an unplug (or stream failure) and the next close() or open().
   bool disconnected() const { return state_ == State::kDisconnected; }
 
  private:
@@ -158,7 +154,6 @@ class V4l2Source final : public FrameSource {
   Expected<void> negotiateFormat();
   void negotiateFrameRate();
   Expected<void> setUpBuffers();
-  Expected<void> recover(std::int64_t deadline_ns);
   Step drain(cv::Mat& out, FrameInfo& info, Error& error);
   Expected<void> convert(const Dequeued& d, cv::Mat& out);
   bool requeue(std::uint32_t index);
@@ -166,7 +161,6 @@ class V4l2Source final : public FrameSource {
   void resyncClock();
   int xioctl(unsigned long request, void* arg);
   std::int64_t nowNs(clockid_t clock);
-  void sleepMs(std::int64_t ms);
 
   Options options_;
   V4l2Io* io_;
@@ -178,14 +172,12 @@ class V4l2Source final : public FrameSource {
   std::vector<Dequeued> dequeued_;  // reserved at open: drain() never allocates
   int queued_count_ = 0;
   Negotiated negotiated_;
-  std::optional<Negotiated> first_negotiated_;  // what reopen must reproduce
   std::string describe_;
   cv::Mat jpeg_scratch_;
 
   drivers::ClockOffset clock_offset_;
   std::int64_t last_clock_sync_ns_ = 0;
 
-  drivers::ReconnectSchedule reconnect_;
   drivers::SequenceTracker sequence_;
 
   Stats stats_;

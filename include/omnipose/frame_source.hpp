@@ -46,10 +46,10 @@ class FrameSource {
   /// Waits up to `timeout` for the next frame and writes it as CV_8UC1 into `out`, which
   /// must already be frameSize() and CV_8UC1 (it is never reallocated). Errors:
   /// kTimeout (nothing yet, call again), kBadFrame (this frame was unusable and dropped:
-  /// corrupt, wrong size, flagged by the driver; call again), kDisconnected (device gone:
-  /// either close() and open() again with back-off, or keep calling next(), which the
-  /// camera sources answer by reopening with their own back-off), kEndOfStream (a finite
-  /// source is done).
+  /// corrupt, wrong size, flagged by the driver; call again), kDisconnected (device or
+  /// directory gone, or the stream broke: a camera source has released the device and
+  /// keeps answering kDisconnected; close() and open() the source again, with a back-off,
+  /// to go on; no source retries on its own), kEndOfStream (a finite source is done).
   virtual Expected<FrameInfo> next(cv::Mat& out, std::chrono::milliseconds timeout) = 0;
 
   /// Stops streaming and releases the device. Safe to call twice.

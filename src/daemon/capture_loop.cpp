@@ -52,20 +52,17 @@ void CaptureLoop::run() {
   // The sequence number the next frame should carry: a larger one means frames were lost
   // upstream (unknown after a camera's re-open until its first frame arrives).
   std::optional<std::uint64_t> expected_sequence = source_.sequenceOrigin();
-  auto backoff = options_.reconnect_initial;
+  Backoff backoff(options_.reconnect_initial, options_.reconnect_max);
 
   while (!mailbox_.stopRequested()) {
     board_.beatCapture();
     if (!open) {
       // Re-open with exponential back-off.
-      if (sleepUnlessStopped(backoff)) break;
-      if (!reopen()) {
-        backoff = std::min(backoff * 2, options_.reconnect_max);
-        continue;
-      }
+      if (sleepUnlessStopped(backoff.next())) break;
+      if (!reopen()) continue;
       open = true;
       expected_sequence = source_.sequenceOrigin();
-      backoff = options_.reconnect_initial;
+      backoff.reset();
       board_.setSourceState(SourceState::kStreaming);
       board_.logInfo("source re-opened: %s", description_.c_str());
       mailbox_.markGap();

@@ -3,14 +3,22 @@
 /// The capture thread's loop: pull frames from the FrameSource into the mailbox's write
 /// slot and post them; turn every source failure into status and a gap, never into a crash.
 ///
+/// Reconnection has one owner, this loop, for every source (file, V4L2, libcamera): a
+/// source that fails reports it from next() and releases what it held; the loop closes it
+/// and re-opens it with a bounded back-off. The sources have no retry logic of their own.
+///
 ///  - kTimeout: nothing yet, call again (the loop wakes at least every `poll`).
 ///  - every frame the source delivers, reports bad, or is known to have dropped counts as
-///    received (DaemonStats: received = processed + skipped + bad + lost upstream);
+///    received (counters.hpp: received = processed + skipped + bad + lost upstream);
 ///  - kBadFrame: counted (frames_bad), reported with the source's text (which names the
 ///    file or frame), gap marked; streaming goes on.
-///  - kDisconnected or any other error: counted (source_failures), reported, the source is
-///    closed and re-opened with exponential back-off (`reconnect_initial` doubling up to
-///    `reconnect_max`); a re-opened source must deliver the same frame size; gap marked.
+///  - kDisconnected or any other error: counted once (source_failures: one per outage, not
+///    per attempt), reported, source state SOURCE_RECONNECTING, the source is closed and
+///    re-opened with exponential back-off (Backoff: `reconnect_initial`, doubling, capped at
+///    `reconnect_max`; every failed attempt is reported, stop is honoured while waiting); a
+///    re-opened source must deliver the same frame size; gap marked; state back to
+///    streaming. No frame is counted for the outage: frames a camera did not capture while
+///    it was away are not received, and the sequence number expected next is forgotten.
 ///  - kEndOfStream: the source state becomes ended and the mailbox is closed, so the
 ///    processor drains the last frame and the daemon can exit.
 ///  - A restart of a file source's index (loop: the recording jumps back) is a gap as well.
@@ -25,6 +33,7 @@
 ///
 /// Allocation: none in this loop (the source's own work aside).
 
+#include <algorithm>
 #include <chrono>
 #include <string>
 #include <opencv2/core.hpp>
@@ -35,12 +44,35 @@
 
 namespace omnipose::daemon {
 
+/// Exponential back-off of the re-open attempts: next() returns initial, 2 initial,
+/// 4 initial, ... capped at max; reset() starts over. An initial below 1 ms is taken as 1 ms,
+/// a max below initial as initial, so the delays are always in [1 ms, max].
+class Backoff {
+ public:
+  Backoff(std::chrono::milliseconds initial, std::chrono::milliseconds max)
+      : initial_(std::max(initial, std::chrono::milliseconds(1))),
+        max_(std::max(max, initial_)),
+        current_(initial_) {}
+  /// The delay before the next attempt; doubles the one after it (up to the cap).
+  std::chrono::milliseconds next() {
+    const auto d = current_;
+    current_ = current_ > max_ / 2 ? max_ : current_ * 2;
+    return d;
+  }
+  void reset() { current_ = initial_; }
+
+ private:
+  std::chrono::milliseconds initial_;
+  std::chrono::milliseconds max_;
+  std::chrono::milliseconds current_;
+};
+
 class CaptureLoop {
  public:
   struct Options {
     std::chrono::milliseconds poll{100};               ///< longest wait inside next()
-    std::chrono::milliseconds reconnect_initial{100};  ///< first re-open delay
-    std::chrono::milliseconds reconnect_max{2000};     ///< back-off cap
+    std::chrono::milliseconds reconnect_initial{100};  ///< first re-open delay (>= 1 ms)
+    std::chrono::milliseconds reconnect_max{2000};     ///< back-off cap (>= the first)
   };
 
   /// All borrowed; `source` must be open already (start-up opens it).

@@ -27,7 +27,7 @@ Daemon::Daemon(const DaemonConfig& config, std::FILE* log, std::unique_ptr<Frame
 
   const bool lossless = options_.force_lossless ||
                         (config_.source.type == SourceConfig::Type::kFile && !config_.source.realtime);
-  mailbox_ = std::make_unique<FrameMailbox>(frame_size, lossless);
+  mailbox_ = std::make_unique<FrameMailbox>(frame_size, lossless, 3, &board_.frames_skipped_stale);
 
   if (auto opened = source_->open(); !opened) {
     throw std::runtime_error(std::string("source: ") + opened.error().c_str());
@@ -84,20 +84,7 @@ void Daemon::join() {
   processor_->publishStatus(true);
 }
 
-DaemonStats Daemon::stats() const {
-  DaemonStats s;
-  s.frames_received = board_.frames_received.load();
-  s.frames_processed = board_.frames_processed.load();
-  s.frames_skipped = mailbox_->skipped();
-  s.frames_bad = board_.frames_bad.load();
-  s.frames_lost_upstream = board_.frames_lost_upstream.load();
-  s.poses_lost = board_.poses_lost.load();
-  s.source_failures = board_.source_failures.load();
-  s.publish_failures = board_.publish_failures.load();
-  s.segment = board_.segment.load();
-  s.source_state = board_.sourceState();
-  return s;
-}
+DaemonStats Daemon::stats() const { return board_.snapshot(); }
 
 void Daemon::processLoop() {
   const auto period = std::chrono::duration_cast<SteadyClock::duration>(

@@ -4,7 +4,9 @@
 
 namespace omnipose::daemon {
 
-FrameMailbox::FrameMailbox(cv::Size size, bool lossless, int slots) : lossless_(lossless) {
+FrameMailbox::FrameMailbox(cv::Size size, bool lossless, int slots,
+                           std::atomic<std::int64_t>* skipped_counter)
+    : lossless_(lossless), skipped_(skipped_counter != nullptr ? *skipped_counter : own_skipped_) {
   if (slots < 3) throw std::invalid_argument("FrameMailbox: needs at least 3 slots");
   if (size.width <= 0 || size.height <= 0) throw std::invalid_argument("FrameMailbox: empty frame size");
   slots_.resize(static_cast<std::size_t>(slots));
@@ -120,9 +122,6 @@ std::int64_t FrameMailbox::posted() const {
   return posted_;
 }
 
-std::int64_t FrameMailbox::skipped() const {
-  std::lock_guard lock(mutex_);
-  return skipped_;
-}
+std::int64_t FrameMailbox::skipped() const { return skipped_.load(); }
 
 }  // namespace omnipose::daemon

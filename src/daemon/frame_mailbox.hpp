@@ -20,6 +20,7 @@
 /// Allocation: only the constructor allocates. Threading: one capture thread (writer side),
 /// one processing thread (reader side); requestStop()/close() and the counters from any.
 
+#include <atomic>
 #include <chrono>
 #include <condition_variable>
 #include <cstdint>
@@ -41,8 +42,11 @@ struct MailboxFrame {
 
 class FrameMailbox {
  public:
-  /// Allocates `slots` (>= 3) CV_8UC1 buffers of `size`.
-  FrameMailbox(cv::Size size, bool lossless, int slots = 3);
+  /// Allocates `slots` (>= 3) CV_8UC1 buffers of `size`. Skipped frames are counted in
+  /// `*skipped_counter` when given (the daemon passes StatusBoard::frames_skipped_stale;
+  /// borrowed, must outlive the mailbox), else in a counter of the mailbox's own.
+  FrameMailbox(cv::Size size, bool lossless, int slots = 3,
+               std::atomic<std::int64_t>* skipped_counter = nullptr);
   FrameMailbox(const FrameMailbox&) = delete;
   FrameMailbox& operator=(const FrameMailbox&) = delete;
 
@@ -74,6 +78,7 @@ class FrameMailbox {
   void requestStop();
   bool stopRequested() const;
   std::int64_t posted() const;
+  /// Frames skipped so far (the value of the skipped counter).
   std::int64_t skipped() const;
 
  private:
@@ -98,7 +103,8 @@ class FrameMailbox {
   bool closed_ = false;
   bool stop_ = false;
   std::int64_t posted_ = 0;
-  std::int64_t skipped_ = 0;
+  std::atomic<std::int64_t> own_skipped_{0};
+  std::atomic<std::int64_t>& skipped_;  ///< own_skipped_ or the caller's counter
 };
 
 }  // namespace omnipose::daemon

@@ -206,14 +206,7 @@ void Processor::publishStatus(bool final) {
   status_t& s = *status_;
   s.utime = wallClockMicros();
   s.uptime_us = std::chrono::duration_cast<std::chrono::microseconds>(now - started_).count();
-  s.frames_received = board_.frames_received.load();
-  s.frames_processed = board_.frames_processed.load();
-  s.frames_skipped_stale = mailbox_.skipped();
-  s.frames_bad = board_.frames_bad.load();
-  s.frames_lost_upstream = board_.frames_lost_upstream.load();
-  s.poses_lost = board_.poses_lost.load();
-  s.source_failures = board_.source_failures.load();
-  s.segment = board_.segment.load();
+  fillStatus(board_.snapshot(), s);
 
   // Rates since the last status; the final status gives the averages of the whole run.
   const double dt = std::chrono::duration<double>(now - (final ? started_ : last_status_time_)).count();
@@ -229,7 +222,6 @@ void Processor::publishStatus(bool final) {
   s.processing_ms_p99 = processing_ms_.percentile(0.99);
   s.latency_ms_p50 = latency_ms_.percentile(0.50);
   s.latency_ms_p99 = latency_ms_.percentile(0.99);
-  s.source_state = static_cast<std::int8_t>(board_.sourceState());
   s.last_error_utime = board_.lastError(error_text_.data(), error_text_.size());
   s.last_error.assign(error_text_.data());  // within the reserved capacity: no allocation
   s.final = final ? 1 : 0;

@@ -22,17 +22,17 @@ sigset_t stopSignals() {
   return set;
 }
 
+/// "received 10, processed 9, ..., segment 0, source streaming" (counters.hpp's labels).
 std::string summary(const DaemonStats& s) {
-  char text[400];
-  std::snprintf(text, sizeof(text),
-                "received %lld, processed %lld, skipped (stale) %lld, bad %lld, lost upstream "
-                "%lld, lost poses %lld, source failures %lld, publish failures %lld, segment %d, "
-                "source %s",
-                static_cast<long long>(s.frames_received), static_cast<long long>(s.frames_processed),
-                static_cast<long long>(s.frames_skipped), static_cast<long long>(s.frames_bad),
-                static_cast<long long>(s.frames_lost_upstream),
-                static_cast<long long>(s.poses_lost), static_cast<long long>(s.source_failures),
-                static_cast<long long>(s.publish_failures), s.segment, toString(s.source_state));
+  std::string text;
+  text.reserve(400);
+  forEachCounter(s, [&](const char* label, std::int64_t value) {
+    text += label;
+    text += ' ';
+    text += std::to_string(value);
+    text += ", ";
+  });
+  text += "segment " + std::to_string(s.segment) + ", source " + toString(s.source_state);
   return text;
 }
 

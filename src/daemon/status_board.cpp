@@ -80,6 +80,14 @@ std::int64_t StatusBoard::lastError(char* text, std::size_t capacity) const {
   return last_error_utime_;
 }
 
+DaemonStats StatusBoard::snapshot() const {
+  DaemonStats s;
+  copyCounters(*this, s);
+  s.segment = segment.load();
+  s.source_state = sourceState();
+  return s;
+}
+
 bool StatusBoard::alive(std::chrono::nanoseconds max_silence) const {
   const std::int64_t now = nowNs();
   const bool capture_ok =

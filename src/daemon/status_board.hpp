@@ -1,9 +1,9 @@
 #pragma once
 /// \file status_board.hpp
 /// Counters and state shared by the capture and processing threads and read by the status
-/// publisher and the watchdog: lock-free counters, the source state, the last error text
-/// (a fixed buffer under a mutex) and per-thread heartbeats. Allocation-free after
-/// construction; every member function is thread-safe.
+/// publisher and the watchdog: lock-free counters (the table of counters.hpp), the source
+/// state, the last error text (a fixed buffer under a mutex) and per-thread heartbeats.
+/// Allocation-free after construction; every member function is thread-safe.
 ///
 /// Faults are also logged (one line each, at most one line per `kLogInterval`; the count of
 /// suppressed lines is reported with the next one).
@@ -16,6 +16,7 @@
 #include <mutex>
 #include <string_view>
 
+#include "daemon/counters.hpp"
 #include "omnipose/error.hpp"
 
 namespace omnipose::daemon {
@@ -30,21 +31,25 @@ enum class SourceState : std::int8_t {
 };
 const char* toString(SourceState state);
 
-/// A snapshot of the counters (totals since start-up). Every frame is counted once: once
-/// both threads have finished, frames_received = frames_processed + frames_skipped +
-/// frames_bad + frames_lost_upstream.
+/// A snapshot of the board: the counters of counters.hpp (totals since start-up, each
+/// field named as in status_t) and the state. The frame-counting invariant
+/// (counters.hpp) holds for a snapshot taken after both threads have finished.
 struct DaemonStats {
-  std::int64_t frames_received = 0;   ///< frames delivered by the source or known dropped
-  std::int64_t frames_processed = 0;  ///< frames the pipeline ran on (= poses published)
-  std::int64_t frames_skipped = 0;    ///< stale frames overwritten or left at the stop
-  std::int64_t frames_bad = 0;        ///< corrupt / wrong-size / pipeline-rejected frames
-  std::int64_t frames_lost_upstream = 0;  ///< sequence numbers the source skipped
-  std::int64_t poses_lost = 0;        ///< poses published with status lost
-  std::int64_t source_failures = 0;   ///< source failures that needed a re-open
-  std::int64_t publish_failures = 0;  ///< encode or LCM publish errors
+#define OMNIPOSE_STATS_FIELD(name, label, description) std::int64_t name = 0;
+  OMNIPOSE_DAEMON_COUNTERS(OMNIPOSE_STATS_FIELD)
+#undef OMNIPOSE_STATS_FIELD
   int segment = -1;                   ///< current chain segment (-1 before the first frame)
   SourceState source_state = SourceState::kStarting;
 };
+
+/// Fills the counters, segment and source state of a status message (status_t) from a
+/// snapshot. Allocation-free.
+template <typename Status>
+void fillStatus(const DaemonStats& stats, Status& status) {
+  copyCounters(stats, status);
+  status.segment = stats.segment;
+  status.source_state = static_cast<std::int8_t>(stats.source_state);
+}
 
 class StatusBoard {
  public:
@@ -53,17 +58,19 @@ class StatusBoard {
   /// `log`: where faults are written (borrowed; nullptr = nowhere).
   explicit StatusBoard(std::FILE* log);
 
-  std::atomic<std::int64_t> frames_received{0};
-  std::atomic<std::int64_t> frames_processed{0};
-  std::atomic<std::int64_t> frames_bad{0};
-  std::atomic<std::int64_t> frames_lost_upstream{0};
-  std::atomic<std::int64_t> poses_lost{0};
-  std::atomic<std::int64_t> source_failures{0};
-  std::atomic<std::int64_t> publish_failures{0};
+  /// The counters of counters.hpp, one lock-free atomic each (incremented by the thread
+  /// that sees the event; the mailbox counts frames_skipped_stale).
+#define OMNIPOSE_BOARD_COUNTER(name, label, description) std::atomic<std::int64_t> name{0};
+  OMNIPOSE_DAEMON_COUNTERS(OMNIPOSE_BOARD_COUNTER)
+#undef OMNIPOSE_BOARD_COUNTER
   std::atomic<int> segment{-1};
 
   void setSourceState(SourceState state) { source_state_.store(state); }
   SourceState sourceState() const { return source_state_.load(); }
+
+  /// Every counter, the segment and the source state; lock-free and allocation-free (each
+  /// value is loaded on its own, not all at one instant).
+  DaemonStats snapshot() const;
 
   /// Records (and logs) a fault; the text should name the file, frame or device.
   void reportError(const Error& error);

@@ -124,7 +124,7 @@ Measurement measure(const std::vector<cv::Mat>& frames, const std::string& lcm_u
   d.join();
 
   m.processed = after.frames_processed - before.frames_processed;
-  m.skipped = after.frames_skipped - before.frames_skipped;
+  m.skipped = after.frames_skipped_stale - before.frames_skipped_stale;
   m.bad = after.frames_bad - before.frames_bad;
   m.failures = after.source_failures - before.source_failures;
   m.publishes = sink_ptr->publishes();

@@ -1,17 +1,21 @@
-// In-process tests of the daemon library: mailbox, statistics, file source, source factory,
-// and whole daemon runs over LCM memq:// (one lcm::LCM shared by the daemon's sink and the
-// test's subscribers): poses per frame, status, corrupt frames mid-stream, a vanishing
-// dataset directory, stale frames, fit diagnostics, start-up failures.
+// In-process tests of the daemon library: mailbox, statistics (the one table of counters),
+// the capture loop's reconnection and back-off, file source, source factory, and whole
+// daemon runs over LCM memq:// (one lcm::LCM shared by the daemon's sink and the test's
+// subscribers): poses per frame, status, corrupt frames mid-stream, a vanishing dataset
+// directory, stale frames, fit diagnostics, start-up failures, publish failures.
 #include <gtest/gtest.h>
 
 #include <functional>
 #include <opencv2/imgcodecs.hpp>
 
+#include "daemon/capture_loop.hpp"
+#include "daemon/counters.hpp"
 #include "daemon/daemon.hpp"
 #include "daemon/file_frame_source.hpp"
 #include "daemon/frame_mailbox.hpp"
 #include "daemon/sample_ring.hpp"
 #include "daemon/source_factory.hpp"
+#include "daemon/status_board.hpp"
 #include "daemon/wall_clock.hpp"
 #include "bad_images.hpp"
 #include "daemon_test_support.hpp"
@@ -63,6 +67,66 @@ FrameInfo infoWithSequence(std::uint64_t s) {
   FrameInfo i;
   i.sequence = s;
   return i;
+}
+
+TEST(CountersTable, BoardSnapshotAndStatusCarryEveryCounterUnderItsName) {
+  daemon::StatusBoard board(nullptr);
+  // A distinct value per counter, set through the table itself.
+  std::int64_t k = 0;
+  daemon::forEachCounter(board, [&](const char*, std::atomic<std::int64_t>& c) { c += 1000 + 7 * ++k; });
+  ASSERT_EQ(k, daemon::kCounterCount);
+  board.segment = 3;
+  board.setSourceState(daemon::SourceState::kReconnecting);
+
+  const daemon::DaemonStats stats = board.snapshot();
+  status_t sent{};
+  daemon::fillStatus(stats, sent);
+  std::vector<std::uint8_t> bytes(static_cast<std::size_t>(sent.getEncodedSize()));
+  ASSERT_EQ(sent.encode(bytes.data(), 0, static_cast<int>(bytes.size())), static_cast<int>(bytes.size()));
+  status_t got;
+  ASSERT_EQ(got.decode(bytes.data(), 0, static_cast<int>(bytes.size())), static_cast<int>(bytes.size()));
+
+  std::vector<std::pair<std::string, std::int64_t>> from_stats, from_status;
+  daemon::forEachCounter(stats, [&](const char* label, std::int64_t v) { from_stats.emplace_back(label, v); });
+  daemon::forEachCounter(got, [&](const char* label, std::int64_t v) { from_status.emplace_back(label, v); });
+  ASSERT_EQ(from_stats.size(), static_cast<std::size_t>(daemon::kCounterCount));
+  EXPECT_EQ(from_status, from_stats) << "every counter reaches status_t, under its own field";
+  for (std::size_t i = 0; i < from_stats.size(); ++i)
+    EXPECT_EQ(from_stats[i].second, 1000 + 7 * static_cast<std::int64_t>(i + 1)) << from_stats[i].first;
+  EXPECT_EQ(got.publish_failures, stats.publish_failures);
+  EXPECT_EQ(got.frames_skipped_stale, stats.frames_skipped_stale);
+  EXPECT_EQ(got.segment, 3);
+  EXPECT_EQ(got.source_state, status_t::SOURCE_RECONNECTING);
+}
+
+TEST(CountersTable, TheMailboxCountsSkippedFramesIntoTheBoard) {
+  daemon::StatusBoard board(nullptr);
+  FrameMailbox box({8, 4}, /*lossless=*/false, 3, &board.frames_skipped_stale);
+  for (int i = 0; i < 4; ++i) box.post(FrameInfo{});  // three overwritten
+  box.requestStop();                                  // the fourth never taken
+  EXPECT_EQ(board.frames_skipped_stale.load(), 4);
+  EXPECT_EQ(box.skipped(), 4);
+  EXPECT_EQ(board.snapshot().frames_skipped_stale, 4);
+}
+
+TEST(CaptureBackoff, DoublesUpToTheCapAndStartsOverOnReset) {
+  daemon::Backoff b(100ms, 700ms);
+  EXPECT_EQ(b.next(), 100ms);
+  EXPECT_EQ(b.next(), 200ms);
+  EXPECT_EQ(b.next(), 400ms);
+  EXPECT_EQ(b.next(), 700ms);
+  EXPECT_EQ(b.next(), 700ms) << "bounded";
+  b.reset();
+  EXPECT_EQ(b.next(), 100ms);
+}
+
+TEST(CaptureBackoff, NonsenseBoundsAreClamped) {
+  daemon::Backoff zero(0ms, 0ms);  // initial below 1 ms: 1 ms; max below initial: initial
+  EXPECT_EQ(zero.next(), 1ms);
+  EXPECT_EQ(zero.next(), 1ms);
+  daemon::Backoff inverted(300ms, 100ms);
+  EXPECT_EQ(inverted.next(), 300ms);
+  EXPECT_EQ(inverted.next(), 300ms);
 }
 
 TEST(FrameMailbox, ProcessorTakesTheNewestAndOverwrittenFramesCountAsSkipped) {
@@ -364,6 +428,104 @@ TEST(SourceFactory, BuildsTheConfiguredSourceOrSaysWhatIsNotBuiltIn) {
 }
 
 // ---------------------------------------------------------------------------------------
+// The capture loop: the one owner of reconnection
+// ---------------------------------------------------------------------------------------
+
+/// Delivers numbered frames; the delivery `fail_at` fails with kDisconnected (once); then
+/// the first `failed_opens` open() calls fail. Records the time of every open() attempt.
+class FlakySource final : public FrameSource {
+ public:
+  FlakySource(cv::Size size, long fail_at, int failed_opens)
+      : size_(size), fail_at_(fail_at), failed_opens_(failed_opens) {}
+  Expected<void> open() override {
+    opens_.push_back(SteadyClock::now());
+    if (failed_opens_ > 0) {
+      --failed_opens_;
+      return fail(ErrorCode::kNoDevice, "flaky: not there");
+    }
+    return {};
+  }
+  cv::Size frameSize() const override { return size_; }
+  Expected<FrameInfo> next(cv::Mat& out, std::chrono::milliseconds) override {
+    std::this_thread::sleep_for(1ms);
+    const long n = delivery_++;
+    if (n == fail_at_) {
+      failed_at_ = SteadyClock::now();
+      return fail(ErrorCode::kDisconnected, "flaky: unplugged at %ld", n);
+    }
+    out.setTo(cv::Scalar(static_cast<double>(n % 200)));
+    FrameInfo info;
+    info.sequence = static_cast<std::uint64_t>(n);
+    info.capture_time_us = daemon::wallClockMicros();
+    return info;
+  }
+  void close() override { ++closes_; }
+  std::string describe() const override { return "flaky"; }
+
+  const std::vector<SteadyClock::time_point>& opens() const { return opens_; }
+  SteadyClock::time_point failedAt() const { return failed_at_; }
+  int closes() const { return closes_; }
+
+ private:
+  cv::Size size_;
+  long fail_at_;
+  int failed_opens_;
+  long delivery_ = 0;
+  int closes_ = 0;
+  std::vector<SteadyClock::time_point> opens_;
+  SteadyClock::time_point failed_at_{};
+};
+
+TEST(CaptureLoop, AnOutageIsOneSourceFailureRetriedWithBackoffAndStreamingResumes) {
+  const cv::Size size(16, 8);
+  daemon::StatusBoard board(nullptr);
+  FrameMailbox box(size, /*lossless=*/false, 3, &board.frames_skipped_stale);
+  FlakySource source(size, /*fail_at=*/5, /*failed_opens=*/4);
+  daemon::CaptureLoop::Options options;
+  options.poll = 20ms;
+  options.reconnect_initial = 10ms;
+  options.reconnect_max = 40ms;
+  daemon::CaptureLoop loop(source, box, board, options);
+  std::thread capture([&] { loop.run(); });
+
+  std::int64_t taken = 0;
+  int gaps = 0;
+  bool saw_reconnecting = false;
+  const auto deadline = SteadyClockNow() + 30s;
+  MailboxFrame f;
+  while (taken < 20 && SteadyClockNow() < deadline) {
+    if (board.sourceState() == daemon::SourceState::kReconnecting) saw_reconnecting = true;
+    if (box.take(SteadyClockNow() + 2ms, f) == FrameMailbox::TakeResult::kFrame) {
+      ++taken;
+      if (f.gap_before) ++gaps;
+      box.release();
+    }
+  }
+  box.requestStop();
+  capture.join();
+
+  EXPECT_EQ(taken, 20) << "streaming resumed after the outage";
+  EXPECT_EQ(board.source_failures.load(), 1) << "one outage, however many attempts";
+  EXPECT_TRUE(saw_reconnecting);
+  EXPECT_EQ(board.sourceState(), daemon::SourceState::kStopped);
+  EXPECT_EQ(gaps, 1) << "the first frame after the re-open follows a gap";
+  EXPECT_GE(source.closes(), 2) << "closed at the failure and at the stop";
+  // Four refused attempts, then the one that worked, each after its back-off delay.
+  const auto& opens = source.opens();
+  ASSERT_EQ(opens.size(), 5u);
+  const std::chrono::milliseconds delays[] = {10ms, 20ms, 40ms, 40ms, 40ms};
+  auto previous = source.failedAt();
+  for (std::size_t i = 0; i < opens.size(); ++i) {
+    EXPECT_GE(opens[i] - previous, delays[i]) << "attempt " << i;
+    previous = opens[i];
+  }
+  // Every frame counted once.
+  EXPECT_EQ(board.frames_received.load(),
+            taken + board.frames_skipped_stale.load() + board.frames_bad.load() +
+                board.frames_lost_upstream.load());
+}
+
+// ---------------------------------------------------------------------------------------
 // Whole daemon over memq://
 // ---------------------------------------------------------------------------------------
 
@@ -484,7 +646,7 @@ TEST(Daemon, PublishesOnePosePerFrameStatusAtItsRateAndAFinalStatus) {
   const auto stats = d.stats();
   EXPECT_EQ(stats.frames_received, 40);
   EXPECT_EQ(stats.frames_processed, 40);
-  EXPECT_EQ(stats.frames_skipped, 0);
+  EXPECT_EQ(stats.frames_skipped_stale, 0);
   ASSERT_EQ(bus.poses.size(), 40u);
   for (std::size_t k = 0; k < bus.poses.size(); ++k) {
     const pose_t& p = bus.poses[k];
@@ -643,18 +805,18 @@ TEST(Daemon, StaleFramesAreSkippedAndLatencyStaysBounded) {
   });
   const auto stats = d.stats();
   ASSERT_GE(bus.poses.size(), 25u);
-  EXPECT_GT(stats.frames_skipped, 0);
+  EXPECT_GT(stats.frames_skipped_stale, 0);
   const status_t& last = bus.statuses.back();
   EXPECT_TRUE(last.final);
   EXPECT_EQ(last.source_state, status_t::SOURCE_STOPPED);
-  EXPECT_EQ(last.frames_skipped_stale, stats.frames_skipped);
+  EXPECT_EQ(last.frames_skipped_stale, stats.frames_skipped_stale);
   // Every received frame is accounted for once, also the one still in the mailbox at the
   // stop and the ones the source passed over while it was late.
   EXPECT_EQ(last.frames_received, last.frames_processed + last.frames_skipped_stale +
                                       last.frames_bad + last.frames_lost_upstream);
   std::int64_t skipped_in_poses = 0;
   for (const auto& p : bus.poses) skipped_in_poses += p.frames_skipped;
-  EXPECT_LE(skipped_in_poses, stats.frames_skipped);
+  EXPECT_LE(skipped_in_poses, stats.frames_skipped_stale);
 
   // Latency (capture -> publish) stays within a couple of processing times instead of
   // growing with a backlog: the last poses are as fresh as the first ones.
@@ -920,6 +1082,60 @@ TEST(DaemonFaults, EveryFrameIsCountedOnceUnderEqualBackwardAndJumpingTimestamps
     EXPECT_NE(s.last_error.find("resynchronised"), std::string::npos) << s.last_error;
     EXPECT_LT(seconds, 20.0);
   }
+}
+
+// ---------------------------------------------------------------------------------------
+// Publish failures reach the published status
+// ---------------------------------------------------------------------------------------
+
+/// Refuses every message on one channel; passes the others to the test's memq:// LCM.
+class FailingChannelSink final : public daemon::MessageSink {
+ public:
+  FailingChannelSink(lcm::LCM& lcm, std::string failing) : lcm_(lcm), failing_(std::move(failing)) {}
+  bool publish(const std::string& channel, const std::uint8_t* data, std::size_t size) override {
+    if (channel == failing_) return false;
+    return lcm_.publish(channel, data, static_cast<unsigned int>(size)) == 0;
+  }
+  std::string describe() const override { return "memq, refusing " + failing_ + " (test)"; }
+  const char* lastError() const override { return "test sink refuses the channel"; }
+
+ private:
+  lcm::LCM& lcm_;
+  std::string failing_;
+};
+
+TEST(DaemonFaults, FailedPublishesAreCountedInThePublishedStatus) {
+  constexpr int kTotal = 12;
+  const auto frames = testing::renderFrames("yaw", 6);
+  Bus bus;
+  const auto config = parseConfig("source: {type: file, path: /nonexistent}\ncalibration: " +
+                                  (yawDataset() / "calibration.yaml").string() +
+                                  "\nlcm: {status_hz: 20}\n");
+  testing::MemorySource::Script script;
+  script.total = kTotal;
+  script.period = 20ms;  // long enough for a few periodic statuses
+  Daemon d(config, stderr, std::make_unique<testing::MemorySource>(frames, script),
+           std::make_unique<FailingChannelSink>(bus.lcm, "OMNI_POSE"),
+           {.capture = {}, .force_lossless = true});
+  bus.run(d, 60s);
+
+  EXPECT_TRUE(bus.poses.empty()) << "every pose was refused";
+  ASSERT_GE(bus.statuses.size(), 2u);
+  const status_t& last = bus.statuses.back();
+  EXPECT_TRUE(last.final);
+  EXPECT_EQ(last.frames_processed, kTotal);
+  EXPECT_EQ(last.publish_failures, kTotal) << "one per refused pose; every status went out";
+  EXPECT_EQ(d.stats().publish_failures, kTotal);
+  EXPECT_NE(last.last_error.find("channel OMNI_POSE"), std::string::npos) << last.last_error;
+  EXPECT_NE(last.last_error.find("test sink refuses the channel"), std::string::npos)
+      << last.last_error;
+  bool periodic_carried_it = false;  // not only the final status
+  for (std::size_t k = 1; k < bus.statuses.size(); ++k) {
+    EXPECT_GE(bus.statuses[k].publish_failures, bus.statuses[k - 1].publish_failures);
+    if (!bus.statuses[k].final && bus.statuses[k].publish_failures > 0) periodic_carried_it = true;
+  }
+  EXPECT_TRUE(periodic_carried_it);
+  expectEveryFrameCountedOnce(last, kTotal);
 }
 
 }  // namespace

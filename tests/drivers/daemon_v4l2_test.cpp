@@ -1,7 +1,8 @@
 // The daemon end to end on a V4L2 camera: the fake device (fake_v4l2_device.hpp) streams
 // omni frames rendered by the exact renderer, in YUYV or MJPG, through V4l2Source into the
 // daemon; poses come out over LCM memq:// and are checked against the renderer's ground
-// truth. Also: an unplug/replug mid-stream through the daemon's own reconnect path, the
+// truth. Also: an unplug/replug mid-stream, re-opened by the daemon's capture loop (the one
+// owner of reconnection) on V4L2 and on a fake libcamera, the
 // source factory building the camera sources, and a missing device as a start-up error.
 
 #include <gtest/gtest.h>
@@ -15,12 +16,15 @@
 #include <filesystem>
 #include <map>
 #include <string>
+#include <thread>
 #include <vector>
 
 #include "daemon/daemon.hpp"
 #include "daemon/message_sink.hpp"
 #include "daemon/source_factory.hpp"
+#include "fake_libcamera.hpp"
 #include "fake_v4l2_device.hpp"
+#include "libcamera/libcamera_source.hpp"
 #include "omnipose/calibration.hpp"
 #include "daemon/config.hpp"
 #include "omnipose/pose_t.hpp"
@@ -28,9 +32,6 @@
 #include "omnipose/synth.hpp"
 #include "omnipose/trajectory.hpp"
 #include "v4l2/v4l2_source.hpp"
-#if defined(OMNIPOSE_HAVE_LIBCAMERA)
-#include "libcamera/libcamera_source.hpp"
-#endif
 
 namespace omnipose {
 namespace {
@@ -256,7 +257,7 @@ TEST_P(DaemonOnFakeV4l2, RenderedOmniFramesGivePosesMatchingTheGroundTruth) {
 
 INSTANTIATE_TEST_SUITE_P(Formats, DaemonOnFakeV4l2, ::testing::Values("YUYV", "MJPG", "GREY"));
 
-TEST(DaemonOnFakeV4l2Unplug, UnplugMidStreamIsAGapAndPosesGoOnAfterTheReplug) {
+TEST(DaemonOnFakeV4l2Unplug, DeviceVanishingMidStreamIsReopenedByTheCaptureLoopAndCountedOnce) {
   TempDir tmp;
   Calibration{}.save(tmp.path() / "calibration.yaml");
   const DaemonConfig config =
@@ -267,31 +268,147 @@ TEST(DaemonOnFakeV4l2Unplug, UnplugMidStreamIsAGapAndPosesGoOnAfterTheReplug) {
   fake->scheduleUnplug(fake->now() + 6 * 33'333'333 - 10'000'000);
   fake->replugAfterFailedOpens(2);
   Bus bus;
-  std::int64_t failures = 0;
+  daemon::DaemonStats stats;
   {
+    daemon::DaemonOptions options = losslessOptions();
+    options.capture.reconnect_initial = 100ms;  // attempts after 100, +200, +400 ms
+    options.capture.reconnect_max = 2000ms;
     daemon::Daemon d(config, stderr, std::make_unique<V4l2Source>(daemon::v4l2Options(config.source), fake.get()),
-                     std::make_unique<SharedLcmSink>(bus.lcm), losslessOptions());
+                     std::make_unique<SharedLcmSink>(bus.lcm), options);
     bus.run(d, kFrames, 120s);
-    failures = d.stats().source_failures;
+    stats = d.stats();
   }
-  EXPECT_GE(failures, 1);
   EXPECT_TRUE(fake->violations().empty()) << ::testing::PrintToString(fake->violations());
   EXPECT_EQ(fake->openFdCount(), 0);
   EXPECT_EQ(fake->mappingCount(), 0);
   EXPECT_EQ(fake->streamOnCount(), 2);
-  ASSERT_EQ(bus.poses.size(), static_cast<std::size_t>(kFrames));
+  // One policy: the start-up open, two refused re-opens and the one that worked, all by the
+  // capture loop; the driver never retried behind it.
+  EXPECT_EQ(fake->openAttempts().size(), 4u);
 
-  // Sequence numbers keep increasing across the reconnect; the first frame after it is
-  // a gap (lost), every other pose matches the ground truth.
+  // The outage is one source failure; every frame is counted once.
+  EXPECT_EQ(stats.source_failures, 1);
+  ASSERT_FALSE(bus.statuses.empty());
+  const status_t& last = bus.statuses.back();
+  EXPECT_TRUE(last.final);
+  EXPECT_EQ(last.source_failures, 1);
+  EXPECT_EQ(last.frames_received, kFrames) << "no frame counted for the time away";
+  EXPECT_EQ(last.frames_received,
+            last.frames_processed + last.frames_skipped_stale + last.frames_bad +
+                last.frames_lost_upstream);
+  EXPECT_EQ(last.frames_processed, kFrames);
+  bool saw_reconnecting = false;
+  for (const status_t& s : bus.statuses)
+    if (s.source_state == status_t::SOURCE_RECONNECTING) {
+      saw_reconnecting = true;
+      EXPECT_NE(s.last_error.find("/dev/video0"), std::string::npos) << s.last_error;
+    }
+  EXPECT_TRUE(saw_reconnecting) << "status showed the outage";
+
+  // Poses resume: sequence numbers keep increasing across the reconnect; the first frame
+  // after it is a gap (lost), every other pose matches the ground truth.
+  ASSERT_EQ(bus.poses.size(), static_cast<std::size_t>(kFrames));
   int lost_after_start = 0;
   for (std::size_t k = 1; k < bus.poses.size(); ++k) {
     EXPECT_GT(bus.poses[k].sequence, bus.poses[k - 1].sequence);
     if (bus.poses[k].status == pose_t::STATUS_LOST) ++lost_after_start;
   }
   EXPECT_EQ(lost_after_start, 1) << "exactly the reconnect is a gap";
+  EXPECT_EQ(bus.poses.back().segment, 1) << "one segment after the reconnect";
   int ok = 0;
   expectPosesMatchGroundTruth(bus.poses, *fake, 0.01, &ok);
   EXPECT_EQ(ok, kFrames - 2) << "all but the first frame and the reconnect";
+}
+
+// The same policy on the libcamera path: the camera leaves mid-stream (its `disconnected`
+// signal), the capture loop closes the source and re-opens it with its back-off until the
+// camera is back. Frames come from the fake's own thread in real time, as on a robot.
+TEST(DaemonOnFakeLibcameraUnplug, CameraVanishingMidStreamIsReopenedByTheCaptureLoopAndCountedOnce) {
+  TempDir tmp;
+  Calibration{}.save(tmp.path() / "calibration.yaml");
+  const DaemonConfig config = DaemonConfig::parse(
+      "source: {type: file, path: /nonexistent}\ncalibration: " +
+          (tmp.path() / "calibration.yaml").string() + "\nlcm: {url: 'memq://', status_hz: 20}\n",
+      "test.yaml", tmp.path());  // the source is replaced below
+  const cv::Size size = omniSize();
+  auto manager = std::make_shared<testing::FakeCameraManager>();
+  testing::FakeCameraConfig camera;
+  camera.sizes = {size};
+  camera.formats = {testing::kFakeYUYV};
+  manager->plug(camera);
+  LibcameraOptions o;
+  o.camera = "0";
+  o.width = size.width;
+  o.height = size.height;
+  o.fps = 30;
+  o.format = "YUYV";
+  daemon::DaemonOptions options;
+  options.capture.reconnect_initial = 20ms;
+  options.capture.reconnect_max = 80ms;
+
+  Bus bus;
+  daemon::DaemonStats stats;
+  std::size_t poses_at_replug = 0;
+  std::size_t opens_at_unplug = 0;
+  std::size_t opens_at_replug = 0;
+  {
+    daemon::Daemon d(config, stderr,
+                     std::make_unique<LibcameraSource>(o, testing::FakeCameraManager::opener(manager)),
+                     std::make_unique<SharedLcmSink>(bus.lcm), options);
+    manager->startFreeRunning(camera.id, 30ms);
+    d.start();
+    enum class Phase { kStreaming, kUnplugged, kReplugged, kDone } phase = Phase::kStreaming;
+    const auto deadline = std::chrono::steady_clock::now() + 90s;
+    while (phase != Phase::kDone && std::chrono::steady_clock::now() < deadline) {
+      std::this_thread::sleep_for(5ms);
+      bus.drain();
+      const bool reconnecting_seen =
+          !bus.statuses.empty() && bus.statuses.back().source_state == status_t::SOURCE_RECONNECTING;
+      if (phase == Phase::kStreaming && bus.poses.size() >= 4) {
+        opens_at_unplug = manager->openAttempts().size();
+        manager->unplug(camera.id);
+        phase = Phase::kUnplugged;
+      } else if (phase == Phase::kUnplugged && reconnecting_seen &&
+                 manager->openAttempts().size() >= opens_at_unplug + 2) {
+        // Seen in the status, and at least two re-open attempts refused: the camera returns.
+        opens_at_replug = manager->openAttempts().size();
+        poses_at_replug = bus.poses.size();
+        manager->replug(camera.id);
+        phase = Phase::kReplugged;
+      } else if (phase == Phase::kReplugged && bus.poses.size() >= poses_at_replug + 4) {
+        phase = Phase::kDone;
+      }
+    }
+    EXPECT_EQ(phase, Phase::kDone) << "the daemon did not get through the outage in time";
+    d.requestStop();
+    d.join();
+    bus.drain();
+    stats = d.stats();
+  }
+  manager->stopFreeRunning();
+  const auto violations = manager->violations();
+  EXPECT_TRUE(violations.empty()) << ::testing::PrintToString(violations);
+  EXPECT_EQ(testing::FakeCameraManager::memfdMappings(), 0) << "every buffer unmapped";
+
+  // One outage, one source failure; the source itself never retried (every cameras() call
+  // between the unplug and the replug is one of the capture loop's attempts, at its pace).
+  EXPECT_EQ(stats.source_failures, 1);
+  EXPECT_GE(opens_at_replug - opens_at_unplug, 2u);
+  EXPECT_LE(opens_at_replug - opens_at_unplug, 40u) << "bounded back-off, not a busy loop";
+  ASSERT_FALSE(bus.statuses.empty());
+  const status_t& last = bus.statuses.back();
+  EXPECT_TRUE(last.final);
+  EXPECT_EQ(last.source_failures, 1);
+  EXPECT_EQ(last.frames_received, last.frames_processed + last.frames_skipped_stale +
+                                      last.frames_bad + last.frames_lost_upstream)
+      << "every frame counted once";
+  EXPECT_EQ(last.frames_processed, static_cast<std::int64_t>(bus.poses.size()));
+  // Poses resumed after the replug, the first of them after the gap.
+  ASSERT_GT(bus.poses.size(), poses_at_replug);
+  const pose_t& first_back = bus.poses[poses_at_replug];
+  EXPECT_EQ(first_back.status, pose_t::STATUS_LOST);
+  EXPECT_EQ(first_back.reference_sequence, -1);
+  EXPECT_GT(first_back.sequence, bus.poses[poses_at_replug - 1].sequence);
 }
 
 // ---------------------------------------------------------------------------------------
@@ -337,7 +454,7 @@ TEST(CameraSourceFactory, MapsTheSourceSectionToEachDriversOptions) {
   EXPECT_EQ(v.format, "MJPG");
   const V4l2Options defaults;
   EXPECT_EQ(v.buffer_count, defaults.buffer_count) << "tuning is not in daemon.yaml";
-  EXPECT_EQ(v.reconnect_initial, defaults.reconnect_initial);
+  EXPECT_EQ(v.clock_resync, defaults.clock_resync);
   EXPECT_EQ(v.drop_stale, defaults.drop_stale);
 #if defined(OMNIPOSE_HAVE_LIBCAMERA)
   c.type = SourceConfig::Type::kLibcamera;

@@ -1,6 +1,5 @@
 // What the camera drivers share (drivers/common), tested directly: the streaming policy of
-// streaming.hpp (the reconnect schedule, the drain-to-newest decision, the 32 -> 64 bit
-// sequence numbers) and clock_offset.hpp (capture clock -> wall clock, a frame's capture
+// streaming.hpp (the drain-to-newest decision, the 32 -> 64 bit sequence numbers) and clock_offset.hpp (capture clock -> wall clock, a frame's capture
 // time). The drivers' own tests (v4l2_test.cpp against the fake device) show the same
 // behaviour end to end.
 
@@ -17,118 +16,6 @@ namespace omnipose::drivers {
 namespace {
 
 using namespace std::chrono_literals;
-using Action = ReconnectSchedule::Action;
-
-constexpr std::int64_t kMs = 1'000'000;
-
-// ---- back-off ---------------------------------------------------------------------------
-
-TEST(BackoffTest, DoublesUpToTheCap) {
-  Backoff b(100, 700);
-  EXPECT_EQ(b.next(), 100);
-  EXPECT_EQ(b.next(), 200);
-  EXPECT_EQ(b.next(), 400);
-  EXPECT_EQ(b.next(), 700);
-  EXPECT_EQ(b.next(), 700);
-  b.reset();
-  EXPECT_EQ(b.next(), 100);
-}
-
-TEST(BackoffTest, NonsenseBoundsAreClamped) {
-  Backoff zero(0, 0);  // initial below 1 ms: 1 ms; max below initial: initial
-  EXPECT_EQ(zero.next(), 1);
-  EXPECT_EQ(zero.next(), 1);
-  Backoff inverted(300, 100);
-  EXPECT_EQ(inverted.next(), 300);
-  EXPECT_EQ(inverted.next(), 300);
-}
-
-// ---- reconnect schedule -----------------------------------------------------------------
-
-TEST(ReconnectScheduleTest, FirstAttemptIsOneInitialDelayAfterTheLoss) {
-  ReconnectSchedule s(100ms, 800ms);
-  const std::int64_t t = 5'000 * kMs;
-  s.lost(t);
-  EXPECT_EQ(s.retryAtNs(), t + 100 * kMs);
-
-  auto step = s.step(t, t + 1000 * kMs);  // the caller would wait long enough
-  EXPECT_EQ(step.action, Action::kWait);
-  EXPECT_EQ(step.sleep_ns, 100 * kMs);
-
-  step = s.step(t + 30 * kMs, t + 80 * kMs);  // ... it would not: its time back at 80 ms
-  EXPECT_EQ(step.action, Action::kGiveBack);
-  EXPECT_EQ(step.sleep_ns, 50 * kMs);
-
-  step = s.step(t + 90 * kMs, t + 80 * kMs);  // deadline already past: no sleep
-  EXPECT_EQ(step.action, Action::kGiveBack);
-  EXPECT_EQ(step.sleep_ns, 0);
-
-  step = s.step(t + 100 * kMs, t + 100 * kMs);  // due exactly now
-  EXPECT_EQ(step.action, Action::kAttempt);
-  EXPECT_EQ(step.sleep_ns, 0);
-  EXPECT_EQ(s.step(t + 250 * kMs, t).action, Action::kAttempt) << "overdue: attempt";
-}
-
-TEST(ReconnectScheduleTest, FailedAttemptsBackOffDoublingToTheCapAndStartOverOnSuccess) {
-  ReconnectSchedule s(100ms, 800ms);
-  s.lost(0);
-  std::vector<std::int64_t> delays;
-  std::int64_t now = 100 * kMs;
-  for (int i = 0; i < 5; ++i) {
-    ASSERT_EQ(s.step(now, now).action, Action::kAttempt);
-    delays.push_back(s.attemptFailed(now));
-    EXPECT_EQ(s.retryAtNs(), now + delays.back() * kMs);
-    EXPECT_EQ(s.step(now, now).action, Action::kGiveBack) << "not due right after a failure";
-    now = s.retryAtNs();
-  }
-  EXPECT_EQ(delays, (std::vector<std::int64_t>{200, 400, 800, 800, 800}));
-
-  s.reconnected();
-  s.lost(now);
-  EXPECT_EQ(s.retryAtNs(), now + 100 * kMs) << "a new loss starts over";
-  EXPECT_EQ(s.attemptFailed(now + 100 * kMs), 200);
-
-  s.lost(now);  // lost again before reconnecting (the reopened stream failed at once)
-  EXPECT_EQ(s.retryAtNs(), now + 100 * kMs);
-}
-
-/// A driver's recover() loop on a virtual clock: every call waits at most `call_ms`; the
-/// device is back from `back_at`. Returns the times of the reopen attempts.
-std::vector<std::int64_t> simulateOutage(ReconnectSchedule& s, std::int64_t lost_at,
-                                         std::int64_t back_at, std::int64_t call_ms) {
-  std::vector<std::int64_t> attempts;
-  std::int64_t now = lost_at;
-  s.lost(now);
-  for (int call = 0; call < 10'000; ++call) {
-    const std::int64_t deadline = now + call_ms * kMs;
-    for (;;) {
-      const auto step = s.step(now, deadline);
-      if (step.action == Action::kAttempt) break;
-      EXPECT_GE(step.sleep_ns, 0);
-      now += step.sleep_ns;
-      if (step.action == Action::kGiveBack) break;
-    }
-    if (s.step(now, deadline).action != Action::kAttempt) continue;  // gave back
-    attempts.push_back(now);
-    if (now >= back_at) {
-      s.reconnected();
-      return attempts;
-    }
-    s.attemptFailed(now);
-  }
-  ADD_FAILURE() << "never reconnected";
-  return attempts;
-}
-
-TEST(ReconnectScheduleTest, ThreeSecondOutageWithShortCallsAttemptsOnSchedule) {
-  // As V4l2SourceTest.UnplugIsReportedThenRecoveredWithBackoff: next(50ms) calls, gone 3 s.
-  ReconnectSchedule s(100ms, 800ms);
-  const auto attempts = simulateOutage(s, 0, 3000 * kMs, 50);
-  const std::vector<std::int64_t> expected_ms = {100, 300, 700, 1500, 2300, 3100};
-  ASSERT_EQ(attempts.size(), expected_ms.size());
-  for (std::size_t i = 0; i < attempts.size(); ++i)
-    EXPECT_EQ(attempts[i], expected_ms[i] * kMs) << "attempt " << i;
-}
 
 // ---- drain to the newest ------------------------------------------------------------------
 

@@ -331,6 +331,12 @@ void FakeCamera::disconnectNow() {
     std::lock_guard lock(listener_mutex_);
     if (listener_ != nullptr) listener_->disconnected();
   }
+  std::chrono::microseconds delay;
+  {
+    std::lock_guard lock(manager_.m_);
+    delay = manager_.cancel_delay_;
+  }
+  if (delay.count() > 0) std::this_thread::sleep_for(delay);
   cancelPending();
 }
 
@@ -470,6 +476,11 @@ std::shared_ptr<FakeCamera> FakeCameraManager::replug(const std::string& id) {
     if (replug_id_ == id) replug_at_ns_ = 0;
   }
   return plug(std::move(config));
+}
+
+void FakeCameraManager::setCancelDelayAfterDisconnect(std::chrono::microseconds delay) {
+  std::lock_guard lock(m_);
+  cancel_delay_ = delay;
 }
 
 void FakeCameraManager::scheduleReplug(const std::string& id, std::int64_t at_ns) {
@@ -670,7 +681,5 @@ std::int64_t FakeCameraManager::clockNs(clockid_t clock) {
   checkSchedule();
   return t;
 }
-
-void FakeCameraManager::sleepNs(std::int64_t ns) { advance(ns); }
 
 }  // namespace omnipose::testing

@@ -32,6 +32,7 @@
 /// Everything a source does wrong is recorded in violations(); tests assert it stays empty.
 /// No libcamera header is needed.
 
+#include <chrono>
 #include <condition_variable>
 #include <cstdint>
 #include <deque>
@@ -150,6 +151,9 @@ class FakeCameraManager final : public libcam::CameraManager,
   std::shared_ptr<FakeCamera> plug(FakeCameraConfig config = {});
   /// The camera of `id` goes away mid-stream (see the file comment); waits until done.
   void unplug(const std::string& id);
+  /// An unplugged camera cancels its pending requests `delay` after its disconnected signal
+  /// (default 0: right after it), as a slow pipeline handler would.
+  void setCancelDelayAfterDisconnect(std::chrono::microseconds delay);
   /// The camera of `id` comes back as a new object with its last config.
   std::shared_ptr<FakeCamera> replug(const std::string& id);
   /// ... when the virtual CLOCK_MONOTONIC reaches `at_ns` (checked on clock reads/sleeps).
@@ -201,7 +205,6 @@ class FakeCameraManager final : public libcam::CameraManager,
   // ---- libcam::CameraManager ----------------------------------------------------------
   std::vector<std::shared_ptr<libcam::Camera>> cameras() override;
   std::int64_t clockNs(clockid_t clock) override;
-  void sleepNs(std::int64_t ns) override;
 
  private:
   friend class FakeCamera;
@@ -222,6 +225,7 @@ class FakeCameraManager final : public libcam::CameraManager,
   std::vector<std::pair<std::int64_t, std::uint64_t>> history_;  // (boottime, content index)
   std::uint64_t produced_ = 0;
   int skip_frames_ = 0;
+  std::chrono::microseconds cancel_delay_{0};
   std::vector<std::int64_t> open_attempts_;
 
   mutable std::mutex clock_m_;

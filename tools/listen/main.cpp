@@ -21,6 +21,7 @@
 #include <string>
 
 #include "cli.hpp"
+#include "daemon/counters.hpp"
 #include "omnipose/pose_t.hpp"
 #include "omnipose/status_t.hpp"
 
@@ -85,13 +86,14 @@ struct Printer {
 
   void onStatus(const lcm::ReceiveBuffer*, const std::string&, const omnipose::status_t* s) {
     got_message = true;
-    std::printf("status%s: received %" PRId64 " processed %" PRId64 " skipped %" PRId64
-                " bad %" PRId64 " lost upstream %" PRId64 " lost poses %" PRId64
-                " source failures %" PRId64
-                " | %.1f / %.1f Hz | processing p50 %.1f p99 %.1f ms | latency p50 %.1f p99 "
+    // "status: received N processed N skipped (stale) N ...": every counter of the daemon's
+    // table (src/daemon/counters.hpp), by its label.
+    std::printf("status%s:", s->final ? " (final)" : "");
+    omnipose::daemon::forEachCounter(*s, [](const char* label, std::int64_t value) {
+      std::printf(" %s %" PRId64, label, value);
+    });
+    std::printf(" | %.1f / %.1f Hz | processing p50 %.1f p99 %.1f ms | latency p50 %.1f p99 "
                 "%.1f ms | source %s (%s)%s%s\n",
-                s->final ? " (final)" : "", s->frames_received, s->frames_processed,
-                s->frames_skipped_stale, s->frames_bad, s->frames_lost_upstream, s->poses_lost, s->source_failures,
                 s->receive_rate_hz, s->process_rate_hz, s->processing_ms_p50,
                 s->processing_ms_p99, s->latency_ms_p50, s->latency_ms_p99,
                 sourceStateName(s->source_state), s->source.c_str(),
