@@ -27,6 +27,8 @@
 # Environment (defaults in brackets):
 #   BUILD_DIR   [build]  binaries in BUILD_DIR/bin; built first when missing
 #   SUPERSAMPLE [2]      renderer anti-aliasing: K x K rays per pixel
+#   KEYFRAME_SLOTS [the default, 0]  keyframes.slots of the replay's and the daemon's
+#               configuration (omnipose/odometry.hpp), to measure the keyframe policy
 #   WISDOM      [BUILD_DIR/drift.wisdom]  FFTW wisdom shared by every replay and daemon run
 #               (made by the first run that lacks a plan, reused afterwards)
 # Nothing is sent on the network: the daemon publishes to an LCM log file. Everything is
@@ -102,7 +104,9 @@ omni:
   azimuth_direction: ccw
 panorama: {width: 1100, height: 110, horizon_row: 54.5, forward_column: 0.0}
 YAML
-printf 'pipeline:\n  fftw_wisdom: "%s"\n' "$wisdom" > "$out/replay.yaml"
+keyframes_yaml=""
+[ -n "${KEYFRAME_SLOTS:-}" ] && keyframes_yaml="keyframes: {slots: $KEYFRAME_SLOTS}"
+printf 'pipeline:\n  fftw_wisdom: "%s"\n%s\n' "$wisdom" "$keyframes_yaml" > "$out/replay.yaml"
 
 # ---------------------------------------------------------------------------- suite
 # Sensor: noise sigma 3 grey levels, per-frame exposure gain 1 + N(0, 0.05) and offset
@@ -155,6 +159,7 @@ for entry in "${suite[@]}"; do
 source: {type: file, path: "$dir/dataset", realtime: true}
 calibration: "$dir/dataset/calibration.yaml"
 pipeline: {fftw_wisdom: "$wisdom"}
+$keyframes_yaml
 lcm: {url: "file://$dir/daemon.lcm?mode=w", status_hz: 1}
 YAML
   "$bin/omniposed" --config "$dir/daemon.yaml" > "$dir/daemon.out" 2> "$dir/daemon.err" || {
@@ -250,7 +255,7 @@ PY
   echo
   echo "Runs: \`omnipose-replay\` (its TUM output) and \`omniposed\` (file source, \`realtime: true\`,"
   echo "publishing to an LCM \`file://\` log, decoded with \`omnipose-listen --tum\`) on the same"
-  echo "directory, default pipeline settings, one FFTW wisdom file. Scores: \`omnipose-eval --drift\`"
+  echo "directory, default pipeline settings${KEYFRAME_SLOTS:+ with keyframes.slots $KEYFRAME_SLOTS}, one FFTW wisdom file. Scores: \`omnipose-eval --drift\`"
   echo "(\`omnipose::evaluateDrift\`): the estimate is aligned by its first pose (no scale); end-point ="
   echo "rotation error angle at the last pose (if the estimate lacks the last frame: at its last pose,"
   echo "time shown); ATE = RMSE of the rotation error angle over all estimated poses; max = its largest"
