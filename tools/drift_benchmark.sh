@@ -115,16 +115,16 @@ sensor="--noise 3 --exposure-jitter 0.05 --exposure-offset 3"
 # name | label | source: render:MOTION:SCENE or copy:NAME | damage_frames.py arguments
 # Frames of the swing (tools/drift/swing.yaml): yaw +120 deg at frame 75, -120 deg at 225.
 # Frame 37 is mid-turn (yaw +59 deg); around 110..119 the camera turns 17.6 deg from the last
-# good frame to the next; the outage 196..255 straddles the -120 deg reversal (the yaw is
-# -72 deg before it and -70.4 deg after it).
+# good frame to the next; the outage 150..209 is mid-turn (the yaw is +1.6 deg before it and
+# -96 deg after it: 97.6 deg turned unseen).
 suite=(
   "still|standing still, 240 frames|render:still:sphere|"
   "swing|yaw swing +-120 deg, 10 s, vibration +-0.5 deg up to 9 Hz|render:swing:sphere|"
   "loop|2.0 x 1.4 m rectangle, four 90-deg turns (box room)|render:rectangle:box|"
   "swing_corrupt1|swing, 1 corrupt frame mid-turn (frame 37)|copy:swing|--corrupt 37"
   "swing_corrupt10|swing, 10 corrupt frames in a row (110-119)|copy:swing|--corrupt 110-119"
-  "swing_outage|swing, 2 s outage (frames 196-255 missing)|copy:swing|--remove 196-255"
-  "swing_faults|swing, all three faults|copy:swing|--corrupt 37 --corrupt 110-119 --remove 196-255"
+  "swing_outage|swing, 2 s outage (frames 150-209 missing)|copy:swing|--remove 150-209"
+  "swing_faults|swing, all three faults|copy:swing|--corrupt 37 --corrupt 110-119 --remove 150-209"
 )
 echo "== drift benchmark: ${#suite[@]} sequences, output $out"
 
@@ -251,7 +251,7 @@ PY
   echo "(truncated, empty, random bytes, all-black PNG in turn); the outage's 60 frames and their"
   echo "timestamps are gone. Frame 37 is mid-turn (the camera turns 3.2 deg from frame 36 to 38);"
   echo "around frames 110-119 it turns 17.6 deg from the last good frame to the next; the outage"
-  echo "straddles the -120 deg reversal (the yaw is -72 deg before it and -70.4 deg after it)."
+  echo "is mid-turn (the yaw is +1.6 deg before it and -96 deg after it: 97.6 deg turned unseen)."
   echo
   echo "Runs: \`omnipose-replay\` (its TUM output) and \`omniposed\` (file source, \`realtime: true\`,"
   echo "publishing to an LCM \`file://\` log, decoded with \`omnipose-listen --tum\`) on the same"

@@ -44,7 +44,7 @@ Daemon::Daemon(const DaemonConfig& config, std::FILE* log, std::unique_ptr<Frame
   }
   source_description_ = source_->describe();
   processor_ = std::make_unique<Processor>(calibration, config_.odometry(), config_.lcm, *sink_,
-                                           board_, *mailbox_, source_description_);
+                                           board_, source_description_);
   capture_ = std::make_unique<CaptureLoop>(*source_, *mailbox_, board_, options_.capture);
 }
 

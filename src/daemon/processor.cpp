@@ -31,12 +31,11 @@ double millisSince(SteadyClock::time_point start) {
 
 Processor::Processor(const Calibration& calibration, const OdometryOptions& odometry,
                      const LcmConfig& lcm, MessageSink& sink, StatusBoard& board,
-                     const FrameMailbox& mailbox, const std::string& source_description)
+                     const std::string& source_description)
     : odometry_(calibration, odometry),
       lcm_(lcm),
       sink_(sink),
       board_(board),
-      mailbox_(mailbox),
       diagnostics_(!lcm.fit_channel.empty()),
       pose_(std::make_unique<pose_t>()),
       status_(std::make_unique<status_t>()),

@@ -46,11 +46,11 @@ class Processor {
   static constexpr std::size_t kSamples = 256;
 
   /// Builds the pipeline (throws std::invalid_argument listing bad options) and sizes
-  /// every message. `sink`, `board` and `mailbox` are borrowed and must outlive this.
+  /// every message. `sink` and `board` are borrowed and must outlive this.
   /// `source_description` goes into status_t.source.
   Processor(const Calibration& calibration, const OdometryOptions& odometry,
             const LcmConfig& lcm, MessageSink& sink, StatusBoard& board,
-            const FrameMailbox& mailbox, const std::string& source_description);
+            const std::string& source_description);
   ~Processor();
   Processor(const Processor&) = delete;
   Processor& operator=(const Processor&) = delete;
@@ -68,7 +68,6 @@ class Processor {
   LcmConfig lcm_;
   MessageSink& sink_;
   StatusBoard& board_;
-  const FrameMailbox& mailbox_;
   bool diagnostics_ = false;
 
   std::unique_ptr<pose_t> pose_;

@@ -217,6 +217,8 @@ bool Odometry::Impl::bridge(OdometryResult& out) {
   useKeyframe(active);
   registrar->makeCurrentPrevious();
   finish(out, T, pass, TrackState::kBridged);
+  // Without keyframes the one slot follows the last good frame: this one.
+  if (keyframe_options.slots == 0) addKeyframe(T);
   gap = false;
   return true;
 }

@@ -22,10 +22,17 @@ foreach(file ${LIBDIR}/libomnipose.a ${LIBDIR}/libomnipose_io.a
   endif()
 endforeach()
 run(${CMAKE_COMMAND} --build ${WORK_DIR}/build)
-run(${WORK_DIR}/build/downstream)
+run(${WORK_DIR}/build/downstream ${WORK_DIR})
 message(STATUS "${last_output}")
 if(NOT last_output MATCHES "first frame accepted, \\|yaw\\| 0\\.03[0-9]+ rad \\(rendered 0\\.03491\\), proposed panorama 1885x257, pose_t encodes to")
   message(FATAL_ERROR "unexpected output: ${last_output}")
+endif()
+# The README's 15-line example on the two frames just written: a yaw of 2 degrees.
+run(${WORK_DIR}/build/two_images ${WORK_DIR}/calibration.yaml ${WORK_DIR}/first.png
+    ${WORK_DIR}/second.png)
+message(STATUS "${last_output}")
+if(NOT last_output MATCHES "rotation vector -?0\\.000[0-9][0-9] -?0\\.000[0-9][0-9] -?0\\.03[45][0-9][0-9] rad")
+  message(FATAL_ERROR "two_images: unexpected output: ${last_output}")
 endif()
 # The unit names the installed omniposed.
 file(READ ${WORK_DIR}/prefix/lib/systemd/system/omniposed.service unit)

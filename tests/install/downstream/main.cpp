@@ -1,5 +1,6 @@
 // Uses the core library, the renderer, a component and the generated LCM types of an
-// installed omnipose: renders two frames 2 degrees of yaw apart and measures the turn.
+// installed omnipose: renders two frames 2 degrees of yaw apart and measures the turn; writes
+// them with their calibration to the folder given as the first argument (for two_images).
 #include <cmath>
 #include <cstdio>
 #include <numbers>
@@ -7,9 +8,11 @@
 #include <omnipose/pipeline.hpp>
 #include <omnipose/pose_t.hpp>
 #include <omnipose/synth.hpp>
+#include <filesystem>
+#include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
-int main() {
+int main(int argc, char** argv) {
   const omnipose::Calibration calibration;  // the DESIGN.md example lens
   omnipose::synth::Scene scene;
   scene.texture.create(512, 1024, CV_32FC1);
@@ -22,6 +25,11 @@ int main() {
   cv::Mat first, second;
   renderer.render(Eigen::Isometry3d::Identity()).convertTo(first, CV_8UC1);
   renderer.render(turned).convertTo(second, CV_8UC1);
+  if (argc > 1) {
+    calibration.save(std::filesystem::path(argv[1]) / "calibration.yaml");
+    cv::imwrite((std::filesystem::path(argv[1]) / "first.png").string(), first);
+    cv::imwrite((std::filesystem::path(argv[1]) / "second.png").string(), second);
+  }
 
   omnipose::Pipeline pipeline(calibration, omnipose::PipelineOptions{});
   const bool accepted = pipeline.process(first).has_value();
