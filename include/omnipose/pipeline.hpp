@@ -46,7 +46,9 @@ struct PipelineOptions {
   /// Worker threads for the window registration and the de-rotation, the processing thread
   /// included, created at start-up (1 = everything on the calling thread; 0 = all online
   /// cores). The result is bit-identical for any value. registration.threads is ignored.
-  int threads = 0;
+  /// A library starts no threads unless asked: the default is 1 (omniposed and
+  /// omnipose-replay default to 0). Idle workers spin up to 50 us after each job, then block.
+  int threads = 1;
   /// FFTW wisdom file ("" = none): loaded before the FFT plans are made, so every start-up
   /// uses the same FFT algorithms (deterministic speed and results). Plans it lacks (first
   /// start: the file does not exist yet) are searched with FFTW_PATIENT (about 0.5 s once,

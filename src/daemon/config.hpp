@@ -67,7 +67,8 @@ struct DaemonConfig {
   std::string origin;                 ///< where it was read from (named in messages)
   SourceConfig source;
   std::filesystem::path calibration;  ///< resolved against the config file's folder
-  PipelineOptions pipeline;           ///< includes the input kind (pipeline.unwrap.input)
+  PipelineOptions pipeline;           ///< includes the input kind (pipeline.unwrap.input);
+                                      ///< threads default 0 here (all online cores)
   KeyframeOptions keyframes;          ///< keyframes section (max_tilt_deg in degrees there)
   LcmConfig lcm;
 

@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <numbers>
 
 #include "omnipose/calibration.hpp"
 
@@ -76,6 +77,32 @@ TEST(DaemonConfig, PipelineThreads) {
     FAIL() << "expected ConfigError";
   } catch (const ConfigError& e) {
     EXPECT_NE(std::string(e.what()).find("pipeline.threads"), std::string::npos) << e.what();
+  }
+}
+
+TEST(DaemonConfig, KeyframesSection) {
+  const auto parse = [](const std::string& keyframes) {
+    return DaemonConfig::parse("source: {type: file, path: run1}\ncalibration: cal.yaml\n" + keyframes,
+                               "d.yaml", "/etc/omnipose");
+  };
+  const DaemonConfig defaults = parse("");
+  EXPECT_EQ(defaults.keyframes.slots, 0) << "off by default";
+  EXPECT_EQ(defaults.odometry().keyframes.slots, 0);
+  const DaemonConfig c =
+      parse("keyframes: {slots: 4, max_translation: 0.05, max_tilt_deg: 3, min_ring_peak: 0.1}\n");
+  EXPECT_EQ(c.keyframes.slots, 4);
+  EXPECT_DOUBLE_EQ(c.keyframes.max_translation, 0.05);
+  EXPECT_NEAR(c.keyframes.max_tilt_rad, 3 * std::numbers::pi / 180.0, 1e-12);
+  EXPECT_DOUBLE_EQ(c.keyframes.min_ring_peak, 0.1);
+  EXPECT_NE(c.describe().find("slots: 4"), std::string::npos);
+  try {
+    parse("keyframes: {slots: 17, max_tilt_deg: 40, cadence: 3}\n");
+    FAIL() << "expected ConfigError";
+  } catch (const ConfigError& e) {
+    const std::string what = e.what();
+    EXPECT_NE(what.find("keyframes.slots"), std::string::npos) << what;
+    EXPECT_NE(what.find("keyframes.max_tilt_deg"), std::string::npos) << what;
+    EXPECT_NE(what.find("cadence"), std::string::npos) << what;
   }
 }
 

@@ -79,6 +79,12 @@ TEST(PipelineThreads, ResultIsBitIdenticalForAnyThreadCount) {
   }
 }
 
+TEST(PipelineThreads, ALibraryStartsNoThreadsUnlessAsked) {
+  EXPECT_EQ(PipelineOptions{}.threads, 1);
+  Pipeline pipeline(Calibration{}, PipelineOptions{});
+  EXPECT_EQ(pipeline.threads(), 1);
+}
+
 TEST(PipelineThreads, ZeroMeansAllOnlineCoresAndBadCountsAreRejected) {
   PipelineOptions options;
   options.threads = 0;
