@@ -171,7 +171,7 @@ YAML
   [ -n "$final" ] || { echo "   $name: no final status in $dir/daemon.lcm" >&2; exit 1; }
   count() { sed -n "s/.* $1 \([0-9]*\).*/\1/p" <<< "$final"; }
   segments=$(grep '^pose ' "$dir/daemon.listen" | awk '{print $7}' | sort -un | wc -l)
-  printf '%s\t%s\t%s\t%s\t%s\t%s\n' "$(count processed)" "$(count skipped)" "$(count bad)" \
+  printf '%s\t%s\t%s\t%s\t%s\t%s\n' "$(count processed)" "$(count 'skipped (stale)')" "$(count bad)" \
     "$(count poses)" "$segments" "$(count received)" > "$dir/daemon.counts"
 
   "$bin/omnipose-eval" --drift "$dir/dataset/groundtruth.tum" "$dir/replay.tum" "$dir/daemon.tum" \

@@ -17,7 +17,8 @@
 /// reach is used again.
 ///
 /// Gaps. After a bad frame (process() returned an error), a gap the caller reports
-/// (FrameStamp::gap_before: lost frames, a reconnect), or a frame whose fit is lost, the
+/// (FrameStamp::gap_before: lost frames, a reconnect), a frame captured more than
+/// KeyframeOptions::gap_after_s after the last good one, or a frame whose fit is lost, the
 /// motion since the last good frame is unknown: the next frame is registered against the
 /// keyframe, its yaw first found by a search over the whole ring (a circular correlation of
 /// the panoramas), roll and pitch by the fit. The chain goes on with the heading kept.
@@ -70,6 +71,10 @@ struct KeyframeOptions {
   /// Whole-ring yaw search after a gap: the correlation peak below which the search has
   /// failed (a peak of ~0.01 is what unrelated panoramas give).
   double min_ring_peak = 0.03;
+  /// A frame captured more than this after the last good frame (or before it) is treated
+  /// as after a gap, seconds: frames missing without a word (a recording with a hole, a
+  /// stalled camera) may hide a turn beyond a window's reach. 0 = only reported gaps.
+  double gap_after_s = 0.15;
 
   /// One message per bad field, each starting with its name; empty when valid.
   std::vector<std::string> validate() const;

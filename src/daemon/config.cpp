@@ -114,7 +114,8 @@ void parsePipeline(Reader& r, const YAML::Node& node, const std::filesystem::pat
 }
 
 void parseKeyframes(Reader& r, const YAML::Node& node, KeyframeOptions& k) {
-  if (!r.checkMap(node, "keyframes", {"slots", "max_translation", "max_tilt_deg", "min_ring_peak"}))
+  if (!r.checkMap(node, "keyframes",
+                  {"slots", "max_translation", "max_tilt_deg", "min_ring_peak", "gap_after_s"}))
     return;
   r.get(node, "keyframes", "slots", k.slots);
   r.get(node, "keyframes", "max_translation", k.max_translation);
@@ -122,10 +123,12 @@ void parseKeyframes(Reader& r, const YAML::Node& node, KeyframeOptions& k) {
   r.get(node, "keyframes", "max_tilt_deg", tilt_deg);
   k.max_tilt_rad = tilt_deg * std::numbers::pi / 180.0;
   r.get(node, "keyframes", "min_ring_peak", k.min_ring_peak);
+  r.get(node, "keyframes", "gap_after_s", k.gap_after_s);
   r.range(k.slots, "keyframes.slots", 0, 16, " (0 = no keyframes)");
   r.range(k.max_translation, "keyframes.max_translation", 0.0, 1.0, " scene distances");
   r.range(tilt_deg, "keyframes.max_tilt_deg", 0.0, 28.0, " degrees");
   r.range(k.min_ring_peak, "keyframes.min_ring_peak", 0.001, 0.999, "");
+  r.range(k.gap_after_s, "keyframes.gap_after_s", 0.0, 3600.0, " s (0 = only reported gaps)");
 }
 
 void parseLcm(Reader& r, const YAML::Node& node, LcmConfig& l) {
@@ -240,7 +243,8 @@ std::string DaemonConfig::describe() const {
     << "keyframes:\n  slots: " << keyframes.slots
     << "\n  max_translation: " << keyframes.max_translation
     << "\n  max_tilt_deg: " << keyframes.max_tilt_rad * 180.0 / std::numbers::pi
-    << "\n  min_ring_peak: " << keyframes.min_ring_peak << "\n"
+    << "\n  min_ring_peak: " << keyframes.min_ring_peak
+    << "\n  gap_after_s: " << keyframes.gap_after_s << "\n"
     << "lcm:\n  url: \"" << lcm.url << "\"\n  pose_channel: " << lcm.pose_channel
     << "\n  status_channel: " << lcm.status_channel << "\n  fit_channel: \"" << lcm.fit_channel
     << "\"\n  status_hz: " << lcm.status_hz << "\n";

@@ -86,7 +86,10 @@ bool Processor::publish(const std::string& channel, std::vector<std::uint8_t>& b
 void Processor::handleFrame(const MailboxFrame& frame) {
   const auto t_start = SteadyClock::now();
   const FrameInfo& info = frame.info;
-  const double t = static_cast<double>(info.capture_time_us) * 1e-6;
+  // The recording's own timestamps when there are some (a hole in a recording replayed as
+  // fast as possible is still a hole), else the capture time.
+  const double t = info.index >= 0 ? info.source_timestamp
+                                   : static_cast<double>(info.capture_time_us) * 1e-6;
 
   Expected<OdometryResult> result =
       odometry_.process(*frame.image, {t, static_cast<std::int64_t>(info.sequence), frame.gap_before});

@@ -1,5 +1,7 @@
 #include "pipeline/frame_registrar.hpp"
 
+#include <Eigen/Geometry>
+
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -136,7 +138,8 @@ PassResult FrameRegistrar::refine(const MotionEstimate& start, const Eigen::Matr
   out.windows = windows_;
   out.window_model = start.vector();
   for (int pass = 0; pass < options_.refine_iterations && est.status != FitStatus::kLost; ++pass) {
-    derotate(R);
+    const Eigen::Matrix3d R_warp = wholeColumnYaw(R);
+    derotate(R_warp);
     predictRefinementShifts(tau, last_fit);
     if (!registration_.measure(warped_, refine_windows_, false, {}, expected_dv_, against)) break;
     const MotionEstimate residual = fit_.fit(refine_windows_, u0);
@@ -144,7 +147,7 @@ PassResult FrameRegistrar::refine(const MotionEstimate& start, const Eigen::Matr
       est.status = FitStatus::kDegraded;  // keep the estimate so far, trust it less
       break;
     }
-    R = rotationFromVector(residual.omega) * R;
+    R = rotationFromVector(residual.omega) * R_warp;
     tau = residual.tau;
     last_fit = residual.status;
     est.covariance = residual.covariance;
@@ -181,6 +184,17 @@ std::optional<double> FrameRegistrar::ringYaw(int slot, double min_peak) {
   unit_yaw << 0.0, 0.0, 1.0, 0.0, 0.0, 0.0;
   const double du_per_rad = predictMotion(unit_yaw, 0.0, fit_.kappa()).du_rad;
   return shift.du_px * calibration_.panorama.gamma() / (du_per_rad < 0.0 ? -1.0 : 1.0);
+}
+
+Eigen::Matrix3d FrameRegistrar::wholeColumnYaw(const Eigen::Matrix3d& R) const {
+  // The warp's interpolation kernel moves content by a fraction of a pixel slightly wrong
+  // (about +-0.005 px, depending on the fraction), which the residual pass reads as yaw; the
+  // same fraction every frame (a steady turn) adds up. A whole-column yaw is resampled
+  // exactly; the residual fit measures the remaining fraction (docs/results/ANALYSIS.md).
+  const double gamma = calibration_.panorama.gamma();
+  const double yaw = std::atan2(R(1, 0), R(0, 0));
+  const double rounded = std::round(yaw / gamma) * gamma;
+  return Eigen::AngleAxisd(rounded - yaw, Eigen::Vector3d::UnitZ()).toRotationMatrix() * R;
 }
 
 void FrameRegistrar::predictRefinementShifts(const Eigen::Vector3d& tau, FitStatus last_fit) {

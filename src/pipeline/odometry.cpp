@@ -63,6 +63,9 @@ std::vector<std::string> KeyframeOptions::validate() const {
                        " is outside [0, 0.5] radians");
   if (!(min_ring_peak > 0.0 && min_ring_peak < 1.0))
     problems.push_back("min_ring_peak: " + std::to_string(min_ring_peak) + " is outside (0, 1)");
+  if (!(gap_after_s >= 0.0 && gap_after_s <= 3600.0))
+    problems.push_back("gap_after_s: " + std::to_string(gap_after_s) +
+                       " is outside [0, 3600] seconds (0 = only reported gaps)");
   return problems;
 }
 
@@ -133,6 +136,8 @@ struct Odometry::Impl {
   int segment = -1;
   Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();  ///< last good frame's
   std::int64_t last_sequence = -1;
+  double last_time = 0.0;  ///< capture time of the last good frame
+  double time = 0.0;       ///< of the frame being processed
   std::int64_t auto_sequence = 0;
   std::int64_t sequence = -1;  ///< the frame being processed
   Clock::time_point t_start;
@@ -152,6 +157,7 @@ void Odometry::Impl::startSegment(OdometryResult& out, TrackState state) {
   }
   out.pose = pose;
   last_sequence = sequence;
+  last_time = time;
 }
 
 bool Odometry::Impl::inReach(const Keyframe& k, const Eigen::Isometry3d& predicted) const {
@@ -199,6 +205,7 @@ void Odometry::Impl::finish(OdometryResult& out, const Eigen::Isometry3d& T,
   pose = T;
   out.pose = T;
   last_sequence = sequence;
+  last_time = time;
 }
 
 bool Odometry::Impl::bridge(OdometryResult& out) {
@@ -227,7 +234,11 @@ Expected<OdometryResult> Odometry::Impl::process(const cv::Mat& frame, const Fra
   t_start = Clock::now();
   sequence = stamp.sequence >= 0 ? stamp.sequence : auto_sequence;
   auto_sequence = sequence + 1;
+  time = stamp.time_s;
   if (stamp.gap_before) gap = true;
+  if (started && keyframe_options.gap_after_s > 0.0 &&
+      !(std::abs(stamp.time_s - last_time) <= keyframe_options.gap_after_s))
+    gap = true;  // a hole in the stream, or time going back: the motion since is unknown
   OdometryResult out;
   out.sequence = sequence;
   if (pairwise) return processPairwise(frame, out);
