@@ -191,7 +191,10 @@ Eigen::Matrix3d FrameRegistrar::wholeColumnYaw(const Eigen::Matrix3d& R) const {
   // (about +-0.005 px, depending on the fraction), which the residual pass reads as yaw; the
   // same fraction every frame (a steady turn) adds up. A whole-column yaw is resampled
   // exactly; the residual fit measures the remaining fraction (docs/results/ANALYSIS.md).
+  // Only where the de-rotation is nearly a column shift: with a tilt of more than a pixel
+  // every sample is interpolated anyway, and rounding would only add to the residual.
   const double gamma = calibration_.panorama.gamma();
+  if (std::acos(std::clamp(R(2, 2), -1.0, 1.0)) > gamma) return R;
   const double yaw = std::atan2(R(1, 0), R(0, 0));
   const double rounded = std::round(yaw / gamma) * gamma;
   return Eigen::AngleAxisd(rounded - yaw, Eigen::Vector3d::UnitZ()).toRotationMatrix() * R;

@@ -107,8 +107,8 @@ class FrameRegistrar {
 
   static int bandStart(int b, int bands, int rows) { return b * rows / bands; }
   void predictRefinementShifts(const Eigen::Vector3d& tau, FitStatus last_fit);
-  /// `R` with its yaw (about the camera's z axis) rounded to whole panorama columns: the
-  /// de-rotation a refinement pass warps by.
+  /// `R` with its yaw (about the camera's z axis) rounded to whole panorama columns when its
+  /// tilt is under one column's angle (else `R`): the de-rotation a refinement pass warps by.
   Eigen::Matrix3d wholeColumnYaw(const Eigen::Matrix3d& R) const;
   void derotate(const Eigen::Matrix3d& R);
 
