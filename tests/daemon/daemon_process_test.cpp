@@ -615,9 +615,18 @@ TEST(OmniposedFaults, TimestampsGoingBackwardsAreAGapBridgedAndEveryFrameIsProce
       const pose_t& p = log.poses[k];
       EXPECT_GT(p.utime, log.poses[k - 1].utime) << "pose times never go backwards";
       // A backwards time step is a gap: the next frame is found again against the keyframe.
-      EXPECT_EQ(p.segment, 0);
-      EXPECT_NE(p.status, pose_t::STATUS_LOST);
-      if (p.source_index == 15) {
+      // In realtime on a slow machine (sanitizers) stale frames are dropped, and a gap whose
+      // motion cannot be found starts exactly one new segment instead.
+      const pose_t& before = log.poses[k - 1];
+      if (p.status == pose_t::STATUS_LOST) {
+        EXPECT_TRUE(realtime && last.frames_skipped_stale > 0) << "frame " << p.source_index;
+        EXPECT_EQ(p.segment, before.segment + 1);
+        EXPECT_EQ(p.track_state, pose_t::TRACK_LOST);
+      } else {
+        EXPECT_EQ(p.segment, before.segment);
+      }
+      EXPECT_LE(p.segment, realtime ? 3 : 0);
+      if (p.source_index == 15 && p.status != pose_t::STATUS_LOST) {
         saw_15 = true;
         EXPECT_EQ(p.track_state, pose_t::TRACK_BRIDGED);
         EXPECT_EQ(p.reference_sequence, log.poses[k - 1].sequence);
