@@ -10,7 +10,8 @@
 #   share/java/omnipose_lcm_types.jar     the LCM types for Java, lcm-spy (when built)
 #
 #   package libomnipose-dev (COMPONENT dev):
-#   include/omnipose/                the public API (+ calibrate/ and lcm/ for the components)
+#   include/omnipose/                the public API: the core's headers, and a folder per
+#                                    component (io/, synth/, eval/, calibrate/, lcm/)
 #   LIBDIR/                          the static libraries
 #   LIBDIR/cmake/omnipose/           omniposeConfig.cmake: omnipose::omnipose (calibration, unwrap,
 #                                    registration, fit, chain, pipeline), omnipose::io,
@@ -45,6 +46,7 @@ install(TARGETS omnipose omnipose_io omnipose_synth omnipose_eval omnipose_calib
                 omnipose_lcm_types EXPORT omniposeTargets
         ARCHIVE DESTINATION ${CMAKE_INSTALL_LIBDIR} COMPONENT dev
         INCLUDES DESTINATION ${CMAKE_INSTALL_INCLUDEDIR})
+# include/omnipose as in the source tree: the core's headers and io/, synth/, eval/.
 install(DIRECTORY ${CMAKE_SOURCE_DIR}/include/omnipose DESTINATION ${CMAKE_INSTALL_INCLUDEDIR}
         COMPONENT dev)
 install(DIRECTORY ${CMAKE_SOURCE_DIR}/src/calibrate/include/omnipose/calibrate

@@ -23,6 +23,7 @@
 /// registration's window count); fit() allocates nothing and never throws.
 
 #include <Eigen/Core>
+#include <memory>
 #include <span>
 #include <string>
 #include <vector>
@@ -93,67 +94,33 @@ class MotionFit {
   /// every invalid option or argument.
   MotionFit(const Options& options, double gamma, int window_px, int max_windows);
 
+  /// Copies fit alike (the workspace is copied, allocating as construction does). A
+  /// moved-from MotionFit may only be assigned to or destroyed.
+  MotionFit(const MotionFit& other);
+  MotionFit& operator=(const MotionFit& other);
+  MotionFit(MotionFit&& other) noexcept;
+  MotionFit& operator=(MotionFit&& other) noexcept;
+  ~MotionFit();
+
   /// Fits the model to `windows`; a window's azimuth is theta = gamma * (center_u - forward_column).
   /// `windows.size()` must not exceed maxWindows() (else status kLost).
   MotionEstimate fit(std::span<const WindowMotion> windows, double forward_column);
 
-  const Options& options() const { return options_; }
+  const Options& options() const;
   /// Radians per panorama column.
-  double gamma() const { return gamma_; }
+  double gamma() const;
   /// The window attenuation kappa the model rows use (motion_model.hpp).
-  double kappa() const { return kappa_; }
+  double kappa() const;
   /// Relative inverse depth lambda_k (mean 1) of window k after the last fit(); 1 when the
   /// depths were not fitted (per_window_depth off, or a fit that stopped before its depth
   /// step) and before any fit. Requires 0 <= k < maxWindows().
-  double inverseDepth(int k) const { return depth_[k]; }
+  double inverseDepth(int k) const;
   /// Most windows one fit() accepts.
-  int maxWindows() const { return static_cast<int>(keep_.size()); }
+  int maxWindows() const;
 
  private:
-  struct Row {
-    Eigen::Matrix<double, 1, 6> a;   ///< design row; translation columns times depth_[window]
-    Eigen::Matrix<double, 1, 6> a0;  ///< design row for uniform depth
-    double b = 0.0;      ///< measurement in model units (radians or ln s)
-    double scale = 1.0;  ///< pixels per model unit (1/gamma for du/dv), for the loss
-    double prior_weight = 1.0;  ///< confidence / noise weight
-    double weight = 1.0;        ///< current IRLS weight
-    int kind = 0;               ///< 0 du, 1 dv, 2 rotation, 3 log scale
-    int window = 0;             ///< index of the window the row belongs to
-    double leverage = 0.0;      ///< share of the row absorbed by its window's inverse depth
-  };
-  int buildTranslationRows(std::span<const WindowMotion> windows, double forward_column);
-  Eigen::Matrix<double, 6, 1> irls(int n_rows, int& iterations, bool& ok);
-  double robustSigma(int kind, const Eigen::Matrix<double, 6, 1>& x, int n_rows);
-  /// Noise of the shift rows in radians (the larger of du and dv, floored at 0.01 px).
-  double shiftSigma(const Eigen::Matrix<double, 6, 1>& x, int n_rows);
-  /// Leverage of every row on its window's inverse depth (0 without per-window depth).
-  void computeLeverage(std::span<const WindowMotion> windows, int n_rows,
-                       const Eigen::Matrix<double, 6, 1>& x);
-  /// |residual| in pixels divided by sqrt(1 - leverage).
-  double standardizedResidualPx(int i, const Eigen::Matrix<double, 6, 1>& x) const;
-  /// Per-window inverse depth: sets the prior weight from the noise and runs
-  /// depthGaussNewton (twice, the second time with the depth model's own noise); returns x.
-  Eigen::Matrix<double, 6, 1> fitDepth(std::span<const WindowMotion> windows, int n_rows,
-                                       Eigen::Matrix<double, 6, 1> x, int& iterations);
-  /// Joint Gauss-Newton in (omega, tau) and the per-window inverse depths (in depth_),
-  /// backtracked on depthCost(); sigma: the shift rows' noise (radians), which sets when a
-  /// step is negligible.
-  Eigen::Matrix<double, 6, 1> depthGaussNewton(std::span<const WindowMotion> windows,
-                                               int n_rows, Eigen::Matrix<double, 6, 1> x,
-                                               double sigma, int& iterations);
-  /// The robust objective depthGaussNewton() lowers, at x and the current depth_.
-  double depthCost(std::span<const WindowMotion> windows, int n_rows,
-                   const Eigen::Matrix<double, 6, 1>& x) const;
-
-  Options options_;
-  double gamma_;
-  double kappa_;
-  std::vector<Row> rows_;
-  std::vector<double> scratch_;
-  std::vector<unsigned char> keep_;
-  std::vector<double> depth_;  ///< relative inverse depth per window (mean 1)
-  std::vector<Eigen::Matrix<double, 6, 1>> depth_xl_;  ///< N_x,lambda_k columns (covariance)
-  double depth_prior_weight_ = 0.0;  ///< weight of the lambda_k = 1 prior (0: depth not fitted)
+  struct Impl;  ///< the workspace and the fit's steps (src/fit/motion_fit.cpp)
+  std::unique_ptr<Impl> impl_;
 };
 
 }  // namespace omnipose

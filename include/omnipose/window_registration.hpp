@@ -38,11 +38,6 @@
 
 namespace omnipose {
 
-namespace registration {
-class WorkerPool;         // private (src/registration/worker_pool.hpp)
-enum class PlanEffort;    // private (src/registration/fft_plan.hpp)
-}
-
 class WindowRegistration {
  public:
   struct Options {
@@ -84,11 +79,17 @@ class WindowRegistration {
   /// Registration of panoramas of `panorama` pixels (W x H: the calibration's panorama).
   /// Throws std::invalid_argument listing every problem of validate(panorama, options).
   WindowRegistration(cv::Size panorama, const Options& options);
-  /// Internal (the pipeline): runs on `pool` (shared with other stages) instead of a pool of
-  /// its own; options.threads is ignored. `pool` must outlive this object. `effort`: how
-  /// long FFTW plans (the other constructor uses FFTW_MEASURE).
-  WindowRegistration(cv::Size panorama, const Options& options, registration::WorkerPool& pool,
-                     registration::PlanEffort effort);
+  /// Internal to the library: what the pipeline hands the registration it embeds (the
+  /// worker pool it shares among its stages and how long FFTW plans). Only declared here;
+  /// its definition is private (src/registration/pipeline_resources.hpp), so code outside
+  /// the library cannot make one and uses the constructor above.
+  struct PipelineResources;
+  /// Internal (the pipeline): as the constructor above, but runs on the shared pool of
+  /// `resources` (which must outlive this object) instead of a pool of its own, so
+  /// options.threads is ignored, and plans with its effort (the constructor above uses
+  /// FFTW_MEASURE). Throws std::invalid_argument as the constructor above.
+  WindowRegistration(cv::Size panorama, const Options& options,
+                     const PipelineResources& resources);
   ~WindowRegistration();
   WindowRegistration(const WindowRegistration&) = delete;
   WindowRegistration& operator=(const WindowRegistration&) = delete;

@@ -39,8 +39,8 @@
 #include <optional>
 #include <string>
 
-#include "omnipose/dataset.hpp"
 #include "omnipose/frame_source.hpp"
+#include "omnipose/io/dataset.hpp"
 
 namespace omnipose::daemon {
 

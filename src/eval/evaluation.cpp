@@ -1,4 +1,4 @@
-#include "omnipose/evaluation.hpp"
+#include "omnipose/eval/evaluation.hpp"
 
 #include <algorithm>
 #include <cmath>

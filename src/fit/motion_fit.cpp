@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <memory>
 #include <numbers>
 #include <stdexcept>
 #include <string>
@@ -55,29 +56,117 @@ std::vector<std::string> MotionFit::Options::validate() const {
   return p;
 }
 
-MotionFit::MotionFit(const Options& options, double gamma, int window_px, int max_windows)
-    : options_(options),
-      gamma_(gamma),
-      kappa_(window_px >= 1 && gamma > 0 ? windowAttenuation(window_px, gamma) : 1.0) {
+/// MotionFit's workspace and the steps of fit(); private, so that the public header shows
+/// neither the design rows nor the helpers.
+struct MotionFit::Impl {
+  struct Row {
+    Eigen::Matrix<double, 1, 6> a;   ///< design row; translation columns times depth[window]
+    Eigen::Matrix<double, 1, 6> a0;  ///< design row for uniform depth
+    double b = 0.0;      ///< measurement in model units (radians or ln s)
+    double scale = 1.0;  ///< pixels per model unit (1/gamma for du/dv), for the loss
+    double prior_weight = 1.0;  ///< confidence / noise weight
+    double weight = 1.0;        ///< current IRLS weight
+    int kind = 0;               ///< 0 du, 1 dv, 2 rotation, 3 log scale
+    int window = 0;             ///< index of the window the row belongs to
+    double leverage = 0.0;      ///< share of the row absorbed by its window's inverse depth
+  };
+
+  /// Allocates the workspace for `max_windows` windows (arguments already validated).
+  Impl(const Options& o, double gamma_per_column, double attenuation, int max_windows);
+
+  MotionEstimate fit(std::span<const WindowMotion> windows, double forward_column);
+  int buildTranslationRows(std::span<const WindowMotion> windows, double forward_column);
+  Eigen::Matrix<double, 6, 1> irls(int n_rows, int& iterations, bool& ok);
+  double robustSigma(int kind, const Eigen::Matrix<double, 6, 1>& x, int n_rows);
+  /// Noise of the shift rows in radians (the larger of du and dv, floored at 0.01 px).
+  double shiftSigma(const Eigen::Matrix<double, 6, 1>& x, int n_rows);
+  /// Leverage of every row on its window's inverse depth (0 without per-window depth).
+  void computeLeverage(std::span<const WindowMotion> windows, int n_rows,
+                       const Eigen::Matrix<double, 6, 1>& x);
+  /// |residual| in pixels divided by sqrt(1 - leverage).
+  double standardizedResidualPx(int i, const Eigen::Matrix<double, 6, 1>& x) const;
+  /// Per-window inverse depth: sets the prior weight from the noise and runs
+  /// depthGaussNewton (twice, the second time with the depth model's own noise); returns x.
+  Eigen::Matrix<double, 6, 1> fitDepth(std::span<const WindowMotion> windows, int n_rows,
+                                       Eigen::Matrix<double, 6, 1> x, int& iterations);
+  /// Joint Gauss-Newton in (omega, tau) and the per-window inverse depths (in depth),
+  /// backtracked on depthCost(); sigma: the shift rows' noise (radians), which sets when a
+  /// step is negligible.
+  Eigen::Matrix<double, 6, 1> depthGaussNewton(std::span<const WindowMotion> windows,
+                                               int n_rows, Eigen::Matrix<double, 6, 1> x,
+                                               double sigma, int& iterations);
+  /// The robust objective depthGaussNewton() lowers, at x and the current depth.
+  double depthCost(std::span<const WindowMotion> windows, int n_rows,
+                   const Eigen::Matrix<double, 6, 1>& x) const;
+
+  Options options;
+  double gamma;
+  double kappa;
+  std::vector<Row> rows;
+  std::vector<double> scratch;
+  std::vector<unsigned char> keep;
+  std::vector<double> depth;  ///< relative inverse depth per window (mean 1)
+  std::vector<Eigen::Matrix<double, 6, 1>> depth_xl;  ///< N_x,lambda_k columns (covariance)
+  double depth_prior_weight = 0.0;  ///< weight of the lambda_k = 1 prior (0: depth not fitted)
+};
+
+MotionFit::Impl::Impl(const Options& o, double gamma_per_column, double attenuation,
+                      int max_windows)
+    : options(o),
+      gamma(gamma_per_column),
+      kappa(attenuation),
+      rows(4 * static_cast<std::size_t>(max_windows)),
+      scratch(rows.size()),
+      keep(static_cast<std::size_t>(max_windows)),
+      depth(static_cast<std::size_t>(max_windows), 1.0),
+      depth_xl(static_cast<std::size_t>(max_windows)) {}
+
+MotionFit::MotionFit(const Options& options, double gamma, int window_px, int max_windows) {
   std::vector<std::string> problems = options.validate();
   detail::checkRange(problems, "gamma", gamma, 0.0, 2 * std::numbers::pi, " radians per column",
                      true);
   detail::checkRange(problems, "window_px", window_px, 1, 65536, " pixels");
   detail::checkRange(problems, "max_windows", max_windows, 1, 65536);
   detail::throwIfProblems("MotionFit", problems);
-  rows_.resize(4 * static_cast<std::size_t>(max_windows));
-  scratch_.resize(rows_.size());
-  keep_.resize(max_windows);
-  depth_.assign(max_windows, 1.0);
-  depth_xl_.resize(max_windows);
+  impl_ = std::make_unique<Impl>(options, gamma, windowAttenuation(window_px, gamma), max_windows);
 }
 
-int MotionFit::buildTranslationRows(std::span<const WindowMotion> windows, double forward_column) {
+MotionFit::MotionFit(const MotionFit& other) : impl_(std::make_unique<Impl>(*other.impl_)) {}
+
+MotionFit& MotionFit::operator=(const MotionFit& other) {
+  if (this == &other) return *this;
+  if (impl_)
+    *impl_ = *other.impl_;
+  else
+    impl_ = std::make_unique<Impl>(*other.impl_);
+  return *this;
+}
+
+MotionFit::MotionFit(MotionFit&&) noexcept = default;
+MotionFit& MotionFit::operator=(MotionFit&&) noexcept = default;
+MotionFit::~MotionFit() = default;
+
+MotionEstimate MotionFit::fit(std::span<const WindowMotion> windows, double forward_column) {
+  return impl_->fit(windows, forward_column);
+}
+
+const MotionFit::Options& MotionFit::options() const { return impl_->options; }
+
+double MotionFit::gamma() const { return impl_->gamma; }
+
+double MotionFit::kappa() const { return impl_->kappa; }
+
+double MotionFit::inverseDepth(int k) const { return impl_->depth[k]; }
+
+int MotionFit::maxWindows() const { return static_cast<int>(impl_->keep.size()); }
+
+int MotionFit::Impl::buildTranslationRows(std::span<const WindowMotion> windows,
+                                          double forward_column) {
   const int n = static_cast<int>(windows.size());
-  for (int k = 0; k < n; ++k) keep_[k] = windows[k].valid && windows[k].confidence > 0;
+  for (int k = 0; k < n; ++k) keep[k] = windows[k].valid && windows[k].confidence > 0;
 
   // Median pre-filter over circular neighbours: drop, never replace.
-  const int half = options_.median > 1 ? options_.median / 2 : 0;
+  const int half = options.median > 1 ? options.median / 2 : 0;
   if (half > 0) {
     std::array<double, 16> du_near{}, dv_near{};
     for (int k = 0; k < n; ++k) {
@@ -92,51 +181,51 @@ int MotionFit::buildTranslationRows(std::span<const WindowMotion> windows, doubl
       }
       if (m < 3) continue;  // too few neighbours to judge
       const double du_med = medianOf(du_near.data(), m), dv_med = medianOf(dv_near.data(), m);
-      if (std::abs(windows[k].du - du_med) > options_.median_reject_px ||
-          std::abs(windows[k].dv - dv_med) > options_.median_reject_px) {
-        keep_[k] = 0;
+      if (std::abs(windows[k].du - du_med) > options.median_reject_px ||
+          std::abs(windows[k].dv - dv_med) > options.median_reject_px) {
+        keep[k] = 0;
       }
     }
   }
 
   int r = 0;
   for (int k = 0; k < n; ++k) {
-    if (!keep_[k]) continue;
-    const double theta = gamma_ * (windows[k].center_u - forward_column);
-    const ModelRows m = modelRows(theta, kappa_);
+    if (!keep[k]) continue;
+    const double theta = gamma * (windows[k].center_u - forward_column);
+    const ModelRows m = modelRows(theta, kappa);
     const double conf = windows[k].confidence;
-    rows_[r] = Row{m.du, m.du, windows[k].du * gamma_, 1.0 / gamma_, conf, conf, kDu, k};
-    rows_[r + 1] = Row{m.dv, m.dv, windows[k].dv * gamma_, 1.0 / gamma_, conf, conf, kDv, k};
+    rows[r] = Row{m.du, m.du, windows[k].du * gamma, 1.0 / gamma, conf, conf, kDu, k};
+    rows[r + 1] = Row{m.dv, m.dv, windows[k].dv * gamma, 1.0 / gamma, conf, conf, kDv, k};
     r += 2;
   }
   return r;
 }
 
-double MotionFit::shiftSigma(const Eigen::Matrix<double, 6, 1>& x, int n_rows) {
+double MotionFit::Impl::shiftSigma(const Eigen::Matrix<double, 6, 1>& x, int n_rows) {
   return std::max(std::max(robustSigma(kDu, x, n_rows), robustSigma(kDv, x, n_rows)),
-                  0.01 * gamma_);
+                  0.01 * gamma);
 }
 
-double MotionFit::robustSigma(int kind, const Eigen::Matrix<double, 6, 1>& x, int n_rows) {
+double MotionFit::Impl::robustSigma(int kind, const Eigen::Matrix<double, 6, 1>& x, int n_rows) {
   int m = 0;
   for (int i = 0; i < n_rows; ++i) {
-    if (rows_[i].kind != kind) continue;
-    scratch_[m++] = std::abs(rows_[i].a.dot(x) - rows_[i].b);
+    if (rows[i].kind != kind) continue;
+    scratch[m++] = std::abs(rows[i].a.dot(x) - rows[i].b);
   }
   if (m == 0) return 0.0;
-  return kMadToSigma * medianOf(scratch_.data(), m);
+  return kMadToSigma * medianOf(scratch.data(), m);
 }
 
-Eigen::Matrix<double, 6, 1> MotionFit::irls(int n_rows, int& iterations, bool& ok) {
+Eigen::Matrix<double, 6, 1> MotionFit::Impl::irls(int n_rows, int& iterations, bool& ok) {
   using Mat6 = Eigen::Matrix<double, 6, 6>;
   using Vec6 = Eigen::Matrix<double, 6, 1>;
   Vec6 x = Vec6::Zero();
   ok = false;
-  for (iterations = 0; iterations < options_.max_iterations;) {
+  for (iterations = 0; iterations < options.max_iterations;) {
     Mat6 N = Mat6::Zero();
     Vec6 g = Vec6::Zero();
     for (int i = 0; i < n_rows; ++i) {
-      const Row& row = rows_[i];
+      const Row& row = rows[i];
       if (row.weight <= 0) continue;
       N.noalias() += row.weight * row.a.transpose() * row.a;
       g.noalias() += row.weight * row.b * row.a.transpose();
@@ -151,77 +240,76 @@ Eigen::Matrix<double, 6, 1> MotionFit::irls(int n_rows, int& iterations, bool& o
     ok = true;
     // Pseudo-Huber weights: rho'(r)/r = 1 / sqrt(1 + (r/delta)^2), r in pixels.
     for (int i = 0; i < n_rows; ++i) {
-      Row& row = rows_[i];
-      const double r_px = (row.a.dot(x) - row.b) * row.scale / options_.huber_delta_px;
+      Row& row = rows[i];
+      const double r_px = (row.a.dot(x) - row.b) * row.scale / options.huber_delta_px;
       row.weight = row.prior_weight / std::sqrt(1.0 + r_px * r_px);
     }
-    if (step < options_.tolerance) break;
+    if (step < options.tolerance) break;
   }
   return x;
 }
 
-Eigen::Matrix<double, 6, 1> MotionFit::fitDepth(std::span<const WindowMotion> windows,
-                                                 int n_rows, Eigen::Matrix<double, 6, 1> x,
-                                                 int& iterations) {
+Eigen::Matrix<double, 6, 1> MotionFit::Impl::fitDepth(std::span<const WindowMotion> windows,
+                                                       int n_rows, Eigen::Matrix<double, 6, 1> x,
+                                                       int& iterations) {
   const int n = static_cast<int>(windows.size());
   // Prior lambda_k ~ N(1, sigma_lambda), expressed in the units of the shift rows
   // (radians) so that it weighs against them by their noise. First with the uniform fit's residual scale (inflated by the depth misfit), then with
   // the depth model's own standardized residuals, so that the prior weighs against the
   // measurement noise and not against the misfit it is there to remove.
   double sigma_t = shiftSigma(x, n_rows);
-  for (int k = 0; k < n; ++k) depth_[k] = 1.0;
+  for (int k = 0; k < n; ++k) depth[k] = 1.0;
   for (int round = 0; round < 2; ++round) {
     if (round == 1) {
       computeLeverage(windows, n_rows, x);
       int m = 0;
       for (int i = 0; i < n_rows; ++i) {
-        if (rows_[i].kind == kDu || rows_[i].kind == kDv)
-          scratch_[m++] = standardizedResidualPx(i, x) / rows_[i].scale;
+        if (rows[i].kind == kDu || rows[i].kind == kDv)
+          scratch[m++] = standardizedResidualPx(i, x) / rows[i].scale;
       }
       if (m == 0) break;
-      sigma_t = std::max(kMadToSigma * medianOf(scratch_.data(), m), 0.01 * gamma_);
+      sigma_t = std::max(kMadToSigma * medianOf(scratch.data(), m), 0.01 * gamma);
     }
-    const double ratio = sigma_t / options_.depth_prior_sigma;
-    depth_prior_weight_ = ratio * ratio;
+    const double ratio = sigma_t / options.depth_prior_sigma;
+    depth_prior_weight = ratio * ratio;
     x = depthGaussNewton(windows, n_rows, x, sigma_t, iterations);
   }
   return x;
 }
 
-double MotionFit::depthCost(std::span<const WindowMotion> windows, int n_rows,
-                            const Eigen::Matrix<double, 6, 1>& x) const {
+double MotionFit::Impl::depthCost(std::span<const WindowMotion> windows, int n_rows,
+                                  const Eigen::Matrix<double, 6, 1>& x) const {
   // sum_i c_i rho(r_i s) / s^2 + 1/2 sum_k h_k (lambda_k - 1)^2: the objective whose
   // stationary point the IRLS-weighted Gauss-Newton step solves for (rho pseudo-Huber, r_i
   // in model units, s pixels per model unit, c_i the row's prior weight).
-  const double delta = options_.huber_delta_px;
+  const double delta = options.huber_delta_px;
   double cost = 0.0;
   for (int i = 0; i < n_rows; ++i) {
-    const Row& row = rows_[i];
+    const Row& row = rows[i];
     if (row.prior_weight <= 0) continue;
     const double r = row.a0.head<3>().dot(x.head<3>()) +
-                     depth_[row.window] * row.a0.tail<3>().dot(x.tail<3>()) - row.b;
+                     depth[row.window] * row.a0.tail<3>().dot(x.tail<3>()) - row.b;
     const double z = r * row.scale / delta;
     cost += row.prior_weight * delta * delta * (std::sqrt(1.0 + z * z) - 1.0) /
             (row.scale * row.scale);
   }
   const int n = static_cast<int>(windows.size());
   for (int k = 0; k < n; ++k) {
-    const double d = depth_[k] - 1.0;
-    cost += 0.5 * depth_prior_weight_ * windows[k].confidence * d * d;
+    const double d = depth[k] - 1.0;
+    cost += 0.5 * depth_prior_weight * windows[k].confidence * d * d;
   }
   return cost;
 }
 
-Eigen::Matrix<double, 6, 1> MotionFit::depthGaussNewton(std::span<const WindowMotion> windows,
-                                                        int n_rows,
-                                                        Eigen::Matrix<double, 6, 1> x,
-                                                        double sigma, int& iterations) {
+Eigen::Matrix<double, 6, 1> MotionFit::Impl::depthGaussNewton(
+    std::span<const WindowMotion> windows, int n_rows, Eigen::Matrix<double, 6, 1> x,
+    double sigma, int& iterations) {
   using Mat6 = Eigen::Matrix<double, 6, 6>;
   using Vec6 = Eigen::Matrix<double, 6, 1>;
   const int n = static_cast<int>(windows.size());
-  // scratch_: [0, n) h_k, [n, 2n) g_lambda_k, [2n, 3n) lambda_k before the step,
-  // [3n, 4n) the lambda_k step (rows_.size() = scratch_.size() >= 4 n).
-  double* const h = scratch_.data();
+  // scratch: [0, n) h_k, [n, 2n) g_lambda_k, [2n, 3n) lambda_k before the step,
+  // [3n, 4n) the lambda_k step (rows.size() = scratch.size() >= 4 n).
+  double* const h = scratch.data();
   double* const g_lambda = h + n;
   double* const depth_before = h + 2 * n;
   double* const depth_step = h + 3 * n;
@@ -239,31 +327,31 @@ Eigen::Matrix<double, 6, 1> MotionFit::depthGaussNewton(std::span<const WindowMo
   constexpr double kNegligibleStep = 1e-3;
   constexpr int kMaxHalvings = 6;
   double total = 0.0;
-  for (int k = 0; k < n; ++k) total += keep_[k] ? windows[k].confidence : 0.0;
+  for (int k = 0; k < n; ++k) total += keep[k] ? windows[k].confidence : 0.0;
   const auto gauge = [&](int k) {
-    return keep_[k] && total > 0 ? windows[k].confidence / total : 0.0;
+    return keep[k] && total > 0 ? windows[k].confidence / total : 0.0;
   };
   double cost = depthCost(windows, n_rows, x);
-  for (int pass = 0; pass < options_.max_iterations; ++pass) {
+  for (int pass = 0; pass < options.max_iterations; ++pass) {
     Mat6 N = Mat6::Zero();
     Vec6 gx = Vec6::Zero();
     for (int k = 0; k < n; ++k) {
-      const double prior = depth_prior_weight_ * windows[k].confidence;
-      depth_xl_[k].setZero();
+      const double prior = depth_prior_weight * windows[k].confidence;
+      depth_xl[k].setZero();
       h[k] = prior;
-      g_lambda[k] = prior * (1.0 - depth_[k]);
+      g_lambda[k] = prior * (1.0 - depth[k]);
     }
     for (int i = 0; i < n_rows; ++i) {
-      const Row& row = rows_[i];
+      const Row& row = rows[i];
       if (row.weight <= 0) continue;
       const int k = row.window;
       Eigen::Matrix<double, 1, 6> Jx = row.a0;
-      Jx.tail<3>() *= depth_[k];
+      Jx.tail<3>() *= depth[k];
       const double Jl = row.a0.tail<3>().dot(x.tail<3>());
       const double r = row.b - Jx.dot(x);
       N.noalias() += row.weight * Jx.transpose() * Jx;
       gx.noalias() += row.weight * r * Jx.transpose();
-      depth_xl_[k].noalias() += row.weight * Jl * Jx.transpose();
+      depth_xl[k].noalias() += row.weight * Jl * Jx.transpose();
       h[k] += row.weight * Jl * Jl;
       g_lambda[k] += row.weight * Jl * r;
     }
@@ -277,12 +365,12 @@ Eigen::Matrix<double, 6, 1> MotionFit::depthGaussNewton(std::span<const WindowMo
     double q = 0.0, cg = 0.0, e = 1.0;
     for (int k = 0; k < n; ++k) {
       const double c = gauge(k);
-      S.noalias() -= depth_xl_[k] * depth_xl_[k].transpose() / h[k];
-      rhs.noalias() -= depth_xl_[k] * (g_lambda[k] / h[k]);
-      v.noalias() += depth_xl_[k] * (c / h[k]);
+      S.noalias() -= depth_xl[k] * depth_xl[k].transpose() / h[k];
+      rhs.noalias() -= depth_xl[k] * (g_lambda[k] / h[k]);
+      v.noalias() += depth_xl[k] * (c / h[k]);
       q += c * c / h[k];
       cg += c * g_lambda[k] / h[k];
-      e -= c * depth_[k];
+      e -= c * depth[k];
     }
     double mu_scale = 0.0;
     if (q > 0) {
@@ -296,8 +384,8 @@ Eigen::Matrix<double, 6, 1> MotionFit::depthGaussNewton(std::span<const WindowMo
     if (!dx.allFinite()) break;
     const double mu = mu_scale * (cg - v.dot(dx) - e);  // Lagrange multiplier
     for (int k = 0; k < n; ++k) {
-      depth_before[k] = depth_[k];
-      depth_step[k] = (g_lambda[k] - depth_xl_[k].dot(dx) - gauge(k) * mu) / h[k];
+      depth_before[k] = depth[k];
+      depth_step[k] = (g_lambda[k] - depth_xl[k].dot(dx) - gauge(k) * mu) / h[k];
     }
     // Backtracking: the largest of 1, 1/2, 1/4, ... that does not raise the cost; none
     // (a minimum to rounding): stay and stop.
@@ -307,7 +395,7 @@ Eigen::Matrix<double, 6, 1> MotionFit::depthGaussNewton(std::span<const WindowMo
     for (int halving = 0; halving <= kMaxHalvings; ++halving, t *= 0.5) {
       x = x_before + t * dx;
       for (int k = 0; k < n; ++k)
-        depth_[k] = std::clamp(depth_before[k] + t * depth_step[k], 0.25, 4.0);
+        depth[k] = std::clamp(depth_before[k] + t * depth_step[k], 0.25, 4.0);
       const double trial = depthCost(windows, n_rows, x);
       if (trial <= cost) {
         cost = trial;
@@ -317,58 +405,60 @@ Eigen::Matrix<double, 6, 1> MotionFit::depthGaussNewton(std::span<const WindowMo
     }
     if (!lowered) {
       x = x_before;
-      for (int k = 0; k < n; ++k) depth_[k] = depth_before[k];
+      for (int k = 0; k < n; ++k) depth[k] = depth_before[k];
     }
     ++iterations;
     for (int i = 0; i < n_rows; ++i) {
-      Row& row = rows_[i];
+      Row& row = rows[i];
       row.a.head<3>() = row.a0.head<3>();
-      row.a.tail<3>() = depth_[row.window] * row.a0.tail<3>();
-      const double r_px = (row.a.dot(x) - row.b) * row.scale / options_.huber_delta_px;
+      row.a.tail<3>() = depth[row.window] * row.a0.tail<3>();
+      const double r_px = (row.a.dot(x) - row.b) * row.scale / options.huber_delta_px;
       row.weight = row.prior_weight / std::sqrt(1.0 + r_px * r_px);
     }
     if (!lowered) break;
     const double step_sigmas = t * std::sqrt(std::max(dx.dot(S * dx), 0.0)) / sigma;
-    if (t * dx.norm() < options_.tolerance || step_sigmas < kNegligibleStep) break;
+    if (t * dx.norm() < options.tolerance || step_sigmas < kNegligibleStep) break;
   }
   return x;
 }
 
-void MotionFit::computeLeverage(std::span<const WindowMotion> windows, int n_rows,
-                                const Eigen::Matrix<double, 6, 1>& x) {
-  for (int i = 0; i < n_rows; ++i) rows_[i].leverage = 0.0;
-  if (!options_.per_window_depth || depth_prior_weight_ <= 0) return;
+void MotionFit::Impl::computeLeverage(std::span<const WindowMotion> windows, int n_rows,
+                                      const Eigen::Matrix<double, 6, 1>& x) {
+  for (int i = 0; i < n_rows; ++i) rows[i].leverage = 0.0;
+  if (!options.per_window_depth || depth_prior_weight <= 0) return;
   const int n = static_cast<int>(windows.size());
-  for (int k = 0; k < n; ++k) scratch_[k] = depth_prior_weight_ * windows[k].confidence;
+  for (int k = 0; k < n; ++k) scratch[k] = depth_prior_weight * windows[k].confidence;
   for (int i = 0; i < n_rows; ++i) {
-    const double J = rows_[i].a0.tail<3>().dot(x.tail<3>());
-    scratch_[rows_[i].window] += rows_[i].weight * J * J;
+    const double J = rows[i].a0.tail<3>().dot(x.tail<3>());
+    scratch[rows[i].window] += rows[i].weight * J * J;
   }
   for (int i = 0; i < n_rows; ++i) {
-    const double J = rows_[i].a0.tail<3>().dot(x.tail<3>());
-    rows_[i].leverage = rows_[i].weight * J * J / scratch_[rows_[i].window];
+    const double J = rows[i].a0.tail<3>().dot(x.tail<3>());
+    rows[i].leverage = rows[i].weight * J * J / scratch[rows[i].window];
   }
 }
 
-double MotionFit::standardizedResidualPx(int i, const Eigen::Matrix<double, 6, 1>& x) const {
-  const Row& row = rows_[i];
+double MotionFit::Impl::standardizedResidualPx(int i,
+                                               const Eigen::Matrix<double, 6, 1>& x) const {
+  const Row& row = rows[i];
   const double r_px = std::abs((row.a.dot(x) - row.b) * row.scale);
   return r_px / std::sqrt(std::max(1.0 - row.leverage, 0.05));
 }
 
-MotionEstimate MotionFit::fit(std::span<const WindowMotion> windows, double forward_column) {
+MotionEstimate MotionFit::Impl::fit(std::span<const WindowMotion> windows,
+                                    double forward_column) {
   using Mat6 = Eigen::Matrix<double, 6, 6>;
   using Vec6 = Eigen::Matrix<double, 6, 1>;
   MotionEstimate est;
   est.windows_total = static_cast<int>(windows.size());
   est.windows_masked = static_cast<int>(
       std::count_if(windows.begin(), windows.end(), [](const WindowMotion& w) { return w.masked; }));
-  if (windows.size() > keep_.size()) {
+  if (windows.size() > keep.size()) {
     est.status = FitStatus::kLost;  // workspace too small: configuration error upstream
     return est;
   }
-  depth_prior_weight_ = 0.0;
-  std::fill(depth_.begin(), depth_.end(), 1.0);  // inverseDepth() when depth is not fitted
+  depth_prior_weight = 0.0;
+  std::fill(depth.begin(), depth.end(), 1.0);  // inverseDepth() when depth is not fitted
   int n_rows = buildTranslationRows(windows, forward_column);
   if (n_rows < 2 * kMinWindows) return est;  // du and dv rows of too few windows: nothing to fit
 
@@ -377,18 +467,18 @@ MotionEstimate MotionFit::fit(std::span<const WindowMotion> windows, double forw
   if (!ok) return est;
 
   // In-window rotation and scale, weighted by their own noise relative to the shifts.
-  if (options_.use_rotation_scale) {
+  if (options.use_rotation_scale) {
     const double sigma_t = shiftSigma(x, n_rows);
     const int n_trans = n_rows;
     for (std::size_t k = 0; k < windows.size(); ++k) {
-      if (!keep_[k] || windows[k].rs_confidence <= 0 || !(windows[k].scale > 0)) continue;
-      const double theta = gamma_ * (windows[k].center_u - forward_column);
-      const ModelRows m = modelRows(theta, kappa_);
+      if (!keep[k] || windows[k].rs_confidence <= 0 || !(windows[k].scale > 0)) continue;
+      const double theta = gamma * (windows[k].center_u - forward_column);
+      const ModelRows m = modelRows(theta, kappa);
       const double conf = windows[k].rs_confidence;
       const int w = static_cast<int>(k);
-      rows_[n_rows++] =
+      rows[n_rows++] =
           Row{m.rotation, m.rotation, windows[k].rotation, 1.0, conf, conf, kRotation, w};
-      rows_[n_rows++] = Row{m.log_scale, m.log_scale, std::log(windows[k].scale), 1.0, conf,
+      rows[n_rows++] = Row{m.log_scale, m.log_scale, std::log(windows[k].scale), 1.0, conf,
                             conf, kLogScale, w};
     }
     if (n_rows > n_trans) {
@@ -396,14 +486,14 @@ MotionEstimate MotionFit::fit(std::span<const WindowMotion> windows, double forw
       const double sigma_r = std::max(robustSigma(kRotation, x, n_rows), floor_rs);
       const double sigma_s = std::max(robustSigma(kLogScale, x, n_rows), floor_rs);
       for (int i = n_trans; i < n_rows; ++i) {
-        Row& row = rows_[i];
+        Row& row = rows[i];
         const double sigma = row.kind == kRotation ? sigma_r : sigma_s;
         // Residuals expressed in "equivalent shift pixels" for the loss, weights by 1/var.
-        row.scale = sigma_t / sigma / gamma_;
+        row.scale = sigma_t / sigma / gamma;
         row.prior_weight *= (sigma_t / sigma) * (sigma_t / sigma);
         row.weight = row.prior_weight;
       }
-      for (int i = 0; i < n_trans; ++i) rows_[i].weight = rows_[i].prior_weight;
+      for (int i = 0; i < n_trans; ++i) rows[i].weight = rows[i].prior_weight;
       int more = 0;
       x = irls(n_rows, more, ok);
       est.iterations += more;
@@ -411,21 +501,21 @@ MotionEstimate MotionFit::fit(std::span<const WindowMotion> windows, double forw
     }
   }
 
-  if (options_.per_window_depth) x = fitDepth(windows, n_rows, x, est.iterations);
+  if (options.per_window_depth) x = fitDepth(windows, n_rows, x, est.iterations);
 
   // Final least-squares pass on the inliers, judged by standardized residuals: a window's
   // inverse depth absorbs part of its rows' residuals (leverage w J^2 / h), which would
   // otherwise make the robust sigma too small and reject good windows.
   computeLeverage(windows, n_rows, x);
   int m = 0;
-  for (int i = 0; i < n_rows; ++i) scratch_[m++] = standardizedResidualPx(i, x);
-  const double sigma_px = kMadToSigma * medianOf(scratch_.data(), m);
-  const double threshold = std::max(options_.inlier_sigmas * sigma_px, 0.1);
+  for (int i = 0; i < n_rows; ++i) scratch[m++] = standardizedResidualPx(i, x);
+  const double sigma_px = kMadToSigma * medianOf(scratch.data(), m);
+  const double threshold = std::max(options.inlier_sigmas * sigma_px, 0.1);
   Mat6 N = Mat6::Zero();
   Vec6 g = Vec6::Zero();
   int used_rows = 0;
   for (int i = 0; i < n_rows; ++i) {
-    Row& row = rows_[i];
+    Row& row = rows[i];
     row.weight = standardizedResidualPx(i, x) < threshold ? row.prior_weight : 0.0;
     if (row.weight <= 0) continue;
     N.noalias() += row.weight * row.a.transpose() * row.a;
@@ -434,7 +524,7 @@ MotionEstimate MotionFit::fit(std::span<const WindowMotion> windows, double forw
   }
   const Eigen::SelfAdjointEigenSolver<Mat6> eig(N, Eigen::EigenvaluesOnly);
   const double lmin = eig.eigenvalues()(0), lmax = eig.eigenvalues()(5);
-  if (used_rows < 8 || !(lmin > 0) || lmax / lmin > options_.max_condition) return est;
+  if (used_rows < 8 || !(lmin > 0) || lmax / lmin > options.max_condition) return est;
   const Eigen::LDLT<Mat6> ldlt(N);
   x = ldlt.solve(g);
   if (!x.allFinite()) return est;
@@ -443,7 +533,7 @@ MotionEstimate MotionFit::fit(std::span<const WindowMotion> windows, double forw
   double wrr = 0.0, shift_rr = 0.0;
   int shift_n = 0;
   for (int i = 0; i < n_rows; ++i) {
-    const Row& row = rows_[i];
+    const Row& row = rows[i];
     if (row.weight <= 0) continue;
     const double r = row.a.dot(x) - row.b;
     wrr += row.weight * r * r;
@@ -458,29 +548,29 @@ MotionEstimate MotionFit::fit(std::span<const WindowMotion> windows, double forw
   // degrees of freedom.
   Mat6 information = N;
   double depth_dof = 0.0;
-  if (options_.per_window_depth && depth_prior_weight_ > 0) {
+  if (options.per_window_depth && depth_prior_weight > 0) {
     const int n = static_cast<int>(windows.size());
     for (int k = 0; k < n; ++k) {
-      depth_xl_[k].setZero();
-      scratch_[k] = 0.0;
+      depth_xl[k].setZero();
+      scratch[k] = 0.0;
     }
     for (int i = 0; i < n_rows; ++i) {
-      const Row& row = rows_[i];
+      const Row& row = rows[i];
       if (row.weight <= 0) continue;
       const double J = row.a0.tail<3>().dot(x.tail<3>());  // d(prediction)/d(lambda_k)
-      depth_xl_[row.window].noalias() += row.weight * J * row.a.transpose();
-      scratch_[row.window] += row.weight * J * J;
+      depth_xl[row.window].noalias() += row.weight * J * row.a.transpose();
+      scratch[row.window] += row.weight * J * J;
     }
     double total = 0.0, q = 0.0;
-    for (int k = 0; k < n; ++k) total += keep_[k] ? windows[k].confidence : 0.0;
+    for (int k = 0; k < n; ++k) total += keep[k] ? windows[k].confidence : 0.0;
     Vec6 v = Vec6::Zero();
     for (int k = 0; k < n; ++k) {
-      if (!keep_[k]) continue;
-      const double h = scratch_[k], prior = depth_prior_weight_ * windows[k].confidence;
-      information.noalias() -= depth_xl_[k] * depth_xl_[k].transpose() / (h + prior);
+      if (!keep[k]) continue;
+      const double h = scratch[k], prior = depth_prior_weight * windows[k].confidence;
+      information.noalias() -= depth_xl[k] * depth_xl[k].transpose() / (h + prior);
       depth_dof += h / (h + prior);
       const double c = windows[k].confidence / total;
-      v.noalias() += depth_xl_[k] * (c / (h + prior));
+      v.noalias() += depth_xl[k] * (c / (h + prior));
       q += c * c / (h + prior);
     }
     if (q > 0) information.noalias() += v * v.transpose() / q;  // the gauge constraint
@@ -494,8 +584,8 @@ MotionEstimate MotionFit::fit(std::span<const WindowMotion> windows, double forw
   est.tau = x.tail<3>();
 
   const bool few =
-      est.windows_used < options_.min_window_fraction * (est.windows_total - est.windows_masked);
-  est.status = (few || est.residual_rms_px > options_.max_residual_px) ? FitStatus::kDegraded
+      est.windows_used < options.min_window_fraction * (est.windows_total - est.windows_masked);
+  est.status = (few || est.residual_rms_px > options.max_residual_px) ? FitStatus::kDegraded
                                                                         : FitStatus::kOk;
   return est;
 }

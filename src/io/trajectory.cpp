@@ -1,4 +1,4 @@
-#include "omnipose/trajectory.hpp"
+#include "omnipose/io/trajectory.hpp"
 
 #include <cmath>
 #include <cstdio>

@@ -13,6 +13,7 @@
 #include "omnipose/motion_model.hpp"
 #include "omnipose/so3.hpp"
 #include "registration/fft_plan.hpp"
+#include "registration/pipeline_resources.hpp"
 
 namespace omnipose::pipeline {
 namespace {
@@ -53,7 +54,8 @@ FrameRegistrar::FrameRegistrar(const Calibration& c, const PipelineOptions& o, i
       wisdom_(o.fftw_wisdom),
       pool_(o.threads > 0 ? o.threads : registration::WorkerPool::onlineCores()),
       unwrapper_(c, o.unwrap),
-      registration_(panoramaSize(c), o.registration, pool_, wisdom_.effort()),
+      registration_(panoramaSize(c), o.registration,
+                    WindowRegistration::PipelineResources{pool_, wisdom_.effort()}),
       fit_(o.fit, c.panorama.gamma(), o.registration.window, registration_.windowCount()),
       warp_(c.panorama) {
   panorama_ = unwrapper_.makePanorama();

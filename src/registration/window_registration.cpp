@@ -16,6 +16,7 @@
 #include "registration/fft_plan.hpp"
 #include "registration/log_polar.hpp"
 #include "registration/phase_correlator.hpp"
+#include "registration/pipeline_resources.hpp"
 #include "registration/simd.hpp"
 #include "registration/worker_pool.hpp"
 
@@ -695,9 +696,9 @@ WindowRegistration::WindowRegistration(cv::Size panorama, const Options& options
 }
 
 WindowRegistration::WindowRegistration(cv::Size panorama, const Options& options,
-                                       reg::WorkerPool& pool, reg::PlanEffort effort) {
+                                       const PipelineResources& resources) {
   requireValid(panorama, options);
-  impl_ = std::make_unique<Impl>(panorama, options, &pool, effort);
+  impl_ = std::make_unique<Impl>(panorama, options, &resources.pool, resources.effort);
 }
 
 WindowRegistration::~WindowRegistration() = default;

@@ -2,7 +2,7 @@
 #include <fstream>
 #include <opencv2/imgcodecs.hpp>
 
-#include "omnipose/synth.hpp"
+#include "omnipose/synth/synth.hpp"
 
 namespace omnipose::synth {
 

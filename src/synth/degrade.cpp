@@ -1,7 +1,7 @@
 #include <cmath>
 #include <opencv2/imgproc.hpp>
 
-#include "omnipose/synth.hpp"
+#include "omnipose/synth/synth.hpp"
 
 namespace omnipose::synth {
 namespace {

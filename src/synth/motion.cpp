@@ -11,7 +11,7 @@
 
 #include "common/problem_list.hpp"
 #include "common/yaml_reader.hpp"
-#include "omnipose/synth.hpp"
+#include "omnipose/synth/synth.hpp"
 
 namespace omnipose::synth {
 namespace {

@@ -2,7 +2,7 @@
 #include <numbers>
 #include <stdexcept>
 
-#include "omnipose/synth.hpp"
+#include "omnipose/synth/synth.hpp"
 
 namespace omnipose::synth {
 namespace {

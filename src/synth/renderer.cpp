@@ -1,7 +1,7 @@
 #include <cmath>
 #include <numbers>
 
-#include "omnipose/synth.hpp"
+#include "omnipose/synth/synth.hpp"
 #include "synth/equirect.hpp"
 
 namespace omnipose::synth {

@@ -12,8 +12,8 @@
 #include <string>
 
 #include "omnipose/baselines/feature_motion_estimator.hpp"
-#include "omnipose/synth.hpp"
-#include "omnipose/trajectory.hpp"
+#include "omnipose/io/trajectory.hpp"
+#include "omnipose/synth/synth.hpp"
 
 namespace omnipose::baselines {
 namespace {

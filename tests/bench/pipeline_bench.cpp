@@ -24,9 +24,9 @@
 
 #include "bench_stats.hpp"
 #include "omnipose/baselines/feature_motion_estimator.hpp"
+#include "omnipose/io/trajectory.hpp"
 #include "omnipose/pipeline.hpp"
-#include "omnipose/synth.hpp"
-#include "omnipose/trajectory.hpp"
+#include "omnipose/synth/synth.hpp"
 
 namespace {
 

@@ -18,9 +18,9 @@
 #include <string>
 
 #include "cli.hpp"
+#include "omnipose/io/trajectory.hpp"
 #include "omnipose/pipeline.hpp"
-#include "omnipose/synth.hpp"
-#include "omnipose/trajectory.hpp"
+#include "omnipose/synth/synth.hpp"
 
 #if __has_include(<valgrind/callgrind.h>)
 #include <valgrind/callgrind.h>

@@ -7,8 +7,8 @@
 #include <cmath>
 #include <filesystem>
 
-#include "omnipose/synth.hpp"
-#include "omnipose/trajectory.hpp"
+#include "omnipose/io/trajectory.hpp"
+#include "omnipose/synth/synth.hpp"
 #include "test_figures.hpp"
 
 namespace omnipose::calibrate {

@@ -117,8 +117,8 @@ TEST(OcamCalibImportCli, RefusesWhatReplayWouldRefuse) {
 }  // namespace
 }  // namespace omnipose::calibrate
 
-#include "omnipose/synth.hpp"
-#include "omnipose/trajectory.hpp"
+#include "omnipose/io/trajectory.hpp"
+#include "omnipose/synth/synth.hpp"
 
 namespace omnipose::calibrate {
 namespace {

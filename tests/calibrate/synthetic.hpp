@@ -13,8 +13,8 @@
 #include <tuple>
 
 #include "omnipose/calibration.hpp"
-#include "omnipose/synth.hpp"
-#include "omnipose/trajectory.hpp"
+#include "omnipose/io/trajectory.hpp"
+#include "omnipose/synth/synth.hpp"
 
 namespace omnipose::calibrate::testing {
 

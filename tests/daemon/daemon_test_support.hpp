@@ -29,10 +29,10 @@
 #include "omnipose/calibration.hpp"
 #include "omnipose/fit_diagnostics_t.hpp"
 #include "omnipose/frame_source.hpp"
+#include "omnipose/io/trajectory.hpp"
 #include "omnipose/pose_t.hpp"
 #include "omnipose/status_t.hpp"
-#include "omnipose/synth.hpp"
-#include "omnipose/trajectory.hpp"
+#include "omnipose/synth/synth.hpp"
 #include "test_files.hpp"
 
 extern char** environ;

@@ -29,8 +29,8 @@
 #include "daemon/config.hpp"
 #include "omnipose/pose_t.hpp"
 #include "omnipose/status_t.hpp"
-#include "omnipose/synth.hpp"
-#include "omnipose/trajectory.hpp"
+#include "omnipose/synth/synth.hpp"
+#include "omnipose/io/trajectory.hpp"
 #include "v4l2/v4l2_source.hpp"
 
 namespace omnipose {

@@ -2,7 +2,7 @@
 
 #include <gtest/gtest.h>
 
-#include "omnipose/trajectory.hpp"
+#include "omnipose/io/trajectory.hpp"
 
 namespace omnipose {
 namespace {

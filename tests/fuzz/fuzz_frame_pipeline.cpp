@@ -12,7 +12,7 @@
 
 #include "fuzz_support.hpp"
 #include "omnipose/calibration.hpp"
-#include "omnipose/dataset.hpp"
+#include "omnipose/io/dataset.hpp"
 #include "omnipose/pipeline.hpp"
 
 namespace {

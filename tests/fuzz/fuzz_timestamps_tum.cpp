@@ -10,7 +10,7 @@
 
 #include "fuzz_support.hpp"
 #include "omnipose/calibration.hpp"
-#include "omnipose/dataset.hpp"
+#include "omnipose/io/dataset.hpp"
 
 namespace {
 

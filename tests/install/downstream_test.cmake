@@ -16,9 +16,17 @@ if(NOT omnipose_dir STREQUAL "omnipose_DIR:PATH=${WORK_DIR}/prefix/${LIBDIR}/cma
 endif()
 foreach(file ${LIBDIR}/libomnipose.a ${LIBDIR}/libomnipose_io.a
              lib/python3/dist-packages/omnipose/pose_t.py share/omnipose/lcm_types/pose_t.lcm
-             include/omnipose/lcm/omnipose/pose_t.hpp)
+             include/omnipose/lcm/omnipose/pose_t.hpp include/omnipose/io/dataset.hpp
+             include/omnipose/io/trajectory.hpp include/omnipose/synth/synth.hpp
+             include/omnipose/eval/evaluation.hpp)
   if(NOT EXISTS ${WORK_DIR}/prefix/${file})
     message(FATAL_ERROR "the installed copy lacks ${file}")
+  endif()
+endforeach()
+# The headers of io, synth and eval are in their own folders, not among the core's.
+foreach(file dataset.hpp trajectory.hpp synth.hpp evaluation.hpp)
+  if(EXISTS ${WORK_DIR}/prefix/include/omnipose/${file})
+    message(FATAL_ERROR "include/omnipose/${file} is installed beside the core's headers")
   endif()
 endforeach()
 run(${CMAKE_COMMAND} --build ${WORK_DIR}/build)

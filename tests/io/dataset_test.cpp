@@ -1,4 +1,4 @@
-#include "omnipose/dataset.hpp"
+#include "omnipose/io/dataset.hpp"
 
 #include <gtest/gtest.h>
 

@@ -1,4 +1,4 @@
-#include "omnipose/evaluation.hpp"
+#include "omnipose/eval/evaluation.hpp"
 
 #include <gtest/gtest.h>
 

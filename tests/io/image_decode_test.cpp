@@ -14,7 +14,7 @@
 #include <string>
 
 #include "bad_images.hpp"
-#include "omnipose/dataset.hpp"
+#include "omnipose/io/dataset.hpp"
 
 namespace omnipose {
 namespace {

@@ -14,7 +14,7 @@
 #include "allocation_counter.hpp"
 #include "omnipose/odometry.hpp"
 #include "omnipose/so3.hpp"
-#include "omnipose/synth.hpp"
+#include "omnipose/synth/synth.hpp"
 #include "render_fixture.hpp"
 
 namespace omnipose {

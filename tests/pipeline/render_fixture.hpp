@@ -6,9 +6,9 @@
 #include <filesystem>
 #include <string>
 
+#include "omnipose/io/trajectory.hpp"
 #include "omnipose/pipeline.hpp"
-#include "omnipose/synth.hpp"
-#include "omnipose/trajectory.hpp"
+#include "omnipose/synth/synth.hpp"
 
 namespace omnipose::testing {
 

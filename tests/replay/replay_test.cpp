@@ -11,8 +11,8 @@
 #include <unistd.h>
 
 #include "bad_images.hpp"
-#include "omnipose/evaluation.hpp"
-#include "omnipose/synth.hpp"
+#include "omnipose/eval/evaluation.hpp"
+#include "omnipose/synth/synth.hpp"
 
 namespace omnipose {
 namespace {

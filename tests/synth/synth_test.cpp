@@ -12,7 +12,7 @@
 #include <opencv2/imgproc.hpp>
 #include <unistd.h>
 
-#include "omnipose/synth.hpp"
+#include "omnipose/synth/synth.hpp"
 
 namespace omnipose::synth {
 namespace {

@@ -6,8 +6,8 @@
 #include <vector>
 
 #include "cli.hpp"
-#include "omnipose/evaluation.hpp"
-#include "omnipose/trajectory.hpp"
+#include "omnipose/eval/evaluation.hpp"
+#include "omnipose/io/trajectory.hpp"
 
 int main(int argc, char** argv) {
   std::vector<std::string> files;

@@ -16,8 +16,8 @@
 
 #include "chart.hpp"
 #include "cli.hpp"
-#include "omnipose/evaluation.hpp"
-#include "omnipose/trajectory.hpp"
+#include "omnipose/eval/evaluation.hpp"
+#include "omnipose/io/trajectory.hpp"
 
 namespace {
 

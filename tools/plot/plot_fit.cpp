@@ -15,11 +15,11 @@
 #include "chart.hpp"
 #include "cli.hpp"
 #include "daemon/config.hpp"
-#include "omnipose/dataset.hpp"
+#include "omnipose/io/dataset.hpp"
+#include "omnipose/io/trajectory.hpp"
 #include "omnipose/motion_fit.hpp"
 #include "omnipose/motion_model.hpp"
 #include "omnipose/pipeline.hpp"
-#include "omnipose/trajectory.hpp"
 #include "quiet_opencv.hpp"
 
 namespace {

@@ -26,8 +26,8 @@
 #include <vector>
 
 #include "cli.hpp"
-#include "omnipose/evaluation.hpp"
-#include "omnipose/trajectory.hpp"
+#include "omnipose/eval/evaluation.hpp"
+#include "omnipose/io/trajectory.hpp"
 
 namespace {
 

@@ -6,9 +6,9 @@
 #include <stdexcept>
 
 #include "omnipose/baselines/feature_motion_estimator.hpp"
+#include "omnipose/io/trajectory.hpp"
 #include "omnipose/odometry.hpp"
 #include "omnipose/pipeline.hpp"
-#include "omnipose/trajectory.hpp"
 #include "progress_line.hpp"
 
 namespace omnipose::replay {

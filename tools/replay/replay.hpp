@@ -10,7 +10,7 @@
 #include <vector>
 
 #include "daemon/config.hpp"
-#include "omnipose/dataset.hpp"
+#include "omnipose/io/dataset.hpp"
 #include "omnipose/motion_estimator.hpp"
 #include "omnipose/odometry.hpp"
 

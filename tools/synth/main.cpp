@@ -7,7 +7,7 @@
 #include <optional>
 #include <string>
 
-#include "omnipose/synth.hpp"
+#include "omnipose/synth/synth.hpp"
 #include "cli.hpp"
 #include "progress_line.hpp"
 #include "quiet_opencv.hpp"
@@ -62,7 +62,7 @@ void addOptions(CLI::App& app, Args& a, Raw& raw) {
                  "donut image of the lens (default) or the unwrapped panorama")
       ->type_name("omni|panorama");
   app.add_option("--motion", a.motion,
-                 "motion script (format: include/omnipose/synth.hpp, example: "
+                 "motion script (format: include/omnipose/synth/synth.hpp, example: "
                  "tools/synth/examples/tour.yaml)")
       ->type_name("MOTION.yaml");
   app.add_option("--preset", a.preset,

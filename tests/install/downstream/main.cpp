@@ -7,7 +7,7 @@
 #include <omnipose/calibrate/lens_calibrator.hpp>
 #include <omnipose/pipeline.hpp>
 #include <omnipose/pose_t.hpp>
-#include <omnipose/synth.hpp>
+#include <omnipose/synth/synth.hpp>
 #include <filesystem>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>

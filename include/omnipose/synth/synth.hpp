@@ -39,7 +39,7 @@
 #include <vector>
 
 #include "omnipose/calibration.hpp"
-#include "omnipose/trajectory.hpp"
+#include "omnipose/io/trajectory.hpp"
 
 namespace omnipose::synth {
 

@@ -15,7 +15,7 @@
 
 #include "omnipose/calibration.hpp"
 #include "omnipose/error.hpp"
-#include "omnipose/trajectory.hpp"
+#include "omnipose/io/trajectory.hpp"
 
 namespace omnipose {
 

@@ -13,7 +13,7 @@
 #include <string>
 #include <vector>
 
-#include "omnipose/trajectory.hpp"
+#include "omnipose/io/trajectory.hpp"
 
 namespace omnipose {
 
