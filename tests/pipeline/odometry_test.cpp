@@ -80,7 +80,9 @@ TEST(Odometry, StandingStillKeepsItsFirstKeyframeAndDoesNotDrift) {
     EXPECT_EQ(r.keyframe_sequence, 0) << "frame " << k;
     EXPECT_EQ(r.frames_since_keyframe, k);
     EXPECT_EQ(r.segment, 0);
-    if (k > 0) EXPECT_EQ(r.state, TrackState::kTracked);
+    if (k > 0) {
+      EXPECT_EQ(r.state, TrackState::kTracked);
+    }
     worst = std::max(worst, rotationError(r.pose, Eigen::Isometry3d::Identity()));
   }
   ::testing::Test::RecordProperty("worst_chained_error_rad", std::to_string(worst));
@@ -246,7 +248,9 @@ TEST(Odometry, WithoutKeyframesEveryFrameIsRefinedAgainstThePreviousOne) {
   Odometry odometry(Calibration{}, {});  // the default: slots 0
   for (int k = 0; k < 5; ++k) {
     const OdometryResult r = processOk(odometry, scene.frame(Eigen::Isometry3d::Identity(), k), k / 30.0);
-    if (k > 0) EXPECT_EQ(r.keyframe_sequence, k - 1);
+    if (k > 0) {
+      EXPECT_EQ(r.keyframe_sequence, k - 1);
+    }
   }
 }
 
