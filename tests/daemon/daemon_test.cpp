@@ -20,6 +20,7 @@
 #include "bad_images.hpp"
 #include "daemon_test_support.hpp"
 #include "daemon/config.hpp"
+#include "replay.hpp"
 
 namespace omnipose {
 namespace {
@@ -732,6 +733,68 @@ TEST(Daemon, CorruptFramesMidStreamAreSkippedReportedAndMarkTheGap) {
   EXPECT_EQ(last.poses_lost, 1) << "only the first frame has no motion";
   expectPosesMatchGroundTruth(bus.poses, tmp / "d", 0.01);
   expectChainMatchesGroundTruth(bus.poses, tmp / "d", 0.01);
+}
+
+TEST(Daemon, PublishesTheSamePosesAsTheReplayThroughBadFramesAndGaps) {
+  // One frame-to-pose policy: the daemon (file source, as fast as possible) and
+  // omnipose-replay, given the same daemon.yaml (keyframes on), the same frames, two bad
+  // ones and a half-second hole in the timestamps, must chain the same poses.
+  TempDir tmp("daemon-vs-replay");
+  testing::copyDataset(yawDataset(), tmp / "d");
+  testing::writeText(tmp / "d/frames/000008.png", "garbage, not an image");
+  cv::imwrite((tmp / "d/frames/000015.png").string(), cv::Mat(360, 360, CV_8UC1, cv::Scalar(80)));
+  {
+    std::ifstream in(tmp / "d/timestamps.txt");
+    std::ostringstream out;
+    std::string name;
+    double t = 0.0;
+    int k = 0;
+    while (in >> name >> t) out << name << ' ' << std::fixed << (t + (k++ >= 19 ? 0.5 : 0.0)) << '\n';
+    testing::writeText(tmp / "d/timestamps.txt", out.str());
+  }
+  const std::string config_text = testing::fileSourceConfig(tmp / "d", "", /*realtime=*/false) +
+                                  "keyframes:\n  slots: 3\n";
+  testing::writeText(tmp / "daemon.yaml", config_text);
+
+  Bus bus;
+  Daemon d(parseConfig(config_text), stderr, nullptr, bus.sink());
+  bus.run(d, 60s);
+
+  replay::ReplayOptions options;
+  options.dataset = tmp / "d";
+  options.config = tmp / "daemon.yaml";
+  options.out_tum = tmp / "replay.tum";
+  options.progress = false;
+  const replay::ReplaySummary summary = replay::run(options, stderr);
+  const std::vector<StampedPose> replayed = readTum(tmp / "replay.tum");
+
+  ASSERT_EQ(bus.poses.size(), static_cast<std::size_t>(kFrames - 2));
+  EXPECT_EQ(summary.skipped, 2);
+  EXPECT_EQ(bus.statuses.back().frames_bad, summary.skipped);
+  int bridged = 0, lost = 0;
+  std::size_t next = 0;
+  for (const pose_t& p : bus.poses) {
+    bridged += p.track_state == pose_t::TRACK_BRIDGED;
+    if (p.track_state == pose_t::TRACK_LOST) {
+      ++lost;
+      continue;  // the replay writes no pose for a lost frame
+    }
+    ASSERT_LT(next, replayed.size()) << "frame " << p.source_index;
+    const StampedPose& r = replayed[next++];
+    SCOPED_TRACE("frame " + std::to_string(p.source_index));
+    EXPECT_NEAR(r.timestamp, p.source_timestamp, 1e-6);
+    const Eigen::Quaterniond q(p.orientation[0], p.orientation[1], p.orientation[2],
+                               p.orientation[3]);
+    EXPECT_LT(testing::rotationError(q.toRotationMatrix(), r.pose.linear()), 1e-7);
+    EXPECT_LT((Eigen::Vector3d(p.position[0], p.position[1], p.position[2]) - r.pose.translation())
+                  .norm(),
+              1e-7);
+  }
+  EXPECT_EQ(next, replayed.size());
+  EXPECT_EQ(bridged, summary.bridged);
+  EXPECT_EQ(lost, summary.lost);
+  EXPECT_EQ(bridged, 3) << "after each bad frame and after the hole";
+  EXPECT_EQ(lost, 0);
 }
 
 TEST(Daemon, VanishingDirectoryIsReportedRetriedWithBackoffAndMarksTheGap) {
