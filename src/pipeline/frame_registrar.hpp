@@ -46,6 +46,12 @@ class FrameRegistrar {
   FrameRegistrar(const Calibration& calibration, const PipelineOptions& options,
                  int keyframe_slots);
 
+  /// Keeps the workers awake between the jobs of one frame (WorkerPool::Burst): held by
+  /// the caller for the whole of one frame's processing.
+  [[nodiscard]] registration::WorkerPool::Burst frameBurst() {
+    return registration::WorkerPool::Burst(pool_);
+  }
+
   /// Unwraps `frame` into the current panorama (kBadFrame / kInvalidArgument on a frame of
   /// the wrong size or type, or black).
   Expected<void> unwrap(const cv::Mat& frame);

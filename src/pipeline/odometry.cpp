@@ -244,6 +244,7 @@ Expected<OdometryResult> Odometry::Impl::process(const cv::Mat& frame, const Fra
   if (pairwise) return processPairwise(frame, out);
 
   pipeline::FrameRegistrar& r = *registrar;
+  const auto burst = r.frameBurst();
   FrameMotion& m = out.relative;
   if (auto ok = r.unwrap(frame); !ok) {
     gap = true;

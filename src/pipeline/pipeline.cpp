@@ -78,6 +78,7 @@ void Pipeline::reset() { impl_->registrar.forgetPrevious(); }
 Expected<FrameMotion> Pipeline::process(const cv::Mat& frame) {
   pipeline::FrameRegistrar& r = impl_->registrar;
   const auto t_start = Clock::now();
+  const auto burst = r.frameBurst();
   FrameMotion result;
 
   // 1. Unwrap through the table built at start-up.

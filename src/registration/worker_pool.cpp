@@ -16,9 +16,10 @@ namespace {
 /// and leaves the core to the daemon's capture thread between frames.
 constexpr auto kSpin = std::chrono::microseconds(50);
 
-/// Spins while `waiting()` holds, for at most kSpin; returns true when it stopped holding.
+}  // namespace
+
 template <class Waiting>
-bool spinWhile(Waiting waiting) {
+bool WorkerPool::spinWhile(Waiting waiting) const {
   const auto deadline = std::chrono::steady_clock::now() + kSpin;
   for (;;) {
     for (int i = 0; i < 64; ++i) {
@@ -29,11 +30,10 @@ bool spinWhile(Waiting waiting) {
       asm volatile("yield");
 #endif
     }
-    if (std::chrono::steady_clock::now() > deadline) return !waiting();
+    if (!burst_.load(std::memory_order_relaxed) && std::chrono::steady_clock::now() > deadline)
+      return !waiting();
   }
 }
-
-}  // namespace
 
 int WorkerPool::onlineCores() {
   const long n = sysconf(_SC_NPROCESSORS_ONLN);
@@ -50,6 +50,7 @@ WorkerPool::~WorkerPool() {
   {
     std::lock_guard lock(mutex_);
     stop_ = true;
+    burst_.store(false, std::memory_order_relaxed);
   }
   start_.notify_all();
   for (auto& t : threads_) t.join();
@@ -60,6 +61,17 @@ void WorkerPool::drain(int worker) {
        i = next_.fetch_add(1, std::memory_order_relaxed))
     function_(context_, worker, i);
 }
+
+void WorkerPool::beginBurst() {
+  if (threads_.empty()) return;
+  {
+    std::lock_guard lock(mutex_);
+    burst_.store(true, std::memory_order_relaxed);
+  }
+  start_.notify_all();
+}
+
+void WorkerPool::endBurst() { burst_.store(false, std::memory_order_relaxed); }
 
 void WorkerPool::runRaw(int count, Function function, void* context) {
   if (count <= 0) return;
@@ -90,8 +102,13 @@ void WorkerPool::work(int worker) {
       seen = generation_.load(std::memory_order_acquire);
     } else {
       std::unique_lock lock(mutex_);
-      start_.wait(lock, [&] { return stop_ || generation_.load(std::memory_order_relaxed) != seen; });
+      sleeps_.fetch_add(1, std::memory_order_relaxed);
+      start_.wait(lock, [&] {
+        return stop_ || burst_.load(std::memory_order_relaxed) ||
+               generation_.load(std::memory_order_relaxed) != seen;
+      });
       if (stop_) return;
+      if (generation_.load(std::memory_order_relaxed) == seen) continue;  // a burst: spin
       seen = generation_.load(std::memory_order_relaxed);
     }
     // The job's fields were written under the mutex before generation_ changed.

@@ -12,6 +12,9 @@
 /// A worker waiting for the next job, and run() waiting for the workers, spin for up to
 /// 50 microseconds before blocking on the condition variables (worker_pool.cpp): a frame's
 /// jobs come back to back, and a futex wake-up per job cost ~5 % of the 2-thread frame.
+/// While a Burst is open (one frame's processing) they spin without that limit, so the
+/// workers wake once per frame instead of once per job after every gap (the fit between
+/// jobs); between frames they sleep (docs/PERFORMANCE.md, the realistic path).
 /// One caller at a time (the pipeline's processing thread).
 
 #include <atomic>
@@ -42,6 +45,22 @@ class WorkerPool {
     }, &task);
   }
 
+  /// Keeps the workers spinning, instead of sleeping, between the jobs of one frame: opened
+  /// at the start of a frame (waking the workers), closed at its end. No allocation.
+  class Burst {
+   public:
+    explicit Burst(WorkerPool& pool) : pool_(pool) { pool_.beginBurst(); }
+    ~Burst() { pool_.endBurst(); }
+    Burst(const Burst&) = delete;
+    Burst& operator=(const Burst&) = delete;
+
+   private:
+    WorkerPool& pool_;
+  };
+
+  /// How many times a worker has gone to sleep on the condition variable (for tests).
+  long sleeps() const { return sleeps_.load(std::memory_order_relaxed); }
+
   /// All online cores (sysconf(_SC_NPROCESSORS_ONLN)), at least 1.
   static int onlineCores();
 
@@ -50,6 +69,12 @@ class WorkerPool {
   void runRaw(int count, Function function, void* context);
   void work(int worker);
   void drain(int worker);
+  void beginBurst();
+  void endBurst();
+  /// Spins while `waiting()` holds, for at most kSpin unless a burst is open; returns true
+  /// when it stopped holding.
+  template <class Waiting>
+  bool spinWhile(Waiting waiting) const;
 
   std::vector<std::thread> threads_;
   std::mutex mutex_;
@@ -62,6 +87,9 @@ class WorkerPool {
   /// Bumped under mutex_ (release) for every job; read without it by spinning workers.
   std::atomic<unsigned long> generation_{0};
   std::atomic<int> busy_{0};  ///< pool threads still working on the current job
+  /// A Burst is open (written under mutex_ when set, so a worker deciding to sleep sees it).
+  std::atomic<bool> burst_{false};
+  std::atomic<long> sleeps_{0};
   bool stop_ = false;
 };
 

@@ -7,6 +7,12 @@
 // per run; the file is a temporary one, removed at the end). FFTW_PATIENT times candidate
 // plans, so two runs can pick different plans and differ in speed: to compare two builds,
 // give both the same file with --wisdom FILE (written by the first run, kept).
+// The realistic path (BM_OdometryRealistic) runs what the daemon and the replay run,
+// omnipose::Odometry, on a 16-frame yaw swing encoded as PNG in memory, in three ways: the
+// decoded frames back to back (what the scene content costs), each frame decoded just before
+// it is processed (what the decoder's evictions cost), and decoded and paced at one frame
+// every 33 ms (what the caches and the sleeping workers cost after 26 ms idle). Its time is
+// Odometry::process alone (manual time); the decode is a counter.
 // Run: build/bin/omnipose-bench-pipeline [--wisdom FILE] [Google Benchmark flags]
 #include <benchmark/benchmark.h>
 #include <unistd.h>
@@ -17,14 +23,19 @@
 #include <cstdio>
 #include <filesystem>
 #include <limits>
+#include <cmath>
 #include <map>
 #include <opencv2/core.hpp>
+#include <opencv2/imgcodecs.hpp>
+#include <thread>
 #include <string>
 #include <vector>
 
 #include "bench_stats.hpp"
 #include "omnipose/baselines/feature_motion_estimator.hpp"
+#include "omnipose/image_decode.hpp"
 #include "omnipose/io/trajectory.hpp"
+#include "omnipose/odometry.hpp"
 #include "omnipose/pipeline.hpp"
 #include "omnipose/synth/synth.hpp"
 
@@ -49,6 +60,33 @@ const std::array<cv::Mat, 2>& frames() {
     return out;
   }();
   return f;
+}
+
+/// A 16-frame yaw swing (0 to 16 deg and back, 2 deg a frame, with 1 deg of roll riding on
+/// it), so the sequence repeats without a jump; each frame PNG-encoded as omnipose-synth
+/// writes recordings (compression 3).
+constexpr int kSwingFrames = 16;
+const std::vector<std::vector<std::uint8_t>>& encodedSwing() {
+  static const std::vector<std::vector<std::uint8_t>> encoded = [] {
+    const auto photo =
+        std::filesystem::path(OMNIPOSE_SOURCE_DIR) / "tests/data/equirect/indoor_1024x512.jpg";
+    omnipose::synth::Renderer renderer(
+        omnipose::synth::Scene::load(photo, omnipose::synth::SceneKind::kSphere), Calibration{});
+    constexpr double kDeg = 3.14159265358979323846 / 180.0;
+    std::vector<std::vector<std::uint8_t>> out(kSwingFrames);
+    for (int k = 0; k < kSwingFrames; ++k) {
+      const int step = k <= kSwingFrames / 2 ? k : kSwingFrames - k;
+      Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+      T.linear() = omnipose::rotationFromVector(
+          Eigen::Vector3d(kDeg * std::sin(2.0 * 3.14159265358979323846 * k / kSwingFrames), 0.0,
+                          2.0 * kDeg * step));
+      cv::Mat frame;
+      renderer.render(T).convertTo(frame, CV_8U);
+      cv::imencode(".png", frame, out[k], {cv::IMWRITE_PNG_COMPRESSION, 3});
+    }
+    return out;
+  }();
+  return encoded;
 }
 
 /// Best (smallest) seconds per frame of every benchmark setting over its repetitions.
@@ -137,6 +175,81 @@ BENCHMARK(BM_PipelineFrame)
     ->ReportAggregatesOnly(true)
     ->ComputeStatistics("min", minOf);
 
+/// How BM_OdometryRealistic feeds its frames.
+enum class Feed : int {
+  kInMemory = 0,  ///< decoded once before the loop, back to back
+  kDecoded = 1,   ///< each decoded just before it is processed, back to back
+  kPaced = 2,     ///< each decoded just before it is processed, one every 33 ms
+};
+
+void BM_OdometryRealistic(benchmark::State& state) {
+  cv::setNumThreads(1);
+  const auto feed = static_cast<Feed>(state.range(0));
+  omnipose::OdometryOptions options;  // the daemon's defaults, except:
+  options.pipeline.threads = static_cast<int>(state.range(1));
+  options.pipeline.fftw_wisdom = wisdomFile().string();
+  omnipose::Odometry odometry(Calibration{}, options);
+  const auto& encoded = encodedSwing();
+  omnipose::ImageLimits limits;
+  std::vector<cv::Mat> decoded(kSwingFrames);
+  for (int k = 0; k < kSwingFrames; ++k) {
+    if (!omnipose::decodeImage(encoded[k], omnipose::ImageColour::kGrey, limits, "swing frame",
+                               decoded[k])) {
+      state.SkipWithError("cannot decode a swing frame");
+      return;
+    }
+    limits.exact_size = decoded[k].size();  // the frame size a recording declares
+  }
+  const auto period = std::chrono::microseconds(feed == Feed::kPaced ? 33333 : 0);
+  cv::Mat frame;  // reused, as the daemon's file source reuses its buffer
+  std::int64_t sequence = 0;
+  (void)odometry.process(decoded[0], {0.0, sequence++});
+  double decode_seconds = 0.0, process_seconds = 0.0;
+  auto next = Clock::now();
+  for (auto _ : state) {
+    const int k = static_cast<int>(sequence % kSwingFrames);
+    if (feed == Feed::kPaced) std::this_thread::sleep_until(next += period);
+    const cv::Mat* input = &decoded[k];
+    if (feed != Feed::kInMemory) {
+      const auto t0 = Clock::now();
+      if (!omnipose::decodeImage(encoded[k], omnipose::ImageColour::kGrey, limits, "swing frame",
+                                 frame)) {
+        state.SkipWithError("cannot decode a swing frame");
+        return;
+      }
+      decode_seconds += std::chrono::duration<double>(Clock::now() - t0).count();
+      input = &frame;
+    }
+    const auto t0 = Clock::now();
+    auto r = odometry.process(*input, {static_cast<double>(sequence) / 30.0, sequence});
+    const double seconds = std::chrono::duration<double>(Clock::now() - t0).count();
+    benchmark::DoNotOptimize(r);
+    if (!r || r->state != omnipose::TrackState::kTracked) {
+      state.SkipWithError("the swing was not tracked");
+      return;
+    }
+    ++sequence;
+    process_seconds += seconds;
+    state.SetIterationTime(seconds);
+  }
+  const double n = static_cast<double>(state.iterations());
+  static constexpr const char* kFeedName[] = {"in memory", "decoded", "decoded+paced 33ms"};
+  record("odometry " + std::string(kFeedName[static_cast<int>(feed)]) +
+             " threads=" + std::to_string(options.pipeline.threads),
+         process_seconds / n);
+  state.counters["decode_ms"] = 1e3 * decode_seconds / n;
+}
+
+BENCHMARK(BM_OdometryRealistic)
+    ->ArgNames({"feed", "threads"})
+    ->ArgsProduct({{0, 1, 2}, {1, 2}})
+    ->Iterations(96)  // six swings; 3.2 s a repetition when paced
+    ->UseManualTime()
+    ->Unit(benchmark::kMillisecond)
+    ->Repetitions(5)
+    ->ReportAggregatesOnly(true)
+    ->ComputeStatistics("min", minOf);
+
 /// The ORB 2-point rotation baseline (omnipose-replay --method orbrot), OpenCV on one core.
 void BM_OrbRotFrame(benchmark::State& state) {
   cv::setNumThreads(1);
@@ -171,9 +284,22 @@ int main(int argc, char** argv) {
   const auto orb = best().find("orbrot");
   std::printf("\nBest repetition, ms per frame, and ratio to orbrot measured in this run:\n");
   for (const auto& [key, seconds] : best()) {
+    if (key.starts_with("odometry")) continue;
     if (orb != best().end() && key != "orbrot")
       std::printf("  %-36s %7.2f ms  = %.2f x orbrot (%.2f ms)\n", key.c_str(), 1e3 * seconds,
                   seconds / orb->second, 1e3 * orb->second);
+    else
+      std::printf("  %-36s %7.2f ms\n", key.c_str(), 1e3 * seconds);
+  }
+  std::printf("\nThe realistic path (Odometry on the swing), best repetition, and its ratio to the\n"
+              "microbenchmark above (refine_iterations=1) at the same thread count:\n");
+  for (const auto& [key, seconds] : best()) {
+    if (!key.starts_with("odometry")) continue;
+    const std::string threads = key.substr(key.rfind(' ') + 1);
+    const auto micro = best().find("ifmi refine_iterations=1 " + threads);
+    if (micro != best().end())
+      std::printf("  %-36s %7.2f ms  = %.2f x the microbenchmark (%.2f ms)\n", key.c_str(),
+                  1e3 * seconds, seconds / micro->second, 1e3 * micro->second);
     else
       std::printf("  %-36s %7.2f ms\n", key.c_str(), 1e3 * seconds);
   }

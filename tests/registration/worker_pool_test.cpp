@@ -1,7 +1,8 @@
 // The worker pool (src/registration/worker_pool.hpp): every index of a job runs exactly
 // once and its writes are visible to the caller when run() returns, whether the workers were
 // spinning for the job (jobs back to back) or asleep on the condition variable (jobs further
-// apart than the spin); the pool is torn down cleanly in either state.
+// apart than the spin); within a burst the workers stay awake across gaps, and sleep after
+// it; the pool is torn down cleanly in either state.
 #include <gtest/gtest.h>
 
 #include <chrono>
@@ -49,6 +50,36 @@ TEST(WorkerPool, JobsAfterTheWorkersFellAsleepRunEveryIndexOnce) {
   }
 }
 
+/// Waits (up to 10 s, for loaded machines) until the pool's workers went to sleep at least
+/// `count` times in all; returns the count then.
+long waitForSleeps(const WorkerPool& pool, long count) {
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(10);
+  while (pool.sleeps() < count && std::chrono::steady_clock::now() < deadline)
+    std::this_thread::sleep_for(std::chrono::milliseconds(1));
+  return pool.sleeps();
+}
+
+TEST(WorkerPool, WorkersStayAwakeThroughABurstAndSleepAfterIt) {
+  WorkerPool pool(3);
+  std::vector<int> out(55), calls(55);
+  runAndCheck(pool, 0, 55, out, calls);
+  long asleep = waitForSleeps(pool, 2);  // both workers fall asleep
+  ASSERT_GE(asleep, 2);
+  {
+    WorkerPool::Burst burst(pool);  // wakes them
+    std::this_thread::sleep_for(std::chrono::milliseconds(2));
+    const long at_start = pool.sleeps();
+    for (int job = 1; job <= 10; ++job) {
+      runAndCheck(pool, job, 55, out, calls);
+      std::this_thread::sleep_for(std::chrono::milliseconds(2));  // 40 times the spin
+    }
+    EXPECT_EQ(pool.sleeps(), at_start) << "no worker slept between the jobs of a burst";
+    asleep = at_start;
+  }
+  EXPECT_GE(waitForSleeps(pool, asleep + 2), asleep + 2) << "both sleep again after the burst";
+  runAndCheck(pool, 11, 55, out, calls);
+}
+
 TEST(WorkerPool, EmptyAndSingleJobsRunOnTheCaller) {
   WorkerPool pool(2);
   int runs = 0;
@@ -70,6 +101,11 @@ TEST(WorkerPool, TearsDownWhileWorkersSpinOrSleep) {
   for (int round = 0; round < 50; ++round) {
     WorkerPool spinning(2);
     runAndCheck(spinning, round, 8, out, calls);  // destroyed right after: workers spinning
+  }
+  for (int round = 0; round < 20; ++round) {
+    WorkerPool bursting(2);
+    WorkerPool::Burst burst(bursting);  // closed just before the pool goes, workers spinning
+    runAndCheck(bursting, round, 8, out, calls);
   }
   WorkerPool sleeping(2);
   runAndCheck(sleeping, 0, 8, out, calls);
