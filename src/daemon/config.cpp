@@ -160,7 +160,6 @@ DaemonConfig DaemonConfig::parse(const std::string& text, const std::string& ori
                                  const std::filesystem::path& base_dir, Use use) {
   Reader r(origin);
   DaemonConfig c;
-  c.pipeline.threads = 0;  // the daemon and the replay use every online core by default
   c.origin = origin;
   YAML::Node root = detail::loadYaml(text, origin);
   r.checkDuplicateKeys(root);

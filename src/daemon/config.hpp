@@ -68,10 +68,17 @@ struct DaemonConfig {
   std::string origin;                 ///< where it was read from (named in messages)
   SourceConfig source;
   std::filesystem::path calibration;  ///< resolved against the config file's folder
-  PipelineOptions pipeline;           ///< includes the input kind (pipeline.unwrap.input);
-                                      ///< threads default 0 here (all online cores)
+  /// Includes the input kind (pipeline.unwrap.input). threads defaults to 0 here: the daemon
+  /// and the replay (with or without a daemon.yaml) use every online core.
+  PipelineOptions pipeline = allCores();
   KeyframeOptions keyframes;          ///< keyframes section (max_tilt_deg in degrees there)
   LcmConfig lcm;
+
+  static PipelineOptions allCores() {
+    PipelineOptions p;
+    p.threads = 0;
+    return p;
+  }
 
   /// The pipeline and keyframe settings as the Odometry takes them.
   OdometryOptions odometry() const { return {pipeline, keyframes}; }

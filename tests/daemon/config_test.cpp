@@ -69,6 +69,7 @@ TEST(DaemonConfig, PipelineThreads) {
                                "d.yaml", "/etc/omnipose");
   };
   EXPECT_EQ(parse("").pipeline.threads, 0);  // default: all online cores
+  EXPECT_EQ(DaemonConfig{}.odometry().pipeline.threads, 0) << "the replay without a daemon.yaml";
   const DaemonConfig c = parse("pipeline: {threads: 2}\n");
   EXPECT_EQ(c.pipeline.threads, 2);
   EXPECT_NE(c.describe().find("threads: 2"), std::string::npos);

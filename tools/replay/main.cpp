@@ -35,7 +35,8 @@ int main(int argc, char** argv) {
       ->type_name("EST.tum");
   app.add_option("--relative", relative_csv,
                  "per-pair CSV: rotation vector (rad), translation direction (unit), |tau|, "
-                 "residual (px), windows used, status")
+                 "residual (px), windows used, status, track state, segment, keyframe, seconds "
+                 "in all and per stage (unwrap, registration, fit, refinement)")
       ->type_name("REL.csv");
   app.add_option("--input", input, "frames are omni donuts (default) or panoramas")
       ->type_name("omni|panorama")

@@ -37,7 +37,8 @@ namespace {
 
 void writeCsvHeader(std::ofstream& csv) {
   csv << "frame,timestamp,file,prev_frame,status,rx,ry,rz,tdir_x,tdir_y,tdir_z,tau_norm,"
-         "residual_px,windows_used,windows_total,seconds,state,segment,keyframe\n";
+         "residual_px,windows_used,windows_total,seconds,state,segment,keyframe,unwrap_s,"
+         "registration_s,fit_s,refine_s\n";
 }
 
 void writeCsvRow(std::ofstream& csv, int frame, const DatasetFrame& f, const OdometryResult& r) {
@@ -45,13 +46,15 @@ void writeCsvRow(std::ofstream& csv, int frame, const DatasetFrame& f, const Odo
   const MotionEstimate& e = m.estimate;
   char buf[600];
   std::snprintf(buf, sizeof(buf),
-                "%d,%.6f,%s,%lld,%s,%.9g,%.9g,%.9g,%.9g,%.9g,%.9g,%.9g,%.4f,%d,%d,%.6f,%s,%d,%lld\n",
+                "%d,%.6f,%s,%lld,%s,%.9g,%.9g,%.9g,%.9g,%.9g,%.9g,%.9g,%.4f,%d,%d,%.6f,%s,%d,%lld,"
+                "%.6f,%.6f,%.6f,%.6f\n",
                 frame, f.timestamp, f.path.filename().c_str(),
                 static_cast<long long>(r.reference_sequence), toString(e.status), e.omega.x(),
                 e.omega.y(), e.omega.z(), m.translation_direction.x(),
                 m.translation_direction.y(), m.translation_direction.z(), m.tau_norm,
                 e.residual_rms_px, e.windows_used, e.windows_total, m.timing.total,
-                toString(r.state), r.segment, static_cast<long long>(r.keyframe_sequence));
+                toString(r.state), r.segment, static_cast<long long>(r.keyframe_sequence),
+                m.timing.unwrap, m.timing.registration, m.timing.fit, m.timing.refine);
   csv << buf;
 }
 
@@ -64,7 +67,7 @@ std::unique_ptr<Odometry> makeOdometry(const std::string& method, const Calibrat
 }
 
 ReplaySummary run(const ReplayOptions& options, std::FILE* log) {
-  OdometryOptions odometry_options;
+  OdometryOptions odometry_options = DaemonConfig{}.odometry();  // what the daemon runs
   if (options.config) {
     odometry_options =
         DaemonConfig::load(*options.config, DaemonConfig::Use::kReplay).odometry();
