@@ -82,6 +82,8 @@ struct PanoramaGeometry {
   double horizon_row = 54.5;     ///< v_h: row of the horizon (h = 0)
   double forward_column = 0.0;   ///< u0: column of the camera's +x axis
 
+  /// W x H, pixels.
+  cv::Size size() const { return {width, height}; }
   /// Radians per pixel, 2*pi/W.
   double gamma() const;
   /// Azimuth of column u, radians (not wrapped).

@@ -124,11 +124,12 @@ void parseKeyframes(Reader& r, const YAML::Node& node, KeyframeOptions& k) {
   k.max_tilt_rad = tilt_deg * std::numbers::pi / 180.0;
   r.get(node, "keyframes", "min_ring_peak", k.min_ring_peak);
   r.get(node, "keyframes", "gap_after_s", k.gap_after_s);
-  r.range(k.slots, "keyframes.slots", 0, 16, " (0 = no keyframes)");
-  r.range(k.max_translation, "keyframes.max_translation", 0.0, 1.0, " scene distances");
-  r.range(tilt_deg, "keyframes.max_tilt_deg", 0.0, 28.0, " degrees");
-  r.range(k.min_ring_peak, "keyframes.min_ring_peak", 0.001, 0.999, "");
-  r.range(k.gap_after_s, "keyframes.gap_after_s", 0.0, 3600.0, " s (0 = only reported gaps)");
+  // The ranges are the odometry's own (KeyframeOptions::validate(), checked by parse()),
+  // named by the key the user wrote (max_tilt_deg for the field max_tilt_rad).
+  for (std::string p : k.validate()) {
+    if (p.starts_with("max_tilt_rad:")) p = "max_tilt_deg:" + p.substr(13);
+    r.add("keyframes." + p);
+  }
 }
 
 void parseLcm(Reader& r, const YAML::Node& node, LcmConfig& l) {
@@ -196,7 +197,7 @@ DaemonConfig DaemonConfig::parse(const std::string& text, const std::string& ori
 std::vector<std::string> DaemonConfig::checkAgainst(const Calibration& cal,
                                                     const std::string& origin) const {
   std::vector<std::string> problems;
-  const cv::Size panorama(cal.panorama.width, cal.panorama.height);
+  const cv::Size panorama = cal.panorama.size();
   for (const auto& p : WindowRegistration::validate(panorama, pipeline.registration)) {
     std::string text = yamlProblem("registration." + p);
     if (text.find("than the panorama") != std::string::npos)

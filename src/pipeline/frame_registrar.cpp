@@ -26,10 +26,6 @@ namespace {
 constexpr double kPredictionSlackPx = 4.0;
 constexpr double kDepthSpread = 0.5;
 
-cv::Size panoramaSize(const Calibration& calibration) {
-  return {calibration.panorama.width, calibration.panorama.height};
-}
-
 }  // namespace
 
 FrameRegistrar::WisdomFile::WisdomFile(std::string file)
@@ -54,7 +50,7 @@ FrameRegistrar::FrameRegistrar(const Calibration& c, const PipelineOptions& o, i
       wisdom_(o.fftw_wisdom),
       pool_(o.threads > 0 ? o.threads : registration::WorkerPool::onlineCores()),
       unwrapper_(c, o.unwrap),
-      registration_(panoramaSize(c), o.registration,
+      registration_(c.panorama.size(), o.registration,
                     WindowRegistration::PipelineResources{pool_, wisdom_.effort()}),
       fit_(o.fit, c.panorama.gamma(), o.registration.window, registration_.windowCount()),
       warp_(c.panorama) {
@@ -71,7 +67,7 @@ FrameRegistrar::FrameRegistrar(const Calibration& c, const PipelineOptions& o, i
         " (omni.mask, registration.min_usable_fraction)");
   }
   registration_.reserveKeyframes(keyframe_slots);
-  if (keyframe_slots > 0) ring_.emplace(panoramaSize(c));
+  if (keyframe_slots > 0) ring_.emplace(c.panorama.size());
   for (int i = 0; i < keyframe_slots; ++i) keyframe_panoramas_.push_back(unwrapper_.makePanorama());
   const auto windows = static_cast<std::size_t>(registration_.windowCount());
   windows_.resize(windows);

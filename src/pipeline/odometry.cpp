@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <numbers>
 #include <optional>
 #include <stdexcept>
 
@@ -59,8 +60,9 @@ std::vector<std::string> KeyframeOptions::validate() const {
     problems.push_back("max_translation: " + std::to_string(max_translation) +
                        " is outside [0, 1] scene distances");
   if (!(max_tilt_rad >= 0.0 && max_tilt_rad <= 0.5))
-    problems.push_back("max_tilt_rad: " + std::to_string(max_tilt_rad) +
-                       " is outside [0, 0.5] radians");
+    problems.push_back("max_tilt_rad: " + std::to_string(max_tilt_rad) + " rad (" +
+                       std::to_string(max_tilt_rad * 180.0 / std::numbers::pi) +
+                       " deg) is outside [0, 0.5] radians ([0, 28.6] degrees)");
   if (!(min_ring_peak > 0.0 && min_ring_peak < 1.0))
     problems.push_back("min_ring_peak: " + std::to_string(min_ring_peak) + " is outside (0, 1)");
   if (!(gap_after_s >= 0.0 && gap_after_s <= 3600.0))

@@ -32,10 +32,6 @@ std::vector<std::string> otherProblems(const PipelineOptions& o) {
   return problems;
 }
 
-cv::Size panoramaSize(const Calibration& calibration) {
-  return {calibration.panorama.width, calibration.panorama.height};
-}
-
 }  // namespace
 
 std::vector<std::string> PipelineOptions::validate() const {
@@ -54,7 +50,7 @@ std::vector<std::string> Pipeline::validate(const Calibration& calibration,
   // the calibration is valid).
   const auto registration_problems =
       calibration_problems.empty()
-          ? WindowRegistration::validate(panoramaSize(calibration), options.registration)
+          ? WindowRegistration::validate(calibration.panorama.size(), options.registration)
           : options.registration.validate();
   for (const auto& p : registration_problems) problems.push_back("registration." + p);
   for (auto& p : otherProblems(options)) problems.push_back(std::move(p));

@@ -65,7 +65,7 @@ Renderer::Renderer(Scene scene, Calibration calibration, RenderOptions options)
 
 cv::Size Renderer::outputSize() const {
   if (options_.output == OutputKind::kPanorama) {
-    return {calibration_.panorama.width, calibration_.panorama.height};
+    return calibration_.panorama.size();
   }
   return {calibration_.omni.image_width, calibration_.omni.image_height};
 }

@@ -70,14 +70,14 @@ Unwrapper::Unwrapper(const Calibration& calibration, const Options& options)
 }
 
 cv::Size inputFrameSize(const Calibration& calibration, InputKind input) {
-  if (input == InputKind::kPanorama) return {calibration.panorama.width, calibration.panorama.height};
+  if (input == InputKind::kPanorama) return calibration.panorama.size();
   return {calibration.omni.image_width, calibration.omni.image_height};
 }
 
 cv::Size Unwrapper::inputSize() const { return inputFrameSize(calibration_, options_.input); }
 
 cv::Size Unwrapper::panoramaSize() const {
-  return {calibration_.panorama.width, calibration_.panorama.height};
+  return calibration_.panorama.size();
 }
 
 double Unwrapper::usableFraction() const {
