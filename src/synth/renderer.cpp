@@ -1,6 +1,7 @@
 #include <cmath>
 #include <numbers>
 
+#include "omnipose/so3.hpp"
 #include "omnipose/synth/synth.hpp"
 #include "synth/equirect.hpp"
 
@@ -79,6 +80,47 @@ cv::Mat Renderer::render(const Eigen::Isometry3d& T_world_camera) const {
     renderRows(T_world_camera, rows.start, rows.end, out);
   });
   return out;
+}
+
+cv::Mat Renderer::render(const std::function<Eigen::Isometry3d(double)>& pose_at,
+                         double readout_s) const {
+  cv::Mat out(outputSize(), CV_32FC1);
+  std::vector<Eigen::Isometry3d> row_pose(static_cast<std::size_t>(out.rows));
+  for (int y = 0; y < out.rows; ++y) {
+    row_pose[static_cast<std::size_t>(y)] = pose_at(rowTime(y, out.rows, readout_s));
+    if (scene_.kind == SceneKind::kBox &&
+        !scene_.box.contains(row_pose[static_cast<std::size_t>(y)].translation()))
+      throw std::invalid_argument("Renderer::render: the camera is outside the box room at row " +
+                                  std::to_string(y));
+  }
+  cv::parallel_for_(cv::Range(0, out.rows), [&](const cv::Range& rows) {
+    for (int y = rows.start; y < rows.end; ++y)
+      renderRows(row_pose[static_cast<std::size_t>(y)], y, y + 1, out);
+  });
+  return out;
+}
+
+double rowTime(int y, int rows, double readout_s) {
+  if (readout_s >= 0.0) return readout_s * y / rows;
+  return -readout_s * (rows - 1 - y) / rows;
+}
+
+Eigen::Isometry3d poseBetween(const Eigen::Isometry3d& a, const Eigen::Isometry3d& b, double s) {
+  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+  T.linear() = a.linear() * rotationFromVector(s * rotationVector(a.linear().transpose() * b.linear()));
+  T.translation() = a.translation() + s * (b.translation() - a.translation());
+  return T;
+}
+
+Eigen::Isometry3d poseAtTime(std::span<const StampedPose> trajectory, double t) {
+  if (trajectory.empty()) throw std::invalid_argument("poseAtTime: empty trajectory");
+  if (trajectory.size() == 1) return trajectory.front().pose;
+  // The step [k, k + 1] containing t (the first or last step outside the samples).
+  std::size_t k = 0;
+  while (k + 2 < trajectory.size() && trajectory[k + 1].timestamp <= t) ++k;
+  const StampedPose& a = trajectory[k];
+  const StampedPose& b = trajectory[k + 1];
+  return poseBetween(a.pose, b.pose, (t - a.timestamp) / (b.timestamp - a.timestamp));
 }
 
 void Renderer::renderRows(const Eigen::Isometry3d& T, int row_begin, int row_end,

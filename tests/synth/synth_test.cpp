@@ -384,6 +384,72 @@ TEST(SynthScene, MissingTextureNamesTheFile) {
 
 // ---------------------------------------------------------------------- anti-aliasing
 
+// ---------------------------------------------------------------------- rolling shutter
+
+TEST(SynthRollingShutter, RowTimesFollowTheReadoutInEitherDirection) {
+  EXPECT_EQ(rowTime(0, 720, 0.0267), 0.0);
+  EXPECT_DOUBLE_EQ(rowTime(360, 720, 0.0267), 0.0267 / 2);
+  EXPECT_DOUBLE_EQ(rowTime(719, 720, 0.0267), 0.0267 * 719 / 720);
+  EXPECT_EQ(rowTime(719, 720, -0.0267), 0.0) << "reversed: the last row is read first";
+  EXPECT_DOUBLE_EQ(rowTime(0, 720, -0.0267), 0.0267 * 719 / 720);
+  EXPECT_EQ(rowTime(500, 720, 0.0), 0.0) << "global shutter";
+}
+
+TEST(SynthRollingShutter, PosesBetweenFramesMoveAtConstantVelocity) {
+  Eigen::Isometry3d a = rotation({0.1, -0.2, 0.3});
+  a.translation() = Eigen::Vector3d(1.0, 2.0, 0.5);
+  Eigen::Isometry3d step = rotation({0.02, 0.01, -0.05});
+  step.translation() = Eigen::Vector3d(0.02, -0.01, 0.0);
+  const Eigen::Isometry3d b = a * step;
+  EXPECT_TRUE(poseBetween(a, b, 0.0).isApprox(a, 1e-12));
+  EXPECT_TRUE(poseBetween(a, b, 1.0).isApprox(b, 1e-12));
+  // Half way: half the rotation (in the first pose's frame) and half the translation.
+  const Eigen::Isometry3d half = poseBetween(a, b, 0.5);
+  EXPECT_TRUE(half.linear().isApprox(a.linear() * rotationFromVector({0.01, 0.005, -0.025}), 1e-12));
+  EXPECT_TRUE(half.translation().isApprox(0.5 * (a.translation() + b.translation()), 1e-12));
+  // A trajectory: inside a step, between its two samples; past the end, extrapolated.
+  const std::vector<StampedPose> trajectory = {{0.0, a}, {0.1, b}, {0.2, b}};
+  EXPECT_TRUE(poseAtTime(trajectory, 0.05).isApprox(half, 1e-12));
+  EXPECT_TRUE(poseAtTime(trajectory, 0.15).isApprox(b, 1e-12)) << "standing still";
+  EXPECT_TRUE(poseAtTime(trajectory, 0.1).isApprox(b, 1e-12));
+  EXPECT_TRUE(poseAtTime(trajectory, -0.05).isApprox(poseBetween(a, b, -0.5), 1e-12));
+  EXPECT_TRUE(poseAtTime(std::vector<StampedPose>{{0.0, a}}, 3.0).isApprox(a, 1e-12));
+}
+
+TEST(SynthRollingShutter, EveryRowIsSeenFromThePoseAtItsCaptureTime) {
+  const Renderer renderer(indoorScene(), Calibration{}, {OutputKind::kOmni, 1});
+  const std::vector<StampedPose> trajectory = {{0.0, kIdentity},
+                                               {1.0 / 30.0, rotation({0.01, 0.0, 0.06})}};
+  auto poseAt = [&](double t) { return poseAtTime(trajectory, t); };
+  const int rows = renderer.outputSize().height;
+  for (const double readout : {0.0267, -0.0267}) {
+    const cv::Mat image = renderer.render(poseAt, readout);
+    for (const int y : {0, 180, 360, 540, rows - 1}) {
+      const cv::Mat global = renderer.render(poseAt(rowTime(y, rows, readout)));
+      EXPECT_EQ(cv::norm(image.row(y), global.row(y), cv::NORM_INF), 0.0)
+          << "readout " << readout << " row " << y;
+    }
+    // Not the global-shutter frame: the middle row (across the ring), read half a readout
+    // after the timestamp, has moved.
+    const cv::Mat at_stamp = renderer.render(trajectory[0].pose);
+    EXPECT_GT(meanAbsDiff(image.row(rows / 2), at_stamp.row(rows / 2)), 1.0) << readout;
+  }
+  EXPECT_EQ(cv::norm(renderer.render(poseAt, 0.0), renderer.render(kIdentity), cv::NORM_INF), 0.0)
+      << "readout 0 is the global shutter";
+}
+
+TEST(SynthRollingShutter, ACameraLeavingTheRoomDuringReadoutIsRejectedWithTheRow) {
+  const Renderer renderer(indoorScene(SceneKind::kBox), Calibration{}, {OutputKind::kOmni, 1});
+  auto poseAt = [&](double t) { return translation({1000.0 * t, 0.0, 0.0}); };  // 1 km/s
+  try {
+    (void)renderer.render(poseAt, 0.03);
+    FAIL() << "expected std::invalid_argument";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("outside the box room at row"), std::string::npos)
+        << e.what();
+  }
+}
+
 TEST(SynthRenderer, SupersamplingHasConverged) {
   if (!std::filesystem::exists(kPark)) GTEST_SKIP() << kPark << " not present";
   const Scene park = Scene::load(kPark, SceneKind::kSphere);

@@ -137,6 +137,7 @@ TEST(ProgramCliChecks, SemanticMistakesExitTwo) {
       {"omnipose-synth", {"--texture", "t.jpg", "--out", "o", "--jpeg", "101"}, "--jpeg"},
       {"omnipose-synth", {"--texture", "t.jpg", "--out", "o", "--write-mask"}, "--write-mask"},
       {"omnipose-synth", {"--texture", "t.jpg", "--out", "o", "--scene", "cube"}, "--scene"},
+      {"omnipose-synth", {"--texture", "t.jpg", "--out", "o", "--readout", "0.05"}, "--readout"},
       {"omnipose-calibrate", {"frames"}, "--out"},
       {"omnipose-calibrate", {"--out", "c.yaml"}, "FRAMES"},
       {"omnipose-calibrate", {"frames", "--out", "c.yaml", "--direction", "up"}, "--direction"},

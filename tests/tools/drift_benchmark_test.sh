@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # The drift benchmark's parts that CI can afford (the benchmark itself takes minutes): the
-# script parses and prints its usage, and tools/drift/damage_frames.py damages a small
-# dataset exactly as documented without touching a hard-linked copy.
+# script parses and prints its usage, tools/drift/damage_frames.py damages a small
+# dataset exactly as documented without touching a hard-linked copy, and
+# tools/drift/bridge_error.py (tools/drift/bridge_sweep.sh) measures a bridged rotation.
 # Usage: drift_benchmark_test.sh SOURCE_DIR
 set -euo pipefail
 src=$1
@@ -59,4 +60,25 @@ out=$(python3 "$src/tools/drift/damage_frames.py" "$work/b" --remove 5-2 2>&1) &
 grep -q "need 0 <= A <= B" <<< "$out" || fail "message: $out"
 out=$(python3 "$src/tools/drift/damage_frames.py" "$work/none" --remove 1 2>&1) && fail "missing dataset accepted"
 grep -q "$work/none/frames: no such directory" <<< "$out" || fail "message: $out"
+
+# The bridge sweep parses; its error measure: truth turning 10 deg about z from frame 0 to 3
+# (frames 1-2 removed), the estimate 9 deg: 1 deg of error; no estimate at frame 3: lost.
+bash -n "$src/tools/drift/bridge_sweep.sh" || fail "tools/drift/bridge_sweep.sh: syntax"
+python3 - "$work" <<'PY'
+import math, sys
+def line(t, deg):
+    h = math.radians(deg) / 2
+    return f"{t:.6f} 0 0 0 0 0 {math.sin(h):.9f} {math.cos(h):.9f}\n"
+open(sys.argv[1] + "/gt.tum", "w").write("# t x y z qx qy qz qw\n" + "".join(line(i / 30, 5 + 10 * (i == 3)) for i in range(5)))
+open(sys.argv[1] + "/est.tum", "w").write("".join(line(i / 30, 5 + 9 * (i == 3)) for i in (0, 3, 4)))
+open(sys.argv[1] + "/lost.tum", "w").write("".join(line(i / 30, 5) for i in (0, 4)))
+PY
+out=$(python3 "$src/tools/drift/bridge_error.py" "$work/gt.tum" "$work/est.tum" 1 2)
+grep -q '^first=1 count=2 true_deg=10.00 est_yaw_deg=9.000 true_yaw_deg=10.000 error_deg=1.000$' <<< "$out" ||
+  fail "bridge_error: $out"
+out=$(python3 "$src/tools/drift/bridge_error.py" "$work/gt.tum" "$work/lost.tum" 1 2)
+[ "$out" = "first=1 count=2 true_deg=10.00 lost" ] || fail "bridge_error without a pose: $out"
+out=$(python3 "$src/tools/drift/bridge_error.py" "$work/gt.tum" "$work/est.tum" 3 2 2>&1) &&
+  fail "an outage reaching the last frame accepted"
+grep -q "no frame on both sides" <<< "$out" || fail "message: $out"
 echo "drift_benchmark_test: PASS"

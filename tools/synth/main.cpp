@@ -2,6 +2,7 @@
 /// with exact ground truth, through the exact renderer of omnipose::synth.
 
 #include <chrono>
+#include <cmath>
 #include <cstdio>
 #include <iostream>
 #include <optional>
@@ -34,6 +35,7 @@ struct Args {
   std::optional<int> frames;
   std::optional<std::uint64_t> seed;
   double noise = 0.0, blur = 0.0, exposure_gain = 0.0, exposure_offset = 0.0;
+  double readout = 0.0;  ///< rolling shutter readout, seconds (0 = global shutter)
   int jpeg = 0;
   int supersample = synth::RenderOptions{}.supersample;
   std::optional<synth::Occluder> occluder;
@@ -91,6 +93,11 @@ void addOptions(CLI::App& app, Args& a, Raw& raw) {
                  "lens and panorama; default: 720x720, centre 359.5, radii 120/300 px, "
                  "panorama 1100x110, horizon row 54.5")
       ->type_name("CAL.yaml");
+  app.add_option("--readout", a.readout,
+                 "rolling shutter: rows read out over S seconds, first to last (negative: last "
+                 "to first), each row rendered from the pose at its own capture time along the "
+                 "motion between frames; |S| at most one frame interval (default 0: global shutter)")
+      ->type_name("S");
   app.add_option("--supersample", a.supersample, "K x K rays per pixel (default 3)")
       ->type_name("K");
   app.add_option("--occluder", raw.occluder,
@@ -144,6 +151,11 @@ int run(const Args& a) {
                                : synth::MotionScript::preset(a.preset.empty() ? "demo" : a.preset);
   if (a.frames) script.frames = *a.frames;
   if (a.seed) script.seed = *a.seed;
+  if (!(std::abs(a.readout) <= 1.0 / script.frame_rate)) {
+    throw UsageError("--readout: |" + std::to_string(a.readout) +
+                     "| s is longer than the frame interval of " + motion_name + " (" +
+                     std::to_string(1.0 / script.frame_rate) + " s)");
+  }
 
   const synth::SceneKind kind =
       a.scene.value_or(script.translates() ? synth::SceneKind::kBox : synth::SceneKind::kSphere);
@@ -180,7 +192,12 @@ int run(const Args& a) {
   const auto start = std::chrono::steady_clock::now();
   tools::ProgressLine progress(stderr, static_cast<int>(poses.size()), "frames", !a.quiet);
   for (std::size_t k = 0; k < poses.size(); ++k) {
-    cv::Mat image = renderer.render(poses[k].pose);
+    const double stamp = poses[k].timestamp;
+    cv::Mat image =
+        a.readout == 0.0
+            ? renderer.render(poses[k].pose)
+            : renderer.render([&](double t) { return synth::poseAtTime(poses, stamp + t); },
+                              a.readout);
     if (a.occluder) a.occluder->paint(image, calibration);
     writer.addFrame(synth::degrade(image, degrade, k), poses[k]);
     progress.update(static_cast<int>(k + 1));
@@ -199,12 +216,19 @@ int run(const Args& a) {
                   script.vibration->max_hz);
     vibration = text;
   }
-  std::printf("omnipose-synth: wrote %zu %s frames %dx%d (%s scene, %s, seed %llu%s) to %s "
+  std::string shutter;
+  if (a.readout != 0.0) {
+    char text[96];
+    std::snprintf(text, sizeof(text), ", rolling shutter %.4g s %s", std::abs(a.readout),
+                  a.readout > 0.0 ? "first row first" : "last row first");
+    shutter = text;
+  }
+  std::printf("omnipose-synth: wrote %zu %s frames %dx%d (%s scene, %s, seed %llu%s%s) to %s "
               "in %.1f s (%.0f ms/frame)\n",
               poses.size(), synth::toString(a.output), size.width, size.height,
               synth::toString(kind), motion_name.c_str(),
-              static_cast<unsigned long long>(script.seed), vibration.c_str(), a.out.c_str(),
-              seconds, 1000.0 * seconds / poses.size());
+              static_cast<unsigned long long>(script.seed), vibration.c_str(), shutter.c_str(),
+              a.out.c_str(), seconds, 1000.0 * seconds / poses.size());
   return 0;
 }
 

@@ -32,8 +32,10 @@
 #include <Eigen/Geometry>
 #include <cstdint>
 #include <filesystem>
+#include <functional>
 #include <optional>
 #include <opencv2/core.hpp>
+#include <span>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -138,6 +140,13 @@ class Renderer {
   /// room. Runs on all cores (cv::parallel_for_ over rows).
   cv::Mat render(const Eigen::Isometry3d& T_world_camera) const;
 
+  /// Rolling shutter: as render(), but output row y (of the omni image: the sensor's rows;
+  /// of the panorama when that is the output) is seen from pose_at(rowTime(y, H,
+  /// readout_s)), H = outputSize().height: t is seconds after the frame's timestamp, the
+  /// capture of the row read first. readout_s = 0 gives render(pose_at(0)). `pose_at` is
+  /// called once per row, on the calling thread. Throws as render() for any row's pose.
+  cv::Mat render(const std::function<Eigen::Isometry3d(double)>& pose_at, double readout_s) const;
+
   /// Width x height of render()'s result, pixels.
   cv::Size outputSize() const;
   const Calibration& calibration() const { return calibration_; }
@@ -162,6 +171,23 @@ class Renderer {
   RenderOptions options_;
   std::vector<cv::Mat> pyramid_;  ///< texture mip levels, level 0 = scene_.texture
 };
+
+/// Capture time of row y of a frame of `rows` rows, seconds after the frame's timestamp (the
+/// capture of the row read first): readout_s * y / rows; a negative readout_s reads the last
+/// row first, |readout_s| * (rows - 1 - y) / rows. readout_s = 0: every row at 0 (global
+/// shutter).
+double rowTime(int y, int rows, double readout_s);
+
+/// The pose the fraction s of the way from `a` to `b`: rotation at constant angular velocity
+/// (a.linear() * exp(s * log(a.linear()^T * b.linear()))), translation linear; s outside
+/// [0, 1] extrapolates the same motion.
+Eigen::Isometry3d poseBetween(const Eigen::Isometry3d& a, const Eigen::Isometry3d& b, double s);
+
+/// The pose at time t (seconds) of a trajectory sampled at increasing timestamps: poseBetween
+/// the two samples around t, so the motion between frames is the constant-velocity step
+/// from one to the next; before the first sample or after the last, the nearest step
+/// extrapolated. A single sample is returned as it is. Requires a non-empty trajectory.
+Eigen::Isometry3d poseAtTime(std::span<const StampedPose> trajectory, double t);
 
 // ---------------------------------------------------------------------------------------
 // Static occluder (what the robot sees of itself)
