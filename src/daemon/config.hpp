@@ -74,6 +74,7 @@ struct DaemonConfig {
   KeyframeOptions keyframes;          ///< keyframes section (max_tilt_deg in degrees there)
   LcmConfig lcm;
 
+  /// The pipeline defaults of the daemon and the replay: the library's, on every online core.
   static PipelineOptions allCores() {
     PipelineOptions p;
     p.threads = 0;
