@@ -27,6 +27,15 @@ Eigen::Isometry3d isometry(const Eigen::Matrix3d& R, const Eigen::Vector3d& t) {
   return T;
 }
 
+/// `T` with its rotation projected back onto SO(3). The chain composes every pose from the
+/// keyframe's (K * (K^-1 * predicted)), and an Isometry's inverse is its transpose, so a
+/// rounding error in K's orthogonality would double at every such step.
+Eigen::Isometry3d orthonormalized(const Eigen::Isometry3d& T) {
+  Eigen::Isometry3d out = T;
+  out.linear() = Eigen::Quaterniond(T.linear()).normalized().toRotationMatrix();
+  return out;
+}
+
 /// Angle between the z axes of two cameras whose relative rotation is R: their tilt.
 double tilt(const Eigen::Matrix3d& R) { return std::acos(std::clamp(R(2, 2), -1.0, 1.0)); }
 
@@ -193,8 +202,9 @@ void Odometry::Impl::addKeyframe(const Eigen::Isometry3d& at) {
   useKeyframe(slot);
 }
 
-void Odometry::Impl::finish(OdometryResult& out, const Eigen::Isometry3d& T,
+void Odometry::Impl::finish(OdometryResult& out, const Eigen::Isometry3d& T_estimated,
                             const pipeline::PassResult& pass, TrackState state) {
+  const Eigen::Isometry3d T = orthonormalized(T_estimated);
   out.state = state;
   const FrameMotion keep_timing = out.relative;
   out.relative.estimate = pass.estimate;
@@ -227,7 +237,7 @@ bool Odometry::Impl::bridge(OdometryResult& out) {
   registrar->makeCurrentPrevious();
   finish(out, T, pass, TrackState::kBridged);
   // Without keyframes the one slot follows the last good frame: this one.
-  if (keyframe_options.slots == 0) addKeyframe(T);
+  if (keyframe_options.slots == 0) addKeyframe(pose);
   gap = false;
   return true;
 }
@@ -318,7 +328,7 @@ Expected<OdometryResult> Odometry::Impl::process(const cv::Mat& frame, const Fra
   const Eigen::Isometry3d T = pose * isometry(pass.rotation, pass.estimate.tau);
   r.advance();
   finish(out, T, pass, TrackState::kTracked);
-  addKeyframe(T);  // without keyframes (slots 0) its one slot follows the previous frame
+  addKeyframe(pose);  // without keyframes (slots 0) its one slot follows the previous frame
   m.timing.refine = secondsSince(t_refine);
   finishTiming();
   return out;

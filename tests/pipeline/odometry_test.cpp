@@ -243,6 +243,24 @@ TEST(Odometry, TranslationAndTiltSwitchTheKeyframe) {
   }
 }
 
+TEST(Odometry, ChainedRotationsStayOrthonormalThroughManyKeyframeSwitches) {
+  // Driving and turning in a room switches the keyframe every few frames; every pose is
+  // composed from a keyframe's (K * (K^-1 * predicted)), so an orthogonality error must not
+  // be carried from keyframe to keyframe (it grew to 5e-5 in 60 frames before).
+  Renderings room(synth::SceneKind::kBox);
+  Odometry odometry(Calibration{}, withKeyframes());
+  double worst = 0.0;
+  for (int k = 0; k < 60; ++k) {
+    Eigen::Isometry3d pose = attitude(0.0, 0.0, 0.5 * k * kDeg);
+    pose.translation() = Eigen::Vector3d(0.03 * k, 0.01 * k, 0.0);
+    const OdometryResult r = processOk(odometry, room.frame(pose, k), k / 30.0);
+    const Eigen::Matrix3d R = r.pose.linear();
+    worst = std::max(worst, (R.transpose() * R - Eigen::Matrix3d::Identity()).norm());
+  }
+  ::testing::Test::RecordProperty("worst_orthogonality_error", std::to_string(worst));
+  EXPECT_LT(worst, 1e-12);
+}
+
 TEST(Odometry, WithoutKeyframesEveryFrameIsRefinedAgainstThePreviousOne) {
   Renderings scene;
   Odometry odometry(Calibration{}, {});  // the default: slots 0
