@@ -22,13 +22,14 @@
 #include <chrono>
 #include <cstdio>
 #include <filesystem>
-#include <limits>
 #include <cmath>
+#include <limits>
 #include <map>
+#include <numbers>
 #include <opencv2/core.hpp>
 #include <opencv2/imgcodecs.hpp>
-#include <thread>
 #include <string>
+#include <thread>
 #include <vector>
 
 #include "bench_stats.hpp"
@@ -45,13 +46,20 @@ using omnipose::Calibration;
 using omnipose::Pipeline;
 using omnipose::PipelineOptions;
 
+/// The renderer of the bundled indoor photo (sphere scene, default calibration).
+const omnipose::synth::Renderer& indoorRenderer() {
+  static const omnipose::synth::Renderer renderer(
+      omnipose::synth::Scene::load(
+          std::filesystem::path(OMNIPOSE_SOURCE_DIR) / "tests/data/equirect/indoor_1024x512.jpg",
+          omnipose::synth::SceneKind::kSphere),
+      Calibration{});
+  return renderer;
+}
+
 /// Two rendered omni frames 3 degrees of roll+yaw apart (the bundled indoor photo).
 const std::array<cv::Mat, 2>& frames() {
   static const std::array<cv::Mat, 2> f = [] {
-    const auto photo =
-        std::filesystem::path(OMNIPOSE_SOURCE_DIR) / "tests/data/equirect/indoor_1024x512.jpg";
-    omnipose::synth::Renderer renderer(
-        omnipose::synth::Scene::load(photo, omnipose::synth::SceneKind::kSphere), Calibration{});
+    const omnipose::synth::Renderer& renderer = indoorRenderer();
     Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
     T.linear() = omnipose::rotationFromVector(Eigen::Vector3d(0.03, 0.0, 0.04));
     std::array<cv::Mat, 2> out;
@@ -68,17 +76,14 @@ const std::array<cv::Mat, 2>& frames() {
 constexpr int kSwingFrames = 16;
 const std::vector<std::vector<std::uint8_t>>& encodedSwing() {
   static const std::vector<std::vector<std::uint8_t>> encoded = [] {
-    const auto photo =
-        std::filesystem::path(OMNIPOSE_SOURCE_DIR) / "tests/data/equirect/indoor_1024x512.jpg";
-    omnipose::synth::Renderer renderer(
-        omnipose::synth::Scene::load(photo, omnipose::synth::SceneKind::kSphere), Calibration{});
-    constexpr double kDeg = 3.14159265358979323846 / 180.0;
+    const omnipose::synth::Renderer& renderer = indoorRenderer();
+    constexpr double kDeg = std::numbers::pi / 180.0;
     std::vector<std::vector<std::uint8_t>> out(kSwingFrames);
     for (int k = 0; k < kSwingFrames; ++k) {
       const int step = k <= kSwingFrames / 2 ? k : kSwingFrames - k;
       Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
       T.linear() = omnipose::rotationFromVector(
-          Eigen::Vector3d(kDeg * std::sin(2.0 * 3.14159265358979323846 * k / kSwingFrames), 0.0,
+          Eigen::Vector3d(kDeg * std::sin(2.0 * std::numbers::pi * k / kSwingFrames), 0.0,
                           2.0 * kDeg * step));
       cv::Mat frame;
       renderer.render(T).convertTo(frame, CV_8U);
