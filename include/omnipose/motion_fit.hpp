@@ -82,6 +82,13 @@ class MotionFit {
     /// rotation. Solved jointly with (omega, tau) by Gauss-Newton (Schur complement).
     bool per_window_depth = true;
     double depth_prior_sigma = 0.5;  ///< prior spread of the relative inverse depth around 1
+    /// Each window's du and dv equations weighted by their own variance
+    /// (WindowMotion::var_du, var_dv): the confidence divided by the variance over the
+    /// pair's median window variance where that ratio is above 1, so a window that sees
+    /// only vertical edges gives its du and hardly its dv; the loss and the inlier test
+    /// read its residuals in units of its own standard deviation. false: the confidence
+    /// alone weighs both (the paper). Windows without variances (0) count as the median.
+    bool window_covariance = true;
 
     /// Every problem, one message per bad field, each starting with the field's name
     /// ("median: 4 must be odd (or 0/1 = off)"); empty when valid.

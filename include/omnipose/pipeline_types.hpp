@@ -20,7 +20,8 @@ struct StageTiming {
 /// Motion of the current frame relative to the previous one.
 struct FrameMotion {
   bool has_motion = false;  ///< false for the first frame after start/reset (no pair yet)
-  MotionEstimate estimate;  ///< omega and tau after refinement; covariance of the last pass
+  MotionEstimate estimate;  ///< omega and tau after refinement; covariance of the last pass,
+                            ///< times windowOverlapFactor() (window_motion.hpp)
   Eigen::Matrix3d rotation = Eigen::Matrix3d::Identity();  ///< R = exp([omega]x)
   Eigen::Vector3d translation_direction = Eigen::Vector3d::Zero();  ///< t/|t|, 0 if |tau|=0
   double tau_norm = 0.0;    ///< |tau| = |t| / rho

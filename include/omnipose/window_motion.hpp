@@ -4,6 +4,7 @@
 /// consumes, and the window taper both of them depend on (one definition, so the fit's
 /// window attenuation kappa always describes the taper the registration applied).
 
+#include <algorithm>
 #include <cmath>
 #include <numbers>
 
@@ -28,6 +29,15 @@ struct WindowMotion {
   double rs_confidence = 0.0;  ///< rotation/scale peak quality in [0, 1]; 0 = not measured
                                ///< (estimate_rotation_scale off), no usable peak, or the
                                ///< peak on the border of the prior (true value outside it)
+  /// Covariance of (du, dv), pixels^2, for panorama noise of unit variance (grey levels^2):
+  /// multiply by the noise variance for the absolute figure (the motion fit estimates that
+  /// factor from its residuals). It comes from how precisely each spectral frequency of the
+  /// two windows is known (PhaseCorrelator::shiftCovariance, src/registration): a window
+  /// whose content runs in one direction only (a door frame, blinds) knows its shift
+  /// across it and not along it. 0 when not measured (confidence 0).
+  double var_du = 0.0;
+  double var_dv = 0.0;
+  double cov_du_dv = 0.0;
   bool valid = false;       ///< false: window has no texture / no peak (confidence below
                             ///< min_confidence); ignore it. du, dv = 0 for a textureless window
   bool masked = false;      ///< mostly masked (setValidity): not measured, valid = false
@@ -38,6 +48,28 @@ struct WindowMotion {
 /// symmetric about the window centre (length - 1) / 2. Requires 0 <= j < length.
 inline double windowTaper(int j, int length) {
   return 0.5 - 0.5 * std::cos(2.0 * std::numbers::pi * (j + 0.5) / length);
+}
+
+/// How much more a least-squares fit over windows of `length` samples placed every `step`
+/// samples varies than it would if the windows' errors were independent: the sum over
+/// lags j of sum_x h(x)^2 h(x + j step)^2 / sum_x h(x)^4 (h = windowTaper; 1 when the windows
+/// do not overlap). Errors caused by pixels that neighbouring windows share (noise, the
+/// resampling) are correlated that much, and the fit's covariance, which treats windows as
+/// independent, is multiplied by it (2.83 at the paper's L 110, d 20). Requires length,
+/// step > 0.
+inline double windowOverlapFactor(int length, int step) {
+  double overlap = 0.0, self = 0.0;
+  for (int x = 0; x < length; ++x) {
+    const double h = windowTaper(x, length);
+    self += h * h * h * h;
+  }
+  for (int lag = -(length / step) * step; lag < length; lag += step) {
+    for (int x = std::max(0, -lag); x < length && x + lag < length; ++x) {
+      const double a = windowTaper(x, length), b = windowTaper(x + lag, length);
+      overlap += a * a * b * b;
+    }
+  }
+  return overlap / self;
 }
 
 }  // namespace omnipose

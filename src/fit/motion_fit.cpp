@@ -18,6 +18,11 @@ namespace {
 
 constexpr int kDu = 0, kDv = 1, kRotation = 2, kLogScale = 3;
 constexpr double kMadToSigma = 1.4826;
+/// Smallest relative standard deviation of a window's equation (Options::window_covariance):
+/// a window's variance only ever lowers the weight its confidence gives it. Letting the
+/// windows below the median variance weigh up to 4x more (0.5) cost translation direction
+/// and park accuracy (docs/results/ANALYSIS.md, window covariance).
+constexpr double kMinRelativeSigma = 1.0;
 
 /// Median of a small array (modified in place).
 double medianOf(double* begin, int n) {
@@ -63,12 +68,14 @@ struct MotionFit::Impl {
     Eigen::Matrix<double, 1, 6> a;   ///< design row; translation columns times depth[window]
     Eigen::Matrix<double, 1, 6> a0;  ///< design row for uniform depth
     double b = 0.0;      ///< measurement in model units (radians or ln s)
-    double scale = 1.0;  ///< pixels per model unit (1/gamma for du/dv), for the loss
+    double scale = 1.0;  ///< loss pixels per model unit: 1/gamma for du/dv, over the row's
+                         ///< relative standard deviation (Options::window_covariance)
     double prior_weight = 1.0;  ///< confidence / noise weight
     double weight = 1.0;        ///< current IRLS weight
     int kind = 0;               ///< 0 du, 1 dv, 2 rotation, 3 log scale
     int window = 0;             ///< index of the window the row belongs to
     double leverage = 0.0;      ///< share of the row absorbed by its window's inverse depth
+    double sd = 1.0;  ///< relative standard deviation (Options::window_covariance)
   };
 
   /// Allocates the workspace for `max_windows` windows (arguments already validated).
@@ -76,6 +83,12 @@ struct MotionFit::Impl {
 
   MotionEstimate fit(std::span<const WindowMotion> windows, double forward_column);
   int buildTranslationRows(std::span<const WindowMotion> windows, double forward_column);
+  /// Relative standard deviations of the kept windows' du or dv (window_covariance):
+  /// sqrt(variance / median variance), floored at kMinRelativeSigma; 1 when off or unknown.
+  /// `variance(w)` is window w's variance; the median is over the kept windows with one.
+  /// Uses scratch[2n, 3n); `out` has n entries.
+  template <typename Variance>
+  void relativeSigmas(std::span<const WindowMotion> windows, Variance variance, double* out);
   Eigen::Matrix<double, 6, 1> irls(int n_rows, int& iterations, bool& ok);
   double robustSigma(int kind, const Eigen::Matrix<double, 6, 1>& x, int n_rows);
   /// Noise of the shift rows in radians (the larger of du and dv, floored at 0.01 px).
@@ -188,17 +201,49 @@ int MotionFit::Impl::buildTranslationRows(std::span<const WindowMotion> windows,
     }
   }
 
+  // Relative standard deviations of du (scratch[0, n)) and dv (scratch[n, 2n)).
+  double* const sd_u = scratch.data();
+  double* const sd_v = sd_u + n;
+  relativeSigmas(windows, [](const WindowMotion& w) { return w.var_du; }, sd_u);
+  relativeSigmas(windows, [](const WindowMotion& w) { return w.var_dv; }, sd_v);
   int r = 0;
   for (int k = 0; k < n; ++k) {
     if (!keep[k]) continue;
     const double theta = gamma * (windows[k].center_u - forward_column);
     const ModelRows m = modelRows(theta, kappa);
     const double conf = windows[k].confidence;
-    rows[r] = Row{m.du, m.du, windows[k].du * gamma, 1.0 / gamma, conf, conf, kDu, k};
-    rows[r + 1] = Row{m.dv, m.dv, windows[k].dv * gamma, 1.0 / gamma, conf, conf, kDv, k};
+    const double cu = conf / (sd_u[k] * sd_u[k]), cv = conf / (sd_v[k] * sd_v[k]);
+    rows[r] = Row{m.du, m.du, windows[k].du * gamma, 1.0 / (gamma * sd_u[k]), cu, cu, kDu, k};
+    rows[r].sd = sd_u[k];
+    rows[r + 1] = Row{m.dv, m.dv, windows[k].dv * gamma, 1.0 / (gamma * sd_v[k]), cv, cv, kDv, k};
+    rows[r + 1].sd = sd_v[k];
     r += 2;
   }
   return r;
+}
+
+template <typename Variance>
+void MotionFit::Impl::relativeSigmas(std::span<const WindowMotion> windows, Variance variance,
+                                     double* out) {
+  const int n = static_cast<int>(windows.size());
+  for (int k = 0; k < n; ++k) out[k] = 1.0;
+  if (!options.window_covariance) return;
+
+  // The median over the kept windows with a variance, in the second half of scratch (the
+  // first 2n entries hold the outputs).
+  double* const known = scratch.data() + 2 * n;
+  int m = 0;
+  for (int k = 0; k < n; ++k) {
+    const double v = variance(windows[k]);
+    if (keep[k] && v > 0 && std::isfinite(v)) known[m++] = v;
+  }
+  if (m == 0) return;
+  const double median = medianOf(known, m);
+  for (int k = 0; k < n; ++k) {
+    const double v = variance(windows[k]);
+    if (keep[k] && v > 0 && std::isfinite(v))
+      out[k] = std::max(std::sqrt(v / median), kMinRelativeSigma);
+  }
 }
 
 double MotionFit::Impl::shiftSigma(const Eigen::Matrix<double, 6, 1>& x, int n_rows) {
@@ -210,7 +255,8 @@ double MotionFit::Impl::robustSigma(int kind, const Eigen::Matrix<double, 6, 1>&
   int m = 0;
   for (int i = 0; i < n_rows; ++i) {
     if (rows[i].kind != kind) continue;
-    scratch[m++] = std::abs(rows[i].a.dot(x) - rows[i].b);
+    // Standardized by the row's relative standard deviation: the noise of the median window.
+    scratch[m++] = std::abs(rows[i].a.dot(x) - rows[i].b) / rows[i].sd;
   }
   if (m == 0) return 0.0;
   return kMadToSigma * medianOf(scratch.data(), m);
@@ -265,7 +311,7 @@ Eigen::Matrix<double, 6, 1> MotionFit::Impl::fitDepth(std::span<const WindowMoti
       int m = 0;
       for (int i = 0; i < n_rows; ++i) {
         if (rows[i].kind == kDu || rows[i].kind == kDv)
-          scratch[m++] = standardizedResidualPx(i, x) / rows[i].scale;
+          scratch[m++] = standardizedResidualPx(i, x) / (rows[i].scale * rows[i].sd);
       }
       if (m == 0) break;
       sigma_t = std::max(kMadToSigma * medianOf(scratch.data(), m), 0.01 * gamma);
@@ -538,7 +584,7 @@ MotionEstimate MotionFit::Impl::fit(std::span<const WindowMotion> windows,
     const double r = row.a.dot(x) - row.b;
     wrr += row.weight * r * r;
     if (row.kind == kDu || row.kind == kDv) {
-      shift_rr += (r * row.scale) * (r * row.scale);
+      shift_rr += (r / gamma) * (r / gamma);
       ++shift_n;
     }
   }

@@ -53,6 +53,7 @@ FrameRegistrar::FrameRegistrar(const Calibration& c, const PipelineOptions& o, i
       registration_(c.panorama.size(), o.registration,
                     WindowRegistration::PipelineResources{pool_, wisdom_.effort()}),
       fit_(o.fit, c.panorama.gamma(), o.registration.window, registration_.windowCount()),
+      window_overlap_(windowOverlapFactor(o.registration.window, o.registration.step)),
       warp_(c.panorama) {
   panorama_ = unwrapper_.makePanorama();
   warped_ = unwrapper_.makePanorama();
@@ -104,7 +105,7 @@ std::optional<MotionEstimate> FrameRegistrar::firstPass(double* fit_seconds) {
                                          : std::span<const WindowMotion>()))
     return std::nullopt;
   const auto t_fit = std::chrono::steady_clock::now();
-  MotionEstimate estimate = fit_.fit(windows_, calibration_.panorama.forward_column);
+  MotionEstimate estimate = fitWindows(windows_);
   if (fit_seconds != nullptr)
     *fit_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t_fit).count();
   return estimate;
@@ -118,7 +119,13 @@ std::optional<MotionEstimate> FrameRegistrar::alignedPass(const Eigen::Matrix3d&
                                          : std::span<const WindowMotion>(),
                              {}, slot))
     return std::nullopt;
-  return fit_.fit(windows_, calibration_.panorama.forward_column);
+  return fitWindows(windows_);
+}
+
+MotionEstimate FrameRegistrar::fitWindows(std::span<const WindowMotion> windows) {
+  MotionEstimate estimate = fit_.fit(windows, calibration_.panorama.forward_column);
+  estimate.covariance *= window_overlap_;
+  return estimate;
 }
 
 PassResult FrameRegistrar::refine(const MotionEstimate& start, const Eigen::Matrix3d& R0,
@@ -127,7 +134,6 @@ PassResult FrameRegistrar::refine(const MotionEstimate& start, const Eigen::Matr
   // left (residual rotation + translation), compose the rotation. The windows' rotation and
   // scale are searched again on the de-rotated panorama, their translation within a band
   // of rows around the dv the last fit predicts (predictRefinementShifts()).
-  const double u0 = calibration_.panorama.forward_column;
   PassResult out;
   MotionEstimate est = start;
   Eigen::Matrix3d R = R0;
@@ -140,7 +146,7 @@ PassResult FrameRegistrar::refine(const MotionEstimate& start, const Eigen::Matr
     derotate(R_warp);
     predictRefinementShifts(tau, last_fit);
     if (!registration_.measure(warped_, refine_windows_, false, {}, expected_dv_, against)) break;
-    const MotionEstimate residual = fit_.fit(refine_windows_, u0);
+    const MotionEstimate residual = fitWindows(refine_windows_);
     if (residual.status == FitStatus::kLost) {
       est.status = FitStatus::kDegraded;  // keep the estimate so far, trust it less
       break;

@@ -117,6 +117,8 @@ class FrameRegistrar {
   /// tilt is under one column's angle (else `R`): the de-rotation a refinement pass warps by.
   Eigen::Matrix3d wholeColumnYaw(const Eigen::Matrix3d& R) const;
   void derotate(const Eigen::Matrix3d& R);
+  /// The motion fit of `windows`, its covariance multiplied by window_overlap_.
+  MotionEstimate fitWindows(std::span<const WindowMotion> windows);
 
   Calibration calibration_;
   PipelineOptions options_;
@@ -125,6 +127,9 @@ class FrameRegistrar {
   Unwrapper unwrapper_;
   WindowRegistration registration_;
   MotionFit fit_;
+  /// windowOverlapFactor() of the registration's windows: neighbouring windows share
+  /// pixels, so their errors are not independent as the fit's covariance assumes.
+  double window_overlap_;
   PanoramaWarp warp_;
   std::optional<RingAlignment> ring_;
   cv::Mat panorama_, warped_;

@@ -69,6 +69,7 @@ PhaseCorrelator::PhaseCorrelator(int n0, int n1, double sigma0, double sigma1,
       max_reach0_(std::max(max_reach0, 0.0)),
       near_reach0_(std::isfinite(near_reach0) ? std::max(near_reach0, 0.0) : 0.0),
       sqrt_w2_(2 * static_cast<std::size_t>(s0_) * band_cols_),
+      noise_weights_(3 * static_cast<std::size_t>(s0_) * band_cols_),
       band_(static_cast<std::size_t>(s0_) * band_cols_),
       surface_(static_cast<std::size_t>(s0_) * s1_) {
   // Surface rows read by a search of |d0| <= reach: the searched |d0| <= floor(reach / spacing)
@@ -95,6 +96,7 @@ PhaseCorrelator::PhaseCorrelator(int n0, int n1, double sigma0, double sigma1,
   // Gaussian weight W(w) = exp(-(sigma0^2 w0^2 + sigma1^2 w1^2) / 2) on the band.
   const double two_pi = 2.0 * std::numbers::pi;
   double sum_w = 0.0, sum_w2 = 0.0;
+  const std::size_t bins = static_cast<std::size_t>(s0_) * band_cols_;
   for (int r = 0; r < s0_; ++r) {
     const double w0 = two_pi * signedIndex(r, s0_) / n0_;
     for (int c = 0; c < band_cols_; ++c) {
@@ -107,17 +109,62 @@ PhaseCorrelator::PhaseCorrelator(int n0, int n1, double sigma0, double sigma1,
       const double multiplicity = (c == 0) ? 1.0 : 2.0;  // Hermitian partner (-k) of c > 0
       sum_w += multiplicity * w;
       sum_w2 += multiplicity * w * w;
+      const double q = multiplicity * multiplicity * w * w;
+      noise_weights_[bin] = static_cast<float>(q * w0 * w0);
+      noise_weights_[bins + bin] = static_cast<float>(q * w0 * w1);
+      noise_weights_[2 * bins + bin] = static_cast<float>(q * w1 * w1);
     }
   }
   weight_sum_ = sum_w;
   noise_sigma_ = std::sqrt(sum_w2) / sum_w;
 }
 
+PeakCovariance PhaseCorrelator::shiftCovariance(const PhaseNoise& ref, const PhaseNoise& cur,
+                                                double noise_energy,
+                                                const CorrelationPeak& peak) const {
+  // Cov = noise_energy / 2 * H^-1 G H^-1 (phase_correlator.hpp), G = G_ref + G_cur, H the
+  // peak's curvature in the surface's own units (sum of W, not of ideal heights).
+  const double g00 = static_cast<double>(ref.g00) + cur.g00;
+  const double g01 = static_cast<double>(ref.g01) + cur.g01;
+  const double g11 = static_cast<double>(ref.g11) + cur.g11;
+  const double h00 = peak.curvature00 * weight_sum_, h11 = peak.curvature11 * weight_sum_;
+  double h01 = peak.curvature01 * weight_sum_;
+  const double k = 0.5 * noise_energy;
+  if (!(h00 > 0.0) || !(h11 > 0.0) || !(h00 * h11 - h01 * h01 > 0.0)) h01 = 0.0;
+  if (!(h00 > 0.0) || !(h11 > 0.0)) {
+    const auto alone = [&](double h, double g) {
+      return h > 0.0 ? std::min(k * g / (h * h), kNoCurvatureVariance) : kNoCurvatureVariance;
+    };
+    return {alone(h00, g00), 0.0, alone(h11, g11)};
+  }
+  const double det = h00 * h11 - h01 * h01;
+  const double a = h11 / det, b = -h01 / det, d = h00 / det;  // H^-1
+  // M = H^-1 G, then M H^-1 (symmetric).
+  const double m00 = a * g00 + b * g01, m01 = a * g01 + b * g11;
+  const double m10 = b * g00 + d * g01, m11 = b * g01 + d * g11;
+  PeakCovariance c{k * (m00 * a + m01 * b), k * (m00 * b + m01 * d), k * (m10 * b + m11 * d)};
+  if (!(c.c00 < kNoCurvatureVariance) || !(c.c11 < kNoCurvatureVariance)) {
+    c.c00 = std::min(c.c00, kNoCurvatureVariance);
+    c.c11 = std::min(c.c11, kNoCurvatureVariance);
+    c.c01 = 0.0;
+  }
+  return c;
+}
+
 OMNIPOSE_SIMD_CLONES
-void PhaseCorrelator::whiten(const Complex* spectrum, double mean_power, Complex* band) const {
+PhaseNoise PhaseCorrelator::whiten(const Complex* spectrum, double mean_power, Complex* band) const {
   const int spectrum_cols = n1_ / 2 + 1;
   const float floor2 = static_cast<float>(1e-8 * mean_power) + 1e-30f;
   const simd::F4 floor4 = simd::broadcast(floor2);
+  // Phase-noise moments (PhaseNoise): 1 / |F|^2 capped at 1 / (kPhaseNoiseFloor mean_power).
+  const float noise_cap = 1.0f / (kPhaseNoiseFloor * static_cast<float>(mean_power) + 1e-30f);
+  const simd::F4 noise_cap4 = simd::broadcast(noise_cap);
+  const std::size_t bins = static_cast<std::size_t>(s0_) * band_cols_;
+  const float* q00 = noise_weights_.data();
+  const float* q01 = q00 + bins;
+  const float* q11 = q01 + bins;
+  simd::F4 g00 = simd::broadcast(0.0f), g01 = g00, g11 = g00;
+  float t00 = 0.0f, t01 = 0.0f, t11 = 0.0f;
   // A local row length: the stores (memcpy) may alias the members, which would otherwise be
   // reloaded on every iteration.
   const int row_floats = 2 * band_cols_;
@@ -131,25 +178,43 @@ void PhaseCorrelator::whiten(const Complex* spectrum, double mean_power, Complex
     prefetchAhead<1>(dst, row_floats);  // the band's row a few rows on
     // P = sqrt(W) F / |F|: four bins at a time (one reciprocal square root for four), then
     // two; the same operations per bin either way.
+    const std::size_t row_bin = static_cast<std::size_t>(r) * band_cols_;
     int f = 0;
     for (; f + 8 <= row_floats; f += 8) {
       const simd::F4 z01 = simd::load(src + f), z23 = simd::load(src + f + 4);
       const simd::F4 inv = simd::rsqrt(simd::max(simd::norms(z01, z23), floor4));
       simd::store(dst + f, z01 * (simd::load(sw + f) * simd::lowPairs(inv)));
       simd::store(dst + f + 4, z23 * (simd::load(sw + f + 4) * simd::highPairs(inv)));
+      const simd::F4 inv2 = simd::min(inv * inv, noise_cap4);
+      const std::size_t bin = row_bin + f / 2;
+      g00 += simd::load(q00 + bin) * inv2;
+      g01 += simd::load(q01 + bin) * inv2;
+      g11 += simd::load(q11 + bin) * inv2;
     }
     for (; f + 4 <= row_floats; f += 4) {
       const simd::F4 z = simd::load(src + f);
-      const simd::F4 norm = simd::max(simd::pairNorm(z), floor4);
-      simd::store(dst + f, z * (simd::load(sw + f) * simd::rsqrt(norm)));
+      const simd::F4 inv = simd::rsqrt(simd::max(simd::pairNorm(z), floor4));
+      simd::store(dst + f, z * (simd::load(sw + f) * inv));
+      const simd::F4 inv2 = simd::min(inv * inv, noise_cap4);  // bins twice: lanes 0, 2
+      const std::size_t bin = row_bin + f / 2;
+      t00 += q00[bin] * inv2[0] + q00[bin + 1] * inv2[2];
+      t01 += q01[bin] * inv2[0] + q01[bin + 1] * inv2[2];
+      t11 += q11[bin] * inv2[0] + q11[bin + 1] * inv2[2];
     }
     for (; f < row_floats; f += 2) {
       const float re = src[f], im = src[f + 1];
-      const float gain = sw[f] / std::sqrt(std::max(re * re + im * im, floor2));
+      const float norm = std::max(re * re + im * im, floor2);
+      const float gain = sw[f] / std::sqrt(norm);
       dst[f] = re * gain;
       dst[f + 1] = im * gain;
+      const float inv2 = std::min(1.0f / norm, noise_cap);
+      const std::size_t bin = row_bin + f / 2;
+      t00 += q00[bin] * inv2;
+      t01 += q01[bin] * inv2;
+      t11 += q11[bin] * inv2;
     }
   }
+  return {simd::sum(g00) + t00, simd::sum(g01) + t01, simd::sum(g11) + t11};
 }
 
 OMNIPOSE_SIMD_CLONES
@@ -217,6 +282,9 @@ CorrelationPeak PhaseCorrelator::peak(double reach0, double reach1, int offset_r
   out.shift1 = p.x1 * spacing1();
   out.height = p.value / weight_sum_;
   out.on_border = p.on_border;
+  out.curvature00 = p.curvature00 / (weight_sum_ * spacing0() * spacing0());
+  out.curvature01 = p.curvature01 / (weight_sum_ * spacing0() * spacing1());
+  out.curvature11 = p.curvature11 / (weight_sum_ * spacing1() * spacing1());
   // Confidence: height above the expected maximum of a random-phase surface over the
   // searched samples (noise_sigma * sqrt(2 ln M)), rescaled so that a perfect peak is 1.
   const double samples = static_cast<double>(region.count0()) * region.count1();

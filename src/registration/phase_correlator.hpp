@@ -26,7 +26,42 @@ struct CorrelationPeak {
   double height = 0.0;     ///< fitted peak height / ideal peak height (1 = identical signals)
   double confidence = 0.0; ///< height above the noise floor, mapped to [0, 1]
   bool on_border = false;  ///< the integer peak lies on the border of the searched region
+  /// Curvature of the surface at the peak, -(second derivatives), in ideal peak heights per
+  /// input sample^2 (axis 0 rows, 1 columns): what shiftCovariance() reads. A peak that is
+  /// a ridge along an axis (content along one direction only) has ~0 there.
+  double curvature00 = 0.0;
+  double curvature01 = 0.0;
+  double curvature11 = 0.0;
 };
+
+/// How precisely whiten() found a signal's phases: the moments
+///     G = sum over the band's bins of m^2 W^2 w w^T / |F|^2,   w = (w0, w1) rad/sample,
+/// m = 2 for a bin with a Hermitian partner (c > 0), else 1; |F|^2 floored at
+/// kPhaseNoiseFloor times the mean power. With additive white noise of energy E|N|^2 per
+/// bin, the phase of bin F is off by a random angle of variance E|N|^2 / (2 |F|^2), so G
+/// is what a signal contributes to the variance of a correlation peak (shiftCovariance()).
+/// Zero: not whitened.
+struct PhaseNoise {
+  float g00 = 0.0f;  ///< sum m^2 W^2 w0^2 / |F|^2
+  float g01 = 0.0f;  ///< sum m^2 W^2 w0 w1 / |F|^2
+  float g11 = 0.0f;  ///< sum m^2 W^2 w1^2 / |F|^2
+};
+
+/// Symmetric 2 x 2 covariance of a correlation peak, input samples^2 (axis 0 = rows).
+struct PeakCovariance {
+  double c00 = 0.0;
+  double c01 = 0.0;
+  double c11 = 0.0;
+};
+
+/// Power floor of the phase-noise moments, relative to the signal's mean power per bin: a
+/// bin emptier than this counts as this (its phase is then random anyway, and an empty bin
+/// of a noiseless render would otherwise dominate the sum).
+inline constexpr float kPhaseNoiseFloor = 1e-5f;
+
+/// shiftCovariance()'s variance along an axis without curvature, input samples^2: a shift
+/// the window does not know (1000 px standard deviation).
+inline constexpr double kNoCurvatureVariance = 1e6;
 
 class PhaseCorrelator {
  public:
@@ -53,7 +88,22 @@ class PhaseCorrelator {
   /// amplified. Allocation-free.
   // A separate band buffer: whitening inside the cross-power loop instead was slower
   // (docs/PERFORMANCE.md).
-  void whiten(const Complex* spectrum, double mean_power, Complex* band) const;
+  /// Returns the signal's phase-noise moments (PhaseNoise), for shiftCovariance().
+  PhaseNoise whiten(const Complex* spectrum, double mean_power, Complex* band) const;
+  /// Covariance of `peak` (from correlate(ref, cur)) caused by additive white noise of
+  /// energy `noise_energy` per spectral bin in each signal (sigma^2 times the sum of the
+  /// squared taper weights, for pixel noise of variance sigma^2). Linearising the surface's
+  /// stationarity condition about the true shift d,
+  ///     H (d_hat - d) = sum_f m W w sin(eps_f),
+  /// with eps_f the phase error of the cross-power bin (variance noise_energy / 2 times
+  /// 1/|F_ref|^2 + 1/|F_cur|^2, Hermitian partners in step) and H the surface's curvature
+  /// at the peak (sum_f m W w w^T cos(eps_f): only the bins whose phases agree curve it), so
+  ///     Cov = noise_energy / 2 * H^-1 (G_ref + G_cur) H^-1.
+  /// A window whose content runs in one direction only correlates into a ridge: no
+  /// curvature along it, a large variance there. Where H is not positive definite each
+  /// axis is taken alone, and an axis without curvature gets kNoCurvatureVariance.
+  PeakCovariance shiftCovariance(const PhaseNoise& ref, const PhaseNoise& cur,
+                                 double noise_energy, const CorrelationPeak& peak) const;
 
   /// Correlation peak of two whitened bands. The integer peak is searched within
   /// |shift0| <= reach0 and |shift1| <= reach1 (input samples; a reach beyond n/2 searches
@@ -91,6 +141,7 @@ class PhaseCorrelator {
   FftwArray<float> sqrt_w2_;  ///< sqrt(W) twice per band bin (re, im lanes); 0 on the band's Nyquist row/column
   double weight_sum_ = 0.0;   ///< sum of W over the full (Hermitian) band = ideal peak height
   double noise_sigma_ = 0.0;  ///< std of the surface for random phases / weight_sum_
+  FftwArray<float> noise_weights_;  ///< per band bin: m^2 W^2 w0^2, then w0 w1, then w1^2 (3 planes)
   FftwArray<Complex> band_;   ///< cross-power spectrum, the c2r input
   FftwArray<float> surface_;  ///< s0 x s1 correlation surface
   FftPlan inverse_;

@@ -47,9 +47,11 @@ Vertex1d fitVertex(double m, double c, double p) {
     const double lm = std::log(m), lc = std::log(c), lp = std::log(p);
     const double a = 0.5 * (lp + lm) - lc;
     const double b = 0.5 * (lp - lm);
+    v.gaussian = true;
     if (a < 0.0) {
       v.offset = std::clamp(-b / (2.0 * a), -1.0, 1.0);
       v.gain = std::exp(b * v.offset + a * v.offset * v.offset);  // exp(y(t*) - y0)
+      v.a = a;
     }
     return v;
   }
@@ -59,6 +61,7 @@ Vertex1d fitVertex(double m, double c, double p) {
   if (a < 0.0) {
     v.offset = std::clamp(-b / (2.0 * a), -1.0, 1.0);
     v.add = b * v.offset + a * v.offset * v.offset;
+    v.a = a;
   }
   return v;
 }
@@ -122,6 +125,18 @@ SubpixelPeak findPeak(const SurfaceView& surface, const SearchRegion& region) {
   peak.x0 = best0 + v0.offset;
   peak.x1 = best1 + v1.offset;
   peak.value = c * v0.gain * v1.gain + v0.add + v1.add;
+  // Curvature: of exp(quadratic) at its vertex, value times the quadratic's (Gaussian);
+  // the parabola's own (else). The mixed term from the four diagonal neighbours' logarithms.
+  const auto curvature = [&](const Vertex1d& v) { return -2.0 * v.a * (v.gaussian ? peak.value : 1.0); };
+  peak.curvature00 = curvature(v0);
+  peak.curvature11 = curvature(v1);
+  if (v0.gaussian && v1.gaussian) {
+    const double pp = surface.at(best0 + 1, best1 + 1), pm = surface.at(best0 + 1, best1 - 1);
+    const double mp = surface.at(best0 - 1, best1 + 1), mm = surface.at(best0 - 1, best1 - 1);
+    if (pp > 0.0 && pm > 0.0 && mp > 0.0 && mm > 0.0)
+      peak.curvature01 =
+          -0.25 * (std::log(pp) - std::log(pm) - std::log(mp) + std::log(mm)) * peak.value;
+  }
   return peak;
 }
 

@@ -28,6 +28,12 @@ struct SubpixelPeak {
   double x0 = 0.0;         ///< sub-sample peak position along rows, surface samples (signed)
   double x1 = 0.0;         ///< along columns
   double value = 0.0;      ///< fitted peak value
+  /// Curvature of the fitted surface at the peak, -(second derivatives), value units per
+  /// surface sample^2 (rows 0, columns 1; 01 from the diagonal neighbours when all of them
+  /// are positive, else 0). 0 along an axis without a vertex: a ridge.
+  double curvature00 = 0.0;
+  double curvature01 = 0.0;
+  double curvature11 = 0.0;
   bool on_border = false;  ///< integer maximum on the border of a restricted region
 };
 
@@ -36,6 +42,8 @@ struct Vertex1d {
   double offset = 0.0;  ///< vertex position relative to the centre sample
   double gain = 1.0;    ///< Gaussian: peak / c; parabola: unused (1)
   double add = 0.0;     ///< parabola: peak - c; Gaussian: 0
+  double a = 0.0;       ///< the quadratic's t^2 coefficient (< 0 at a vertex; else 0)
+  bool gaussian = false;  ///< the log model was used (a is of the logarithm)
 };
 /// A Gaussian (parabola of the logarithms) when all three samples are positive, which is
 /// exact for the Gaussian-weighted phase-correlation peak; else (a non-positive value, as

@@ -239,11 +239,13 @@ struct WindowSpectra {
   reg::FftwArray<reg::Complex> translation;  ///< translation bands, window after window
   reg::FftwArray<reg::Complex> log_polar;    ///< log-polar bands, window after window
   std::vector<unsigned char> textured;       ///< per window: has usable texture
+  std::vector<reg::PhaseNoise> translation_noise;  ///< per window: whiten()'s phase noise
 
   WindowSpectra(int windows, std::size_t translation_band, std::size_t log_polar_band)
       : translation(windows * translation_band),
         log_polar(windows * log_polar_band),
-        textured(windows, 0) {}
+        textured(windows, 0),
+        translation_noise(windows) {}
 };
 
 /// Result of preparing one window for the FFT.
@@ -388,8 +390,14 @@ struct WindowRegistration::Impl {
   TaperedWindow transformFromColumns(Worker& w, int k) const;
   TaperedWindow transformWindow(Worker& w, const cv::Mat& panorama, int k,
                                 reg::Complex* log_polar_band) const;
+  /// Pixel noise energy per spectral bin of window k for unit pixel noise variance: the
+  /// sum of its squared taper weights.
+  double noiseEnergy(int k) const { return windowMasked(k) ? masked_weight2[k] : taper_weight2; }
+  /// Registers window k of the current frame (F_c in w.spectrum) against `ref`; the current
+  /// whitened bands when already made (else nullptr) with their phase noise.
   void measureWindow(Worker& w, const cv::Mat& panorama, int k, const TaperedWindow& cur,
-                     const reg::Complex* cur_translation, const reg::Complex* cur_log_polar,
+                     const reg::Complex* cur_translation, reg::PhaseNoise cur_translation_noise,
+                     const reg::Complex* cur_log_polar,
                      const WindowMotion* known, double expected_dv, const WindowSpectra& ref,
                      WindowMotion& out) const;
 };
@@ -623,6 +631,7 @@ TaperedWindow WindowRegistration::Impl::transformWindow(Worker& w, const cv::Mat
 void WindowRegistration::Impl::measureWindow(Worker& w, const cv::Mat& panorama, int k,
                                              const TaperedWindow& cur,
                                              const reg::Complex* cur_translation,
+                                             reg::PhaseNoise cur_translation_noise,
                                              const reg::Complex* cur_log_polar,
                                              const WindowMotion* known, double expected_dv,
                                              const WindowSpectra& ref, WindowMotion& out) const {
@@ -661,10 +670,11 @@ void WindowRegistration::Impl::measureWindow(Worker& w, const cv::Mat& panorama,
   if (corner * std::max(std::abs(rotation), std::abs(std::log(scale))) > kTuning.derotate_min_px) {
     const TaperedWindow tw = loadWarpedWindow(w, panorama, k, rotation, scale);
     w.window_fft.execute();
-    w.translation.whiten(w.spectrum.data(), tw.energy, w.derotated.data());
+    cur_translation_noise = w.translation.whiten(w.spectrum.data(), tw.energy, w.derotated.data());
     translation_band_ptr = w.derotated.data();
   } else if (translation_band_ptr == nullptr) {  // F_c not whitened yet (frame not kept)
-    w.translation.whiten(w.spectrum.data(), cur.energy, w.scratch_translation.data());
+    cur_translation_noise =
+        w.translation.whiten(w.spectrum.data(), cur.energy, w.scratch_translation.data());
     translation_band_ptr = w.scratch_translation.data();
   }
 
@@ -681,6 +691,11 @@ void WindowRegistration::Impl::measureWindow(Worker& w, const cv::Mat& panorama,
   out.du = t.shift1;
   out.dv = t.shift0;
   out.confidence = t.confidence;
+  const reg::PeakCovariance c = w.translation.shiftCovariance(
+      ref.translation_noise[static_cast<std::size_t>(k)], cur_translation_noise, noiseEnergy(k), t);
+  out.var_du = c.c11;
+  out.var_dv = c.c00;
+  out.cov_du_dv = c.c01;
   out.valid = t.confidence > 0.0 && t.confidence >= options.min_confidence && !t.on_border;
 }
 
@@ -721,12 +736,13 @@ void WindowRegistration::setReference(const cv::Mat& panorama) {
   s.transformColumns(panorama);
   auto task = [&](int worker, int k) {
     Worker& w = *s.workers[worker];
+    const auto i = static_cast<std::size_t>(k);
     const TaperedWindow tw =
         s.transformWindow(w, panorama, k, ref.log_polar.data() + k * s.log_polar_band);
     ref.textured[k] = tw.textured;
     if (tw.textured)
-      w.translation.whiten(w.spectrum.data(), tw.energy,
-                           ref.translation.data() + k * s.translation_band);
+      ref.translation_noise[i] = w.translation.whiten(
+          w.spectrum.data(), tw.energy, ref.translation.data() + k * s.translation_band);
   };
   s.pool->run(s.windows, task);
   s.has_reference = true;
@@ -772,6 +788,7 @@ bool WindowRegistration::measure(const cv::Mat& current, std::span<WindowMotion>
   auto task = [&](int worker, int k) {
     Worker& w = *s.workers[worker];
     // Without a search for rotation/scale the current log-polar spectrum is not needed.
+    const auto i = static_cast<std::size_t>(k);
     reg::Complex* cur_log_polar = keep_as_next
                                       ? next.log_polar.data() + k * s.log_polar_band
                                       : (known ? nullptr : w.scratch_log_polar.data());
@@ -779,14 +796,16 @@ bool WindowRegistration::measure(const cv::Mat& current, std::span<WindowMotion>
     // The un-rotated F_c is whitened here only when it becomes the next reference;
     // measureWindow() whitens it itself when it needs it.
     reg::Complex* cur_translation = nullptr;
+    reg::PhaseNoise translation_noise{};
     if (keep_as_next) {
       next.textured[k] = tw.textured;
       if (tw.textured) {
         cur_translation = next.translation.data() + k * s.translation_band;
-        w.translation.whiten(w.spectrum.data(), tw.energy, cur_translation);
+        translation_noise = w.translation.whiten(w.spectrum.data(), tw.energy, cur_translation);
       }
+      next.translation_noise[i] = translation_noise;
     }
-    s.measureWindow(w, current, k, tw, cur_translation, cur_log_polar,
+    s.measureWindow(w, current, k, tw, cur_translation, translation_noise, cur_log_polar,
                     known ? &known_rotation_scale[k] : nullptr,
                     expected_dv.empty() ? std::numeric_limits<double>::quiet_NaN() : expected_dv[k],
                     ref, out[k]);
@@ -831,6 +850,7 @@ bool WindowRegistration::storeKeyframe(int slot) {
     std::copy_n(s.reference->translation.data(), to.translation.size(), to.translation.data());
     std::copy_n(s.reference->log_polar.data(), to.log_polar.size(), to.log_polar.data());
     to.textured = s.reference->textured;
+    to.translation_noise = s.reference->translation_noise;
   }
   // The reference is the keyframe until it is replaced: it moves into the slot then.
   s.pending_keyframe = slot;
