@@ -86,9 +86,13 @@ class MotionFit {
     /// (WindowMotion::var_du, var_dv): the confidence divided by the variance over the
     /// pair's median window variance where that ratio is above 1, so a window that sees
     /// only vertical edges gives its du and hardly its dv; the loss and the inlier test
-    /// read its residuals in units of its own standard deviation. false: the confidence
-    /// alone weighs both (the paper). Windows without variances (0) count as the median.
-    bool window_covariance = true;
+    /// read its residuals in units of its own standard deviation. Windows without
+    /// variances (0) count as the median. Off by default: it lowers the rotation error of
+    /// frame pairs (indoor 15-20 %, Kogeto-like pitch 30 %), but while the robot drives
+    /// through a room it biases yaw, and the rectangle of the drift benchmark ended 6.2
+    /// instead of 2.7 degrees off (docs/results/ANALYSIS.md). false: the confidence alone
+    /// weighs both (the paper).
+    bool window_covariance = false;
 
     /// Every problem, one message per bad field, each starting with the field's name
     /// ("median: 4 must be odd (or 0/1 = off)"); empty when valid.

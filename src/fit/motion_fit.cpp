@@ -21,7 +21,7 @@ constexpr double kMadToSigma = 1.4826;
 /// Smallest relative standard deviation of a window's equation (Options::window_covariance):
 /// a window's variance only ever lowers the weight its confidence gives it. Letting the
 /// windows below the median variance weigh up to 4x more (0.5) cost translation direction
-/// and park accuracy (docs/results/ANALYSIS.md, window covariance).
+/// and park accuracy (docs/results/ANALYSIS.md).
 constexpr double kMinRelativeSigma = 1.0;
 
 /// Median of a small array (modified in place).
@@ -229,8 +229,7 @@ void MotionFit::Impl::relativeSigmas(std::span<const WindowMotion> windows, Vari
   for (int k = 0; k < n; ++k) out[k] = 1.0;
   if (!options.window_covariance) return;
 
-  // The median over the kept windows with a variance, in the second half of scratch (the
-  // first 2n entries hold the outputs).
+  // The median over the kept windows with a variance, taken in scratch[2n, 3n).
   double* const known = scratch.data() + 2 * n;
   int m = 0;
   for (int k = 0; k < n; ++k) {

@@ -220,6 +220,7 @@ TEST(MotionFit, WindowsThatKnowOnlyDuDoNotTiltTheRobot) {
   Vec6 x;
   x << 0.0, 0.0, 0.03, 0.0, 0.0, 0.0;  // a pure yaw
   MotionFit::Options per_axis, scalar;
+  per_axis.window_covariance = true;
   scalar.window_covariance = false;
   MotionFit fit_axis(per_axis, kGamma, kWindow, kWindows), fit_scalar(scalar, kGamma, kWindow, kWindows);
   double tilt_axis = 0.0, tilt_scalar = 0.0;
@@ -289,6 +290,24 @@ TEST(MotionFit, KappaIsTheAttenuationOfTheRegistrationTaper) {
   const MotionFit fit({}, kGamma, kWindow, kWindows);
   EXPECT_DOUBLE_EQ(fit.kappa(), windowAttenuation(kWindow, kGamma));
   EXPECT_DOUBLE_EQ(fit.gamma(), kGamma);
+}
+
+// Neighbouring windows share pixels: their errors correlate by the overlap of their
+// squared tapers, so a fit over all of them varies that much more than one over
+// independent windows. Windows that do not overlap are independent.
+TEST(MotionModel, WindowOverlapFactorSumsTheSquaredTapersOverlap) {
+  EXPECT_DOUBLE_EQ(windowOverlapFactor(110, 110), 1.0);
+  EXPECT_DOUBLE_EQ(windowOverlapFactor(110, 200), 1.0);
+  EXPECT_NEAR(windowOverlapFactor(110, 20), 2.83, 0.01);  // the paper's setting
+  double previous = windowOverlapFactor(110, 5);
+  for (int step : {10, 20, 40, 80}) {
+    const double f = windowOverlapFactor(110, step);
+    EXPECT_LT(f, previous) << step;
+    previous = f;
+  }
+  // Step 1: (sum h^2)^2 / sum h^4, with sum h^2 = 3L/8 and sum h^4 = 35L/128 for a Hann
+  // taper: 18 L / 35.
+  EXPECT_NEAR(windowOverlapFactor(110, 1), 110.0 * 18.0 / 35.0, 0.5);
 }
 
 TEST(MotionModel, WindowAttenuationIsBelowOneForWideWindows) {
