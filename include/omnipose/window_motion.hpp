@@ -34,7 +34,8 @@ struct WindowMotion {
   /// factor from its residuals). It comes from how precisely each spectral frequency of the
   /// two windows is known (PhaseCorrelator::shiftCovariance, src/registration): a window
   /// whose content runs in one direction only (a door frame, blinds) knows its shift
-  /// across it and not along it. 0 when not measured (confidence 0).
+  /// across it and not along it. 0 when not measured (confidence 0, or
+  /// WindowRegistration::Options::shift_covariance off).
   double var_du = 0.0;
   double var_dv = 0.0;
   double cov_du_dv = 0.0;

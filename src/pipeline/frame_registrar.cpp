@@ -26,6 +26,14 @@ namespace {
 constexpr double kPredictionSlackPx = 4.0;
 constexpr double kDepthSpread = 0.5;
 
+/// The registration's options: each window's shift covariance is measured when the fit
+/// uses it.
+WindowRegistration::Options registrationOptions(const PipelineOptions& o) {
+  WindowRegistration::Options r = o.registration;
+  r.shift_covariance = r.shift_covariance || o.fit.window_covariance;
+  return r;
+}
+
 }  // namespace
 
 FrameRegistrar::WisdomFile::WisdomFile(std::string file)
@@ -50,7 +58,7 @@ FrameRegistrar::FrameRegistrar(const Calibration& c, const PipelineOptions& o, i
       wisdom_(o.fftw_wisdom),
       pool_(o.threads > 0 ? o.threads : registration::WorkerPool::onlineCores()),
       unwrapper_(c, o.unwrap),
-      registration_(c.panorama.size(), o.registration,
+      registration_(c.panorama.size(), registrationOptions(o),
                     WindowRegistration::PipelineResources{pool_, wisdom_.effort()}),
       fit_(o.fit, c.panorama.gamma(), o.registration.window, registration_.windowCount()),
       window_overlap_(windowOverlapFactor(o.registration.window, o.registration.step)),

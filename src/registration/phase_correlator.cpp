@@ -48,6 +48,91 @@ void prefetchAhead(const float* p, int count) {
     __builtin_prefetch(reinterpret_cast<const void*>(ahead + i * sizeof(float)), kWrite);
 }
 
+/// What PhaseCorrelator::whiten() reads of the correlator.
+struct WhitenShape {
+  int n0, n1, s0, band_cols;
+  const float* sqrt_w2;
+  const float* noise_cols;
+  const float* noise_rows;
+};
+
+/// PhaseCorrelator::whiten() for one value of `moments`: inlined into each copy of
+/// whiten() (OMNIPOSE_SIMD_CLONES), so the bins loop has no test for it.
+template <bool kMoments>
+[[gnu::always_inline]] inline PhaseNoise whitenBand(const Complex* spectrum, double mean_power,
+                                                    Complex* band, const WhitenShape& shape) {
+  const int n0 = shape.n0, n1 = shape.n1, s0 = shape.s0, band_cols = shape.band_cols;
+  const int spectrum_cols = n1 / 2 + 1;
+  const float floor2 = static_cast<float>(1e-8 * mean_power) + 1e-30f;
+  const simd::F4 floor4 = simd::broadcast(floor2);
+  // Phase-noise moments (PhaseNoise): 1 / |F|^2 capped at 1 / (kPhaseNoiseFloor mean_power).
+  const float noise_cap = 1.0f / (kPhaseNoiseFloor * static_cast<float>(mean_power) + 1e-30f);
+  const simd::F4 noise_cap4 = simd::broadcast(noise_cap);
+  // G is summed row by row: per row the column sums of m^2 W1^2 (1, w1, w1^2) / |F|^2,
+  // times the row's W0^2 (w0^2, w0, 1) (W is separable).
+  const float* c0 = shape.noise_cols;
+  const float* c1 = c0 + band_cols;
+  const float* c2 = c1 + band_cols;
+  double g00 = 0.0, g01 = 0.0, g11 = 0.0;
+  // A local row length: the stores (memcpy) may alias the correlator's members, which would
+  // otherwise be reloaded on every iteration.
+  const int row_floats = 2 * band_cols;
+  for (int r = 0; r < s0; ++r) {
+    // Band row r is frequency k0 = signedIndex(r, s0), stored at row k0 mod n0.
+    const int k0 = signedIndex(r, s0);
+    const std::size_t src_row = static_cast<std::size_t>(k0 < 0 ? k0 + n0 : k0);
+    const float* src = reinterpret_cast<const float*>(spectrum + src_row * spectrum_cols);
+    const float* sw = shape.sqrt_w2 + 2 * static_cast<std::size_t>(r) * band_cols;
+    float* dst = reinterpret_cast<float*>(band + static_cast<std::size_t>(r) * band_cols);
+    prefetchAhead<1>(dst, row_floats);  // the band's row a few rows on
+    // P = sqrt(W) F / |F|: four bins at a time (one reciprocal square root for four), then
+    // two; the same operations per bin either way.
+    simd::F4 a0 = simd::broadcast(0.0f), a1 = a0, a2 = a0;
+    float t0 = 0.0f, t1 = 0.0f, t2 = 0.0f;
+    int f = 0;
+    for (; f + 8 <= row_floats; f += 8) {
+      const simd::F4 z01 = simd::load(src + f), z23 = simd::load(src + f + 4);
+      const simd::F4 inv = simd::rsqrt(simd::max(simd::norms(z01, z23), floor4));
+      simd::store(dst + f, z01 * (simd::load(sw + f) * simd::lowPairs(inv)));
+      simd::store(dst + f + 4, z23 * (simd::load(sw + f + 4) * simd::highPairs(inv)));
+      if constexpr (!kMoments) continue;
+      const simd::F4 inv2 = simd::min(inv * inv, noise_cap4);
+      const int c = f / 2;
+      a0 += simd::load(c0 + c) * inv2;
+      a1 += simd::load(c1 + c) * inv2;
+      a2 += simd::load(c2 + c) * inv2;
+    }
+    for (; f + 4 <= row_floats; f += 4) {
+      const simd::F4 z = simd::load(src + f);
+      const simd::F4 inv = simd::rsqrt(simd::max(simd::pairNorm(z), floor4));
+      simd::store(dst + f, z * (simd::load(sw + f) * inv));
+      if constexpr (!kMoments) continue;
+      const simd::F4 inv2 = simd::min(inv * inv, noise_cap4);  // bins twice: lanes 0, 2
+      const int c = f / 2;
+      t0 += c0[c] * inv2[0] + c0[c + 1] * inv2[2];
+      t1 += c1[c] * inv2[0] + c1[c + 1] * inv2[2];
+      t2 += c2[c] * inv2[0] + c2[c + 1] * inv2[2];
+    }
+    for (; f < row_floats; f += 2) {
+      const float re = src[f], im = src[f + 1];
+      const float norm = std::max(re * re + im * im, floor2);
+      const float gain = sw[f] / std::sqrt(norm);
+      dst[f] = re * gain;
+      dst[f + 1] = im * gain;
+      if constexpr (!kMoments) continue;
+      const float inv2 = std::min(1.0f / norm, noise_cap);
+      const int c = f / 2;
+      t0 += c0[c] * inv2;
+      t1 += c1[c] * inv2;
+      t2 += c2[c] * inv2;
+    }
+    g00 += static_cast<double>(shape.noise_rows[r]) * (simd::sum(a0) + t0);
+    g01 += static_cast<double>(shape.noise_rows[s0 + r]) * (simd::sum(a1) + t1);
+    g11 += static_cast<double>(shape.noise_rows[2 * s0 + r]) * (simd::sum(a2) + t2);
+  }
+  return {static_cast<float>(g00), static_cast<float>(g01), static_cast<float>(g11)};
+}
+
 }  // namespace
 
 int fastFftSize(int n) {
@@ -69,7 +154,8 @@ PhaseCorrelator::PhaseCorrelator(int n0, int n1, double sigma0, double sigma1,
       max_reach0_(std::max(max_reach0, 0.0)),
       near_reach0_(std::isfinite(near_reach0) ? std::max(near_reach0, 0.0) : 0.0),
       sqrt_w2_(2 * static_cast<std::size_t>(s0_) * band_cols_),
-      noise_weights_(3 * static_cast<std::size_t>(s0_) * band_cols_),
+      noise_cols_(3 * static_cast<std::size_t>(band_cols_)),
+      noise_rows_(3 * static_cast<std::size_t>(s0_)),
       band_(static_cast<std::size_t>(s0_) * band_cols_),
       surface_(static_cast<std::size_t>(s0_) * s1_) {
   // Surface rows read by a search of |d0| <= reach: the searched |d0| <= floor(reach / spacing)
@@ -96,7 +182,21 @@ PhaseCorrelator::PhaseCorrelator(int n0, int n1, double sigma0, double sigma1,
   // Gaussian weight W(w) = exp(-(sigma0^2 w0^2 + sigma1^2 w1^2) / 2) on the band.
   const double two_pi = 2.0 * std::numbers::pi;
   double sum_w = 0.0, sum_w2 = 0.0;
-  const std::size_t bins = static_cast<std::size_t>(s0_) * band_cols_;
+  for (int c = 0; c < band_cols_; ++c) {
+    const double w1 = two_pi * c / n1_;
+    const double m = (c == 0) ? 1.0 : 2.0;
+    const double q = c == s1_ / 2 ? 0.0 : m * m * std::exp(-sigma1 * sigma1 * w1 * w1);
+    noise_cols_[c] = static_cast<float>(q);
+    noise_cols_[band_cols_ + c] = static_cast<float>(q * w1);
+    noise_cols_[2 * band_cols_ + c] = static_cast<float>(q * w1 * w1);
+  }
+  for (int r = 0; r < s0_; ++r) {
+    const double w0 = two_pi * signedIndex(r, s0_) / n0_;
+    const double q = r == s0_ / 2 ? 0.0 : std::exp(-sigma0 * sigma0 * w0 * w0);
+    noise_rows_[r] = static_cast<float>(q * w0 * w0);
+    noise_rows_[s0_ + r] = static_cast<float>(q * w0);
+    noise_rows_[2 * s0_ + r] = static_cast<float>(q);
+  }
   for (int r = 0; r < s0_; ++r) {
     const double w0 = two_pi * signedIndex(r, s0_) / n0_;
     for (int c = 0; c < band_cols_; ++c) {
@@ -109,10 +209,6 @@ PhaseCorrelator::PhaseCorrelator(int n0, int n1, double sigma0, double sigma1,
       const double multiplicity = (c == 0) ? 1.0 : 2.0;  // Hermitian partner (-k) of c > 0
       sum_w += multiplicity * w;
       sum_w2 += multiplicity * w * w;
-      const double q = multiplicity * multiplicity * w * w;
-      noise_weights_[bin] = static_cast<float>(q * w0 * w0);
-      noise_weights_[bins + bin] = static_cast<float>(q * w0 * w1);
-      noise_weights_[2 * bins + bin] = static_cast<float>(q * w1 * w1);
     }
   }
   weight_sum_ = sum_w;
@@ -152,69 +248,12 @@ PeakCovariance PhaseCorrelator::shiftCovariance(const PhaseNoise& ref, const Pha
 }
 
 OMNIPOSE_SIMD_CLONES
-PhaseNoise PhaseCorrelator::whiten(const Complex* spectrum, double mean_power, Complex* band) const {
-  const int spectrum_cols = n1_ / 2 + 1;
-  const float floor2 = static_cast<float>(1e-8 * mean_power) + 1e-30f;
-  const simd::F4 floor4 = simd::broadcast(floor2);
-  // Phase-noise moments (PhaseNoise): 1 / |F|^2 capped at 1 / (kPhaseNoiseFloor mean_power).
-  const float noise_cap = 1.0f / (kPhaseNoiseFloor * static_cast<float>(mean_power) + 1e-30f);
-  const simd::F4 noise_cap4 = simd::broadcast(noise_cap);
-  const std::size_t bins = static_cast<std::size_t>(s0_) * band_cols_;
-  const float* q00 = noise_weights_.data();
-  const float* q01 = q00 + bins;
-  const float* q11 = q01 + bins;
-  simd::F4 g00 = simd::broadcast(0.0f), g01 = g00, g11 = g00;
-  float t00 = 0.0f, t01 = 0.0f, t11 = 0.0f;
-  // A local row length: the stores (memcpy) may alias the members, which would otherwise be
-  // reloaded on every iteration.
-  const int row_floats = 2 * band_cols_;
-  for (int r = 0; r < s0_; ++r) {
-    // Band row r is frequency k0 = signedIndex(r, s0), stored at row k0 mod n0.
-    const int k0 = signedIndex(r, s0_);
-    const std::size_t src_row = static_cast<std::size_t>(k0 < 0 ? k0 + n0_ : k0);
-    const float* src = reinterpret_cast<const float*>(spectrum + src_row * spectrum_cols);
-    const float* sw = sqrt_w2_.data() + 2 * static_cast<std::size_t>(r) * band_cols_;
-    float* dst = reinterpret_cast<float*>(band + static_cast<std::size_t>(r) * band_cols_);
-    prefetchAhead<1>(dst, row_floats);  // the band's row a few rows on
-    // P = sqrt(W) F / |F|: four bins at a time (one reciprocal square root for four), then
-    // two; the same operations per bin either way.
-    const std::size_t row_bin = static_cast<std::size_t>(r) * band_cols_;
-    int f = 0;
-    for (; f + 8 <= row_floats; f += 8) {
-      const simd::F4 z01 = simd::load(src + f), z23 = simd::load(src + f + 4);
-      const simd::F4 inv = simd::rsqrt(simd::max(simd::norms(z01, z23), floor4));
-      simd::store(dst + f, z01 * (simd::load(sw + f) * simd::lowPairs(inv)));
-      simd::store(dst + f + 4, z23 * (simd::load(sw + f + 4) * simd::highPairs(inv)));
-      const simd::F4 inv2 = simd::min(inv * inv, noise_cap4);
-      const std::size_t bin = row_bin + f / 2;
-      g00 += simd::load(q00 + bin) * inv2;
-      g01 += simd::load(q01 + bin) * inv2;
-      g11 += simd::load(q11 + bin) * inv2;
-    }
-    for (; f + 4 <= row_floats; f += 4) {
-      const simd::F4 z = simd::load(src + f);
-      const simd::F4 inv = simd::rsqrt(simd::max(simd::pairNorm(z), floor4));
-      simd::store(dst + f, z * (simd::load(sw + f) * inv));
-      const simd::F4 inv2 = simd::min(inv * inv, noise_cap4);  // bins twice: lanes 0, 2
-      const std::size_t bin = row_bin + f / 2;
-      t00 += q00[bin] * inv2[0] + q00[bin + 1] * inv2[2];
-      t01 += q01[bin] * inv2[0] + q01[bin + 1] * inv2[2];
-      t11 += q11[bin] * inv2[0] + q11[bin + 1] * inv2[2];
-    }
-    for (; f < row_floats; f += 2) {
-      const float re = src[f], im = src[f + 1];
-      const float norm = std::max(re * re + im * im, floor2);
-      const float gain = sw[f] / std::sqrt(norm);
-      dst[f] = re * gain;
-      dst[f + 1] = im * gain;
-      const float inv2 = std::min(1.0f / norm, noise_cap);
-      const std::size_t bin = row_bin + f / 2;
-      t00 += q00[bin] * inv2;
-      t01 += q01[bin] * inv2;
-      t11 += q11[bin] * inv2;
-    }
-  }
-  return {simd::sum(g00) + t00, simd::sum(g01) + t01, simd::sum(g11) + t11};
+PhaseNoise PhaseCorrelator::whiten(const Complex* spectrum, double mean_power, Complex* band,
+                                   bool moments) const {
+  const WhitenShape shape{n0_, n1_, s0_, band_cols_, sqrt_w2_.data(), noise_cols_.data(),
+                          noise_rows_.data()};
+  return moments ? whitenBand<true>(spectrum, mean_power, band, shape)
+                 : whitenBand<false>(spectrum, mean_power, band, shape);
 }
 
 OMNIPOSE_SIMD_CLONES

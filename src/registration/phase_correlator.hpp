@@ -88,8 +88,10 @@ class PhaseCorrelator {
   /// amplified. Allocation-free.
   // A separate band buffer: whitening inside the cross-power loop instead was slower
   // (docs/PERFORMANCE.md).
-  /// Returns the signal's phase-noise moments (PhaseNoise), for shiftCovariance().
-  PhaseNoise whiten(const Complex* spectrum, double mean_power, Complex* band) const;
+  /// With `moments` it also returns the signal's phase-noise moments (PhaseNoise, for
+  /// shiftCovariance(); 4 % of a frame's instructions), else zero.
+  PhaseNoise whiten(const Complex* spectrum, double mean_power, Complex* band,
+                    bool moments = true) const;
   /// Covariance of `peak` (from correlate(ref, cur)) caused by additive white noise of
   /// energy `noise_energy` per spectral bin in each signal (sigma^2 times the sum of the
   /// squared taper weights, for pixel noise of variance sigma^2). Linearising the surface's
@@ -141,7 +143,10 @@ class PhaseCorrelator {
   FftwArray<float> sqrt_w2_;  ///< sqrt(W) twice per band bin (re, im lanes); 0 on the band's Nyquist row/column
   double weight_sum_ = 0.0;   ///< sum of W over the full (Hermitian) band = ideal peak height
   double noise_sigma_ = 0.0;  ///< std of the surface for random phases / weight_sum_
-  FftwArray<float> noise_weights_;  ///< per band bin: m^2 W^2 w0^2, then w0 w1, then w1^2 (3 planes)
+  /// PhaseNoise's weights, separable as W is: per band column m^2 W1^2 times 1, w1, w1^2
+  /// (3 planes of band_cols_), per band row W0^2 times w0^2, w0, 1 (3 planes of s0_); 0 on
+  /// the Nyquist row and column.
+  FftwArray<float> noise_cols_, noise_rows_;
   FftwArray<Complex> band_;   ///< cross-power spectrum, the c2r input
   FftwArray<float> surface_;  ///< s0 x s1 correlation surface
   FftPlan inverse_;

@@ -623,7 +623,7 @@ TaperedWindow WindowRegistration::Impl::transformWindow(Worker& w, const cv::Mat
     // Step 2 (iFMI): the high-passed |F_c| in log-polar coordinates, then its own spectrum.
     const double energy = w.log_polar_map.resample(w.spectrum.data(), w.log_polar.data());
     w.log_polar_fft.execute();
-    w.rotation_scale.whiten(w.log_polar_spectrum.data(), energy, log_polar_band);
+    w.rotation_scale.whiten(w.log_polar_spectrum.data(), energy, log_polar_band, false);
   }
   return tw;
 }
@@ -670,11 +670,13 @@ void WindowRegistration::Impl::measureWindow(Worker& w, const cv::Mat& panorama,
   if (corner * std::max(std::abs(rotation), std::abs(std::log(scale))) > kTuning.derotate_min_px) {
     const TaperedWindow tw = loadWarpedWindow(w, panorama, k, rotation, scale);
     w.window_fft.execute();
-    cur_translation_noise = w.translation.whiten(w.spectrum.data(), tw.energy, w.derotated.data());
+    cur_translation_noise = w.translation.whiten(w.spectrum.data(), tw.energy, w.derotated.data(),
+                                                 options.shift_covariance);
     translation_band_ptr = w.derotated.data();
   } else if (translation_band_ptr == nullptr) {  // F_c not whitened yet (frame not kept)
-    cur_translation_noise =
-        w.translation.whiten(w.spectrum.data(), cur.energy, w.scratch_translation.data());
+    cur_translation_noise = w.translation.whiten(w.spectrum.data(), cur.energy,
+                                                 w.scratch_translation.data(),
+                                                 options.shift_covariance);
     translation_band_ptr = w.scratch_translation.data();
   }
 
@@ -691,11 +693,13 @@ void WindowRegistration::Impl::measureWindow(Worker& w, const cv::Mat& panorama,
   out.du = t.shift1;
   out.dv = t.shift0;
   out.confidence = t.confidence;
-  const reg::PeakCovariance c = w.translation.shiftCovariance(
-      ref.translation_noise[static_cast<std::size_t>(k)], cur_translation_noise, noiseEnergy(k), t);
-  out.var_du = c.c11;
-  out.var_dv = c.c00;
-  out.cov_du_dv = c.c01;
+  if (options.shift_covariance) {
+    const reg::PeakCovariance c = w.translation.shiftCovariance(
+        ref.translation_noise[static_cast<std::size_t>(k)], cur_translation_noise, noiseEnergy(k), t);
+    out.var_du = c.c11;
+    out.var_dv = c.c00;
+    out.cov_du_dv = c.c01;
+  }
   out.valid = t.confidence > 0.0 && t.confidence >= options.min_confidence && !t.on_border;
 }
 
@@ -741,8 +745,10 @@ void WindowRegistration::setReference(const cv::Mat& panorama) {
         s.transformWindow(w, panorama, k, ref.log_polar.data() + k * s.log_polar_band);
     ref.textured[k] = tw.textured;
     if (tw.textured)
-      ref.translation_noise[i] = w.translation.whiten(
-          w.spectrum.data(), tw.energy, ref.translation.data() + k * s.translation_band);
+      ref.translation_noise[i] =
+          w.translation.whiten(w.spectrum.data(), tw.energy,
+                               ref.translation.data() + k * s.translation_band,
+                               s.options.shift_covariance);
   };
   s.pool->run(s.windows, task);
   s.has_reference = true;
@@ -801,7 +807,8 @@ bool WindowRegistration::measure(const cv::Mat& current, std::span<WindowMotion>
       next.textured[k] = tw.textured;
       if (tw.textured) {
         cur_translation = next.translation.data() + k * s.translation_band;
-        translation_noise = w.translation.whiten(w.spectrum.data(), tw.energy, cur_translation);
+        translation_noise = w.translation.whiten(w.spectrum.data(), tw.energy, cur_translation,
+                                                 s.options.shift_covariance);
       }
       next.translation_noise[i] = translation_noise;
     }

@@ -40,7 +40,9 @@ struct Errors {
 /// (0.1 (i mod 10), 0.07 (i mod 7)) pixels, noise `sigma` grey levels in both bands.
 Errors noisyShifts(const cv::Mat& eq, double sigma, int pairs) {
   const int centre = eq.rows / 2;
-  WindowRegistration reg(kPaperPanorama, WindowRegistration::Options{});
+  WindowRegistration::Options options;
+  options.shift_covariance = true;
+  WindowRegistration reg(kPaperPanorama, options);
   cv::RNG rng(29);
   Errors e;
   std::vector<WindowMotion> out(reg.windowCount());
