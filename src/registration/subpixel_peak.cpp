@@ -127,7 +127,9 @@ SubpixelPeak findPeak(const SurfaceView& surface, const SearchRegion& region) {
   peak.value = c * v0.gain * v1.gain + v0.add + v1.add;
   // Curvature: of exp(quadratic) at its vertex, value times the quadratic's (Gaussian);
   // the parabola's own (else). The mixed term from the four diagonal neighbours' logarithms.
-  const auto curvature = [&](const Vertex1d& v) { return -2.0 * v.a * (v.gaussian ? peak.value : 1.0); };
+  const auto curvature = [&](const Vertex1d& v) {
+    return -2.0 * v.a * (v.gaussian ? peak.value : 1.0);
+  };
   peak.curvature00 = curvature(v0);
   peak.curvature11 = curvature(v1);
   if (v0.gaussian && v1.gaussian) {

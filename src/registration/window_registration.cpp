@@ -694,8 +694,9 @@ void WindowRegistration::Impl::measureWindow(Worker& w, const cv::Mat& panorama,
   out.dv = t.shift0;
   out.confidence = t.confidence;
   if (options.shift_covariance) {
-    const reg::PeakCovariance c = w.translation.shiftCovariance(
-        ref.translation_noise[static_cast<std::size_t>(k)], cur_translation_noise, noiseEnergy(k), t);
+    const reg::PeakCovariance c =
+        w.translation.shiftCovariance(ref.translation_noise[static_cast<std::size_t>(k)],
+                                      cur_translation_noise, noiseEnergy(k), t);
     out.var_du = c.c11;
     out.var_dv = c.c00;
     out.cov_du_dv = c.c01;

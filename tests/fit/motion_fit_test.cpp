@@ -222,7 +222,8 @@ TEST(MotionFit, WindowsThatKnowOnlyDuDoNotTiltTheRobot) {
   MotionFit::Options per_axis, scalar;
   per_axis.window_covariance = true;
   scalar.window_covariance = false;
-  MotionFit fit_axis(per_axis, kGamma, kWindow, kWindows), fit_scalar(scalar, kGamma, kWindow, kWindows);
+  MotionFit fit_axis(per_axis, kGamma, kWindow, kWindows);
+  MotionFit fit_scalar(scalar, kGamma, kWindow, kWindows);
   double tilt_axis = 0.0, tilt_scalar = 0.0;
   const int trials = 100;
   for (int t = 0; t < trials; ++t) {
@@ -240,7 +241,8 @@ TEST(MotionFit, WindowsThatKnowOnlyDuDoNotTiltTheRobot) {
     tilt_axis += a.omega.head<2>().squaredNorm();
     tilt_scalar += b.omega.head<2>().squaredNorm();
   }
-  const double rms_axis = std::sqrt(tilt_axis / trials), rms_scalar = std::sqrt(tilt_scalar / trials);
+  const double rms_axis = std::sqrt(tilt_axis / trials);
+  const double rms_scalar = std::sqrt(tilt_scalar / trials);
   testing::recordFigure("tilt_rms_rad_per_axis", rms_axis, 7);
   testing::recordFigure("tilt_rms_rad_scalar", rms_scalar, 7);
   EXPECT_LT(rms_axis, 0.6 * rms_scalar);

@@ -28,11 +28,9 @@ namespace {
 const cv::Size kPaperPanorama(1100, 110);
 
 struct Errors {
-  std::vector<double> z2_u, z2_v;  ///< err^2 / predicted variance, per valid window
+  std::vector<double> z2_u, z2_v;    ///< err^2 / predicted variance, per valid window
   std::vector<double> abs_u, abs_v;  ///< |err|, pixels
   std::vector<double> sd_u, sd_v;    ///< predicted standard deviations, pixels
-  double err2_u = 0.0, err2_v = 0.0;    ///< sums of squared errors, pixels^2
-  double var_u = 0.0, var_v = 0.0;      ///< sums of predicted variances, pixels^2
   int windows = 0;
 };
 
@@ -70,10 +68,6 @@ Errors noisyShifts(const cv::Mat& eq, double sigma, int pairs) {
       e.sd_v.push_back(std::sqrt(vv));
       e.z2_u.push_back(eu * eu / vu);
       e.z2_v.push_back(ev * ev / vv);
-      e.err2_u += eu * eu;
-      e.err2_v += ev * ev;
-      e.var_u += vu;
-      e.var_v += vv;
       ++e.windows;
     }
   }
@@ -114,8 +108,9 @@ INSTANTIATE_TEST_SUITE_P(RealTexture, WindowUncertainty,
                          ::testing::Values(Case{test::kIndoor, 1.0}, Case{test::kIndoor, 3.0},
                                            Case{test::kPark, 3.0}, Case{test::kPark, 8.0}),
                          [](const auto& info) {
-                           return std::string(info.param.photo == test::kIndoor ? "Indoor" : "Park") +
-                                  "Sigma" + std::to_string(static_cast<int>(info.param.sigma));
+                           const bool indoor = info.param.photo == test::kIndoor;
+                           return std::string(indoor ? "Indoor" : "Park") + "Sigma" +
+                                  std::to_string(static_cast<int>(info.param.sigma));
                          });
 
 /// A 1100-wide periodic "equirect" of vertical blinds: a smoothed random profile across u,
