@@ -17,22 +17,13 @@
 #include "omnipose/pipeline.hpp"
 #include "render_fixture.hpp"
 #include "test_figures.hpp"
+#include "test_images.hpp"
 
 namespace omnipose {
 namespace {
 
 using testing::indoorPhoto;
 using testing::relativePose;
-
-/// The park photo beside the source tree (shared data), or "" when it is not there.
-std::filesystem::path parkPhoto() {
-  for (const auto& dir : {std::filesystem::path(OMNIPOSE_SOURCE_DIR) / ".." / "shared",
-                          std::filesystem::path("/work/shared")}) {
-    const auto p = dir / "data" / "equirect" / "park_theta_v_5376x2688.jpg";
-    if (std::filesystem::exists(p)) return p;
-  }
-  return {};
-}
 
 /// Noisy, JPEG-compressed 8-bit frame as a camera would deliver it.
 cv::Mat cameraFrame(const synth::Renderer& renderer, const Eigen::Isometry3d& pose, int frame) {
@@ -84,8 +75,8 @@ TEST(PoseCovariance, RotationNeesAveragesAboutThreeIndoors) {
 }
 
 TEST(PoseCovariance, RotationNeesAveragesAboutThreeOutdoors) {
-  const auto park = parkPhoto();
-  if (park.empty()) GTEST_SKIP() << "the shared park photo is not beside the source tree";
+  const std::string park = test::equirectPath(test::kPark);
+  if (park.empty()) GTEST_SKIP() << "shared test photo " << test::kPark << " not found";
   const double nees = meanRotationNees(park, 20);
   testing::recordFigure("mean_rotation_nees", nees, 2);
   EXPECT_GT(nees, 1.5);
