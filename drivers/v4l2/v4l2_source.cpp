@@ -93,6 +93,9 @@ std::vector<std::string> validate(const V4l2Options& o) {
   if (o.buffer_count < 2 || o.buffer_count > 32)
     problems.push_back("buffer_count: must be in [2, 32], is " + std::to_string(o.buffer_count));
   drivers::appendClockProblems(problems, o.clock_resync, o.clock_samples);
+  if (!(std::abs(o.readout_s) <= 0.1))
+    problems.push_back("readout_s: must be finite with |readout_s| <= 0.1 s (sensor.readout_s of "
+                       "the calibration), is " + std::to_string(o.readout_s));
   return problems;
 }
 
@@ -566,6 +569,8 @@ V4l2Source::Step V4l2Source::drain(cv::Mat& out, FrameInfo& info, Error& error) 
     const bool monotonic =
         (b.flags & V4L2_BUF_FLAG_TIMESTAMP_MASK) == V4L2_BUF_FLAG_TIMESTAMP_MONOTONIC;
     d.timestamp_ns = monotonic ? drivers::toNanoseconds(b.timestamp) : 0;
+    if (monotonic && (b.flags & V4L2_BUF_FLAG_TSTAMP_SRC_MASK) == V4L2_BUF_FLAG_TSTAMP_SRC_EOF)
+      d.timestamp_ns -= static_cast<std::int64_t>(std::llround(std::abs(options_.readout_s) * 1e9));
     dequeued_.push_back(d);
   }
   if (dequeued_.empty()) return Step::kRetry;  // poll raced with nothing: wait again

@@ -69,6 +69,11 @@ struct V4l2Options {
   std::chrono::milliseconds clock_resync{10000};     ///< re-measure the clock offset, >= 1
   int clock_samples = 7;   ///< bracketed reads per measurement, [1, 16]
   bool drop_stale = true;  ///< see the file comment ("Freshness")
+  /// The calibration's sensor.readout_s (seconds, a rolling shutter; 0 = global): a buffer
+  /// the driver stamps at the end of the frame (V4L2_BUF_FLAG_TSTAMP_SRC_EOF) is dated
+  /// |readout_s| earlier, at its first row's capture, the frame timestamp of DESIGN.md
+  /// section 2. Start-of-exposure stamps are kept. |readout_s| <= 0.1.
+  double readout_s = 0.0;
 };
 
 /// Every problem of `options`, without touching any device (empty = valid). The daemon's

@@ -98,6 +98,24 @@ struct PanoramaGeometry {
   Eigen::Vector3d bearing(double u, double v) const;
 };
 
+/// Row timing of the sensor (DESIGN.md section 2). A phone or Raspberry Pi camera reads its
+/// rows out one after another (rolling shutter): row y of a frame of H rows is captured at
+/// t + rowTime(y, H, readout_s), t being the frame's timestamp (the capture of the row read
+/// first). A published pose is the camera's pose at t.
+struct SensorTiming {
+  /// Seconds from the first row read to the last row of the frame as delivered; 0 = a
+  /// global shutter (default); negative = the last row is read first. |readout_s| at most
+  /// kMaxReadoutS.
+  double readout_s = 0.0;
+  static constexpr double kMaxReadoutS = 0.1;
+};
+
+/// Capture time of image row y (pixel centres at integers; fractional rows interpolate) of
+/// a frame of `rows` rows, seconds after the frame's timestamp: readout_s * y / rows, or,
+/// with a negative readout_s (last row first), |readout_s| * (rows - 1 - y) / rows. 0 for a
+/// global shutter.
+double rowTime(double y, int rows, double readout_s);
+
 /// Thrown by Calibration::load / parse at start-up: the configuration error (problems()
 /// lists every problem, each naming the file and the field).
 using CalibrationError = ConfigError;
@@ -106,11 +124,13 @@ using CalibrationError = ConfigError;
 struct Calibration {
   OmniLens omni;
   PanoramaGeometry panorama;
+  SensorTiming sensor;  ///< optional section `sensor` (global shutter when absent)
 
   /// Every inconsistency, one message per bad field (empty = valid): every number finite,
   /// sizes in (0, limits.hpp], radii 0 <= r_in < r_out, centre inside the image, horizon
   /// inside the panorama, the lens model's elevation monotonic over the ring, every
-  /// panorama row inside the ring's elevations, the mask of the frame size.
+  /// panorama row inside the ring's elevations, the mask of the frame size,
+  /// |sensor.readout_s| <= SensorTiming::kMaxReadoutS.
   std::vector<std::string> validate() const;
 
   /// Reads a plain-YAML calibration file (DESIGN.md section 6) and the files it names
@@ -145,6 +165,10 @@ struct Calibration {
   double ringRadius(double x, double y) const;
   /// Elevations (radians, up positive) at radius_inner and radius_outer.
   std::pair<double, double> ringElevations() const;
+  /// Capture time of panorama pixel (u, v), seconds after the frame's timestamp: the
+  /// rowTime() of the omni pixel it is unwrapped from; 0 for a global shutter; NaN where the
+  /// lens model cannot see the pixel's bearing.
+  double captureTime(double u, double v) const;
   /// Radius in the omni image (pixels) of panorama row v (linear model).
   double radiusOfRow(double v) const;
 };

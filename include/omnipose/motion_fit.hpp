@@ -114,8 +114,15 @@ class MotionFit {
   ~MotionFit();
 
   /// Fits the model to `windows`; a window's azimuth is theta = gamma * (center_u - forward_column).
-  /// `windows.size()` must not exceed maxWindows() (else status kLost).
-  MotionEstimate fit(std::span<const WindowMotion> windows, double forward_column);
+  /// `windows.size()` must not exceed maxWindows() (else status kLost). `row_scale`
+  /// (optional, one per window, else status kLost): the model's du and dv for window k are
+  /// row_scale[k].du and .dv times the motion's (a window whose measurement spans a longer
+  /// time than the motion fitted: a rolling shutter, DESIGN.md section 3); empty = 1.
+  struct RowScale {
+    double du = 1.0, dv = 1.0;
+  };
+  MotionEstimate fit(std::span<const WindowMotion> windows, double forward_column,
+                     std::span<const RowScale> row_scale = {});
 
   const Options& options() const;
   /// Radians per panorama column.

@@ -107,6 +107,8 @@ class WindowRegistration {
   int windowCount() const;
   /// Centre column of window k, pixels.
   double windowCenter(int k) const;
+  /// First panorama row of every window ((H - L) / 2: the windows are centred vertically).
+  int windowTop() const;
 
   /// Makes `panorama` (CV_32FC1, W x H) the reference. Transforms its windows
   /// once. A panorama of the wrong size or type is ignored (the reference is unchanged).

@@ -4,6 +4,7 @@
 
 #include <cmath>
 #include <fstream>
+#include <limits>
 #include <numbers>
 #include <opencv2/imgcodecs.hpp>
 #include <sstream>
@@ -103,6 +104,11 @@ std::vector<std::string> Calibration::validate() const {
       p.push_back("omni.radius_outer: must be at most " + std::to_string(2 * limits::kMaxImageSide));
   }
   finite(o.azimuth_zero_deg, "omni.azimuth_zero_deg");
+  if (finite(sensor.readout_s, "sensor.readout_s") &&
+      !(std::abs(sensor.readout_s) <= SensorTiming::kMaxReadoutS))
+    p.push_back("sensor.readout_s: " + std::to_string(sensor.readout_s) +
+                " s is longer than a frame can be read out (|readout_s| <= " +
+                std::to_string(SensorTiming::kMaxReadoutS) + " s; 0 = global shutter)");
   const auto& q = panorama;
   size(q.width, limits::kMaxPanoramaWidth, "panorama.width");
   size(q.height, limits::kMaxPanoramaHeight, "panorama.height");
@@ -210,7 +216,7 @@ Calibration Calibration::parse(const std::string& text, const std::string& origi
   if (!root || !root.IsMap()) {
     r.problem("(document)", "expected a map with sections 'omni' and 'panorama'");
   } else {
-    r.checkMap(root, "", {"omni", "panorama"}, "unknown section");
+    r.checkMap(root, "", {"omni", "panorama", "sensor"}, "unknown section");
     const auto section = [&](const std::string& name, const std::vector<std::string>& known) {
       const YAML::Node node = YamlReader::child(root, name);
       if (!node) {
@@ -359,6 +365,10 @@ Calibration Calibration::parse(const std::string& text, const std::string& origi
     c.panorama.horizon_row = 0.5 * c.panorama.height - 0.5;  // default: the middle
     r.get(pano, "panorama", "horizon_row", c.panorama.horizon_row, Need::kOptional);
     r.get(pano, "panorama", "forward_column", c.panorama.forward_column, Need::kOptional);
+
+    if (const YAML::Node sensor = YamlReader::child(root, "sensor");
+        sensor && r.checkMap(sensor, "sensor", {"readout_s"}))
+      r.get(sensor, "sensor", "readout_s", c.sensor.readout_s, Need::kOptional);
   }
   // Range checks only make sense on values that were read.
   if (r.problems().empty()) {
@@ -411,6 +421,7 @@ std::string Calibration::toYaml() const {
     << "  height: " << panorama.height << "\n"
     << "  horizon_row: " << panorama.horizon_row << "\n"
     << "  forward_column: " << panorama.forward_column << "\n";
+  if (sensor.readout_s != 0.0) o << "sensor:\n  readout_s: " << sensor.readout_s << "\n";
   return o.str();
 }
 
@@ -466,6 +477,18 @@ double linearRowOfRadius(const Calibration& c, double r) {
 }
 
 }  // namespace
+
+double rowTime(double y, int rows, double readout_s) {
+  if (readout_s >= 0.0) return readout_s * y / rows;
+  return -readout_s * (rows - 1 - y) / rows;
+}
+
+double Calibration::captureTime(double u, double v) const {
+  if (sensor.readout_s == 0.0) return 0.0;
+  const Eigen::Vector2d xy = omniPixel(u, v);
+  if (!std::isfinite(xy.y())) return std::numeric_limits<double>::quiet_NaN();
+  return rowTime(xy.y(), omni.image_height, sensor.readout_s);
+}
 
 double Calibration::radiusOfRow(double v) const {
   const double step = (omni.radius_outer - omni.radius_inner) / panorama.height;

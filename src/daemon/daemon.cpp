@@ -22,7 +22,8 @@ Daemon::Daemon(const DaemonConfig& config, std::FILE* log, std::unique_ptr<Frame
   const cv::Size frame_size = inputFrameSize(calibration, config_.pipeline.unwrap.input);
 
   source_ = source ? std::move(source)
-                   : makeFrameSource(config_.source, {frame_size, config_.calibration});
+                   : makeFrameSource(config_.source, {frame_size, config_.calibration,
+                                                     calibration.sensor.readout_s});
   sink_ = sink ? std::move(sink) : makeLcmSink(config_.lcm.url);
 
   const bool lossless = options_.force_lossless ||

@@ -57,6 +57,10 @@ std::string FileFrameSource::describe() const {
   if (dataset_) text += " (" + std::to_string(dataset_->frames.size()) + " frames)";
   text += options_.realtime ? ", realtime" : ", as fast as processed";
   if (options_.loop) text += ", loop";
+  if (dataset_) {
+    if (const std::string assumed = dataset_->assumptions(); !assumed.empty())
+      text += "; warning: " + assumed;
+  }
   return text;
 }
 

@@ -84,7 +84,11 @@ std::unique_ptr<FrameSource> makeFrameSource(const SourceConfig& config,
       });
     case SourceConfig::Type::kV4l2:
       throwIfInvalid(checkSourceOptions(config));
-      return std::make_unique<V4l2Source>(v4l2Options(config));
+      {
+        V4l2Options options = v4l2Options(config);
+        options.readout_s = context.readout_s;
+        return std::make_unique<V4l2Source>(options);
+      }
     case SourceConfig::Type::kLibcamera:
 #if defined(OMNIPOSE_HAVE_LIBCAMERA)
       throwIfInvalid(checkSourceOptions(config));

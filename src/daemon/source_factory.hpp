@@ -28,6 +28,8 @@ struct SourceContext {
   cv::Size frame_size;
   /// The daemon's calibration file (a file source uses it instead of DATASET/calibration.yaml).
   std::filesystem::path calibration;
+  /// Its sensor.readout_s (a V4L2 source dates end-of-frame timestamps back by it).
+  double readout_s = 0.0;
 };
 
 /// source.device, .width, .height, .fps, .format as V4l2Options (tuning left at its

@@ -81,8 +81,10 @@ struct MotionFit::Impl {
   /// Allocates the workspace for `max_windows` windows (arguments already validated).
   Impl(const Options& o, double gamma_per_column, double attenuation, int max_windows);
 
-  MotionEstimate fit(std::span<const WindowMotion> windows, double forward_column);
-  int buildTranslationRows(std::span<const WindowMotion> windows, double forward_column);
+  MotionEstimate fit(std::span<const WindowMotion> windows, double forward_column,
+                     std::span<const RowScale> row_scale);
+  int buildTranslationRows(std::span<const WindowMotion> windows, double forward_column,
+                           std::span<const RowScale> row_scale);
   /// Relative standard deviations of the kept windows' du or dv (window_covariance):
   /// sqrt(variance / median variance), floored at kMinRelativeSigma; 1 when off or unknown.
   /// `variance(w)` is window w's variance; the median is over the kept windows with one.
@@ -159,8 +161,15 @@ MotionFit::MotionFit(MotionFit&&) noexcept = default;
 MotionFit& MotionFit::operator=(MotionFit&&) noexcept = default;
 MotionFit::~MotionFit() = default;
 
-MotionEstimate MotionFit::fit(std::span<const WindowMotion> windows, double forward_column) {
-  return impl_->fit(windows, forward_column);
+MotionEstimate MotionFit::fit(std::span<const WindowMotion> windows, double forward_column,
+                              std::span<const RowScale> row_scale) {
+  if (!row_scale.empty() && row_scale.size() != windows.size()) {
+    MotionEstimate lost;
+    lost.windows_total = static_cast<int>(windows.size());
+    lost.status = FitStatus::kLost;  // a caller's error: one scale per window
+    return lost;
+  }
+  return impl_->fit(windows, forward_column, row_scale);
 }
 
 const MotionFit::Options& MotionFit::options() const { return impl_->options; }
@@ -174,7 +183,8 @@ double MotionFit::inverseDepth(int k) const { return impl_->depth[k]; }
 int MotionFit::maxWindows() const { return static_cast<int>(impl_->keep.size()); }
 
 int MotionFit::Impl::buildTranslationRows(std::span<const WindowMotion> windows,
-                                          double forward_column) {
+                                          double forward_column,
+                                          std::span<const RowScale> row_scale) {
   const int n = static_cast<int>(windows.size());
   for (int k = 0; k < n; ++k) keep[k] = windows[k].valid && windows[k].confidence > 0;
 
@@ -210,7 +220,11 @@ int MotionFit::Impl::buildTranslationRows(std::span<const WindowMotion> windows,
   for (int k = 0; k < n; ++k) {
     if (!keep[k]) continue;
     const double theta = gamma * (windows[k].center_u - forward_column);
-    const ModelRows m = modelRows(theta, kappa);
+    ModelRows m = modelRows(theta, kappa);
+    if (!row_scale.empty()) {
+      m.du *= row_scale[k].du;
+      m.dv *= row_scale[k].dv;
+    }
     const double conf = windows[k].confidence;
     const double cu = conf / (sd_u[k] * sd_u[k]), cv = conf / (sd_v[k] * sd_v[k]);
     rows[r] = Row{m.du, m.du, windows[k].du * gamma, 1.0 / (gamma * sd_u[k]), cu, cu, kDu, k};
@@ -491,7 +505,7 @@ double MotionFit::Impl::standardizedResidualPx(int i,
 }
 
 MotionEstimate MotionFit::Impl::fit(std::span<const WindowMotion> windows,
-                                    double forward_column) {
+                                    double forward_column, std::span<const RowScale> row_scale) {
   using Mat6 = Eigen::Matrix<double, 6, 6>;
   using Vec6 = Eigen::Matrix<double, 6, 1>;
   MotionEstimate est;
@@ -504,7 +518,7 @@ MotionEstimate MotionFit::Impl::fit(std::span<const WindowMotion> windows,
   }
   depth_prior_weight = 0.0;
   std::fill(depth.begin(), depth.end(), 1.0);  // inverseDepth() when depth is not fitted
-  int n_rows = buildTranslationRows(windows, forward_column);
+  int n_rows = buildTranslationRows(windows, forward_column, row_scale);
   if (n_rows < 2 * kMinWindows) return est;  // du and dv rows of too few windows: nothing to fit
 
   bool ok = false;

@@ -80,6 +80,7 @@ Dataset Dataset::open(const fs::path& root, const std::optional<fs::path>& calib
       }
       f.timestamp = it->second;
     }
+    d.timestamps_from_file = true;
   } else {
     for (std::size_t i = 0; i < d.frames.size(); ++i) d.frames[i].timestamp = i / kDefaultFps;
   }
@@ -87,6 +88,15 @@ Dataset Dataset::open(const fs::path& root, const std::optional<fs::path>& calib
   const fs::path gt_path = root / "groundtruth.tum";
   if (fs::exists(gt_path)) d.groundtruth = readTum(gt_path);
   return d;
+}
+
+std::string Dataset::assumptions() const {
+  if (timestamps_from_file || calibration.sensor.readout_s == 0.0) return {};
+  return (root / "timestamps.txt").string() +
+         " is missing: the rolling-shutter model (sensor.readout_s " +
+         std::to_string(calibration.sensor.readout_s) + " s) takes the frames as " +
+         std::to_string(static_cast<int>(kDefaultFps)) + " fps, 1/" +
+         std::to_string(static_cast<int>(kDefaultFps)) + " s apart";
 }
 
 Expected<void> readFrame(const fs::path& path, cv::Size expected_size,

@@ -1,5 +1,6 @@
 #include "pipeline/frame_registrar.hpp"
 
+#include <Eigen/Cholesky>
 #include <Eigen/Geometry>
 
 #include <algorithm>
@@ -25,6 +26,9 @@ namespace {
 /// full-search dv of every window of the accuracy benchmark (docs/PERFORMANCE.md).
 constexpr double kPredictionSlackPx = 4.0;
 constexpr double kDepthSpread = 0.5;
+
+/// tiltRateChange(): a rate change whose squared Mahalanobis norm is below this is noise.
+constexpr double kTiltRateSignificance = 4.0;
 
 /// The registration's options: each window's shift covariance is measured when the fit
 /// uses it.
@@ -83,7 +87,46 @@ FrameRegistrar::FrameRegistrar(const Calibration& c, const PipelineOptions& o, i
   refine_windows_.resize(windows);
   shifts_only_.resize(windows);  // rs_confidence 0: no rotation/scale
   expected_dv_.resize(windows);
+  if (c.sensor.readout_s != 0.0) measureWindowTimes();
   wisdom_.saveIfPlanned();
+}
+
+void FrameRegistrar::measureWindowTimes() {
+  // Capture time of every panorama pixel (through the lens model, as the unwrap table),
+  // its gradient by central differences (u wraps around; one-sided at the top and bottom
+  // rows), and per window the mean of both under the window's taper.
+  const cv::Size size = calibration_.panorama.size();
+  const int W = size.width, H = size.height, L = options_.registration.window;
+  cv::Mat time(size, CV_64FC1);
+  for (int v = 0; v < H; ++v)
+    for (int u = 0; u < W; ++u) time.at<double>(v, u) = calibration_.captureTime(u, v);
+  const auto at = [&](int u, int v) { return time.at<double>(v, ((u % W) + W) % W); };
+  const int top = registration_.windowTop(), windows = registration_.windowCount();
+  window_times_.assign(static_cast<std::size_t>(windows), {});
+  row_scale_.resize(static_cast<std::size_t>(windows));
+  for (int k = 0; k < windows; ++k) {
+    const int first = static_cast<int>(std::lround(registration_.windowCenter(k) - 0.5 * (L - 1)));
+    double weight = 0.0, s = 0.0, ds_du = 0.0, ds_dv = 0.0;
+    for (int i = 0; i < L; ++i) {
+      const int v = top + i;
+      for (int j = 0; j < L; ++j) {
+        const int u = first + j;
+        const double here = at(u, v);
+        const double du = 0.5 * (at(u + 1, v) - at(u - 1, v));
+        const double dv = v == 0 ? at(u, 1) - here
+                          : v == H - 1 ? here - at(u, v - 1)
+                                       : 0.5 * (at(u, v + 1) - at(u, v - 1));
+        if (!std::isfinite(here) || !std::isfinite(du) || !std::isfinite(dv)) continue;
+        const double w = windowTaper(i, L) * windowTaper(j, L);
+        weight += w;
+        s += w * here;
+        ds_du += w * du;
+        ds_dv += w * dv;
+      }
+    }
+    if (weight > 0.0)
+      window_times_[static_cast<std::size_t>(k)] = {s / weight, ds_du / weight, ds_dv / weight};
+  }
 }
 
 Expected<void> FrameRegistrar::unwrap(const cv::Mat& frame) {
@@ -113,7 +156,7 @@ std::optional<MotionEstimate> FrameRegistrar::firstPass(double* fit_seconds) {
                                          : std::span<const WindowMotion>()))
     return std::nullopt;
   const auto t_fit = std::chrono::steady_clock::now();
-  MotionEstimate estimate = fitWindows(windows_);
+  MotionEstimate estimate = fitPass(windows_, Eigen::Vector3d::Zero());
   if (fit_seconds != nullptr)
     *fit_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t_fit).count();
   return estimate;
@@ -127,13 +170,138 @@ std::optional<MotionEstimate> FrameRegistrar::alignedPass(const Eigen::Matrix3d&
                                          : std::span<const WindowMotion>(),
                              {}, slot))
     return std::nullopt;
-  return fitWindows(windows_);
+  return fitPass(windows_, rotationVector(R));
 }
 
 MotionEstimate FrameRegistrar::fitWindows(std::span<const WindowMotion> windows) {
   MotionEstimate estimate = fit_.fit(windows, calibration_.panorama.forward_column);
   estimate.covariance *= window_overlap_;
   return estimate;
+}
+
+MotionEstimate FrameRegistrar::fitPass(std::span<WindowMotion> windows,
+                                       const Eigen::Vector3d& warp_omega) {
+  if (window_times_.empty() || !(shutter_.interval_s > 0.0)) return fitWindows(windows);
+  // Window k compares the reference's rows captured at t_ref + s(c + d) with the current
+  // frame's at t_cur + s(c): it measures the motion over [t_ref + s_k + g_k, t_cur + s_k],
+  // g_k = grad s . d (d: its whole shift, the de-rotation's included). With the velocity
+  // linear in time that is A_k (X + s_k b) (dt - g_k) / dt, with X the motion between the
+  // timestamps, A_k the window's model rows and b = v(t_cur) - v(t_ref).
+  // - du (yaw, horizontal translation): v runs through the previous pair's mean velocity
+  //   v_p and this pair's, X / dt, at the midpoints of their intervals: b = c (X / dt - v_p),
+  //   c = 2 dt / (dt + dt_p), so (1 + s_k c / dt) A_k X = d_k dt / (dt - g_k) + s_k c A_k v_p,
+  //   linear in X: the fit solves it with the du rows scaled. Without a previous pair
+  //   (c = 0) the velocity is constant and only the stretch is corrected.
+  // - dv (roll, pitch, vertical translation): a tracked base shakes faster than a frame, so
+  //   b comes from the pair itself (tiltRateChange()).
+  const double dt = shutter_.interval_s, gamma = calibration_.panorama.gamma();
+  const double c = shutter_.previous_interval_s > 0.0
+                       ? 2.0 * dt / (dt + shutter_.previous_interval_s)
+                       : 0.0;
+  Eigen::Matrix<double, 6, 1> warp;
+  warp << warp_omega, Eigen::Vector3d::Zero();
+  for (std::size_t k = 0; k < windows.size(); ++k) {
+    const WindowTime& w = window_times_[k];
+    row_scale_[k] = {1.0 + w.s * c / dt, 1.0};
+    WindowMotion& m = windows[k];
+    if (!m.valid) continue;
+    const double theta = calibration_.panorama.azimuth(registration_.windowCenter(static_cast<int>(k)));
+    const ModelMotion removed = predictMotion(warp, theta, fit_.kappa());
+    const double du = m.du + removed.du_rad / gamma, dv = m.dv + removed.dv_rad / gamma;
+    const double g = w.ds_du * du + w.ds_dv * dv;
+    const double stretch = std::abs(g) < 0.5 * dt ? dt / (dt - g) : 1.0;
+    Eigen::Matrix<double, 6, 1> v = shutter_.previous_velocity * (w.s * c);
+    v.tail<3>() *= fit_.inverseDepth(static_cast<int>(k));
+    const ModelMotion before = predictMotion(v, theta, fit_.kappa());
+    m.du = du * stretch + before.du_rad / gamma - row_scale_[k].du * removed.du_rad / gamma;
+    m.dv = dv * stretch - removed.dv_rad / gamma;
+  }
+  if (const std::optional<Eigen::Vector2d> b = tiltRateChange(windows)) {
+    // Take the roll and pitch that changed speed during the pair out of every window: the
+    // fit then gives the motion between the timestamps.
+    for (std::size_t k = 0; k < windows.size(); ++k) {
+      if (!windows[k].valid) continue;
+      Eigen::Matrix<double, 6, 1> x;
+      x << window_times_[k].s * *b, 0.0, 0.0, 0.0, 0.0;
+      const double theta =
+          calibration_.panorama.azimuth(registration_.windowCenter(static_cast<int>(k)));
+      const ModelMotion m = predictMotion(x, theta, fit_.kappa());
+      windows[k].dv -= m.dv_rad / gamma;
+      windows[k].rotation -= m.rotation;
+    }
+  }
+  const std::span<const MotionFit::RowScale> scale(row_scale_.data(), windows.size());
+  MotionEstimate estimate = fit_.fit(windows, calibration_.panorama.forward_column, scale);
+  estimate.covariance *= window_overlap_;
+  return estimate;
+}
+
+std::optional<Eigen::Vector2d> FrameRegistrar::tiltRateChange(
+    std::span<const WindowMotion> windows) const {
+  // Window k sees roll and pitch over [t_ref + s_k, t_cur + s_k]: with their rates changing
+  // by b (rad/s) from the first interval to the second, its dv is A_k (X + s_k (b, 0)).
+  // s_k = c0 + c1 sin(image angle): the c0 part is a roll and pitch that cannot be told
+  // from the motion's own, the c1 part makes harmonics of 2 theta in dv, which nothing
+  // else in the model makes. So regressing dv on s_k A_k (b, 0) beside the model's own dv
+  // terms (1, sin, cos: roll, pitch, vertical translation at the mean depth) gives b; twice,
+  // the second time without the windows beyond 3 robust sigmas. (The fit's own residuals
+  // would not do: its per-window depths can absorb the harmonics through the vertical
+  // translation.) Yaw's rate change is not taken from the pair: in du its c1 part looks
+  // like a translation.
+  const double gamma = calibration_.panorama.gamma(), kappa = fit_.kappa();
+  using Vec5 = Eigen::Matrix<double, 5, 1>;
+  const auto basis = [&](std::size_t k) {
+    const double theta =
+        calibration_.panorama.azimuth(registration_.windowCenter(static_cast<int>(k)));
+    const double sn = kappa * std::sin(theta), cs = kappa * std::cos(theta);
+    const double s_k = window_times_[k].s;
+    Vec5 f;
+    f << -s_k * sn, s_k * cs, 1.0, sn, cs;
+    return f;
+  };
+  // Round 0 fits all windows, round 1 the ones within 3 robust sigmas of round 0's fit
+  // (cutoff), round 2 only measures the noise of round 1's fit.
+  double cutoff = std::numeric_limits<double>::infinity(), noise = 0.0;
+  Vec5 solution = Vec5::Zero();
+  Eigen::Matrix<double, 5, 5> normal;
+  for (int round = 0; round < 3; ++round) {
+    normal.setZero();
+    Vec5 rhs = Vec5::Zero();
+    int used = 0;
+    double sum_sq = 0.0, sum_wsq = 0.0;
+    for (std::size_t k = 0; k < windows.size(); ++k) {
+      if (!windows[k].valid || !(windows[k].confidence > 0.0)) continue;
+      const Vec5 f = basis(k);
+      const double dv = windows[k].dv * gamma;
+      const double r = dv - f.dot(solution);
+      if (round > 0 && !(std::abs(r) <= cutoff)) continue;
+      const double w = windows[k].confidence;
+      normal.noalias() += w * f * f.transpose();
+      rhs += w * dv * f;
+      sum_sq += r * r;
+      sum_wsq += w * r * r;
+      ++used;
+    }
+    if (used < MotionFit::kMinWindows) return std::nullopt;
+    if (round == 2) {
+      noise = sum_wsq / (used - 5);
+      break;
+    }
+    const Eigen::LDLT<Eigen::Matrix<double, 5, 5>> ldlt(normal);
+    if (ldlt.info() != Eigen::Success || !(ldlt.rcond() > 1e-12)) return std::nullopt;
+    solution = ldlt.solve(rhs);
+    if (round == 0) cutoff = 3.0 * std::sqrt(sum_sq / used);
+  }
+  if (!solution.allFinite()) return std::nullopt;
+  // Shrunk by its own significance: a rate change within the noise (a camera that does not
+  // shake) would only add that noise to the tilt. d2 = b^T Cov(b)^-1 b; at 2 sigmas and
+  // below b is dropped, well above it kept nearly whole.
+  const Eigen::Matrix<double, 5, 5> covariance = noise * normal.inverse();
+  const Eigen::Vector2d b(solution(0), solution(1));
+  const Eigen::Matrix2d cov_b = covariance.topLeftCorner<2, 2>();
+  const double d2 = b.dot(cov_b.ldlt().solve(b));
+  if (!(d2 > kTiltRateSignificance)) return std::nullopt;
+  return b * (1.0 - kTiltRateSignificance / d2);
 }
 
 PassResult FrameRegistrar::refine(const MotionEstimate& start, const Eigen::Matrix3d& R0,
@@ -154,7 +322,7 @@ PassResult FrameRegistrar::refine(const MotionEstimate& start, const Eigen::Matr
     derotate(R_warp);
     predictRefinementShifts(tau, last_fit);
     if (!registration_.measure(warped_, refine_windows_, false, {}, expected_dv_, against)) break;
-    const MotionEstimate residual = fitWindows(refine_windows_);
+    const MotionEstimate residual = fitPass(refine_windows_, rotationVector(R_warp));
     if (residual.status == FitStatus::kLost) {
       est.status = FitStatus::kDegraded;  // keep the estimate so far, trust it less
       break;

@@ -40,6 +40,17 @@ struct PassResult {
   Eigen::Matrix<double, 6, 1> window_model = Eigen::Matrix<double, 6, 1>::Zero();
 };
 
+/// What a pass needs to read each window's motion, measured between rows captured at
+/// different times (Calibration::sensor, a rolling shutter), as the motion between the two
+/// frames' timestamps (DESIGN.md section 3, "Rolling shutter").
+struct ShutterContext {
+  double interval_s = 0.0;  ///< t_current - t_reference, seconds; <= 0: no correction
+  /// The previous pair's motion (omega, tau) divided by its interval (per second) and that
+  /// interval; previous_interval_s <= 0: unknown (the velocity is taken as constant).
+  Eigen::Matrix<double, 6, 1> previous_velocity = Eigen::Matrix<double, 6, 1>::Zero();
+  double previous_interval_s = 0.0;
+};
+
 class FrameRegistrar {
  public:
   /// Throws std::invalid_argument as Pipeline's constructor. `keyframe_slots` in [0, 16].
@@ -55,6 +66,10 @@ class FrameRegistrar {
   /// Unwraps `frame` into the current panorama (kBadFrame / kInvalidArgument on a frame of
   /// the wrong size or type, or black).
   Expected<void> unwrap(const cv::Mat& frame);
+
+  /// The row timing of the next passes (until set again). Without a readout time in the
+  /// calibration it changes nothing.
+  void setShutter(const ShutterContext& shutter) { shutter_ = shutter; }
 
   /// Whether a previous frame is set (the first pass can run).
   bool hasPrevious() const { return has_previous_; }
@@ -112,6 +127,8 @@ class FrameRegistrar {
   };
 
   static int bandStart(int b, int bands, int rows) { return b * rows / bands; }
+  /// Fills window_times_ from the calibration's capture times (start-up).
+  void measureWindowTimes();
   void predictRefinementShifts(const Eigen::Vector3d& tau, FitStatus last_fit);
   /// `R` with its yaw (about the camera's z axis) rounded to whole panorama columns when its
   /// tilt is under one column's angle (else `R`): the de-rotation a refinement pass warps by.
@@ -119,6 +136,15 @@ class FrameRegistrar {
   void derotate(const Eigen::Matrix3d& R);
   /// The motion fit of `windows`, its covariance multiplied by window_overlap_.
   MotionEstimate fitWindows(std::span<const WindowMotion> windows);
+  /// fitWindows() of the windows of a pass over the current panorama de-rotated by
+  /// exp([warp_omega]x) (zero: not de-rotated), their du, dv first corrected in place for
+  /// the times their rows were captured when the sensor has a readout time: the fit then
+  /// gives the motion between the frames' timestamps (DESIGN.md section 3).
+  MotionEstimate fitPass(std::span<WindowMotion> windows, const Eigen::Vector3d& warp_omega);
+  /// The change b of the roll and pitch rates (rad/s, camera x and y) from the reference's
+  /// interval to the current frame's that the dv of `windows` (fitPass(), the whole motion)
+  /// show; nullopt when too few windows or an ill-posed regression.
+  std::optional<Eigen::Vector2d> tiltRateChange(std::span<const WindowMotion> windows) const;
 
   Calibration calibration_;
   PipelineOptions options_;
@@ -137,6 +163,14 @@ class FrameRegistrar {
   std::vector<WindowMotion> windows_, refine_windows_;
   std::vector<WindowMotion> shifts_only_;  ///< "known" rotation/scale for a shift-only pass
   std::vector<double> expected_dv_;        ///< refinement pass: dv per window, or NaN
+  /// Per window: capture time of its pixels (taper-weighted mean, seconds after the frame's
+  /// timestamp) and its change per panorama column and row; empty for a global shutter.
+  struct WindowTime {
+    double s = 0.0, ds_du = 0.0, ds_dv = 0.0;
+  };
+  std::vector<WindowTime> window_times_;
+  std::vector<MotionFit::RowScale> row_scale_;  ///< per window: the fit's row scale (fitPass())
+  ShutterContext shutter_;
   bool has_previous_ = false;
 };
 

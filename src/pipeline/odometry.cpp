@@ -103,6 +103,7 @@ struct Odometry::Impl {
     std::int64_t sequence = -1;
     Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
     long last_used = 0;
+    double time_s = 0.0;  ///< its frame's timestamp
   };
 
   Impl(const Calibration& c, const OdometryOptions& o)
@@ -131,6 +132,18 @@ struct Odometry::Impl {
     active = slot;
     keyframes[static_cast<std::size_t>(slot)].last_used = ++use_clock;
   }
+  /// The row timing of a registration of the current frame against a frame captured at
+  /// `reference_time`; `pair`: against the previous frame, whose motion's velocity is known
+  /// when that frame was tracked.
+  void setShutter(double reference_time, bool pair) {
+    pipeline::ShutterContext c;
+    c.interval_s = time - reference_time;
+    if (pair && velocity_interval > 0.0) {
+      c.previous_velocity = velocity;
+      c.previous_interval_s = velocity_interval;
+    }
+    registrar->setShutter(c);
+  }
   /// Fills `out` for the current frame at pose `T` with the estimate `pass`.
   void finish(OdometryResult& out, const Eigen::Isometry3d& T, const pipeline::PassResult& pass,
               TrackState state);
@@ -148,6 +161,10 @@ struct Odometry::Impl {
   Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();  ///< last good frame's
   std::int64_t last_sequence = -1;
   double last_time = 0.0;  ///< capture time of the last good frame
+  /// The last pair's motion (omega, translation in scene distances) per second and its
+  /// interval when that frame was tracked against the one before; interval 0 otherwise.
+  Eigen::Matrix<double, 6, 1> velocity = Eigen::Matrix<double, 6, 1>::Zero();
+  double velocity_interval = 0.0;
   double time = 0.0;       ///< of the frame being processed
   std::int64_t auto_sequence = 0;
   std::int64_t sequence = -1;  ///< the frame being processed
@@ -169,6 +186,7 @@ void Odometry::Impl::startSegment(OdometryResult& out, TrackState state) {
   out.pose = pose;
   last_sequence = sequence;
   last_time = time;
+  velocity_interval = 0.0;
 }
 
 bool Odometry::Impl::inReach(const Keyframe& k, const Eigen::Isometry3d& predicted) const {
@@ -198,7 +216,7 @@ void Odometry::Impl::addKeyframe(const Eigen::Isometry3d& at) {
     if (!k.valid ? s.valid : (s.valid && k.last_used < s.last_used)) slot = i;
   }
   if (!registrar->storeKeyframe(slot)) return;
-  keyframes[static_cast<std::size_t>(slot)] = {true, sequence, at, 0};
+  keyframes[static_cast<std::size_t>(slot)] = {true, sequence, at, 0, time};
   useKeyframe(slot);
 }
 
@@ -211,6 +229,14 @@ void Odometry::Impl::finish(OdometryResult& out, const Eigen::Isometry3d& T_esti
   setMotion(out.relative, pose.inverse() * T);
   out.relative.timing = keep_timing.timing;
   out.reference_sequence = last_sequence;
+  const double interval = time - last_time;
+  if (state == TrackState::kTracked && interval > 0.0) {
+    velocity << out.relative.estimate.omega, out.relative.estimate.tau;
+    velocity /= interval;
+    velocity_interval = interval;
+  } else {
+    velocity_interval = 0.0;
+  }
   out.windows = pass.windows;
   out.windows_refined = pass.refined;
   out.window_model = pass.window_model;
@@ -226,6 +252,7 @@ bool Odometry::Impl::bridge(OdometryResult& out) {
   const std::optional<double> yaw = registrar->ringYaw(active, keyframe_options.min_ring_peak);
   if (!yaw) return false;
   const Eigen::Matrix3d R0 = rotationFromVector(Eigen::Vector3d(0.0, 0.0, *yaw));
+  setShutter(key.time_s, false);
   const std::optional<MotionEstimate> aligned = registrar->alignedPass(R0, active);
   if (!aligned || aligned->status == FitStatus::kLost) return false;
   const pipeline::PassResult pass = registrar->refine(
@@ -284,6 +311,7 @@ Expected<OdometryResult> Odometry::Impl::process(const cv::Mat& frame, const Fra
 
   // First pass against the previous frame.
   const auto t_reg = Clock::now();
+  setShutter(last_time, true);
   const std::optional<MotionEstimate> first = r.firstPass(&m.timing.fit);
   if (!first) {
     gap = true;
@@ -306,6 +334,7 @@ Expected<OdometryResult> Odometry::Impl::process(const cv::Mat& frame, const Fra
   if (slot >= 0) {
     const Keyframe& key = keyframes[static_cast<std::size_t>(slot)];
     const Eigen::Isometry3d from_key = key.pose.inverse() * predicted;
+    setShutter(key.time_s, key.sequence == last_sequence);
     const pipeline::PassResult pass =
         r.refine(*first, from_key.linear(), from_key.translation(), slot);
     const bool worse = !pass.refined || pass.estimate.status == FitStatus::kLost ||
@@ -322,6 +351,7 @@ Expected<OdometryResult> Odometry::Impl::process(const cv::Mat& frame, const Fra
     }
   }
   // Frame-to-frame refinement; the frame becomes the keyframe.
+  setShutter(last_time, true);
   const pipeline::PassResult pass =
       r.refine(*first, R1, first->tau, WindowRegistration::kPreviousFrame);
   out.keyframe_sequence = last_sequence;

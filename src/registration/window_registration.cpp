@@ -732,6 +732,7 @@ int WindowRegistration::threads() const { return impl_->pool->size(); }
 int WindowRegistration::windowCount() const { return impl_->windows; }
 
 double WindowRegistration::windowCenter(int k) const { return impl_->windowCenter(k); }
+int WindowRegistration::windowTop() const { return impl_->top; }
 
 void WindowRegistration::setReference(const cv::Mat& panorama) {
   Impl& s = *impl_;

@@ -6,6 +6,8 @@
 #include <cmath>
 #include <filesystem>
 #include <numbers>
+#include <string>
+#include <utility>
 
 namespace omnipose {
 namespace {
@@ -103,6 +105,51 @@ TEST(Calibration, SaveLoadRoundTrip) {
   EXPECT_EQ(d.omni.outer_edge, OuterEdge::kBottom);
   EXPECT_DOUBLE_EQ(d.omni.azimuth_zero_deg, -37.5);
   std::filesystem::remove(path);
+}
+
+TEST(CalibrationSensor, ReadoutTimeIsReadValidatedAndSaved) {
+  EXPECT_EQ(Calibration::parse(kValid).sensor.readout_s, 0.0) << "no section: global shutter";
+  const Calibration c =
+      Calibration::parse(std::string(kValid) + "sensor:\n  readout_s: -0.0267\n");
+  EXPECT_DOUBLE_EQ(c.sensor.readout_s, -0.0267);
+  EXPECT_NE(c.toYaml().find("sensor:\n  readout_s: -0.0267"), std::string::npos) << c.toYaml();
+  EXPECT_EQ(Calibration::parse(kValid).toYaml().find("sensor"), std::string::npos)
+      << "a global shutter writes no section: files stay as they were";
+
+  const auto problemsOf = [](const std::string& sensor) {
+    try {
+      Calibration::parse(std::string(kValid) + sensor, "cal.yaml");
+    } catch (const CalibrationError& e) {
+      return std::string(e.what());
+    }
+    return std::string();
+  };
+  for (const char* bad : {"sensor:\n  readout_s: 0.15\n", "sensor:\n  readout_s: -0.2\n",
+                          "sensor:\n  readout_s: .nan\n", "sensor:\n  readout_s: fast\n"}) {
+    const std::string what = problemsOf(bad);
+    EXPECT_NE(what.find("cal.yaml: sensor.readout_s"), std::string::npos) << bad << what;
+  }
+  EXPECT_NE(problemsOf("sensor:\n  exposure_s: 0.01\n").find("sensor.exposure_s: unknown key"),
+            std::string::npos);
+  EXPECT_EQ(problemsOf("sensor:\n  readout_s: 0.1\n"), "") << "the longest readout is allowed";
+}
+
+TEST(CalibrationSensor, EveryPanoramaPixelIsCapturedWhenItsOmniRowIsRead) {
+  Calibration c = Calibration::parse(kValid);
+  EXPECT_EQ(c.captureTime(100.0, 50.0), 0.0) << "global shutter";
+  for (const double readout : {0.0267, -0.0267}) {
+    c.sensor.readout_s = readout;
+    for (const auto& [u, v] : {std::pair{0.0, 0.0}, {275.0, 54.5}, {550.0, 109.0}, {812.3, 20.7}}) {
+      const double y = c.omniPixel(u, v).y();
+      const double expected = readout > 0 ? readout * y / 720.0 : -readout * (719.0 - y) / 720.0;
+      EXPECT_NEAR(c.captureTime(u, v), expected, 1e-15) << u << " " << v;
+      EXPECT_GE(c.captureTime(u, v), 0.0);
+      EXPECT_LE(c.captureTime(u, v), std::abs(readout));
+    }
+  }
+  EXPECT_EQ(rowTime(0.0, 720, 0.0267), 0.0);
+  EXPECT_DOUBLE_EQ(rowTime(360.0, 720, 0.0267), 0.0267 / 2);
+  EXPECT_EQ(rowTime(719.0, 720, -0.0267), 0.0) << "reversed: the last row is read first";
 }
 
 // DESIGN.md section 6: a = azimuth_zero + theta (cw) / - theta (ccw); outer ring -> top row.

@@ -264,7 +264,7 @@ void FakeV4l2Device::produceFrame() {
   b.bytes_used = static_cast<std::uint32_t>(n);
   b.flags = config_.timestamp_type;
   if (config_.timestamp_type == V4L2_BUF_FLAG_TIMESTAMP_MONOTONIC)
-    b.flags |= V4L2_BUF_FLAG_TSTAMP_SRC_SOE;
+    b.flags |= config_.timestamp_source;
   for (std::uint64_t s : error_frames_)
     if (s == k) b.flags |= V4L2_BUF_FLAG_ERROR;
   for (const auto& [s, bytes_left] : truncated_frames_)

@@ -69,6 +69,9 @@ struct FakeV4l2Config {
   std::uint32_t max_buffers = 8;
   /// Timestamp type in the buffer flags (MONOTONIC, or COPY / UNKNOWN).
   std::uint32_t timestamp_type = V4L2_BUF_FLAG_TIMESTAMP_MONOTONIC;
+  /// What a monotonic timestamp marks: the start of exposure (SOE) or the end of the
+  /// frame (EOF); frameTimestampNs() is the buffer's timestamp either way.
+  std::uint32_t timestamp_source = V4L2_BUF_FLAG_TSTAMP_SRC_SOE;
   int jpeg_quality = 100;
   /// Distinct frames rendered at STREAMON and shown in turn (frame k shows k % cycle).
   int content_cycle = 8;

@@ -632,6 +632,26 @@ TEST_F(V4l2SourceTest, MonotonicTimestampsBecomeWallClockMicroseconds) {
   }
 }
 
+TEST_F(V4l2SourceTest, EndOfFrameTimestampsAreDatedBackToTheFirstRowsCapture) {
+  FakeV4l2Device::Config fc;
+  fc.timestamp_source = V4L2_BUF_FLAG_TSTAMP_SRC_EOF;
+  V4l2Options o = v4l2Config(320, 240, "GREY");
+  o.readout_s = -0.025;  // the last row read first: the magnitude is what the readout took
+  make(fc, o);
+  openOrDie();
+  for (int i = 0; i < 3; ++i) {
+    auto info = next();
+    ASSERT_TRUE(info);
+    EXPECT_EQ(info->capture_time_us,
+              expectedWallUs(fake_->frameTimestampNs(info->sequence) - 25'000'000,
+                             fake_->realtimeOffset()));
+  }
+  o.readout_s = 0.5;
+  const auto problems = validate(o);
+  ASSERT_EQ(problems.size(), 1u);
+  EXPECT_NE(problems[0].find("readout_s"), std::string::npos) << problems[0];
+}
+
 TEST_F(V4l2SourceTest, WallClockStepIsFollowedAfterResync) {
   V4l2Options o = v4l2Config(320, 240, "GREY");
   o.clock_resync = 200ms;

@@ -288,6 +288,32 @@ TEST(MotionFit, MoreWindowsThanTheWorkspaceIsLost) {
   EXPECT_EQ(fit.fit(synthesize(x, 0.0, 0.0, rng), 0.0).status, FitStatus::kLost);
 }
 
+TEST(MotionFit, RowScalesFitWindowsWhoseMeasurementsSpanLongerTimes) {
+  // A rolling shutter: window k's du spans (1 + sigma_k) of the motion, sigma_k varying
+  // around the ring as the capture time of its rows does; dv its own scale.
+  std::mt19937 rng(11);
+  Vec6 x;
+  x << 0.004, -0.003, 0.05, 0.01, -0.02, 0.0;
+  std::vector<WindowMotion> windows = synthesize(x, 0.0, 0.0, rng);
+  std::vector<MotionFit::RowScale> scale;
+  for (int k = 0; k < kWindows; ++k) {
+    const double theta = kGamma * windows[k].center_u;
+    const MotionFit::RowScale s{1.4 + 0.23 * std::sin(theta), 1.1 - 0.05 * std::cos(theta)};
+    windows[k].du *= s.du;
+    windows[k].dv *= s.dv;
+    scale.push_back(s);
+  }
+  MotionFit fit = makeFit(false, false);
+  const MotionEstimate scaled = fit.fit(windows, 0.0, scale);
+  ASSERT_NE(scaled.status, FitStatus::kLost);
+  EXPECT_LT((scaled.vector() - x).norm(), 1e-9) << scaled.vector().transpose();
+  const MotionEstimate plain = fit.fit(windows, 0.0);
+  EXPECT_GT((plain.vector() - x).norm(), 0.01) << "without the scales the estimate is off";
+  scale.pop_back();
+  EXPECT_EQ(fit.fit(windows, 0.0, scale).status, FitStatus::kLost)
+      << "one scale per window, else the caller erred";
+}
+
 TEST(MotionFit, KappaIsTheAttenuationOfTheRegistrationTaper) {
   const MotionFit fit({}, kGamma, kWindow, kWindows);
   EXPECT_DOUBLE_EQ(fit.kappa(), windowAttenuation(kWindow, kGamma));

@@ -74,6 +74,8 @@ ReplaySummary run(const ReplayOptions& options, std::FILE* log) {
   }
   if (options.input) odometry_options.pipeline.unwrap.input = *options.input;
   const Dataset dataset = Dataset::open(options.dataset, options.calibration);
+  if (const std::string assumed = dataset.assumptions(); !assumed.empty())
+    std::fprintf(log, "warning: %s\n", assumed.c_str());
   auto odometry = makeOdometry(options.method, dataset.calibration, odometry_options);
 
   std::ofstream csv;

@@ -32,6 +32,13 @@ struct Dataset {
   Calibration calibration;
   std::vector<DatasetFrame> frames;
   std::optional<std::vector<StampedPose>> groundtruth;
+  /// false: no timestamps.txt, the frames were stamped i / kDefaultFps.
+  bool timestamps_from_file = false;
+
+  /// A warning for the user when something the calibration needs had to be assumed: a
+  /// rolling shutter (sensor.readout_s) with frame times that are not recorded. Empty when
+  /// nothing was assumed.
+  std::string assumptions() const;
 
   /// Opens `root`. `calibration_override` replaces DATASET/calibration.yaml when given.
   /// Throws std::runtime_error naming the path on: missing directory, missing frames/
