@@ -100,7 +100,8 @@ double Walker::grey(double angle_rad, double height_fraction) const {
   // The band holding f (the last band includes f = 1).
   std::size_t band = 0;
   while (band + 1 < band_grey.size() && f >= band_edge[band + 1]) ++band;
-  double value = band_grey[band];
+  const Stripes& s = band_stripes[band];
+  double value = band_grey[band] + s.amplitude * std::sin(s.cycles * angle_rad + s.phase_rad);
   for (const Blotch& b : blotches) {
     const double da = std::remainder(angle_rad - b.angle_rad, 2.0 * kPi) / b.sigma_rad;
     const double df = (f - b.height_fraction) / b.sigma_fraction;
@@ -156,13 +157,18 @@ std::vector<Walker> drawWalkers(const Walkers& w, double floor_z) {
     p.radius_m = 0.5 * w.width_m;
     p.base_z = w.base_z.value_or(floor_z);
     p.top_z = p.base_z + w.height_m;
-    // Texture: 3..6 horizontal bands of clothing (grey 30..225), then 2..5 blotches.
+    // Texture: 3..6 horizontal bands of clothing (grey 30..225, stripes of 2..8 cycles
+    // around the body and amplitude 0..40), then 2..5 blotches.
     const int bands = std::uniform_int_distribution<int>(3, 6)(rng);
     p.band_edge = {0.0};
     for (int j = 1; j < bands; ++j) p.band_edge.push_back(uniform(0.1, 0.9));
     std::sort(p.band_edge.begin(), p.band_edge.end());
     p.band_edge.push_back(1.0);
-    for (int j = 0; j < bands; ++j) p.band_grey.push_back(uniform(30.0, 225.0));
+    for (int j = 0; j < bands; ++j) {
+      p.band_grey.push_back(uniform(30.0, 225.0));
+      const double cycles = std::uniform_int_distribution<int>(2, 8)(rng);
+      p.band_stripes.push_back({uniform(0.0, 40.0), cycles, uniform(0.0, 2.0 * kPi)});
+    }
     const int blotches = std::uniform_int_distribution<int>(2, 5)(rng);
     for (int j = 0; j < blotches; ++j) {
       Walker::Blotch b{};
@@ -191,8 +197,12 @@ Walkers parseWalkers(const std::string& text, const Walkers& base) {
     }
     if (fields.size() > 4) throw std::invalid_argument("more than 4 fields");
     const auto read = [](const std::string& field) {
-      std::size_t end = 0;
-      const double v = std::stod(field, &end);
+      std::size_t end = std::string::npos;
+      double v = 0.0;
+      try {
+        v = std::stod(field, &end);
+      } catch (const std::logic_error&) {  // std::invalid_argument, std::out_of_range
+      }
       if (end != field.size()) throw std::invalid_argument("'" + field + "' is not a number");
       return v;
     };
@@ -207,8 +217,6 @@ Walkers parseWalkers(const std::string& text, const Walkers& base) {
   } catch (const std::invalid_argument& e) {
     throw std::invalid_argument("'" + text + "' is not COUNT[,WIDTH_M,HEIGHT_M,SPEED_M_S] (" +
                                 e.what() + ")");
-  } catch (const std::out_of_range&) {
-    throw std::invalid_argument("'" + text + "' is out of range");
   }
 }
 

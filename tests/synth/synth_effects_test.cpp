@@ -461,14 +461,20 @@ TEST(SynthWalkers, InvalidOptionsAreRejectedNamingTheField) {
   EXPECT_EQ(parsed.height_m, 1.8);
   EXPECT_EQ(parsed.speed_m_s, 0.9);
   EXPECT_EQ(parseWalkers("2", {.speed_m_s = 0.3}).speed_m_s, 0.3) << "fields not given are kept";
-  for (const char* text : {"", "x", "2.5", "3,0", "1,2,3,4,5", "3,0.5,abc"}) {
+  for (const char* text : {"", "x", "2.5", "3,0", "1,2,3,4,5", "3,0.5,abc", "1e999", "101"}) {
     EXPECT_THROW(parseWalkers(text), std::invalid_argument) << text;
   }
-  try {
-    parseWalkers("3,0");
-  } catch (const std::invalid_argument& e) {
-    EXPECT_NE(std::string(e.what()).find("walkers.width_m"), std::string::npos) << e.what();
-  }
+  const auto parse_error = [](const std::string& text) -> std::string {
+    try {
+      parseWalkers(text);
+    } catch (const std::invalid_argument& e) {
+      return e.what();
+    }
+    return "";
+  };
+  EXPECT_NE(parse_error("3,0").find("walkers.width_m"), std::string::npos) << parse_error("3,0");
+  EXPECT_NE(parse_error("3,0.5,abc").find("'abc' is not a number"), std::string::npos)
+      << parse_error("3,0.5,abc");
 }
 
 TEST(SynthWalkers, MotionScriptsReadThemWithTheirPath) {
@@ -486,6 +492,10 @@ TEST(SynthWalkers, MotionScriptsReadThemWithTheirPath) {
   EXPECT_EQ(script.walkers->max_distance_m, 1.9);
   EXPECT_EQ(script.walkers->seed, 12u);
   EXPECT_FALSE(MotionScript::parse("segments: [{frames: 3}]\n").walkers);
+  const MotionScript example = MotionScript::load(kSourceDir / "tools/synth/examples/people.yaml");
+  ASSERT_TRUE(example.walkers);
+  EXPECT_EQ(example.walkers->count, 4);
+  EXPECT_TRUE(example.walkers->validate(SceneKind::kBox, Box{}).empty());
   const auto error = [](const std::string& walkers) -> std::string {
     try {
       MotionScript::parse("walkers: " + walkers + "\nsegments: [{frames: 3}]\n", "w.yaml");

@@ -98,7 +98,9 @@ struct Box {
 ///
 /// Per person i (0-based) a generator seeded by (seed, i) alone draws, in this order: the
 /// distance uniform in [min_distance_m, max_distance_m], azimuth0 uniform in [0, 2 pi), the
-/// direction +1 (counter-clockwise) or -1 with probability 1/2, then its texture (see Walker).
+/// direction +1 (counter-clockwise) or -1 with probability 1/2, then its texture (see Walker:
+/// 3..6 bands of grey 30..225 with stripes of 2..8 cycles and amplitude 0..40, then 2..5
+/// blotches of amplitude +-25..70).
 /// So person i is the same whatever `count` is.
 struct Walkers {
   int count = 0;                    ///< people, [0, 100]; 0 = none
@@ -128,13 +130,20 @@ struct Walker {
   double radius_m = 0.0;      ///< width / 2
   double base_z = 0.0, top_z = 0.0;
 
-  /// Texture, grey levels: a function of the angle around the axis measured from the
+  /// Texture, grey levels: a function of the angle `a` around the axis measured from the
   /// direction away from the world origin (so the pattern turns with the person as it
   /// walks around) and of the height fraction f = (z - base) / (top - base) in [0, 1]:
-  /// horizontal bands (band_grey[j] for band_edge[j] <= f < band_edge[j + 1], band_edge
-  /// starting at 0 and ending at 1), plus Gaussian blotches, clamped to [16, 240].
+  /// horizontal bands of clothing, band j for band_edge[j] <= f < band_edge[j + 1]
+  /// (band_edge starts at 0 and ends at 1), each of grey band_grey[j] plus vertical stripes
+  /// amplitude * sin(cycles * a + phase_rad) (whole cycles around the body), plus Gaussian
+  /// blotches amplitude * exp(-(da / sigma_rad)^2 / 2 - (df / sigma_fraction)^2 / 2); the
+  /// sum clamped to [16, 240].
   std::vector<double> band_edge;
   std::vector<double> band_grey;
+  struct Stripes {
+    double amplitude, cycles, phase_rad;
+  };
+  std::vector<Stripes> band_stripes;  ///< one per band
   struct Blotch {
     double angle_rad, height_fraction, sigma_rad, sigma_fraction, amplitude;
   };
