@@ -137,6 +137,24 @@ Vibration readVibration(Reader& r, const YAML::Node& node, const std::string& pa
   return v;
 }
 
+Walkers readWalkers(Reader& r, const YAML::Node& node, const std::string& path) {
+  Walkers w;
+  if (!node.IsMap()) {
+    r.problem(path, "must be a map");
+    return w;
+  }
+  r.checkMap(node, path,
+             {"count", "width_m", "height_m", "base_z", "speed_m_s", "distance_m", "seed"});
+  r.get(node, path, "count", w.count);
+  r.get(node, path, "width_m", w.width_m);
+  r.get(node, path, "height_m", w.height_m);
+  if (double base = 0.0; r.get(node, path, "base_z", base)) w.base_z = base;
+  r.get(node, path, "speed_m_s", w.speed_m_s);
+  r.getInterval(node, path, "distance_m", w.min_distance_m, w.max_distance_m);
+  r.get(node, path, "seed", w.seed);
+  return w;
+}
+
 MotionSegment readSegment(Reader& r, const YAML::Node& node, const std::string& path) {
   MotionSegment s;
   if (!node.IsMap()) {
@@ -354,6 +372,9 @@ std::vector<std::string> MotionScript::validate() const {
       }
     }
   }
+  if (walkers) {
+    for (auto& problem : walkers->validate()) p.push_back(std::move(problem));
+  }
   if (vibration && frames >= 0 && !segments.empty()) {
     for (auto& problem : vibrationProblems(*vibration, frameCount(), frame_rate)) {
       p.push_back(std::move(problem));
@@ -390,13 +411,16 @@ MotionScript MotionScript::parse(const std::string& yaml_text, const std::string
     r.problem("(document)", "expected a map with a 'segments' list");
   } else {
     r.checkMap(root, "", {"seed", "frame_rate", "frames", "wall_margin_m", "segments",
-                          "vibration"});
+                          "vibration", "walkers"});
     r.get(root, "", "seed", script.seed);
     r.get(root, "", "frame_rate", script.frame_rate);
     r.get(root, "", "frames", script.frames);
     r.get(root, "", "wall_margin_m", script.wall_margin_m);
     if (const YAML::Node vibration = Reader::child(root, "vibration")) {
       script.vibration = readVibration(r, vibration, "vibration");
+    }
+    if (const YAML::Node walkers = Reader::child(root, "walkers")) {
+      script.walkers = readWalkers(r, walkers, "walkers");
     }
     const YAML::Node segments = root["segments"];
     if (!segments) {

@@ -1,9 +1,13 @@
+#include <algorithm>
 #include <cmath>
+#include <limits>
 #include <numbers>
+#include <span>
 
 #include "omnipose/so3.hpp"
 #include "omnipose/synth/synth.hpp"
 #include "synth/equirect.hpp"
+#include "synth/walker_hit.hpp"
 
 namespace omnipose::synth {
 namespace {
@@ -39,6 +43,20 @@ float lensBody(const OmniLens& lens, double r) {
 
 }  // namespace
 
+std::vector<std::string> FrameTiming::validate() const {
+  std::vector<std::string> p;
+  if (!std::isfinite(timestamp_s)) p.push_back("timestamp_s: must be finite");
+  if (!std::isfinite(readout_s)) p.push_back("readout_s: must be finite");
+  if (!(exposure_s >= 0 && std::isfinite(exposure_s))) {
+    p.push_back("exposure_s: must be a finite number >= 0 seconds");
+  }
+  if (exposure_samples < 0 || exposure_samples > kMaxExposureSamples) {
+    p.push_back("exposure_samples: must be in [0, " + std::to_string(kMaxExposureSamples) +
+                "] (0 = chosen from the motion)");
+  }
+  return p;
+}
+
 std::vector<std::string> RenderOptions::validate() const {
   std::vector<std::string> p;
   if (supersample < 1 || supersample > 16) p.push_back("supersample: must be in [1, 16]");
@@ -60,8 +78,12 @@ Renderer::Renderer(Scene scene, Calibration calibration, RenderOptions options)
   if (scene_.texture.empty() || scene_.texture.type() != CV_32FC1) {
     problems.push_back("scene.texture: must be a non-empty CV_32FC1 image");
   }
+  for (const auto& p : scene_.walkers.validate(scene_.kind, scene_.box)) {
+    problems.push_back("scene." + p);
+  }
   if (!problems.empty()) throw std::invalid_argument("Renderer:" + joinLines(problems));
   pyramid_ = detail::buildPyramid(scene_.texture);
+  walkers_ = drawWalkers(scene_.walkers, scene_.box.floor);
 }
 
 cv::Size Renderer::outputSize() const {
@@ -71,33 +93,112 @@ cv::Size Renderer::outputSize() const {
   return {calibration_.omni.image_width, calibration_.omni.image_height};
 }
 
+void Renderer::checkInsideRoom(const Eigen::Isometry3d& T, int row) const {
+  if (scene_.kind != SceneKind::kBox || scene_.box.contains(T.translation())) return;
+  throw std::invalid_argument(
+      "Renderer::render: the camera is outside the box room" +
+      (row < 0 ? std::string() : " at row " + std::to_string(row)));
+}
+
 cv::Mat Renderer::render(const Eigen::Isometry3d& T_world_camera) const {
-  if (scene_.kind == SceneKind::kBox && !scene_.box.contains(T_world_camera.translation())) {
-    throw std::invalid_argument("Renderer::render: the camera is outside the box room");
-  }
+  return render(T_world_camera, 0.0);
+}
+
+cv::Mat Renderer::render(const Eigen::Isometry3d& T_world_camera, double time_s) const {
+  checkInsideRoom(T_world_camera, -1);
   cv::Mat out(outputSize(), CV_32FC1);
+  const std::vector<View> views(static_cast<std::size_t>(out.rows), View{T_world_camera, time_s});
   cv::parallel_for_(cv::Range(0, out.rows), [&](const cv::Range& rows) {
-    renderRows(T_world_camera, rows.start, rows.end, out);
+    renderRows(views, 1, rows.start, rows.end, out);
   });
   return out;
 }
 
 cv::Mat Renderer::render(const std::function<Eigen::Isometry3d(double)>& pose_at,
                          double readout_s) const {
+  return render(pose_at, FrameTiming{.readout_s = readout_s});
+}
+
+cv::Mat Renderer::render(const std::function<Eigen::Isometry3d(double)>& pose_at,
+                         const FrameTiming& timing) const {
+  if (const auto problems = timing.validate(); !problems.empty()) {
+    throw std::invalid_argument("Renderer::render: invalid timing:" + joinLines(problems));
+  }
+  const int n = exposureSamples(pose_at, timing);
   cv::Mat out(outputSize(), CV_32FC1);
-  std::vector<Eigen::Isometry3d> row_pose(static_cast<std::size_t>(out.rows));
+  // Row y, sub-exposure i: pose_at(rowTime(y) + o_i), walkers at (timestamp + o_i) +
+  // rowTime(y): exactly what render(t -> pose_at(t + o_i), {timestamp + o_i, readout}) uses.
+  std::vector<View> views(static_cast<std::size_t>(out.rows) * static_cast<std::size_t>(n));
   for (int y = 0; y < out.rows; ++y) {
-    row_pose[static_cast<std::size_t>(y)] = pose_at(rowTime(y, out.rows, readout_s));
-    if (scene_.kind == SceneKind::kBox &&
-        !scene_.box.contains(row_pose[static_cast<std::size_t>(y)].translation()))
-      throw std::invalid_argument("Renderer::render: the camera is outside the box room at row " +
-                                  std::to_string(y));
+    const double t = rowTime(y, out.rows, timing.readout_s);
+    for (int i = 0; i < n; ++i) {
+      const double o = n == 1 ? 0.0 : timing.exposure_s * ((i + 0.5) / n - 0.5);
+      View& view = views[static_cast<std::size_t>(y) * n + i];
+      view.pose = pose_at(n == 1 ? t : t + o);
+      view.time_s = (timing.timestamp_s + o) + t;
+      checkInsideRoom(view.pose, y);
+    }
   }
   cv::parallel_for_(cv::Range(0, out.rows), [&](const cv::Range& rows) {
-    for (int y = rows.start; y < rows.end; ++y)
-      renderRows(row_pose[static_cast<std::size_t>(y)], y, y + 1, out);
+    renderRows(views, n, rows.start, rows.end, out);
   });
   return out;
+}
+
+double Renderer::pixelsPerRadian() const {
+  if (options_.output == OutputKind::kPanorama) return 1.0 / calibration_.panorama.gamma();
+  const OmniLens& lens = calibration_.omni;
+  const auto [inner, outer] = calibration_.ringElevations();
+  const double radial = (lens.radius_outer - lens.radius_inner) / std::abs(outer - inner);
+  return std::max(lens.radius_outer, std::isfinite(radial) ? radial : 0.0);
+}
+
+int Renderer::exposureSamples(const std::function<Eigen::Isometry3d(double)>& pose_at,
+                              const FrameTiming& timing) const {
+  if (const auto problems = timing.validate(); !problems.empty()) {
+    throw std::invalid_argument("Renderer::exposureSamples: invalid timing:" + joinLines(problems));
+  }
+  if (timing.exposure_s == 0.0) return 1;
+  if (timing.exposure_samples > 0) return timing.exposure_samples;
+  constexpr int kSteps = 8;               // 9 sampled times per row's exposure
+  constexpr double kNearestWalker = 0.05;  // metres
+  const int rows = outputSize().height;
+  const Eigen::AlignedBox3d room(
+      Eigen::Vector3d(-0.5 * scene_.box.length, -0.5 * scene_.box.width, scene_.box.floor),
+      Eigen::Vector3d(0.5 * scene_.box.length, 0.5 * scene_.box.width, scene_.box.ceiling));
+  double motion_rad = 0.0;
+  for (const int y : {0, rows / 2, rows - 1}) {
+    const double centre = rowTime(y, rows, timing.readout_s);
+    double turn = 0.0, path = 0.0, walker_rate = 0.0;
+    double nearest = std::numeric_limits<double>::infinity();
+    Eigen::Isometry3d previous = Eigen::Isometry3d::Identity();
+    for (int s = 0; s <= kSteps; ++s) {
+      const double t = centre + timing.exposure_s * (static_cast<double>(s) / kSteps - 0.5);
+      const Eigen::Isometry3d T = pose_at(t);
+      const Eigen::Vector3d p = T.translation();
+      if (s > 0) {
+        turn += rotationVector(previous.linear().transpose() * T.linear()).norm();
+        path += (p - previous.translation()).norm();
+      }
+      previous = T;
+      if (scene_.kind == SceneKind::kBox) {
+        const Eigen::Vector3d below = p - room.min(), above = room.max() - p;
+        nearest = std::min({nearest, below.minCoeff(), above.minCoeff()});
+      }
+      for (const Walker& w : walkers_) {
+        const double gap = (p.head<2>() - w.position(timing.timestamp_s + t)).norm() - w.radius_m;
+        const double speed = std::abs(w.rate_rad_s) * w.distance_m;
+        walker_rate = std::max(walker_rate, speed / std::max(kNearestWalker, gap));
+      }
+    }
+    const double parallax = scene_.kind == SceneKind::kBox && path > 0.0
+                                ? path / std::max(nearest, 1e-3)
+                                : 0.0;
+    motion_rad = std::max(motion_rad, turn + parallax + timing.exposure_s * walker_rate);
+  }
+  const double n = std::ceil(pixelsPerRadian() * motion_rad / 0.5);
+  if (!(n >= 1.0)) return 1;  // no motion (or NaN)
+  return static_cast<int>(std::min(n, static_cast<double>(kMaxAutoExposureSamples)));
 }
 
 double rowTime(int y, int rows, double readout_s) {
@@ -123,13 +224,46 @@ Eigen::Isometry3d poseAtTime(std::span<const StampedPose> trajectory, double t) 
   return poseBetween(a.pose, b.pose, (t - a.timestamp) / (b.timestamp - a.timestamp));
 }
 
-void Renderer::renderRows(const Eigen::Isometry3d& T, int row_begin, int row_end,
+struct Renderer::PixelRays {
+  /// One sub-sample: a bearing that sees the scene, or the lens body's grey level.
+  struct Ray {
+    Eigen::Vector3d bearing;
+    float body = 0.0f;
+    bool scene = false;
+  };
+  bool has_lod = false;                 ///< else mip level 0
+  Eigen::Vector3d centre, right, below;  ///< bearings of the pixel and its neighbours (lod)
+  std::vector<Ray> rays;                ///< k x k sub-samples, row by row
+};
+
+void Renderer::renderRows(std::span<const View> views, int n, int row_begin, int row_end,
                           cv::Mat& out) const {
   const bool omni = options_.output == OutputKind::kOmni;
+  PixelRays rays;
+  std::vector<std::vector<PlacedWalker>> placed(static_cast<std::size_t>(n));
   for (int y = row_begin; y < row_end; ++y) {
+    const View* row_views = views.data() + static_cast<std::size_t>(y) * n;
+    // Every walker where it is at each sub-exposure's time of this row.
+    for (int i = 0; i < n; ++i) {
+      auto& at = placed[static_cast<std::size_t>(i)];
+      at.clear();
+      for (const Walker& w : walkers_) {
+        at.push_back({&w, w.position(row_views[i].time_s), w.azimuth(row_views[i].time_s)});
+      }
+    }
     float* row = out.ptr<float>(y);
     for (int x = 0; x < out.cols; ++x) {
-      row[x] = omni ? renderOmniPixel(T, x, y) : renderPanoramaPixel(T, x, y);
+      if (omni) omniRays(x, y, rays);
+      else panoramaRays(x, y, rays);
+      if (n == 1) {
+        row[x] = shade(rays, row_views[0].pose, placed[0]);
+        continue;
+      }
+      double sum = 0.0;
+      for (int i = 0; i < n; ++i) {
+        sum += shade(rays, row_views[i].pose, placed[static_cast<std::size_t>(i)]);
+      }
+      row[x] = static_cast<float>(sum / n);
     }
   }
 }
@@ -147,25 +281,25 @@ double Renderer::levelOfDetail(const Eigen::Vector3d& centre, const Eigen::Vecto
   return std::log2(footprint / detail::texelAngle(pyramid_));
 }
 
-float Renderer::renderPanoramaPixel(const Eigen::Isometry3d& T, int u, int v) const {
+void Renderer::panoramaRays(int u, int v, PixelRays& rays) const {
   const PanoramaGeometry& pano = calibration_.panorama;
-  const double lod = levelOfDetail(textureDirection(T, pano.bearing(u, v)),
-                                   textureDirection(T, pano.bearing(u + 1, v)),
-                                   textureDirection(T, pano.bearing(u, v + 1)));
-  // Box filter: mean over a K x K grid of sub-pixel centres.
+  rays.has_lod = true;
+  rays.centre = pano.bearing(u, v);
+  rays.right = pano.bearing(u + 1, v);
+  rays.below = pano.bearing(u, v + 1);
+  // Box filter: a K x K grid of sub-pixel centres.
   const int k = options_.supersample;
-  double sum = 0.0;
+  rays.rays.resize(static_cast<std::size_t>(k * k));
   for (int j = 0; j < k; ++j) {
     const double sv = v + (j + 0.5) / k - 0.5;
     for (int i = 0; i < k; ++i) {
       const double su = u + (i + 0.5) / k - 0.5;
-      sum += detail::sampleEquirect(pyramid_, textureDirection(T, pano.bearing(su, sv)), lod);
+      rays.rays[static_cast<std::size_t>(j * k + i)] = {pano.bearing(su, sv), 0.0f, true};
     }
   }
-  return static_cast<float>(sum / (k * k));
 }
 
-float Renderer::renderOmniPixel(const Eigen::Isometry3d& T, int x, int y) const {
+void Renderer::omniRays(int x, int y, PixelRays& rays) const {
   const OmniLens& lens = calibration_.omni;
   // Rays through the used ring [radius_inner, radius_outer] (in the lens model's radius)
   // see the scene along the bearing the calibration assigns to them; the rest is the lens
@@ -181,24 +315,67 @@ float Renderer::renderOmniPixel(const Eigen::Isometry3d& T, int x, int y) const 
   const double r_centre = calibration_.ringRadius(x, y);
   const bool touches_ring =
       r_centre > lens.radius_inner - 1.5 && r_centre < lens.radius_outer + 1.5;
-  const double lod = touches_ring ? levelOfDetail(textureDirection(T, bearingAt(x, y)),
-                                                  textureDirection(T, bearingAt(x + 1, y)),
-                                                  textureDirection(T, bearingAt(x, y + 1)))
-                                  : 0.0;
-  // Box filter: mean over a K x K grid of sub-pixel centres.
+  rays.has_lod = touches_ring;
+  if (touches_ring) {
+    rays.centre = bearingAt(x, y);
+    rays.right = bearingAt(x + 1, y);
+    rays.below = bearingAt(x, y + 1);
+  }
+  // Box filter: a K x K grid of sub-pixel centres.
   const int k = options_.supersample;
-  double sum = 0.0;
+  rays.rays.resize(static_cast<std::size_t>(k * k));
   for (int j = 0; j < k; ++j) {
     const double sy = y + (j + 0.5) / k - 0.5;
     for (int i = 0; i < k; ++i) {
       const double sx = x + (i + 0.5) / k - 0.5;
       const auto b = touches_ring && inRing(sx, sy) ? calibration_.bearingOfPixel(sx, sy)
                                                     : std::nullopt;
-      sum += b ? detail::sampleEquirect(pyramid_, textureDirection(T, *b), lod)
-               : lensBody(lens, calibration_.ringRadius(sx, sy));
+      PixelRays::Ray& ray = rays.rays[static_cast<std::size_t>(j * k + i)];
+      ray.scene = b.has_value();
+      if (b) ray.bearing = *b;
+      else ray.body = lensBody(lens, calibration_.ringRadius(sx, sy));
     }
   }
+}
+
+float Renderer::shade(const PixelRays& rays, const Eigen::Isometry3d& T,
+                      std::span<const PlacedWalker> walkers) const {
+  const double lod = rays.has_lod ? levelOfDetail(textureDirection(T, rays.centre),
+                                                  textureDirection(T, rays.right),
+                                                  textureDirection(T, rays.below))
+                                  : 0.0;
+  // Box filter: the mean of the sub-samples.
+  double sum = 0.0;
+  for (const PixelRays::Ray& ray : rays.rays) {
+    sum += ray.scene ? sampleRay(T, ray.bearing, lod, walkers) : ray.body;
+  }
+  const int k = options_.supersample;
   return static_cast<float>(sum / (k * k));
+}
+
+float Renderer::sampleRay(const Eigen::Isometry3d& T, const Eigen::Vector3d& bearing, double lod,
+                          std::span<const PlacedWalker> walkers) const {
+  if (!walkers.empty()) {
+    // The nearest walker on the ray, if any: it hides the scene (which lies beyond).
+    const Eigen::Vector3d origin = T.translation(), direction = T.linear() * bearing;
+    const PlacedWalker* nearest = nullptr;
+    double nearest_s = std::numeric_limits<double>::infinity();
+    for (const PlacedWalker& w : walkers) {
+      const std::optional<double> s = detail::hitWalker(*w.walker, w.axis, origin, direction);
+      if (s && *s < nearest_s) {
+        nearest_s = *s;
+        nearest = &w;
+      }
+    }
+    if (nearest) {
+      const Eigen::Vector3d p = origin + nearest_s * direction;
+      const Walker& w = *nearest->walker;
+      const double around = std::atan2(p.y() - nearest->axis.y(), p.x() - nearest->axis.x()) -
+                            nearest->azimuth;
+      return static_cast<float>(w.grey(around, (p.z() - w.base_z) / (w.top_z - w.base_z)));
+    }
+  }
+  return detail::sampleEquirect(pyramid_, textureDirection(T, bearing), lod);
 }
 
 }  // namespace omnipose::synth

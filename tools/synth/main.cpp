@@ -7,6 +7,8 @@
 #include <iostream>
 #include <optional>
 #include <string>
+#include <tuple>
+#include <utility>
 
 #include "omnipose/synth/synth.hpp"
 #include "cli.hpp"
@@ -36,6 +38,17 @@ struct Args {
   std::optional<std::uint64_t> seed;
   double noise = 0.0, blur = 0.0, exposure_gain = 0.0, exposure_offset = 0.0;
   double readout = 0.0;  ///< rolling shutter readout, seconds (0 = global shutter)
+  double exposure_time = 0.0;  ///< motion blur: exposure time, seconds (0 = none)
+  int exposure_samples = 0;    ///< sub-exposures, 0 = chosen from the motion
+  double exposure_step = 0.0;  ///< auto-exposure step, relative (0 = none)
+  int exposure_step_every = 0;
+  int exposure_step_levels = synth::DegradeOptions{}.exposure_step_levels;
+  double vignetting = 0.0;
+  /// Walkers given on the command line (over the motion script's): --walkers text,
+  /// --walker-distance, --walker-seed.
+  std::optional<std::string> walkers;
+  std::optional<std::pair<double, double>> walker_distance;
+  std::optional<std::uint64_t> walker_seed;
   int jpeg = 0;
   int supersample = synth::RenderOptions{}.supersample;
   std::optional<synth::Occluder> occluder;
@@ -46,10 +59,32 @@ struct Args {
 /// The command line's options, bound to `a`; the values CLI11 cannot convert itself (scene,
 /// output, occluder, the optional numbers) land in `raw` and are converted by finish().
 struct Raw {
-  std::string scene, output, occluder;
+  std::string scene, output, occluder, walkers, walker_distance;
   int frames = 0;
-  std::uint64_t seed = 0;
+  std::uint64_t seed = 0, walker_seed = 0;
 };
+
+/// "MIN[,MAX]" in metres (one number: MIN = MAX); throws std::invalid_argument.
+std::pair<double, double> parseDistance(const std::string& text) {
+  const auto comma = text.find(',');
+  const auto number = [&](const std::string& field) {
+    std::size_t end = 0;
+    double v = 0.0;
+    try {
+      v = std::stod(field, &end);
+    } catch (const std::exception&) {
+      end = std::string::npos;
+    }
+    if (end != field.size() || !std::isfinite(v))
+      throw std::invalid_argument("'" + text + "' is not MIN[,MAX] in metres");
+    return v;
+  };
+  if (comma == std::string::npos) {
+    const double d = number(text);
+    return {d, d};
+  }
+  return {number(text.substr(0, comma)), number(text.substr(comma + 1))};
+}
 
 void addOptions(CLI::App& app, Args& a, Raw& raw) {
   app.add_option("--texture", a.texture, "equirectangular photo (2:1), converted to grey (required)")
@@ -98,6 +133,43 @@ void addOptions(CLI::App& app, Args& a, Raw& raw) {
                  "to first), each row rendered from the pose at its own capture time along the "
                  "motion between frames; |S| at most one frame interval (default 0: global shutter)")
       ->type_name("S");
+  app.add_option("--exposure-time", a.exposure_time,
+                 "motion blur: each row exposed for S seconds centred on its capture time (the "
+                 "mean of sub-exposures along the motion between frames, and of the walkers' "
+                 "motion); at most one frame interval (default 0: none)")
+      ->type_name("S");
+  app.add_option("--exposure-samples", a.exposure_samples,
+                 "sub-exposures of --exposure-time, 1..256 (default: enough that each moves "
+                 "the image by at most 0.5 px, at most 64)")
+      ->type_name("N");
+  app.add_option("--walkers", raw.walkers,
+                 "people walking circles around the robot, textured vertical cylinders "
+                 "(defaults: 0.5 m wide, 1.7 m tall from the floor, 1.2 m/s, random "
+                 "direction each); replaces these fields of the motion script's walkers")
+      ->type_name("COUNT[,WIDTH_M,HEIGHT_M,SPEED_M_S]");
+  app.add_option("--walker-distance", raw.walker_distance,
+                 "radius of the walkers' circles about the room's centre, metres, drawn per "
+                 "person (default 1.5,2.0); box scene: they must stay inside the room")
+      ->type_name("MIN[,MAX]");
+  app.add_option("--walker-seed", raw.walker_seed,
+                 "seed of the walkers' draws (default: the motion script's walkers' seed, or 0)")
+      ->type_name("S");
+  app.add_option("--exposure-step", a.exposure_step,
+                 "auto-exposure steps: every --exposure-step-every frames the gain is multiplied "
+                 "or divided (random sign) by 1 + REL, e.g. 0.25, within "
+                 "--exposure-step-levels steps of the start (default 0: none)")
+      ->type_name("REL");
+  app.add_option("--exposure-step-every", a.exposure_step_every,
+                 "frames between auto-exposure steps (default 30 with --exposure-step)")
+      ->type_name("N");
+  app.add_option("--exposure-step-levels", a.exposure_step_levels,
+                 "most auto-exposure steps away from the start gain, 1..16 (default 2)")
+      ->type_name("L");
+  app.add_option("--vignetting", a.vignetting,
+                 "lens vignetting: omni pixels times max(0, 1 - STRENGTH (r / radius_outer)^2), "
+                 "r the distance from the centre; panorama pixels the factor of the omni "
+                 "pixel they unwrap from; STRENGTH in [0, 1] (default 0)")
+      ->type_name("STRENGTH");
   app.add_option("--supersample", a.supersample, "K x K rays per pixel (default 3)")
       ->type_name("K");
   app.add_option("--occluder", raw.occluder,
@@ -128,6 +200,14 @@ void finish(const CLI::App& app, Args& a, const Raw& raw) {
     a.occluder = convert("--occluder", [&] { return synth::parseOccluder(raw.occluder); });
   if (given("--frames")) a.frames = raw.frames;
   if (given("--seed")) a.seed = raw.seed;
+  if (given("--walkers")) {
+    convert("--walkers", [&] { return synth::parseWalkers(raw.walkers); });  // syntax, ranges
+    a.walkers = raw.walkers;
+  }
+  if (given("--walker-distance"))
+    a.walker_distance =
+        convert("--walker-distance", [&] { return parseDistance(raw.walker_distance); });
+  if (given("--walker-seed")) a.walker_seed = raw.walker_seed;
   if (!a.print_preset.empty()) return;
   if (a.texture.empty()) throw UsageError("--texture is required");
   if (a.out.empty()) throw UsageError("--out is required");
@@ -139,6 +219,64 @@ void finish(const CLI::App& app, Args& a, const Raw& raw) {
   if (a.write_mask && !a.occluder) throw UsageError("--write-mask needs --occluder");
   if (a.occluder && a.output != synth::OutputKind::kOmni)
     throw UsageError("--occluder paints the omni image: it needs --output omni");
+  if (!(a.exposure_time >= 0 && std::isfinite(a.exposure_time)))
+    throw UsageError("--exposure-time: must be >= 0 seconds");
+  if (given("--exposure-samples")) {
+    if (a.exposure_samples < 1 || a.exposure_samples > synth::kMaxExposureSamples)
+      throw UsageError("--exposure-samples: must be in [1, " +
+                       std::to_string(synth::kMaxExposureSamples) + "]");
+    if (a.exposure_time == 0.0) throw UsageError("--exposure-samples needs --exposure-time");
+  }
+  if (!(a.exposure_step >= 0 && a.exposure_step <= 1))
+    throw UsageError("--exposure-step: must be in [0, 1]");
+  if (given("--exposure-step-every")) {
+    if (a.exposure_step_every < 1) throw UsageError("--exposure-step-every: must be >= 1");
+    if (a.exposure_step == 0.0) throw UsageError("--exposure-step-every needs --exposure-step");
+  } else if (a.exposure_step > 0.0) {
+    a.exposure_step_every = 30;
+  }
+  if (a.exposure_step_levels < 1 || a.exposure_step_levels > 16)
+    throw UsageError("--exposure-step-levels: must be in [1, 16]");
+  if (given("--exposure-step-levels") && a.exposure_step == 0.0)
+    throw UsageError("--exposure-step-levels needs --exposure-step");
+  if (!(a.vignetting >= 0 && a.vignetting <= 1))
+    throw UsageError("--vignetting: must be in [0, 1]");
+}
+
+/// The walkers of the run: the motion script's, with the command line's fields over them.
+/// Throws UsageError naming the flag (or std::runtime_error naming the script) when they are
+/// invalid or do not fit the scene.
+std::optional<synth::Walkers> walkersOf(const Args& a, const synth::MotionScript& script,
+                                        const std::string& motion_name, synth::SceneKind kind,
+                                        const synth::Box& box) {
+  const bool flags = a.walkers || a.walker_distance || a.walker_seed;
+  if (!script.walkers && !a.walkers) {
+    if (a.walker_distance) throw UsageError("--walker-distance needs --walkers");
+    if (a.walker_seed) throw UsageError("--walker-seed needs --walkers");
+    return std::nullopt;
+  }
+  synth::Walkers w = script.walkers.value_or(synth::Walkers{});
+  if (a.walkers) {
+    try {
+      w = synth::parseWalkers(*a.walkers, w);
+    } catch (const std::invalid_argument& e) {
+      throw UsageError(std::string("--walkers: ") + e.what());
+    }
+  }
+  if (a.walker_distance) std::tie(w.min_distance_m, w.max_distance_m) = *a.walker_distance;
+  if (a.walker_seed) w.seed = *a.walker_seed;
+  if (const auto problems = w.validate(kind, box); !problems.empty()) {
+    if (flags) {
+      const char* flag = a.walker_distance && problems.front().find("distance") != std::string::npos
+                             ? "--walker-distance"
+                             : "--walkers";
+      throw UsageError(std::string(flag) + ": " + problems.front() + " (" + toString(kind) +
+                       " scene)");
+    }
+    throw std::runtime_error(motion_name + ": " + problems.front() + " (" + toString(kind) +
+                             " scene)");
+  }
+  return w;
 }
 
 int run(const Args& a) {
@@ -156,6 +294,11 @@ int run(const Args& a) {
                      "| s is longer than the frame interval of " + motion_name + " (" +
                      std::to_string(1.0 / script.frame_rate) + " s)");
   }
+  if (!(a.exposure_time <= 1.0 / script.frame_rate)) {
+    throw UsageError("--exposure-time: " + std::to_string(a.exposure_time) +
+                     " s is longer than the frame interval of " + motion_name + " (" +
+                     std::to_string(1.0 / script.frame_rate) + " s)");
+  }
 
   const synth::SceneKind kind =
       a.scene.value_or(script.translates() ? synth::SceneKind::kBox : synth::SceneKind::kSphere);
@@ -163,7 +306,10 @@ int run(const Args& a) {
     throw UsageError(motion_name + " translates the camera, which a sphere at infinity cannot "
                      "show; use --scene box");
   }
-  const synth::Scene scene = synth::Scene::load(a.texture, kind);
+  synth::Scene scene = synth::Scene::load(a.texture, kind);
+  if (const auto walkers = walkersOf(a, script, motion_name, kind, scene.box)) {
+    scene.walkers = *walkers;
+  }
   std::optional<Eigen::AlignedBox3d> region;
   if (kind == synth::SceneKind::kBox) region = scene.box.interior(script.wall_margin_m);
   std::vector<StampedPose> poses;
@@ -179,10 +325,16 @@ int run(const Args& a) {
                                 .exposure_gain_std = a.exposure_gain,
                                 .exposure_offset_std = a.exposure_offset,
                                 .seed = script.seed,
-                                .periodic_columns = a.output == synth::OutputKind::kPanorama};
+                                .periodic_columns = a.output == synth::OutputKind::kPanorama,
+                                .exposure_step = a.exposure_step,
+                                .exposure_step_every = a.exposure_step_every,
+                                .exposure_step_levels = a.exposure_step_levels};
   if (const auto problems = degrade.validate(); !problems.empty()) {
     throw UsageError(problems.front());
   }
+  const cv::Mat vignette = a.vignetting > 0.0
+                               ? synth::Vignetting{a.vignetting}.factors(calibration, a.output)
+                               : cv::Mat();
   if (a.write_mask) {
     calibration.omni.mask = a.occluder->mask(calibration);
     calibration.omni.mask_file = "mask.png";
@@ -191,14 +343,28 @@ int run(const Args& a) {
 
   const auto start = std::chrono::steady_clock::now();
   tools::ProgressLine progress(stderr, static_cast<int>(poses.size()), "frames", !a.quiet);
+  int fewest_samples = 0, most_samples = 0;
   for (std::size_t k = 0; k < poses.size(); ++k) {
     const double stamp = poses[k].timestamp;
-    cv::Mat image =
-        a.readout == 0.0
-            ? renderer.render(poses[k].pose)
-            : renderer.render([&](double t) { return synth::poseAtTime(poses, stamp + t); },
-                              a.readout);
+    const auto pose_at = [&](double t) { return synth::poseAtTime(poses, stamp + t); };
+    cv::Mat image;
+    if (a.readout == 0.0 && a.exposure_time == 0.0) {
+      // Global shutter: the frame's own pose (and the walkers at its timestamp).
+      image = renderer.walkers().empty() ? renderer.render(poses[k].pose)
+                                         : renderer.render(poses[k].pose, stamp);
+    } else {
+      synth::FrameTiming timing{.timestamp_s = stamp,
+                                .readout_s = a.readout,
+                                .exposure_s = a.exposure_time,
+                                .exposure_samples = a.exposure_samples};
+      timing.exposure_samples = renderer.exposureSamples(pose_at, timing);
+      fewest_samples = k == 0 ? timing.exposure_samples
+                              : std::min(fewest_samples, timing.exposure_samples);
+      most_samples = std::max(most_samples, timing.exposure_samples);
+      image = renderer.render(pose_at, timing);
+    }
     if (a.occluder) a.occluder->paint(image, calibration);
+    if (!vignette.empty()) cv::multiply(image, vignette, image);
     writer.addFrame(synth::degrade(image, degrade, k), poses[k]);
     progress.update(static_cast<int>(k + 1));
   }
@@ -223,12 +389,36 @@ int run(const Args& a) {
                   a.readout > 0.0 ? "first row first" : "last row first");
     shutter = text;
   }
-  std::printf("omnipose-synth: wrote %zu %s frames %dx%d (%s scene, %s, seed %llu%s%s) to %s "
+  std::string effects;
+  if (a.exposure_time > 0.0) {
+    char text[96];
+    std::snprintf(text, sizeof(text), ", exposure %.4g s in %d..%d sub-exposures",
+                  a.exposure_time, fewest_samples, most_samples);
+    effects += text;
+  }
+  if (!renderer.walkers().empty()) {
+    char text[96];
+    std::snprintf(text, sizeof(text), ", %zu walkers at %.3g m/s", renderer.walkers().size(),
+                  scene.walkers.speed_m_s);
+    effects += text;
+  }
+  if (a.exposure_step > 0.0) {
+    char text[96];
+    std::snprintf(text, sizeof(text), ", exposure steps x%.3g every %d frames",
+                  1.0 + a.exposure_step, a.exposure_step_every);
+    effects += text;
+  }
+  if (a.vignetting > 0.0) {
+    char text[64];
+    std::snprintf(text, sizeof(text), ", vignetting %.3g", a.vignetting);
+    effects += text;
+  }
+  std::printf("omnipose-synth: wrote %zu %s frames %dx%d (%s scene, %s, seed %llu%s%s%s) to %s "
               "in %.1f s (%.0f ms/frame)\n",
               poses.size(), synth::toString(a.output), size.width, size.height,
               synth::toString(kind), motion_name.c_str(),
               static_cast<unsigned long long>(script.seed), vibration.c_str(), shutter.c_str(),
-              a.out.c_str(), seconds, 1000.0 * seconds / poses.size());
+              effects.c_str(), a.out.c_str(), seconds, 1000.0 * seconds / poses.size());
   return 0;
 }
 

@@ -17,6 +17,11 @@
 /// seen from the inside. (The panorama of DESIGN.md runs the other way: theta grows with u,
 /// so a panorama is the mirror image of the photo; both follow from the conventions.)
 ///
+/// Camera and world effects, each exact against the definition its declaration states:
+/// rolling shutter and exposure time (motion blur) in FrameTiming, people walking around
+/// the robot in Walkers, track vibration in Vibration, vignetting in Vignetting, sensor
+/// blur, noise, exposure jitter and auto-exposure steps in DegradeOptions.
+///
 /// Example: a 100-frame yaw sequence of omni images, written as a dataset
 /// ```
 ///   auto scene = synth::Scene::load("indoor.jpg", synth::SceneKind::kSphere);
@@ -75,11 +80,102 @@ struct Box {
   bool contains(const Eigen::Vector3d& p) const;
 };
 
-/// An equirectangular texture on a sphere at infinity or on a box room.
+// ---------------------------------------------------------------------------------------
+// Walkers (people moving around the robot)
+// ---------------------------------------------------------------------------------------
+
+/// People walking around the robot: independently moving occluders in the world. Each
+/// person is a vertical textured cylinder (solid: side and both caps) of diameter width_m,
+/// from z = base to z = base + height_m, whose axis walks a horizontal circle about the world
+/// z axis at constant speed:
+///   axis(t) = distance * (cos a(t), sin a(t)),
+///   a(t) = azimuth0 + direction * speed * t / distance,
+/// t in seconds on the sequence's clock (a frame's timestamp plus its rows' capture times),
+/// azimuth counter-clockwise from world +x. A ray sees the first surface point of the nearest
+/// walker it meets before the scene (a sphere is at infinity; box walls are farther than any
+/// valid walker). A camera inside a walker sees that walker's inside surface: walkers do not
+/// avoid the camera.
+///
+/// Per person i (0-based) a generator seeded by (seed, i) alone draws, in this order: the
+/// distance uniform in [min_distance_m, max_distance_m], azimuth0 uniform in [0, 2 pi), the
+/// direction +1 (counter-clockwise) or -1 with probability 1/2, then its texture (see Walker:
+/// 3..6 bands of grey 30..225 with stripes of 2..8 cycles and amplitude 0..40, then 2..5
+/// blotches of amplitude +-25..70).
+/// So person i is the same whatever `count` is.
+struct Walkers {
+  int count = 0;                    ///< people, [0, 100]; 0 = none
+  double width_m = 0.5;             ///< cylinder diameter, metres, (0, 2]
+  double height_m = 1.7;            ///< cylinder height, metres, > 0
+  /// z of the feet, metres; none = the floor (Scene::box.floor, also for a sphere scene:
+  /// by default the camera 1 m above the ground).
+  std::optional<double> base_z = std::nullopt;
+  double speed_m_s = 1.2;           ///< walking speed along the circle, m/s, [0, 20]
+  double min_distance_m = 1.5;      ///< circle radius range, metres: width_m / 2 < min <= max
+  double max_distance_m = 2.0;
+  std::uint64_t seed = 0;
+
+  /// One message per bad field (empty = valid), each starting with "walkers.<field>".
+  std::vector<std::string> validate() const;
+  /// validate(), and for a box scene that every walker stays inside the room at all times:
+  /// max_distance_m + width_m / 2 at most half the smaller of the room's length and width,
+  /// the feet at or above the floor and the top at or below the ceiling.
+  std::vector<std::string> validate(SceneKind kind, const Box& box) const;
+};
+
+/// One drawn person of Walkers (see there for the motion).
+struct Walker {
+  double distance_m = 0.0;    ///< radius of the axis' circle about the world z axis
+  double azimuth0_rad = 0.0;  ///< azimuth of the axis at t = 0
+  double rate_rad_s = 0.0;    ///< da/dt = +-speed / distance
+  double radius_m = 0.0;      ///< width / 2
+  double base_z = 0.0, top_z = 0.0;
+
+  /// Texture, grey levels: a function of the angle `a` around the axis measured from the
+  /// direction away from the world origin (so the pattern turns with the person as it
+  /// walks around) and of the height fraction f = (z - base) / (top - base) in [0, 1]:
+  /// horizontal bands of clothing, band j for band_edge[j] <= f < band_edge[j + 1]
+  /// (band_edge starts at 0 and ends at 1), each of grey band_grey[j] plus vertical stripes
+  /// amplitude * sin(cycles * a + phase_rad) (whole cycles around the body), plus Gaussian
+  /// blotches amplitude * exp(-(da / sigma_rad)^2 / 2 - (df / sigma_fraction)^2 / 2); the
+  /// sum clamped to [16, 240].
+  std::vector<double> band_edge;
+  std::vector<double> band_grey;
+  struct Stripes {
+    double amplitude, cycles, phase_rad;
+  };
+  std::vector<Stripes> band_stripes;  ///< one per band
+  struct Blotch {
+    double angle_rad, height_fraction, sigma_rad, sigma_fraction, amplitude;
+  };
+  std::vector<Blotch> blotches;
+
+  /// Azimuth a(t) of the axis, radians (not wrapped).
+  double azimuth(double t) const { return azimuth0_rad + rate_rad_s * t; }
+  /// Axis position (x, y) at time t, metres.
+  Eigen::Vector2d position(double t) const;
+  /// Grey level at `angle_rad` around the axis (see band_edge) and height fraction f.
+  double grey(double angle_rad, double height_fraction) const;
+  /// Ray parameter s > 0 of the first point of the walker's surface on origin + s * direction
+  /// at time t (for a ray starting inside the walker: where it leaves it); none if missed.
+  std::optional<double> hit(const Eigen::Vector3d& origin, const Eigen::Vector3d& direction,
+                            double t) const;
+};
+
+/// Draws the people of `walkers` (see Walkers), feet at walkers.base_z or else at `floor_z`.
+/// Throws std::invalid_argument listing the problems of walkers.validate().
+std::vector<Walker> drawWalkers(const Walkers& walkers, double floor_z);
+
+/// "COUNT[,WIDTH_M,HEIGHT_M,SPEED_M_S]" over `base` (the fields not given keep base's
+/// values); throws std::invalid_argument naming the text or the bad field otherwise.
+Walkers parseWalkers(const std::string& text, const Walkers& base = {});
+
+/// An equirectangular texture on a sphere at infinity or on a box room, and the people
+/// walking in it.
 struct Scene {
   cv::Mat texture;  ///< equirect, CV_32FC1, grey levels 0..255 (2:1 aspect expected)
   SceneKind kind = SceneKind::kSphere;
-  Box box;          ///< used when kind == kBox
+  Box box;          ///< used when kind == kBox (and its floor for the walkers' feet)
+  Walkers walkers;  ///< none by default
 
   /// Loads a photo (any format OpenCV reads, converted to grey). Throws
   /// std::runtime_error naming the file when it cannot be read, or an invalid box.
@@ -119,6 +215,35 @@ struct RenderOptions {
   std::vector<std::string> validate() const;
 };
 
+/// When and how one frame is exposed: its place on the sequence's clock, the rolling
+/// shutter and the exposure time (motion blur). Times in seconds.
+///
+/// Row y of a frame of H rows (the omni image's sensor rows, or the panorama's rows when that
+/// is the output) is captured at rowTime(y, H, readout_s) after the frame's timestamp and
+/// exposed over the interval of length exposure_s centred on that capture time; its pixels
+/// are the mean of the instantaneous image over that interval (a box shutter). It is
+/// rendered as the mean of N sub-exposures at the midpoints of N equal sub-intervals: sub-
+/// exposure i (0 <= i < N) is the instantaneous rolling-shutter render shifted in time by
+///   o_i = exposure_s * ((i + 0.5) / N - 0.5),
+/// i.e. row y seen from pose_at(rowTime(y) + o_i) with the walkers at
+/// timestamp_s + rowTime(y) + o_i. exposure_s = 0 (or N = 1) is the instantaneous frame.
+struct FrameTiming {
+  double timestamp_s = 0.0;   ///< the frame's timestamp on the walkers' clock (Walkers)
+  double readout_s = 0.0;     ///< rolling shutter readout (rowTime), 0 = global shutter
+  double exposure_s = 0.0;    ///< exposure time, >= 0; 0 = no motion blur
+  /// N; 0 = chosen from the motion (Renderer::exposureSamples). Ignored when exposure_s = 0.
+  int exposure_samples = 0;
+
+  /// One message per bad field (empty = valid): every time finite, exposure_s >= 0,
+  /// exposure_samples in [0, kMaxExposureSamples].
+  std::vector<std::string> validate() const;
+};
+
+/// Most sub-exposures FrameTiming::exposure_samples may ask for.
+inline constexpr int kMaxExposureSamples = 256;
+/// Most sub-exposures Renderer::exposureSamples chooses by itself.
+inline constexpr int kMaxAutoExposureSamples = 64;
+
 /// Renders the scene as seen by the calibrated camera at a given pose.
 ///
 /// Panorama output: pixel (u, v) looks exactly along calibration.panorama.bearing(u, v).
@@ -131,8 +256,8 @@ struct RenderOptions {
 /// Thread safety: render() is const and may be called from several threads.
 class Renderer {
  public:
-  /// Builds the texture pyramid. Throws std::invalid_argument listing invalid options or
-  /// calibration fields.
+  /// Builds the texture pyramid and draws the walkers. Throws std::invalid_argument listing
+  /// invalid options, calibration fields or walkers (Walkers::validate(kind, box)).
   Renderer(Scene scene, Calibration calibration, RenderOptions options = {});
 
   /// The image seen from camera pose T_world_camera: CV_32FC1, grey levels 0..255, of
@@ -147,20 +272,77 @@ class Renderer {
   /// called once per row, on the calling thread. Throws as render() for any row's pose.
   cv::Mat render(const std::function<Eigen::Isometry3d(double)>& pose_at, double readout_s) const;
 
+  /// Global shutter at time `time_s` on the walkers' clock: render(T_world_camera) with the
+  /// walkers (Scene::walkers) where they are at time_s. render(T) is render(T, 0).
+  cv::Mat render(const Eigen::Isometry3d& T_world_camera, double time_s) const;
+
+  /// Rolling shutter, exposure time and walkers (FrameTiming): the mean of N sub-exposures,
+  /// N = exposureSamples(pose_at, timing), each row of each seen from
+  /// pose_at(rowTime(y, H, readout_s) + o_i) (t relative to the timestamp, as above). Exactly
+  /// render(pose_at, readout_s) for a timing of timestamp 0 without exposure time (or with
+  /// N = 1); sub-exposure i is exactly render(t -> pose_at(t + o_i), {timestamp_s + o_i,
+  /// readout_s}); the mean is taken in double and rounded to float once. `pose_at` is called
+  /// N times per row (and a few times more when N is chosen), on the calling thread. Throws
+  /// std::invalid_argument listing an invalid timing, or as render() for any row's pose.
+  cv::Mat render(const std::function<Eigen::Isometry3d(double)>& pose_at,
+                 const FrameTiming& timing) const;
+
+  /// N, the sub-exposures render(pose_at, timing) averages: 1 when exposure_s = 0, else
+  /// timing.exposure_samples when > 0, else enough that one sub-exposure moves the image by
+  /// at most 0.5 px: N = clamp(ceil(m / 0.5), 1, kMaxAutoExposureSamples), m the image
+  /// motion in pixels during one row's exposure, bounded from above (the largest over the
+  /// first, middle and last row, each sampled at 9 times over its exposure interval) as
+  ///   m = P * (sum of the rotation angles between consecutive sampled poses
+  ///            + path length of the camera / distance to the nearest box plane (box scene)
+  ///            + exposure_s * max over walkers and samples of speed / max(0.05 m, horizontal
+  ///              distance from the camera to the walker's axis - its radius)),
+  /// P the pixels per radian of the output: panorama 1 / gamma; omni the larger of
+  /// radius_outer (an azimuth turn at the ring's outer edge) and the ring's mean radial scale
+  /// (radius_outer - radius_inner) / |elevation(outer) - elevation(inner)|.
+  int exposureSamples(const std::function<Eigen::Isometry3d(double)>& pose_at,
+                      const FrameTiming& timing) const;
+
   /// Width x height of render()'s result, pixels.
   cv::Size outputSize() const;
   const Calibration& calibration() const { return calibration_; }
   const RenderOptions& options() const { return options_; }
   const Scene& scene() const { return scene_; }
+  /// The people drawn from scene().walkers (empty without walkers).
+  const std::vector<Walker>& walkers() const { return walkers_; }
 
  private:
-  void renderRows(const Eigen::Isometry3d& T_world_camera, int row_begin, int row_end,
+  /// Where one row is seen from in one sub-exposure: the camera pose and the walkers' time.
+  struct View {
+    Eigen::Isometry3d pose;
+    double time_s = 0.0;
+  };
+  /// A walker where it is at one view's time.
+  struct PlacedWalker {
+    const Walker* walker = nullptr;
+    Eigen::Vector2d axis;  ///< axis position (x, y), metres
+    double azimuth = 0.0;  ///< Walker::azimuth at that time, radians
+  };
+  /// The rays of one output pixel, which do not depend on the pose (renderer.cpp).
+  struct PixelRays;
+
+  /// Renders rows [row_begin, row_end), row y as the mean over its n views
+  /// views[y * n + i], i < n (views.size() = rows * n).
+  void renderRows(std::span<const View> views, int n, int row_begin, int row_end,
                   cv::Mat& out) const;
-  float renderOmniPixel(const Eigen::Isometry3d& T_world_camera, int x, int y) const;
-  float renderPanoramaPixel(const Eigen::Isometry3d& T_world_camera, int u, int v) const;
+  void omniRays(int x, int y, PixelRays& rays) const;
+  void panoramaRays(int u, int v, PixelRays& rays) const;
+  /// The pixel's value seen from pose T with the walkers placed as given.
+  float shade(const PixelRays& rays, const Eigen::Isometry3d& T_world_camera,
+              std::span<const PlacedWalker> walkers) const;
+  /// What one sub-sample ray (camera-frame bearing b) sees: the nearest walker or the scene.
+  float sampleRay(const Eigen::Isometry3d& T_world_camera, const Eigen::Vector3d& bearing,
+                  double lod, std::span<const PlacedWalker> walkers) const;
   /// Texture direction of camera-frame bearing b seen from pose T_world_camera.
   Eigen::Vector3d textureDirection(const Eigen::Isometry3d& T_world_camera,
                                    const Eigen::Vector3d& bearing) const;
+  /// Pixels per radian of image motion (see exposureSamples).
+  double pixelsPerRadian() const;
+  void checkInsideRoom(const Eigen::Isometry3d& T_world_camera, int row) const;
   /// Mip level for one sub-sample of a pixel whose centre and right/lower neighbours have
   /// these texture directions.
   double levelOfDetail(const Eigen::Vector3d& centre, const Eigen::Vector3d& right,
@@ -170,6 +352,7 @@ class Renderer {
   Calibration calibration_;
   RenderOptions options_;
   std::vector<cv::Mat> pyramid_;  ///< texture mip levels, level 0 = scene_.texture
+  std::vector<Walker> walkers_;
 };
 
 /// Capture time of row y of a frame of `rows` rows, seconds after the frame's timestamp (the
@@ -214,6 +397,33 @@ struct Occluder {
 Occluder parseOccluder(const std::string& text);
 
 // ---------------------------------------------------------------------------------------
+// Vignetting
+// ---------------------------------------------------------------------------------------
+
+/// Brightness falloff of the lens away from its optical centre. Omni pixel (x, y) is
+/// multiplied by
+///   V(x, y) = max(0, 1 - strength * (r / radius_outer)^2),   r = calibration.ringRadius(x, y)
+/// (r is the distance from the mirror axis (center_x, center_y) in pixels for the linear
+/// lens, the model's ideal radius otherwise), so V = 1 - strength at the ring's outer edge
+/// for every lens model and V = 0 where the parabola would go negative (the corners).
+/// Panorama pixel (u, v) is multiplied by V at the omni pixel it is unwrapped from,
+/// calibration.omniPixel(u, v) (1 where that is undefined): the factor an unwrapped
+/// vignetted omni image shows (for the linear lens a function of the row alone).
+struct Vignetting {
+  double strength = 0.0;  ///< in [0, 1]; 0 = none
+
+  /// One message per bad field (empty = valid).
+  std::vector<std::string> validate() const;
+  /// V of omni pixel (x, y) (pixel coordinates, x right, y down).
+  double factor(const Calibration& calibration, double x, double y) const;
+  /// The factor image of an output: CV_32FC1 of the omni image or the panorama size.
+  cv::Mat factors(const Calibration& calibration, OutputKind output) const;
+  /// Multiplies a rendered image (CV_32FC1 of `output`'s size) by factors(). Throws
+  /// std::invalid_argument on an invalid strength or an image of another type or size.
+  void apply(cv::Mat& image, const Calibration& calibration, OutputKind output) const;
+};
+
+// ---------------------------------------------------------------------------------------
 // Degradations
 // ---------------------------------------------------------------------------------------
 
@@ -221,6 +431,17 @@ Occluder parseOccluder(const std::string& text);
 /// exposure (gain, offset), Gaussian noise, rounding to 8 bit. JPEG compression is applied
 /// when the frame is written (DatasetWriter). All random draws are seeded by (seed, frame),
 /// so a frame's degradation does not depend on which other frames were rendered.
+///
+/// Exposure: I' = g_k I + o with g_k = A_k * (1 + N(0, exposure_gain_std)), A_k the
+/// auto-exposure gain of frame k (exposureStepGain) and o ~ N(0, exposure_offset_std).
+///
+/// Auto-exposure steps: the gain a controller sets steps now and then by a whole factor:
+///   A_k = (1 + exposure_step)^n_k,
+/// n_0 = 0; n_k = n_{k-1} except at the step frames k = m * exposure_step_every (m >= 1),
+/// where a sign s_k = +1 or -1 (probability 1/2, drawn from a generator seeded by (seed, k)
+/// alone, apart from the frame's other draws) gives n_k = n_{k-1} + s_k, or n_{k-1} - s_k
+/// when |n_{k-1} + s_k| would exceed exposure_step_levels (the controller's range). So
+/// exposure_step = 0.25 makes each step x1.25 or /1.25, and A_k depends on (seed, k) only.
 struct DegradeOptions {
   double noise_sigma = 0.0;          ///< sensor noise std, grey levels
   double blur_sigma = 0.0;           ///< Gaussian blur std, pixels (0 = off)
@@ -228,10 +449,17 @@ struct DegradeOptions {
   double exposure_offset_std = 0.0;  ///< per-frame offset N(0, std), grey levels
   std::uint64_t seed = 0;
   bool periodic_columns = false;     ///< blur wraps around columns (panorama output)
+  double exposure_step = 0.0;        ///< auto-exposure step, relative, [0, 1] (0 = none)
+  int exposure_step_every = 0;       ///< frames between steps, >= 0 (0 = none)
+  int exposure_step_levels = 2;      ///< most steps away from the start gain, [1, 16]
 
-  /// One message per bad field (empty = valid): every std >= 0.
+  /// One message per bad field (empty = valid): every std >= 0, the steps' ranges above.
   std::vector<std::string> validate() const;
 };
+
+/// A_k, the auto-exposure gain of frame `frame` (see DegradeOptions): 1 without steps.
+/// Costs frame / exposure_step_every draws. Throws std::invalid_argument on invalid options.
+double exposureStepGain(const DegradeOptions& options, std::uint64_t frame);
 
 /// Applies the degradations to a CV_32FC1 image (grey 0..255) for frame number `frame`;
 /// returns CV_8UC1 (values rounded and clamped to 0..255). Deterministic for the same
@@ -344,6 +572,14 @@ using MotionError = ConfigError;
 ///   max_hz: 9
 ///   components: 3        #   sinusoids per axis
 ///   seed: 0              #   its own random draws
+/// walkers:               # optional people walking around the robot (struct Walkers)
+///   count: 3             #   people, 0..100
+///   width_m: 0.5         #   diameter, metres
+///   height_m: 1.7        #   metres
+///   base_z: -1.0         #   z of the feet, metres (default: the box room's floor)
+///   speed_m_s: 1.2       #   walking speed along their circles, m/s
+///   distance_m: [1.5, 2.0]   # circle radius about the world z axis, metres (or one number)
+///   seed: 0              #   their own random draws
 /// segments:
 ///   - frames: 50                 # increments in this segment
 ///     rotation:                  # optional
@@ -364,6 +600,10 @@ struct MotionScript {
   double wall_margin_m = 1.0;
   std::vector<MotionSegment> segments;
   std::optional<Vibration> vibration;  ///< track vibration, none by default
+  /// People walking around (for Scene::walkers; the trajectory does not use them), none by
+  /// default. validate() checks their fields; whether they fit a box room is checked where
+  /// the scene is known (Walkers::validate(kind, box)).
+  std::optional<Walkers> walkers;
 
   /// One message per bad field (empty = valid).
   std::vector<std::string> validate() const;
