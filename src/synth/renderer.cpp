@@ -201,11 +201,6 @@ int Renderer::exposureSamples(const std::function<Eigen::Isometry3d(double)>& po
   return static_cast<int>(std::min(n, static_cast<double>(kMaxAutoExposureSamples)));
 }
 
-double rowTime(int y, int rows, double readout_s) {
-  if (readout_s >= 0.0) return readout_s * y / rows;
-  return -readout_s * (rows - 1 - y) / rows;
-}
-
 Eigen::Isometry3d poseBetween(const Eigen::Isometry3d& a, const Eigen::Isometry3d& b, double s) {
   Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
   T.linear() = a.linear() * rotationFromVector(s * rotationVector(a.linear().transpose() * b.linear()));

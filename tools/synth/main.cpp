@@ -38,6 +38,7 @@ struct Args {
   std::optional<std::uint64_t> seed;
   double noise = 0.0, blur = 0.0, exposure_gain = 0.0, exposure_offset = 0.0;
   double readout = 0.0;  ///< rolling shutter readout, seconds (0 = global shutter)
+  bool readout_given = false;  ///< else the calibration's sensor.readout_s
   double exposure_time = 0.0;  ///< motion blur: exposure time, seconds (0 = none)
   int exposure_samples = 0;    ///< sub-exposures, 0 = chosen from the motion
   double exposure_step = 0.0;  ///< auto-exposure step, relative (0 = none)
@@ -131,7 +132,9 @@ void addOptions(CLI::App& app, Args& a, Raw& raw) {
   app.add_option("--readout", a.readout,
                  "rolling shutter: rows read out over S seconds, first to last (negative: last "
                  "to first), each row rendered from the pose at its own capture time along the "
-                 "motion between frames; |S| at most one frame interval (default 0: global shutter)")
+                 "motion between frames; |S| at most one frame interval (default: the "
+                 "calibration's sensor.readout_s, else 0: global shutter); the dataset's "
+                 "calibration.yaml records it")
       ->type_name("S");
   app.add_option("--exposure-time", a.exposure_time,
                  "motion blur: each row exposed for S seconds centred on its capture time (the "
@@ -192,6 +195,7 @@ void finish(const CLI::App& app, Args& a, const Raw& raw) {
       throw UsageError(std::string(flag) + ": " + e.what());
     }
   };
+  a.readout_given = given("--readout");
   if (given("--scene"))
     a.scene = convert("--scene", [&] { return synth::parseSceneKind(raw.scene); });
   if (given("--output"))
@@ -289,8 +293,12 @@ int run(const Args& a) {
                                : synth::MotionScript::preset(a.preset.empty() ? "demo" : a.preset);
   if (a.frames) script.frames = *a.frames;
   if (a.seed) script.seed = *a.seed;
-  if (!(std::abs(a.readout) <= 1.0 / script.frame_rate)) {
-    throw UsageError("--readout: |" + std::to_string(a.readout) +
+  // The rows are rendered with the readout the dataset's calibration then states.
+  const double readout = a.readout_given ? a.readout : calibration.sensor.readout_s;
+  calibration.sensor.readout_s = readout;
+  if (!(std::abs(readout) <= 1.0 / script.frame_rate)) {
+    throw UsageError(std::string(a.readout_given ? "--readout" : "sensor.readout_s of --calibration") +
+                     ": |" + std::to_string(readout) +
                      "| s is longer than the frame interval of " + motion_name + " (" +
                      std::to_string(1.0 / script.frame_rate) + " s)");
   }
@@ -348,13 +356,13 @@ int run(const Args& a) {
     const double stamp = poses[k].timestamp;
     const auto pose_at = [&](double t) { return synth::poseAtTime(poses, stamp + t); };
     cv::Mat image;
-    if (a.readout == 0.0 && a.exposure_time == 0.0) {
+    if (readout == 0.0 && a.exposure_time == 0.0) {
       // Global shutter: the frame's own pose (and the walkers at its timestamp).
       image = renderer.walkers().empty() ? renderer.render(poses[k].pose)
                                          : renderer.render(poses[k].pose, stamp);
     } else {
       synth::FrameTiming timing{.timestamp_s = stamp,
-                                .readout_s = a.readout,
+                                .readout_s = readout,
                                 .exposure_s = a.exposure_time,
                                 .exposure_samples = a.exposure_samples};
       timing.exposure_samples = renderer.exposureSamples(pose_at, timing);
@@ -383,10 +391,10 @@ int run(const Args& a) {
     vibration = text;
   }
   std::string shutter;
-  if (a.readout != 0.0) {
+  if (readout != 0.0) {
     char text[96];
-    std::snprintf(text, sizeof(text), ", rolling shutter %.4g s %s", std::abs(a.readout),
-                  a.readout > 0.0 ? "first row first" : "last row first");
+    std::snprintf(text, sizeof(text), ", rolling shutter %.4g s %s", std::abs(readout),
+                  readout > 0.0 ? "first row first" : "last row first");
     shutter = text;
   }
   std::string effects;

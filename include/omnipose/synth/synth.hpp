@@ -355,11 +355,9 @@ class Renderer {
   std::vector<Walker> walkers_;
 };
 
-/// Capture time of row y of a frame of `rows` rows, seconds after the frame's timestamp (the
-/// capture of the row read first): readout_s * y / rows; a negative readout_s reads the last
-/// row first, |readout_s| * (rows - 1 - y) / rows. readout_s = 0: every row at 0 (global
-/// shutter).
-double rowTime(int y, int rows, double readout_s);
+/// Capture time of row y of a frame (calibration.hpp: the camera model's row timing, which
+/// the renderer draws with).
+using omnipose::rowTime;
 
 /// The pose the fraction s of the way from `a` to `b`: rotation at constant angular velocity
 /// (a.linear() * exp(s * log(a.linear()^T * b.linear()))), translation linear; s outside
