@@ -27,6 +27,8 @@
 #include "omnipose/image_decode.hpp"
 #include "omnipose/pipeline.hpp"
 #include "omnipose/calibrate/preview.hpp"
+#include "omnipose/calibrate/readout_estimation.hpp"
+#include "omnipose/io/dataset.hpp"
 #include "quiet_opencv.hpp"
 
 namespace {
@@ -38,6 +40,7 @@ constexpr const char* kUsage =
     "usage: omnipose-calibrate FRAMES... --out calibration.yaml [options]\n"
     "       omnipose-calibrate --propose-mask FRAMES... --out mask.png [--preview P.png]\n"
     "       omnipose-calibrate --checkerboard 9x6 --square 0.025 IMAGES... --out calibration.yaml\n"
+    "       omnipose-calibrate --readout-from DATASET --out calibration.yaml\n"
     "       omnipose-calibrate --from-ocamcalib calib_results.txt --out calibration.yaml\n"
     "                          [FRAMES...] [--radius-inner R --radius-outer R] [--direction D]\n"
     "                          [--forward-angle DEG] [--width W --height H --horizon-row V]";
@@ -194,11 +197,51 @@ omnipose::calibrate::ModelImport importOcamCalibFile(const fs::path& file,
 
 }  // namespace
 
+/// --readout-from DATASET: the rolling-shutter readout from a recording of the robot turning
+/// in place at varying rates (readout_estimation.hpp); writes DATASET's calibration with
+/// sensor.readout_s to `out_yaml`. Exit 0 written, 1 not measurable or unreadable.
+int estimateReadoutOf(const fs::path& dataset_dir, const fs::path& out_yaml, bool quiet) {
+  const omnipose::Dataset dataset = omnipose::Dataset::open(dataset_dir);
+  if (!dataset.timestamps_from_file)
+    throw std::runtime_error((dataset_dir / "timestamps.txt").string() +
+                             ": missing; the readout is measured against the frame times");
+  std::vector<cv::Mat> frames;
+  std::vector<double> times;
+  const omnipose::OdometryOptions defaults;
+  const cv::Size size = omnipose::inputFrameSize(dataset.calibration, defaults.pipeline.unwrap.input);
+  for (const auto& f : dataset.frames) {
+    auto image = omnipose::readFrame(f.path, size);
+    if (!image) {
+      if (!quiet) std::fprintf(stderr, "omnipose-calibrate: skipped %s\n", image.error().c_str());
+      continue;
+    }
+    frames.push_back(std::move(*image));
+    times.push_back(f.timestamp);
+  }
+  if (!quiet)
+    std::printf("omnipose-calibrate: %zu frames of %s, readouts tried from -0.05 to 0.05 s\n",
+                frames.size(), dataset_dir.c_str());
+  const omnipose::calibrate::ReadoutEstimate e =
+      omnipose::calibrate::estimateReadout(dataset.calibration, frames, times);
+  if (!quiet) {
+    for (const auto& [r, score] : e.curve) std::printf("  readout %+.4f s: score %.4g\n", r, score);
+  }
+  if (!e.found) {
+    std::fprintf(stderr, "omnipose-calibrate: %s\n", e.summary.c_str());
+    return 1;
+  }
+  omnipose::Calibration c = dataset.calibration;
+  c.sensor.readout_s = e.readout_s;
+  c.save(out_yaml);
+  if (!quiet) std::printf("omnipose-calibrate: %s; wrote %s\n", e.summary.c_str(), out_yaml.c_str());
+  return 0;
+}
+
 int main(int argc, char** argv) {
   omnipose::tools::quietOpenCvWarnings();
   LensCalibratorOptions options;
   std::vector<std::string> inputs_text;
-  std::string out_text, preview_text, ocamcalib_text;
+  std::string out_text, preview_text, ocamcalib_text, readout_text;
   std::string checkerboard;
   std::optional<double> square;
   bool quiet = false, propose_mask = false, no_replay = false;
@@ -361,8 +404,27 @@ int main(int argc, char** argv) {
       ->group("Other");
   app.add_flag("--no-replay", no_replay, "skip the Pipeline replay of consecutive frames")
       ->group("Other");
+  app.add_option("--readout-from", readout_text,
+                 "DATASET (calibration.yaml, frames/, timestamps.txt) of the robot turning in "
+                 "place, speeding up and slowing down: measures the rolling shutter's "
+                 "sensor.readout_s and writes that calibration with it to --out")
+      ->type_name("DATASET")
+      ->group(models);
   app.add_flag("--quiet", quiet, "print only errors")->group("Other");
   if (const auto exit_code = cli.parse(argc, argv)) return *exit_code;
+  if (!readout_text.empty()) {
+    if (out_text.empty()) return cli.usageError("--out FILE is required");
+    if (!inputs_text.empty() || !ocamcalib_text.empty() || !checkerboard.empty() || propose_mask)
+      return cli.usageError("--readout-from takes no FRAMES and no other mode");
+    if (const auto problem = outputProblem("--out", out_text); !problem.empty())
+      return cli.usageError(problem);
+    try {
+      return estimateReadoutOf(readout_text, out_text, quiet);
+    } catch (const std::exception& e) {
+      std::fprintf(stderr, "omnipose-calibrate: %s\n", e.what());
+      return 1;
+    }
+  }
 
   if (no_replay) options.replay = false;
   std::vector<fs::path> inputs(inputs_text.begin(), inputs_text.end());
