@@ -402,7 +402,8 @@ bool MotionScript::translates() const {
   return false;
 }
 
-MotionScript MotionScript::parse(const std::string& yaml_text, const std::string& origin) {
+MotionScript MotionScript::parse(const std::string& yaml_text, const std::string& origin,
+                                 std::optional<int> frames) {
   const YAML::Node root = detail::loadYaml(yaml_text, origin);
   Reader r(origin);
   r.checkDuplicateKeys(root);
@@ -434,19 +435,21 @@ MotionScript MotionScript::parse(const std::string& yaml_text, const std::string
       }
     }
   }
+  if (frames) script.frames = *frames;
   if (r.problems().empty()) {
     for (const auto& p : script.validate()) r.add(p);
   }
-  r.throwIfProblems("invalid motion script");
+  r.throwIfProblems(frames ? "invalid motion script for " + std::to_string(*frames) + " frames"
+                           : std::string("invalid motion script"));
   return script;
 }
 
-MotionScript MotionScript::load(const std::filesystem::path& path) {
+MotionScript MotionScript::load(const std::filesystem::path& path, std::optional<int> frames) {
   std::ifstream in(path);
   if (!in) throw MotionError(path.string() + ": cannot open motion script");
   std::stringstream text;
   text << in.rdbuf();
-  return parse(text.str(), path.string());
+  return parse(text.str(), path.string(), frames);
 }
 
 std::string MotionScript::presetYaml(const std::string& name) {

@@ -911,6 +911,22 @@ TEST(SynthVibration, BadKeysAreReportedWithTheirPath) {
   EXPECT_THROW(drawVibration(Vibration{.amplitude_deg = 0}, 100, 30.0), std::invalid_argument);
 }
 
+TEST(SynthMotionScript, AFrameCountGivenWithTheScriptIsWhatItsVibrationIsJudgedFor) {
+  // Two segments alone last 2 frames, too short for any whole cycle of 1..9 Hz; cycled to
+  // 60 frames (omnipose-synth --frames 60) they hold enough.
+  const std::string text = "vibration: {}\nsegments: [{frames: 1, rotation: {axis: z}}]\n";
+  EXPECT_THROW(MotionScript::parse(text, "m.yaml"), MotionError);
+  const MotionScript script = MotionScript::parse(text, "m.yaml", 60);
+  EXPECT_EQ(script.frameCount(), 60);
+  EXPECT_EQ(generateTrajectory(script).size(), 60u);
+  try {
+    MotionScript::parse(text, "m.yaml", 2);
+    FAIL() << "2 frames cannot hold the band";
+  } catch (const MotionError& e) {
+    EXPECT_NE(std::string(e.what()).find("for 2 frames"), std::string::npos) << e.what();
+  }
+}
+
 // ---------------------------------------------------------------------- drift benchmark motions
 
 TEST(SynthMotionScript, DriftBenchmarkSequencesEndWhereTheyBegan) {

@@ -289,8 +289,9 @@ int run(const Args& a) {
   const std::string motion_name = !a.motion.empty() ? a.motion
                                   : !a.preset.empty() ? "preset " + a.preset
                                                       : "preset demo";
-  synth::MotionScript script = !a.motion.empty() ? synth::MotionScript::load(a.motion)
-                               : synth::MotionScript::preset(a.preset.empty() ? "demo" : a.preset);
+  synth::MotionScript script =
+      !a.motion.empty() ? synth::MotionScript::load(a.motion, a.frames)
+                        : synth::MotionScript::preset(a.preset.empty() ? "demo" : a.preset);
   if (a.frames) script.frames = *a.frames;
   if (a.seed) script.seed = *a.seed;
   // The rows are rendered with the readout the dataset's calibration then states.

@@ -614,9 +614,12 @@ struct MotionScript {
   bool translates() const;
 
   /// Reads a YAML motion script; throws MotionError listing every problem with the path.
-  static MotionScript load(const std::filesystem::path& path);
-  /// Parses YAML text; `origin` names the source in error messages.
-  static MotionScript parse(const std::string& yaml_text, const std::string& origin = "<string>");
+  /// `frames`: replaces the script's `frames` before it is validated (what depends on the
+  /// frame count, the vibration's band, is judged for that count).
+  static MotionScript load(const std::filesystem::path& path, std::optional<int> frames = {});
+  /// Parses YAML text; `origin` names the source in error messages; `frames` as in load().
+  static MotionScript parse(const std::string& yaml_text, const std::string& origin = "<string>",
+                            std::optional<int> frames = {});
   /// The paper's protocol: "roll", "pitch", "yaw" (100 frames, 1..6 deg per frame about
   /// one axis, random sign, roll/pitch bounded to 15 deg), "mixed" (100 frames, up to 12 deg
   /// per frame about a random axis, bounded to 20 deg), "translate" (100 frames, 5..15 cm
