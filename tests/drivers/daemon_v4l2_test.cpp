@@ -102,6 +102,14 @@ class SharedLcmSink final : public daemon::MessageSink {
   lcm::LCM& lcm_;
 };
 
+/// Whether, by `status`, every frame the daemon received has been processed (or counted as
+/// skipped, bad or lost) and the poses of the processed ones (`poses` of them) have arrived.
+bool nothingInFlight(const status_t& status, std::size_t poses) {
+  return status.frames_received == status.frames_processed + status.frames_skipped_stale +
+                                       status.frames_bad + status.frames_lost_upstream &&
+         static_cast<std::int64_t>(poses) == status.frames_processed;
+}
+
 struct Bus {
   lcm::LCM lcm{"memq://"};
   std::vector<pose_t> poses;
@@ -372,8 +380,11 @@ TEST(DaemonOnFakeLibcameraUnplug, CameraVanishingMidStreamIsReopenedByTheCapture
         manager->unplug(camera.id);
         phase = Phase::kUnplugged;
       } else if (phase == Phase::kUnplugged && reconnecting_seen &&
-                 manager->openAttempts().size() >= opens_at_unplug + 2) {
-        // Seen in the status, and at least two re-open attempts refused: the camera returns.
+                 manager->openAttempts().size() >= opens_at_unplug + 2 &&
+                 nothingInFlight(bus.statuses.back(), bus.poses.size())) {
+        // Seen in the status, at least two re-open attempts refused, and every frame from
+        // before the unplug processed and its pose received (a loaded machine, a sanitizer,
+        // can still be working on one): the camera returns.
         opens_at_replug = manager->openAttempts().size();
         poses_at_replug = bus.poses.size();
         manager->replug(camera.id);
