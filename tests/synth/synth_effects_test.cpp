@@ -11,6 +11,7 @@
 
 #include "omnipose/so3.hpp"
 #include "omnipose/synth/synth.hpp"
+#include "test_poses.hpp"
 
 namespace omnipose::synth {
 namespace {
@@ -21,17 +22,8 @@ const std::filesystem::path kIndoor = kSourceDir / "tests/data/equirect/indoor_1
 const Eigen::Isometry3d kIdentity = Eigen::Isometry3d::Identity();
 using PoseAt = std::function<Eigen::Isometry3d(double)>;
 
-Eigen::Isometry3d rotation(const Eigen::Vector3d& omega) {
-  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
-  T.linear() = rotationFromVector(omega);
-  return T;
-}
-
-Eigen::Isometry3d translation(const Eigen::Vector3d& t) {
-  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
-  T.translation() = t;
-  return T;
-}
+using test::rotation;
+using test::translation;
 
 double maxAbsDiff(const cv::Mat& a, const cv::Mat& b) { return cv::norm(a, b, cv::NORM_INF); }
 

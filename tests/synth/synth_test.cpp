@@ -13,6 +13,7 @@
 #include <unistd.h>
 
 #include "omnipose/synth/synth.hpp"
+#include "test_poses.hpp"
 
 namespace omnipose::synth {
 namespace {
@@ -44,17 +45,8 @@ cv::Mat unwrap(const cv::Mat& omni, const Calibration& cal) {
 
 double meanAbsDiff(const cv::Mat& a, const cv::Mat& b) { return cv::mean(cv::abs(a - b))[0]; }
 
-Eigen::Isometry3d rotation(const Eigen::Vector3d& omega) {
-  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
-  T.linear() = rotationFromVector(omega);
-  return T;
-}
-
-Eigen::Isometry3d translation(const Eigen::Vector3d& t) {
-  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
-  T.translation() = t;
-  return T;
-}
+using test::rotation;
+using test::translation;
 
 // ---------------------------------------------------------------------- bright dots
 
