@@ -153,12 +153,13 @@ blur="--exposure-time 0.01"
 # name | motion | seed (motion draws and degradations) | supersample | effect flags
 sequences=(
   "ramps_vib_twin|ramps_vib|101|$supersample|--readout 0"
-  "rolling_shutter|ramps_vib|101|$supersample|--readout $readout"
+  "rolling_shutter|ramps_vib|101|$supersample|--readout $readout --between-frames smooth"
+  "rolling_shutter_constant|ramps_vib|101|$supersample|--readout $readout --between-frames constant"
   "walkers_twin|slow_turn|301|$supersample|--readout 0"
   "walkers|slow_turn|301|$supersample|--readout 0 $walkers"
   "ramps_twin|ramps|201|$supersample|--readout 0"
   "auto_exposure|ramps|201|$supersample|--readout 0 $exposure"
-  "all_at_once|ramps_vib|101|$blur_supersample|--readout $readout $walkers $exposure $blur"
+  "all_at_once|ramps_vib|101|$blur_supersample|--readout $readout --between-frames smooth $walkers $exposure $blur"
 )
 all_twin=ramps_vib_twin
 if [ "$blur_supersample" != "$supersample" ]; then
@@ -168,11 +169,12 @@ fi
 # The rows: effect label | effect sequence | twin sequence | target ratio (issue) | rolling shutter
 rows=(
   "rolling shutter 0.8 frame (with vibration)|rolling_shutter|ramps_vib_twin|2|1"
+  "the same, velocity constant between frames|rolling_shutter_constant|ramps_vib_twin|2|1"
   "three walkers|walkers|walkers_twin|1.5|0"
   "auto-exposure steps + vignetting|auto_exposure|ramps_twin|1.1|0"
   "all at once|all_at_once|$all_twin|2.5|1"
 )
-rolling_sequences=" rolling_shutter all_at_once "
+rolling_sequences=" rolling_shutter rolling_shutter_constant all_at_once "
 
 echo "== real-camera benchmark: ${#sequences[@]} sequences x $frames frames from $(basename "$photo")"
 echo "   output: $out"
@@ -378,6 +380,11 @@ fi
   echo "Effects (\`omnipose-synth\` flags):"
   echo
   echo "- rolling shutter: \`--readout $readout\` (0.8 frame, first row first) on \`ramps_vib\`; twin \`--readout 0\`."
+  echo "  Rows and sub-exposures between frames see the motion with its velocity continuous through"
+  echo "  the frames' poses (\`--between-frames smooth\`, as a vehicle's: the vibration's sinusoids and"
+  echo "  the ramps' accelerations as they would be); \`the same, velocity constant between frames\`"
+  echo "  renders them along constant-velocity steps from one frame's pose to the next"
+  echo "  (\`--between-frames constant\`: the velocity jumps at every frame). Same twin."
   echo "- three walkers: \`$walkers\` (0.5 m wide, 1.8 m tall from the floor 1 m below the camera,"
   echo "  1.2 m/s on circles of 1.2..1.6 m: 18..24 deg wide as seen) on \`slow_turn\`, global shutter; twin: none."
   echo "- auto-exposure: \`$exposure\` (gain x/÷ 1.25 every 10 frames, at most 2 steps from the start)"

@@ -219,6 +219,53 @@ Eigen::Isometry3d poseAtTime(std::span<const StampedPose> trajectory, double t) 
   return poseBetween(a.pose, b.pose, (t - a.timestamp) / (b.timestamp - a.timestamp));
 }
 
+Eigen::Isometry3d poseAtTime(std::span<const StampedPose> trajectory, double t,
+                             Interpolation interpolation) {
+  if (interpolation == Interpolation::kConstantVelocity || trajectory.size() < 2)
+    return poseAtTime(trajectory, t);
+  const std::size_t n = trajectory.size();
+  std::size_t k = 0;
+  while (k + 2 < n && trajectory[k + 1].timestamp <= t) ++k;
+  const StampedPose& a = trajectory[k];
+  const StampedPose& b = trajectory[k + 1];
+  const double h = b.timestamp - a.timestamp;
+  // Sample j in the tangent space at a: (rotation vector of a^-1 j, position), 6-vector.
+  using Vec6 = Eigen::Matrix<double, 6, 1>;
+  const Eigen::Matrix3d Ra_t = a.pose.linear().transpose();
+  const auto local = [&](std::size_t j) {
+    Vec6 x;
+    x << rotationVector(Ra_t * trajectory[j].pose.linear()), trajectory[j].pose.translation();
+    return x;
+  };
+  const Vec6 p0 = local(k), p1 = local(k + 1);
+  const Vec6 secant = (p1 - p0) / h;
+  // The velocity at sample j from its neighbours: the derivative of the parabola through
+  // the three (exact for a motion quadratic in time, whatever the spacing).
+  const auto velocity = [&](std::size_t j, const Vec6& before, const Vec6& at, const Vec6& after) {
+    const double hm = trajectory[j].timestamp - trajectory[j - 1].timestamp;
+    const double hp = trajectory[j + 1].timestamp - trajectory[j].timestamp;
+    return Vec6((hm * hm * (after - at) + hp * hp * (at - before)) / (hm * hp * (hm + hp)));
+  };
+  // At the trajectory's ends the step's own velocity.
+  const Vec6 v0 = k > 0 ? velocity(k, local(k - 1), p0, p1) : secant;
+  const Vec6 v1 = k + 2 < n ? velocity(k + 1, p0, p1, local(k + 2)) : secant;
+  Vec6 x;
+  if (t < a.timestamp) {
+    x = p0 + (t - a.timestamp) * v0;  // before the first sample
+  } else if (t > b.timestamp) {
+    x = p1 + (t - b.timestamp) * v1;  // after the last
+  } else {
+    // Cubic Hermite basis on s in [0, 1].
+    const double s = (t - a.timestamp) / h, s2 = s * s, s3 = s2 * s;
+    x = (2 * s3 - 3 * s2 + 1) * p0 + (s3 - 2 * s2 + s) * h * v0 + (-2 * s3 + 3 * s2) * p1 +
+        (s3 - s2) * h * v1;
+  }
+  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+  T.linear() = a.pose.linear() * rotationFromVector(x.head<3>());
+  T.translation() = x.tail<3>();
+  return T;
+}
+
 struct Renderer::PixelRays {
   /// One sub-sample: a bearing that sees the scene, or the lens body's grey level.
   struct Ray {

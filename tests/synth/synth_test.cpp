@@ -408,6 +408,69 @@ TEST(SynthRollingShutter, PosesBetweenFramesMoveAtConstantVelocity) {
   EXPECT_TRUE(poseAtTime(std::vector<StampedPose>{{0.0, a}}, 3.0).isApprox(a, 1e-12));
 }
 
+TEST(SynthRollingShutter, SmoothMotionPassesThroughTheFramesWithAContinuousVelocity) {
+  // Frames at uneven times (a dropped frame between the third and the fourth) of a general
+  // motion: rotation about a turning axis, translation along a curve.
+  const std::vector<double> times = {0.0, 0.033, 0.067, 0.133, 0.167, 0.2};
+  std::vector<StampedPose> trajectory;
+  for (const double t : times) {
+    Eigen::Isometry3d pose = rotation({0.3 * t, -2.0 * t * t, 1.5 * t + 4.0 * t * t * t});
+    pose.translation() = Eigen::Vector3d(0.5 * t, std::sin(10.0 * t), 0.2);
+    trajectory.push_back({t, pose});
+  }
+  const auto smooth = [&](double t) {
+    return poseAtTime(trajectory, t, Interpolation::kSmooth);
+  };
+  for (const StampedPose& sample : trajectory)
+    EXPECT_TRUE(smooth(sample.timestamp).isApprox(sample.pose, 1e-12)) << sample.timestamp;
+  // The velocity (rotation in the pose's own frame, translation) just before and just after
+  // each inner sample agrees; the constant-velocity motion's jumps there.
+  const auto velocity = [](const Eigen::Isometry3d& from, const Eigen::Isometry3d& to, double dt) {
+    Eigen::Matrix<double, 6, 1> v;
+    v << rotationVector(from.linear().transpose() * to.linear()) / dt,
+        (to.translation() - from.translation()) / dt;
+    return v;
+  };
+  const double e = 1e-6;
+  for (std::size_t k = 1; k + 1 < trajectory.size(); ++k) {
+    const double t = trajectory[k].timestamp;
+    const auto before = velocity(smooth(t - e), smooth(t), e);
+    const auto after = velocity(smooth(t), smooth(t + e), e);
+    EXPECT_LT((before - after).norm(), 1e-4 * before.norm()) << "sample " << k;
+    const auto stepwise = [&](double u) { return poseAtTime(trajectory, u); };
+    EXPECT_GT((velocity(stepwise(t - e), stepwise(t), e) - velocity(stepwise(t), stepwise(t + e), e)).norm(),
+              1e-2 * before.norm())
+        << "sample " << k;
+  }
+  // Before the first sample and after the last: the end sample's velocity, continued.
+  EXPECT_TRUE(smooth(-0.01).isApprox(poseAtTime(trajectory, -0.01), 1e-12));
+  EXPECT_TRUE(smooth(0.21).isApprox(poseAtTime(trajectory, 0.21), 1e-12));
+  // Constant interpolation is poseAtTime() itself.
+  EXPECT_TRUE(poseAtTime(trajectory, 0.05, Interpolation::kConstantVelocity)
+                  .isApprox(poseAtTime(trajectory, 0.05), 1e-15));
+}
+
+TEST(SynthRollingShutter, SmoothMotionReproducesConstantAccelerationExactly) {
+  // Yaw and position quadratic in time, at uneven frame times: every pose between the
+  // samples that have a neighbour on either side is the motion's own (the two end steps
+  // take their own velocity at the trajectory's ends); a constant velocity is reproduced
+  // everywhere.
+  for (const double acceleration : {0.0, 30.0}) {
+    const auto truth = [&](double t) {
+      Eigen::Isometry3d pose = rotation({0.0, 0.0, 0.2 + 1.5 * t + 0.5 * acceleration * t * t});
+      pose.translation() = Eigen::Vector3d(0.1 + 0.6 * t - 2.0 * acceleration * t * t, 0.3 * t, 1.0);
+      return pose;
+    };
+    std::vector<StampedPose> trajectory;
+    for (const double t : {0.0, 0.03, 0.07, 0.1, 0.16}) trajectory.push_back({t, truth(t)});
+    const double from = acceleration == 0.0 ? -0.02 : 0.03, to = acceleration == 0.0 ? 0.18 : 0.1;
+    for (double t = from; t <= to; t += 0.005) {
+      EXPECT_TRUE(poseAtTime(trajectory, t, Interpolation::kSmooth).isApprox(truth(t), 1e-12))
+          << "t " << t << " acceleration " << acceleration;
+    }
+  }
+}
+
 TEST(SynthRollingShutter, EveryRowIsSeenFromThePoseAtItsCaptureTime) {
   const Renderer renderer(indoorScene(), Calibration{}, {OutputKind::kOmni, 1});
   const std::vector<StampedPose> trajectory = {{0.0, kIdentity},

@@ -6,6 +6,7 @@
 #include <cstdio>
 #include <iostream>
 #include <optional>
+#include <map>
 #include <string>
 #include <tuple>
 #include <utility>
@@ -38,6 +39,8 @@ struct Args {
   std::optional<std::uint64_t> seed;
   double noise = 0.0, blur = 0.0, exposure_gain = 0.0, exposure_offset = 0.0;
   double readout = 0.0;  ///< rolling shutter readout, seconds (0 = global shutter)
+  /// The motion between frames that rows and sub-exposures are rendered along.
+  synth::Interpolation between_frames = synth::Interpolation::kSmooth;
   bool readout_given = false;  ///< else the calibration's sensor.readout_s
   double exposure_time = 0.0;  ///< motion blur: exposure time, seconds (0 = none)
   int exposure_samples = 0;    ///< sub-exposures, 0 = chosen from the motion
@@ -136,6 +139,17 @@ void addOptions(CLI::App& app, Args& a, Raw& raw) {
                  "calibration's sensor.readout_s, else 0: global shutter); the dataset's "
                  "calibration.yaml records it")
       ->type_name("S");
+  app.add_option("--between-frames", a.between_frames,
+                 "the motion between frames that rolling-shutter rows and motion blur see: "
+                 "smooth (velocity continuous through the frames' poses, as a vehicle's; "
+                 "default) or constant (constant velocity from one frame's pose to the next, "
+                 "the velocity jumping at each frame)")
+      ->transform(CLI::CheckedTransformer(
+          std::map<std::string, synth::Interpolation>{
+              {"smooth", synth::Interpolation::kSmooth},
+              {"constant", synth::Interpolation::kConstantVelocity}},
+          CLI::ignore_case))
+      ->type_name("smooth|constant");
   app.add_option("--exposure-time", a.exposure_time,
                  "motion blur: each row exposed for S seconds centred on its capture time (the "
                  "mean of sub-exposures along the motion between frames, and of the walkers' "
@@ -355,7 +369,9 @@ int run(const Args& a) {
   int fewest_samples = 0, most_samples = 0;
   for (std::size_t k = 0; k < poses.size(); ++k) {
     const double stamp = poses[k].timestamp;
-    const auto pose_at = [&](double t) { return synth::poseAtTime(poses, stamp + t); };
+    const auto pose_at = [&](double t) {
+      return synth::poseAtTime(poses, stamp + t, a.between_frames);
+    };
     cv::Mat image;
     if (readout == 0.0 && a.exposure_time == 0.0) {
       // Global shutter: the frame's own pose (and the walkers at its timestamp).

@@ -370,6 +370,27 @@ Eigen::Isometry3d poseBetween(const Eigen::Isometry3d& a, const Eigen::Isometry3
 /// extrapolated. A single sample is returned as it is. Requires a non-empty trajectory.
 Eigen::Isometry3d poseAtTime(std::span<const StampedPose> trajectory, double t);
 
+/// How a trajectory sampled at frame timestamps moves between its samples.
+enum class Interpolation {
+  /// Constant velocity from one sample to the next (poseBetween): the velocity jumps at
+  /// every sample where the per-frame motion changes.
+  kConstantVelocity,
+  /// Velocity continuous through the samples (as a vehicle's, which cannot change speed
+  /// in no time): on each step a cubic Hermite curve in the tangent space at its first
+  /// sample (rotation vector and position) with, at each sample, the velocity of the
+  /// parabola through it and its two neighbours (at the first and last sample the one
+  /// step's). Passes through every sample; a constant velocity and, for a translation or a
+  /// rotation about a fixed axis, a motion quadratic in time (a constant acceleration) are
+  /// reproduced exactly.
+  kSmooth,
+};
+
+/// poseAtTime() with the given motion between samples; kConstantVelocity is poseAtTime().
+/// Before the first sample or after the last, kSmooth continues with the end sample's
+/// velocity.
+Eigen::Isometry3d poseAtTime(std::span<const StampedPose> trajectory, double t,
+                             Interpolation interpolation);
+
 // ---------------------------------------------------------------------------------------
 // Static occluder (what the robot sees of itself)
 // ---------------------------------------------------------------------------------------
