@@ -7,6 +7,10 @@
 //   -> "Collected" instructions / 10 = instructions per frame.
 // Usage: omnipose-bench-instructions [--threads N] [--frames K] [--warmup W]
 //                                    [--refine R] [--wisdom FILE] [--save DIR | --load DIR]
+//                                    [--odometry [--readout S]]
+// --odometry processes the frames with Odometry (what omniposed and omnipose-replay run),
+// stamped at 30 fps, instead of Pipeline; --readout S gives the calibration a rolling
+// shutter of S seconds (the rows' capture times corrected in every pass).
 // --save writes the two rendered frames to DIR/a.png, DIR/b.png; --load reads them instead
 // of rendering (an emulator then spends nothing on the renderer).
 #include <chrono>
@@ -14,11 +18,13 @@
 #include <algorithm>
 #include <cstdlib>
 #include <filesystem>
+#include <optional>
 #include <opencv2/imgcodecs.hpp>
 #include <string>
 
 #include "cli.hpp"
 #include "omnipose/io/trajectory.hpp"
+#include "omnipose/odometry.hpp"
 #include "omnipose/pipeline.hpp"
 #include "omnipose/synth/synth.hpp"
 
@@ -33,11 +39,14 @@
 
 int main(int argc, char** argv) {
   int threads = 1, frames = 10, warmup = 2, refine = 1;
+  double readout = 0.0;
+  bool odometry = false;
   std::string wisdom, save, load;
   omnipose::tools::Cli cli(
       "omnipose-bench-instructions",
       "usage: omnipose-bench-instructions [--threads N] [--frames K] [--warmup W]\n"
-      "                                   [--refine R] [--wisdom FILE] [--save DIR | --load DIR]",
+      "                                   [--refine R] [--wisdom FILE] [--save DIR | --load DIR]\n"
+      "                                   [--odometry [--readout S]]",
       "Per-frame instruction counts of the pipeline, for valgrind --tool=callgrind\n"
       "--collect-atstart=no (only the measured frames are collected). Prints frames, threads,\n"
       "refine, ok and ms_per_frame (wall time, milliseconds).");
@@ -57,6 +66,12 @@ int main(int argc, char** argv) {
                                  "rendering them")
       ->type_name("DIR")
       ->excludes(save_opt);
+  auto* odometry_opt =
+      app.add_flag("--odometry", odometry, "process with Odometry, frames stamped at 30 fps");
+  app.add_option("--readout", readout, "rolling shutter readout of the calibration, seconds")
+      ->type_name("S")
+      ->needs(odometry_opt)
+      ->check(CLI::Range(-omnipose::SensorTiming::kMaxReadoutS, omnipose::SensorTiming::kMaxReadoutS));
   if (const auto exit_code = cli.parse(argc, argv)) return *exit_code;
   cv::setNumThreads(1);
   cv::Mat f[2];
@@ -87,16 +102,32 @@ int main(int argc, char** argv) {
   options.threads = threads;
   options.refine_iterations = refine;
   options.fftw_wisdom = wisdom;
-  omnipose::Pipeline pipeline(omnipose::Calibration{}, options);
+  omnipose::Calibration calibration;
+  calibration.sensor.readout_s = readout;
+  std::optional<omnipose::Pipeline> pipeline;
+  std::optional<omnipose::Odometry> odometer;
+  if (odometry)
+    odometer.emplace(calibration, omnipose::OdometryOptions{.pipeline = options});
+  else
+    pipeline.emplace(calibration, options);
   int n = 0, ok = 0;
-  for (int i = 0; i < warmup; ++i) ok += pipeline.process(f[n++ % 2]).has_value();
+  // One frame (the frames alternate); true when it was estimated.
+  const auto process = [&] {
+    const cv::Mat& frame = f[n % 2];
+    const omnipose::FrameStamp stamp{.time_s = n / 30.0, .sequence = n};
+    ++n;
+    if (pipeline) return pipeline->process(frame).has_value();
+    return odometer->process(frame, stamp).has_value();
+  };
+  for (int i = 0; i < warmup; ++i) ok += process();
   OMNIPOSE_TOGGLE_COLLECT();
   const auto start = std::chrono::steady_clock::now();
-  for (int i = 0; i < frames; ++i) ok += pipeline.process(f[n++ % 2]).has_value();
+  for (int i = 0; i < frames; ++i) ok += process();
   const double seconds =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   OMNIPOSE_TOGGLE_COLLECT();
-  std::printf("frames=%d threads=%d refine=%d ok=%d ms_per_frame=%.3f\n", frames,
-              pipeline.threads(), refine, ok, 1e3 * seconds / std::max(frames, 1));
+  std::printf("frames=%d threads=%d refine=%d odometry=%d readout_s=%g ok=%d ms_per_frame=%.3f\n",
+              frames, pipeline ? pipeline->threads() : threads, refine, odometry ? 1 : 0,
+              readout, ok, 1e3 * seconds / std::max(frames, 1));
   return ok == warmup + frames ? 0 : 1;
 }
