@@ -34,16 +34,9 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 root=$(pwd)
 
-publish=0
-out=""
-for arg in "$@"; do
-  case "$arg" in
-    --publish) publish=1 ;;
-    -h|--help) sed -n '2,/^set -euo/p' "$0" | grep '^#' | sed 's/^# \{0,1\}//'; exit 0 ;;
-    -*) echo "accuracy_benchmark: unknown option $arg" >&2; exit 2 ;;
-    *) out=$arg ;;
-  esac
-done
+# shellcheck source=tools/common/benchmark.sh
+source tools/common/benchmark.sh
+bench_args accuracy_benchmark -- "$@"
 build=${BUILD_DIR:-build}
 out=${out:-$build/accuracy}
 data=${DATA_DIR:-$root/../shared/data/equirect}
@@ -51,11 +44,7 @@ frames=${FRAMES:-24}
 supersample=${SUPERSAMPLE:-2}
 methods=${METHODS:-"ifmi orb5pt akaze5pt orbrot akazerot"}
 bin=$build/bin
-command_line="tools/accuracy_benchmark.sh $*"
-[ -n "${BUILD_DIR:-}" ] && command_line="BUILD_DIR=$BUILD_DIR $command_line"
-[ -n "${FRAMES:-}" ] && command_line="FRAMES=$FRAMES $command_line"
-[ -n "${SUPERSAMPLE:-}" ] && command_line="SUPERSAMPLE=$SUPERSAMPLE $command_line"
-[ -n "${WISDOM:-}" ] && command_line="WISDOM=$WISDOM $command_line"
+bench_command_line tools/accuracy_benchmark.sh "$@" -- BUILD_DIR FRAMES SUPERSAMPLE WISDOM
 ifmi_pipeline=${IFMI_PIPELINE:-}
 if [ -n "$ifmi_pipeline" ]; then
   command_line="IFMI_PIPELINE=\"$ifmi_pipeline\" $command_line"
@@ -65,15 +54,8 @@ if [ -n "$ifmi_pipeline" ]; then
   fi
 fi
 
-tools=(omnipose-synth omnipose-replay omnipose-eval omnipose-plot-fit omnipose-plot-angles
-       omnipose-results)
-missing=0
-for t in "${tools[@]}"; do [ -x "$bin/$t" ] || missing=1; done
-if [ "$missing" = 1 ]; then
-  echo "== building ${tools[*]} in $build"
-  cmake -S . -B "$build" -G Ninja -DCMAKE_BUILD_TYPE=Release >/dev/null
-  cmake --build "$build" -j"$(nproc 2>/dev/null || echo 2)" --target "${tools[@]}"
-fi
+bench_tools "$build" omnipose-synth omnipose-replay omnipose-eval omnipose-plot-fit \
+  omnipose-plot-angles omnipose-results
 
 indoor=$data/indoor_1024x512.jpg
 [ -f "$indoor" ] || indoor=$root/tests/data/equirect/indoor_1024x512.jpg

@@ -38,35 +38,16 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 root=$(pwd)
 
-publish=0
-evo=0
-out=""
-for arg in "$@"; do
-  case "$arg" in
-    --publish) publish=1 ;;
-    --evo) evo=1 ;;
-    -h|--help) sed -n '2,/^set -euo/p' "$0" | grep '^#' | sed 's/^# \{0,1\}//'; exit 0 ;;
-    -*) echo "drift_benchmark: unknown option $arg" >&2; exit 2 ;;
-    *) [ -z "$out" ] || { echo "drift_benchmark: one OUTDIR only" >&2; exit 2; }; out=$arg ;;
-  esac
-done
+# shellcheck source=tools/common/benchmark.sh
+source tools/common/benchmark.sh
+bench_args drift_benchmark --evo -- "$@"
 build=${BUILD_DIR:-build}
 out=${out:-$build/drift}
 supersample=${SUPERSAMPLE:-2}
 bin=$build/bin
-command_line="tools/drift_benchmark.sh $*"
-[ -n "${BUILD_DIR:-}" ] && command_line="BUILD_DIR=$BUILD_DIR $command_line"
-[ -n "${SUPERSAMPLE:-}" ] && command_line="SUPERSAMPLE=$SUPERSAMPLE $command_line"
-[ -n "${WISDOM:-}" ] && command_line="WISDOM=$WISDOM $command_line"
+bench_command_line tools/drift_benchmark.sh "$@" -- BUILD_DIR SUPERSAMPLE KEYFRAME_SLOTS WISDOM
 
-tools=(omnipose-synth omnipose-replay omnipose-eval omniposed omnipose-listen)
-missing=0
-for t in "${tools[@]}"; do [ -x "$bin/$t" ] || missing=1; done
-if [ "$missing" = 1 ]; then
-  echo "== building ${tools[*]} in $build"
-  cmake -S . -B "$build" -G Ninja -DCMAKE_BUILD_TYPE=Release >/dev/null
-  cmake --build "$build" -j"$(nproc 2>/dev/null || echo 2)" --target "${tools[@]}"
-fi
+bench_tools "$build" omnipose-synth omnipose-replay omnipose-eval omniposed omnipose-listen
 
 photo=$root/tests/data/equirect/indoor_1024x512.jpg
 lens=$root/tests/data/catadioptric/steep_mirror_800_ocamcalib.txt

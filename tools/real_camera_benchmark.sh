@@ -45,16 +45,9 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 root=$(pwd)
 
-publish=0
-out=""
-for arg in "$@"; do
-  case "$arg" in
-    --publish) publish=1 ;;
-    -h|--help) sed -n '2,/^set -euo/p' "$0" | grep '^#' | sed 's/^# \{0,1\}//'; exit 0 ;;
-    -*) echo "real_camera_benchmark: unknown option $arg" >&2; exit 2 ;;
-    *) [ -z "$out" ] || { echo "real_camera_benchmark: one OUTDIR only" >&2; exit 2; }; out=$arg ;;
-  esac
-done
+# shellcheck source=tools/common/benchmark.sh
+source tools/common/benchmark.sh
+bench_args real_camera_benchmark -- "$@"
 build=${BUILD_DIR:-build}
 out=${out:-$build/real_camera}
 data=${DATA_DIR:-$root/../shared/data/equirect}
@@ -63,10 +56,8 @@ frames=${FRAMES:-60}
 supersample=${SUPERSAMPLE:-2}
 blur_supersample=${BLUR_SUPERSAMPLE:-$supersample}
 bin=$build/bin
-command_line="tools/real_camera_benchmark.sh $*"
-for var in BLUR_SUPERSAMPLE SUPERSAMPLE FRAMES PHOTO DATA_DIR WISDOM BUILD_DIR; do
-  [ -n "${!var:-}" ] && command_line="$var=${!var} $command_line"
-done
+bench_command_line tools/real_camera_benchmark.sh "$@" -- BLUR_SUPERSAMPLE SUPERSAMPLE FRAMES PHOTO \
+  DATA_DIR WISDOM BUILD_DIR
 
 for var in frames supersample blur_supersample; do
   [[ "${!var}" =~ ^[0-9]+$ ]] || { echo "real_camera_benchmark: $var '${!var}' is not a whole number" >&2; exit 2; }
@@ -75,10 +66,7 @@ if [ "$frames" -lt 12 ]; then
   echo "real_camera_benchmark: FRAMES=$frames: at least 12 (the vibration needs three whole cycles in 1..9 Hz)" >&2
   exit 2
 fi
-tools=(omnipose-synth omnipose-replay omnipose-eval)
-for t in "${tools[@]}"; do
-  [ -x "$bin/$t" ] || { echo "real_camera_benchmark: missing $bin/$t (build it: cmake --build $build --target ${tools[*]}; or set BUILD_DIR)" >&2; exit 1; }
-done
+bench_tools --require real_camera_benchmark "$build" omnipose-synth omnipose-replay omnipose-eval
 [ -f "$photo" ] || { echo "real_camera_benchmark: missing photo $photo (set DATA_DIR or PHOTO)" >&2; exit 1; }
 command -v python3 > /dev/null || { echo "real_camera_benchmark: python3 is needed for the report" >&2; exit 1; }
 

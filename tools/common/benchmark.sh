@@ -1,0 +1,69 @@
+# shellcheck shell=bash
+# What the benchmark scripts (tools/accuracy_benchmark.sh, drift_benchmark.sh,
+# real_camera_benchmark.sh) share: their arguments, the command line their reports quote,
+# and the programs they need. Sourced after `set -euo pipefail` and `cd` to the repository.
+
+# bench_args NAME [--FLAG ...] -- ARGS...: parses the script's ARGS: --publish (publish=1),
+# -h/--help (prints the script's header comment and exits 0), one OUTDIR (out), and each
+# --FLAG listed before `--` (sets the variable FLAG, without the dashes, to 1; it starts at
+# 0). Anything else is a usage error naming NAME (exit 2).
+bench_args() {
+  local name=$1 arg flag
+  shift
+  local -a flags=()
+  while [ $# -gt 0 ] && [ "$1" != "--" ]; do flags+=("$1"); shift; done
+  [ $# -gt 0 ] && shift
+  publish=0
+  out=""
+  for flag in "${flags[@]}"; do printf -v "${flag#--}" '%s' 0; done
+  for arg in "$@"; do
+    case "$arg" in
+      --publish) publish=1 ;;
+      -h|--help) sed -n '2,/^set -euo/p' "$0" | grep '^#' | sed 's/^# \{0,1\}//'; exit 0 ;;
+      -*)
+        for flag in "${flags[@]}"; do
+          if [ "$arg" = "$flag" ]; then printf -v "${flag#--}" '%s' 1; continue 2; fi
+        done
+        echo "$name: unknown option $arg" >&2
+        exit 2
+        ;;
+      *) [ -z "$out" ] || { echo "$name: one OUTDIR only" >&2; exit 2; }; out=$arg ;;
+    esac
+  done
+}
+
+# bench_command_line SCRIPT ARGS... -- VAR...: sets command_line to "SCRIPT ARGS", preceded by
+# VAR=value for every environment variable VAR that is set (what the report says was run).
+bench_command_line() {
+  local -a args=()
+  command_line=$1
+  shift
+  while [ $# -gt 0 ] && [ "$1" != "--" ]; do args+=("$1"); shift; done
+  [ $# -gt 0 ] && shift
+  [ ${#args[@]} -gt 0 ] && command_line="$command_line ${args[*]}"
+  local var
+  for var in "$@"; do
+    [ -n "${!var:-}" ] && command_line="$var=${!var} $command_line"
+  done
+  return 0
+}
+
+# bench_tools [--require NAME] BUILD_DIR PROGRAM...: builds the programs missing from
+# BUILD_DIR/bin (a Release build with Ninja, configured when needed); with --require, a
+# missing program is an error naming it and how to build it (exit 1) instead.
+bench_tools() {
+  local require="" t
+  if [ "$1" = "--require" ]; then require=$2; shift 2; fi
+  local build=$1
+  shift
+  local -a missing=()
+  for t in "$@"; do [ -x "$build/bin/$t" ] || missing+=("$t"); done
+  [ ${#missing[@]} -eq 0 ] && return 0
+  if [ -n "$require" ]; then
+    echo "$require: missing $build/bin/${missing[0]} (build it: cmake --build $build --target $*; or set BUILD_DIR)" >&2
+    exit 1
+  fi
+  echo "== building $* in $build"
+  cmake -S . -B "$build" -G Ninja -DCMAKE_BUILD_TYPE=Release >/dev/null
+  cmake --build "$build" -j"$(nproc 2>/dev/null || echo 2)" --target "$@"
+}
