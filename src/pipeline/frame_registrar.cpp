@@ -87,6 +87,8 @@ FrameRegistrar::FrameRegistrar(const Calibration& c, const PipelineOptions& o, i
   refine_windows_.resize(windows);
   shifts_only_.resize(windows);  // rs_confidence 0: no rotation/scale
   expected_dv_.resize(windows);
+  for (int k = 0; k < registration_.windowCount(); ++k)
+    window_azimuth_.push_back(c.panorama.azimuth(registration_.windowCenter(k)));
   if (c.sensor.readout_s != 0.0) measureWindowTimes();
   wisdom_.saveIfPlanned();
 }
@@ -205,7 +207,7 @@ MotionEstimate FrameRegistrar::fitPass(std::span<WindowMotion> windows,
     row_scale_[k] = {1.0 + w.s * c / dt, 1.0};
     WindowMotion& m = windows[k];
     if (!m.valid) continue;
-    const double theta = calibration_.panorama.azimuth(registration_.windowCenter(static_cast<int>(k)));
+    const double theta = window_azimuth_[k];
     const ModelMotion removed = predictMotion(warp, theta, fit_.kappa());
     const double du = m.du + removed.du_rad / gamma, dv = m.dv + removed.dv_rad / gamma;
     const double g = w.ds_du * du + w.ds_dv * dv;
@@ -223,8 +225,7 @@ MotionEstimate FrameRegistrar::fitPass(std::span<WindowMotion> windows,
       if (!windows[k].valid) continue;
       Eigen::Matrix<double, 6, 1> x;
       x << window_times_[k].s * *b, 0.0, 0.0, 0.0, 0.0;
-      const double theta =
-          calibration_.panorama.azimuth(registration_.windowCenter(static_cast<int>(k)));
+      const double theta = window_azimuth_[k];
       const ModelMotion m = predictMotion(x, theta, fit_.kappa());
       windows[k].dv -= m.dv_rad / gamma;
       windows[k].rotation -= m.rotation;
@@ -251,8 +252,7 @@ std::optional<Eigen::Vector2d> FrameRegistrar::tiltRateChange(
   const double gamma = calibration_.panorama.gamma(), kappa = fit_.kappa();
   using Vec5 = Eigen::Matrix<double, 5, 1>;
   const auto basis = [&](std::size_t k) {
-    const double theta =
-        calibration_.panorama.azimuth(registration_.windowCenter(static_cast<int>(k)));
+    const double theta = window_azimuth_[k];
     const double sn = kappa * std::sin(theta), cs = kappa * std::cos(theta);
     const double s_k = window_times_[k].s;
     Vec5 f;
@@ -389,7 +389,7 @@ void FrameRegistrar::predictRefinementShifts(const Eigen::Vector3d& tau, FitStat
   for (int k = 0; k < registration_.windowCount(); ++k) {
     Eigen::Matrix<double, 6, 1> x;
     x << Eigen::Vector3d::Zero(), fit_.inverseDepth(k) * tau;
-    const double theta = calibration_.panorama.azimuth(registration_.windowCenter(k));
+    const double theta = window_azimuth_[static_cast<std::size_t>(k)];
     const double dv = predictMotion(x, theta, fit_.kappa()).dv_rad / gamma;
     const bool tight = kPredictionSlackPx + kDepthSpread * std::abs(dv) <=
                        WindowRegistration::kExpectedDvReachPx;

@@ -163,6 +163,7 @@ class FrameRegistrar {
   std::vector<WindowMotion> windows_, refine_windows_;
   std::vector<WindowMotion> shifts_only_;  ///< "known" rotation/scale for a shift-only pass
   std::vector<double> expected_dv_;        ///< refinement pass: dv per window, or NaN
+  std::vector<double> window_azimuth_;     ///< per window: azimuth of its centre, radians
   /// Per window: capture time of its pixels (taper-weighted mean, seconds after the frame's
   /// timestamp) and its change per panorama column and row; empty for a global shutter.
   struct WindowTime {
