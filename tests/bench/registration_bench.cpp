@@ -20,6 +20,7 @@
 #include <vector>
 
 #include "omnipose/window_registration.hpp"
+#include "registration/test_images.hpp"
 
 namespace {
 
@@ -29,21 +30,14 @@ using omnipose::WindowRegistration;
 /// The park photo as a 1100 x 110 grey panorama band about the horizon, or a synthetic
 /// texture when the photo is missing (same cost: the FFT work does not depend on content).
 cv::Mat panoramaBand(int width, int height) {
-  std::vector<std::filesystem::path> candidates;
-  if (const char* env = std::getenv("OMNIPOSE_EQUIRECT_DIR")) {
-    candidates.emplace_back(env);
-  } else {
-    candidates.emplace_back(std::filesystem::path(OMNIPOSE_SOURCE_DIR) / "tests" / "data" / "equirect");
-    candidates.emplace_back(std::filesystem::path(OMNIPOSE_SOURCE_DIR) / ".." / "shared" / "data" / "equirect");
-    candidates.emplace_back("/work/shared/data/equirect");
-  }
-  for (const auto& dir : candidates) {
-    const cv::Mat grey = cv::imread((dir / "park_theta_v_5376x2688.jpg").string(), cv::IMREAD_GRAYSCALE);
-    if (grey.empty()) continue;
-    cv::Mat resized, band;
-    cv::resize(grey, resized, cv::Size(width, width / 2), 0, 0, cv::INTER_AREA);
-    resized.rowRange(width / 4 - height / 2, width / 4 - height / 2 + height).convertTo(band, CV_32F);
-    return band;
+  if (const std::string path = omnipose::test::equirectPath(omnipose::test::kPark); !path.empty()) {
+    const cv::Mat grey = cv::imread(path, cv::IMREAD_GRAYSCALE);
+    if (!grey.empty()) {
+      cv::Mat resized, band;
+      cv::resize(grey, resized, cv::Size(width, width / 2), 0, 0, cv::INTER_AREA);
+      resized.rowRange(width / 4 - height / 2, width / 4 - height / 2 + height).convertTo(band, CV_32F);
+      return band;
+    }
   }
   cv::Mat noise(height, width, CV_32F);
   cv::randn(noise, 128.0, 40.0);
