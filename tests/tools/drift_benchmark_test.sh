@@ -2,7 +2,8 @@
 # The drift benchmark's parts that CI can afford (the benchmark itself takes minutes): the
 # script parses and prints its usage, tools/drift/damage_frames.py damages a small
 # dataset exactly as documented without touching a hard-linked copy, and
-# tools/drift/bridge_error.py (tools/drift/bridge_sweep.sh) measures a bridged rotation.
+# tools/drift/bridge_error.py (tools/drift/bridge_sweep.sh) measures a bridged rotation and
+# tools/drift/segment_errors.py charges each pair's error to its motion segment.
 # Usage: drift_benchmark_test.sh SOURCE_DIR
 set -euo pipefail
 src=$1
@@ -81,4 +82,32 @@ out=$(python3 "$src/tools/drift/bridge_error.py" "$work/gt.tum" "$work/lost.tum"
 out=$(python3 "$src/tools/drift/bridge_error.py" "$work/gt.tum" "$work/est.tum" 3 2 2>&1) &&
   fail "an outage reaching the last frame accepted"
 grep -q "no frame on both sides" <<< "$out" || fail "message: $out"
+
+# segment_errors.py: a turn of 3 steps of 2 deg, then a drive of 2 steps; the estimate is
+# 0.5 deg short in yaw on each drive pair and right on the turn, one turn pair is lost.
+cat > "$work/motion.yaml" <<'YAML'
+segments:
+  - {frames: 3, rotation: {axis: z, step_deg: 2, sign: positive}}
+  - {frames: 2, translation: {step_m: 0.02, direction: [1, 0, 0]}}
+YAML
+python3 - "$work" <<'PY'
+import math, sys
+yaw = [0, 2, 4, 6, 6, 6]
+def q(deg):
+    h = math.radians(deg) / 2
+    return f"0 0 0 0 0 {math.sin(h):.12f} {math.cos(h):.12f}"
+open(sys.argv[1] + "/seg_gt.tum", "w").write("".join(f"{k / 30:.6f} {q(d)}\n" for k, d in enumerate(yaw)))
+rows = ["frame,timestamp,file,prev_frame,status,rx,ry,rz"]
+for k in range(1, 6):
+    step = math.radians(yaw[k] - yaw[k - 1] - 0.5 * (k > 3))
+    rows.append(f"{k},{k / 30},{k:06d}.png,{k - 1},{'lost' if k == 2 else 'ok'},0,0,{step!r}")
+open(sys.argv[1] + "/seg.csv", "w").write("\n".join(rows) + "\n")
+PY
+out=$(python3 "$src/tools/drift/segment_errors.py" "$work/motion.yaml" "$work/seg_gt.tum" "$work/seg.csv")
+grep -q '^all rotation  *pairs    2  error sum roll   +0.000  pitch   +0.000  yaw   +0.000 deg$' <<< "$out" &&
+  grep -q '^all translation  *pairs    2  error sum roll   +0.000  pitch   +0.000  yaw   -1.000 deg$' <<< "$out" &&
+  [ "$(grep -c '^segment' <<< "$out")" = 2 ] || fail "segment_errors: $out"
+out=$(python3 "$src/tools/drift/segment_errors.py" "$work/motion.yaml" "$work/seg_gt.tum" "$work/none.csv" 2>&1) &&
+  fail "a missing CSV accepted"
+grep -q "none.csv" <<< "$out" || fail "segment_errors message: $out"
 echo "drift_benchmark_test: PASS"
