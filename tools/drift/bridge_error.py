@@ -12,33 +12,13 @@ Exit code 1 with a message on unreadable input.
 import math
 import sys
 
+import tum_rotations
+from tum_rotations import conj, mul
+
 
 def read_tum(path):
-    poses = {}
-    try:
-        with open(path) as f:
-            for n, line in enumerate(f, 1):
-                if line.startswith("#") or not line.strip():
-                    continue
-                v = line.split()
-                if len(v) != 8:
-                    sys.exit(f"{path}:{n}: expected 8 fields, got {len(v)}")
-                x, y, z, w = (float(t) for t in v[4:8])
-                poses[round(float(v[0]), 4)] = (w, x, y, z)
-    except OSError as e:
-        sys.exit(f"{path}: {e.strerror}")
-    return poses
-
-
-def conj(q):
-    return (q[0], -q[1], -q[2], -q[3])
-
-
-def mul(a, b):
-    w1, x1, y1, z1 = a
-    w2, x2, y2, z2 = b
-    return (w1 * w2 - x1 * x2 - y1 * y2 - z1 * z2, w1 * x2 + x1 * w2 + y1 * z2 - z1 * y2,
-            w1 * y2 - x1 * z2 + y1 * w2 + z1 * x2, w1 * z2 + x1 * y2 - y1 * x2 + z1 * w2)
+    """The rotations of a TUM file by timestamp (rounded to 0.1 ms)."""
+    return {round(t, 4): q for t, q in tum_rotations.read_tum(path)}
 
 
 def angle_deg(q):

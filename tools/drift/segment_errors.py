@@ -18,16 +18,7 @@ import math
 import re
 import sys
 
-
-def qmul(a, b):
-    aw, ax, ay, az = a
-    bw, bx, by, bz = b
-    return (aw * bw - ax * bx - ay * by - az * bz, aw * bx + ax * bw + ay * bz - az * by,
-            aw * by - ax * bz + ay * bw + az * bx, aw * bz + ax * by - ay * bx + az * bw)
-
-
-def qinv(q):
-    return (q[0], -q[1], -q[2], -q[3])
+from tum_rotations import conj, mul, read_tum
 
 
 def from_rotvec(v):
@@ -63,28 +54,11 @@ def read_segments(path):
     return segments
 
 
-def read_groundtruth(path):
-    poses = []
-    try:
-        with open(path) as f:
-            for n, line in enumerate(f, 1):
-                if line.startswith("#") or not line.strip():
-                    continue
-                v = line.split()
-                if len(v) != 8:
-                    sys.exit(f"{path}:{n}: expected 8 fields, got {len(v)}")
-                x, y, z, w = (float(t) for t in v[4:8])
-                poses.append((w, x, y, z))
-    except OSError as e:
-        sys.exit(f"{path}: {e.strerror}")
-    return poses
-
-
 def main():
     if len(sys.argv) != 4:
         sys.exit(__doc__.strip().splitlines()[2])
     segments = read_segments(sys.argv[1])
-    truth = read_groundtruth(sys.argv[2])
+    truth = [q for _, q in read_tum(sys.argv[2])]
     # Segment of each step: step k moves the camera from frame k to frame k + 1.
     owner = []
     for i, (count, _, _) in enumerate(segments):
@@ -99,8 +73,8 @@ def main():
                 if not (0 <= p < k < len(truth)) or k - 1 >= len(owner):
                     sys.exit(f"{sys.argv[3]}: frame {k} (from {p}) is outside the script or the truth")
                 est = from_rotvec([float(row[c]) for c in ("rx", "ry", "rz")])
-                true = qmul(qinv(truth[p]), truth[k])
-                e = to_rotvec(qmul(qinv(true), est))
+                true = mul(conj(truth[p]), truth[k])
+                e = to_rotvec(mul(conj(true), est))
                 s = sums[owner[k - 1]]
                 s[0] += 1
                 for i in range(3):
