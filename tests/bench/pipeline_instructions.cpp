@@ -106,10 +106,13 @@ int main(int argc, char** argv) {
   calibration.sensor.readout_s = readout;
   std::optional<omnipose::Pipeline> pipeline;
   std::optional<omnipose::Odometry> odometer;
-  if (odometry)
-    odometer.emplace(calibration, omnipose::OdometryOptions{.pipeline = options});
-  else
+  if (odometry) {
+    omnipose::OdometryOptions odometry_options;
+    odometry_options.pipeline = options;
+    odometer.emplace(calibration, odometry_options);
+  } else {
     pipeline.emplace(calibration, options);
+  }
   int n = 0, ok = 0;
   // One frame (the frames alternate); true when it was estimated.
   const auto process = [&] {
