@@ -9,6 +9,7 @@
 
 #include <cstdlib>
 #include <filesystem>
+#include <fstream>
 #include <map>
 #include <sstream>
 #include <string>
@@ -102,6 +103,7 @@ TEST_P(ProgramCli, BadValueIsAUsageErrorNamingTheFlag) {
       {"omnipose-plot-angles", {"gt.tum", "est.tum", "--out", "f.png", "--axis", "diagonal"}},
       {"omnipose-results", {"manifest.tsv", "--main"}},
       {"omnipose-bench-instructions", {"--threads", "many"}},
+      {"omnipose-equirect", {"--omni", "o.png", "--calibration", "c.yaml", "--out", "t.png", "--width", "wide"}},
   };
   const std::map<std::string, std::string> flag = {
       {"omniposed", "--config"},         {"omnipose-replay", "--input"},
@@ -109,6 +111,7 @@ TEST_P(ProgramCli, BadValueIsAUsageErrorNamingTheFlag) {
       {"omnipose-calibrate", "--center"}, {"omnipose-listen", "--count"},
       {"omnipose-plot-fit", "--pair"},   {"omnipose-plot-angles", "--axis"},
       {"omnipose-results", "--main"},    {"omnipose-bench-instructions", "--threads"},
+      {"omnipose-equirect", "--width"},
   };
   const std::string program = GetParam();
   ASSERT_TRUE(bad.contains(program)) << "add a bad value for " << program;
@@ -138,6 +141,8 @@ TEST(ProgramCliChecks, SemanticMistakesExitTwo) {
       {"omnipose-synth", {"--texture", "t.jpg", "--out", "o", "--write-mask"}, "--write-mask"},
       {"omnipose-synth", {"--texture", "t.jpg", "--out", "o", "--scene", "cube"}, "--scene"},
       {"omnipose-synth", {"--texture", "t.jpg", "--out", "o", "--readout", "0.05"}, "--readout"},
+      {"omnipose-equirect", {"--omni", "o.png", "--out", "t.png"}, "--calibration"},
+      {"omnipose-equirect", {"--omni", "o.png", "--calibration", "c.yaml", "--out", "t.png", "--width", "101"}, "--width"},
       {"omnipose-calibrate", {"frames"}, "--out"},
       {"omnipose-calibrate", {"--out", "c.yaml"}, "FRAMES"},
       {"omnipose-calibrate", {"frames", "--out", "c.yaml", "--direction", "up"}, "--direction"},
@@ -159,6 +164,37 @@ TEST(ProgramCliChecks, SemanticMistakesExitTwo) {
     EXPECT_EQ(r.exit_code, 2) << r.out << r.err;
     EXPECT_NE(r.err.find(c.needle), std::string::npos) << r.err;
   }
+}
+
+// omnipose-equirect on the real office mirror image with its OCamCalib file: the texture is
+// written, the ring's elevations printed (the file's polynomial: -40.5..27.1 deg); an image
+// of the wrong size is an error naming the file (exit 1), nothing written.
+TEST(EquirectCli, WritesTheTextureOfARealMirrorImage) {
+  const fs::path dir = fs::temp_directory_path() / ("omnipose-equirect-test-" + std::to_string(::getpid()));
+  fs::create_directories(dir);
+  const fs::path data = fs::path(OMNIPOSE_SOURCE_DIR) / "tests/data/catadioptric";
+  {
+    std::ofstream yaml(dir / "mirror.yaml");
+    yaml << "omni:\n  model: ocamcalib\n  ocamcalib_file: " << (data / "mirror_office_ocamcalib.txt").string()
+         << "\n  azimuth_zero_deg: 0.0\n  azimuth_direction: ccw\n"
+            "panorama: {width: 1100, height: 110, horizon_row: 54.5, forward_column: 0.0}\n";
+  }
+  const Outcome ok = run("omnipose-equirect", {"--omni", (data / "mirror_office_1920x1080.jpg").string(),
+                                               "--calibration", (dir / "mirror.yaml").string(),
+                                               "--out", (dir / "office.png").string(), "--width", "512"});
+  EXPECT_EQ(ok.exit_code, 0) << ok.out << ok.err;
+  EXPECT_NE(ok.out.find("512 x 256"), std::string::npos) << ok.out;
+  EXPECT_NE(ok.out.find("elevations -40.5..27.1 deg"), std::string::npos) << ok.out;
+  EXPECT_GT(fs::file_size(dir / "office.png"), 10000u);
+
+  const fs::path other = fs::path(OMNIPOSE_SOURCE_DIR) / "tests/data/equirect/indoor_1024x512.jpg";
+  const Outcome bad = run("omnipose-equirect", {"--omni", other.string(), "--calibration",
+                                                (dir / "mirror.yaml").string(), "--out",
+                                                (dir / "bad.png").string()});
+  EXPECT_EQ(bad.exit_code, 1) << bad.out << bad.err;
+  EXPECT_NE(bad.err.find("indoor_1024x512.jpg"), std::string::npos) << bad.err;
+  EXPECT_FALSE(fs::exists(dir / "bad.png"));
+  fs::remove_all(dir);
 }
 
 }  // namespace
