@@ -139,7 +139,7 @@ printf '# scene\tsequence\tmethod\tgroundtruth\testimate\tseconds_per_frame\n' >
 
 # Progress: sequences done of all (main suite and lens suite), the time so far, and the time
 # left at the mean rate so far.
-sequences_total=$(( ${#suite[@]} + ${#lens_suite[@]} + 12 ))  # 12: the indoor scenes
+sequences_total=$(( ${#suite[@]} + ${#lens_suite[@]} + 15 ))  # 15: the indoor scenes
 sequences_done=0
 progress() {
   sequences_done=$((sequences_done + 1))
@@ -264,22 +264,26 @@ office_texture=$out/lenses/office_texture.png
 indoor_table=$out/indoor_table.tsv
 : > "$indoor_table"
 for lens in linear mirror_office; do
-  for scene in park indoor office; do
+  scenes="park indoor office"
+  [ "$lens" = linear ] && scenes="$scenes park-1024"
+  for scene in $scenes; do
     for axis in roll pitch yaw; do
+      flags=$clean
       case "$scene" in
         park) photo=$park; seed_base=200 ;;
+        park-1024) photo=$park; seed_base=200; flags="$clean --texture-width 1024" ;;
         indoor) photo=$indoor; seed_base=100 ;;
         office) photo=$office_texture; seed_base=700 ;;
       esac
       case "$axis" in roll) seed=$((seed_base + 1)) ;; pitch) seed=$((seed_base + 2)) ;; *) seed=$((seed_base + 3)) ;; esac
-      name=${scene}_${axis}
+      name=${scene/-/_}_${axis}
       if [ "$lens" = linear ]; then
         calibration=""
       else
         name=${lens}_${name}
         calibration=$out/lenses/$lens.yaml
       fi
-      [ -f "$out/$name/eval.json" ] || ifmi_sequence "$name" "$photo" "preset:$axis" "$seed" "$clean" "$calibration"
+      [ -f "$out/$name/eval.json" ] || ifmi_sequence "$name" "$photo" "preset:$axis" "$seed" "$flags" "$calibration"
       printf '%s\t%s\t%s\t%s\n' "$lens" "$scene" "$axis" "$out/$name/eval.json" >> "$indoor_table"
     done
   done
@@ -297,7 +301,9 @@ label = {"linear": "linear", "mirror_office": "office mirror (OCamCalib)"}
 print("| lens | scene | roll | pitch | yaw | ratio to park: roll / pitch / yaw |")
 print("|---|---|---:|---:|---:|---|")
 for lens in lenses:
-    for scene in ("park", "indoor", "office"):
+    for scene in ("park", "park-1024", "indoor", "office"):
+        if (lens, scene, "roll") not in rmse:
+            continue
         cells = [rmse[lens, scene, a] for a in ("roll", "pitch", "yaw")]
         ratios = " / ".join("%.2f" % (c / rmse[lens, "park", a]) for c, a in zip(cells, ("roll", "pitch", "yaw")))
         print("| %s | %s | %.3f | %.3f | %.3f | %s |" % (label.get(lens, lens), scene, *cells,
@@ -382,7 +388,9 @@ if [ -n "$(git status --porcelain 2>/dev/null | head -n 1)" ]; then commit="$com
   echo "\`omnipose-equirect\` with its OCamCalib file; its mirror saw elevations -40..27 deg, the"
   echo "rest of the sphere is flat grey). Seeds and degradations of the main suite's clean rows."
   echo "Through the default linear lens (the indoor and park cells are Table I's) and through the"
-  echo "real office mirror's polynomial. Ratio: the cell over park's, same lens and axis."
+  echo "real office mirror's polynomial. \`park-1024\` is the park photo resampled to the indoor"
+  echo "photo's 1024 x 512 (\`omnipose-synth --texture-width 1024\`): how much of the gap is"
+  echo "resolution. Ratio: the cell over park's, same lens and axis."
   echo
   cat "$out/indoor_table.md"
   if [ -f docs/results/ANALYSIS.md ]; then

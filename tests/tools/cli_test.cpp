@@ -141,6 +141,7 @@ TEST(ProgramCliChecks, SemanticMistakesExitTwo) {
       {"omnipose-synth", {"--texture", "t.jpg", "--out", "o", "--write-mask"}, "--write-mask"},
       {"omnipose-synth", {"--texture", "t.jpg", "--out", "o", "--scene", "cube"}, "--scene"},
       {"omnipose-synth", {"--texture", "t.jpg", "--out", "o", "--readout", "0.05"}, "--readout"},
+      {"omnipose-synth", {"--texture", "t.jpg", "--out", "o", "--texture-width", "1023"}, "--texture-width"},
       {"omnipose-equirect", {"--omni", "o.png", "--out", "t.png"}, "--calibration"},
       {"omnipose-equirect", {"--omni", "o.png", "--calibration", "c.yaml", "--out", "t.png", "--width", "101"}, "--width"},
       {"omnipose-calibrate", {"frames"}, "--out"},

@@ -11,6 +11,8 @@
 #include <tuple>
 #include <utility>
 
+#include <opencv2/imgproc.hpp>
+
 #include "omnipose/synth/synth.hpp"
 #include "cli.hpp"
 #include "progress_line.hpp"
@@ -55,6 +57,7 @@ struct Args {
   std::optional<std::uint64_t> walker_seed;
   int jpeg = 0;
   int supersample = synth::RenderOptions{}.supersample;
+  int texture_width = 0;  ///< 0: the photo's own resolution
   std::optional<synth::Occluder> occluder;
   bool write_mask = false;
   bool quiet = false;
@@ -93,6 +96,10 @@ std::pair<double, double> parseDistance(const std::string& text) {
 void addOptions(CLI::App& app, Args& a, Raw& raw) {
   app.add_option("--texture", a.texture, "equirectangular photo (2:1), converted to grey (required)")
       ->type_name("PHOTO");
+  app.add_option("--texture-width", a.texture_width,
+                 "resample the photo to W x W/2 first (area averaging when it shrinks): the "
+                 "same scene at another resolution (default: as the photo is)")
+      ->type_name("W");
   app.add_option("--out", a.out, "dataset directory; DIR/frames must be empty or new (required)")
       ->type_name("DIR");
   app.add_option("--scene", raw.scene,
@@ -232,6 +239,8 @@ void finish(const CLI::App& app, Args& a, const Raw& raw) {
   if (!a.motion.empty() && !a.preset.empty()) {
     throw UsageError("give --motion or --preset, not both");
   }
+  if (given("--texture-width") && (a.texture_width < 16 || a.texture_width > 16384 || a.texture_width % 2 != 0))
+    throw UsageError("--texture-width: must be an even number in [16, 16384]");
   if (a.frames && *a.frames < 1) throw UsageError("--frames: must be >= 1");
   if (a.jpeg < 0 || a.jpeg > 100) throw UsageError("--jpeg: must be in [0, 100]");
   if (a.write_mask && !a.occluder) throw UsageError("--write-mask needs --occluder");
@@ -330,6 +339,12 @@ int run(const Args& a) {
                      "show; use --scene box");
   }
   synth::Scene scene = synth::Scene::load(a.texture, kind);
+  if (a.texture_width > 0) {
+    cv::Mat resampled;
+    cv::resize(scene.texture, resampled, cv::Size(a.texture_width, a.texture_width / 2), 0, 0,
+               a.texture_width < scene.texture.cols ? cv::INTER_AREA : cv::INTER_LINEAR);
+    scene.texture = resampled;
+  }
   if (const auto walkers = walkersOf(a, script, motion_name, kind, scene.box)) {
     scene.walkers = *walkers;
   }
