@@ -1,8 +1,9 @@
 #pragma once
 /// \file unwrapper.hpp
 /// Omni donut -> W x H cylindrical panorama through a bilinear lookup table built once
-/// from the calibration (DESIGN.md section 6). Frames that already are panoramas
-/// (`input: panorama`) pass through the same entry point and are only converted.
+/// from the calibration (DESIGN.md section 6), with several samples per pixel where the omni
+/// image is at least twice as dense as the panorama (samplesAlong()). Frames that already
+/// are panoramas (`input: panorama`) pass through the same entry point and are only converted.
 
 #include <opencv2/core.hpp>
 #include <string>
@@ -69,13 +70,30 @@ class Unwrapper {
   /// Mean of validity(): the fraction of the panorama that is usable, in [0, 1].
   double usableFraction() const;
 
+  /// Most samples per panorama pixel along each axis.
+  static constexpr int kMaxSamplesPerAxis = 4;
+  /// Samples per panorama pixel along an axis on which neighbouring panorama pixels are
+  /// `density` omni pixels apart: floor(density) in [1, kMaxSamplesPerAxis]. Where the omni
+  /// image is at least twice as dense as the panorama (a phone's full-resolution frame
+  /// under a mirror) a pixel is the mean of a regular grid of bilinear samples over its
+  /// footprint, a box filter: one sample there would alias the fine texture the panorama
+  /// cannot hold into shifts that depend on where the texture falls.
+  static int samplesAlong(double density);
+
  private:
+  void buildTable(const Calibration& calibration);
+
   Calibration calibration_;
   Options options_;
-  /// Per panorama pixel: index of the top-left source pixel (kOutside: the footprint leaves
-  /// the image or the lens model; the pixel is black) and the position within the 2 x 2
-  /// footprint, in [0, 1).
+  /// The lookup table. Row v of the panorama takes row_samples_u_[v] x row_samples_v_[v]
+  /// samples per pixel (samplesAlong() of the row's largest spacing); its entries start at
+  /// row_start_[v], sample k of pixel u at row_start_[v] + k * W + u. Per entry: index of the
+  /// top-left source pixel (kOutside: a sample of the pixel leaves the image or the lens
+  /// model; every sample of that pixel is kOutside and the pixel is black) and the position
+  /// within the 2 x 2 bilinear footprint, in [0, 1).
   static constexpr int kOutside = -1;
+  std::vector<std::size_t> row_start_;
+  std::vector<int> row_samples_u_, row_samples_v_;
   std::vector<int> offset_;
   std::vector<float> frac_x_, frac_y_;
   cv::Mat grey_;  ///< colour frames are converted here (allocated once)
