@@ -1,0 +1,59 @@
+#!/usr/bin/env bash
+# tools/accuracy_benchmark.sh in its tiny mode (the benchmark itself takes many minutes): the
+# script parses, prints its usage, rejects bad options, names a missing photo, refuses to clear
+# a dangerous OUTDIR, and a 3-frame run at 1 x 1 rays per pixel (ifmi and akazerot) writes a
+# report with Tables I to IV, every scene and lens of Table IV, and the office texture made
+# by omnipose-equirect.
+# Usage: accuracy_benchmark_test.sh SOURCE_DIR BUILD_DIR   (BUILD_DIR/bin holds the binaries)
+set -euo pipefail
+src=$1
+build=$2
+script=$src/tools/accuracy_benchmark.sh
+fail() { echo "FAIL: $*" >&2; exit 1; }
+
+bash -n "$script" || fail "tools/accuracy_benchmark.sh: syntax"
+help=$(bash "$script" --help)
+grep -q 'Usage: tools/accuracy_benchmark.sh \[--publish\] \[OUTDIR\]' <<< "$help" ||
+  fail "--help does not show the usage: $help"
+rc=0
+bash "$script" --bogus 2> /dev/null || rc=$?
+[ "$rc" = 2 ] || fail "an unknown option exits with $rc, not 2"
+
+data=$src/../shared/data/equirect
+if [ ! -f "$data/park_theta_v_5376x2688.jpg" ]; then
+  echo "accuracy_benchmark_test: SKIP the tiny run: the shared park photo is not in $data"
+  exit 0
+fi
+work=$(mktemp -d "${TMPDIR:-/tmp}/omnipose-accuracy-test-XXXXXX")
+trap 'rm -rf "$work"' EXIT
+export BUILD_DIR=$build WISDOM=$work/wisdom FRAMES=3 SUPERSAMPLE=1 METHODS="ifmi akazerot" DATA_DIR=$data
+
+rc=0
+msg=$(DATA_DIR=$work/none bash "$script" "$work/x" 2>&1) || rc=$?
+[ "$rc" = 1 ] && grep -q "missing photo $work/none/park_theta_v_5376x2688.jpg" <<< "$msg" ||
+  fail "missing photo: exit $rc: $msg"
+mkdir -p "$work/home"
+touch "$work/home/keep"
+rc=0
+msg=$(HOME=$work/home bash "$script" "$work/home" 2>&1) || rc=$?
+[ "$rc" = 2 ] && grep -q "refusing to clear" <<< "$msg" || fail "OUTDIR = HOME: exit $rc: $msg"
+[ -f "$work/home/keep" ] || fail "OUTDIR = HOME was cleared"
+
+# The tiny run.
+out=$work/out
+bash "$script" "$out" > "$work/run.log" 2>&1 || { cat "$work/run.log" >&2; fail "the tiny run failed"; }
+md=$out/report/RESULTS.md
+[ -f "$md" ] || fail "no $md"
+for table in 'Table I ' 'Table II ' 'Table III' 'Table IV'; do
+  grep -q "^### $table" "$md" || fail "no $table in $md"
+done
+grep -q '^| ifmi | ' "$md" || fail "no ifmi row in Table I"
+grep -q '^| akazerot | ' "$md" || fail "no akazerot row in Table I"
+for row in 'linear | park |' 'linear | park-1024 |' 'linear | indoor |' 'linear | office |' \
+           'office mirror (OCamCalib) | park |' 'office mirror (OCamCalib) | indoor |' \
+           'office mirror (OCamCalib) | office |'; do
+  grep -qF "| $row" "$md" || fail "Table IV has no row '$row'"
+done
+grep -q 'omnipose-equirect: wrote .*, 4096 x 2048; the ring sees elevations -40.5..27.1 deg' \
+  "$out/lenses/office_texture.log" || fail "office texture: $(cat "$out/lenses/office_texture.log")"
+echo "accuracy_benchmark_test: PASS"
