@@ -8,10 +8,27 @@
 
 #include <opencv2/imgproc.hpp>
 
+#include "point_unwrap.hpp"
 #include "render_fixture.hpp"
 
 namespace omnipose {
 namespace {
+
+/// The indoor photo on a sphere at the identity pose through `c`: an 8-bit omni frame
+/// (omni_rays x omni_rays rays per pixel) and the panorama rendered directly (float).
+struct RenderedPair {
+  cv::Mat omni8, pano;
+};
+RenderedPair renderIndoor(const Calibration& c, int omni_rays, int pano_rays) {
+  const auto scene = synth::Scene::load(testing::indoorPhoto(), synth::SceneKind::kSphere);
+  RenderedPair r;
+  synth::Renderer(scene, c, {synth::OutputKind::kOmni, omni_rays})
+      .render(Eigen::Isometry3d::Identity())
+      .convertTo(r.omni8, CV_8U);
+  r.pano = synth::Renderer(scene, c, {synth::OutputKind::kPanorama, pano_rays})
+               .render(Eigen::Isometry3d::Identity());
+  return r;
+}
 
 TEST(Unwrapper, OmniRenderUnwrapsToThePanoramaRender) {
   if (!std::filesystem::exists(testing::indoorPhoto())) GTEST_SKIP() << "missing photo";
@@ -21,15 +38,7 @@ TEST(Unwrapper, OmniRenderUnwrapsToThePanoramaRender) {
       c.omni.azimuth_direction = dir;
       c.omni.outer_edge = edge;
       c.omni.azimuth_zero_deg = -20.0;
-      const auto scene = synth::Scene::load(testing::indoorPhoto(), synth::SceneKind::kSphere);
-      synth::RenderOptions omni_options, pano_options;
-      omni_options.supersample = 3;
-      pano_options.output = synth::OutputKind::kPanorama;
-      pano_options.supersample = 3;
-      const cv::Mat omni = synth::Renderer(scene, c, omni_options).render(Eigen::Isometry3d::Identity());
-      const cv::Mat pano = synth::Renderer(scene, c, pano_options).render(Eigen::Isometry3d::Identity());
-      cv::Mat omni8;
-      omni.convertTo(omni8, CV_8U);
+      const auto [omni8, pano] = renderIndoor(c, 3, 3);
       Unwrapper unwrapper(c, {});
       cv::Mat out = unwrapper.makePanorama();
       ASSERT_TRUE(unwrapper.unwrap(omni8, out).has_value());
@@ -198,29 +207,13 @@ TEST(Unwrapper, DenseRowsAreTheMeanOfAGridOfBilinearSamples) {
 TEST(Unwrapper, DenseOmniImageUnwrapsCloseToTheAreaMean) {
   if (!std::filesystem::exists(testing::indoorPhoto())) GTEST_SKIP() << "missing photo";
   const Calibration c = denseLens();
-  const auto scene = synth::Scene::load(testing::indoorPhoto(), synth::SceneKind::kSphere);
-  synth::RenderOptions omni_options, pano_options;
-  omni_options.supersample = 2;
-  pano_options.output = synth::OutputKind::kPanorama;
-  pano_options.supersample = 4;
-  const cv::Mat omni = synth::Renderer(scene, c, omni_options).render(Eigen::Isometry3d::Identity());
-  const cv::Mat pano = synth::Renderer(scene, c, pano_options).render(Eigen::Isometry3d::Identity());
-  cv::Mat omni8;
-  omni.convertTo(omni8, CV_8U);
+  const RenderedPair r = renderIndoor(c, 2, 4);
+  const cv::Mat& pano = r.pano;
   Unwrapper unwrapper(c, {});
   cv::Mat out = unwrapper.makePanorama();
-  ASSERT_TRUE(unwrapper.unwrap(omni8, out).has_value());
-  cv::Mat map_x(out.size(), CV_32FC1), map_y(out.size(), CV_32FC1);
-  for (int v = 0; v < out.rows; ++v) {
-    for (int u = 0; u < out.cols; ++u) {
-      const Eigen::Vector2d p = c.omniPixel(u, v);
-      map_x.at<float>(v, u) = static_cast<float>(p.x());
-      map_y.at<float>(v, u) = static_cast<float>(p.y());
-    }
-  }
+  ASSERT_TRUE(unwrapper.unwrap(r.omni8, out).has_value());
   cv::Mat point;
-  cv::remap(omni8, point, map_x, map_y, cv::INTER_LINEAR, cv::BORDER_REPLICATE);
-  point.convertTo(point, CV_32F);
+  testing::pointSampledUnwrap(r.omni8, c).convertTo(point, CV_32F);
   const cv::Rect inner(0, 2, c.panorama.width, c.panorama.height - 4);
   const double ours = cv::mean(cv::abs(out(inner) - pano(inner)))[0];
   const double one_sample = cv::mean(cv::abs(point(inner) - pano(inner)))[0];

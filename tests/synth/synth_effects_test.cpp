@@ -11,6 +11,7 @@
 
 #include "omnipose/so3.hpp"
 #include "omnipose/synth/synth.hpp"
+#include "point_unwrap.hpp"
 #include "test_poses.hpp"
 
 namespace omnipose::synth {
@@ -645,16 +646,7 @@ TEST(SynthVignetting, UnwrappedOmniMatchesTheVignettedPanorama) {
   const Vignetting vignetting{0.8};
   vignetting.apply(omni, cal, OutputKind::kOmni);
   vignetting.apply(pano, cal, OutputKind::kPanorama);
-  cv::Mat map_x(pano.size(), CV_32FC1), map_y(pano.size(), CV_32FC1);
-  for (int v = 0; v < pano.rows; ++v) {
-    for (int u = 0; u < pano.cols; ++u) {
-      const Eigen::Vector2d p = cal.omniPixel(u, v);
-      map_x.at<float>(v, u) = static_cast<float>(p.x());
-      map_y.at<float>(v, u) = static_cast<float>(p.y());
-    }
-  }
-  cv::Mat unwrapped;
-  cv::remap(omni, unwrapped, map_x, map_y, cv::INTER_LINEAR, cv::BORDER_REPLICATE);
+  const cv::Mat unwrapped = testing::pointSampledUnwrap(omni, cal);
   const cv::Rect inner(0, 2, pano.cols, pano.rows - 4);
   EXPECT_LT(cv::mean(cv::abs(unwrapped(inner) - pano(inner)))[0], 1.0) << "grey levels";
 }

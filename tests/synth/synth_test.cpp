@@ -13,6 +13,7 @@
 #include <unistd.h>
 
 #include "omnipose/synth/synth.hpp"
+#include "point_unwrap.hpp"
 #include "test_poses.hpp"
 
 namespace omnipose::synth {
@@ -27,21 +28,7 @@ const std::filesystem::path kPark =
 
 Scene indoorScene(SceneKind kind = SceneKind::kSphere) { return Scene::load(kIndoor, kind); }
 
-/// Unwraps an omni image the way the pipeline does: bilinear sampling at omniPixel(u, v).
-cv::Mat unwrap(const cv::Mat& omni, const Calibration& cal) {
-  cv::Mat map_x(cal.panorama.height, cal.panorama.width, CV_32FC1);
-  cv::Mat map_y(map_x.size(), CV_32FC1);
-  for (int v = 0; v < map_x.rows; ++v) {
-    for (int u = 0; u < map_x.cols; ++u) {
-      const Eigen::Vector2d p = cal.omniPixel(u, v);
-      map_x.at<float>(v, u) = static_cast<float>(p.x());
-      map_y.at<float>(v, u) = static_cast<float>(p.y());
-    }
-  }
-  cv::Mat pano;
-  cv::remap(omni, pano, map_x, map_y, cv::INTER_LINEAR, cv::BORDER_REPLICATE);
-  return pano;
-}
+using testing::pointSampledUnwrap;
 
 double meanAbsDiff(const cv::Mat& a, const cv::Mat& b) { return cv::mean(cv::abs(a - b))[0]; }
 
@@ -189,7 +176,7 @@ TEST(SynthRenderer, OmniUnwrappedMatchesPanorama) {
   const Renderer omni(indoorScene(), cal, {OutputKind::kOmni, 3});
   const Renderer pano(indoorScene(), cal, {OutputKind::kPanorama, 3});
   const cv::Mat direct = pano.render(kIdentity);
-  const cv::Mat unwrapped = unwrap(omni.render(kIdentity), cal);
+  const cv::Mat unwrapped = pointSampledUnwrap(omni.render(kIdentity), cal);
   // Interior rows only: the first/last row of the unwrapping touch the lens body.
   const cv::Rect inner(0, 2, cal.panorama.width, cal.panorama.height - 4);
   const double same = meanAbsDiff(direct(inner), unwrapped(inner));
@@ -217,7 +204,7 @@ TEST(SynthRenderer, EveryLensOrientationUnwrapsToThePanorama) {
       cal.omni.outer_edge = edge;
       const cv::Mat omni =
           Renderer(indoorScene(), cal, {OutputKind::kOmni, 3}).render(kIdentity);
-      const double diff = meanAbsDiff(direct(inner), unwrap(omni, cal)(inner));
+      const double diff = meanAbsDiff(direct(inner), pointSampledUnwrap(omni, cal)(inner));
       EXPECT_LT(diff, 1.0) << "direction " << static_cast<int>(direction) << " edge "
                            << static_cast<int>(edge);
       omnis.push_back(omni);
