@@ -9,15 +9,10 @@ set -euo pipefail
 src=$1
 build=$2
 script=$src/tools/accuracy_benchmark.sh
-fail() { echo "FAIL: $*" >&2; exit 1; }
+# shellcheck source=tests/tools/benchmark_script_checks.sh
+source "$src/tests/tools/benchmark_script_checks.sh"
 
-bash -n "$script" || fail "tools/accuracy_benchmark.sh: syntax"
-help=$(bash "$script" --help)
-grep -q 'Usage: tools/accuracy_benchmark.sh \[--publish\] \[OUTDIR\]' <<< "$help" ||
-  fail "--help does not show the usage: $help"
-rc=0
-bash "$script" --bogus 2> /dev/null || rc=$?
-[ "$rc" = 2 ] || fail "an unknown option exits with $rc, not 2"
+check_script_usage "$script" 'Usage: tools/accuracy_benchmark.sh \[--publish\] \[OUTDIR\]'
 
 data=$src/../shared/data/equirect
 if [ ! -f "$data/park_theta_v_5376x2688.jpg" ]; then
@@ -32,12 +27,7 @@ rc=0
 msg=$(DATA_DIR=$work/none bash "$script" "$work/x" 2>&1) || rc=$?
 [ "$rc" = 1 ] && grep -q "missing photo $work/none/park_theta_v_5376x2688.jpg" <<< "$msg" ||
   fail "missing photo: exit $rc: $msg"
-mkdir -p "$work/home"
-touch "$work/home/keep"
-rc=0
-msg=$(HOME=$work/home bash "$script" "$work/home" 2>&1) || rc=$?
-[ "$rc" = 2 ] && grep -q "refusing to clear" <<< "$msg" || fail "OUTDIR = HOME: exit $rc: $msg"
-[ -f "$work/home/keep" ] || fail "OUTDIR = HOME was cleared"
+check_refuses_home "$script" "$work"
 
 # The tiny run.
 out=$work/out

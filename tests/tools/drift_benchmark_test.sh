@@ -7,15 +7,11 @@
 # Usage: drift_benchmark_test.sh SOURCE_DIR
 set -euo pipefail
 src=$1
-fail() { echo "FAIL: $*" >&2; exit 1; }
+# shellcheck source=tests/tools/benchmark_script_checks.sh
+source "$src/tests/tools/benchmark_script_checks.sh"
 
-bash -n "$src/tools/drift_benchmark.sh" || fail "tools/drift_benchmark.sh: syntax"
-help=$(bash "$src/tools/drift_benchmark.sh" --help)
-grep -q 'Usage: tools/drift_benchmark.sh \[--publish\] \[--evo\] \[OUTDIR\]' <<< "$help" ||
-  fail "--help does not show the usage: $help"
-rc=0
-bash "$src/tools/drift_benchmark.sh" --bogus 2> /dev/null || rc=$?
-[ "$rc" = 2 ] || fail "an unknown option exits with $rc, not 2"
+check_script_usage "$src/tools/drift_benchmark.sh" \
+  'Usage: tools/drift_benchmark.sh \[--publish\] \[--evo\] \[OUTDIR\]'
 
 work=$(mktemp -d "${TMPDIR:-/tmp}/omnipose-drift-test-XXXXXX")
 trap 'rm -rf "$work"' EXIT

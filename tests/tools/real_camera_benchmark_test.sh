@@ -9,18 +9,10 @@ set -euo pipefail
 src=$1
 build=$2
 script=$src/tools/real_camera_benchmark.sh
-fail() { echo "FAIL: $*" >&2; exit 1; }
+# shellcheck source=tests/tools/benchmark_script_checks.sh
+source "$src/tests/tools/benchmark_script_checks.sh"
 
-bash -n "$script" || fail "tools/real_camera_benchmark.sh: syntax"
-help=$(bash "$script" --help)
-grep -q 'Usage: tools/real_camera_benchmark.sh \[--publish\] \[OUTDIR\]' <<< "$help" ||
-  fail "--help does not show the usage: $help"
-rc=0
-bash "$script" --bogus 2> /dev/null || rc=$?
-[ "$rc" = 2 ] || fail "an unknown option exits with $rc, not 2"
-rc=0
-bash "$script" /tmp/a /tmp/b 2> /dev/null || rc=$?
-[ "$rc" = 2 ] || fail "two OUTDIRs exit with $rc, not 2"
+check_script_usage "$script" 'Usage: tools/real_camera_benchmark.sh \[--publish\] \[OUTDIR\]'
 
 work=$(mktemp -d "${TMPDIR:-/tmp}/omnipose-real-camera-test-XXXXXX")
 trap 'rm -rf "$work"' EXIT
@@ -41,13 +33,7 @@ done
 rc=0
 msg=$(PHOTO=$work/none.jpg bash "$script" "$work/x" 2>&1) || rc=$?
 [ "$rc" = 1 ] && grep -q "missing photo $work/none.jpg" <<< "$msg" || fail "missing photo: exit $rc: $msg"
-# OUTDIR = $HOME is refused (a stand-in home, so a broken guard clears only the stand-in).
-mkdir -p "$work/home"
-touch "$work/home/keep"
-rc=0
-msg=$(HOME=$work/home bash "$script" "$work/home" 2>&1) || rc=$?
-[ "$rc" = 2 ] && grep -q "refusing to clear" <<< "$msg" || fail "OUTDIR = HOME: exit $rc: $msg"
-[ -f "$work/home/keep" ] || fail "OUTDIR = HOME was cleared"
+check_refuses_home "$script" "$work"
 
 # The tiny run.
 out=$work/out
