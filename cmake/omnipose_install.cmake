@@ -39,7 +39,8 @@ file(CONFIGURE OUTPUT ${CMAKE_BINARY_DIR}/omnipose_install_dirs.cmake CONTENT
      "set(OMNIPOSE_INSTALL_LIBDIR \"${CMAKE_INSTALL_LIBDIR}\")\n")
 
 set(OMNIPOSE_PROGRAMS omniposed omnipose-replay omnipose-synth omnipose-eval omnipose-calibrate
-    omnipose-listen omnipose-plot-fit omnipose-plot-angles omnipose-results omnipose-equirect)
+    omnipose-listen omnipose-plot-fit omnipose-plot-angles omnipose-results omnipose-equirect
+    omnipose-plot-uncertainty)
 install(TARGETS ${OMNIPOSE_PROGRAMS} RUNTIME DESTINATION ${CMAKE_INSTALL_BINDIR} COMPONENT runtime)
 
 install(TARGETS omnipose omnipose_io omnipose_synth omnipose_eval omnipose_calibrate

@@ -18,6 +18,7 @@
 #   DATA_DIR  [../shared/data/equirect]  the equirect photos
 #   FRAMES    [24]     frames per sequence      METHODS ["ifmi orb5pt akaze5pt orbrot akazerot"]
 #   SUPERSAMPLE [2]    renderer anti-aliasing: K x K rays per pixel
+#   UNCERTAINTY_PAIRS [12]  frame pairs per scene and lens of the uncertainty calibration
 #   WISDOM    [BUILD_DIR/accuracy.wisdom]  FFTW wisdom of every ifmi replay: the first replay
 #                      that lacks a plan makes it (FFTW_PATIENT) and writes the file, later
 #                      replays and runs reuse it (it is kept outside OUTDIR)
@@ -43,8 +44,10 @@ data=${DATA_DIR:-$root/../shared/data/equirect}
 frames=${FRAMES:-24}
 supersample=${SUPERSAMPLE:-2}
 methods=${METHODS:-"ifmi orb5pt akaze5pt orbrot akazerot"}
+uncertainty_pairs=${UNCERTAINTY_PAIRS:-12}
 bin=$build/bin
-bench_command_line tools/accuracy_benchmark.sh "$@" -- BUILD_DIR FRAMES SUPERSAMPLE WISDOM
+bench_command_line tools/accuracy_benchmark.sh "$@" -- BUILD_DIR FRAMES SUPERSAMPLE WISDOM \
+  UNCERTAINTY_PAIRS
 ifmi_pipeline=${IFMI_PIPELINE:-}
 if [ -n "$ifmi_pipeline" ]; then
   command_line="IFMI_PIPELINE=\"$ifmi_pipeline\" $command_line"
@@ -55,7 +58,7 @@ if [ -n "$ifmi_pipeline" ]; then
 fi
 
 bench_tools "$build" omnipose-synth omnipose-replay omnipose-eval omnipose-plot-fit \
-  omnipose-plot-angles omnipose-results omnipose-equirect
+  omnipose-plot-angles omnipose-results omnipose-equirect omnipose-plot-uncertainty
 
 indoor=$data/indoor_1024x512.jpg
 [ -f "$indoor" ] || indoor=$root/tests/data/equirect/indoor_1024x512.jpg
@@ -310,6 +313,22 @@ for lens in lenses:
               "" if scene == "park" else ratios))
 PY
 
+# ---------------------------------------------------------------------------- uncertainty
+# Issue 29: does each window's predicted du and dv variance agree with the error the noise
+# causes? Frame pairs of the three Table IV scenes rendered through both lenses, registered
+# noise-free and with sensor noise sigma 3 (omnipose-plot-uncertainty).
+echo "== uncertainty calibration"
+for lens in linear mirror_office; do
+  cal_args=()
+  [ "$lens" = linear ] || cal_args=(--calibration "$out/lenses/$lens.yaml")
+  "$bin/omnipose-plot-uncertainty" --texture "$park" --texture "$indoor" \
+    --texture "$office_texture" --label park --label indoor --label office \
+    "${cal_args[@]}" --pairs "$uncertainty_pairs" --noise 3 \
+    --supersample "$supersample" --out "$report/uncertainty_$lens.png" \
+    --table "$out/uncertainty_$lens.md" > "$out/uncertainty_$lens.log"
+  tail -n 4 "$out/uncertainty_$lens.log"
+done
+
 # ---------------------------------------------------------------------------- figures
 echo "== figures"
 labels=$(tr ' ' ',' <<< "$methods")
@@ -393,6 +412,28 @@ if [ -n "$(git status --porcelain 2>/dev/null | head -n 1)" ]; then commit="$com
   echo "resolution. Ratio: the cell over park's, same lens and axis."
   echo
   cat "$out/indoor_table.md"
+  echo
+  echo "### Uncertainty of each window's shift: predicted against observed"
+  echo
+  echo "Each window's (du, dv) covariance (\`WindowMotion::var_du\`, \`var_dv\`) against the error"
+  echo "that sensor noise causes, on renders: $uncertainty_pairs random frame pairs per scene (a rotation of"
+  echo "0.5..3 deg about a random axis) registered by the pipeline's first pass noise-free and"
+  echo "with Gaussian sensor noise sigma 3 in both frames, 4 draws each"
+  echo "(\`omnipose-plot-uncertainty\`). A window's error is its noisy shift minus its noise-free"
+  echo "shift. The variances are for unit panorama noise; one scale per scene (\`panorama noise\`,"
+  echo "grey levels, pooled over du and dv: the unwrap filters the sensor's noise) turns them into"
+  echo "pixels, so what is checked is the shape: windows are binned by predicted standard"
+  echo "deviation (equal counts, the range over the bins given) and each bin's RMS error is"
+  echo "divided by its RMS prediction (1 = calibrated); \`robust\` is the bin's median |error /"
+  echo "predicted sd| over that of a normal distribution, blind to the few peaks that jump."
+  echo
+  echo "Linear lens ([figure](uncertainty_linear.png)):"
+  echo
+  cat "$out/uncertainty_linear.md"
+  echo
+  echo "Office mirror, OCamCalib ([figure](uncertainty_mirror_office.png)):"
+  echo
+  cat "$out/uncertainty_mirror_office.md"
   if [ -f docs/results/ANALYSIS.md ]; then
     # Hand-written explanation of the cells listed above (kept with the results).
     echo

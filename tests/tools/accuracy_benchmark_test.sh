@@ -2,8 +2,8 @@
 # tools/accuracy_benchmark.sh in its tiny mode (the benchmark itself takes many minutes): the
 # script parses, prints its usage, rejects bad options, names a missing photo, refuses to clear
 # a dangerous OUTDIR, and a 3-frame run at 1 x 1 rays per pixel (ifmi and akazerot) writes a
-# report with Tables I to IV, every scene and lens of Table IV, and the office texture made
-# by omnipose-equirect.
+# report with Tables I to IV, every scene and lens of Table IV, the office texture made
+# by omnipose-equirect and the uncertainty calibration of both lenses.
 # Usage: accuracy_benchmark_test.sh SOURCE_DIR BUILD_DIR   (BUILD_DIR/bin holds the binaries)
 set -euo pipefail
 src=$1
@@ -21,7 +21,8 @@ if [ ! -f "$data/park_theta_v_5376x2688.jpg" ]; then
 fi
 work=$(mktemp -d "${TMPDIR:-/tmp}/omnipose-accuracy-test-XXXXXX")
 trap 'rm -rf "$work"' EXIT
-export BUILD_DIR=$build WISDOM=$work/wisdom FRAMES=3 SUPERSAMPLE=1 METHODS="ifmi akazerot" DATA_DIR=$data
+export BUILD_DIR=$build WISDOM=$work/wisdom FRAMES=3 SUPERSAMPLE=1 METHODS="ifmi akazerot" DATA_DIR=$data \
+  UNCERTAINTY_PAIRS=2
 
 rc=0
 msg=$(DATA_DIR=$work/none bash "$script" "$work/x" 2>&1) || rc=$?
@@ -44,6 +45,16 @@ for row in 'linear | park |' 'linear | park-1024 |' 'linear | indoor |' 'linear 
            'office mirror (OCamCalib) | office |'; do
   grep -qF "| $row" "$md" || fail "Table IV has no row '$row'"
 done
+for lens in linear mirror_office; do
+  [ -s "$out/report/uncertainty_$lens.png" ] || fail "no uncertainty figure for $lens"
+  for scene in park indoor office; do
+    for axis in du dv; do
+      grep -q "^| $scene | [0-9]* | [0-9.]* | $axis | " "$out/uncertainty_$lens.md" ||
+        fail "the $lens uncertainty table has no $scene $axis row"
+    done
+  done
+done
+grep -q '^### Uncertainty of each window' "$md" || fail "no uncertainty section in $md"
 grep -q 'omnipose-equirect: wrote .*, 4096 x 2048; the ring sees elevations -40.5..27.1 deg' \
   "$out/lenses/office_texture.log" || fail "office texture: $(cat "$out/lenses/office_texture.log")"
 echo "accuracy_benchmark_test: PASS"

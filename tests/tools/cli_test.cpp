@@ -6,6 +6,7 @@
 #include <unistd.h>
 
 #include <cctype>
+#include <cstdio>
 
 #include <cstdlib>
 #include <filesystem>
@@ -104,6 +105,7 @@ TEST_P(ProgramCli, BadValueIsAUsageErrorNamingTheFlag) {
       {"omnipose-results", {"manifest.tsv", "--main"}},
       {"omnipose-bench-instructions", {"--threads", "many"}},
       {"omnipose-equirect", {"--omni", "o.png", "--calibration", "c.yaml", "--out", "t.png", "--width", "wide"}},
+      {"omnipose-plot-uncertainty", {"--texture", "t.jpg", "--out", "f.png", "--pairs", "0"}},
   };
   const std::map<std::string, std::string> flag = {
       {"omniposed", "--config"},         {"omnipose-replay", "--input"},
@@ -111,7 +113,7 @@ TEST_P(ProgramCli, BadValueIsAUsageErrorNamingTheFlag) {
       {"omnipose-calibrate", "--center"}, {"omnipose-listen", "--count"},
       {"omnipose-plot-fit", "--pair"},   {"omnipose-plot-angles", "--axis"},
       {"omnipose-results", "--main"},    {"omnipose-bench-instructions", "--threads"},
-      {"omnipose-equirect", "--width"},
+      {"omnipose-equirect", "--width"},  {"omnipose-plot-uncertainty", "--pairs"},
   };
   const std::string program = GetParam();
   ASSERT_TRUE(bad.contains(program)) << "add a bad value for " << program;
@@ -137,6 +139,8 @@ TEST(ProgramCliChecks, SemanticMistakesExitTwo) {
   };
   const std::vector<Case> cases = {
       {"omnipose-synth", {"--out", "o"}, "--texture"},
+      {"omnipose-plot-uncertainty",
+       {"--texture", "a.jpg", "--texture", "b.jpg", "--label", "a", "--out", "f.png"}, "--label"},
       {"omnipose-synth", {"--texture", "t.jpg", "--out", "o", "--jpeg", "101"}, "--jpeg"},
       {"omnipose-synth", {"--texture", "t.jpg", "--out", "o", "--write-mask"}, "--write-mask"},
       {"omnipose-synth", {"--texture", "t.jpg", "--out", "o", "--scene", "cube"}, "--scene"},
@@ -195,6 +199,64 @@ TEST(EquirectCli, WritesTheTextureOfARealMirrorImage) {
   EXPECT_EQ(bad.exit_code, 1) << bad.out << bad.err;
   EXPECT_NE(bad.err.find("indoor_1024x512.jpg"), std::string::npos) << bad.err;
   EXPECT_FALSE(fs::exists(dir / "bad.png"));
+  fs::remove_all(dir);
+}
+
+/// The numbers of a whitespace-separated list ("1.24 1.09 0.96").
+std::vector<double> numbers(const std::string& text) {
+  std::vector<double> out;
+  std::istringstream in(text);
+  for (double x; in >> x;) out.push_back(x);
+  return out;
+}
+
+// omnipose-plot-uncertainty on renders of the indoor photo through the linear lens: the
+// predicted standard deviations of the windows span more than a factor of 3 between the
+// first and the last bin, and every bin's error follows its prediction (robust ratio within
+// [0.6, 1.6]; the RMS ratio of every bin but the last, where the few peaks that jump go, too).
+// A missing texture is an error naming it (exit 1), nothing written.
+TEST(PlotUncertaintyCli, PredictedSpreadFollowsTheErrorsOnRenders) {
+  const fs::path dir = fs::temp_directory_path() / ("omnipose-uncertainty-test-" + std::to_string(::getpid()));
+  fs::create_directories(dir);
+  const fs::path photo = fs::path(OMNIPOSE_SOURCE_DIR) / "tests/data/equirect/indoor_1024x512.jpg";
+  const Outcome ok = run("omnipose-plot-uncertainty",
+                         {"--texture", photo.string(), "--pairs", "6", "--draws", "3", "--bins", "4",
+                          "--supersample", "1", "--out", (dir / "u.png").string(), "--table",
+                          (dir / "u.md").string()});
+  ASSERT_EQ(ok.exit_code, 0) << ok.out << ok.err;
+  EXPECT_GT(fs::file_size(dir / "u.png"), 10000u);
+  std::ifstream table(dir / "u.md");
+  int rows = 0;
+  for (std::string line; std::getline(table, line);) {
+    if (line.rfind("| indoor_1024x512 |", 0) != 0) continue;
+    SCOPED_TRACE(line);
+    ++rows;
+    std::vector<std::string> cells;  // | texture | windows | noise | axis | sd range | rms | robust |
+    std::istringstream in(line);
+    for (std::string cell; std::getline(in, cell, '|');) cells.push_back(cell);
+    ASSERT_EQ(cells.size(), 8u);
+    double sd_first = 0.0, sd_last = 0.0;
+    ASSERT_EQ(std::sscanf(cells[5].c_str(), " %lf..%lf", &sd_first, &sd_last), 2);
+    EXPECT_GT(sd_last, 3.0 * sd_first);
+    const std::vector<double> rms = numbers(cells[6]), robust = numbers(cells[7]);
+    ASSERT_EQ(rms.size(), 4u);
+    ASSERT_EQ(robust.size(), 4u);
+    for (std::size_t b = 0; b < 4; ++b) {
+      EXPECT_GT(robust[b], 0.6) << "bin " << b + 1;
+      EXPECT_LT(robust[b], 1.6) << "bin " << b + 1;
+      if (b + 1 < 4) {
+        EXPECT_GT(rms[b], 0.6) << "bin " << b + 1;
+        EXPECT_LT(rms[b], 1.6) << "bin " << b + 1;
+      }
+    }
+  }
+  EXPECT_EQ(rows, 2) << "one row for du, one for dv";
+
+  const Outcome missing = run("omnipose-plot-uncertainty",
+                              {"--texture", (dir / "none.jpg").string(), "--out", (dir / "n.png").string()});
+  EXPECT_EQ(missing.exit_code, 1) << missing.out << missing.err;
+  EXPECT_NE(missing.err.find("none.jpg"), std::string::npos) << missing.err;
+  EXPECT_FALSE(fs::exists(dir / "n.png"));
   fs::remove_all(dir);
 }
 

@@ -5,6 +5,7 @@
 #include <cstdio>
 #include <limits>
 #include <opencv2/imgproc.hpp>
+#include <utility>
 
 namespace omnipose::plot {
 namespace {
@@ -26,6 +27,22 @@ double niceStep(double range, int target) {
   const double mag = std::pow(10.0, std::floor(std::log10(raw)));
   const double n = raw / mag;
   return (n < 1.5 ? 1.0 : n < 3.0 ? 2.0 : n < 7.0 ? 5.0 : 10.0) * mag;
+}
+
+/// Ticks of a logarithmic axis over [lo, hi] (log10 units): log10 of 1, 2 and 5 times
+/// each power of ten inside, with their labels.
+std::vector<std::pair<double, std::string>> logTicks(double lo, double hi) {
+  std::vector<std::pair<double, std::string>> ticks;
+  for (int d = static_cast<int>(std::floor(lo)); d <= static_cast<int>(std::ceil(hi)); ++d) {
+    for (int m : {1, 2, 5}) {
+      const double t = d + std::log10(static_cast<double>(m));
+      if (t < lo - 1e-9 || t > hi + 1e-9) continue;
+      char buf[32];
+      std::snprintf(buf, sizeof(buf), "%g", m * std::pow(10.0, d));
+      ticks.emplace_back(t, buf);
+    }
+  }
+  return ticks;
 }
 
 std::string tickLabel(double value, double step) {
@@ -91,6 +108,11 @@ void Chart::setYRange(double lo, double hi) {
   y_hi_ = hi;
 }
 
+void Chart::setLogScale(bool x, bool y) {
+  log_x_ = x;
+  log_y_ = y;
+}
+
 void Chart::setMinRightMargin(int pixels) { min_right_margin_ = pixels; }
 
 int Chart::rightMargin() const {
@@ -103,17 +125,21 @@ int Chart::rightMargin() const {
 cv::Mat Chart::render(cv::Size size) const {
   cv::Mat img(size, CV_8UC3, kWhite);
 
-  // Data ranges.
-  double xlo = x_lo_, xhi = x_hi_, ylo = y_lo_, yhi = y_hi_;
+  // Data ranges, in axis units (log10 of the value on a logarithmic axis).
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  auto tx = [&](double x) { return !log_x_ ? x : x > 0.0 ? std::log10(x) : nan; };
+  auto ty = [&](double y) { return !log_y_ ? y : y > 0.0 ? std::log10(y) : nan; };
+  double xlo = tx(x_lo_), xhi = tx(x_hi_), ylo = ty(y_lo_), yhi = ty(y_hi_);
   if (!fixed_x_ || !fixed_y_) {
     double ax = std::numeric_limits<double>::infinity(), bx = -ax, ay = ax, by = -ax;
     for (const Series& s : series_) {
       for (std::size_t i = 0; i < s.x.size() && i < s.y.size(); ++i) {
-        if (!std::isfinite(s.x[i]) || !std::isfinite(s.y[i])) continue;
-        ax = std::min(ax, s.x[i]);
-        bx = std::max(bx, s.x[i]);
-        ay = std::min(ay, s.y[i]);
-        by = std::max(by, s.y[i]);
+        const double x = tx(s.x[i]), y = ty(s.y[i]);
+        if (!std::isfinite(x) || !std::isfinite(y)) continue;
+        ax = std::min(ax, x);
+        bx = std::max(bx, x);
+        ay = std::min(ay, y);
+        by = std::max(by, y);
       }
     }
     if (!std::isfinite(ax)) ax = 0, bx = 1, ay = 0, by = 1;
@@ -124,6 +150,8 @@ cv::Mat Chart::render(cv::Size size) const {
       yhi = by + pad;
     }
   }
+  if (!std::isfinite(xlo) || !std::isfinite(xhi)) xlo = 0, xhi = 1;
+  if (!std::isfinite(ylo) || !std::isfinite(yhi)) ylo = 0, yhi = 1;
   if (xhi - xlo < 1e-12) xlo -= 0.5, xhi += 0.5;
   if (yhi - ylo < 1e-12) ylo -= 0.5, yhi += 0.5;
 
@@ -134,21 +162,28 @@ cv::Mat Chart::render(cv::Size size) const {
   auto py = [&](double y) { return area.y + (yhi - y) / (yhi - ylo) * area.height; };
 
   // Grid, ticks and tick labels.
-  const double xstep = niceStep(xhi - xlo, std::max(2, area.width / 90));
-  for (double x = std::ceil(xlo / xstep) * xstep; x <= xhi + 1e-9 * xstep; x += xstep) {
+  auto linearTicks = [](double lo, double hi, int target) {
+    std::vector<std::pair<double, std::string>> ticks;
+    const double step = niceStep(hi - lo, target);
+    for (double t = std::ceil(lo / step) * step; t <= hi + 1e-9 * step; t += step)
+      ticks.emplace_back(t, tickLabel(t, step));
+    return ticks;
+  };
+  const auto xticks = log_x_ ? logTicks(xlo, xhi)
+                             : linearTicks(xlo, xhi, std::max(2, area.width / 90));
+  for (const auto& [x, label] : xticks) {
     const int X = static_cast<int>(std::lround(px(x)));
     cv::line(img, {X, area.y}, {X, area.y + area.height}, kGrid, 1);
-    const std::string label = tickLabel(x, xstep);
     text(img, label, {X - textSize(label).width / 2, area.y + area.height + 18});
   }
-  const double ystep = niceStep(yhi - ylo, std::max(2, area.height / 45));
-  for (double y = std::ceil(ylo / ystep) * ystep; y <= yhi + 1e-9 * ystep; y += ystep) {
+  const auto yticks = log_y_ ? logTicks(ylo, yhi)
+                             : linearTicks(ylo, yhi, std::max(2, area.height / 45));
+  for (const auto& [y, label] : yticks) {
     const int Y = static_cast<int>(std::lround(py(y)));
     cv::line(img, {area.x, Y}, {area.x + area.width, Y}, kGrid, 1);
-    const std::string label = tickLabel(y, ystep);
     text(img, label, {area.x - 6 - textSize(label).width, Y + 5});
   }
-  if (ylo < 0 && yhi > 0) {
+  if (!log_y_ && ylo < 0 && yhi > 0) {
     const int Y = static_cast<int>(std::lround(py(0)));
     cv::line(img, {area.x, Y}, {area.x + area.width, Y}, {170, 170, 170}, 1);
   }
@@ -163,10 +198,12 @@ cv::Mat Chart::render(cv::Size size) const {
                          s.style == Style::kHollowMarkers;
     double phase = 0.0;
     for (std::size_t i = 0; i < n; ++i) {
-      if (!std::isfinite(s.y[i]) || !std::isfinite(s.x[i])) continue;
-      const cv::Point2d p(px(s.x[i]) - area.x, py(s.y[i]) - area.y);
-      if (lines && i + 1 < n && std::isfinite(s.y[i + 1]) && std::isfinite(s.x[i + 1])) {
-        const cv::Point2d q(px(s.x[i + 1]) - area.x, py(s.y[i + 1]) - area.y);
+      const double x = tx(s.x[i]), y = ty(s.y[i]);
+      if (!std::isfinite(y) || !std::isfinite(x)) continue;
+      const cv::Point2d p(px(x) - area.x, py(y) - area.y);
+      const double x1 = i + 1 < n ? tx(s.x[i + 1]) : nan, y1 = i + 1 < n ? ty(s.y[i + 1]) : nan;
+      if (lines && std::isfinite(y1) && std::isfinite(x1)) {
+        const cv::Point2d q(px(x1) - area.x, py(y1) - area.y);
         if (s.style == Style::kDashed) dashedLine(view, p, q, s.color, s.thickness, phase);
         else
           cv::line(view, sub(p.x, p.y), sub(q.x, q.y), s.color, s.thickness, cv::LINE_AA, kShift);

@@ -34,6 +34,9 @@ class Chart {
   void setXRange(double lo, double hi);
   /// Fixes the y range (default: the data's, padded by 5 %).
   void setYRange(double lo, double hi);
+  /// Logarithmic x and/or y axis (ticks at 1, 2 and 5 times the powers of ten); points
+  /// with a value <= 0 on a logarithmic axis are not drawn. Ranges stay in data units.
+  void setLogScale(bool x, bool y);
 
   /// Keeps at least this many pixels right of the plot area (to align stacked charts).
   void setMinRightMargin(int pixels);
@@ -48,6 +51,7 @@ class Chart {
   std::vector<Series> series_;
   int min_right_margin_ = 16;
   bool fixed_x_ = false, fixed_y_ = false;
+  bool log_x_ = false, log_y_ = false;
   double x_lo_ = 0, x_hi_ = 1, y_lo_ = 0, y_hi_ = 1;
 };
 
