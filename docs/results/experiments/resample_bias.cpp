@@ -7,11 +7,10 @@
 //      refinement pass sees): the mean residual du should be 0 for every d.
 // Uses only the public WindowRegistration API.
 //
-// Build and run (from the repository root, after building libomnipose in build/):
-//   g++ -std=c++2b -O2 -I include -I /usr/include/eigen3 -I /usr/include/opencv4 \
-//     docs/results/experiments/resample_bias.cpp -o /tmp/resample_bias build/lib/libomnipose.a \
-//     -lopencv_imgcodecs -lopencv_imgproc -lopencv_core -lyaml-cpp -lfftw3f
-//   /tmp/resample_bias PANORAMA.png      (an 1100 x 110 panorama, e.g. a rendered frame)
+// Built with the project (target omnipose-experiment-resample-bias); run from the
+// repository root:
+//   build/bin/omnipose-experiment-resample-bias PANORAMA.png
+//     (an 1100 x 110 panorama, e.g. a rendered frame)
 
 #include <cmath>
 #include <cstdio>
