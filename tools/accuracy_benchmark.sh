@@ -426,6 +426,8 @@ if [ -n "$(git status --porcelain 2>/dev/null | head -n 1)" ]; then commit="$com
   echo "deviation (equal counts, the range over the bins given) and each bin's RMS error is"
   echo "divided by its RMS prediction (1 = calibrated); \`robust\` is the bin's median |error /"
   echo "predicted sd| over that of a normal distribution, blind to the few peaks that jump."
+  echo "Last column: the RMS error of the mean shift over a registration's windows (the yaw is"
+  echo "the mean du), every window alike and each weighted by its inverse variance."
   echo
   echo "Linear lens ([figure](uncertainty_linear.png)):"
   echo

@@ -26,6 +26,7 @@
 #include <numbers>
 #include <opencv2/imgcodecs.hpp>
 #include <random>
+#include <span>
 #include <string>
 #include <vector>
 
@@ -66,6 +67,34 @@ struct Args {
 struct Sample {
   double err_u, err_v, var_u, var_v;
 };
+
+/// What the noise does to the mean shift over a registration's windows (the yaw is the
+/// mean du): its error with every window alike and with each weighted by its inverse
+/// variance. Windows overlap, so their errors correlate and the weighted mean gains less
+/// than it would over independent windows.
+struct MeanErrors {
+  double plain_u = 0.0, weighted_u = 0.0, plain_v = 0.0, weighted_v = 0.0;
+};
+
+struct Measurements {
+  std::vector<Sample> windows;
+  std::vector<MeanErrors> means;  ///< one per noisy registration
+};
+
+/// The plain and inverse-variance-weighted means of `samples`' errors.
+MeanErrors meanErrors(std::span<const Sample> samples) {
+  MeanErrors m;
+  double wu = 0.0, wv = 0.0;
+  for (const Sample& s : samples) {
+    m.plain_u += s.err_u / samples.size();
+    m.plain_v += s.err_v / samples.size();
+    m.weighted_u += s.err_u / s.var_u, wu += 1.0 / s.var_u;
+    m.weighted_v += s.err_v / s.var_v, wv += 1.0 / s.var_v;
+  }
+  m.weighted_u /= wu;
+  m.weighted_v /= wv;
+  return m;
+}
 
 double median(std::vector<double> v) {
   std::nth_element(v.begin(), v.begin() + v.size() / 2, v.end());
@@ -118,7 +147,7 @@ bool registerPair(Pipeline& pipeline, const cv::Mat& a, const cv::Mat& b,
 
 /// Noisy-minus-clean errors of every window valid in both, over `a.pairs` pairs and
 /// `a.draws` noise draws each.
-std::vector<Sample> textureSamples(const Args& a, const std::string& texture,
+Measurements textureSamples(const Args& a, const std::string& texture,
                                    const Calibration& calibration, std::mt19937& rng) {
   const synth::Renderer renderer(synth::Scene::load(texture, synth::SceneKind::kSphere),
                                  calibration, {synth::OutputKind::kOmni, a.supersample});
@@ -131,7 +160,7 @@ std::vector<Sample> textureSamples(const Args& a, const std::string& texture,
   constexpr double kDeg = std::numbers::pi / 180.0;
   std::uniform_real_distribution<double> unit(-1.0, 1.0), turn(0.0, 2.0 * std::numbers::pi),
       step(0.5 * kDeg, 3.0 * kDeg);
-  std::vector<Sample> samples;
+  Measurements out;
   std::vector<WindowMotion> clean, noisy;
   std::uint64_t frame = 0;
   for (int p = 0; p < a.pairs; ++p) {
@@ -153,27 +182,33 @@ std::vector<Sample> textureSamples(const Args& a, const std::string& texture,
       const cv::Mat noisy_a = synth::degrade(render_a, noise, frame++);
       const cv::Mat noisy_b = synth::degrade(render_b, noise, frame++);
       if (!registerPair(pipeline, noisy_a, noisy_b, noisy)) continue;
+      const std::size_t first = out.windows.size();
       for (std::size_t k = 0; k < noisy.size(); ++k) {
         const WindowMotion& n = noisy[k];
         const WindowMotion& c = clean[k];
         if (!n.valid || !c.valid || n.var_du <= 0.0 || n.var_dv <= 0.0) continue;
-        samples.push_back({n.du - c.du, n.dv - c.dv, n.var_du, n.var_dv});
+        out.windows.push_back({n.du - c.du, n.dv - c.dv, n.var_du, n.var_dv});
+      }
+      if (out.windows.size() > first) {
+        out.means.push_back(meanErrors(std::span(out.windows).subspan(first)));
       }
     }
   }
-  return samples;
+  return out;
 }
 
-/// What one texture's windows say: the noise scale and the bins of each axis.
+/// What one texture's windows say: the noise scale, the bins of each axis and the RMS
+/// error of the windows' mean shift (MeanErrors, pixels).
 struct TextureCalibration {
   std::string name;
   std::size_t measurements = 0;
   double panorama_noise = 0.0;  ///< the scale s, grey levels
   std::vector<Bin> du, dv;
+  MeanErrors mean_rms;
 };
 
-TextureCalibration calibrate(const std::string& name, const std::vector<Sample>& samples,
-                             int bins) {
+TextureCalibration calibrate(const std::string& name, const Measurements& measured, int bins) {
+  const std::vector<Sample>& samples = measured.windows;
   // One scale per texture, pooled over du and dv: chi-square(1)'s median is 0.455.
   std::vector<double> z2;
   std::vector<std::pair<double, double>> u, v;
@@ -184,8 +219,16 @@ TextureCalibration calibrate(const std::string& name, const std::vector<Sample>&
     v.emplace_back(s.var_v, s.err_v);
   }
   const double scale2 = median(z2) / 0.455;
-  return {name, samples.size(), std::sqrt(scale2),
-          calibrationBins(u, scale2, bins), calibrationBins(v, scale2, bins)};
+  MeanErrors rms;
+  for (const MeanErrors& m : measured.means) {
+    rms.plain_u += m.plain_u * m.plain_u, rms.weighted_u += m.weighted_u * m.weighted_u;
+    rms.plain_v += m.plain_v * m.plain_v, rms.weighted_v += m.weighted_v * m.weighted_v;
+  }
+  const double n = static_cast<double>(std::max<std::size_t>(measured.means.size(), 1));
+  for (double* x : {&rms.plain_u, &rms.weighted_u, &rms.plain_v, &rms.weighted_v})
+    *x = std::sqrt(*x / n);
+  return {name, samples.size(), std::sqrt(scale2), calibrationBins(u, scale2, bins),
+          calibrationBins(v, scale2, bins), rms};
 }
 
 /// "1.24 1.09 ...": the observed over the predicted RMS of each bin, or the robust ratio.
@@ -199,13 +242,17 @@ std::string ratios(const std::vector<Bin>& bins, bool robust) {
 void writeTable(const std::string& path, const std::vector<TextureCalibration>& textures) {
   std::ofstream file(path);
   file << "| texture | windows | panorama noise | axis | predicted sd [px] | "
-          "RMS ratio per bin | robust ratio per bin |\n|---|---:|---:|---|---|---|---|\n";
+          "RMS ratio per bin | robust ratio per bin | mean over windows: plain / weighted [px] |\n"
+          "|---|---:|---:|---|---|---|---|---|\n";
   for (const TextureCalibration& t : textures) {
     for (const auto& [axis, bins] : {std::pair{"du", &t.du}, std::pair{"dv", &t.dv}}) {
-      file << cv::format("| %s | %zu | %.2f | %s | %.4f..%.4f | %s | %s |\n", t.name.c_str(),
-                         t.measurements, t.panorama_noise, axis, bins->front().predicted,
-                         bins->back().predicted, ratios(*bins, false).c_str(),
-                         ratios(*bins, true).c_str());
+      const bool du = axis[1] == 'u';
+      file << cv::format("| %s | %zu | %.2f | %s | %.4f..%.4f | %s | %s | %.4f / %.4f |\n",
+                         t.name.c_str(), t.measurements, t.panorama_noise, axis,
+                         bins->front().predicted, bins->back().predicted,
+                         ratios(*bins, false).c_str(), ratios(*bins, true).c_str(),
+                         du ? t.mean_rms.plain_u : t.mean_rms.plain_v,
+                         du ? t.mean_rms.weighted_u : t.mean_rms.weighted_v);
     }
   }
   if (!file.flush()) throw std::runtime_error(path + ": cannot write");
@@ -221,14 +268,14 @@ int run(const Args& a) {
   std::vector<TextureCalibration> textures;
   for (std::size_t t = 0; t < a.textures.size(); ++t) {
     const std::string& texture = a.textures[t];
-    const std::vector<Sample> samples = textureSamples(a, texture, calibration, rng);
-    if (samples.size() < static_cast<std::size_t>(4 * a.bins)) {
-      throw std::runtime_error(texture + ": only " + std::to_string(samples.size()) +
+    const Measurements measured = textureSamples(a, texture, calibration, rng);
+    if (measured.windows.size() < static_cast<std::size_t>(4 * a.bins)) {
+      throw std::runtime_error(texture + ": only " + std::to_string(measured.windows.size()) +
                                " window measurements; more --pairs or a textured photo needed");
     }
     const std::string name =
         a.labels.empty() ? std::filesystem::path(texture).stem().string() : a.labels[t];
-    textures.push_back(calibrate(name, samples, a.bins));
+    textures.push_back(calibrate(name, measured, a.bins));
   }
 
   std::printf("%-24s %-4s %4s %10s %10s %6s %7s\n", "texture", "axis", "bin", "predicted",
@@ -262,8 +309,10 @@ int run(const Args& a) {
     }
   }
   for (const TextureCalibration& c : textures) {
-    std::printf("%s: %zu window measurements, panorama noise %.2f grey levels\n", c.name.c_str(),
-                c.measurements, c.panorama_noise);
+    std::printf("%s: %zu window measurements, panorama noise %.2f grey levels; RMS error of the "
+                "windows' mean du %.4f px (inverse-variance weighted %.4f), dv %.4f (%.4f)\n",
+                c.name.c_str(), c.measurements, c.panorama_noise, c.mean_rms.plain_u,
+                c.mean_rms.weighted_u, c.mean_rms.plain_v, c.mean_rms.weighted_v);
   }
   const double lo = 0.8 * smallest, hi = 1.25 * largest;
   chart.add({{lo, hi}, {lo, hi}, {0, 0, 0}, "calibrated (y = x)", plot::Style::kDashed, 1});
