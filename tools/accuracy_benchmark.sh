@@ -323,7 +323,7 @@ for lens in linear mirror_office; do
   [ "$lens" = linear ] || cal_args=(--calibration "$out/lenses/$lens.yaml")
   "$bin/omnipose-plot-uncertainty" --texture "$park" --texture "$indoor" \
     --texture "$office_texture" --label park --label indoor --label office \
-    "${cal_args[@]}" --pairs "$uncertainty_pairs" --noise 3 \
+    --config "$replay_config" "${cal_args[@]}" --pairs "$uncertainty_pairs" --noise 3 \
     --supersample "$supersample" --out "$report/uncertainty_$lens.png" \
     --table "$out/uncertainty_$lens.md" > "$out/uncertainty_$lens.log"
   tail -n 4 "$out/uncertainty_$lens.log"

@@ -32,6 +32,7 @@
 
 #include "chart.hpp"
 #include "cli.hpp"
+#include "daemon/config.hpp"
 #include "omnipose/calibration.hpp"
 #include "omnipose/pipeline.hpp"
 #include "omnipose/so3.hpp"
@@ -46,7 +47,8 @@ constexpr const char* kUsage =
     "usage: omnipose-plot-uncertainty --texture PHOTO [--texture PHOTO ...] --out FIG.png\n"
     "                                 [--calibration CAL.yaml] [--pairs N] [--draws N]\n"
     "                                 [--noise SIGMA] [--bins N] [--seed S] [--width PIXELS]\n"
-    "                                 [--supersample K] [--table TABLE.md] [--label NAME ...]";
+    "                                 [--supersample K] [--table TABLE.md] [--label NAME ...]\n"
+    "                                 [--config daemon.yaml]";
 constexpr const char* kDescription =
     "Calibration of the per-window shift uncertainty on renders: frame pairs of each\n"
     "texture (equirectangular photo) rendered through the lens, registered noise-free and\n"
@@ -56,7 +58,7 @@ constexpr const char* kDescription =
 
 struct Args {
   std::vector<std::string> textures, labels;
-  std::string out, calibration, table;
+  std::string out, calibration, table, config;
   int pairs = 12, draws = 4, bins = 6, width = 1000, supersample = 3;
   double noise = 3.0;
   unsigned seed = 29;
@@ -148,13 +150,13 @@ bool registerPair(Pipeline& pipeline, const cv::Mat& a, const cv::Mat& b,
 /// Noisy-minus-clean errors of every window valid in both, over `a.pairs` pairs and
 /// `a.draws` noise draws each.
 Measurements textureSamples(const Args& a, const std::string& texture,
-                                   const Calibration& calibration, std::mt19937& rng) {
+                            const Calibration& calibration, PipelineOptions options,
+                            std::mt19937& rng) {
   const synth::Renderer renderer(synth::Scene::load(texture, synth::SceneKind::kSphere),
                                  calibration, {synth::OutputKind::kOmni, a.supersample});
-  PipelineOptions options;
   options.registration.shift_covariance = true;
   options.refine_iterations = 0;  // the first pass's windows are the ones compared
-  options.threads = 0;
+  options.unwrap.input = InputKind::kOmni;
   Pipeline pipeline(calibration, options);
 
   constexpr double kDeg = std::numbers::pi / 180.0;
@@ -264,11 +266,14 @@ int run(const Args& a) {
   const std::string lens = a.calibration.empty()
                                ? std::string("the linear lens")
                                : std::filesystem::path(a.calibration).filename().string();
+  PipelineOptions options;
+  if (a.config.empty()) options.threads = 0;  // every core, as omnipose-replay
+  else options = DaemonConfig::load(a.config, DaemonConfig::Use::kReplay).pipeline;
   std::mt19937 rng(a.seed);
   std::vector<TextureCalibration> textures;
   for (std::size_t t = 0; t < a.textures.size(); ++t) {
     const std::string& texture = a.textures[t];
-    const Measurements measured = textureSamples(a, texture, calibration, rng);
+    const Measurements measured = textureSamples(a, texture, calibration, options, rng);
     if (measured.windows.size() < static_cast<std::size_t>(4 * a.bins)) {
       throw std::runtime_error(texture + ": only " + std::to_string(measured.windows.size()) +
                                " window measurements; more --pairs or a textured photo needed");
@@ -342,6 +347,10 @@ int main(int argc, char** argv) {
   app.add_option("--table", args.table,
                  "also write the ratios of every bin as a Markdown table")
       ->type_name("TABLE.md");
+  app.add_option("--config", args.config,
+                 "daemon.yaml whose pipeline section is used (window, step, FFTW wisdom, "
+                 "threads); the covariance is always measured")
+      ->type_name("daemon.yaml");
   app.add_option("--calibration", args.calibration,
                  "calibration.yaml of the lens (default: the built-in linear lens)");
   app.add_option("--pairs", args.pairs, "frame pairs per texture")
