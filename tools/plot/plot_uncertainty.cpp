@@ -72,8 +72,8 @@ struct Sample {
 
 /// What the noise does to the mean shift over a registration's windows (the yaw is the
 /// mean du): its error with every window alike and with each weighted by its inverse
-/// variance. Windows overlap, so their errors correlate and the weighted mean gains less
-/// than it would over independent windows.
+/// variance. Measured rather than derived from the variances: windows overlap, so their
+/// errors correlate.
 struct MeanErrors {
   double plain_u = 0.0, weighted_u = 0.0, plain_v = 0.0, weighted_v = 0.0;
 };
@@ -136,7 +136,8 @@ std::vector<Bin> calibrationBins(std::vector<std::pair<double, double>> var_err,
   return out;
 }
 
-/// Valid windows of frame pair (a, b) through `pipeline`: false when the pair gave none.
+/// Every window of frame pair (a, b) through `pipeline` (valid or not): false when the
+/// pipeline rejected a frame.
 bool registerPair(Pipeline& pipeline, const cv::Mat& a, const cv::Mat& b,
                   std::vector<WindowMotion>& windows) {
   pipeline.reset();
@@ -345,7 +346,8 @@ int main(int argc, char** argv) {
                  "their order (default: the file names)");
   app.add_option("--out", args.out, "figure to write (PNG)")->type_name("FIG.png")->required();
   app.add_option("--table", args.table,
-                 "also write the ratios of every bin as a Markdown table")
+                 "also write a Markdown table: per texture and axis, every bin's ratios and "
+                 "the noise of the windows' mean shift")
       ->type_name("TABLE.md");
   app.add_option("--config", args.config,
                  "daemon.yaml whose pipeline section is used (window, step, FFTW wisdom, "
