@@ -318,12 +318,15 @@ PY
 # causes? Frame pairs of the three Table IV scenes rendered through both lenses, registered
 # noise-free and with sensor noise sigma 3 (omnipose-plot-uncertainty).
 echo "== uncertainty calibration"
+uncertainty_noise=3
+uncertainty_draws=4
 for lens in linear mirror_office; do
   cal_args=()
   [ "$lens" = linear ] || cal_args=(--calibration "$out/lenses/$lens.yaml")
   "$bin/omnipose-plot-uncertainty" --texture "$park" --texture "$indoor" \
     --texture "$office_texture" --label park --label indoor --label office \
-    --config "$replay_config" "${cal_args[@]}" --pairs "$uncertainty_pairs" --noise 3 \
+    --config "$replay_config" "${cal_args[@]}" --pairs "$uncertainty_pairs" \
+    --draws "$uncertainty_draws" --noise "$uncertainty_noise" \
     --supersample "$supersample" --out "$report/uncertainty_$lens.png" \
     --table "$out/uncertainty_$lens.md" > "$out/uncertainty_$lens.log"
   tail -n 4 "$out/uncertainty_$lens.log"
@@ -418,7 +421,7 @@ if [ -n "$(git status --porcelain 2>/dev/null | head -n 1)" ]; then commit="$com
   echo "Each window's (du, dv) covariance (\`WindowMotion::var_du\`, \`var_dv\`) against the error"
   echo "that sensor noise causes, on renders: $uncertainty_pairs random frame pairs per scene (a rotation of"
   echo "0.5..3 deg about a random axis) registered by the pipeline's first pass noise-free and"
-  echo "with Gaussian sensor noise sigma 3 in both frames, 4 draws each"
+  echo "with Gaussian sensor noise sigma $uncertainty_noise in both frames, $uncertainty_draws draws each"
   echo "(\`omnipose-plot-uncertainty\`). A window's error is its noisy shift minus its noise-free"
   echo "shift. The variances are for unit panorama noise; one scale per scene (\`panorama noise\`,"
   echo "grey levels, pooled over du and dv: the unwrap filters the sensor's noise) turns them into"

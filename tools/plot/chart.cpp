@@ -29,10 +29,13 @@ double niceStep(double range, int target) {
   return (n < 1.5 ? 1.0 : n < 3.0 ? 2.0 : n < 7.0 ? 5.0 : 10.0) * mag;
 }
 
+/// Tick positions (axis units) and their labels.
+using Ticks = std::vector<std::pair<double, std::string>>;
+
 /// Ticks of a logarithmic axis over [lo, hi] (log10 units): log10 of 1, 2 and 5 times
 /// each power of ten inside, with their labels.
-std::vector<std::pair<double, std::string>> logTicks(double lo, double hi) {
-  std::vector<std::pair<double, std::string>> ticks;
+Ticks logTicks(double lo, double hi) {
+  Ticks ticks;
   for (int d = static_cast<int>(std::floor(lo)); d <= static_cast<int>(std::ceil(hi)); ++d) {
     for (int m : {1, 2, 5}) {
       const double t = d + std::log10(static_cast<double>(m));
@@ -50,6 +53,23 @@ std::string tickLabel(double value, double step) {
   char buf[32];
   std::snprintf(buf, sizeof(buf), "%.*f", decimals, std::abs(value) < step * 1e-6 ? 0.0 : value);
   return buf;
+}
+
+/// Ticks of an axis over [lo, hi] (axis units): logTicks on a logarithmic axis, else about
+/// `target` ticks at a nice step.
+Ticks axisTicks(double lo, double hi, bool log, int target) {
+  if (log) return logTicks(lo, hi);
+  Ticks ticks;
+  const double step = niceStep(hi - lo, target);
+  for (double t = std::ceil(lo / step) * step; t <= hi + 1e-9 * step; t += step)
+    ticks.emplace_back(t, tickLabel(t, step));
+  return ticks;
+}
+
+/// A data value in axis units: log10 of it on a logarithmic axis (NaN, not drawn, if <= 0).
+double axisValue(double v, bool log) {
+  if (!log) return v;
+  return v > 0.0 ? std::log10(v) : std::numeric_limits<double>::quiet_NaN();
 }
 
 void text(cv::Mat& img, const std::string& s, cv::Point at, double scale = kFontScale,
@@ -126,9 +146,8 @@ cv::Mat Chart::render(cv::Size size) const {
   cv::Mat img(size, CV_8UC3, kWhite);
 
   // Data ranges, in axis units (log10 of the value on a logarithmic axis).
-  const double nan = std::numeric_limits<double>::quiet_NaN();
-  auto tx = [&](double x) { return !log_x_ ? x : x > 0.0 ? std::log10(x) : nan; };
-  auto ty = [&](double y) { return !log_y_ ? y : y > 0.0 ? std::log10(y) : nan; };
+  auto tx = [&](double x) { return axisValue(x, log_x_); };
+  auto ty = [&](double y) { return axisValue(y, log_y_); };
   double xlo = tx(x_lo_), xhi = tx(x_hi_), ylo = ty(y_lo_), yhi = ty(y_hi_);
   if (!fixed_x_ || !fixed_y_) {
     double ax = std::numeric_limits<double>::infinity(), bx = -ax, ay = ax, by = -ax;
@@ -162,23 +181,12 @@ cv::Mat Chart::render(cv::Size size) const {
   auto py = [&](double y) { return area.y + (yhi - y) / (yhi - ylo) * area.height; };
 
   // Grid, ticks and tick labels.
-  auto linearTicks = [](double lo, double hi, int target) {
-    std::vector<std::pair<double, std::string>> ticks;
-    const double step = niceStep(hi - lo, target);
-    for (double t = std::ceil(lo / step) * step; t <= hi + 1e-9 * step; t += step)
-      ticks.emplace_back(t, tickLabel(t, step));
-    return ticks;
-  };
-  const auto xticks = log_x_ ? logTicks(xlo, xhi)
-                             : linearTicks(xlo, xhi, std::max(2, area.width / 90));
-  for (const auto& [x, label] : xticks) {
+  for (const auto& [x, label] : axisTicks(xlo, xhi, log_x_, std::max(2, area.width / 90))) {
     const int X = static_cast<int>(std::lround(px(x)));
     cv::line(img, {X, area.y}, {X, area.y + area.height}, kGrid, 1);
     text(img, label, {X - textSize(label).width / 2, area.y + area.height + 18});
   }
-  const auto yticks = log_y_ ? logTicks(ylo, yhi)
-                             : linearTicks(ylo, yhi, std::max(2, area.height / 45));
-  for (const auto& [y, label] : yticks) {
+  for (const auto& [y, label] : axisTicks(ylo, yhi, log_y_, std::max(2, area.height / 45))) {
     const int Y = static_cast<int>(std::lround(py(y)));
     cv::line(img, {area.x, Y}, {area.x + area.width, Y}, kGrid, 1);
     text(img, label, {area.x - 6 - textSize(label).width, Y + 5});
@@ -201,8 +209,8 @@ cv::Mat Chart::render(cv::Size size) const {
       const double x = tx(s.x[i]), y = ty(s.y[i]);
       if (!std::isfinite(y) || !std::isfinite(x)) continue;
       const cv::Point2d p(px(x) - area.x, py(y) - area.y);
-      const double x1 = i + 1 < n ? tx(s.x[i + 1]) : nan, y1 = i + 1 < n ? ty(s.y[i + 1]) : nan;
-      if (lines && std::isfinite(y1) && std::isfinite(x1)) {
+      const double x1 = i + 1 < n ? tx(s.x[i + 1]) : x, y1 = i + 1 < n ? ty(s.y[i + 1]) : y;
+      if (lines && i + 1 < n && std::isfinite(y1) && std::isfinite(x1)) {
         const cv::Point2d q(px(x1) - area.x, py(y1) - area.y);
         if (s.style == Style::kDashed) dashedLine(view, p, q, s.color, s.thickness, phase);
         else
