@@ -112,6 +112,8 @@ void FrameRegistrar::measureWindowTimes() {
   const int top = registration_.windowTop(), windows = registration_.windowCount();
   window_times_.assign(static_cast<std::size_t>(windows), {});
   row_scale_.resize(static_cast<std::size_t>(windows));
+  double sum_s = 0.0;  // over the windows the lens model sees
+  int timed = 0;
   for (int k = 0; k < windows; ++k) {
     const int first = static_cast<int>(std::lround(registration_.windowCenter(k) - 0.5 * (L - 1)));
     double weight = 0.0, s = 0.0, ds_du = 0.0, ds_dv = 0.0;
@@ -132,9 +134,13 @@ void FrameRegistrar::measureWindowTimes() {
         ds_dv += w * dv;
       }
     }
-    if (weight > 0.0)
+    if (weight > 0.0) {
       window_times_[static_cast<std::size_t>(k)] = {s / weight, ds_du / weight, ds_dv / weight};
+      sum_s += s / weight;
+      ++timed;
+    }
   }
+  mean_window_time_ = timed > 0 ? sum_s / timed : 0.0;
 }
 
 Expected<void> FrameRegistrar::unwrap(const cv::Mat& frame) {
@@ -195,11 +201,17 @@ MotionEstimate FrameRegistrar::fitPass(std::span<WindowMotion> windows,
   // g_k = grad s . d (d: its whole shift, the de-rotation's included). With the velocity
   // linear in time that is A_k (X + s_k b) (dt - g_k) / dt, with X the motion between the
   // timestamps, A_k the window's model rows and b = v(t_cur) - v(t_ref).
-  // - du (yaw, horizontal translation): v runs through the previous pair's mean velocity
-  //   v_p and this pair's, X / dt, at the midpoints of their intervals: b = c (X / dt - v_p),
-  //   c = 2 dt / (dt + dt_p), so (1 + s_k c / dt) A_k X = d_k dt / (dt - g_k) + s_k c A_k v_p,
-  //   linear in X: the fit solves it with the du rows scaled. Without a previous pair
-  //   (c = 0) the velocity is constant and only the stretch is corrected.
+  // - du (yaw, horizontal translation): with s_k = s_m + e_k, s_m the windows' mean capture
+  //   time, A_k (X + s_k b) = A_k (X_m + e_k b), X_m the motion between t_ref + s_m and
+  //   t_cur + s_m. The pair gives X_m; e_k b is a first harmonic around the ring, which a
+  //   horizontal translation also makes, so b is taken from v running through the previous
+  //   pair's mean velocity v_p and this pair's, X_m / dt, at the midpoints of their
+  //   intervals: b = c (X_m / dt - v_p), c = 2 dt / (dt + dt_p), so (1 + e_k c / dt) A_k X_m
+  //   = d_k dt / (dt - g_k) + e_k c A_k v_p, linear in X_m: the fit solves it with the du
+  //   rows scaled (the harmonic the rate change makes is not read as translation). The fit's
+  //   yaw is then X_m's, which ReadoutYaw moves to the timestamps from consecutive pairs
+  //   (roll and pitch are the timestamps' already, through the dv regression below). Without
+  //   a previous pair (c = 0) only the stretch is corrected.
   // - dv (roll, pitch, vertical translation): a tracked base shakes faster than a frame, so
   //   b comes from the pair itself (tiltRateChange()).
   const double dt = shutter_.interval_s, gamma = calibration_.panorama.gamma();
@@ -210,7 +222,8 @@ MotionEstimate FrameRegistrar::fitPass(std::span<WindowMotion> windows,
   warp << warp_omega, Eigen::Vector3d::Zero();
   for (std::size_t k = 0; k < windows.size(); ++k) {
     const WindowTime& w = window_times_[k];
-    row_scale_[k] = {1.0 + w.s * c / dt, 1.0};
+    const double e = w.s - mean_window_time_;
+    row_scale_[k] = {1.0 + e * c / dt, 1.0};
     WindowMotion& m = windows[k];
     if (!m.valid) continue;
     const double theta = window_azimuth_[k];
@@ -218,7 +231,7 @@ MotionEstimate FrameRegistrar::fitPass(std::span<WindowMotion> windows,
     const double du = m.du + removed.du_rad / gamma, dv = m.dv + removed.dv_rad / gamma;
     const double g = w.ds_du * du + w.ds_dv * dv;
     const double stretch = std::abs(g) < 0.5 * dt ? dt / (dt - g) : 1.0;
-    Eigen::Matrix<double, 6, 1> v = shutter_.previous_velocity * (w.s * c);
+    Eigen::Matrix<double, 6, 1> v = shutter_.previous_velocity * (e * c);
     v.tail<3>() *= fit_.inverseDepth(static_cast<int>(k));
     const ModelMotion before = predictMotion(v, theta, fit_.kappa());
     m.du = du * stretch + before.du_rad / gamma - row_scale_[k].du * removed.du_rad / gamma;

@@ -42,7 +42,9 @@ struct PassResult {
 
 /// What a pass needs to read each window's motion, measured between rows captured at
 /// different times (Calibration::sensor, a rolling shutter), as the motion between the two
-/// frames' timestamps (DESIGN.md section 3, "Rolling shutter").
+/// frames' timestamps, yaw excepted: that is read between the windows' mean capture times
+/// (meanWindowTime(); ReadoutYaw moves it to the timestamps; DESIGN.md section 3, "Rolling
+/// shutter").
 struct ShutterContext {
   double interval_s = 0.0;  ///< t_current - t_reference, seconds; <= 0: no correction
   /// The previous pair's motion (omega, tau) divided by its interval (per second) and that
@@ -112,6 +114,9 @@ class FrameRegistrar {
   double windowAttenuation() const { return fit_.kappa(); }
   int threads() const { return pool_.size(); }
   bool wisdomLoaded() const { return wisdom_.loaded; }
+  /// The windows' mean capture time after the frame's timestamp, seconds (the mean of their
+  /// taper-weighted capture times, Calibration::captureTime()); 0 for a global shutter.
+  double meanWindowTime() const { return mean_window_time_; }
 
  private:
   /// The FFTW wisdom file of PipelineOptions::fftw_wisdom ("" = none), read before any plan
@@ -170,6 +175,7 @@ class FrameRegistrar {
     double s = 0.0, ds_du = 0.0, ds_dv = 0.0;
   };
   std::vector<WindowTime> window_times_;
+  double mean_window_time_ = 0.0;
   std::vector<MotionFit::RowScale> row_scale_;  ///< per window: the fit's row scale (fitPass())
   ShutterContext shutter_;
   bool has_previous_ = false;

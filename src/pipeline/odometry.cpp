@@ -10,6 +10,7 @@
 #include "common/problem_list.hpp"
 #include "omnipose/so3.hpp"
 #include "pipeline/frame_registrar.hpp"
+#include "pipeline/readout_yaw.hpp"
 
 namespace omnipose {
 namespace {
@@ -109,7 +110,8 @@ struct Odometry::Impl {
   Impl(const Calibration& c, const OdometryOptions& o)
       : keyframe_options(o.keyframes),
         registrar(std::in_place, c, o.pipeline, std::max(o.keyframes.slots, 1)),
-        keyframes(static_cast<std::size_t>(std::max(o.keyframes.slots, 1))) {}
+        keyframes(static_cast<std::size_t>(std::max(o.keyframes.slots, 1))),
+        readout_yaw(registrar->meanWindowTime()) {}
   explicit Impl(std::unique_ptr<MotionEstimator> method)
       : keyframe_options{.slots = 0}, pairwise(std::move(method)) {}
 
@@ -144,6 +146,22 @@ struct Odometry::Impl {
     }
     registrar->setShutter(c);
   }
+  /// The rotation of `pass`, a registration of the current frame against the frame captured
+  /// at `reference_time`, with its yaw moved from the windows' mean capture times to the
+  /// timestamps (a rolling shutter; unchanged for a global shutter). Against the previous
+  /// frame, the motion as registered, per second, becomes the next pair's previous velocity
+  /// (read at the same mean capture times as the next fit's own).
+  Eigen::Matrix3d atTimestamps(const pipeline::PassResult& pass, double reference_time) {
+    const double interval = time - reference_time;
+    if (reference_time == last_time && interval > 0.0) {
+      velocity << rotationVector(pass.rotation), pass.estimate.tau;
+      velocity /= interval;
+      velocity_interval = interval;
+    } else {
+      velocity_interval = 0.0;
+    }
+    return readout_yaw.betweenTimestamps(pass.rotation, reference_time, time);
+  }
   /// Fills `out` for the current frame at pose `T` with the estimate `pass`.
   void finish(OdometryResult& out, const Eigen::Isometry3d& T, const pipeline::PassResult& pass,
               TrackState state);
@@ -152,6 +170,7 @@ struct Odometry::Impl {
   std::optional<pipeline::FrameRegistrar> registrar;  ///< the iFMI pipeline
   std::unique_ptr<MotionEstimator> pairwise;          ///< or another per-pair method
   std::vector<Keyframe> keyframes;
+  pipeline::ReadoutYaw readout_yaw;  ///< chains the pairs' yaws (rolling shutter)
   int active = -1;  ///< slot of the keyframe the last frame used
   long use_clock = 0;
 
@@ -161,8 +180,9 @@ struct Odometry::Impl {
   Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();  ///< last good frame's
   std::int64_t last_sequence = -1;
   double last_time = 0.0;  ///< capture time of the last good frame
-  /// The last pair's motion (omega, translation in scene distances) per second and its
-  /// interval when that frame was tracked against the one before; interval 0 otherwise.
+  /// The last pair's motion as registered (omega, translation in scene distances) per second
+  /// and its interval when that frame was tracked against the one before; interval 0
+  /// otherwise.
   Eigen::Matrix<double, 6, 1> velocity = Eigen::Matrix<double, 6, 1>::Zero();
   double velocity_interval = 0.0;
   double time = 0.0;       ///< of the frame being processed
@@ -187,6 +207,7 @@ void Odometry::Impl::startSegment(OdometryResult& out, TrackState state) {
   last_sequence = sequence;
   last_time = time;
   velocity_interval = 0.0;
+  readout_yaw.reset();
 }
 
 bool Odometry::Impl::inReach(const Keyframe& k, const Eigen::Isometry3d& predicted) const {
@@ -229,14 +250,6 @@ void Odometry::Impl::finish(OdometryResult& out, const Eigen::Isometry3d& T_esti
   setMotion(out.relative, pose.inverse() * T);
   out.relative.timing = keep_timing.timing;
   out.reference_sequence = last_sequence;
-  const double interval = time - last_time;
-  if (state == TrackState::kTracked && interval > 0.0) {
-    velocity << out.relative.estimate.omega, out.relative.estimate.tau;
-    velocity /= interval;
-    velocity_interval = interval;
-  } else {
-    velocity_interval = 0.0;
-  }
   out.windows = pass.windows;
   out.windows_refined = pass.refined;
   out.window_model = pass.window_model;
@@ -258,11 +271,13 @@ bool Odometry::Impl::bridge(OdometryResult& out) {
   const pipeline::PassResult pass = registrar->refine(
       *aligned, rotationFromVector(aligned->omega) * R0, aligned->tau, active);
   if (!pass.refined || pass.estimate.status == FitStatus::kLost) return false;
-  const Eigen::Isometry3d T = key.pose * isometry(pass.rotation, pass.estimate.tau);
+  const Eigen::Isometry3d T =
+      key.pose * isometry(atTimestamps(pass, key.time_s), pass.estimate.tau);
   out.keyframe_sequence = key.sequence;
   useKeyframe(active);
   registrar->makeCurrentPrevious();
   finish(out, T, pass, TrackState::kBridged);
+  velocity_interval = 0.0;  // a motion across a gap says little about the next pair's
   // Without keyframes the one slot follows the last good frame: this one.
   if (keyframe_options.slots == 0) addKeyframe(pose);
   gap = false;
@@ -341,7 +356,8 @@ Expected<OdometryResult> Odometry::Impl::process(const cv::Mat& frame, const Fra
                        (pass.estimate.status != FitStatus::kOk && first->status == FitStatus::kOk);
     if (!worse) {
       out.keyframe_sequence = key.sequence;
-      const Eigen::Isometry3d T = key.pose * isometry(pass.rotation, pass.estimate.tau);
+      const Eigen::Isometry3d T =
+          key.pose * isometry(atTimestamps(pass, key.time_s), pass.estimate.tau);
       useKeyframe(slot);
       r.advance();
       finish(out, T, pass, TrackState::kTracked);
@@ -355,7 +371,8 @@ Expected<OdometryResult> Odometry::Impl::process(const cv::Mat& frame, const Fra
   const pipeline::PassResult pass =
       r.refine(*first, R1, first->tau, WindowRegistration::kPreviousFrame);
   out.keyframe_sequence = last_sequence;
-  const Eigen::Isometry3d T = pose * isometry(pass.rotation, pass.estimate.tau);
+  const Eigen::Isometry3d T =
+      pose * isometry(atTimestamps(pass, last_time), pass.estimate.tau);
   r.advance();
   finish(out, T, pass, TrackState::kTracked);
   addKeyframe(pose);  // without keyframes (slots 0) its one slot follows the previous frame

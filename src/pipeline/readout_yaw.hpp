@@ -1,0 +1,53 @@
+#pragma once
+/// \file readout_yaw.hpp
+/// Yaw between the frames' timestamps under a rolling shutter (private to the core library;
+/// DESIGN.md section 3, "Rolling shutter").
+///
+/// A registration of two rolling-shutter frames reads yaw from the part of du common to every
+/// window, so over [t_ref + c, t_cur + c], c being the windows' mean capture time after the
+/// frame's timestamp (FrameRegistrar::meanWindowTime()). What would tell the rows read early
+/// from those read late (du's first harmonic around the ring) a horizontal translation also
+/// makes, so a pair alone cannot give the yaw between its timestamps. Consecutive pairs chain
+/// those yaws into samples of the heading at t_k + c; the heading at a timestamp t_k lies
+/// between two of them (0 < c < t_k - t_(k-1)) and is read off the parabola through the last
+/// three samples: exact for a constant angular acceleration at any frame spacing, and nothing
+/// accumulates (the published headings are the chained samples moved by their own offsets).
+/// The first pair of a chain takes the velocity as constant, which leaves its yaw as measured.
+///
+/// Realtime: no allocation, never throws.
+
+#include <Eigen/Core>
+
+namespace omnipose::pipeline {
+
+class ReadoutYaw {
+ public:
+  /// `capture_offset_s`: c, seconds; 0 (a global shutter) leaves every rotation unchanged.
+  explicit ReadoutYaw(double capture_offset_s = 0.0) : offset_(capture_offset_s) {}
+
+  /// Forgets the chain: the next pair starts a new one.
+  void reset() { samples_ = 0; }
+
+  /// `R`: a pair's relative rotation as registered (camera frame of t_ref to that of t_cur),
+  /// its yaw (the rotation vector's z, the camera's vertical) between t_ref + c and
+  /// t_cur + c, its roll and pitch between the timestamps (the pair's own tilt-rate
+  /// regression). Returns R with its yaw moved to between t_ref and t_cur, roll and pitch
+  /// unchanged. A pair whose t_ref is not the t_cur of the last call starts a new chain, as
+  /// after reset(). Times in seconds; with no offset or t_cur <= t_ref, R is returned as is
+  /// and the chain is forgotten.
+  Eigen::Matrix3d betweenTimestamps(const Eigen::Matrix3d& R, double t_ref, double t_cur);
+
+  double captureOffset() const { return offset_; }
+
+ private:
+  double offset_;
+  /// The last samples of the chained heading: at times time_[i] + offset_, heading_[i]
+  /// radians relative to the newest (heading_[2] = 0); the newest last, samples_ of them.
+  double time_[3] = {0.0, 0.0, 0.0};
+  double heading_[3] = {0.0, 0.0, 0.0};
+  int samples_ = 0;
+  /// Published heading at time_[2] minus the sample there.
+  double offset_heading_ = 0.0;
+};
+
+}  // namespace omnipose::pipeline
