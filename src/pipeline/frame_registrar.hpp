@@ -47,8 +47,9 @@ struct PassResult {
 /// shutter").
 struct ShutterContext {
   double interval_s = 0.0;  ///< t_current - t_reference, seconds; <= 0: no correction
-  /// The previous pair's motion (omega, tau) divided by its interval (per second) and that
-  /// interval; previous_interval_s <= 0: unknown (the velocity is taken as constant).
+  /// The previous pair's motion as its fit gave it (omega, its yaw between the windows' mean
+  /// capture times; tau) divided by its interval (per second), and that interval;
+  /// previous_interval_s <= 0: unknown (the velocity is taken as constant).
   Eigen::Matrix<double, 6, 1> previous_velocity = Eigen::Matrix<double, 6, 1>::Zero();
   double previous_interval_s = 0.0;
 };
