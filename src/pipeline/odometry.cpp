@@ -105,6 +105,7 @@ struct Odometry::Impl {
     Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
     long last_used = 0;
     double time_s = 0.0;  ///< its frame's timestamp
+    pipeline::ReadoutYaw::Anchor heading;  ///< its place in the rolling shutter's yaw chain
   };
 
   Impl(const Calibration& c, const OdometryOptions& o)
@@ -148,10 +149,12 @@ struct Odometry::Impl {
   }
   /// The rotation of `pass`, a registration of the current frame against the frame captured
   /// at `reference_time`, with its yaw moved from the windows' mean capture times to the
-  /// timestamps (a rolling shutter; unchanged for a global shutter). Against the previous
+  /// timestamps (a rolling shutter; unchanged for a global shutter; `key`: the keyframe
+  /// registered against, whose place in the yaw chain it continues). Against the previous
   /// frame, the motion as registered, per second, becomes the next pair's previous velocity
   /// (read at the same mean capture times as the next fit's own).
-  Eigen::Matrix3d atTimestamps(const pipeline::PassResult& pass, double reference_time) {
+  Eigen::Matrix3d atTimestamps(const pipeline::PassResult& pass, double reference_time,
+                               const Keyframe* key = nullptr) {
     const double interval = time - reference_time;
     if (reference_time == last_time && interval > 0.0) {
       velocity << rotationVector(pass.rotation), pass.estimate.tau;
@@ -160,7 +163,8 @@ struct Odometry::Impl {
     } else {
       velocity_interval = 0.0;
     }
-    return readout_yaw.betweenTimestamps(pass.rotation, reference_time, time);
+    return readout_yaw.betweenTimestamps(pass.rotation, reference_time, time,
+                                         key != nullptr ? &key->heading : nullptr);
   }
   /// Fills `out` for the current frame at pose `T` with the estimate `pass`.
   void finish(OdometryResult& out, const Eigen::Isometry3d& T, const pipeline::PassResult& pass,
@@ -198,6 +202,7 @@ void Odometry::Impl::startSegment(OdometryResult& out, TrackState state) {
   for (auto& k : keyframes) k.valid = false;
   out.state = state;
   out.relative = FrameMotion{};
+  readout_yaw.begin(time);
   if (registrar) {
     registrar->makeCurrentPrevious();
     addKeyframe(pose);
@@ -207,7 +212,6 @@ void Odometry::Impl::startSegment(OdometryResult& out, TrackState state) {
   last_sequence = sequence;
   last_time = time;
   velocity_interval = 0.0;
-  readout_yaw.reset();
 }
 
 bool Odometry::Impl::inReach(const Keyframe& k, const Eigen::Isometry3d& predicted) const {
@@ -237,7 +241,7 @@ void Odometry::Impl::addKeyframe(const Eigen::Isometry3d& at) {
     if (!k.valid ? s.valid : (s.valid && k.last_used < s.last_used)) slot = i;
   }
   if (!registrar->storeKeyframe(slot)) return;
-  keyframes[static_cast<std::size_t>(slot)] = {true, sequence, at, 0, time};
+  keyframes[static_cast<std::size_t>(slot)] = {true, sequence, at, 0, time, readout_yaw.anchor()};
   useKeyframe(slot);
 }
 
@@ -272,7 +276,7 @@ bool Odometry::Impl::bridge(OdometryResult& out) {
       *aligned, rotationFromVector(aligned->omega) * R0, aligned->tau, active);
   if (!pass.refined || pass.estimate.status == FitStatus::kLost) return false;
   const Eigen::Isometry3d T =
-      key.pose * isometry(atTimestamps(pass, key.time_s), pass.estimate.tau);
+      key.pose * isometry(atTimestamps(pass, key.time_s, &key), pass.estimate.tau);
   out.keyframe_sequence = key.sequence;
   useKeyframe(active);
   registrar->makeCurrentPrevious();
@@ -357,7 +361,7 @@ Expected<OdometryResult> Odometry::Impl::process(const cv::Mat& frame, const Fra
     if (!worse) {
       out.keyframe_sequence = key.sequence;
       const Eigen::Isometry3d T =
-          key.pose * isometry(atTimestamps(pass, key.time_s), pass.estimate.tau);
+          key.pose * isometry(atTimestamps(pass, key.time_s, &key), pass.estimate.tau);
       useKeyframe(slot);
       r.advance();
       finish(out, T, pass, TrackState::kTracked);

@@ -1,8 +1,8 @@
 // ReadoutYaw (src/pipeline/readout_yaw.hpp): yaws measured between the windows' mean capture
 // times t_k + c become yaws between the timestamps t_k, against a heading known in closed
-// form. Exact for a constant angular acceleration at uneven frame spacing and across lost
-// frames; nothing accumulates along the chain; roll and pitch untouched; a global shutter
-// unchanged.
+// form. Exact for a constant angular acceleration at uneven frame spacing, across lost
+// frames and against a keyframe; nothing accumulates along the chain; roll and pitch
+// untouched; a global shutter unchanged.
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -106,6 +106,53 @@ TEST(ReadoutYaw, AVaryingTurnIsCloserThanTheMeasuredYaw) {
       << "RMS " << std::sqrt(interpolated_sq) << " against " << std::sqrt(measured_sq);
 }
 
+TEST(ReadoutYaw, RegistrationsAgainstAKeyframeContinueTheChainFromItsAnchor) {
+  // Frames 0-3 frame to frame; frame 3 becomes a keyframe, and frames 4-9 are registered
+  // against it (each against frame 3, not against the one before).
+  const std::vector<double> t = timestamps(10);
+  pipeline::ReadoutYaw yaw(kOffset);
+  for (std::size_t k = 1; k <= 3; ++k)
+    (void)yaw.betweenTimestamps(registered(constantAcceleration, t[k - 1], t[k]), t[k - 1], t[k]);
+  const pipeline::ReadoutYaw::Anchor key = yaw.anchor();
+  EXPECT_EQ(key.time, t[3]);
+  for (std::size_t k = 4; k < t.size(); ++k) {
+    const Eigen::Matrix3d R =
+        yaw.betweenTimestamps(registered(constantAcceleration, t[3], t[k]), t[3], t[k], &key);
+    EXPECT_NEAR(rotationVector(R).z(), constantAcceleration(t[k]) - constantAcceleration(t[3]),
+                1e-12)
+        << "frame " << k << " against the keyframe";
+  }
+  // An anchor of an earlier chain means nothing to this one: a new chain, taken at
+  // constant velocity.
+  yaw.reset();
+  (void)yaw.betweenTimestamps(registered(constantAcceleration, t[0], t[1]), t[0], t[1]);
+  const Eigen::Matrix3d stale = registered(constantAcceleration, t[3], t[9]);
+  EXPECT_NEAR(rotationVector(yaw.betweenTimestamps(stale, t[3], t[9], &key)).z(),
+              rotationVector(stale).z(), 1e-12);
+}
+
+TEST(ReadoutYaw, ASegmentsFirstFrameServesAsKeyframeFromTheStart) {
+  // The segment's first frame is the keyframe of every later frame (a robot turning in
+  // place keeps it in reach): its anchor, taken before any pair, gets its offset from the
+  // chain's first pair.
+  const std::vector<double> t = timestamps(10);
+  pipeline::ReadoutYaw yaw(kOffset);
+  yaw.begin(t[0]);
+  const pipeline::ReadoutYaw::Anchor first = yaw.anchor();
+  EXPECT_TRUE(std::isnan(first.offset));
+  double previous = 0.0;
+  for (std::size_t k = 1; k < t.size(); ++k) {
+    const double from_first = rotationVector(yaw.betweenTimestamps(
+        registered(constantAcceleration, t[0], t[k]), t[0], t[k], &first)).z();
+    if (k >= 3) {
+      EXPECT_NEAR(from_first - previous, constantAcceleration(t[k]) - constantAcceleration(t[k - 1]),
+                  1e-12)
+          << "frame " << k;
+    }
+    previous = from_first;
+  }
+}
+
 TEST(ReadoutYaw, AGapKeepsTheChainAndAnotherReferenceStartsANewOne) {
   const std::vector<double> t = timestamps(10);
   pipeline::ReadoutYaw yaw(kOffset);
@@ -116,8 +163,8 @@ TEST(ReadoutYaw, AGapKeepsTheChainAndAnotherReferenceStartsANewOne) {
   const Eigen::Matrix3d across = registered(constantAcceleration, t[4], t[7]);
   EXPECT_NEAR(rotationVector(yaw.betweenTimestamps(across, t[4], t[7])).z(),
               constantAcceleration(t[7]) - constantAcceleration(t[4]), 1e-12);
-  // A pair from an older frame (a keyframe) starts a new chain: like any chain's first pair
-  // it is taken at constant velocity, so returned as registered.
+  // A pair from an older frame without its anchor starts a new chain: like any chain's
+  // first pair it is taken at constant velocity, so returned as registered.
   const Eigen::Matrix3d from_older = registered(constantAcceleration, t[3], t[8]);
   EXPECT_NEAR(rotationVector(yaw.betweenTimestamps(from_older, t[3], t[8])).z(),
               rotationVector(from_older).z(), 1e-12);
