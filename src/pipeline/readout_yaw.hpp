@@ -13,6 +13,8 @@
 /// three samples: exact for a constant angular acceleration at any frame spacing, and nothing
 /// accumulates (the published headings are the chained samples moved by their own offsets).
 /// The first pair of a chain takes the velocity as constant, which leaves its yaw as measured.
+/// A keyframe keeps its place in the chain (Anchor), so that registrations against it
+/// continue the chain instead of beginning one at each frame.
 ///
 /// Realtime: no allocation, never throws.
 
@@ -45,17 +47,15 @@ class ReadoutYaw {
   /// its roll and pitch between the timestamps (the pair's own tilt-rate regression).
   /// Returns R with its yaw moved to between t_ref and t_cur, roll and pitch unchanged. The
   /// frame at t_ref is the chain's last one (t_ref = the last call's t_cur) or `reference`,
-  /// an anchor() of this chain taken when that frame was the last one; otherwise, and for a
-  /// frame not later than the chain's last, the pair starts a new chain, as after reset().
+  /// an anchor() of this chain taken when that frame was the last one; otherwise (or when
+  /// t_cur is not after the chain's last frame) the pair begins a new chain at t_ref.
   /// Times in seconds; with no offset or t_cur <= t_ref, R is returned as is and the chain
   /// is forgotten.
   Eigen::Matrix3d betweenTimestamps(const Eigen::Matrix3d& R, double t_ref, double t_cur,
                                     const Anchor* reference = nullptr);
 
-  /// The last frame's anchor (chain -1 before any pair).
+  /// The chain's last frame's anchor (chain -1 when no chain has begun or after reset()).
   Anchor anchor() const;
-
-  double captureOffset() const { return offset_; }
 
  private:
   double offset_;
