@@ -8,13 +8,13 @@
 
 #include <array>
 #include <cmath>
-#include <cstdio>
 #include <numbers>
 
 #include "omnipose/pipeline.hpp"
 #include "omnipose/so3.hpp"
 #include "omnipose/synth/synth.hpp"
 #include "render_fixture.hpp"
+#include "test_figures.hpp"
 
 namespace omnipose {
 namespace {
@@ -71,14 +71,9 @@ TEST(Brightness, ExposureStepsAndVignettingDoNotMoveTheEstimate) {
   const double plain = rmsError(renderer, flat, nullptr);
   const double stepped = rmsError(renderer, steps, nullptr);
   const double both = rmsError(renderer, steps, &vignetting);
-  const auto record = [](const char* key, double value) {
-    char text[32];
-    std::snprintf(text, sizeof(text), "%.3e", value);
-    ::testing::Test::RecordProperty(key, text);
-  };
-  record("plain_rms_rad", plain);
-  record("exposure_steps_rms_rad", stepped);
-  record("steps_and_vignetting_rms_rad", both);
+  testing::recordFigure("plain_rms_rad", plain, 9);
+  testing::recordFigure("exposure_steps_rms_rad", stepped, 9);
+  testing::recordFigure("steps_and_vignetting_rms_rad", both, 9);
   ASSERT_GT(plain, 0.0);
   // Phase correlation whitens each window's spectrum: a gain cancels, and a falloff that
   // both frames share is a fixed factor of both windows. What is left is the 8-bit rounding,
