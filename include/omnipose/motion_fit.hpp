@@ -17,7 +17,9 @@
 /// lambda_k (tau_k = lambda_k tau, prior N(1, depth_prior_sigma)) joins the unknowns: the
 /// model becomes bilinear and is solved by Gauss-Newton with the lambda eliminated through
 /// the Schur complement; the covariance is the marginal one of (omega, tau). Without
-/// translation lambda_k stays at 1 and nothing changes.
+/// translation lambda_k stays at 1 and nothing changes. The log-scale rows then also carry
+/// the horizontal expansion that the depth's change across a window adds
+/// (Options::scale_depth_gradient).
 ///
 /// Realtime: construction reserves the workspace for `max_windows` windows (the
 /// registration's window count); fit() allocates nothing and never throws.
@@ -82,6 +84,17 @@ class MotionFit {
     /// rotation. Solved jointly with (omega, tau) by Gauss-Newton (Schur complement).
     bool per_window_depth = true;
     double depth_prior_sigma = 0.5;  ///< prior spread of the relative inverse depth around 1
+    /// With per_window_depth: how much of the horizontal expansion that a change of depth
+    /// across a window adds the measured in-window scale carries. A window on a wall seen
+    /// at an angle expands vertically by -lambda (tau_x cos + tau_y sin), as the model's
+    /// ln s says, and horizontally by that plus dlambda/dtheta D (D = tau_y cos - tau_x sin,
+    /// the translation part of its du per unit inverse depth); the log-polar scale of such
+    /// an anisotropic expansion is a mix of the two. The fit subtracts
+    /// scale_depth_gradient * dlambda/dtheta * D from ln s, dlambda/dtheta taken from the
+    /// neighbouring windows' depths. 0.5 (default): the isotropic mix, a texture without a
+    /// preferred direction; 0: the model without the term, which read the expansion as
+    /// depth and let a robot driving along a wall turn (docs/results/ANALYSIS.md). [0, 1].
+    double scale_depth_gradient = 0.5;
     /// Each window's du and dv equations weighted by their own variance
     /// (WindowMotion::var_du, var_dv): the confidence divided by the variance over the
     /// pair's median window variance where that ratio is above 1, so a window that sees

@@ -58,6 +58,7 @@ std::vector<std::string> MotionFit::Options::validate() const {
   detail::checkRange(p, "max_residual_px", max_residual_px, 0.0, 1000.0, " pixels", true);
   detail::checkRange(p, "max_condition", max_condition, 1.0, 1e300, "", true);
   detail::checkRange(p, "depth_prior_sigma", depth_prior_sigma, 0.0, 1000.0, "", true);
+  detail::checkRange(p, "scale_depth_gradient", scale_depth_gradient, 0.0, 1.0);
   return p;
 }
 
@@ -76,6 +77,8 @@ struct MotionFit::Impl {
     int window = 0;             ///< index of the window the row belongs to
     double leverage = 0.0;      ///< share of the row absorbed by its window's inverse depth
     double sd = 1.0;  ///< relative standard deviation (Options::window_covariance)
+    double measured = 0.0;  ///< log scale rows: ln s as measured (b = measured less the
+                            ///< depth-gradient term, depthGradientTerms())
   };
 
   /// Allocates the workspace for `max_windows` windows (arguments already validated).
@@ -110,6 +113,14 @@ struct MotionFit::Impl {
   Eigen::Matrix<double, 6, 1> depthGaussNewton(std::span<const WindowMotion> windows,
                                                int n_rows, Eigen::Matrix<double, 6, 1> x,
                                                double sigma, int& iterations);
+  /// Sets b of every log-scale row to its measured ln s less the horizontal expansion that
+  /// the change of inverse depth across the window adds (Options::scale_depth_gradient):
+  /// alpha * dlambda/dtheta * D_k, with D_k the translation part of the window's du per
+  /// unit inverse depth (radians) and dlambda/dtheta from the neighbouring windows' depths
+  /// (the kept ones within two windows on each side; 0 without any). Depends on x and the
+  /// current depths, so depthGaussNewton() calls it before every step.
+  void depthGradientTerms(std::span<const WindowMotion> windows, int n_rows,
+                          const Eigen::Matrix<double, 6, 1>& x);
   /// The robust objective depthGaussNewton() lowers, at x and the current depth.
   double depthCost(std::span<const WindowMotion> windows, int n_rows,
                    const Eigen::Matrix<double, 6, 1>& x) const;
@@ -390,8 +401,12 @@ Eigen::Matrix<double, 6, 1> MotionFit::Impl::depthGaussNewton(
   const auto gauge = [&](int k) {
     return keep[k] && total > 0 ? windows[k].confidence / total : 0.0;
   };
-  double cost = depthCost(windows, n_rows, x);
+  double cost = 0.0;
   for (int pass = 0; pass < options.max_iterations; ++pass) {
+    // The depth-gradient terms move with x and the depths: the step of this pass, and the
+    // backtracking's costs, use the terms of the point it starts from.
+    depthGradientTerms(windows, n_rows, x);
+    cost = depthCost(windows, n_rows, x);
     Mat6 N = Mat6::Zero();
     Vec6 gx = Vec6::Zero();
     for (int k = 0; k < n; ++k) {
@@ -481,6 +496,39 @@ Eigen::Matrix<double, 6, 1> MotionFit::Impl::depthGaussNewton(
   return x;
 }
 
+void MotionFit::Impl::depthGradientTerms(std::span<const WindowMotion> windows, int n_rows,
+                                         const Eigen::Matrix<double, 6, 1>& x) {
+  const double alpha = options.scale_depth_gradient;
+  if (alpha == 0.0) return;
+  const int n = static_cast<int>(windows.size());
+  // The kept window nearest to k on one side (step +-1), within two windows; -1 if none.
+  const auto neighbour = [&](int k, int step) {
+    for (int j = 1; j <= 2; ++j) {
+      const int m = ((k + j * step) % n + n) % n;
+      if (m != k && keep[m]) return m;
+    }
+    return -1;
+  };
+  for (int i = 0; i < n_rows; ++i) {
+    Row& row = rows[i];
+    if (row.kind != kLogScale) continue;
+    const int k = row.window;
+    row.b = row.measured;
+    int lo = neighbour(k, -1), hi = neighbour(k, +1);
+    if (lo < 0 && hi < 0) continue;
+    if (lo < 0) lo = k;
+    if (hi < 0) hi = k;
+    const double span = std::remainder(gamma * (windows[hi].center_u - windows[lo].center_u),
+                                       2.0 * std::numbers::pi);
+    if (!(std::abs(span) > 0)) continue;
+    const double slope = (depth[hi] - depth[lo]) / span;
+    // The du row's translation columns are (-kappa sin, kappa cos, 0), the log-scale row's
+    // (-kappa cos, -kappa sin, 0): D_k = -kappa sin(theta) tau_x + kappa cos(theta) tau_y.
+    const double D = row.a0(4) * x(3) - row.a0(3) * x(4);
+    row.b = row.measured - alpha * slope * D;
+  }
+}
+
 void MotionFit::Impl::computeLeverage(std::span<const WindowMotion> windows, int n_rows,
                                       const Eigen::Matrix<double, 6, 1>& x) {
   for (int i = 0; i < n_rows; ++i) rows[i].leverage = 0.0;
@@ -539,6 +587,7 @@ MotionEstimate MotionFit::Impl::fit(std::span<const WindowMotion> windows,
           Row{m.rotation, m.rotation, windows[k].rotation, 1.0, conf, conf, kRotation, w};
       rows[n_rows++] = Row{m.log_scale, m.log_scale, std::log(windows[k].scale), 1.0, conf,
                             conf, kLogScale, w};
+      rows[n_rows - 1].measured = rows[n_rows - 1].b;
     }
     if (n_rows > n_trans) {
       const double floor_rs = 1e-4;

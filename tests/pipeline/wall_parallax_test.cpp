@@ -1,0 +1,74 @@
+// Driving along a near wall does not turn the robot: a window that sees the wall at an angle
+// expands horizontally more than vertically (the wall's distance changes across it), and the
+// in-window scale carries part of that. Read as depth alone, it pulled the per-window inverse
+// depths and with them the yaw (the drift benchmark's rectangle, docs/results/ANALYSIS.md).
+// Noise-free pairs rendered by the exact renderer in the box room, 1 m from a wall.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <numbers>
+
+#include "omnipose/pipeline.hpp"
+#include "omnipose/so3.hpp"
+#include "omnipose/synth/synth.hpp"
+#include "render_fixture.hpp"
+#include "test_figures.hpp"
+
+namespace omnipose {
+namespace {
+
+constexpr double kStep = 0.02;  ///< metres per frame: 0.6 m/s at 30 fps
+
+/// Camera pose at distance `along` on a straight drive parallel to the room's x = 3 m wall,
+/// 1 m from it, facing world +y (the wall on the right).
+Eigen::Isometry3d drivePose(double along) {
+  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+  T.linear() = rotationFromVector(Eigen::Vector3d(0, 0, std::numbers::pi / 2));
+  T.translation() = Eigen::Vector3d(2.0, along, 0.0);
+  return T;
+}
+
+/// RMS yaw error (rad) of the pairs (along, along + kStep) with `scale_depth_gradient`.
+double rmsYawError(const synth::Renderer& renderer, double scale_depth_gradient) {
+  PipelineOptions options;
+  options.unwrap.input = InputKind::kPanorama;
+  options.fit.scale_depth_gradient = scale_depth_gradient;
+  double sum_sq = 0.0;
+  int pairs = 0;
+  for (double along : {-1.2, -0.6, 0.0, 0.6}) {
+    Pipeline pipeline(Calibration{}, options);
+    for (double s : {along, along + kStep}) {
+      cv::Mat frame;
+      renderer.render(drivePose(s)).convertTo(frame, CV_8U);
+      auto m = pipeline.process(frame);
+      EXPECT_TRUE(m.has_value()) << (m ? "" : m.error().c_str());
+      if (!m || s == along) continue;
+      EXPECT_TRUE(m->has_motion) << along;
+      EXPECT_NE(m->estimate.status, FitStatus::kLost) << along;
+      // The camera only moved forward: every rotation is error.
+      const double yaw = rotationVector(m->rotation).z();
+      sum_sq += yaw * yaw;
+      ++pairs;
+    }
+  }
+  return pairs > 0 ? std::sqrt(sum_sq / pairs) : 1.0;
+}
+
+TEST(WallParallax, DrivingAlongANearWallDoesNotTurn) {
+  if (!std::filesystem::exists(testing::indoorPhoto()))
+    GTEST_SKIP() << "missing " << testing::indoorPhoto();
+  synth::RenderOptions o;
+  o.output = synth::OutputKind::kPanorama;
+  o.supersample = 2;
+  const synth::Renderer renderer(synth::Scene::load(testing::indoorPhoto(), synth::SceneKind::kBox),
+                                 Calibration{}, o);
+  const double with_term = rmsYawError(renderer, 0.5);
+  const double without = rmsYawError(renderer, 0.0);
+  testing::recordFigure("yaw_rms_rad_with_gradient_term", with_term, 6);
+  testing::recordFigure("yaw_rms_rad_without", without, 6);
+  EXPECT_LT(with_term, 0.25 * without);
+  EXPECT_LT(with_term, 3e-4);
+}
+
+}  // namespace
+}  // namespace omnipose
