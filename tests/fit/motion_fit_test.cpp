@@ -21,7 +21,10 @@ const double kGamma = 2 * std::numbers::pi / kW;
 using Vec6 = Eigen::Matrix<double, 6, 1>;
 
 /// Window motions the first-order model predicts for x, plus Gaussian noise (pixels /
-/// radians) and a fraction of gross outliers.
+/// radians) and a fraction of gross outliers. With `inverse_depth` (relative, per window),
+/// the scale is the isotropic mix of the window's vertical expansion (the model's ln s) and
+/// its horizontal one, which the change of depth across the window adds to
+/// (MotionFit::Options::scale_depth_gradient).
 std::vector<WindowMotion> synthesize(const Vec6& x, double noise_px, double outlier_fraction,
                                      std::mt19937& rng, double forward_column = 0.0,
                                      const std::vector<double>& inverse_depth = {}) {
@@ -36,7 +39,14 @@ std::vector<WindowMotion> synthesize(const Vec6& x, double noise_px, double outl
     const double theta = kGamma * (w.center_u - forward_column);
     Vec6 xk = x;
     if (!inverse_depth.empty()) xk.tail<3>() *= inverse_depth[k];
-    const ModelMotion m = predictMotion(xk, theta, kappa);
+    ModelMotion m = predictMotion(xk, theta, kappa);
+    if (!inverse_depth.empty()) {
+      const int n = kWindows;
+      const double slope = (inverse_depth[(k + 1) % n] - inverse_depth[(k + n - 1) % n]) /
+                           (2.0 * kStep * kGamma);
+      const double D = kappa * (-std::sin(theta) * x[3] + std::cos(theta) * x[4]);
+      m.log_scale += 0.5 * slope * D;
+    }
     w.du = m.du_rad / kGamma + noise_px * noise(rng);
     w.dv = m.dv_rad / kGamma + noise_px * noise(rng);
     // iFMI's rotation/scale noise, in proportion to its shift noise (0.1 px -> 0.002 rad).
