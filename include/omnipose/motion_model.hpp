@@ -13,6 +13,9 @@
 /// average motion inside it: the sinusoidal terms are therefore multiplied by the window
 /// attenuation kappa = E_w[cos(delta)] over the window's azimuth offsets delta, weighted by
 /// the window taper (kappa = 1 for an infinitely narrow window).
+/// ln s is the vertical expansion; where the scene's depth changes along the ring the
+/// horizontal one differs, which the fit adds with per-window depth
+/// (MotionFit::Options::scale_depth_gradient, DESIGN.md section 3).
 
 #include <Eigen/Core>
 
