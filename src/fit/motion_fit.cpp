@@ -77,8 +77,6 @@ struct MotionFit::Impl {
     int window = 0;             ///< index of the window the row belongs to
     double leverage = 0.0;      ///< share of the row absorbed by its window's inverse depth
     double sd = 1.0;  ///< relative standard deviation (Options::window_covariance)
-    double measured = 0.0;  ///< log scale rows: ln s as measured (b = measured less the
-                            ///< depth-gradient term, depthGradientTerms())
   };
 
   /// Allocates the workspace for `max_windows` windows (arguments already validated).
@@ -113,7 +111,7 @@ struct MotionFit::Impl {
   Eigen::Matrix<double, 6, 1> depthGaussNewton(std::span<const WindowMotion> windows,
                                                int n_rows, Eigen::Matrix<double, 6, 1> x,
                                                double sigma, int& iterations);
-  /// Sets b of every log-scale row to its measured ln s less the horizontal expansion that
+  /// Sets b of every log-scale row to its window's measured ln s less the horizontal expansion that
   /// the change of inverse depth across the window adds (Options::scale_depth_gradient):
   /// alpha * dlambda/dtheta * D_k, with D_k the translation part of the window's du per
   /// unit inverse depth (radians) and dlambda/dtheta from the neighbouring windows' depths
@@ -513,7 +511,7 @@ void MotionFit::Impl::depthGradientTerms(std::span<const WindowMotion> windows, 
     Row& row = rows[i];
     if (row.kind != kLogScale) continue;
     const int k = row.window;
-    row.b = row.measured;
+    row.b = std::log(windows[k].scale);  // as measured, and as fit() wrote it
     int lo = neighbour(k, -1), hi = neighbour(k, +1);
     if (lo < 0 && hi < 0) continue;
     if (lo < 0) lo = k;
@@ -525,7 +523,7 @@ void MotionFit::Impl::depthGradientTerms(std::span<const WindowMotion> windows, 
     // The du row's translation columns are (-kappa sin, kappa cos, 0), the log-scale row's
     // (-kappa cos, -kappa sin, 0): D_k = -kappa sin(theta) tau_x + kappa cos(theta) tau_y.
     const double D = row.a0(4) * x(3) - row.a0(3) * x(4);
-    row.b = row.measured - alpha * slope * D;
+    row.b -= alpha * slope * D;
   }
 }
 
@@ -587,7 +585,6 @@ MotionEstimate MotionFit::Impl::fit(std::span<const WindowMotion> windows,
           Row{m.rotation, m.rotation, windows[k].rotation, 1.0, conf, conf, kRotation, w};
       rows[n_rows++] = Row{m.log_scale, m.log_scale, std::log(windows[k].scale), 1.0, conf,
                             conf, kLogScale, w};
-      rows[n_rows - 1].measured = rows[n_rows - 1].b;
     }
     if (n_rows > n_trans) {
       const double floor_rs = 1e-4;

@@ -44,7 +44,8 @@ std::vector<WindowMotion> synthesize(const Vec6& x, double noise_px, double outl
       const int n = kWindows;
       const double slope = (inverse_depth[(k + 1) % n] - inverse_depth[(k + n - 1) % n]) /
                            (2.0 * kStep * kGamma);
-      const double D = kappa * (-std::sin(theta) * x[3] + std::cos(theta) * x[4]);
+      // D: the translation part of du per unit inverse depth.
+      const double D = modelRows(theta, kappa).du.tail<3>().dot(x.tail<3>());
       m.log_scale += 0.5 * slope * D;
     }
     w.du = m.du_rad / kGamma + noise_px * noise(rng);
