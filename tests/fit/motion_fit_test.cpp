@@ -280,11 +280,13 @@ TEST(MotionFit, InvalidOptionsNameEveryBadField) {
   o.median = 4;
   o.huber_delta_px = 0;
   o.inlier_sigmas = std::numeric_limits<double>::infinity();
+  o.scale_depth_gradient = 1.5;
   const auto problems = o.validate();
-  ASSERT_EQ(problems.size(), 3u);
+  ASSERT_EQ(problems.size(), 4u);
   EXPECT_EQ(problems[0], "huber_delta_px: 0 is outside (0, 100] pixels");
   EXPECT_EQ(problems[1], "median: 4 must be odd (or 0/1 = off)");
   EXPECT_EQ(problems[2], "inlier_sigmas: must be a finite number, not inf");
+  EXPECT_EQ(problems[3], "scale_depth_gradient: 1.5 is outside [0, 1]");
   EXPECT_THROW(MotionFit(o, kGamma, kWindow, kWindows), std::invalid_argument);
   EXPECT_THROW(MotionFit({}, kGamma, kWindow, 0), std::invalid_argument);  // no workspace
   EXPECT_TRUE(MotionFit::Options{}.validate().empty());
