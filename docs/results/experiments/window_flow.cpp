@@ -1,0 +1,199 @@
+// What each window measures against the box room's exact geometry (docs/results/ANALYSIS.md,
+// issue 27: the rectangle's heading drift).
+//
+// For every frame pair K-1 -> K of a box-room dataset rendered by omnipose-synth (the
+// default room: 6 x 5 m, floor -1 m, ceiling +1.5 m), the windows are registered as the
+// pipeline's first pass does it (WindowRegistration with the default pipeline options on the
+// pipeline's panoramas) and compared with the exact flow: each window's taper-weighted mean
+// du and dv over its pixels, and its exact horizontal and vertical expansions (ex, ey: the
+// taper-weighted regression slopes of du on the column offset and of dv on the row offset).
+// Each pair is then fitted (MotionFit, default options) three ways:
+//   measured   the registered windows;
+//   exact-uv   du and dv replaced by the exact means (the measured scale and rotation kept);
+//   exact-all  du, dv replaced, the scale by exp((ex + ey) / 2) (the isotropic mix the fit's
+//              model assumes, DESIGN.md section 3) and the in-window rotation by 0.
+// Printed per pair: the yaw error of each fit (fitted omega_z minus the true one, mrad) and,
+// over the windows, the RMS of ln(scale) - (ex + ey) / 2 and the ratio of the measured to the
+// exact ln(scale) in the windows within 20 degrees of the direction of travel (forward or
+// backward; pairs with translation only). The last line sums the yaw errors over the pairs,
+// in degrees: what each way would add to the chained heading.
+//
+// Built with the project (target omnipose-experiment-window-flow); run from the repository
+// root:
+//   build/bin/omnipose-experiment-window-flow DATASET FIRST LAST [--windows]
+//     DATASET  a box-room dataset with groundtruth.tum (frames rendered without noise
+//              show the model's error alone); FIRST..LAST: the current frames K of the pairs
+//     --windows  also print every window of every pair
+
+#include <Eigen/Geometry>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <cstring>
+#include <numbers>
+#include <string>
+#include <vector>
+
+#include "omnipose/io/dataset.hpp"
+#include "omnipose/motion_fit.hpp"
+#include "omnipose/pipeline.hpp"
+#include "omnipose/so3.hpp"
+#include "omnipose/synth/synth.hpp"
+#include "omnipose/unwrapper.hpp"
+#include "omnipose/window_registration.hpp"
+
+namespace {
+
+using namespace omnipose;
+
+/// Exact motion of one window between the two frames (current -> previous panorama).
+struct ExactWindow {
+  double du = 0.0, dv = 0.0;  ///< taper-weighted mean shift, pixels
+  double ex = 0.0, ey = 0.0;  ///< taper-weighted slopes d(du)/du and d(dv)/dv
+};
+
+/// Shift of u wrapped into (-W/2, W/2].
+double wrapColumns(double du, int width) {
+  if (du > width / 2.0) du -= width;
+  if (du <= -width / 2.0) du += width;
+  return du;
+}
+
+ExactWindow exactWindow(const PanoramaGeometry& g, const synth::Scene& room,
+                        const Eigen::Isometry3d& previous, const Eigen::Isometry3d& current,
+                        double centre_u, int top, int length) {
+  const Eigen::Isometry3d to_previous = previous.inverse();
+  double sw = 0, su = 0, sv = 0, sxx = 0, sxu = 0, syy = 0, syv = 0;
+  const double half = 0.5 * (length - 1);
+  for (int j = 0; j < length; ++j) {
+    for (int i = 0; i < length; ++i) {
+      const double u = centre_u - half + i, v = top + j;
+      const Eigen::Vector3d ray = current.linear() * g.bearing(u, v);
+      const Eigen::Vector3d point = room.textureDirection(current.translation(), ray);
+      const Eigen::Vector3d q = to_previous * point;
+      const double u_prev = g.column(std::atan2(q.y(), q.x()));
+      const double v_prev = g.row(q.z() / std::hypot(q.x(), q.y()));
+      const double du = wrapColumns(u_prev - std::fmod(u + 10.0 * g.width, g.width), g.width);
+      const double dv = v_prev - v;
+      const double w = windowTaper(i, length) * windowTaper(j, length);
+      const double x = i - half, y = j - half;
+      sw += w, su += w * du, sv += w * dv;
+      sxx += w * x * x, sxu += w * x * du, syy += w * y * y, syv += w * y * dv;
+    }
+  }
+  return {su / sw, sv / sw, sxu / sxx, syv / syy};
+}
+
+void usage() {
+  std::fprintf(stderr, "usage: omnipose-experiment-window-flow DATASET FIRST LAST [--windows]\n");
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  if (argc < 4 || argc > 5 || (argc == 5 && std::strcmp(argv[4], "--windows") != 0)) {
+    usage();
+    return 2;
+  }
+  const Dataset dataset = Dataset::open(argv[1]);
+  const int first = std::atoi(argv[2]), last = std::atoi(argv[3]);
+  const bool print_windows = argc == 5;
+  const int frames = static_cast<int>(dataset.frames.size());
+  if (!dataset.groundtruth || first < 1 || last < first || last >= frames ||
+      static_cast<int>(dataset.groundtruth->size()) != frames) {
+    std::fprintf(stderr, "%s: needs groundtruth.tum with a pose per frame and 1 <= FIRST <= LAST < %d\n",
+                 argv[1], frames);
+    return 2;
+  }
+  const auto& truth = *dataset.groundtruth;
+  const PanoramaGeometry& g = dataset.calibration.panorama;
+  synth::Scene room;
+  room.kind = synth::SceneKind::kBox;
+
+  PipelineOptions options;
+  Pipeline pipeline(dataset.calibration, options);
+  WindowRegistration registration(g.size(), options.registration);
+  const int n = registration.windowCount(), length = options.registration.window;
+  MotionFit fit(options.fit, g.gamma(), length, n);
+  std::vector<WindowMotion> measured(n), exact_uv(n), exact_all(n);
+  std::vector<ExactWindow> exact(n);
+
+  cv::Mat previous;
+  const auto panoramaOf = [&](int k) {
+    auto image = readFrame(dataset.frames[k].path,
+                           inputFrameSize(dataset.calibration, options.unwrap.input));
+    if (!image) {
+      const std::string message(image.error().message());
+      std::fprintf(stderr, "%s: %s\n", dataset.frames[k].path.c_str(), message.c_str());
+      std::exit(1);
+    }
+    (void)pipeline.process(*image);
+    return pipeline.lastPanorama().clone();
+  };
+  previous = panoramaOf(first - 1);
+
+  std::printf("# pair  yaw error [mrad]: measured  exact-uv  exact-all  |  ln s - mix RMS  "
+              "travel-direction ln s measured/exact\n");
+  double sum[3] = {0, 0, 0};
+  for (int k = first; k <= last; ++k) {
+    const cv::Mat current = panoramaOf(k);
+    registration.setReference(previous);
+    registration.measure(current, measured);
+    const Eigen::Isometry3d& pose_prev = truth[k - 1].pose;
+    const Eigen::Isometry3d& pose_cur = truth[k].pose;
+    const Eigen::Vector3d omega_true =
+        rotationVector(pose_prev.linear().transpose() * pose_cur.linear());
+    const Eigen::Vector3d t_cam = pose_prev.inverse() * pose_cur.translation();
+    double rr = 0.0, ratio = 0.0;
+    int used = 0, travel = 0;
+    for (int w = 0; w < n; ++w) {
+      exact[w] = exactWindow(g, room, pose_prev, pose_cur, registration.windowCenter(w),
+                             registration.windowTop(), length);
+      exact_uv[w] = measured[w];
+      exact_uv[w].du = exact[w].du;
+      exact_uv[w].dv = exact[w].dv;
+      exact_all[w] = exact_uv[w];
+      const double mix = 0.5 * (exact[w].ex + exact[w].ey);
+      exact_all[w].scale = std::exp(mix);
+      exact_all[w].rotation = 0.0;
+      if (!measured[w].valid || measured[w].rs_confidence <= 0) continue;
+      const double ln_s = std::log(measured[w].scale);
+      rr += (ln_s - mix) * (ln_s - mix);
+      ++used;
+      // Within 20 degrees of the direction of travel, forward or backward.
+      const double theta = g.azimuth(measured[w].center_u);
+      const double travel_theta = std::atan2(t_cam.y(), t_cam.x());
+      if (omega_true.norm() < 1e-9 && t_cam.norm() > 0 &&
+          std::abs(std::sin(theta - travel_theta)) < std::sin(20.0 * std::numbers::pi / 180) &&
+          std::abs(mix) > 1e-6) {
+        ratio += ln_s / mix;
+        ++travel;
+      }
+    }
+    double yaw[3];
+    const std::vector<WindowMotion>* inputs[3] = {&measured, &exact_uv, &exact_all};
+    for (int i = 0; i < 3; ++i) {
+      const MotionEstimate e = fit.fit(*inputs[i], g.forward_column);
+      yaw[i] = e.status != FitStatus::kLost ? e.omega.z() - omega_true.z() : std::nan("");
+      sum[i] += yaw[i];
+    }
+    std::printf("%5d  %+9.4f %+9.4f %+9.4f  |  %.5f  %s\n", k, yaw[0] * 1e3, yaw[1] * 1e3,
+                yaw[2] * 1e3, used > 0 ? std::sqrt(rr / used) : std::nan(""),
+                travel > 0 ? std::to_string(ratio / travel).c_str() : "-");
+    if (print_windows) {
+      std::printf("#   k theta[deg] valid  du meas/exact [px]   dv meas/exact [px]   "
+                  "ln s meas  ex  ey\n");
+      for (int w = 0; w < n; ++w) {
+        std::printf("  %3d %7.1f %d  %+8.4f %+8.4f  %+8.4f %+8.4f  %+8.5f %+8.5f %+8.5f\n", w,
+                    g.azimuth(measured[w].center_u) * 180 / std::numbers::pi, measured[w].valid,
+                    measured[w].du, exact[w].du, measured[w].dv, exact[w].dv,
+                    std::log(measured[w].scale), exact[w].ex, exact[w].ey);
+      }
+    }
+    previous = current;
+  }
+  const double to_deg = 180.0 / std::numbers::pi;
+  std::printf("# sum over %d pairs [deg]: measured %+.3f  exact-uv %+.3f  exact-all %+.3f\n",
+              last - first + 1, sum[0] * to_deg, sum[1] * to_deg, sum[2] * to_deg);
+  return 0;
+}
