@@ -15,8 +15,10 @@
 // Printed per pair: the yaw error of each fit (fitted omega_z minus the true one, mrad) and,
 // over the windows, the RMS of ln(scale) - (ex + ey) / 2 and the ratio of the measured to the
 // exact ln(scale) in the windows within 20 degrees of the direction of travel (forward or
-// backward; pairs with translation only). The last line sums the yaw errors over the pairs,
-// in degrees: what each way would add to the chained heading.
+// backward; pairs with translation only). The last lines sum the yaw errors over the pairs,
+// in degrees (what each way would add to the chained heading), and give the least-squares
+// fit ln(scale) ~ a ex + b ey over all valid windows of all pairs: how the log-polar
+// correlation mixes the two expansions (the model assumes a = b = 1/2).
 //
 // Built with the project (target omnipose-experiment-window-flow); run from the repository
 // root:
@@ -26,6 +28,7 @@
 //     --windows  also print every window of every pair
 
 #include <Eigen/Geometry>
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
@@ -135,6 +138,8 @@ int main(int argc, char** argv) {
   std::printf("# pair  yaw error [mrad]: measured  exact-uv  exact-all  |  ln s - mix RMS  "
               "travel-direction ln s measured/exact\n");
   double sum[3] = {0, 0, 0};
+  double sxx = 0, sxy = 0, syy = 0, sxl = 0, syl = 0;  // normal equations of ln s ~ a ex + b ey
+  int regressed = 0;
   for (int k = first; k <= last; ++k) {
     const cv::Mat current = panoramaOf(k);
     registration.setReference(previous);
@@ -159,6 +164,9 @@ int main(int argc, char** argv) {
       if (!measured[w].valid || measured[w].rs_confidence <= 0) continue;
       const double ln_s = std::log(measured[w].scale);
       rr += (ln_s - mix) * (ln_s - mix);
+      const double ex = exact[w].ex, ey = exact[w].ey;
+      sxx += ex * ex, sxy += ex * ey, syy += ey * ey, sxl += ex * ln_s, syl += ey * ln_s;
+      ++regressed;
       ++used;
       // Within 20 degrees of the direction of travel, forward or backward.
       const double theta = g.azimuth(measured[w].center_u);
@@ -195,5 +203,12 @@ int main(int argc, char** argv) {
   const double to_deg = 180.0 / std::numbers::pi;
   std::printf("# sum over %d pairs [deg]: measured %+.3f  exact-uv %+.3f  exact-all %+.3f\n",
               last - first + 1, sum[0] * to_deg, sum[1] * to_deg, sum[2] * to_deg);
+  const double det = sxx * syy - sxy * sxy;
+  // Only with expansions to speak of (RMS above 1e-4: translation) that are not proportional.
+  constexpr double kMinExpansion = 1e-4;
+  if (regressed > 0 && std::min(sxx, syy) > regressed * kMinExpansion * kMinExpansion &&
+      det > 1e-6 * sxx * syy)
+    std::printf("# ln s ~ %.3f ex + %.3f ey (least squares over the valid windows)\n",
+                (sxl * syy - syl * sxy) / det, (syl * sxx - sxl * sxy) / det);
   return 0;
 }
