@@ -20,12 +20,19 @@
 // fit ln(scale) ~ a ex + b ey over all valid windows of all pairs: how the log-polar
 // correlation mixes the two expansions (the model assumes a = b = 1/2).
 //
+// --dewarp (slow: one registration of the whole panorama per window): each window of the
+// current panorama is also de-warped about its centre by its exact expansions (ex, ey;
+// bicubic) and registered again, so that what is left of its scale is what a perfectly
+// predicted anisotropic de-warp would leave; printed: the RMS of that residual ln s, and the
+// yaw error of a fourth fit, on the measured windows with ln s = (ex + ey) / 2 + the residual.
+//
 // Built with the project (target omnipose-experiment-window-flow); run from the repository
 // root:
-//   build/bin/omnipose-experiment-window-flow DATASET FIRST LAST [--windows]
+//   build/bin/omnipose-experiment-window-flow DATASET FIRST LAST [--windows | --dewarp]
 //     DATASET  a box-room dataset with groundtruth.tum (frames rendered without noise
 //              show the model's error alone); FIRST..LAST: the current frames K of the pairs
 //     --windows  also print every window of every pair
+//     --dewarp   add the de-warped registration (see above)
 
 #include <Eigen/Geometry>
 #include <algorithm>
@@ -34,6 +41,7 @@
 #include <cstdlib>
 #include <cstring>
 #include <numbers>
+#include <opencv2/imgproc.hpp>
 #include <string>
 #include <vector>
 
@@ -87,20 +95,40 @@ ExactWindow exactWindow(const PanoramaGeometry& g, const synth::Scene& room,
   return {su / sw, sv / sw, sxu / sxx, syv / syy};
 }
 
+/// `current` re-sampled about window centre (u_c, v_c) so that its expansion by
+/// (exp(ln_x), exp(ln_y)) is undone (u wraps around the ring).
+cv::Mat dewarp(const cv::Mat& current, double u_c, double v_c, double ln_x, double ln_y) {
+  cv::Mat map_u(current.size(), CV_32F), map_v(current.size(), CV_32F);
+  const int width = current.cols;
+  for (int v = 0; v < current.rows; ++v) {
+    for (int u = 0; u < width; ++u) {
+      const double source = u_c + wrapColumns(u - u_c, width) * std::exp(-ln_x);
+      map_u.at<float>(v, u) = static_cast<float>(source - width * std::floor(source / width));
+      map_v.at<float>(v, u) = static_cast<float>(v_c + (v - v_c) * std::exp(-ln_y));
+    }
+  }
+  cv::Mat out;
+  cv::remap(current, out, map_u, map_v, cv::INTER_CUBIC, cv::BORDER_WRAP);
+  return out;
+}
+
 void usage() {
-  std::fprintf(stderr, "usage: omnipose-experiment-window-flow DATASET FIRST LAST [--windows]\n");
+  std::fprintf(stderr,
+               "usage: omnipose-experiment-window-flow DATASET FIRST LAST [--windows | --dewarp]\n");
 }
 
 }  // namespace
 
 int main(int argc, char** argv) {
-  if (argc < 4 || argc > 5 || (argc == 5 && std::strcmp(argv[4], "--windows") != 0)) {
+  if (argc < 4 || argc > 5 ||
+      (argc == 5 && std::strcmp(argv[4], "--windows") != 0 && std::strcmp(argv[4], "--dewarp") != 0)) {
     usage();
     return 2;
   }
   const Dataset dataset = Dataset::open(argv[1]);
   const int first = std::atoi(argv[2]), last = std::atoi(argv[3]);
-  const bool print_windows = argc == 5;
+  const bool print_windows = argc == 5 && std::strcmp(argv[4], "--windows") == 0;
+  const bool with_dewarp = argc == 5 && std::strcmp(argv[4], "--dewarp") == 0;
   const int frames = static_cast<int>(dataset.frames.size());
   if (!dataset.groundtruth || first < 1 || last < first || last >= frames ||
       static_cast<int>(dataset.groundtruth->size()) != frames) {
@@ -118,7 +146,7 @@ int main(int argc, char** argv) {
   WindowRegistration registration(g.size(), options.registration);
   const int n = registration.windowCount(), length = options.registration.window;
   MotionFit fit(options.fit, g.gamma(), length, n);
-  std::vector<WindowMotion> measured(n), exact_uv(n), exact_all(n);
+  std::vector<WindowMotion> measured(n), exact_uv(n), exact_all(n), dewarped(n), again(n);
   std::vector<ExactWindow> exact(n);
 
   cv::Mat previous;
@@ -136,8 +164,9 @@ int main(int argc, char** argv) {
   previous = panoramaOf(first - 1);
 
   std::printf("# pair  yaw error [mrad]: measured  exact-uv  exact-all  |  ln s - mix RMS  "
-              "travel-direction ln s measured/exact\n");
-  double sum[3] = {0, 0, 0};
+              "travel-direction ln s measured/exact%s\n",
+              with_dewarp ? "  |  de-warped: residual ln s RMS, yaw error [mrad]" : "");
+  double sum[4] = {0, 0, 0, 0};
   double sxx = 0, sxy = 0, syy = 0, sxl = 0, syl = 0;  // normal equations of ln s ~ a ex + b ey
   int regressed = 0;
   for (int k = first; k <= last; ++k) {
@@ -178,16 +207,42 @@ int main(int argc, char** argv) {
         ++travel;
       }
     }
-    double yaw[3];
+    double residual_rr = 0.0;
+    int residuals = 0;
+    if (with_dewarp) {
+      dewarped = measured;
+      const double v_c = registration.windowTop() + 0.5 * (length - 1);
+      for (int w = 0; w < n; ++w) {
+        if (!measured[w].valid || measured[w].rs_confidence <= 0) continue;
+        registration.measure(dewarp(current, registration.windowCenter(w), v_c, exact[w].ex,
+                                    exact[w].ey),
+                             again);
+        if (again[w].rs_confidence <= 0) continue;
+        const double residual = std::log(again[w].scale);
+        dewarped[w].scale = std::exp(0.5 * (exact[w].ex + exact[w].ey) + residual);
+        residual_rr += residual * residual;
+        ++residuals;
+      }
+    }
+    double yaw[4] = {0, 0, 0, 0};
     const std::vector<WindowMotion>* inputs[3] = {&measured, &exact_uv, &exact_all};
     for (int i = 0; i < 3; ++i) {
       const MotionEstimate e = fit.fit(*inputs[i], g.forward_column);
       yaw[i] = e.status != FitStatus::kLost ? e.omega.z() - omega_true.z() : std::nan("");
       sum[i] += yaw[i];
     }
-    std::printf("%5d  %+9.4f %+9.4f %+9.4f  |  %.5f  %s\n", k, yaw[0] * 1e3, yaw[1] * 1e3,
+    if (with_dewarp) {
+      const MotionEstimate e = fit.fit(dewarped, g.forward_column);
+      yaw[3] = e.status != FitStatus::kLost ? e.omega.z() - omega_true.z() : std::nan("");
+      sum[3] += yaw[3];
+    }
+    std::printf("%5d  %+9.4f %+9.4f %+9.4f  |  %.5f  %s", k, yaw[0] * 1e3, yaw[1] * 1e3,
                 yaw[2] * 1e3, used > 0 ? std::sqrt(rr / used) : std::nan(""),
                 travel > 0 ? std::to_string(ratio / travel).c_str() : "-");
+    if (with_dewarp)
+      std::printf("  |  %.5f %+9.4f", residuals > 0 ? std::sqrt(residual_rr / residuals) : std::nan(""),
+                  yaw[3] * 1e3);
+    std::printf("\n");
     if (print_windows) {
       std::printf("#   k theta[deg] valid  du meas/exact [px]   dv meas/exact [px]   "
                   "ln s meas  ex  ey\n");
@@ -201,8 +256,10 @@ int main(int argc, char** argv) {
     previous = current;
   }
   const double to_deg = 180.0 / std::numbers::pi;
-  std::printf("# sum over %d pairs [deg]: measured %+.3f  exact-uv %+.3f  exact-all %+.3f\n",
+  std::printf("# sum over %d pairs [deg]: measured %+.3f  exact-uv %+.3f  exact-all %+.3f",
               last - first + 1, sum[0] * to_deg, sum[1] * to_deg, sum[2] * to_deg);
+  if (with_dewarp) std::printf("  de-warped %+.3f", sum[3] * to_deg);
+  std::printf("\n");
   const double det = sxx * syy - sxy * sxy;
   // Only with expansions to speak of (RMS above 1e-4: translation) that are not proportional.
   constexpr double kMinExpansion = 1e-4;
