@@ -101,10 +101,10 @@ class MotionFit {
     /// only vertical edges gives its du and hardly its dv; the loss and the inlier test
     /// read its residuals in units of its own standard deviation. Windows without
     /// variances (0) count as the median. Off by default: it lowers the rotation error of
-    /// frame pairs (indoor 15-20 %, Kogeto-like pitch 30 %), but while the robot drives
-    /// through a room it biases yaw, and the rectangle of the drift benchmark ended 6.2
-    /// instead of 2.7 degrees off (docs/results/ANALYSIS.md). false: the confidence alone
-    /// weighs both (the paper).
+    /// frame pairs (indoor 7-17 %, Kogeto-like pitch 30 %), but the translation direction
+    /// of the accuracy benchmark's room sequence is 46 % worse and the drift benchmark's
+    /// rectangle ends 1.87 instead of 1.67 degrees off (docs/results/ANALYSIS.md). false:
+    /// the confidence alone weighs both (the paper).
     bool window_covariance = false;
 
     /// Every problem, one message per bad field, each starting with the field's name
