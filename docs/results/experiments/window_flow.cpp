@@ -40,6 +40,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
+#include <exception>
 #include <numbers>
 #include <opencv2/imgproc.hpp>
 #include <string>
@@ -113,15 +114,14 @@ cv::Mat dewarp(const cv::Mat& current, double u_c, double v_c, double ln_x, doub
 }
 
 void usage() {
-  std::fprintf(stderr,
-               "usage: omnipose-experiment-window-flow DATASET FIRST LAST [--windows | --dewarp]\n");
+  std::fprintf(stderr, "usage: omnipose-experiment-window-flow DATASET FIRST LAST "
+                       "[--windows | --dewarp]\n");
 }
 
-}  // namespace
-
-int main(int argc, char** argv) {
-  if (argc < 4 || argc > 5 ||
-      (argc == 5 && std::strcmp(argv[4], "--windows") != 0 && std::strcmp(argv[4], "--dewarp") != 0)) {
+int run(int argc, char** argv) {
+  const bool flag_known = argc == 5 && (std::strcmp(argv[4], "--windows") == 0 ||
+                                        std::strcmp(argv[4], "--dewarp") == 0);
+  if (argc < 4 || argc > 5 || (argc == 5 && !flag_known)) {
     usage();
     return 2;
   }
@@ -132,7 +132,8 @@ int main(int argc, char** argv) {
   const int frames = static_cast<int>(dataset.frames.size());
   if (!dataset.groundtruth || first < 1 || last < first || last >= frames ||
       static_cast<int>(dataset.groundtruth->size()) != frames) {
-    std::fprintf(stderr, "%s: needs groundtruth.tum with a pose per frame and 1 <= FIRST <= LAST < %d\n",
+    std::fprintf(stderr,
+                 "%s: needs groundtruth.tum with a pose per frame and 1 <= FIRST <= LAST < %d\n",
                  argv[1], frames);
     return 2;
   }
@@ -240,8 +241,8 @@ int main(int argc, char** argv) {
                 yaw[2] * 1e3, used > 0 ? std::sqrt(rr / used) : std::nan(""),
                 travel > 0 ? std::to_string(ratio / travel).c_str() : "-");
     if (with_dewarp)
-      std::printf("  |  %.5f %+9.4f", residuals > 0 ? std::sqrt(residual_rr / residuals) : std::nan(""),
-                  yaw[3] * 1e3);
+      std::printf("  |  %.5f %+9.4f",
+                  residuals > 0 ? std::sqrt(residual_rr / residuals) : std::nan(""), yaw[3] * 1e3);
     std::printf("\n");
     if (print_windows) {
       std::printf("#   k theta[deg] valid  du meas/exact [px]   dv meas/exact [px]   "
@@ -268,4 +269,15 @@ int main(int argc, char** argv) {
     std::printf("# ln s ~ %.3f ex + %.3f ey (least squares over the valid windows)\n",
                 (sxl * syy - syl * sxy) / det, (syl * sxx - sxl * sxy) / det);
   return 0;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  try {
+    return run(argc, argv);
+  } catch (const std::exception& e) {  // a dataset that does not open, a bad calibration
+    std::fprintf(stderr, "omnipose-experiment-window-flow: %s\n", e.what());
+    return 1;
+  }
 }
