@@ -62,14 +62,9 @@ using namespace omnipose;
 struct ExactWindow {
   double du = 0.0, dv = 0.0;  ///< taper-weighted mean shift, pixels
   double ex = 0.0, ey = 0.0;  ///< taper-weighted slopes d(du)/du and d(dv)/dv
+  /// ln s of the fit's model: the isotropic mix of the two expansions.
+  double mix() const { return 0.5 * (ex + ey); }
 };
-
-/// Shift of u wrapped into (-W/2, W/2].
-double wrapColumns(double du, int width) {
-  if (du > width / 2.0) du -= width;
-  if (du <= -width / 2.0) du += width;
-  return du;
-}
 
 ExactWindow exactWindow(const PanoramaGeometry& g, const synth::Scene& room,
                         const Eigen::Isometry3d& previous, const Eigen::Isometry3d& current,
@@ -85,7 +80,7 @@ ExactWindow exactWindow(const PanoramaGeometry& g, const synth::Scene& room,
       const Eigen::Vector3d q = to_previous * point;
       const double u_prev = g.column(std::atan2(q.y(), q.x()));
       const double v_prev = g.row(q.z() / std::hypot(q.x(), q.y()));
-      const double du = wrapColumns(u_prev - std::fmod(u + 10.0 * g.width, g.width), g.width);
+      const double du = std::remainder(u_prev - u, g.width);  // around the ring
       const double dv = v_prev - v;
       const double w = windowTaper(i, length) * windowTaper(j, length);
       const double x = i - half, y = j - half;
@@ -103,7 +98,7 @@ cv::Mat dewarp(const cv::Mat& current, double u_c, double v_c, double ln_x, doub
   const int width = current.cols;
   for (int v = 0; v < current.rows; ++v) {
     for (int u = 0; u < width; ++u) {
-      const double source = u_c + wrapColumns(u - u_c, width) * std::exp(-ln_x);
+      const double source = u_c + std::remainder(u - u_c, width) * std::exp(-ln_x);
       map_u.at<float>(v, u) = static_cast<float>(source - width * std::floor(source / width));
       map_v.at<float>(v, u) = static_cast<float>(v_c + (v - v_c) * std::exp(-ln_y));
     }
@@ -179,6 +174,7 @@ int run(int argc, char** argv) {
     const Eigen::Vector3d omega_true =
         rotationVector(pose_prev.linear().transpose() * pose_cur.linear());
     const Eigen::Vector3d t_cam = pose_prev.inverse() * pose_cur.translation();
+    const double travel_theta = std::atan2(t_cam.y(), t_cam.x());
     double rr = 0.0, ratio = 0.0;
     int used = 0, travel = 0;
     for (int w = 0; w < n; ++w) {
@@ -188,7 +184,7 @@ int run(int argc, char** argv) {
       exact_uv[w].du = exact[w].du;
       exact_uv[w].dv = exact[w].dv;
       exact_all[w] = exact_uv[w];
-      const double mix = 0.5 * (exact[w].ex + exact[w].ey);
+      const double mix = exact[w].mix();
       exact_all[w].scale = std::exp(mix);
       exact_all[w].rotation = 0.0;
       if (!measured[w].valid || measured[w].rs_confidence <= 0) continue;
@@ -200,7 +196,6 @@ int run(int argc, char** argv) {
       ++used;
       // Within 20 degrees of the direction of travel, forward or backward.
       const double theta = g.azimuth(measured[w].center_u);
-      const double travel_theta = std::atan2(t_cam.y(), t_cam.x());
       if (omega_true.norm() < 1e-9 && t_cam.norm() > 0 &&
           std::abs(std::sin(theta - travel_theta)) < std::sin(20.0 * std::numbers::pi / 180) &&
           std::abs(mix) > 1e-6) {
@@ -220,7 +215,7 @@ int run(int argc, char** argv) {
                              again);
         if (again[w].rs_confidence <= 0) continue;
         const double residual = std::log(again[w].scale);
-        dewarped[w].scale = std::exp(0.5 * (exact[w].ex + exact[w].ey) + residual);
+        dewarped[w].scale = std::exp(exact[w].mix() + residual);
         residual_rr += residual * residual;
         ++residuals;
       }
