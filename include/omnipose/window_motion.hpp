@@ -39,6 +39,11 @@ struct WindowMotion {
   double var_du = 0.0;
   double var_dv = 0.0;
   double cov_du_dv = 0.0;
+  /// Share of the window's taper weight whose pixels its own motion does not explain
+  /// (content moving on its own: a person walking by), in [0, 1]; the refinement pass's
+  /// windows only (PipelineOptions::moving_content), 0 otherwise. confidence and
+  /// rs_confidence are already lowered by it (0 from 0.06 on).
+  double moving_fraction = 0.0;
   bool valid = false;       ///< false: window has no texture / no peak (confidence below
                             ///< min_confidence); ignore it. du, dv = 0 for a textureless window
   bool masked = false;      ///< mostly masked (setValidity): not measured, valid = false

@@ -44,6 +44,14 @@ WindowRegistration::Options registrationOptions(const PipelineOptions& o) {
   return r;
 }
 
+/// The centre column of every window of `registration`.
+std::vector<double> windowCenters(const WindowRegistration& registration) {
+  std::vector<double> centers;
+  for (int k = 0; k < registration.windowCount(); ++k)
+    centers.push_back(registration.windowCenter(k));
+  return centers;
+}
+
 }  // namespace
 
 FrameRegistrar::WisdomFile::WisdomFile(std::string file)
@@ -72,9 +80,12 @@ FrameRegistrar::FrameRegistrar(const Calibration& c, const PipelineOptions& o, i
                     WindowRegistration::PipelineResources{pool_, wisdom_.effort()}),
       fit_(o.fit, c.panorama.gamma(), o.registration.window, registration_.windowCount()),
       window_overlap_(windowOverlapFactor(o.registration.window, o.registration.step)),
-      warp_(c.panorama) {
+      warp_(c.panorama),
+      moving_(unwrapper_.validity(), o.registration.window, registration_.windowTop(),
+              windowCenters(registration_)) {
   panorama_ = unwrapper_.makePanorama();
   warped_ = unwrapper_.makePanorama();
+  previous_ = unwrapper_.makePanorama();
   // Mask, frame border, lens domain: what the windows must leave out.
   registration_.setValidity(unwrapper_.validity());
   if (const int measurable = registration_.windowCount() - registration_.maskedWindowCount();
@@ -93,6 +104,7 @@ FrameRegistrar::FrameRegistrar(const Calibration& c, const PipelineOptions& o, i
   refine_windows_.resize(windows);
   shifts_only_.resize(windows);  // rs_confidence 0: no rotation/scale
   expected_dv_.resize(windows);
+  moving_fraction_.resize(windows);
   for (int k = 0; k < registration_.windowCount(); ++k)
     window_azimuth_.push_back(c.panorama.azimuth(registration_.windowCenter(k)));
   if (c.sensor.readout_s != 0.0) measureWindowTimes();
@@ -157,6 +169,7 @@ Expected<void> FrameRegistrar::unwrap(const cv::Mat& frame) {
 
 void FrameRegistrar::makeCurrentPrevious() {
   registration_.setReference(panorama_);
+  panorama_.copyTo(previous_);
   has_previous_ = true;
 }
 
@@ -341,6 +354,7 @@ PassResult FrameRegistrar::refine(const MotionEstimate& start, const Eigen::Matr
     derotate(R_warp);
     predictRefinementShifts(tau, last_fit);
     if (!registration_.measure(warped_, refine_windows_, false, {}, expected_dv_, against)) break;
+    if (options_.moving_content) discountMovingContent(refine_windows_, against);
     const MotionEstimate residual = fitPass(refine_windows_, rotationVector(R_warp));
     if (residual.status == FitStatus::kLost) {
       est.status = FitStatus::kDegraded;  // keep the estimate so far, trust it less
@@ -364,6 +378,21 @@ PassResult FrameRegistrar::refine(const MotionEstimate& start, const Eigen::Matr
   out.estimate = est;
   out.rotation = R;
   return out;
+}
+
+void FrameRegistrar::discountMovingContent(std::span<WindowMotion> windows, int against) {
+  const cv::Mat& reference =
+      against == WindowRegistration::kPreviousFrame
+          ? previous_
+          : keyframe_panoramas_[static_cast<std::size_t>(against)];
+  moving_.measure(reference, warped_, warp_, windows, pool_, moving_fraction_);
+  for (std::size_t k = 0; k < windows.size(); ++k) {
+    WindowMotion& m = windows[k];
+    m.moving_fraction = moving_fraction_[k];
+    const double weight = MovingContentCheck::weight(m.moving_fraction);
+    m.confidence *= weight;
+    m.rs_confidence *= weight;
+  }
 }
 
 bool FrameRegistrar::storeKeyframe(int slot) {

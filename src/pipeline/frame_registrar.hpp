@@ -21,6 +21,7 @@
 #include "omnipose/pipeline.hpp"
 #include "omnipose/unwrapper.hpp"
 #include "omnipose/window_registration.hpp"
+#include "pipeline/moving_content.hpp"
 #include "pipeline/panorama_warp.hpp"
 #include "pipeline/ring_alignment.hpp"
 #include "registration/worker_pool.hpp"
@@ -95,7 +96,10 @@ class FrameRegistrar {
   PassResult refine(const MotionEstimate& start, const Eigen::Matrix3d& R,
                     const Eigen::Vector3d& tau, int against);
   /// The candidate next reference (firstPass()) becomes the previous frame.
-  void advance() { registration_.advance(); }
+  void advance() {
+    registration_.advance();
+    panorama_.copyTo(previous_);
+  }
 
   /// Makes the previous frame (after advance() or makeCurrentPrevious(): the current one)
   /// keyframe `slot`, with the current panorama for the ring search. The panorama moves
@@ -140,6 +144,10 @@ class FrameRegistrar {
   /// tilt is under one column's angle (else `R`): the de-rotation a refinement pass warps by.
   Eigen::Matrix3d wholeColumnYaw(const Eigen::Matrix3d& R) const;
   void derotate(const Eigen::Matrix3d& R);
+  /// MovingContentCheck of `windows`, measured between the reference panorama of `against`
+  /// and the de-rotated current one (warped_), into each window's moving_fraction, and its
+  /// confidences lowered by MovingContentCheck::weight().
+  void discountMovingContent(std::span<WindowMotion> windows, int against);
   /// The motion fit of `windows`, its covariance multiplied by window_overlap_.
   MotionEstimate fitWindows(std::span<const WindowMotion> windows);
   /// fitWindows() of the windows of a pass over the current panorama de-rotated by
@@ -164,7 +172,11 @@ class FrameRegistrar {
   double window_overlap_;
   PanoramaWarp warp_;
   std::optional<RingAlignment> ring_;
-  cv::Mat panorama_, warped_;
+  MovingContentCheck moving_;
+  /// The current panorama, its de-rotation, and the previous frame's panorama (the
+  /// reference of the pixel checks against the previous frame).
+  cv::Mat panorama_, warped_, previous_;
+  std::vector<double> moving_fraction_;  ///< per window, discountMovingContent()
   std::vector<cv::Mat> keyframe_panoramas_;  ///< per keyframe slot
   std::vector<WindowMotion> windows_, refine_windows_;
   std::vector<WindowMotion> shifts_only_;  ///< "known" rotation/scale for a shift-only pass

@@ -44,6 +44,18 @@ Eigen::Vector2d PanoramaWarp::displacementAt(const Eigen::Matrix3d& R, double u,
                       geometry_.cylinderHeight(v), v);
 }
 
+Eigen::Vector2f PanoramaWarp::gridDisplacement(int u, int v) const {
+  const int gx = u / kGridStep, gy = v / kGridStep;
+  const float fx = static_cast<float>(u - gx * kGridStep) / kGridStep;
+  const float fy = static_cast<float>(v - gy * kGridStep) / kGridStep;
+  const std::size_t i0 = static_cast<std::size_t>(gy) * grid_cols_ + gx, i1 = i0 + grid_cols_;
+  const auto at = [&](const std::vector<float>& g) {
+    return (1.0f - fy) * ((1.0f - fx) * g[i0] + fx * g[i0 + 1]) +
+           fy * ((1.0f - fx) * g[i1] + fx * g[i1 + 1]);
+  };
+  return {at(grid_du_), at(grid_dv_)};
+}
+
 void PanoramaWarp::projectGridRows(const Eigen::Matrix3d& R, int first, int last) {
   const Eigen::Matrix3d Rt = R.transpose();
   for (int gy = first; gy < last; ++gy) {

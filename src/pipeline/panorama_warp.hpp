@@ -41,6 +41,9 @@ class PanoramaWarp {
   /// (u, v): `out` at (u, v) samples `current` at (u + du, v + dv) (the grid interpolates
   /// this). du is the azimuth change wrapped to (-W/2, W/2].
   Eigen::Vector2d displacementAt(const Eigen::Matrix3d& R, double u, double v) const;
+  /// The displacement of the last projectGridRows() at pixel (u, v) as derotateRows()
+  /// interpolates it from the grid, pixels. Requires 0 <= u < W, 0 <= v < H.
+  Eigen::Vector2f gridDisplacement(int u, int v) const;
 
  private:
   /// displacementAt() for the unit-cylinder point (cos theta, sin theta, h) at row v, given

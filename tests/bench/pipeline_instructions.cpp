@@ -7,10 +7,12 @@
 //   -> "Collected" instructions / 10 = instructions per frame.
 // Usage: omnipose-bench-instructions [--threads N] [--frames K] [--warmup W]
 //                                    [--refine R] [--wisdom FILE] [--save DIR | --load DIR]
-//                                    [--odometry [--readout S]]
+//                                    [--odometry [--readout S]] [--no-moving-content]
 // --odometry processes the frames with Odometry (what omniposed and omnipose-replay run),
 // stamped at 30 fps, instead of Pipeline; --readout S gives the calibration a rolling
 // shutter of S seconds (the rows' capture times corrected in every pass).
+// --no-moving-content turns the refinement pass's check for content moving on its own off
+// (PipelineOptions::moving_content), to count what it costs.
 // --save writes the two rendered frames to DIR/a.png, DIR/b.png; --load reads them instead
 // of rendering (an emulator then spends nothing on the renderer).
 #include <chrono>
@@ -40,13 +42,13 @@
 int main(int argc, char** argv) {
   int threads = 1, frames = 10, warmup = 2, refine = 1;
   double readout = 0.0;
-  bool odometry = false;
+  bool odometry = false, no_moving_content = false;
   std::string wisdom, save, load;
   omnipose::tools::Cli cli(
       "omnipose-bench-instructions",
       "usage: omnipose-bench-instructions [--threads N] [--frames K] [--warmup W]\n"
       "                                   [--refine R] [--wisdom FILE] [--save DIR | --load DIR]\n"
-      "                                   [--odometry [--readout S]]",
+      "                                   [--odometry [--readout S]] [--no-moving-content]",
       "Per-frame instruction counts of the pipeline, for valgrind --tool=callgrind\n"
       "--collect-atstart=no (only the measured frames are collected). Prints frames, threads,\n"
       "refine, ok and ms_per_frame (wall time, milliseconds).");
@@ -72,6 +74,9 @@ int main(int argc, char** argv) {
       ->type_name("S")
       ->needs(odometry_opt)
       ->check(CLI::Range(-omnipose::SensorTiming::kMaxReadoutS, omnipose::SensorTiming::kMaxReadoutS));
+  app.add_flag("--no-moving-content", no_moving_content,
+               "without the refinement pass's moving-content check "
+               "(PipelineOptions::moving_content)");
   if (const auto exit_code = cli.parse(argc, argv)) return *exit_code;
   cv::setNumThreads(1);
   cv::Mat f[2];
@@ -101,6 +106,7 @@ int main(int argc, char** argv) {
   omnipose::PipelineOptions options;
   options.threads = threads;
   options.refine_iterations = refine;
+  options.moving_content = !no_moving_content;
   options.fftw_wisdom = wisdom;
   omnipose::Calibration calibration;
   calibration.sensor.readout_s = readout;

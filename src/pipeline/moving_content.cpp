@@ -1,0 +1,233 @@
+#include "pipeline/moving_content.hpp"
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <stdexcept>
+#include <string>
+#include <utility>
+
+namespace omnipose::pipeline {
+namespace {
+
+/// The median of a chi-square variable with one degree of freedom: median(e^2) / this is
+/// the variance of Gaussian e.
+constexpr double kChiSquareMedian = 0.4549;
+
+int wrap(int u, int width) { return ((u % width) + width) % width; }
+
+}  // namespace
+
+MovingContentCheck::MovingContentCheck(const cv::Mat& validity, int window, int top,
+                                       std::vector<double> centers)
+    : validity_(validity.clone()),
+      window_(window),
+      top_(top),
+      width_(validity.cols),
+      centers_(std::move(centers)) {
+  if (validity_.empty() || validity_.type() != CV_32FC1)
+    throw std::invalid_argument("moving-content check: the validity map must be CV_32FC1");
+  if (centers_.empty() || window_ < 4 || top_ < 0 || top_ + window_ > validity_.rows)
+    throw std::invalid_argument("moving-content check: " + std::to_string(centers_.size()) +
+                                " windows of " + std::to_string(window_) + " rows from row " +
+                                std::to_string(top_) + " in " + std::to_string(validity_.rows) +
+                                " rows");
+  // Sample rows 1, 1 + kStride, ... of the windows (not the outermost, whose taper is ~0).
+  sample_rows_ = (window_ - 3) / kStride + 1;
+  sample_cols_ = (width_ + kStride - 1) / kStride;
+  for (int j = 0; j < window_; ++j) taper_.push_back(windowTaper(j, window_));
+  motion_.resize(static_cast<std::size_t>(width_));
+  samples_.resize(static_cast<std::size_t>(sample_rows_) * sample_cols_);
+  residuals_.resize(samples_.size());
+  column_usable_.resize(static_cast<std::size_t>(sample_cols_));
+  column_disagreeing_.resize(static_cast<std::size_t>(sample_cols_));
+  node_.resize(centers_.size());
+}
+
+double MovingContentCheck::weight(double f) {
+  return std::clamp((kDropFraction - f) / (kDropFraction - kKeepFraction), 0.0, 1.0);
+}
+
+bool MovingContentCheck::interpolateMotion(std::span<const WindowMotion> windows) {
+  const int n = static_cast<int>(windows.size());
+  const auto usable = [&](int k) {
+    return windows[static_cast<std::size_t>(k)].valid &&
+           windows[static_cast<std::size_t>(k)].confidence > 0.0;
+  };
+  // A window whose shift is an outlier among its neighbours' (it locked onto a person, not
+  // the background) is no node: the windows next to it would inherit the person's motion.
+  for (int k = 0; k < n; ++k) {
+    node_[static_cast<std::size_t>(k)] = 0;
+    if (!usable(k)) continue;
+    int m = 0;
+    for (int j = k - kNeighbours; j <= k + kNeighbours; ++j) {
+      const int i = wrap(j, n);
+      if (!usable(i)) continue;
+      neighbour_du_[static_cast<std::size_t>(m)] = windows[static_cast<std::size_t>(i)].du;
+      neighbour_dv_[static_cast<std::size_t>(m)] = windows[static_cast<std::size_t>(i)].dv;
+      ++m;
+    }
+    const auto median = [m](std::array<double, 2 * kNeighbours + 1>& values) {
+      const auto middle = values.begin() + m / 2;
+      std::nth_element(values.begin(), middle, values.begin() + m);
+      return *middle;
+    };
+    const WindowMotion& w = windows[static_cast<std::size_t>(k)];
+    node_[static_cast<std::size_t>(k)] = std::abs(w.du - median(neighbour_du_)) <= kOutlierPx &&
+                                         std::abs(w.dv - median(neighbour_dv_)) <= kOutlierPx;
+  }
+  const auto measured = [&](int k) { return node_[static_cast<std::size_t>(k)] != 0; };
+  int count = 0, first = -1;
+  for (int k = 0; k < n; ++k) {
+    if (!measured(k)) continue;
+    if (first < 0) first = k;
+    ++count;
+  }
+  for (ColumnMotion& m : motion_) m.known = false;
+  if (count < kMinWindows) return false;
+  const auto at = [&](int k) {
+    const WindowMotion& w = windows[static_cast<std::size_t>(k)];
+    return ColumnMotion{static_cast<float>(w.du), static_cast<float>(w.dv),
+                        static_cast<float>(w.scale * w.rotation),
+                        static_cast<float>(w.scale - 1.0), true};
+  };
+  // Between consecutive measured windows a and b (around the ring), columns from a's centre
+  // to b's.
+  int a = first;
+  for (int step = 0; step < count; ++step) {
+    int b = a + 1;
+    while (!measured(b % n)) ++b;
+    b %= n;
+    const ColumnMotion ma = at(a), mb = at(b);
+    const double ca = centers_[static_cast<std::size_t>(a)];
+    double cb = centers_[static_cast<std::size_t>(b)];
+    if (cb <= ca) cb += width_;
+    for (int u = static_cast<int>(std::ceil(ca)); u < cb; ++u) {
+      const float t = static_cast<float>((u - ca) / (cb - ca));
+      motion_[static_cast<std::size_t>(wrap(u, width_))] = {
+          ma.du + t * (mb.du - ma.du), ma.dv + t * (mb.dv - ma.dv),
+          ma.shear + t * (mb.shear - ma.shear), ma.stretch + t * (mb.stretch - ma.stretch), true};
+    }
+    a = b;
+  }
+  return true;
+}
+
+void MovingContentCheck::sampleRow(int r, const cv::Mat& reference, const cv::Mat& current,
+                                   const PanoramaWarp& warp) {
+  const int W = width_, H = reference.rows;
+  const int v = top_ + 1 + r * kStride;
+  const float y = static_cast<float>(v - top_) - 0.5f * static_cast<float>(window_ - 1);
+  Sample* out = &samples_[static_cast<std::size_t>(r) * sample_cols_];
+  const float* ref_row = reference.ptr<float>(v);
+  const float* ref_up = reference.ptr<float>(std::max(v - 1, 0));
+  const float* ref_down = reference.ptr<float>(std::min(v + 1, H - 1));
+  const float* cur_row = current.ptr<float>(v);
+  const float* valid_row = validity_.ptr<float>(v);
+  for (int c = 0; c < sample_cols_; ++c) {
+    Sample& s = out[c];
+    s.usable = false;
+    const int u = c * kStride;
+    const ColumnMotion& m = motion_[static_cast<std::size_t>(u)];
+    if (!m.known || valid_row[u] < 1.0f) continue;
+    // The current pixel's source in the frame before the de-rotation must be content.
+    const Eigen::Vector2f source = warp.gridDisplacement(u, v);
+    const float source_v = static_cast<float>(v) + source.y();
+    if (!(source_v >= 0.0f && source_v <= static_cast<float>(H - 1))) continue;
+    const int source_u = wrap(static_cast<int>(std::lround(static_cast<float>(u) + source.x())), W);
+    if (validity_.at<float>(static_cast<int>(std::lround(source_v)), source_u) < 1.0f) continue;
+    // The reference where the motion puts this pixel (bilinear).
+    const float fu = static_cast<float>(u) + m.du + m.shear * y;
+    const float fv = static_cast<float>(v) + m.dv + m.stretch * y;
+    const float fu0 = std::floor(fu), fv0 = std::floor(fv);
+    const int r0 = static_cast<int>(fv0);
+    if (!(fv0 >= 0.0f) || r0 + 1 >= H) continue;
+    const int c0 = wrap(static_cast<int>(fu0), W), c1 = c0 + 1 == W ? 0 : c0 + 1;
+    if (validity_.at<float>(r0, c0) < 1.0f || validity_.at<float>(r0 + 1, c1) < 1.0f) continue;
+    const float* q0 = reference.ptr<float>(r0);
+    const float* q1 = reference.ptr<float>(r0 + 1);
+    const float au = fu - fu0, av = fv - fv0;
+    s.p = (1.0f - av) * ((1.0f - au) * q0[c0] + au * q0[c1]) +
+          av * ((1.0f - au) * q1[c0] + au * q1[c1]);
+    s.c = cur_row[u];
+    const float gx = 0.5f * (ref_row[u + 1 == W ? 0 : u + 1] - ref_row[u == 0 ? W - 1 : u - 1]);
+    const float gy = 0.5f * (ref_down[u] - ref_up[u]);
+    s.gradient2 = gx * gx + gy * gy;
+    s.usable = true;
+  }
+}
+
+void MovingContentCheck::measure(const cv::Mat& reference, const cv::Mat& current,
+                                 const PanoramaWarp& warp, std::span<const WindowMotion> windows,
+                                 registration::WorkerPool& pool, std::span<double> fraction) {
+  std::fill(fraction.begin(), fraction.end(), 0.0);
+  if (windows.size() != centers_.size() || fraction.size() != centers_.size()) return;
+  if (!interpolateMotion(windows)) return;
+  auto sample = [&](int, int r) { sampleRow(r, reference, current, warp); };
+  pool.run(sample_rows_, sample);
+
+  // The pair's gain and offset, and the noise of what they leave.
+  double sw = 0.0, sp = 0.0, sc = 0.0, spp = 0.0, spc = 0.0;
+  for (const Sample& s : samples_) {
+    if (!s.usable) continue;
+    sw += 1.0;
+    sp += s.p;
+    sc += s.c;
+    spp += static_cast<double>(s.p) * s.p;
+    spc += static_cast<double>(s.p) * s.c;
+  }
+  if (sw < kMinSamples) return;
+  const double mean_p = sp / sw, mean_c = sc / sw;
+  const double var_p = spp / sw - mean_p * mean_p, cov = spc / sw - mean_p * mean_c;
+  const double a = var_p > 0.0 ? cov / var_p : 1.0, b = mean_c - a * mean_p;
+  std::size_t used = 0;
+  for (const Sample& s : samples_) {
+    if (!s.usable) continue;
+    const double e = s.c - (a * s.p + b);
+    residuals_[used++] = static_cast<float>(e * e);
+  }
+  const auto middle = residuals_.begin() + static_cast<std::ptrdiff_t>(used / 2);
+  std::nth_element(residuals_.begin(), middle,
+                   residuals_.begin() + static_cast<std::ptrdiff_t>(used));
+  const double noise_threshold = kNoiseSigmas * kNoiseSigmas * (*middle / kChiSquareMedian);
+  const double gradient_factor = kShiftTolerancePx * kShiftTolerancePx;
+
+  // Per sample column: how much of its (row-tapered) weight is usable, and disagrees.
+  std::fill(column_usable_.begin(), column_usable_.end(), 0.0);
+  std::fill(column_disagreeing_.begin(), column_disagreeing_.end(), 0.0);
+  for (int r = 0; r < sample_rows_; ++r) {
+    Sample* row = &samples_[static_cast<std::size_t>(r) * sample_cols_];
+    const double w = taper_[static_cast<std::size_t>(1 + r * kStride)];
+    for (int c = 0; c < sample_cols_; ++c) {
+      Sample& s = row[c];
+      const double e = s.c - (a * s.p + b);
+      s.disagrees = s.usable && e * e > noise_threshold + gradient_factor * s.gradient2;
+    }
+    for (int c = 0; c < sample_cols_; ++c) {
+      const Sample& s = row[c];
+      if (!s.usable) continue;
+      column_usable_[static_cast<std::size_t>(c)] += w;
+      const bool left = row[c == 0 ? sample_cols_ - 1 : c - 1].disagrees;
+      const bool right = row[c + 1 == sample_cols_ ? 0 : c + 1].disagrees;
+      if (s.disagrees && (left || right)) column_disagreeing_[static_cast<std::size_t>(c)] += w;
+    }
+  }
+  // Per window: the same over its sample columns, tapered along u.
+  const double half = 0.5 * (window_ - 1);
+  for (std::size_t k = 0; k < centers_.size(); ++k) {
+    if (!windows[k].valid) continue;
+    const int first = static_cast<int>(std::lround(centers_[k] - half));
+    double usable = 0.0, disagreeing = 0.0;
+    for (int j = 1; j < window_ - 1; ++j) {
+      const int u = wrap(first + j, width_);
+      if (u % kStride != 0) continue;
+      const auto c = static_cast<std::size_t>(u / kStride);
+      const double w = taper_[static_cast<std::size_t>(j)];
+      usable += w * column_usable_[c];
+      disagreeing += w * column_disagreeing_[c];
+    }
+    fraction[k] = usable > 0.0 ? disagreeing / usable : 0.0;
+  }
+}
+
+}  // namespace omnipose::pipeline

@@ -1,0 +1,90 @@
+// People walking by do not turn the robot: a slow yaw turn among three people walking around
+// the camera, rendered with the exact renderer (sensor noise, 8-bit frames), is estimated as
+// well as the same turn without them when the refinement pass checks each window's pixels
+// (PipelineOptions::moving_content), and measurably worse without the check.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <numbers>
+
+#include "omnipose/pipeline.hpp"
+#include "omnipose/so3.hpp"
+#include "omnipose/synth/synth.hpp"
+#include "render_fixture.hpp"
+#include "test_figures.hpp"
+
+namespace omnipose {
+namespace {
+
+constexpr double kDeg = std::numbers::pi / 180.0;
+constexpr int kFrames = 13;
+constexpr double kFrameInterval = 1.0 / 30.0;
+
+/// Yaw of frame k: a slow turn of 0.3 to 0.6 deg per frame, the real-camera benchmark's
+/// `slow_turn`.
+double yaw(int k) {
+  double angle = 0.0;
+  for (int i = 1; i <= k; ++i) angle += (0.45 + 0.15 * std::sin(1.9 * i)) * kDeg;
+  return angle;
+}
+
+/// RMS rotation error angle (rad) of the pipeline over the sequence rendered by `renderer`
+/// (frame k at time k / 30 s on the walkers' clock, sensor noise of 3 grey levels).
+double rmsError(const synth::Renderer& renderer, bool moving_content) {
+  PipelineOptions options;
+  options.moving_content = moving_content;
+  Pipeline pipeline(Calibration{}, options);
+  cv::RNG rng(17);
+  double sum_sq = 0.0;
+  for (int k = 0; k < kFrames; ++k) {
+    Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+    T.linear() = rotationFromVector(Eigen::Vector3d(0.0, 0.0, yaw(k)));
+    cv::Mat image = renderer.render(T, k * kFrameInterval);
+    cv::Mat noise(image.size(), CV_32FC1);
+    rng.fill(noise, cv::RNG::NORMAL, 0.0, 3.0);
+    cv::Mat frame;
+    cv::Mat(image + noise).convertTo(frame, CV_8U);
+    auto m = pipeline.process(frame);
+    EXPECT_TRUE(m.has_value()) << (m ? "" : m.error().c_str());
+    if (!m || k == 0) continue;
+    EXPECT_TRUE(m->has_motion) << k;
+    const Eigen::Matrix3d truth =
+        rotationFromVector(Eigen::Vector3d(0.0, 0.0, yaw(k) - yaw(k - 1)));
+    sum_sq += rotationVector(truth.transpose() * m->rotation).squaredNorm();
+  }
+  return std::sqrt(sum_sq / (kFrames - 1));
+}
+
+TEST(Walkers, PeopleWalkingAroundTheCameraDoNotMoveTheEstimate) {
+  if (!std::filesystem::exists(testing::indoorPhoto())) GTEST_SKIP() << "missing photo";
+  synth::Scene scene = synth::Scene::load(testing::indoorPhoto(), synth::SceneKind::kSphere);
+  const synth::Renderer twin(scene, Calibration{});
+  // Three people 0.5 m wide and 1.8 m tall walking at 1.2 m/s on circles of 1.2 to 1.6 m
+  // around the camera (18 to 24 deg of the ring each), as the real-camera benchmark's.
+  scene.walkers = synth::parseWalkers("3,0.5,1.8,1.2");
+  scene.walkers.min_distance_m = 1.2;
+  scene.walkers.max_distance_m = 1.6;
+  scene.walkers.seed = 5;
+  const synth::Renderer with_walkers(scene, Calibration{});
+  const double plain = rmsError(twin, true);
+  const double checked = rmsError(with_walkers, true);
+  const double unchecked = rmsError(with_walkers, false);
+  testing::recordFigure("twin_rms_rad", plain, 9);
+  testing::recordFigure("walkers_rms_rad", checked, 9);
+  testing::recordFigure("walkers_unchecked_rms_rad", unchecked, 9);
+  ASSERT_GT(plain, 0.0);
+  // Without the check the people's windows turn the robot with them (yaw biased every pair:
+  // 5.9 times the twin's error when this was written); with it their windows are left out
+  // (1.7 times the twin: what is left is mostly the tilt that a third fewer windows on one
+  // side of the ring determine less well, on this photo's faint walls; 1.1 times on the
+  // real-camera benchmark's park photo, docs/results/REAL_CAMERA.md).
+  EXPECT_LT(checked, 2.0 * plain) << "twin " << plain << " rad, walkers " << checked;
+  EXPECT_GT(unchecked, 2.5 * checked) << "checked " << checked << " rad, unchecked " << unchecked;
+  // A sequence without anything moving is the same with and without the check, to the
+  // noise: no window of the twin is discounted enough to matter.
+  const double plain_unchecked = rmsError(twin, false);
+  EXPECT_NEAR(plain, plain_unchecked, 0.05 * plain_unchecked);
+}
+
+}  // namespace
+}  // namespace omnipose
