@@ -46,7 +46,7 @@ struct PipelineOptions {
   /// The refinement pass checks each window's pixels against the window's own motion and
   /// lowers the confidence of windows that content moving on its own (people walking by)
   /// covers in part: fully weighted up to 1 % of the window's taper weight disagreeing, left
-  /// out from 6 % (src/pipeline/moving_content.hpp; DESIGN.md section 4). Costs about 6 %
+  /// out from 6 % (src/pipeline/moving_content.hpp; DESIGN.md section 4). Costs about 3 %
   /// of a frame's instructions; without refinement (refine_iterations 0) it does nothing.
   bool moving_content = true;
   /// Worker threads for the window registration and the de-rotation, the processing thread

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <limits>
 #include <stdexcept>
 #include <string>
 #include <utility>
@@ -42,6 +43,22 @@ MovingContentCheck::MovingContentCheck(const cv::Mat& validity, int window, int 
   column_usable_.resize(static_cast<std::size_t>(sample_cols_));
   column_disagreeing_.resize(static_cast<std::size_t>(sample_cols_));
   node_.resize(centers_.size());
+  row_sums_.resize(static_cast<std::size_t>(sample_rows_));
+  all_valid_ = cv::countNonZero(validity_ < 1.0f) == 0;
+  // Each window's sample columns (u = c * kStride within the window, the outermost columns
+  // left out as the outermost rows) and their taper weights.
+  const double half = 0.5 * (window_ - 1);
+  window_columns_begin_.push_back(0);
+  for (const double center : centers_) {
+    const int first = static_cast<int>(std::lround(center - half));
+    for (int j = 1; j < window_ - 1; ++j) {
+      const int u = wrap(first + j, width_);
+      if (u % kStride != 0) continue;
+      window_columns_.push_back(
+          {static_cast<std::size_t>(u / kStride), taper_[static_cast<std::size_t>(j)]});
+    }
+    window_columns_begin_.push_back(static_cast<int>(window_columns_.size()));
+  }
 }
 
 double MovingContentCheck::weight(double f) {
@@ -124,29 +141,45 @@ void MovingContentCheck::sampleRow(int r, const cv::Mat& reference, const cv::Ma
   const float* ref_down = reference.ptr<float>(std::min(v + 1, H - 1));
   const float* cur_row = current.ptr<float>(v);
   const float* valid_row = validity_.ptr<float>(v);
+  // Whether a pixel of this row may come from beyond the panorama's rows in the frame before
+  // the de-rotation (a large tilt); most rows' range says no for all of them at once.
+  const auto [dv_low, dv_high] = warp.rowDisplacementRange(v);
+  const bool check_source = !all_valid_ || static_cast<float>(v) + dv_low < 0.0f ||
+                            static_cast<float>(v) + dv_high > static_cast<float>(H - 1);
+  const auto usable = [&](int row, int column) {
+    return all_valid_ || validity_.at<float>(row, column) >= 1.0f;
+  };
+  RowSums sums;
   for (int c = 0; c < sample_cols_; ++c) {
     Sample& s = out[c];
     s.usable = false;
     const int u = c * kStride;
     const ColumnMotion& m = motion_[static_cast<std::size_t>(u)];
-    if (!m.known || valid_row[u] < 1.0f) continue;
-    // The current pixel's source in the frame before the de-rotation must be content.
-    const Eigen::Vector2f source = warp.gridDisplacement(u, v);
-    const float source_v = static_cast<float>(v) + source.y();
-    if (!(source_v >= 0.0f && source_v <= static_cast<float>(H - 1))) continue;
-    const int source_u = wrap(static_cast<int>(std::lround(static_cast<float>(u) + source.x())), W);
-    if (validity_.at<float>(static_cast<int>(std::lround(source_v)), source_u) < 1.0f) continue;
-    // The reference where the motion puts this pixel (bilinear).
-    const float fu = static_cast<float>(u) + m.du + m.shear * y;
+    if (!m.known || (!all_valid_ && valid_row[u] < 1.0f)) continue;
+    if (check_source) {
+      const Eigen::Vector2f source = warp.gridDisplacement(u, v);
+      const float source_v = static_cast<float>(v) + source.y();
+      if (!(source_v >= 0.0f && source_v <= static_cast<float>(H - 1))) continue;
+      if (!usable(static_cast<int>(source_v + 0.5f),
+                  wrap(static_cast<int>(std::lround(static_cast<float>(u) + source.x())), W)))
+        continue;
+    }
+    // The reference where the motion puts this pixel (bilinear). fu + W > 0 for any motion
+    // under a panorama's width, so truncation is the floor.
+    const float fu = static_cast<float>(u + W) + m.du + m.shear * y;
     const float fv = static_cast<float>(v) + m.dv + m.stretch * y;
-    const float fu0 = std::floor(fu), fv0 = std::floor(fv);
-    const int r0 = static_cast<int>(fv0);
-    if (!(fv0 >= 0.0f) || r0 + 1 >= H) continue;
-    const int c0 = wrap(static_cast<int>(fu0), W), c1 = c0 + 1 == W ? 0 : c0 + 1;
-    if (validity_.at<float>(r0, c0) < 1.0f || validity_.at<float>(r0 + 1, c1) < 1.0f) continue;
+    if (!(fv >= 0.0f && fv < static_cast<float>(H - 1) && fu >= 0.0f &&
+          fu < static_cast<float>(3 * W)))
+      continue;
+    const int r0 = static_cast<int>(fv);
+    int c0 = static_cast<int>(fu);
+    const float au = fu - static_cast<float>(c0), av = fv - static_cast<float>(r0);
+    c0 -= c0 >= 2 * W ? 2 * W : W;
+    if (c0 < 0) c0 += W;
+    const int c1 = c0 + 1 == W ? 0 : c0 + 1;
+    if (!usable(r0, c0) || !usable(r0 + 1, c1)) continue;
     const float* q0 = reference.ptr<float>(r0);
     const float* q1 = reference.ptr<float>(r0 + 1);
-    const float au = fu - fu0, av = fv - fv0;
     s.p = (1.0f - av) * ((1.0f - au) * q0[c0] + au * q0[c1]) +
           av * ((1.0f - au) * q1[c0] + au * q1[c1]);
     s.c = cur_row[u];
@@ -154,7 +187,13 @@ void MovingContentCheck::sampleRow(int r, const cv::Mat& reference, const cv::Ma
     const float gy = 0.5f * (ref_down[u] - ref_up[u]);
     s.gradient2 = gx * gx + gy * gy;
     s.usable = true;
+    sums.n += 1.0;
+    sums.p += s.p;
+    sums.c += s.c;
+    sums.pp += static_cast<double>(s.p) * s.p;
+    sums.pc += static_cast<double>(s.p) * s.c;
   }
+  row_sums_[static_cast<std::size_t>(r)] = sums;
 }
 
 void MovingContentCheck::measure(const cv::Mat& reference, const cv::Mat& current,
@@ -167,32 +206,33 @@ void MovingContentCheck::measure(const cv::Mat& reference, const cv::Mat& curren
   pool.run(sample_rows_, sample);
 
   // The pair's gain and offset, and the noise of what they leave.
-  double sw = 0.0, sp = 0.0, sc = 0.0, spp = 0.0, spc = 0.0;
-  for (const Sample& s : samples_) {
-    if (!s.usable) continue;
-    sw += 1.0;
-    sp += s.p;
-    sc += s.c;
-    spp += static_cast<double>(s.p) * s.p;
-    spc += static_cast<double>(s.p) * s.c;
+  RowSums sums;
+  for (const RowSums& row : row_sums_) {
+    sums.n += row.n;
+    sums.p += row.p;
+    sums.c += row.c;
+    sums.pp += row.pp;
+    sums.pc += row.pc;
   }
-  if (sw < kMinSamples) return;
-  const double mean_p = sp / sw, mean_c = sc / sw;
-  const double var_p = spp / sw - mean_p * mean_p, cov = spc / sw - mean_p * mean_c;
-  const double a = var_p > 0.0 ? cov / var_p : 1.0, b = mean_c - a * mean_p;
-  std::size_t used = 0;
-  for (const Sample& s : samples_) {
-    if (!s.usable) continue;
-    const double e = s.c - (a * s.p + b);
-    residuals_[used++] = static_cast<float>(e * e);
+  if (sums.n < kMinSamples) return;
+  const double mean_p = sums.p / sums.n, mean_c = sums.c / sums.n;
+  const double var_p = sums.pp / sums.n - mean_p * mean_p;
+  const double cov = sums.pc / sums.n - mean_p * mean_c;
+  const float a = static_cast<float>(var_p > 0.0 ? cov / var_p : 1.0);
+  const float b = static_cast<float>(mean_c - a * mean_p);
+  for (std::size_t i = 0; i < samples_.size(); ++i) {
+    const Sample& s = samples_[i];
+    const float e = s.c - (a * s.p + b);
+    residuals_[i] = s.usable ? e * e : std::numeric_limits<float>::infinity();
   }
-  const auto middle = residuals_.begin() + static_cast<std::ptrdiff_t>(used / 2);
-  std::nth_element(residuals_.begin(), middle,
-                   residuals_.begin() + static_cast<std::ptrdiff_t>(used));
-  const double noise_threshold = kNoiseSigmas * kNoiseSigmas * (*middle / kChiSquareMedian);
-  const double gradient_factor = kShiftTolerancePx * kShiftTolerancePx;
+  // The unusable samples sort last: the (n / 2)-th smallest is the usable samples' median.
+  const auto middle = residuals_.begin() + static_cast<std::ptrdiff_t>(sums.n / 2);
+  std::nth_element(residuals_.begin(), middle, residuals_.end());
+  const float noise_threshold =
+      static_cast<float>(kNoiseSigmas * kNoiseSigmas * (*middle / kChiSquareMedian));
+  const float gradient_factor = static_cast<float>(kShiftTolerancePx * kShiftTolerancePx);
 
-  // Per sample column: how much of its (row-tapered) weight is usable, and disagrees.
+  // Per sample column: how much of its (row-tapered) weight is usable, and counts.
   std::fill(column_usable_.begin(), column_usable_.end(), 0.0);
   std::fill(column_disagreeing_.begin(), column_disagreeing_.end(), 0.0);
   for (int r = 0; r < sample_rows_; ++r) {
@@ -200,7 +240,7 @@ void MovingContentCheck::measure(const cv::Mat& reference, const cv::Mat& curren
     const double w = taper_[static_cast<std::size_t>(1 + r * kStride)];
     for (int c = 0; c < sample_cols_; ++c) {
       Sample& s = row[c];
-      const double e = s.c - (a * s.p + b);
+      const float e = s.c - (a * s.p + b);
       s.disagrees = s.usable && e * e > noise_threshold + gradient_factor * s.gradient2;
     }
     for (int c = 0; c < sample_cols_; ++c) {
@@ -213,18 +253,13 @@ void MovingContentCheck::measure(const cv::Mat& reference, const cv::Mat& curren
     }
   }
   // Per window: the same over its sample columns, tapered along u.
-  const double half = 0.5 * (window_ - 1);
   for (std::size_t k = 0; k < centers_.size(); ++k) {
     if (!windows[k].valid) continue;
-    const int first = static_cast<int>(std::lround(centers_[k] - half));
     double usable = 0.0, disagreeing = 0.0;
-    for (int j = 1; j < window_ - 1; ++j) {
-      const int u = wrap(first + j, width_);
-      if (u % kStride != 0) continue;
-      const auto c = static_cast<std::size_t>(u / kStride);
-      const double w = taper_[static_cast<std::size_t>(j)];
-      usable += w * column_usable_[c];
-      disagreeing += w * column_disagreeing_[c];
+    for (int i = window_columns_begin_[k]; i < window_columns_begin_[k + 1]; ++i) {
+      const WindowColumn& column = window_columns_[static_cast<std::size_t>(i)];
+      usable += column.weight * column_usable_[column.index];
+      disagreeing += column.weight * column_disagreeing_[column.index];
     }
     fraction[k] = usable > 0.0 ? disagreeing / usable : 0.0;
   }

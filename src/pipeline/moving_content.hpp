@@ -4,7 +4,7 @@
 /// swinging. A window that such content covers in part keeps its phase-correlation peak on
 /// the background, but the peak is pulled by a fraction of a pixel, below anything the fit's
 /// robust loss can tell from noise; over a fifth of the ring (three people at arm's length)
-/// that bias is the largest error of a slow turn. The check looks at the pixels instead of
+/// that bias was the largest error of a slow turn. The check looks at the pixels instead of
 /// the peaks: the reference is moved onto the current panorama by the motion the windows
 /// measured, and the pixels that motion does not explain are counted per window. Background
 /// leaves sensor noise; a person walking at a different speed leaves their outline and
@@ -13,7 +13,8 @@
 /// The motion at pixel (u, v): each window's measured shift (du, dv), in-window scale s and
 /// rotation phi give (du + s phi y, dv + (s - 1) y) at its centre column, y = v - the
 /// windows' centre row; between two window centres the four numbers are interpolated
-/// linearly in u (windows without a peak are skipped). At sample pixels x (every
+/// linearly in u (windows without a peak, and windows off their neighbours' shifts, see
+/// kOutlierPx, are skipped). At sample pixels x (every
 /// kStride-th row and column of the windows' rows):
 ///   p(x) = reference(x + d(x)) (bilinear), c(x) = current(x);
 ///   e(x) = c(x) - (a p(x) + b), a and b the pair's least-squares gain and offset (an
@@ -65,8 +66,8 @@ class MovingContentCheck {
   /// window's own shift.
   static constexpr int kNeighbours = 4;
   static constexpr double kOutlierPx = 1.0;
-  /// Fewer measured windows than this, or fewer usable samples than kMinSamples: no check
-  /// (every fraction 0).
+  /// Fewer nodes (windows measured and not outliers) than this, or fewer usable samples
+  /// than kMinSamples: no check (every fraction 0).
   static constexpr int kMinWindows = 8;
   static constexpr int kMinSamples = 256;
 
@@ -101,7 +102,7 @@ class MovingContentCheck {
     bool usable = false;
     bool disagrees = false;
   };
-  /// Fills motion_ from the windows; false when fewer than kMinWindows are measured.
+  /// Fills node_ and motion_ from the windows; false when fewer than kMinWindows are nodes.
   bool interpolateMotion(std::span<const WindowMotion> windows);
   /// Samples of sample row `r` (row top_ + r * kStride) into samples_.
   void sampleRow(int r, const cv::Mat& reference, const cv::Mat& current,
@@ -114,9 +115,22 @@ class MovingContentCheck {
   std::vector<double> taper_;  ///< windowTaper() of every sample index of a window
   std::vector<ColumnMotion> motion_;  ///< per panorama column
   std::vector<Sample> samples_;       ///< sample_rows_ x sample_cols_
-  std::vector<float> residuals_;      ///< scratch: e^2 of the usable samples (the median)
+  std::vector<float> residuals_;  ///< scratch: e^2 per sample, +inf if unusable (the median)
   /// Per sample column: taper-weighted (over rows) count of usable and disagreeing samples.
   std::vector<double> column_usable_, column_disagreeing_;
+  /// Per sample row: sums over its usable samples for the pair's gain and offset.
+  struct RowSums {
+    double n = 0.0, p = 0.0, c = 0.0, pp = 0.0, pc = 0.0;
+  };
+  std::vector<RowSums> row_sums_;
+  /// A sample column of a window and its taper weight along u.
+  struct WindowColumn {
+    std::size_t index;
+    double weight;
+  };
+  std::vector<WindowColumn> window_columns_;
+  std::vector<int> window_columns_begin_;  ///< window k's are [begin[k], begin[k + 1])
+  bool all_valid_ = true;  ///< the validity map keeps every pixel (no lookups needed)
   std::vector<char> node_;  ///< per window: a node of the interpolation (interpolateMotion())
   std::array<double, 2 * kNeighbours + 1> neighbour_du_{}, neighbour_dv_{};  ///< scratch
 };

@@ -56,6 +56,13 @@ Eigen::Vector2f PanoramaWarp::gridDisplacement(int u, int v) const {
   return {at(grid_du_), at(grid_dv_)};
 }
 
+std::pair<float, float> PanoramaWarp::rowDisplacementRange(int v) const {
+  const std::size_t first = static_cast<std::size_t>(v / kGridStep) * grid_cols_;
+  const auto begin = grid_dv_.begin() + static_cast<std::ptrdiff_t>(first);
+  const auto [lo, hi] = std::minmax_element(begin, begin + 2 * grid_cols_);
+  return {*lo, *hi};
+}
+
 void PanoramaWarp::projectGridRows(const Eigen::Matrix3d& R, int first, int last) {
   const Eigen::Matrix3d Rt = R.transpose();
   for (int gy = first; gy < last; ++gy) {

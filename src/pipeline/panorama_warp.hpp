@@ -3,6 +3,7 @@
 
 #include <Eigen/Core>
 #include <opencv2/core.hpp>
+#include <utility>
 #include <vector>
 
 #include "omnipose/calibration.hpp"
@@ -44,6 +45,9 @@ class PanoramaWarp {
   /// The displacement of the last projectGridRows() at pixel (u, v) as derotateRows()
   /// interpolates it from the grid, pixels. Requires 0 <= u < W, 0 <= v < H.
   Eigen::Vector2f gridDisplacement(int u, int v) const;
+  /// The least and the greatest row displacement dv that gridDisplacement() gives anywhere
+  /// on row v (bounds from the two grid rows it interpolates between). Requires 0 <= v < H.
+  std::pair<float, float> rowDisplacementRange(int v) const;
 
  private:
   /// displacementAt() for the unit-cylinder point (cos theta, sin theta, h) at row v, given
