@@ -81,6 +81,24 @@ TEST(DaemonConfig, PipelineThreads) {
   }
 }
 
+TEST(DaemonConfig, MovingContentCheck) {
+  const auto parse = [](const std::string& pipeline) {
+    return DaemonConfig::parse("source: {type: file, path: run1}\ncalibration: cal.yaml\n" + pipeline,
+                               "d.yaml", "/etc/omnipose");
+  };
+  EXPECT_TRUE(parse("").pipeline.moving_content);  // on by default
+  const DaemonConfig off = parse("pipeline: {moving_content: false}\n");
+  EXPECT_FALSE(off.pipeline.moving_content);
+  EXPECT_NE(off.describe().find("moving_content: false"), std::string::npos) << off.describe();
+  try {
+    parse("pipeline: {moving_content: sometimes}\n");
+    FAIL() << "expected ConfigError";
+  } catch (const ConfigError& e) {
+    EXPECT_NE(std::string(e.what()).find("pipeline.moving_content"), std::string::npos)
+        << e.what();
+  }
+}
+
 TEST(DaemonConfig, KeyframesSection) {
   const auto parse = [](const std::string& keyframes) {
     return DaemonConfig::parse("source: {type: file, path: run1}\ncalibration: cal.yaml\n" + keyframes,
