@@ -105,6 +105,7 @@ FrameRegistrar::FrameRegistrar(const Calibration& c, const PipelineOptions& o, i
   shifts_only_.resize(windows);  // rs_confidence 0: no rotation/scale
   expected_dv_.resize(windows);
   moving_fraction_.resize(windows);
+  expected_motion_.resize(windows);
   for (int k = 0; k < registration_.windowCount(); ++k)
     window_azimuth_.push_back(c.panorama.azimuth(registration_.windowCenter(k)));
   if (c.sensor.readout_s != 0.0) measureWindowTimes();
@@ -354,7 +355,8 @@ PassResult FrameRegistrar::refine(const MotionEstimate& start, const Eigen::Matr
     derotate(R_warp);
     predictRefinementShifts(tau, last_fit);
     if (!registration_.measure(warped_, refine_windows_, false, {}, expected_dv_, against)) break;
-    if (options_.moving_content) discountMovingContent(refine_windows_, against);
+    if (options_.moving_content)
+      discountMovingContent(refine_windows_, against, R * R_warp.transpose(), tau);
     const MotionEstimate residual = fitPass(refine_windows_, rotationVector(R_warp));
     if (residual.status == FitStatus::kLost) {
       est.status = FitStatus::kDegraded;  // keep the estimate so far, trust it less
@@ -380,12 +382,24 @@ PassResult FrameRegistrar::refine(const MotionEstimate& start, const Eigen::Matr
   return out;
 }
 
-void FrameRegistrar::discountMovingContent(std::span<WindowMotion> windows, int against) {
+void FrameRegistrar::discountMovingContent(std::span<WindowMotion> windows, int against,
+                                           const Eigen::Matrix3d& R_residual,
+                                           const Eigen::Vector3d& tau) {
   const cv::Mat& reference =
       against == WindowRegistration::kPreviousFrame
           ? previous_
           : keyframe_panoramas_[static_cast<std::size_t>(against)];
-  moving_.measure(reference, warped_, warp_, windows, pool_, moving_fraction_);
+  // What the estimate so far predicts each window measured: the rotation the de-rotation
+  // left, and the translation at the window's inverse depth of the last fit.
+  const Eigen::Vector3d omega = rotationVector(R_residual);
+  const double gamma = calibration_.panorama.gamma();
+  for (std::size_t k = 0; k < windows.size(); ++k) {
+    Eigen::Matrix<double, 6, 1> x;
+    x << omega, fit_.inverseDepth(static_cast<int>(k)) * tau;
+    const ModelMotion m = predictMotion(x, window_azimuth_[k], fit_.kappa());
+    expected_motion_[k] = {m.du_rad / gamma, m.dv_rad / gamma};
+  }
+  moving_.measure(reference, warped_, warp_, windows, pool_, moving_fraction_, expected_motion_);
   for (std::size_t k = 0; k < windows.size(); ++k) {
     WindowMotion& m = windows[k];
     m.moving_fraction = moving_fraction_[k];

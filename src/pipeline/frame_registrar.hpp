@@ -146,8 +146,10 @@ class FrameRegistrar {
   void derotate(const Eigen::Matrix3d& R);
   /// MovingContentCheck of `windows`, measured between the reference panorama of `against`
   /// and the de-rotated current one (warped_), into each window's moving_fraction, and its
-  /// confidences lowered by MovingContentCheck::weight().
-  void discountMovingContent(std::span<WindowMotion> windows, int against);
+  /// confidences lowered by MovingContentCheck::weight(). `R_residual` (the estimate after
+  /// the de-rotation) and `tau` give each window's predicted shift.
+  void discountMovingContent(std::span<WindowMotion> windows, int against,
+                             const Eigen::Matrix3d& R_residual, const Eigen::Vector3d& tau);
   /// The motion fit of `windows`, its covariance multiplied by window_overlap_.
   MotionEstimate fitWindows(std::span<const WindowMotion> windows);
   /// fitWindows() of the windows of a pass over the current panorama de-rotated by
@@ -177,6 +179,7 @@ class FrameRegistrar {
   /// reference of the pixel checks against the previous frame).
   cv::Mat panorama_, warped_, previous_;
   std::vector<double> moving_fraction_;  ///< per window, discountMovingContent()
+  std::vector<Eigen::Vector2d> expected_motion_;  ///< per window, discountMovingContent()
   std::vector<cv::Mat> keyframe_panoramas_;  ///< per keyframe slot
   std::vector<WindowMotion> windows_, refine_windows_;
   std::vector<WindowMotion> shifts_only_;  ///< "known" rotation/scale for a shift-only pass

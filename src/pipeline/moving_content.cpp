@@ -65,14 +65,16 @@ double MovingContentCheck::weight(double f) {
   return std::clamp((kDropFraction - f) / (kDropFraction - kKeepFraction), 0.0, 1.0);
 }
 
-bool MovingContentCheck::interpolateMotion(std::span<const WindowMotion> windows) {
+bool MovingContentCheck::interpolateMotion(std::span<const WindowMotion> windows,
+                                           std::span<const Eigen::Vector2d> expected) {
   const int n = static_cast<int>(windows.size());
   const auto usable = [&](int k) {
     return windows[static_cast<std::size_t>(k)].valid &&
            windows[static_cast<std::size_t>(k)].confidence > 0.0;
   };
-  // A window whose shift is an outlier among its neighbours' (it locked onto a person, not
-  // the background) is no node: the windows next to it would inherit the person's motion.
+  // A window whose shift is an outlier among its neighbours' or against the last fit's
+  // prediction (it locked onto a person, not the background) is no node: the windows next
+  // to it would inherit the person's motion.
   for (int k = 0; k < n; ++k) {
     node_[static_cast<std::size_t>(k)] = 0;
     if (!usable(k)) continue;
@@ -92,6 +94,11 @@ bool MovingContentCheck::interpolateMotion(std::span<const WindowMotion> windows
     const WindowMotion& w = windows[static_cast<std::size_t>(k)];
     node_[static_cast<std::size_t>(k)] = std::abs(w.du - median(neighbour_du_)) <= kOutlierPx &&
                                          std::abs(w.dv - median(neighbour_dv_)) <= kOutlierPx;
+    if (!expected.empty()) {
+      const Eigen::Vector2d& e = expected[static_cast<std::size_t>(k)];
+      if (!(std::abs(w.du - e.x()) <= kOutlierPx && std::abs(w.dv - e.y()) <= kOutlierPx))
+        node_[static_cast<std::size_t>(k)] = 0;
+    }
   }
   const auto measured = [&](int k) { return node_[static_cast<std::size_t>(k)] != 0; };
   int count = 0, first = -1;
@@ -198,10 +205,13 @@ void MovingContentCheck::sampleRow(int r, const cv::Mat& reference, const cv::Ma
 
 void MovingContentCheck::measure(const cv::Mat& reference, const cv::Mat& current,
                                  const PanoramaWarp& warp, std::span<const WindowMotion> windows,
-                                 registration::WorkerPool& pool, std::span<double> fraction) {
+                                 registration::WorkerPool& pool, std::span<double> fraction,
+                                 std::span<const Eigen::Vector2d> expected) {
   std::fill(fraction.begin(), fraction.end(), 0.0);
-  if (windows.size() != centers_.size() || fraction.size() != centers_.size()) return;
-  if (!interpolateMotion(windows)) return;
+  if (windows.size() != centers_.size() || fraction.size() != centers_.size() ||
+      (!expected.empty() && expected.size() != centers_.size()))
+    return;
+  if (!interpolateMotion(windows, expected)) return;
   auto sample = [&](int, int r) { sampleRow(r, reference, current, warp); };
   pool.run(sample_rows_, sample);
 

@@ -34,6 +34,7 @@
 ///
 /// Realtime: the constructor allocates everything; measure() allocates nothing.
 
+#include <Eigen/Core>
 #include <array>
 #include <opencv2/core.hpp>
 #include <span>
@@ -59,11 +60,13 @@ class MovingContentCheck {
   /// Sample spacing, pixels, along both axes: a person is tens of pixels wide.
   static constexpr int kStride = 3;
   /// A window is a node of the interpolated motion when its du and dv are each within
-  /// kOutlierPx of the median of the windows within kNeighbours of it (itself included):
-  /// a window that locked onto a person walking a few pixels per frame faster than the
-  /// background is none. Nine windows span 1.7 window widths, more than a person near the
-  /// robot covers; the median of a smooth parallax field (a monotonic run of shifts) is the
-  /// window's own shift.
+  /// kOutlierPx of the median of the windows within kNeighbours of it (itself included),
+  /// and of the shift the last fit predicts for it when measure() is given that: a window
+  /// that locked onto a person walking a few pixels per frame faster than the background is
+  /// none. Nine windows span 1.7 window widths, more than one person near the robot covers;
+  /// the median of a smooth parallax field (a monotonic run of shifts) is the window's own
+  /// shift. Two people side by side can make the median theirs; the prediction of a fit
+  /// over the whole ring, whose robust loss left their windows out, is the background's.
   static constexpr int kNeighbours = 4;
   static constexpr double kOutlierPx = 1.0;
   /// Fewer nodes (windows measured and not outliers) than this, or fewer usable samples
@@ -80,11 +83,13 @@ class MovingContentCheck {
   /// Fills `fraction` (one per window of `windows`, in [0, 1]) for `windows` measured between
   /// `reference` and `current` (CV_32FC1, W x H): `current` is the current panorama as the
   /// last PanoramaWarp::projectGridRows() of `warp` de-rotated it. A window that is not
-  /// valid or has no usable sample gets 0. Requires windows.size() == fraction.size() ==
-  /// the constructor's window count.
+  /// valid or has no usable sample gets 0. `expected`: empty, or per window the shift (du,
+  /// dv), pixels, that the motion fitted so far predicts for it (see kOutlierPx). Requires
+  /// windows.size() == fraction.size() (== expected.size() when given) == the constructor's
+  /// window count.
   void measure(const cv::Mat& reference, const cv::Mat& current, const PanoramaWarp& warp,
                std::span<const WindowMotion> windows, registration::WorkerPool& pool,
-               std::span<double> fraction);
+               std::span<double> fraction, std::span<const Eigen::Vector2d> expected = {});
 
   /// The factor on a window's confidences for a moving fraction `f`: 1 up to kKeepFraction,
   /// 0 from kDropFraction, linear between.
@@ -103,7 +108,8 @@ class MovingContentCheck {
     bool disagrees = false;
   };
   /// Fills node_ and motion_ from the windows; false when fewer than kMinWindows are nodes.
-  bool interpolateMotion(std::span<const WindowMotion> windows);
+  bool interpolateMotion(std::span<const WindowMotion> windows,
+                         std::span<const Eigen::Vector2d> expected);
   /// Samples of sample row `r` (row top_ + r * kStride) into samples_.
   void sampleRow(int r, const cv::Mat& reference, const cv::Mat& current,
                  const PanoramaWarp& warp);

@@ -64,10 +64,11 @@ class MovingContentTest : public ::testing::Test {
   }
 
   std::vector<double> measure(const cv::Mat& reference, const cv::Mat& current,
-                              const std::vector<WindowMotion>& windows) {
+                              const std::vector<WindowMotion>& windows,
+                              const std::vector<Eigen::Vector2d>& expected = {}) {
     MovingContentCheck check(cv::Mat::ones(height_, width_, CV_32FC1), kWindow, 0, centers_);
     std::vector<double> fraction(windows.size(), -1.0);
-    check.measure(reference, current, warp_, windows, pool_, fraction);
+    check.measure(reference, current, warp_, windows, pool_, fraction, expected);
     return fraction;
   }
 
@@ -135,6 +136,35 @@ TEST_F(MovingContentTest, APersonMovingOnItsOwnIsFoundInTheWindowsItCovers) {
       // Most of the person, and the background it uncovers, disagrees.
       EXPECT_GE(fraction[k], 0.5 * cover) << "window " << k << ", person covering " << cover;
       EXPECT_GE(fraction[k], MovingContentCheck::kDropFraction) << "window " << k;
+    }
+  }
+}
+
+TEST_F(MovingContentTest, PeopleSideBySideAreFoundWithTheFitsPrediction) {
+  // Two people side by side, 140 columns at [470, 610) of the reference, move 5 columns
+  // right; the seven windows centred on them locked onto them, the majority of each one's
+  // nine neighbours: their median is the people's motion. The fit's prediction (the
+  // background's shift everywhere) still tells them apart.
+  const cv::Mat background = texture(width_, 7);
+  const cv::Mat people = texture(140, 8) * 0.5f + 20.0f;
+  cv::Mat reference = background.clone(), current = shifted(background, kBackgroundShift);
+  people.copyTo(reference.colRange(470, 610));
+  people.copyTo(current.colRange(475, 615));
+  std::vector<WindowMotion> windows = backgroundWindows();
+  for (std::size_t k = 21; k <= 27; ++k) {
+    ASSERT_GT(centers_[k], 470.0);
+    ASSERT_LT(centers_[k], 615.0);
+    windows[k].du = -5.0;
+  }
+  const std::vector<Eigen::Vector2d> expected(windows.size(),
+                                              Eigen::Vector2d(kBackgroundShift, 0.0));
+  const auto fraction = measure(reference, current, windows, expected);
+  for (std::size_t k = 0; k < fraction.size(); ++k) {
+    const double cover = coverage(k, 475, 615);
+    if (!overlaps(k, 460, 625)) {
+      EXPECT_LE(fraction[k], MovingContentCheck::kKeepFraction) << "window " << k;
+    } else if (cover >= 0.1) {
+      EXPECT_GE(fraction[k], 0.4 * cover) << "window " << k << ", people covering " << cover;
     }
   }
 }
