@@ -170,7 +170,7 @@ Expected<void> FrameRegistrar::unwrap(const cv::Mat& frame) {
 
 void FrameRegistrar::makeCurrentPrevious() {
   registration_.setReference(panorama_);
-  panorama_.copyTo(previous_);
+  keepPrevious();
   has_previous_ = true;
 }
 
@@ -392,13 +392,8 @@ void FrameRegistrar::discountMovingContent(std::span<WindowMotion> windows, int 
   // What the estimate so far predicts each window measured: the rotation the de-rotation
   // left, and the translation at the window's inverse depth of the last fit.
   const Eigen::Vector3d omega = rotationVector(R_residual);
-  const double gamma = calibration_.panorama.gamma();
-  for (std::size_t k = 0; k < windows.size(); ++k) {
-    Eigen::Matrix<double, 6, 1> x;
-    x << omega, fit_.inverseDepth(static_cast<int>(k)) * tau;
-    const ModelMotion m = predictMotion(x, window_azimuth_[k], fit_.kappa());
-    expected_motion_[k] = {m.du_rad / gamma, m.dv_rad / gamma};
-  }
+  for (std::size_t k = 0; k < windows.size(); ++k)
+    expected_motion_[k] = predictedShift(static_cast<int>(k), omega, tau);
   moving_.measure(reference, warped_, warp_, windows, pool_, moving_fraction_, expected_motion_);
   for (std::size_t k = 0; k < windows.size(); ++k) {
     WindowMotion& m = windows[k];
@@ -444,17 +439,22 @@ Eigen::Matrix3d FrameRegistrar::wholeColumnYaw(const Eigen::Matrix3d& R) const {
   return Eigen::AngleAxisd(rounded - yaw, Eigen::Vector3d::UnitZ()).toRotationMatrix() * R;
 }
 
+Eigen::Vector2d FrameRegistrar::predictedShift(int k, const Eigen::Vector3d& omega,
+                                               const Eigen::Vector3d& tau) const {
+  Eigen::Matrix<double, 6, 1> x;
+  x << omega, fit_.inverseDepth(k) * tau;
+  const ModelMotion m =
+      predictMotion(x, window_azimuth_[static_cast<std::size_t>(k)], fit_.kappa());
+  return Eigen::Vector2d(m.du_rad, m.dv_rad) / calibration_.panorama.gamma();
+}
+
 void FrameRegistrar::predictRefinementShifts(const Eigen::Vector3d& tau, FitStatus last_fit) {
   if (last_fit != FitStatus::kOk) {
     std::fill(expected_dv_.begin(), expected_dv_.end(), std::numeric_limits<double>::quiet_NaN());
     return;
   }
-  const double gamma = calibration_.panorama.gamma();
   for (int k = 0; k < registration_.windowCount(); ++k) {
-    Eigen::Matrix<double, 6, 1> x;
-    x << Eigen::Vector3d::Zero(), fit_.inverseDepth(k) * tau;
-    const double theta = window_azimuth_[static_cast<std::size_t>(k)];
-    const double dv = predictMotion(x, theta, fit_.kappa()).dv_rad / gamma;
+    const double dv = predictedShift(k, Eigen::Vector3d::Zero(), tau).y();
     const bool tight = kPredictionSlackPx + kDepthSpread * std::abs(dv) <=
                        WindowRegistration::kExpectedDvReachPx;
     expected_dv_[k] = tight ? dv : std::numeric_limits<double>::quiet_NaN();

@@ -98,7 +98,7 @@ class FrameRegistrar {
   /// The candidate next reference (firstPass()) becomes the previous frame.
   void advance() {
     registration_.advance();
-    panorama_.copyTo(previous_);
+    keepPrevious();
   }
 
   /// Makes the previous frame (after advance() or makeCurrentPrevious(): the current one)
@@ -140,6 +140,15 @@ class FrameRegistrar {
   /// Fills window_times_ from the calibration's capture times (start-up).
   void measureWindowTimes();
   void predictRefinementShifts(const Eigen::Vector3d& tau, FitStatus last_fit);
+  /// The shift (du, dv), pixels, that the motion (omega, tau) makes in window k at the last
+  /// fit's inverse depth of that window.
+  Eigen::Vector2d predictedShift(int k, const Eigen::Vector3d& omega,
+                                 const Eigen::Vector3d& tau) const;
+  /// The current panorama becomes previous_, the reference of the pixel checks
+  /// (discountMovingContent()); nothing to keep when they are off.
+  void keepPrevious() {
+    if (options_.moving_content) panorama_.copyTo(previous_);
+  }
   /// `R` with its yaw (about the camera's z axis) rounded to whole panorama columns when its
   /// tilt is under one column's angle (else `R`): the de-rotation a refinement pass warps by.
   Eigen::Matrix3d wholeColumnYaw(const Eigen::Matrix3d& R) const;

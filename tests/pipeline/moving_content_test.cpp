@@ -20,6 +20,7 @@ using pipeline::MovingContentCheck;
 
 constexpr int kWindow = 110, kStep = 20;
 constexpr int kBackgroundShift = 3;  ///< current(u) = reference(u + 3): du = +3
+constexpr int kPersonShift = 5;      ///< people: current(u) = reference(u - 5), du = -5
 
 class MovingContentTest : public ::testing::Test {
  protected:
@@ -89,6 +90,50 @@ class MovingContentTest : public ::testing::Test {
     return inside / all;
   }
 
+  /// A textured background moved by kBackgroundShift, with people (a darker texture of
+  /// `width` columns at [first, first + width) of the reference) moved kPersonShift columns
+  /// the other way in the current panorama. Textures drawn with seeds `seed` and seed + 1.
+  struct People {
+    cv::Mat reference, current;
+    int first, width;
+    int last() const { return first + width; }
+  };
+  People people(int first, int width, int seed) const {
+    const cv::Mat background = texture(width_, seed);
+    const cv::Mat person = texture(width, seed + 1) * 0.5f + 20.0f;
+    People scene{background.clone(), shifted(background, kBackgroundShift), first, width};
+    person.copyTo(scene.reference.colRange(first, first + width));
+    person.copyTo(scene.current.colRange(first + kPersonShift, first + kPersonShift + width));
+    return scene;
+  }
+
+  /// Windows first..last (centred on the people) locked onto them: their shift is the
+  /// people's, du = -kPersonShift.
+  void lockOnto(std::vector<WindowMotion>& windows, std::size_t first, std::size_t last,
+                const People& scene) const {
+    for (std::size_t k = first; k <= last; ++k) {
+      ASSERT_GT(centers_[k], scene.first);
+      ASSERT_LT(centers_[k], scene.last() + kPersonShift);
+      windows[k].du = -kPersonShift;
+    }
+  }
+
+  /// Windows clear of the people (and 10 columns around them) disagree nowhere; windows they
+  /// cover at least a tenth of (in the current panorama) disagree at least `share` times
+  /// that cover: most of the people, and the background they uncover, disagrees.
+  void expectFound(const std::vector<double>& fraction, const People& scene,
+                   double share) const {
+    const int first = scene.first + kPersonShift, last = scene.last() + kPersonShift;
+    for (std::size_t k = 0; k < fraction.size(); ++k) {
+      const double cover = coverage(k, first, last);
+      if (!overlaps(k, first - 15, last + 10)) {
+        EXPECT_LE(fraction[k], MovingContentCheck::kKeepFraction) << "window " << k;
+      } else if (cover >= 0.1) {
+        EXPECT_GE(fraction[k], share * cover) << "window " << k << ", people covering " << cover;
+      }
+    }
+  }
+
   PanoramaGeometry geometry_;
   int width_, height_;
   PanoramaWarp warp_;
@@ -112,31 +157,19 @@ TEST_F(MovingContentTest, StaticSceneWithNoiseAndAnExposureStepDisagreesNowhere)
 TEST_F(MovingContentTest, APersonMovingOnItsOwnIsFoundInTheWindowsItCovers) {
   // A person 80 columns wide at [490, 570) of the reference moves 5 columns right while the
   // background moves 3 left: content at current u is at reference u - 5 (du = -5).
-  const cv::Mat background = texture(width_, 3);
-  const cv::Mat person = texture(80, 4) * 0.5f + 20.0f;
-  cv::Mat reference = background.clone(), current = shifted(background, kBackgroundShift);
-  person.copyTo(reference.colRange(490, 570));
-  person.copyTo(current.colRange(495, 575));
+  const People scene = people(490, 80, 3);
   std::vector<WindowMotion> windows = backgroundWindows();
   // The three windows centred on the person locked onto it: their shift is the person's.
   // They must not lend that motion to the columns between them and their neighbours (which
   // would then see the person as background), and are found themselves (their background
   // does not move so).
-  for (std::size_t k = 23; k <= 25; ++k) {
-    ASSERT_GT(centers_[k], 495.0);
-    ASSERT_LT(centers_[k], 575.0);
-    windows[k].du = -5.0;
-  }
-  const auto fraction = measure(reference, current, windows);
+  lockOnto(windows, 23, 25, scene);
+  ASSERT_GT(centers_[23], scene.first + kPersonShift);  // within the person in both frames
+  const auto fraction = measure(scene.reference, scene.current, windows);
+  expectFound(fraction, scene, 0.5);
   for (std::size_t k = 0; k < fraction.size(); ++k) {
-    const double cover = coverage(k, 495, 575);
-    if (!overlaps(k, 480, 585)) {
-      EXPECT_LE(fraction[k], MovingContentCheck::kKeepFraction) << "window " << k;
-    } else if (cover >= 0.1) {
-      // Most of the person, and the background it uncovers, disagrees.
-      EXPECT_GE(fraction[k], 0.5 * cover) << "window " << k << ", person covering " << cover;
+    if (coverage(k, scene.first + kPersonShift, scene.last() + kPersonShift) >= 0.1)
       EXPECT_GE(fraction[k], MovingContentCheck::kDropFraction) << "window " << k;
-    }
   }
 }
 
@@ -145,28 +178,12 @@ TEST_F(MovingContentTest, PeopleSideBySideAreFoundWithTheFitsPrediction) {
   // right; the seven windows centred on them locked onto them, the majority of each one's
   // nine neighbours: their median is the people's motion. The fit's prediction (the
   // background's shift everywhere) still tells them apart.
-  const cv::Mat background = texture(width_, 7);
-  const cv::Mat people = texture(140, 8) * 0.5f + 20.0f;
-  cv::Mat reference = background.clone(), current = shifted(background, kBackgroundShift);
-  people.copyTo(reference.colRange(470, 610));
-  people.copyTo(current.colRange(475, 615));
+  const People scene = people(470, 140, 7);
   std::vector<WindowMotion> windows = backgroundWindows();
-  for (std::size_t k = 21; k <= 27; ++k) {
-    ASSERT_GT(centers_[k], 470.0);
-    ASSERT_LT(centers_[k], 615.0);
-    windows[k].du = -5.0;
-  }
+  lockOnto(windows, 21, 27, scene);
   const std::vector<Eigen::Vector2d> expected(windows.size(),
                                               Eigen::Vector2d(kBackgroundShift, 0.0));
-  const auto fraction = measure(reference, current, windows, expected);
-  for (std::size_t k = 0; k < fraction.size(); ++k) {
-    const double cover = coverage(k, 475, 615);
-    if (!overlaps(k, 460, 625)) {
-      EXPECT_LE(fraction[k], MovingContentCheck::kKeepFraction) << "window " << k;
-    } else if (cover >= 0.1) {
-      EXPECT_GE(fraction[k], 0.4 * cover) << "window " << k << ", people covering " << cover;
-    }
-  }
+  expectFound(measure(scene.reference, scene.current, windows, expected), scene, 0.4);
 }
 
 TEST_F(MovingContentTest, TooFewMeasuredWindowsCheckNothing) {
