@@ -70,6 +70,7 @@ constexpr PipelineKey kPipelineKeys[] = {
     {"pipeline.min_confidence", "registration.min_confidence"},
     {"pipeline.inlier_sigmas", "fit.inlier_sigmas"},
     {"pipeline.moving_content", "moving_content"},
+    {"pipeline.noise_weighting", "registration.noise_weighting"},
     {"pipeline.threads", "threads"},
     {"pipeline.fftw_wisdom", "fftw_wisdom"},
     {"input", "unwrap.input"},
@@ -104,6 +105,7 @@ void parsePipeline(Reader& r, const YAML::Node& node, const std::filesystem::pat
   r.get(node, "pipeline", "min_confidence", p.registration.min_confidence);
   r.get(node, "pipeline", "inlier_sigmas", p.fit.inlier_sigmas);
   r.get(node, "pipeline", "moving_content", p.moving_content);
+  r.get(node, "pipeline", "noise_weighting", p.registration.noise_weighting);
   r.get(node, "pipeline", "threads", p.threads);
   std::string wisdom;
   r.get(node, "pipeline", "fftw_wisdom", wisdom);
@@ -241,7 +243,8 @@ std::string DaemonConfig::describe() const {
     << "\n  estimate_rotation_scale: " << p.registration.estimate_rotation_scale
     << "\n  min_confidence: " << p.registration.min_confidence
     << "\n  inlier_sigmas: " << p.fit.inlier_sigmas
-    << "\n  moving_content: " << p.moving_content << "\n  threads: " << p.threads
+    << "\n  moving_content: " << p.moving_content
+    << "\n  noise_weighting: " << p.registration.noise_weighting << "\n  threads: " << p.threads
     << "\n  fftw_wisdom: \"" << p.fftw_wisdom << "\"\n"
     << "keyframes:\n  slots: " << keyframes.slots
     << "\n  max_translation: " << keyframes.max_translation

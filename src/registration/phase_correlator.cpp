@@ -54,6 +54,7 @@ struct WhitenShape {
   const float* sqrt_w2;
   const float* noise_cols;
   const float* noise_rows;
+  float noise_power;  ///< added to every bin's |F|^2
 };
 
 /// PhaseCorrelator::whiten() for one value of `moments`: inlined into each copy of
@@ -65,7 +66,9 @@ template <bool kMoments>
   const int spectrum_cols = n1 / 2 + 1;
   const float floor2 = static_cast<float>(1e-8 * mean_power) + 1e-30f;
   const simd::F4 floor4 = simd::broadcast(floor2);
-  // Phase-noise moments (PhaseNoise): 1 / |F|^2 capped at 1 / (kPhaseNoiseFloor mean_power).
+  const simd::F4 noise4 = simd::broadcast(shape.noise_power);
+  // Phase-noise moments (PhaseNoise): 1 / (|F|^2 + noise_power), capped at
+  // 1 / (kPhaseNoiseFloor mean_power).
   const float noise_cap = 1.0f / (kPhaseNoiseFloor * static_cast<float>(mean_power) + 1e-30f);
   const simd::F4 noise_cap4 = simd::broadcast(noise_cap);
   // G is summed row by row: per row the column sums of m^2 W1^2 (1, w1, w1^2) / |F|^2,
@@ -85,14 +88,14 @@ template <bool kMoments>
     const float* sw = shape.sqrt_w2 + 2 * static_cast<std::size_t>(r) * band_cols;
     float* dst = reinterpret_cast<float*>(band + static_cast<std::size_t>(r) * band_cols);
     prefetchAhead<1>(dst, row_floats);  // the band's row a few rows on
-    // P = sqrt(W) F / |F|: four bins at a time (one reciprocal square root for four), then
-    // two; the same operations per bin either way.
+    // P = sqrt(W) F / sqrt(|F|^2 + noise_power): four bins at a time (one reciprocal square
+    // root for four), then two; the same operations per bin either way.
     simd::F4 a0 = simd::broadcast(0.0f), a1 = a0, a2 = a0;
     float t0 = 0.0f, t1 = 0.0f, t2 = 0.0f;
     int f = 0;
     for (; f + 8 <= row_floats; f += 8) {
       const simd::F4 z01 = simd::load(src + f), z23 = simd::load(src + f + 4);
-      const simd::F4 inv = simd::rsqrt(simd::max(simd::norms(z01, z23), floor4));
+      const simd::F4 inv = simd::rsqrt(simd::max(simd::norms(z01, z23), floor4) + noise4);
       simd::store(dst + f, z01 * (simd::load(sw + f) * simd::lowPairs(inv)));
       simd::store(dst + f + 4, z23 * (simd::load(sw + f + 4) * simd::highPairs(inv)));
       if constexpr (!kMoments) continue;
@@ -104,7 +107,7 @@ template <bool kMoments>
     }
     for (; f + 4 <= row_floats; f += 4) {
       const simd::F4 z = simd::load(src + f);
-      const simd::F4 inv = simd::rsqrt(simd::max(simd::pairNorm(z), floor4));
+      const simd::F4 inv = simd::rsqrt(simd::max(simd::pairNorm(z), floor4) + noise4);
       simd::store(dst + f, z * (simd::load(sw + f) * inv));
       if constexpr (!kMoments) continue;
       const simd::F4 inv2 = simd::min(inv * inv, noise_cap4);  // bins twice: lanes 0, 2
@@ -115,7 +118,7 @@ template <bool kMoments>
     }
     for (; f < row_floats; f += 2) {
       const float re = src[f], im = src[f + 1];
-      const float norm = std::max(re * re + im * im, floor2);
+      const float norm = std::max(re * re + im * im, floor2) + shape.noise_power;
       const float gain = sw[f] / std::sqrt(norm);
       dst[f] = re * gain;
       dst[f + 1] = im * gain;
@@ -249,9 +252,9 @@ PeakCovariance PhaseCorrelator::shiftCovariance(const PhaseNoise& ref, const Pha
 
 OMNIPOSE_SIMD_CLONES
 PhaseNoise PhaseCorrelator::whiten(const Complex* spectrum, double mean_power, Complex* band,
-                                   bool moments) const {
+                                   bool moments, double noise_power) const {
   const WhitenShape shape{n0_, n1_, s0_, band_cols_, sqrt_w2_.data(), noise_cols_.data(),
-                          noise_rows_.data()};
+                          noise_rows_.data(), static_cast<float>(std::max(noise_power, 0.0))};
   return moments ? whitenBand<true>(spectrum, mean_power, band, shape)
                  : whitenBand<false>(spectrum, mean_power, band, shape);
 }

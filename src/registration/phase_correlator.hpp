@@ -35,11 +35,14 @@ struct CorrelationPeak {
 };
 
 /// How precisely whiten() found a signal's phases: the moments
-///     G = sum over the band's bins of m^2 W^2 w w^T / |F|^2,   w = (w0, w1) rad/sample,
-/// m = 2 for a bin with a Hermitian partner (c > 0), else 1; |F|^2 floored at
-/// kPhaseNoiseFloor times the mean power. With additive white noise of energy E|N|^2 per
-/// bin, the phase of bin F is off by a random angle of variance E|N|^2 / (2 |F|^2), so G
-/// is what a signal contributes to the variance of a correlation peak (shiftCovariance()).
+///     G = sum over the band's bins of m^2 W^2 w w^T / (|F|^2 + noise_power),
+/// w = (w0, w1) rad/sample, m = 2 for a bin with a Hermitian partner (c > 0), else 1;
+/// |F|^2 floored at kPhaseNoiseFloor times the mean power; noise_power whiten()'s. With
+/// additive white noise of energy E|N|^2 per bin, the phase of bin F is off by a random
+/// angle of variance E|N|^2 / (2 |F|^2), so G is what a signal contributes to the variance
+/// of a correlation peak (shiftCovariance()). With noise_power > 0 the cross-power bin's
+/// weight also carries |F|^2 / (|F|^2 + noise_power) of the other signal, taken as 1 here:
+/// G is then an upper bound, reached where the other signal stands far above the noise.
 /// Zero: not whitened.
 struct PhaseNoise {
   float g00 = 0.0f;  ///< sum m^2 W^2 w0^2 / |F|^2
@@ -82,16 +85,22 @@ class PhaseCorrelator {
   int surfaceRows() const { return s0_; }
   int surfaceCols() const { return s1_; }
 
-  /// band = sqrt(W) * F / |F| on the band bins of `spectrum` (n0 x (n1/2+1), from r2c).
-  /// `mean_power`: mean of |F|^2 over all n0 x n1 bins (= the signal's energy, by
-  /// Parseval); |F| is floored at 1e-4 sqrt(mean_power) so near-empty bins are not
-  /// amplified. Allocation-free.
+  /// band = sqrt(W) * F / sqrt(|F|^2 + noise_power) on the band bins of `spectrum`
+  /// (n0 x (n1/2+1), from r2c). `mean_power`: mean of |F|^2 over all n0 x n1 bins (= the
+  /// signal's energy, by Parseval); |F|^2 is floored at 1e-8 mean_power so near-empty bins
+  /// are not amplified. `noise_power`: the noise's expected |F|^2 per bin (sigma^2 times
+  /// the sum of the squared taper weights, for pixel noise of variance sigma^2), >= 0. With
+  /// 0 every bin is whitened to full weight (pure phase correlation); else a bin the noise
+  /// dominates keeps about its signal-to-noise ratio of weight, so the cross-power spectrum
+  /// of two such bands weighs each bin by W times the product of the two
+  /// |F|^2 / (|F|^2 + noise_power): whitened where the signal stands above the noise,
+  /// cross-correlation below it. Allocation-free.
   // A separate band buffer: whitening inside the cross-power loop instead was slower
   // (docs/PERFORMANCE.md).
   /// With `moments` it also returns the signal's phase-noise moments (PhaseNoise, for
   /// shiftCovariance(); 4 % of a frame's instructions), else zero.
   PhaseNoise whiten(const Complex* spectrum, double mean_power, Complex* band,
-                    bool moments = true) const;
+                    bool moments = true, double noise_power = 0.0) const;
   /// Covariance of `peak` (from correlate(ref, cur)) caused by additive white noise of
   /// energy `noise_energy` per spectral bin in each signal (sigma^2 times the sum of the
   /// squared taper weights, for pixel noise of variance sigma^2). Linearising the surface's

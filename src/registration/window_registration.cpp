@@ -15,6 +15,7 @@
 #include "registration/column_spectra.hpp"
 #include "registration/fft_plan.hpp"
 #include "registration/log_polar.hpp"
+#include "registration/noise_estimate.hpp"
 #include "registration/phase_correlator.hpp"
 #include "registration/pipeline_resources.hpp"
 #include "registration/simd.hpp"
@@ -339,6 +340,13 @@ struct WindowRegistration::Impl {
   // Shared first stage of the window FFTs of the unmasked windows (column_spectra.hpp).
   std::unique_ptr<reg::ColumnSpectra> columns;
 
+  // The panorama's noise (Options::noise_weighting): the estimator over the windows' rows
+  // (usable pixels only), and the variance of the frame whose bands are being whitened
+  // (0 without noise weighting or when it could not be measured).
+  std::unique_ptr<reg::NoiseEstimator> noise_estimator;
+  double noise_sigma = std::numeric_limits<double>::quiet_NaN();
+  double noise_variance = 0.0;
+
   // Reference (previous frame) and candidate next reference; advance() swaps them.
   std::unique_ptr<WindowSpectra> reference, next;
   bool has_reference = false;
@@ -393,6 +401,10 @@ struct WindowRegistration::Impl {
   /// Pixel noise energy per spectral bin of window k for unit pixel noise variance: the
   /// sum of its squared taper weights.
   double noiseEnergy(int k) const { return windowMasked(k) ? masked_weight2[k] : taper_weight2; }
+  /// whiten()'s noise_power for window k of the frame being whitened.
+  double noisePower(int k) const { return noise_variance * noiseEnergy(k); }
+  /// Measures the noise of `panorama`, the frame whose bands are whitened next.
+  void measureNoise(const cv::Mat& panorama);
   /// Registers window k of the current frame (F_c in w.spectrum) against `ref`; the current
   /// whitened bands when already made (else nullptr) with their phase noise.
   void measureWindow(Worker& w, const cv::Mat& panorama, int k, const TaperedWindow& cur,
@@ -434,6 +446,13 @@ WindowRegistration::Impl::Impl(cv::Size panorama, const Options& o,
   taper_weight = sum * sum;
   taper_weight2 = sum2 * sum2;
   columns = std::make_unique<reg::ColumnSpectra>(width, fft_size, taper, effort);
+  noise_estimator = std::make_unique<reg::NoiseEstimator>(width, top, o.window);
+}
+
+void WindowRegistration::Impl::measureNoise(const cv::Mat& panorama) {
+  if (!options.noise_weighting) return;
+  noise_sigma = noise_estimator->sigma(panorama);
+  noise_variance = std::isfinite(noise_sigma) ? noise_sigma * noise_sigma : 0.0;
 }
 
 void WindowRegistration::Impl::transformColumns(const cv::Mat& panorama) {
@@ -517,6 +536,7 @@ TaperedWindow WindowRegistration::Impl::loadWarpedWindow(Worker& w, const cv::Ma
 }
 
 void WindowRegistration::Impl::setValidity(const cv::Mat& validity) {
+  noise_estimator = std::make_unique<reg::NoiseEstimator>(width, top, options.window, validity);
   masked_taper.clear();
   masked_weight.clear();
   masked_weight2.clear();
@@ -671,12 +691,12 @@ void WindowRegistration::Impl::measureWindow(Worker& w, const cv::Mat& panorama,
     const TaperedWindow tw = loadWarpedWindow(w, panorama, k, rotation, scale);
     w.window_fft.execute();
     cur_translation_noise = w.translation.whiten(w.spectrum.data(), tw.energy, w.derotated.data(),
-                                                 options.shift_covariance);
+                                                 options.shift_covariance, noisePower(k));
     translation_band_ptr = w.derotated.data();
   } else if (translation_band_ptr == nullptr) {  // F_c not whitened yet (frame not kept)
     cur_translation_noise = w.translation.whiten(w.spectrum.data(), cur.energy,
                                                  w.scratch_translation.data(),
-                                                 options.shift_covariance);
+                                                 options.shift_covariance, noisePower(k));
     translation_band_ptr = w.scratch_translation.data();
   }
 
@@ -739,6 +759,7 @@ void WindowRegistration::setReference(const cv::Mat& panorama) {
   if (!s.acceptsImage(panorama)) return;
   s.keepPendingKeyframe();
   WindowSpectra& ref = *s.reference;
+  s.measureNoise(panorama);
   s.transformColumns(panorama);
   auto task = [&](int worker, int k) {
     Worker& w = *s.workers[worker];
@@ -750,7 +771,7 @@ void WindowRegistration::setReference(const cv::Mat& panorama) {
       ref.translation_noise[i] =
           w.translation.whiten(w.spectrum.data(), tw.energy,
                                ref.translation.data() + k * s.translation_band,
-                               s.options.shift_covariance);
+                               s.options.shift_covariance, s.noisePower(k));
   };
   s.pool->run(s.windows, task);
   s.has_reference = true;
@@ -758,6 +779,8 @@ void WindowRegistration::setReference(const cv::Mat& panorama) {
 }
 
 bool WindowRegistration::hasReference() const { return impl_->has_reference; }
+
+double WindowRegistration::noiseSigma() const { return impl_->noise_sigma; }
 
 void WindowRegistration::setValidity(const cv::Mat& validity) {
   Impl& s = *impl_;
@@ -792,6 +815,7 @@ bool WindowRegistration::measure(const cv::Mat& current, std::span<WindowMotion>
     return false;
   WindowSpectra& next = *s.next;
   const WindowSpectra& ref = against == kPreviousFrame ? *s.reference : s.keyframe(against);
+  if (keep_as_next) s.measureNoise(current);
   s.transformColumns(current);
   auto task = [&](int worker, int k) {
     Worker& w = *s.workers[worker];
@@ -810,7 +834,7 @@ bool WindowRegistration::measure(const cv::Mat& current, std::span<WindowMotion>
       if (tw.textured) {
         cur_translation = next.translation.data() + k * s.translation_band;
         translation_noise = w.translation.whiten(w.spectrum.data(), tw.energy, cur_translation,
-                                                 s.options.shift_covariance);
+                                                 s.options.shift_covariance, s.noisePower(k));
       }
       next.translation_noise[i] = translation_noise;
     }

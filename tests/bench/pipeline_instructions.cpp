@@ -8,11 +8,13 @@
 // Usage: omnipose-bench-instructions [--threads N] [--frames K] [--warmup W]
 //                                    [--refine R] [--wisdom FILE] [--save DIR | --load DIR]
 //                                    [--odometry [--readout S]] [--no-moving-content]
+//                                    [--noise-weighting]
 // --odometry processes the frames with Odometry (what omniposed and omnipose-replay run),
 // stamped at 30 fps, instead of Pipeline; --readout S gives the calibration a rolling
 // shutter of S seconds (the rows' capture times corrected in every pass).
 // --no-moving-content turns the refinement pass's check for content moving on its own off
-// (PipelineOptions::moving_content), to count what it costs.
+// (PipelineOptions::moving_content), to count what it costs; --noise-weighting turns the
+// registration's signal-to-noise weighting on (WindowRegistration::Options::noise_weighting).
 // --save writes the two rendered frames to DIR/a.png, DIR/b.png; --load reads them instead
 // of rendering (an emulator then spends nothing on the renderer).
 #include <chrono>
@@ -42,7 +44,7 @@
 int main(int argc, char** argv) {
   int threads = 1, frames = 10, warmup = 2, refine = 1;
   double readout = 0.0;
-  bool odometry = false, no_moving_content = false;
+  bool odometry = false, no_moving_content = false, noise_weighting = false;
   std::string wisdom, save, load;
   omnipose::tools::Cli cli(
       "omnipose-bench-instructions",
@@ -77,6 +79,9 @@ int main(int argc, char** argv) {
   app.add_flag("--no-moving-content", no_moving_content,
                "without the refinement pass's moving-content check "
                "(PipelineOptions::moving_content)");
+  app.add_flag("--noise-weighting", noise_weighting,
+               "with the registration's signal-to-noise weighting "
+               "(WindowRegistration::Options::noise_weighting)");
   if (const auto exit_code = cli.parse(argc, argv)) return *exit_code;
   cv::setNumThreads(1);
   cv::Mat f[2];
@@ -107,6 +112,7 @@ int main(int argc, char** argv) {
   options.threads = threads;
   options.refine_iterations = refine;
   options.moving_content = !no_moving_content;
+  options.registration.noise_weighting = noise_weighting;
   options.fftw_wisdom = wisdom;
   omnipose::Calibration calibration;
   calibration.sensor.readout_s = readout;

@@ -99,6 +99,24 @@ TEST(DaemonConfig, MovingContentCheck) {
   }
 }
 
+TEST(DaemonConfig, NoiseWeighting) {
+  const auto parse = [](const std::string& pipeline) {
+    return DaemonConfig::parse("source: {type: file, path: run1}\ncalibration: cal.yaml\n" + pipeline,
+                               "d.yaml", "/etc/omnipose");
+  };
+  EXPECT_FALSE(parse("").pipeline.registration.noise_weighting);  // off by default
+  const DaemonConfig on = parse("pipeline: {noise_weighting: true}\n");
+  EXPECT_TRUE(on.pipeline.registration.noise_weighting);
+  EXPECT_NE(on.describe().find("noise_weighting: true"), std::string::npos) << on.describe();
+  try {
+    parse("pipeline: {noise_weighting: 2}\n");
+    FAIL() << "expected ConfigError";
+  } catch (const ConfigError& e) {
+    EXPECT_NE(std::string(e.what()).find("pipeline.noise_weighting"), std::string::npos)
+        << e.what();
+  }
+}
+
 TEST(DaemonConfig, KeyframesSection) {
   const auto parse = [](const std::string& keyframes) {
     return DaemonConfig::parse("source: {type: file, path: run1}\ncalibration: cal.yaml\n" + keyframes,

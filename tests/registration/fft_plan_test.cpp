@@ -4,7 +4,9 @@
 // same peak as an unrestricted one.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
+#include <complex>
 #include <limits>
 #include <numbers>
 #include <random>
@@ -114,15 +116,18 @@ class Whitener {
         forward_(FftPlan::realToComplex(rows, cols, signal_.data(), spectrum_.data())),
         correlator_(correlator) {}
 
-  void operator()(const std::vector<float>& image, FftwArray<Complex>& band) {
+  void operator()(const std::vector<float>& image, FftwArray<Complex>& band,
+                  double noise_power = 0.0) {
     double power = 0.0;
     for (std::size_t i = 0; i < signal_.size(); ++i) {
       signal_[i] = image[i];
       power += static_cast<double>(signal_[i]) * signal_[i];
     }
     forward_.execute();
-    correlator_.whiten(spectrum_.data(), power, band.data());
+    correlator_.whiten(spectrum_.data(), power, band.data(), true, noise_power);
   }
+  /// The last image's spectrum (rows x (cols/2 + 1)).
+  const FftwArray<Complex>& spectrum() const { return spectrum_; }
 
  private:
   FftwArray<float> signal_;
@@ -195,6 +200,73 @@ TEST(PhaseCorrelator, ASearchNearAGivenRowFindsTheFullSearchPeakThere) {
     EXPECT_GT(std::abs(std::remainder(off.shift0 - d0, kRows)), kNear);
     EXPECT_LT(off.height, 0.25 * a.height);  // 0.13 (2026-11-25)
   }
+}
+
+}  // namespace
+}  // namespace omnipose::registration
+
+namespace omnipose::registration {
+namespace {
+
+// whiten()'s noise_power: each band bin keeps |F|^2 / (|F|^2 + noise_power) of its whitened
+// power, so the cross-power spectrum weighs a bin the noise dominates by its signal-to-noise
+// ratio; a pure shift is still found where it is, under a lower peak.
+TEST(PhaseCorrelator, ANoisePowerWeighsEachBinBySignalToNoise) {
+  constexpr int kRows = 96, kCols = 64;
+  PhaseCorrelator correlator(kRows, kCols, 1.0, 1.0);
+  Whitener whitened(kRows, kCols, correlator);
+  // Every frequency present: white noise (a wave texture has a few dozen bins).
+  std::vector<float> cur(static_cast<std::size_t>(kRows) * kCols);
+  std::mt19937 rng(3);
+  std::normal_distribution<float> grey(0.0f, 20.0f);
+  for (float& x : cur) x = grey(rng);
+  FftwArray<Complex> plain(correlator.bandSize()), weighted(correlator.bandSize());
+  whitened(cur, plain);
+  // The median bin power of the texture: half the bins are below it.
+  std::vector<double> powers;
+  for (std::size_t i = 0; i < whitened.spectrum().size(); ++i)
+    powers.push_back(std::norm(whitened.spectrum()[i]));
+  std::nth_element(powers.begin(), powers.begin() + static_cast<std::ptrdiff_t>(powers.size() / 2),
+                   powers.end());
+  const double noise_power = powers[powers.size() / 2];
+  whitened(cur, weighted, noise_power);
+
+  const int s0 = correlator.surfaceRows(), band_cols = correlator.surfaceCols() / 2 + 1;
+  int checked = 0;
+  double lowest = 1.0;
+  for (int r = 0; r < s0; ++r) {
+    const int k0 = r < s0 / 2 ? r : r - s0;
+    for (int c = 0; c < band_cols; ++c) {
+      const std::size_t bin = static_cast<std::size_t>(r) * band_cols + c;
+      const double p = std::norm(plain[bin]);
+      if (!(p > 1e-6)) continue;  // the band's Nyquist row and column carry no weight
+      const double f2 = std::norm(whitened.spectrum()[static_cast<std::size_t>((k0 + kRows) % kRows) *
+                                                       (kCols / 2 + 1) + c]);
+      const double ratio = std::norm(weighted[bin]) / p;
+      EXPECT_NEAR(ratio, f2 / (f2 + noise_power), 2e-3) << "bin " << r << ", " << c;
+      // The phase is the signal's.
+      EXPECT_NEAR(std::arg(weighted[bin] * std::conj(plain[bin])), 0.0, 1e-3);
+      lowest = std::min(lowest, ratio);
+      ++checked;
+    }
+  }
+  EXPECT_GT(checked, 1000);
+  EXPECT_LT(lowest, 0.1);  // some bins are weighted well down
+
+  const double d0 = -4.3, d1 = 2.6;
+  FftwArray<Complex> ref_plain(correlator.bandSize()), ref_weighted(correlator.bandSize());
+  const std::vector<float> wave_cur = texture(kRows, kCols, 0.0, 0.0);
+  const std::vector<float> wave_ref = texture(kRows, kCols, -d0, -d1);
+  whitened(wave_cur, plain);
+  whitened(wave_cur, weighted, noise_power);
+  whitened(wave_ref, ref_plain);
+  whitened(wave_ref, ref_weighted, noise_power);
+  const CorrelationPeak a = correlator.correlate(ref_plain.data(), plain.data(), 20.0, 20.0);
+  const CorrelationPeak b = correlator.correlate(ref_weighted.data(), weighted.data(), 20.0, 20.0);
+  EXPECT_NEAR(b.shift0, d0, 0.05);
+  EXPECT_NEAR(b.shift1, d1, 0.05);
+  EXPECT_LT(b.height, 0.95 * a.height);
+  EXPECT_GT(b.height, 0.3 * a.height);
 }
 
 }  // namespace

@@ -8,9 +8,11 @@
 #include <gtest/gtest.h>
 #include <malloc.h>
 
+#include <cmath>
 #include <numbers>
 #include <opencv2/core.hpp>
 #include <opencv2/imgproc.hpp>
+#include <tuple>
 #include <vector>
 
 #include "allocation_counter.hpp"
@@ -40,16 +42,19 @@ std::pair<cv::Mat, cv::Mat> framePair() {
   return {a, b};
 }
 
-class WindowRegistrationRealtime : public ::testing::TestWithParam<int> {};
+/// (worker threads, Options::noise_weighting)
+class WindowRegistrationRealtime : public ::testing::TestWithParam<std::tuple<int, bool>> {};
 
 TEST_P(WindowRegistrationRealtime, MeasureAndAdvanceAllocateNothing) {
   if (!testing::AllocationCounter::available())
     GTEST_SKIP() << "sanitizer build: the sanitizer owns malloc, allocations are not counted";
   const auto [a, b] = framePair();
+  const auto [threads, noise_weighting] = GetParam();
   WindowRegistration::Options options;
-  options.threads = GetParam();  // 1: the calling thread only; more: the worker pool
+  options.threads = threads;  // 1: the calling thread only; more: the worker pool
+  options.noise_weighting = noise_weighting;  // the noise measurement's selection too
   WindowRegistration reg(a.size(), options);
-  ASSERT_EQ(reg.threads(), GetParam());
+  ASSERT_EQ(reg.threads(), threads);
   std::vector<WindowMotion> out(reg.windowCount());
   reg.setReference(a);
   ASSERT_TRUE(reg.measure(b, out, true));  // warm-up
@@ -70,12 +75,14 @@ TEST_P(WindowRegistrationRealtime, MeasureAndAdvanceAllocateNothing) {
 
   EXPECT_EQ(failures, 0);
   EXPECT_GT(derotated, 0) << "the de-rotation path should have run";
+  EXPECT_EQ(std::isfinite(reg.noiseSigma()), noise_weighting);
   EXPECT_EQ(allocations, 0) << "heap allocations (malloc family or operator new) in the per-frame path";
   EXPECT_EQ(after.uordblks, before.uordblks) << "malloc'd bytes changed in the per-frame path";
   EXPECT_EQ(after.hblkhd, before.hblkhd) << "mmap'd bytes changed in the per-frame path";
 }
 
-INSTANTIATE_TEST_SUITE_P(Threads, WindowRegistrationRealtime, ::testing::Values(1, 2, 4));
+INSTANTIATE_TEST_SUITE_P(Threads, WindowRegistrationRealtime,
+                         ::testing::Combine(::testing::Values(1, 2, 4), ::testing::Bool()));
 
 }  // namespace
 }  // namespace omnipose
