@@ -48,14 +48,7 @@ uncertainty_pairs=${UNCERTAINTY_PAIRS:-12}
 bin=$build/bin
 bench_command_line tools/accuracy_benchmark.sh "$@" -- BUILD_DIR FRAMES SUPERSAMPLE WISDOM \
   UNCERTAINTY_PAIRS
-ifmi_pipeline=${IFMI_PIPELINE:-}
-if [ -n "$ifmi_pipeline" ]; then
-  command_line="IFMI_PIPELINE=\"$ifmi_pipeline\" $command_line"
-  if [ "$publish" = 1 ]; then
-    echo "accuracy_benchmark: --publish publishes the defaults; unset IFMI_PIPELINE" >&2
-    exit 2
-  fi
-fi
+bench_ifmi_pipeline accuracy_benchmark
 
 bench_tools "$build" omnipose-synth omnipose-replay omnipose-eval omnipose-plot-fit \
   omnipose-plot-angles omnipose-results omnipose-equirect omnipose-plot-uncertainty
@@ -80,14 +73,7 @@ report=$out/report
 # entries of IFMI_PIPELINE (omnipose-replay rejects an unknown key or a bad value).
 wisdom=$(realpath -m "${WISDOM:-$build/accuracy.wisdom}")
 replay_config=$out/replay.yaml
-{
-  printf 'pipeline:\n  fftw_wisdom: "%s"\n' "$wisdom"
-  IFS=';' read -ra entries <<< "$ifmi_pipeline"
-  for entry in "${entries[@]}"; do
-    entry=$(sed 's/^[[:space:]]*//; s/[[:space:]]*$//' <<< "$entry")
-    [ -n "$entry" ] && printf '  %s\n' "$entry"
-  done
-} > "$replay_config"
+printf 'pipeline:\n  fftw_wisdom: "%s"\n%s' "$wisdom" "$ifmi_pipeline_yaml" > "$replay_config"
 
 # ---------------------------------------------------------------------------- motions
 # Single-axis sequences use the renderer's presets (the paper's protocol: 1..6 deg per

@@ -31,10 +31,10 @@
 #               configuration (omnipose/odometry.hpp), to measure the keyframe policy
 #   WISDOM      [BUILD_DIR/drift.wisdom]  FFTW wisdom shared by every replay and daemon run
 #               (made by the first run that lacks a plan, reused afterwards)
-#   PIPELINE    [""]  more keys of the replay's and the daemon's `pipeline:` section
+#   IFMI_PIPELINE [""]  more keys of the replay's and the daemon's `pipeline:` section
 #               (daemon.yaml's), "key: value" entries separated by ';', e.g.
-#               PIPELINE="noise_weighting: true", to measure what a setting is worth (not with
-#               --publish: the published results are those of the defaults)
+#               IFMI_PIPELINE="noise_weighting: true", to measure what a setting is worth
+#               (not with --publish: the published results are those of the defaults)
 # Nothing is sent on the network: the daemon publishes to an LCM log file. Everything is
 # seeded: the same build gives the same datasets and replays; the daemon runs in real time
 # (30 fps), so a loaded machine may make it skip frames (counted in the table).
@@ -50,19 +50,7 @@ out=${out:-$build/drift}
 supersample=${SUPERSAMPLE:-2}
 bin=$build/bin
 bench_command_line tools/drift_benchmark.sh "$@" -- BUILD_DIR SUPERSAMPLE KEYFRAME_SLOTS WISDOM
-pipeline_entries=""
-if [ -n "${PIPELINE:-}" ]; then
-  command_line="PIPELINE=\"$PIPELINE\" $command_line"
-  if [ "$publish" = 1 ]; then
-    echo "drift_benchmark: --publish publishes the defaults; unset PIPELINE" >&2
-    exit 2
-  fi
-  IFS=';' read -ra entries <<< "$PIPELINE"
-  for entry in "${entries[@]}"; do
-    entry=$(sed 's/^[[:space:]]*//; s/[[:space:]]*$//' <<< "$entry")
-    [ -n "$entry" ] && pipeline_entries+="  $entry"$'\n'
-  done
-fi
+bench_ifmi_pipeline drift_benchmark
 
 bench_tools "$build" omnipose-synth omnipose-replay omnipose-eval omniposed omnipose-listen
 
@@ -104,7 +92,7 @@ panorama: {width: 1100, height: 110, horizon_row: 54.5, forward_column: 0.0}
 YAML
 keyframes_yaml=""
 [ -n "${KEYFRAME_SLOTS:-}" ] && keyframes_yaml="keyframes: {slots: $KEYFRAME_SLOTS}"
-printf 'pipeline:\n  fftw_wisdom: "%s"\n%s%s\n' "$wisdom" "$pipeline_entries" "$keyframes_yaml" \
+printf 'pipeline:\n  fftw_wisdom: "%s"\n%s%s\n' "$wisdom" "$ifmi_pipeline_yaml" "$keyframes_yaml" \
   > "$out/replay.yaml"
 
 # ---------------------------------------------------------------------------- suite
@@ -159,7 +147,7 @@ source: {type: file, path: "$dir/dataset", realtime: true}
 calibration: "$dir/dataset/calibration.yaml"
 pipeline:
   fftw_wisdom: "$wisdom"
-$pipeline_entries$keyframes_yaml
+$ifmi_pipeline_yaml$keyframes_yaml
 lcm: {url: "file://$dir/daemon.lcm?mode=w", status_hz: 1}
 YAML
   "$bin/omniposed" --config "$dir/daemon.yaml" > "$dir/daemon.out" 2> "$dir/daemon.err" || {
@@ -255,7 +243,7 @@ PY
   echo
   echo "Runs: \`omnipose-replay\` (its TUM output) and \`omniposed\` (file source, \`realtime: true\`,"
   echo "publishing to an LCM \`file://\` log, decoded with \`omnipose-listen --tum\`) on the same"
-  echo "directory, default pipeline settings${KEYFRAME_SLOTS:+ with keyframes.slots $KEYFRAME_SLOTS}${PIPELINE:+ and pipeline keys $PIPELINE}, one FFTW wisdom file. Scores: \`omnipose-eval --drift\`"
+  echo "directory, default pipeline settings${KEYFRAME_SLOTS:+ with keyframes.slots $KEYFRAME_SLOTS}${IFMI_PIPELINE:+ and pipeline keys $IFMI_PIPELINE}, one FFTW wisdom file. Scores: \`omnipose-eval --drift\`"
   echo "(\`omnipose::evaluateDrift\`): the estimate is aligned by its first pose (no scale); end-point ="
   echo "rotation error angle at the last pose (if the estimate lacks the last frame: at its last pose,"
   echo "time shown); ATE = RMSE of the rotation error angle over all estimated poses; max = its largest"

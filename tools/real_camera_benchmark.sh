@@ -43,6 +43,10 @@
 #               and of its own twin (rendered separately when it differs)
 #   WISDOM      [BUILD_DIR/real_camera.wisdom]  FFTW wisdom shared by the ifmi replays (made
 #               by the first replay that lacks a plan, reused afterwards; kept outside OUTDIR)
+#   IFMI_PIPELINE [""]  more keys of the ifmi replays' `pipeline:` section (daemon.yaml's),
+#               "key: value" entries separated by ';', e.g. IFMI_PIPELINE="noise_weighting:
+#               true", to measure what a setting is worth (not with --publish: the published
+#               results are those of the defaults)
 # Everything is seeded (seeds below): the same build gives the same datasets and estimates.
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -61,6 +65,7 @@ blur_supersample=${BLUR_SUPERSAMPLE:-$supersample}
 bin=$build/bin
 bench_command_line tools/real_camera_benchmark.sh "$@" -- BLUR_SUPERSAMPLE SUPERSAMPLE FRAMES PHOTO \
   DATA_DIR WISDOM BUILD_DIR
+bench_ifmi_pipeline real_camera_benchmark
 
 for var in frames supersample blur_supersample; do
   [[ "${!var}" =~ ^[0-9]+$ ]] || { echo "real_camera_benchmark: $var '${!var}' is not a whole number" >&2; exit 2; }
@@ -84,7 +89,7 @@ out=$(realpath "$out")
 photo=$(realpath "$photo")
 report=$out/report
 wisdom=$(realpath -m "${WISDOM:-$build/real_camera.wisdom}")
-printf 'pipeline:\n  fftw_wisdom: "%s"\n' "$wisdom" > "$out/replay.yaml"
+printf 'pipeline:\n  fftw_wisdom: "%s"\n%s' "$wisdom" "$ifmi_pipeline_yaml" > "$out/replay.yaml"
 
 # ---------------------------------------------------------------------------- motions
 # `frames:` in the scripts as well as --frames: omnipose-synth checks a script's vibration

@@ -14,6 +14,30 @@ source "$src/tests/tools/benchmark_script_checks.sh"
 
 check_script_usage "$script" 'Usage: tools/accuracy_benchmark.sh \[--publish\] \[OUTDIR\]'
 
+# IFMI_PIPELINE (tools/common/benchmark.sh, shared with the drift and real-camera benchmarks):
+# its entries become lines of the replays' pipeline: section, the report's command line
+# names it, and --publish refuses it.
+(
+  # shellcheck source=tools/common/benchmark.sh
+  source "$src/tools/common/benchmark.sh"
+  publish=0
+  command_line="tools/x.sh OUT"
+  IFMI_PIPELINE=" noise_weighting: true ;; refine_iterations: 2 " bench_ifmi_pipeline x
+  [ "$ifmi_pipeline_yaml" = $'  noise_weighting: true\n  refine_iterations: 2\n' ] ||
+    fail "IFMI_PIPELINE yaml: '$ifmi_pipeline_yaml'"
+  [ "$command_line" = 'IFMI_PIPELINE=" noise_weighting: true ;; refine_iterations: 2 " tools/x.sh OUT' ] ||
+    fail "IFMI_PIPELINE command line: $command_line"
+  unset IFMI_PIPELINE
+  bench_ifmi_pipeline x
+  [ -z "$ifmi_pipeline_yaml" ] && [ "$command_line" = 'IFMI_PIPELINE=" noise_weighting: true ;; refine_iterations: 2 " tools/x.sh OUT' ] ||
+    fail "unset IFMI_PIPELINE changed something"
+)
+rc=0
+msg=$(source "$src/tools/common/benchmark.sh"; publish=1; command_line=x
+      IFMI_PIPELINE="noise_weighting: true" bench_ifmi_pipeline demo 2>&1) || rc=$?
+[ "$rc" = 2 ] && grep -q "demo: --publish publishes the defaults; unset IFMI_PIPELINE" <<< "$msg" ||
+  fail "--publish with IFMI_PIPELINE: exit $rc: $msg"
+
 data=$src/../shared/data/equirect
 if [ ! -f "$data/park_theta_v_5376x2688.jpg" ]; then
   echo "accuracy_benchmark_test: SKIP the tiny run: the shared park photo is not in $data"

@@ -48,6 +48,29 @@ bench_command_line() {
   return 0
 }
 
+# bench_ifmi_pipeline NAME: the entries of IFMI_PIPELINE ("key: value" entries of
+# daemon.yaml's `pipeline:` section separated by ';', e.g. "noise_weighting: true") as YAML
+# lines of that section (two spaces of indent) in ifmi_pipeline_yaml, empty when unset.
+# When set, command_line (bench_command_line) is prefixed with it, and --publish is a usage
+# error naming NAME (exit 2): the published results are those of the defaults.
+bench_ifmi_pipeline() {
+  local name=$1 entry
+  local -a entries=()
+  ifmi_pipeline_yaml=""
+  [ -n "${IFMI_PIPELINE:-}" ] || return 0
+  command_line="IFMI_PIPELINE=\"$IFMI_PIPELINE\" $command_line"
+  if [ "$publish" = 1 ]; then
+    echo "$name: --publish publishes the defaults; unset IFMI_PIPELINE" >&2
+    exit 2
+  fi
+  IFS=';' read -ra entries <<< "$IFMI_PIPELINE"
+  for entry in "${entries[@]}"; do
+    entry=$(sed 's/^[[:space:]]*//; s/[[:space:]]*$//' <<< "$entry")
+    [ -n "$entry" ] && ifmi_pipeline_yaml+="  $entry"$'\n'
+  done
+  return 0
+}
+
 # bench_tools [--require NAME] BUILD_DIR PROGRAM...: builds the programs missing from
 # BUILD_DIR/bin (a Release build with Ninja, configured when needed); with --require, a
 # missing program is an error naming it and how to build it (exit 1) instead.
