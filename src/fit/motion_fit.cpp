@@ -10,6 +10,7 @@
 #include <stdexcept>
 #include <string>
 
+#include "common/periodic.hpp"
 #include "common/problem_list.hpp"
 #include "omnipose/motion_model.hpp"
 
@@ -205,7 +206,7 @@ int MotionFit::Impl::buildTranslationRows(std::span<const WindowMotion> windows,
       if (!windows[k].valid || windows[k].confidence <= 0) continue;
       int m = 0;
       for (int j = -half; j <= half; ++j) {
-        const WindowMotion& w = windows[((k + j) % n + n) % n];
+        const WindowMotion& w = windows[detail::wrapIndex(k + j, n)];
         if (!w.valid || w.confidence <= 0) continue;
         du_near[m] = w.du;
         dv_near[m] = w.dv;
@@ -502,7 +503,7 @@ void MotionFit::Impl::depthGradientTerms(std::span<const WindowMotion> windows, 
   // The kept window nearest to k on one side (step +-1), within two windows; -1 if none.
   const auto neighbour = [&](int k, int step) {
     for (int j = 1; j <= 2; ++j) {
-      const int m = ((k + j * step) % n + n) % n;
+      const int m = detail::wrapIndex(k + j * step, n);
       if (m != k && keep[m]) return m;
     }
     return -1;

@@ -8,14 +8,16 @@
 #include <string>
 #include <utility>
 
+#include "common/periodic.hpp"
+
 namespace omnipose::pipeline {
 namespace {
+
+using detail::wrapIndex;
 
 /// The median of a chi-square variable with one degree of freedom: median(e^2) / this is
 /// the variance of Gaussian e.
 constexpr double kChiSquareMedian = 0.4549;
-
-int wrap(int u, int width) { return ((u % width) + width) % width; }
 
 }  // namespace
 
@@ -52,7 +54,7 @@ MovingContentCheck::MovingContentCheck(const cv::Mat& validity, int window, int 
   for (const double center : centers_) {
     const int first = static_cast<int>(std::lround(center - half));
     for (int j = 1; j < window_ - 1; ++j) {
-      const int u = wrap(first + j, width_);
+      const int u = wrapIndex(first + j, width_);
       if (u % kStride != 0) continue;
       window_columns_.push_back(
           {static_cast<std::size_t>(u / kStride), taper_[static_cast<std::size_t>(j)]});
@@ -80,7 +82,7 @@ bool MovingContentCheck::interpolateMotion(std::span<const WindowMotion> windows
     if (!usable(k)) continue;
     int m = 0;
     for (int j = k - kNeighbours; j <= k + kNeighbours; ++j) {
-      const int i = wrap(j, n);
+      const int i = wrapIndex(j, n);
       if (!usable(i)) continue;
       neighbour_du_[static_cast<std::size_t>(m)] = windows[static_cast<std::size_t>(i)].du;
       neighbour_dv_[static_cast<std::size_t>(m)] = windows[static_cast<std::size_t>(i)].dv;
@@ -128,7 +130,7 @@ bool MovingContentCheck::interpolateMotion(std::span<const WindowMotion> windows
     if (cb <= ca) cb += width_;
     for (int u = static_cast<int>(std::ceil(ca)); u < cb; ++u) {
       const float t = static_cast<float>((u - ca) / (cb - ca));
-      motion_[static_cast<std::size_t>(wrap(u, width_))] = {
+      motion_[static_cast<std::size_t>(wrapIndex(u, width_))] = {
           ma.du + t * (mb.du - ma.du), ma.dv + t * (mb.dv - ma.dv),
           ma.shear + t * (mb.shear - ma.shear), ma.stretch + t * (mb.stretch - ma.stretch), true};
     }
@@ -168,7 +170,7 @@ void MovingContentCheck::sampleRow(int r, const cv::Mat& reference, const cv::Ma
       const float source_v = static_cast<float>(v) + source.y();
       if (!(source_v >= 0.0f && source_v <= static_cast<float>(H - 1))) continue;
       if (!usable(static_cast<int>(source_v + 0.5f),
-                  wrap(static_cast<int>(std::lround(static_cast<float>(u) + source.x())), W)))
+                  wrapIndex(static_cast<int>(std::lround(static_cast<float>(u) + source.x())), W)))
         continue;
     }
     // The reference where the motion puts this pixel (bilinear). fu + W > 0 for any motion

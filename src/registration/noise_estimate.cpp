@@ -45,4 +45,3 @@ double NoiseEstimator::sigma(const cv::Mat& panorama) {
 }
 
 }  // namespace omnipose::registration
-

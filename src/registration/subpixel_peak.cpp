@@ -4,15 +4,13 @@
 #include <cmath>
 #include <limits>
 
+#include "common/periodic.hpp"
 #include "registration/simd.hpp"
 
 namespace omnipose::registration {
 namespace {
 
-int wrap(int i, int n) {
-  i %= n;
-  return i < 0 ? i + n : i;
-}
+using detail::wrapIndex;
 
 /// Signed range [-reach, reach] clipped to one period [-n/2, n - n/2 - 1].
 void clipRange(double reach, int n, int& lo, int& hi) {
@@ -30,7 +28,7 @@ void clipRange(double reach, int n, int& lo, int& hi) {
 }  // namespace
 
 float SurfaceView::at(int r, int c) const {
-  return data[static_cast<long>(wrap(r, rows)) * cols + wrap(c, cols)];
+  return data[static_cast<long>(wrapIndex(r, rows)) * cols + wrapIndex(c, cols)];
 }
 
 SearchRegion SearchRegion::around(const SurfaceView& surface, double reach0, double reach1) {
@@ -97,14 +95,14 @@ SubpixelPeak findPeak(const SurfaceView& surface, const SearchRegion& region) {
   float best = -std::numeric_limits<float>::infinity();
   int best0 = 0;
   for (int d0 = region.lo0; d0 <= region.hi0; ++d0) {
-    const float* row = surface.data + static_cast<long>(wrap(d0, surface.rows)) * cols;
+    const float* row = surface.data + static_cast<long>(wrapIndex(d0, surface.rows)) * cols;
     const float m = std::max(segmentMax(row, run0), segmentMax(row + run1_start, cols - run1_start));
     if (m > best) {
       best = m;
       best0 = d0;
     }
   }
-  const float* row = surface.data + static_cast<long>(wrap(best0, surface.rows)) * cols;
+  const float* row = surface.data + static_cast<long>(wrapIndex(best0, surface.rows)) * cols;
   int best1 = 0;
   for (int j = 0; j < cols; ++j) {
     const bool inside = j < run0 || j >= run1_start;

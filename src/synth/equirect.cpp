@@ -4,15 +4,13 @@
 #include <cmath>
 #include <numbers>
 
+#include "common/periodic.hpp"
+
 namespace omnipose::synth::detail {
 namespace {
 
 constexpr double kPi = std::numbers::pi;
-
-int wrap(int i, int n) {
-  const int r = i % n;
-  return r < 0 ? r + n : r;
-}
+using ::omnipose::detail::wrapIndex;
 
 /// Binomial [1 3 3 1] / 8 then decimation by 2 along columns (periodic).
 cv::Mat halveColumns(const cv::Mat& src) {
@@ -23,8 +21,8 @@ cv::Mat halveColumns(const cv::Mat& src) {
     float* d = dst.ptr<float>(y);
     for (int i = 0; i < w; ++i) {
       const int c = 2 * i;
-      d[i] = (s[wrap(c - 1, src.cols)] + 3.0f * s[c] + 3.0f * s[c + 1] +
-              s[wrap(c + 2, src.cols)]) / 8.0f;
+      d[i] = (s[wrapIndex(c - 1, src.cols)] + 3.0f * s[c] + 3.0f * s[c + 1] +
+              s[wrapIndex(c + 2, src.cols)]) / 8.0f;
     }
   }
   return dst;
@@ -51,7 +49,7 @@ float bilinear(const cv::Mat& level, double fx, double fy) {
   const double x = fx * level.cols - 0.5, y = fy * level.rows - 0.5;
   const double xf = std::floor(x), yf = std::floor(y);
   const float ax = static_cast<float>(x - xf), ay = static_cast<float>(y - yf);
-  const int x0 = wrap(static_cast<int>(xf), level.cols), x1 = wrap(x0 + 1, level.cols);
+  const int x0 = wrapIndex(static_cast<int>(xf), level.cols), x1 = wrapIndex(x0 + 1, level.cols);
   const int y0 = std::clamp(static_cast<int>(yf), 0, level.rows - 1);
   const int y1 = std::clamp(static_cast<int>(yf) + 1, 0, level.rows - 1);
   const float* r0 = level.ptr<float>(y0);
