@@ -103,7 +103,7 @@ export PKG_CONFIG_LIBDIR=$SYSROOT/usr/lib/aarch64-linux-gnu/pkgconfig:$SYSROOT/u
 cmake -S . -B "$OUT/build" -G Ninja -DCMAKE_BUILD_TYPE=Release \
   -DCMAKE_TOOLCHAIN_FILE="$OUT/toolchain.cmake" -DOMNIPOSE_WITH_LIBCAMERA=OFF \
   -DOMNIPOSE_WITH_SYSTEMD=OFF -DOMNIPOSE_BUILD_BENCHMARKS=ON >/dev/null
-TESTS=(registration_test registration_alloc_test simd_check_test fft_plan_test
+TESTS=(registration_test registration_alloc_test simd_check_test fft_plan_test noise_weighting_test
   column_spectra_test worker_pool_test fit_test pipeline_test pipeline_alloc_test calibration_test io_test)
 jobs=$(nproc 2>/dev/null || echo 2)
 nice -n 10 cmake --build "$OUT/build" -j"$jobs" --target "${TESTS[@]}" omnipose-bench-pipeline \
