@@ -341,7 +341,7 @@ struct WindowRegistration::Impl {
   std::unique_ptr<reg::ColumnSpectra> columns;
 
   // The panorama's noise (Options::noise_weighting): the estimator over the windows' rows
-  // (usable pixels only), and the variance of the frame whose bands are being whitened
+  // (usable pixels only; null without noise weighting), and the variance of the frame whose bands are being whitened
   // (0 without noise weighting or when it could not be measured).
   std::unique_ptr<reg::NoiseEstimator> noise_estimator;
   double noise_sigma = std::numeric_limits<double>::quiet_NaN();
@@ -446,7 +446,8 @@ WindowRegistration::Impl::Impl(cv::Size panorama, const Options& o,
   taper_weight = sum * sum;
   taper_weight2 = sum2 * sum2;
   columns = std::make_unique<reg::ColumnSpectra>(width, fft_size, taper, effort);
-  noise_estimator = std::make_unique<reg::NoiseEstimator>(width, top, o.window);
+  if (o.noise_weighting)
+    noise_estimator = std::make_unique<reg::NoiseEstimator>(width, top, o.window);
 }
 
 void WindowRegistration::Impl::measureNoise(const cv::Mat& panorama) {
@@ -536,7 +537,9 @@ TaperedWindow WindowRegistration::Impl::loadWarpedWindow(Worker& w, const cv::Ma
 }
 
 void WindowRegistration::Impl::setValidity(const cv::Mat& validity) {
-  noise_estimator = std::make_unique<reg::NoiseEstimator>(width, top, options.window, validity);
+  if (options.noise_weighting)
+    noise_estimator =
+        std::make_unique<reg::NoiseEstimator>(width, top, options.window, validity);
   masked_taper.clear();
   masked_weight.clear();
   masked_weight2.clear();

@@ -10,9 +10,32 @@
 namespace omnipose {
 namespace {
 
+/// The smallest valid daemon.yaml: a file source and a calibration.
+const std::string kFileSource = "source: {type: file, path: run1}\ncalibration: cal.yaml\n";
+
+/// kFileSource with `extra` appended, parsed as /etc/omnipose/d.yaml.
+DaemonConfig parseWith(const std::string& extra) {
+  return DaemonConfig::parse(kFileSource + extra, "d.yaml", "/etc/omnipose");
+}
+
+/// Parses `text` and returns the problems (empty when valid).
+std::vector<std::string> problemsOf(const std::string& text) {
+  try {
+    DaemonConfig::parse(text, "daemon.yaml", "/tmp");
+  } catch (const ConfigError& e) {
+    return e.problems();
+  }
+  return {};
+}
+
+bool mentions(const std::vector<std::string>& problems, const std::string& needle) {
+  for (const auto& p : problems)
+    if (p.find(needle) != std::string::npos) return true;
+  return false;
+}
+
 TEST(DaemonConfig, DefaultsAreThePapersValues) {
-  const DaemonConfig c = DaemonConfig::parse(
-      "source: {type: file, path: run1}\ncalibration: cal.yaml\n", "d.yaml", "/etc/omnipose");
+  const DaemonConfig c = parseWith("");
   EXPECT_EQ(c.source.type, SourceConfig::Type::kFile);
   EXPECT_EQ(c.source.path, std::filesystem::path("/etc/omnipose/run1"));
   EXPECT_EQ(c.calibration, std::filesystem::path("/etc/omnipose/cal.yaml"));
@@ -64,83 +87,48 @@ bogus: 1
 }
 
 TEST(DaemonConfig, PipelineThreads) {
-  const auto parse = [](const std::string& pipeline) {
-    return DaemonConfig::parse("source: {type: file, path: run1}\ncalibration: cal.yaml\n" + pipeline,
-                               "d.yaml", "/etc/omnipose");
-  };
-  EXPECT_EQ(parse("").pipeline.threads, 0);  // default: all online cores
+  EXPECT_EQ(parseWith("").pipeline.threads, 0);  // default: all online cores
   EXPECT_EQ(DaemonConfig{}.odometry().pipeline.threads, 0) << "the replay without a daemon.yaml";
-  const DaemonConfig c = parse("pipeline: {threads: 2}\n");
+  const DaemonConfig c = parseWith("pipeline: {threads: 2}\n");
   EXPECT_EQ(c.pipeline.threads, 2);
   EXPECT_NE(c.describe().find("threads: 2"), std::string::npos);
-  try {
-    parse("pipeline: {threads: -3}\n");
-    FAIL() << "expected ConfigError";
-  } catch (const ConfigError& e) {
-    EXPECT_NE(std::string(e.what()).find("pipeline.threads"), std::string::npos) << e.what();
-  }
+  EXPECT_TRUE(mentions(problemsOf(kFileSource + "pipeline: {threads: -3}\n"), "pipeline.threads"));
 }
 
 TEST(DaemonConfig, MovingContentCheck) {
-  const auto parse = [](const std::string& pipeline) {
-    return DaemonConfig::parse("source: {type: file, path: run1}\ncalibration: cal.yaml\n" + pipeline,
-                               "d.yaml", "/etc/omnipose");
-  };
-  EXPECT_TRUE(parse("").pipeline.moving_content);  // on by default
-  const DaemonConfig off = parse("pipeline: {moving_content: false}\n");
+  EXPECT_TRUE(parseWith("").pipeline.moving_content);  // on by default
+  const DaemonConfig off = parseWith("pipeline: {moving_content: false}\n");
   EXPECT_FALSE(off.pipeline.moving_content);
   EXPECT_NE(off.describe().find("moving_content: false"), std::string::npos) << off.describe();
-  try {
-    parse("pipeline: {moving_content: sometimes}\n");
-    FAIL() << "expected ConfigError";
-  } catch (const ConfigError& e) {
-    EXPECT_NE(std::string(e.what()).find("pipeline.moving_content"), std::string::npos)
-        << e.what();
-  }
+  EXPECT_TRUE(mentions(problemsOf(kFileSource + "pipeline: {moving_content: sometimes}\n"),
+                       "pipeline.moving_content"));
 }
 
 TEST(DaemonConfig, NoiseWeighting) {
-  const auto parse = [](const std::string& pipeline) {
-    return DaemonConfig::parse("source: {type: file, path: run1}\ncalibration: cal.yaml\n" + pipeline,
-                               "d.yaml", "/etc/omnipose");
-  };
-  EXPECT_FALSE(parse("").pipeline.registration.noise_weighting);  // off by default
-  const DaemonConfig on = parse("pipeline: {noise_weighting: true}\n");
+  EXPECT_FALSE(parseWith("").pipeline.registration.noise_weighting);  // off by default
+  const DaemonConfig on = parseWith("pipeline: {noise_weighting: true}\n");
   EXPECT_TRUE(on.pipeline.registration.noise_weighting);
   EXPECT_NE(on.describe().find("noise_weighting: true"), std::string::npos) << on.describe();
-  try {
-    parse("pipeline: {noise_weighting: 2}\n");
-    FAIL() << "expected ConfigError";
-  } catch (const ConfigError& e) {
-    EXPECT_NE(std::string(e.what()).find("pipeline.noise_weighting"), std::string::npos)
-        << e.what();
-  }
+  EXPECT_TRUE(mentions(problemsOf(kFileSource + "pipeline: {noise_weighting: 2}\n"),
+                       "pipeline.noise_weighting"));
 }
 
 TEST(DaemonConfig, KeyframesSection) {
-  const auto parse = [](const std::string& keyframes) {
-    return DaemonConfig::parse("source: {type: file, path: run1}\ncalibration: cal.yaml\n" + keyframes,
-                               "d.yaml", "/etc/omnipose");
-  };
-  const DaemonConfig defaults = parse("");
+  const DaemonConfig defaults = parseWith("");
   EXPECT_EQ(defaults.keyframes.slots, 0) << "off by default";
   EXPECT_EQ(defaults.odometry().keyframes.slots, 0);
-  const DaemonConfig c =
-      parse("keyframes: {slots: 4, max_translation: 0.05, max_tilt_deg: 3, min_ring_peak: 0.1}\n");
+  const DaemonConfig c = parseWith(
+      "keyframes: {slots: 4, max_translation: 0.05, max_tilt_deg: 3, min_ring_peak: 0.1}\n");
   EXPECT_EQ(c.keyframes.slots, 4);
   EXPECT_DOUBLE_EQ(c.keyframes.max_translation, 0.05);
   EXPECT_NEAR(c.keyframes.max_tilt_rad, 3 * std::numbers::pi / 180.0, 1e-12);
   EXPECT_DOUBLE_EQ(c.keyframes.min_ring_peak, 0.1);
   EXPECT_NE(c.describe().find("slots: 4"), std::string::npos);
-  try {
-    parse("keyframes: {slots: 17, max_tilt_deg: 40, cadence: 3}\n");
-    FAIL() << "expected ConfigError";
-  } catch (const ConfigError& e) {
-    const std::string what = e.what();
-    EXPECT_NE(what.find("keyframes.slots"), std::string::npos) << what;
-    EXPECT_NE(what.find("keyframes.max_tilt_deg"), std::string::npos) << what;
-    EXPECT_NE(what.find("cadence"), std::string::npos) << what;
-  }
+  const auto problems =
+      problemsOf(kFileSource + "keyframes: {slots: 17, max_tilt_deg: 40, cadence: 3}\n");
+  EXPECT_TRUE(mentions(problems, "keyframes.slots"));
+  EXPECT_TRUE(mentions(problems, "keyframes.max_tilt_deg"));
+  EXPECT_TRUE(mentions(problems, "cadence"));
 }
 
 TEST(DaemonConfig, ReplayUseNeedsNoSource) {
@@ -161,22 +149,6 @@ TEST(DaemonConfig, MissingFileAndBrokenYamlAreClear) {
   }
 }
 
-/// Parses `text` and returns the problems (empty when valid).
-std::vector<std::string> problemsOf(const std::string& text) {
-  try {
-    DaemonConfig::parse(text, "daemon.yaml", "/tmp");
-  } catch (const ConfigError& e) {
-    return e.problems();
-  }
-  return {};
-}
-
-bool mentions(const std::vector<std::string>& problems, const std::string& needle) {
-  for (const auto& p : problems)
-    if (p.find(needle) != std::string::npos) return true;
-  return false;
-}
-
 std::string joined(const std::vector<std::string>& problems) {
   std::string all;
   for (const auto& p : problems) all += p + "\n";
@@ -184,7 +156,7 @@ std::string joined(const std::vector<std::string>& problems) {
 }
 
 TEST(DaemonConfig, EveryNumberMustBeFiniteAndInItsRangeNamingFileAndField) {
-  const std::string head = "source: {type: file, path: run1}\ncalibration: cal.yaml\n";
+  const std::string& head = kFileSource;
   struct Case {
     std::string yaml;
     std::string field;
@@ -292,7 +264,7 @@ std::string whatOf(const std::string& text) {
 }
 
 TEST(DaemonConfig, DuplicateKeysAtEveryLevelAreProblemsNamingBothLines) {
-  const std::string head = "source: {type: file, path: run1}\ncalibration: cal.yaml\n";
+  const std::string& head = kFileSource;
   const std::string text = head +
                            "pipeline:\n"
                            "  window: 110\n"
