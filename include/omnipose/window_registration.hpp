@@ -57,8 +57,9 @@ class WindowRegistration {
     /// each of the two windows. Measured (docs/results/ANALYSIS.md, issue 29): indoor scenes
     /// (plain walls, blinds) gain, e.g. indoor yaw 0.028 -> 0.025 mrad and the box-room
     /// rectangle's heading drift 1.66 -> 1.30 deg; dense outdoor texture (grass, whose fine
-    /// detail the median reads as noise) loses up to a third. Off by default. About 1 % more
-    /// instructions per frame.
+    /// detail the median reads as noise) loses up to a third. The pose covariance still
+    /// describes the errors (pose_covariance_test: mean rotation NEES about 2 of 3). Off by
+    /// default. About 1 % more instructions per frame.
     bool noise_weighting = false;
     double max_rotation_rad = 0.35;  ///< |phi| searched around 0 (no 180-degree ambiguity), in (0, pi/4)
     double max_log_scale = 0.2;      ///< |ln s| searched around 0, in (0, 0.5]
