@@ -71,6 +71,7 @@ constexpr PipelineKey kPipelineKeys[] = {
     {"pipeline.inlier_sigmas", "fit.inlier_sigmas"},
     {"pipeline.moving_content", "moving_content"},
     {"pipeline.noise_weighting", "registration.noise_weighting"},
+    {"pipeline.plane_depth_prior", "fit.plane_depth_prior"},
     {"pipeline.threads", "threads"},
     {"pipeline.fftw_wisdom", "fftw_wisdom"},
     {"input", "unwrap.input"},
@@ -106,6 +107,7 @@ void parsePipeline(Reader& r, const YAML::Node& node, const std::filesystem::pat
   r.get(node, "pipeline", "inlier_sigmas", p.fit.inlier_sigmas);
   r.get(node, "pipeline", "moving_content", p.moving_content);
   r.get(node, "pipeline", "noise_weighting", p.registration.noise_weighting);
+  r.get(node, "pipeline", "plane_depth_prior", p.fit.plane_depth_prior);
   r.get(node, "pipeline", "threads", p.threads);
   std::string wisdom;
   r.get(node, "pipeline", "fftw_wisdom", wisdom);
@@ -244,7 +246,8 @@ std::string DaemonConfig::describe() const {
     << "\n  min_confidence: " << p.registration.min_confidence
     << "\n  inlier_sigmas: " << p.fit.inlier_sigmas
     << "\n  moving_content: " << p.moving_content
-    << "\n  noise_weighting: " << p.registration.noise_weighting << "\n  threads: " << p.threads
+    << "\n  noise_weighting: " << p.registration.noise_weighting
+    << "\n  plane_depth_prior: " << p.fit.plane_depth_prior << "\n  threads: " << p.threads
     << "\n  fftw_wisdom: \"" << p.fftw_wisdom << "\"\n"
     << "keyframes:\n  slots: " << keyframes.slots
     << "\n  max_translation: " << keyframes.max_translation

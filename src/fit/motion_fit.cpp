@@ -24,6 +24,11 @@ constexpr double kMadToSigma = 1.4826;
 /// windows below the median variance weigh up to 4x more (0.5) cost translation direction
 /// and park accuracy (docs/results/ANALYSIS.md).
 constexpr double kMinRelativeSigma = 1.0;
+/// Options::plane_depth_prior: the spread of a window's relative inverse depth around its
+/// neighbours' plane, the spread around 1, and the in-window scale equations' weight.
+constexpr double kPlaneSigma = 0.15;
+constexpr double kPlanePullSigma = 4.0;
+constexpr double kPlaneScaleWeight = 0.01;
 
 /// Median of a small array (modified in place).
 double medianOf(double* begin, int n) {
@@ -133,6 +138,19 @@ struct MotionFit::Impl {
   std::vector<double> depth;  ///< relative inverse depth per window (mean 1)
   std::vector<Eigen::Matrix<double, 6, 1>> depth_xl;  ///< N_x,lambda_k columns (covariance)
   double depth_prior_weight = 0.0;  ///< weight of the lambda_k = 1 prior (0: depth not fitted)
+  double depth_plane_weight = 0.0;  ///< weight of the neighbours' plane prior (0: off)
+
+  /// Depth is fitted (fitDepth() set a prior).
+  bool depthFitted() const { return depth_prior_weight + depth_plane_weight > 0; }
+  /// The prior information of lambda_k (its diagonal: both priors, times the confidence).
+  double depthPriorInformation(const WindowMotion& w) const {
+    return (depth_prior_weight + depth_plane_weight) * w.confidence;
+  }
+  /// The inverse depth at window k of the vertical plane through its nearest kept
+  /// neighbours' current depths (within two windows on each side): a wall's inverse depth
+  /// is A cos(theta) + B sin(theta), fixed by two windows. With one neighbour its depth;
+  /// with none depth[k] itself (no pull).
+  double planeDepth(std::span<const WindowMotion> windows, int k) const;
 };
 
 MotionFit::Impl::Impl(const Options& o, double gamma_per_column, double attenuation,
@@ -339,11 +357,35 @@ Eigen::Matrix<double, 6, 1> MotionFit::Impl::fitDepth(std::span<const WindowMoti
       if (m == 0) break;
       sigma_t = std::max(kMadToSigma * medianOf(scratch.data(), m), 0.01 * gamma);
     }
-    const double ratio = sigma_t / options.depth_prior_sigma;
+    const bool plane = options.plane_depth_prior;
+    const double ratio = sigma_t / (plane ? kPlanePullSigma : options.depth_prior_sigma);
     depth_prior_weight = ratio * ratio;
+    const double plane_ratio = plane ? sigma_t / kPlaneSigma : 0.0;
+    depth_plane_weight = plane_ratio * plane_ratio;
     x = depthGaussNewton(windows, n_rows, x, sigma_t, iterations);
   }
   return x;
+}
+
+double MotionFit::Impl::planeDepth(std::span<const WindowMotion> windows, int k) const {
+  const int n = static_cast<int>(windows.size());
+  const auto neighbour = [&](int step) {
+    for (int j = 1; j <= 2; ++j) {
+      const int m = detail::wrapIndex(k + j * step, n);
+      if (m != k && keep[m]) return m;
+    }
+    return -1;
+  };
+  const int lo = neighbour(-1), hi = neighbour(+1);
+  if (lo < 0 && hi < 0) return depth[k];
+  if (lo < 0 || hi == lo) return depth[hi];
+  if (hi < 0) return depth[lo];
+  constexpr double kTwoPi = 2.0 * std::numbers::pi;
+  const double a = std::remainder(gamma * (windows[k].center_u - windows[lo].center_u), kTwoPi);
+  const double b = std::remainder(gamma * (windows[hi].center_u - windows[k].center_u), kTwoPi);
+  const double span = std::sin(a + b);
+  if (!(std::abs(span) > 1e-6)) return 0.5 * (depth[lo] + depth[hi]);
+  return (depth[lo] * std::sin(b) + depth[hi] * std::sin(a)) / span;
 }
 
 double MotionFit::Impl::depthCost(std::span<const WindowMotion> windows, int n_rows,
@@ -366,6 +408,9 @@ double MotionFit::Impl::depthCost(std::span<const WindowMotion> windows, int n_r
   for (int k = 0; k < n; ++k) {
     const double d = depth[k] - 1.0;
     cost += 0.5 * depth_prior_weight * windows[k].confidence * d * d;
+    if (depth_plane_weight <= 0) continue;
+    const double e = depth[k] - planeDepth(windows, k);
+    cost += 0.5 * depth_plane_weight * windows[k].confidence * e * e;
   }
   return cost;
 }
@@ -411,8 +456,12 @@ Eigen::Matrix<double, 6, 1> MotionFit::Impl::depthGaussNewton(
     for (int k = 0; k < n; ++k) {
       const double prior = depth_prior_weight * windows[k].confidence;
       depth_xl[k].setZero();
-      h[k] = prior;
+      h[k] = depthPriorInformation(windows[k]);
       g_lambda[k] = prior * (1.0 - depth[k]);
+      // The plane prior's mean is taken at the neighbours' depths this step starts from.
+      if (depth_plane_weight > 0)
+        g_lambda[k] += depth_plane_weight * windows[k].confidence *
+                       (planeDepth(windows, k) - depth[k]);
     }
     for (int i = 0; i < n_rows; ++i) {
       const Row& row = rows[i];
@@ -531,9 +580,9 @@ void MotionFit::Impl::depthGradientTerms(std::span<const WindowMotion> windows, 
 void MotionFit::Impl::computeLeverage(std::span<const WindowMotion> windows, int n_rows,
                                       const Eigen::Matrix<double, 6, 1>& x) {
   for (int i = 0; i < n_rows; ++i) rows[i].leverage = 0.0;
-  if (!options.per_window_depth || depth_prior_weight <= 0) return;
+  if (!options.per_window_depth || !depthFitted()) return;
   const int n = static_cast<int>(windows.size());
-  for (int k = 0; k < n; ++k) scratch[k] = depth_prior_weight * windows[k].confidence;
+  for (int k = 0; k < n; ++k) scratch[k] = depthPriorInformation(windows[k]);
   for (int i = 0; i < n_rows; ++i) {
     const double J = rows[i].a0.tail<3>().dot(x.tail<3>());
     scratch[rows[i].window] += rows[i].weight * J * J;
@@ -564,6 +613,7 @@ MotionEstimate MotionFit::Impl::fit(std::span<const WindowMotion> windows,
     return est;
   }
   depth_prior_weight = 0.0;
+  depth_plane_weight = 0.0;
   std::fill(depth.begin(), depth.end(), 1.0);  // inverseDepth() when depth is not fitted
   int n_rows = buildTranslationRows(windows, forward_column, row_scale);
   if (n_rows < 2 * kMinWindows) return est;  // du and dv rows of too few windows: nothing to fit
@@ -597,6 +647,8 @@ MotionEstimate MotionFit::Impl::fit(std::span<const WindowMotion> windows,
         // Residuals expressed in "equivalent shift pixels" for the loss, weights by 1/var.
         row.scale = sigma_t / sigma / gamma;
         row.prior_weight *= (sigma_t / sigma) * (sigma_t / sigma);
+        if (row.kind == kLogScale && options.plane_depth_prior)
+          row.prior_weight *= kPlaneScaleWeight;
         row.weight = row.prior_weight;
       }
       for (int i = 0; i < n_trans; ++i) rows[i].weight = rows[i].prior_weight;
@@ -654,7 +706,7 @@ MotionEstimate MotionFit::Impl::fit(std::span<const WindowMotion> windows,
   // degrees of freedom.
   Mat6 information = N;
   double depth_dof = 0.0;
-  if (options.per_window_depth && depth_prior_weight > 0) {
+  if (options.per_window_depth && depthFitted()) {
     const int n = static_cast<int>(windows.size());
     for (int k = 0; k < n; ++k) {
       depth_xl[k].setZero();
@@ -672,6 +724,8 @@ MotionEstimate MotionFit::Impl::fit(std::span<const WindowMotion> windows,
     Vec6 v = Vec6::Zero();
     for (int k = 0; k < n; ++k) {
       if (!keep[k]) continue;
+      // The plane prior's mean is itself uncertain (the neighbours' depths): only the
+      // pull towards 1 counts as prior information here.
       const double h = scratch[k], prior = depth_prior_weight * windows[k].confidence;
       information.noalias() -= depth_xl[k] * depth_xl[k].transpose() / (h + prior);
       depth_dof += h / (h + prior);

@@ -113,6 +113,15 @@ TEST(DaemonConfig, NoiseWeighting) {
                        "pipeline.noise_weighting"));
 }
 
+TEST(DaemonConfig, PlaneDepthPrior) {
+  EXPECT_FALSE(parseWith("").pipeline.fit.plane_depth_prior);  // off by default
+  const DaemonConfig on = parseWith("pipeline: {plane_depth_prior: true}\n");
+  EXPECT_TRUE(on.pipeline.fit.plane_depth_prior);
+  EXPECT_NE(on.describe().find("plane_depth_prior: true"), std::string::npos) << on.describe();
+  EXPECT_TRUE(mentions(problemsOf(kFileSource + "pipeline: {plane_depth_prior: walls}\n"),
+                       "pipeline.plane_depth_prior"));
+}
+
 TEST(DaemonConfig, KeyframesSection) {
   const DaemonConfig defaults = parseWith("");
   EXPECT_EQ(defaults.keyframes.slots, 0) << "off by default";
