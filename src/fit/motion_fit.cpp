@@ -392,7 +392,10 @@ double MotionFit::Impl::depthCost(std::span<const WindowMotion> windows, int n_r
                                   const Eigen::Matrix<double, 6, 1>& x) const {
   // sum_i c_i rho(r_i s) / s^2 + 1/2 sum_k h_k (lambda_k - 1)^2: the objective whose
   // stationary point the IRLS-weighted Gauss-Newton step solves for (rho pseudo-Huber, r_i
-  // in model units, s pixels per model unit, c_i the row's prior weight).
+  // in model units, s pixels per model unit, c_i the row's prior weight). With the plane
+  // prior, plus 1/2 sum_k p_k (lambda_k - plane_k)^2; the step holds each plane_k at the
+  // neighbours' depths it starts from (not this cost's exact gradient), and the
+  // backtracking keeps the cost from rising and stops when no step lowers it.
   const double delta = options.huber_delta_px;
   double cost = 0.0;
   for (int i = 0; i < n_rows; ++i) {
