@@ -341,8 +341,8 @@ struct WindowRegistration::Impl {
   std::unique_ptr<reg::ColumnSpectra> columns;
 
   // The panorama's noise (Options::noise_weighting): the estimator over the windows' rows
-  // (usable pixels only; null without noise weighting), and the variance of the frame whose bands are being whitened
-  // (0 without noise weighting or when it could not be measured).
+  // (usable pixels only; null without noise weighting), and the variance of the frame whose
+  // bands are being whitened (0 without noise weighting or when it could not be measured).
   std::unique_ptr<reg::NoiseEstimator> noise_estimator;
   double noise_sigma = std::numeric_limits<double>::quiet_NaN();
   double noise_variance = 0.0;
