@@ -146,6 +146,15 @@ struct MotionFit::Impl {
   double depthPriorInformation(const WindowMotion& w) const {
     return (depth_prior_weight + depth_plane_weight) * w.confidence;
   }
+  /// The kept window nearest to k of n on one side (step -1 or +1), within two windows;
+  /// -1 if none.
+  int keptNeighbour(int k, int step, int n) const {
+    for (int j = 1; j <= 2; ++j) {
+      const int m = detail::wrapIndex(k + j * step, n);
+      if (m != k && keep[m]) return m;
+    }
+    return -1;
+  }
   /// The inverse depth at window k of the vertical plane through its nearest kept
   /// neighbours' current depths (within two windows on each side): a wall's inverse depth
   /// is A cos(theta) + B sin(theta), fixed by two windows. With one neighbour its depth;
@@ -369,14 +378,7 @@ Eigen::Matrix<double, 6, 1> MotionFit::Impl::fitDepth(std::span<const WindowMoti
 
 double MotionFit::Impl::planeDepth(std::span<const WindowMotion> windows, int k) const {
   const int n = static_cast<int>(windows.size());
-  const auto neighbour = [&](int step) {
-    for (int j = 1; j <= 2; ++j) {
-      const int m = detail::wrapIndex(k + j * step, n);
-      if (m != k && keep[m]) return m;
-    }
-    return -1;
-  };
-  const int lo = neighbour(-1), hi = neighbour(+1);
+  const int lo = keptNeighbour(k, -1, n), hi = keptNeighbour(k, +1, n);
   if (lo < 0 && hi < 0) return depth[k];
   if (lo < 0 || hi == lo) return depth[hi];
   if (hi < 0) return depth[lo];
@@ -552,20 +554,12 @@ void MotionFit::Impl::depthGradientTerms(std::span<const WindowMotion> windows, 
   const double alpha = options.scale_depth_gradient;
   if (alpha == 0.0) return;
   const int n = static_cast<int>(windows.size());
-  // The kept window nearest to k on one side (step +-1), within two windows; -1 if none.
-  const auto neighbour = [&](int k, int step) {
-    for (int j = 1; j <= 2; ++j) {
-      const int m = detail::wrapIndex(k + j * step, n);
-      if (m != k && keep[m]) return m;
-    }
-    return -1;
-  };
   for (int i = 0; i < n_rows; ++i) {
     Row& row = rows[i];
     if (row.kind != kLogScale) continue;
     const int k = row.window;
     row.b = std::log(windows[k].scale);  // as measured, and as fit() wrote it
-    int lo = neighbour(k, -1), hi = neighbour(k, +1);
+    int lo = keptNeighbour(k, -1, n), hi = keptNeighbour(k, +1, n);
     if (lo < 0 && hi < 0) continue;
     if (lo < 0) lo = k;
     if (hi < 0) hi = k;

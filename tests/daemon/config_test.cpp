@@ -34,6 +34,20 @@ bool mentions(const std::vector<std::string>& problems, const std::string& needl
   return false;
 }
 
+/// A boolean `pipeline` key: `get` reads `default_value` without it, the other value with it
+/// set (and describe() shows it), and `bad` (not a boolean) is a problem naming the key.
+void expectBooleanPipelineKey(const std::string& key, bool default_value,
+                              bool (*get)(const DaemonConfig&), const std::string& bad) {
+  SCOPED_TRACE(key);
+  EXPECT_EQ(get(parseWith("")), default_value);
+  const std::string other = default_value ? "false" : "true";
+  const DaemonConfig set = parseWith("pipeline: {" + key + ": " + other + "}\n");
+  EXPECT_EQ(get(set), !default_value);
+  EXPECT_NE(set.describe().find(key + ": " + other), std::string::npos) << set.describe();
+  EXPECT_TRUE(mentions(problemsOf(kFileSource + "pipeline: {" + key + ": " + bad + "}\n"),
+                       "pipeline." + key));
+}
+
 TEST(DaemonConfig, DefaultsAreThePapersValues) {
   const DaemonConfig c = parseWith("");
   EXPECT_EQ(c.source.type, SourceConfig::Type::kFile);
@@ -96,30 +110,21 @@ TEST(DaemonConfig, PipelineThreads) {
 }
 
 TEST(DaemonConfig, MovingContentCheck) {
-  EXPECT_TRUE(parseWith("").pipeline.moving_content);  // on by default
-  const DaemonConfig off = parseWith("pipeline: {moving_content: false}\n");
-  EXPECT_FALSE(off.pipeline.moving_content);
-  EXPECT_NE(off.describe().find("moving_content: false"), std::string::npos) << off.describe();
-  EXPECT_TRUE(mentions(problemsOf(kFileSource + "pipeline: {moving_content: sometimes}\n"),
-                       "pipeline.moving_content"));
+  expectBooleanPipelineKey(
+      "moving_content", true, [](const DaemonConfig& c) { return c.pipeline.moving_content; },
+      "sometimes");
 }
 
 TEST(DaemonConfig, NoiseWeighting) {
-  EXPECT_FALSE(parseWith("").pipeline.registration.noise_weighting);  // off by default
-  const DaemonConfig on = parseWith("pipeline: {noise_weighting: true}\n");
-  EXPECT_TRUE(on.pipeline.registration.noise_weighting);
-  EXPECT_NE(on.describe().find("noise_weighting: true"), std::string::npos) << on.describe();
-  EXPECT_TRUE(mentions(problemsOf(kFileSource + "pipeline: {noise_weighting: 2}\n"),
-                       "pipeline.noise_weighting"));
+  expectBooleanPipelineKey(
+      "noise_weighting", false,
+      [](const DaemonConfig& c) { return c.pipeline.registration.noise_weighting; }, "2");
 }
 
 TEST(DaemonConfig, PlaneDepthPrior) {
-  EXPECT_FALSE(parseWith("").pipeline.fit.plane_depth_prior);  // off by default
-  const DaemonConfig on = parseWith("pipeline: {plane_depth_prior: true}\n");
-  EXPECT_TRUE(on.pipeline.fit.plane_depth_prior);
-  EXPECT_NE(on.describe().find("plane_depth_prior: true"), std::string::npos) << on.describe();
-  EXPECT_TRUE(mentions(problemsOf(kFileSource + "pipeline: {plane_depth_prior: walls}\n"),
-                       "pipeline.plane_depth_prior"));
+  expectBooleanPipelineKey(
+      "plane_depth_prior", false,
+      [](const DaemonConfig& c) { return c.pipeline.fit.plane_depth_prior; }, "walls");
 }
 
 TEST(DaemonConfig, KeyframesSection) {
