@@ -110,6 +110,19 @@ class MotionFit {
     /// preferred direction; 0: the model without the term, which read the expansion as
     /// depth and let a robot driving along a wall turn (docs/results/ANALYSIS.md). [0, 1].
     double scale_depth_gradient = 0.5;
+    /// With use_rotation_scale: the in-window rotation equations' error under translation,
+    /// per unit of |tau| (the expansion a translation gives a window at the mean depth),
+    /// added in quadrature to their scatter to make their sigma. The log-polar correlation
+    /// measures a window's rotation exactly when the window turns and scales as a whole;
+    /// translation deforms it otherwise (a wall seen at an angle expands it more across
+    /// than up, the floor in its lower rows more than the wall above), and the correlation
+    /// reads part of that as a rotation whose sign the window's texture sets: the same
+    /// pair after pair of a straight drive, which it rolled and pitched. Turning in place
+    /// leaves the equations their full weight. 1 (default): an error as large as the
+    /// deformation; 0: their scatter alone, which let the drift benchmark's rectangle roll
+    /// 0.6 deg on one straight and end 1.66 instead of 0.72 deg off
+    /// (docs/results/ANALYSIS.md). [0, 100].
+    double rotation_deformation = 1.0;
     /// Each window's du and dv equations weighted by their own variance
     /// (WindowMotion::var_du, var_dv): the confidence divided by the variance over the
     /// pair's median window variance where that ratio is above 1, so a window that sees

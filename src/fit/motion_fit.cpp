@@ -65,6 +65,7 @@ std::vector<std::string> MotionFit::Options::validate() const {
   detail::checkRange(p, "max_condition", max_condition, 1.0, 1e300, "", true);
   detail::checkRange(p, "depth_prior_sigma", depth_prior_sigma, 0.0, 1000.0, "", true);
   detail::checkRange(p, "scale_depth_gradient", scale_depth_gradient, 0.0, 1.0);
+  detail::checkRange(p, "rotation_deformation", rotation_deformation, 0.0, 100.0);
   return p;
 }
 
@@ -636,7 +637,11 @@ MotionEstimate MotionFit::Impl::fit(std::span<const WindowMotion> windows,
     }
     if (n_rows > n_trans) {
       const double floor_rs = 1e-4;
-      const double sigma_r = std::max(robustSigma(kRotation, x, n_rows), floor_rs);
+      // The rotation equations' error under translation (Options::rotation_deformation),
+      // in quadrature with their scatter.
+      const double deformation = options.rotation_deformation * x.tail<3>().norm();
+      const double sigma_r = std::hypot(std::max(robustSigma(kRotation, x, n_rows), floor_rs),
+                                        deformation);
       const double sigma_s = std::max(robustSigma(kLogScale, x, n_rows), floor_rs);
       for (int i = n_trans; i < n_rows; ++i) {
         Row& row = rows[i];

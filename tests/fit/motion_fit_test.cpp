@@ -112,7 +112,14 @@ TEST_P(MotionFitModes, RecoversEachSignOfTheModelExactlyWithoutNoise) {
 
 TEST_P(MotionFitModes, RobustToNoiseAndTwentyPercentGrossOutliers) {
   std::mt19937 rng(42);
-  MotionFit fit = makeFit(true, GetParam());
+  // synthesize() gives the in-window rotation no error under translation (an ideal iFMI),
+  // and |tau| here reaches 0.09: the fit's allowance for that error (rotation_deformation,
+  // see TheInWindowRotationsErrorUnderTranslationDoesNotTiltTheRobot) would only take
+  // information away (the worst parameter 2.9e-3 instead of below 1.8e-3).
+  MotionFit::Options options;
+  options.per_window_depth = GetParam();
+  options.rotation_deformation = 0.0;
+  MotionFit fit(options, kGamma, kWindow, kWindows);
   double worst = 0.0;
   for (int trial = 0; trial < 50; ++trial) {
     std::uniform_real_distribution<double> rot(-0.1, 0.1), tr(-0.05, 0.05);
@@ -223,6 +230,58 @@ TEST(MotionFit, ThePlaneDepthPriorTakesAWallsDepthFromItsNeighboursNotFromTheSca
   EXPECT_LT(err_plane, err_default);
 }
 
+// Translation deforms a window otherwise than a rotation and a scale (a wall seen at an angle
+// expands it more across than up), and the log-polar correlation reads part of that as an
+// in-window rotation whose sign the window's texture sets: the same on every pair of a
+// straight drive past the same walls, up to about the deformation (|tau| lambda) times a
+// texture factor. Trusted at its scatter, that rolled and pitched the robot pair after pair;
+// with the deformation counted in the rotation equations' sigma (the default), roll and
+// pitch come from the dv, and an in-place turn keeps the rotation equations' full weight.
+TEST(MotionFit, TheInWindowRotationsErrorUnderTranslationDoesNotTiltTheRobot) {
+  std::mt19937 rng(29);
+  const auto lambda = boxRoomInverseDepth(0.5, -1.5);
+  MotionFit::Options scatter_only;
+  scatter_only.rotation_deformation = 0.0;
+  MotionFit fit_default({}, kGamma, kWindow, kWindows);
+  MotionFit fit_scatter(scatter_only, kGamma, kWindow, kWindows);
+  std::uniform_real_distribution<double> texture(-0.3, 0.3);
+  std::vector<double> factor(kWindows);  // one texture: the same walls all along
+  for (double& f : factor) f = texture(rng);
+
+  Vec6 drive;
+  drive << 0.0, 0.0, 0.002, 0.02, 0.0, 0.0;  // forward along a wall, turning slightly
+  const int trials = 40;
+  Eigen::Vector2d tilt_default = Eigen::Vector2d::Zero(), tilt_scatter = Eigen::Vector2d::Zero();
+  for (int t = 0; t < trials; ++t) {
+    auto windows = synthesize(drive, 0.05, 0.0, rng, 0.0, lambda);
+    for (int k = 0; k < kWindows; ++k)
+      windows[k].rotation += factor[k] * lambda[k] * drive.tail<3>().norm();
+    const MotionEstimate d = fit_default.fit(windows, 0.0), s = fit_scatter.fit(windows, 0.0);
+    ASSERT_NE(d.status, FitStatus::kLost);
+    ASSERT_NE(s.status, FitStatus::kLost);
+    tilt_default += d.omega.head<2>() / trials;
+    tilt_scatter += s.omega.head<2>() / trials;
+  }
+  testing::recordFigure("tilt_bias_rad_default", tilt_default.norm(), 7);
+  testing::recordFigure("tilt_bias_rad_scatter_only", tilt_scatter.norm(), 7);
+  EXPECT_GT(tilt_scatter.norm(), 2e-4) << "the texture's error should tilt the scatter-only fit";
+  EXPECT_LT(tilt_default.norm(), 0.2 * tilt_scatter.norm());  // 0.052 / 0.478 mrad (2026-11-28)
+
+  // Turning in place (tau = 0): the rotation equations weigh as much as before.
+  Vec6 turn;
+  turn << 0.004, -0.003, 0.05, 0.0, 0.0, 0.0;
+  double err_default = 0.0, err_scatter = 0.0;
+  for (int t = 0; t < trials; ++t) {
+    const auto windows = synthesize(turn, 0.1, 0.0, rng);
+    const MotionEstimate d = fit_default.fit(windows, 0.0), s = fit_scatter.fit(windows, 0.0);
+    err_default += (d.omega - turn.head<3>()).squaredNorm() / trials;
+    err_scatter += (s.omega - turn.head<3>()).squaredNorm() / trials;
+  }
+  testing::recordFigure("turn_rotation_rmse_rad_default", std::sqrt(err_default), 7);
+  testing::recordFigure("turn_rotation_rmse_rad_scatter_only", std::sqrt(err_scatter), 7);
+  EXPECT_LT(std::sqrt(err_default), 1.02 * std::sqrt(err_scatter));  // 0.1756 both (2026-11-28)
+}
+
 // A pure rotation: tau = 0 within the noise, so the per-window inverse depths are barely
 // observable. Their Gauss-Newton must still stop once its steps are negligible against the
 // noise (it used to creep to its 20-iteration cap in each of its two rounds) and keep the
@@ -325,12 +384,14 @@ TEST(MotionFit, InvalidOptionsNameEveryBadField) {
   o.huber_delta_px = 0;
   o.inlier_sigmas = std::numeric_limits<double>::infinity();
   o.scale_depth_gradient = 1.5;
+  o.rotation_deformation = -1.0;
   const auto problems = o.validate();
-  ASSERT_EQ(problems.size(), 4u);
+  ASSERT_EQ(problems.size(), 5u);
   EXPECT_EQ(problems[0], "huber_delta_px: 0 is outside (0, 100] pixels");
   EXPECT_EQ(problems[1], "median: 4 must be odd (or 0/1 = off)");
   EXPECT_EQ(problems[2], "inlier_sigmas: must be a finite number, not inf");
   EXPECT_EQ(problems[3], "scale_depth_gradient: 1.5 is outside [0, 1]");
+  EXPECT_EQ(problems[4], "rotation_deformation: -1 is outside [0, 100]");
   EXPECT_THROW(MotionFit(o, kGamma, kWindow, kWindows), std::invalid_argument);
   EXPECT_THROW(MotionFit({}, kGamma, kWindow, 0), std::invalid_argument);  // no workspace
   EXPECT_TRUE(MotionFit::Options{}.validate().empty());

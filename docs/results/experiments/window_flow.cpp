@@ -11,12 +11,17 @@
 //   measured   the registered windows;
 //   exact-uv   du and dv replaced by the exact means (the measured scale and rotation kept);
 //   exact-all  du, dv replaced, the scale by exp((ex + ey) / 2) (the isotropic mix the fit's
-//              model assumes, DESIGN.md section 3) and the in-window rotation by 0.
+//              model assumes, DESIGN.md section 3) and the in-window rotation by 0;
+//   exact-phi  the measured windows with the in-window rotation replaced by the exact one
+//              (the antisymmetric part of the exact flow's gradient, (d(du)/dv - d(dv)/du) / 2,
+//              taper-weighted).
 // Printed per pair: the yaw error of each fit (fitted omega_z minus the true one, mrad) and,
 // over the windows, the RMS of ln(scale) - (ex + ey) / 2 and the ratio of the measured to the
 // exact ln(scale) in the windows within 20 degrees of the direction of travel (forward or
 // backward; pairs with translation only). The last lines sum the yaw errors over the pairs,
-// in degrees (what each way would add to the chained heading), and give the least-squares
+// in degrees (what each way would add to the chained heading), then the roll, pitch and yaw
+// errors of each fit (camera frame, degrees; over a straight drive the camera frame does
+// not turn, so these are what each way adds to the chained attitude), and give the least-squares
 // fit ln(scale) ~ a ex + b ey over all valid windows of all pairs: how the log-polar
 // correlation mixes the two expansions (the model assumes a = b = 1/2).
 //
@@ -62,6 +67,7 @@ using namespace omnipose;
 struct ExactWindow {
   double du = 0.0, dv = 0.0;  ///< taper-weighted mean shift, pixels
   double ex = 0.0, ey = 0.0;  ///< taper-weighted slopes d(du)/du and d(dv)/dv
+  double phi = 0.0;           ///< in-window rotation: (d(du)/dv - d(dv)/du) / 2, radians
   /// ln s of the fit's model: the isotropic mix of the two expansions.
   double mix() const { return 0.5 * (ex + ey); }
 };
@@ -70,7 +76,7 @@ ExactWindow exactWindow(const PanoramaGeometry& g, const synth::Scene& room,
                         const Eigen::Isometry3d& previous, const Eigen::Isometry3d& current,
                         double centre_u, int top, int length) {
   const Eigen::Isometry3d to_previous = previous.inverse();
-  double sw = 0, su = 0, sv = 0, sxx = 0, sxu = 0, syy = 0, syv = 0;
+  double sw = 0, su = 0, sv = 0, sxx = 0, sxu = 0, syy = 0, syv = 0, syu = 0, sxv = 0;
   const double half = 0.5 * (length - 1);
   for (int j = 0; j < length; ++j) {
     for (int i = 0; i < length; ++i) {
@@ -86,9 +92,11 @@ ExactWindow exactWindow(const PanoramaGeometry& g, const synth::Scene& room,
       const double x = i - half, y = j - half;
       sw += w, su += w * du, sv += w * dv;
       sxx += w * x * x, sxu += w * x * du, syy += w * y * y, syv += w * y * dv;
+      syu += w * y * du, sxv += w * x * dv;
     }
   }
-  return {su / sw, sv / sw, sxu / sxx, syv / syy};
+  // The map to the previous window is s [[1, phi], [-phi, 1]] (DESIGN.md section 3).
+  return {su / sw, sv / sw, sxu / sxx, syv / syy, 0.5 * (syu / syy - sxv / sxx)};
 }
 
 /// `current` re-sampled about window centre (u_c, v_c) so that its expansion by
@@ -142,7 +150,8 @@ int run(int argc, char** argv) {
   WindowRegistration registration(g.size(), options.registration);
   const int n = registration.windowCount(), length = options.registration.window;
   MotionFit fit(options.fit, g.gamma(), length, n);
-  std::vector<WindowMotion> measured(n), exact_uv(n), exact_all(n), dewarped(n), again(n);
+  std::vector<WindowMotion> measured(n), exact_uv(n), exact_all(n), exact_phi(n), dewarped(n),
+      again(n);
   std::vector<ExactWindow> exact(n);
 
   cv::Mat previous;
@@ -159,10 +168,13 @@ int run(int argc, char** argv) {
   };
   previous = panoramaOf(first - 1);
 
-  std::printf("# pair  yaw error [mrad]: measured  exact-uv  exact-all  |  ln s - mix RMS  "
+  std::printf("# pair  yaw error [mrad]: measured  exact-uv  exact-all  exact-phi  |  "
+              "ln s - mix RMS  "
               "travel-direction ln s measured/exact%s\n",
               with_dewarp ? "  |  de-warped: residual ln s RMS, yaw error [mrad]" : "");
-  double sum[4] = {0, 0, 0, 0};
+  double sum[5] = {0, 0, 0, 0, 0};
+  Eigen::Vector3d attitude_sum[4] = {Eigen::Vector3d::Zero(), Eigen::Vector3d::Zero(),
+                                     Eigen::Vector3d::Zero(), Eigen::Vector3d::Zero()};
   double sxx = 0, sxy = 0, syy = 0, sxl = 0, syl = 0;  // normal equations of ln s ~ a ex + b ey
   int regressed = 0;
   for (int k = first; k <= last; ++k) {
@@ -187,6 +199,8 @@ int run(int argc, char** argv) {
       const double mix = exact[w].mix();
       exact_all[w].scale = std::exp(mix);
       exact_all[w].rotation = 0.0;
+      exact_phi[w] = measured[w];
+      exact_phi[w].rotation = exact[w].phi;
       if (!measured[w].valid || measured[w].rs_confidence <= 0) continue;
       const double ln_s = std::log(measured[w].scale);
       rr += (ln_s - mix) * (ln_s - mix);
@@ -220,42 +234,55 @@ int run(int argc, char** argv) {
         ++residuals;
       }
     }
-    double yaw[4] = {0, 0, 0, 0};
-    const std::vector<WindowMotion>* inputs[3] = {&measured, &exact_uv, &exact_all};
-    for (int i = 0; i < 3; ++i) {
+    double yaw[5] = {0, 0, 0, 0, 0};
+    const std::vector<WindowMotion>* inputs[4] = {&measured, &exact_uv, &exact_all, &exact_phi};
+    for (int i = 0; i < 4; ++i) {
       const MotionEstimate e = fit.fit(*inputs[i], g.forward_column);
-      yaw[i] = e.status != FitStatus::kLost ? e.omega.z() - omega_true.z() : std::nan("");
+      const Eigen::Vector3d error =
+          e.status != FitStatus::kLost ? Eigen::Vector3d(e.omega - omega_true)
+                                       : Eigen::Vector3d::Constant(std::nan(""));
+      yaw[i] = error.z();
       sum[i] += yaw[i];
+      attitude_sum[i] += error;
     }
     if (with_dewarp) {
       const MotionEstimate e = fit.fit(dewarped, g.forward_column);
-      yaw[3] = e.status != FitStatus::kLost ? e.omega.z() - omega_true.z() : std::nan("");
-      sum[3] += yaw[3];
+      yaw[4] = e.status != FitStatus::kLost ? e.omega.z() - omega_true.z() : std::nan("");
+      sum[4] += yaw[4];
     }
-    std::printf("%5d  %+9.4f %+9.4f %+9.4f  |  %.5f  %s", k, yaw[0] * 1e3, yaw[1] * 1e3,
-                yaw[2] * 1e3, used > 0 ? std::sqrt(rr / used) : std::nan(""),
+    std::printf("%5d  %+9.4f %+9.4f %+9.4f %+9.4f  |  %.5f  %s", k, yaw[0] * 1e3, yaw[1] * 1e3,
+                yaw[2] * 1e3, yaw[3] * 1e3, used > 0 ? std::sqrt(rr / used) : std::nan(""),
                 travel > 0 ? std::to_string(ratio / travel).c_str() : "-");
     if (with_dewarp)
       std::printf("  |  %.5f %+9.4f",
-                  residuals > 0 ? std::sqrt(residual_rr / residuals) : std::nan(""), yaw[3] * 1e3);
+                  residuals > 0 ? std::sqrt(residual_rr / residuals) : std::nan(""), yaw[4] * 1e3);
     std::printf("\n");
     if (print_windows) {
       std::printf("#   k theta[deg] valid  du meas/exact [px]   dv meas/exact [px]   "
-                  "ln s meas  ex  ey\n");
+                  "ln s meas  ex  ey   phi meas/exact [rad]\n");
       for (int w = 0; w < n; ++w) {
-        std::printf("  %3d %7.1f %d  %+8.4f %+8.4f  %+8.4f %+8.4f  %+8.5f %+8.5f %+8.5f\n", w,
-                    g.azimuth(measured[w].center_u) * 180 / std::numbers::pi, measured[w].valid,
-                    measured[w].du, exact[w].du, measured[w].dv, exact[w].dv,
-                    std::log(measured[w].scale), exact[w].ex, exact[w].ey);
+        std::printf("  %3d %7.1f %d  %+8.4f %+8.4f  %+8.4f %+8.4f  %+8.5f %+8.5f %+8.5f  "
+                    "%+8.5f %+8.5f\n",
+                    w, g.azimuth(measured[w].center_u) * 180 / std::numbers::pi,
+                    measured[w].valid, measured[w].du, exact[w].du, measured[w].dv, exact[w].dv,
+                    std::log(measured[w].scale), exact[w].ex, exact[w].ey, measured[w].rotation,
+                    exact[w].phi);
       }
     }
     previous = current;
   }
   const double to_deg = 180.0 / std::numbers::pi;
-  std::printf("# sum over %d pairs [deg]: measured %+.3f  exact-uv %+.3f  exact-all %+.3f",
-              last - first + 1, sum[0] * to_deg, sum[1] * to_deg, sum[2] * to_deg);
-  if (with_dewarp) std::printf("  de-warped %+.3f", sum[3] * to_deg);
+  std::printf("# sum over %d pairs [deg]: measured %+.3f  exact-uv %+.3f  exact-all %+.3f"
+              "  exact-phi %+.3f",
+              last - first + 1, sum[0] * to_deg, sum[1] * to_deg, sum[2] * to_deg,
+              sum[3] * to_deg);
+  if (with_dewarp) std::printf("  de-warped %+.3f", sum[4] * to_deg);
   std::printf("\n");
+  const char* names[4] = {"measured", "exact-uv", "exact-all", "exact-phi"};
+  for (int i = 0; i < 4; ++i)
+    std::printf("# %-9s roll %+.3f  pitch %+.3f  yaw %+.3f deg (summed, camera frame)\n",
+                names[i], attitude_sum[i].x() * to_deg, attitude_sum[i].y() * to_deg,
+                attitude_sum[i].z() * to_deg);
   const double det = sxx * syy - sxy * sxy;
   // Only with expansions to speak of (RMS above 1e-4: translation) that are not proportional.
   constexpr double kMinExpansion = 1e-4;
