@@ -29,15 +29,18 @@
 // current panorama is also de-warped about its centre by its exact expansions (ex, ey;
 // bicubic) and registered again, so that what is left of its scale is what a perfectly
 // predicted anisotropic de-warp would leave; printed: the RMS of that residual ln s, and the
-// yaw error of a fourth fit, on the measured windows with ln s = (ex + ey) / 2 + the residual.
+// yaw error of one more fit, on the measured windows with ln s = (ex + ey) / 2 + the residual.
 //
 // Built with the project (target omnipose-experiment-window-flow); run from the repository
 // root:
 //   build/bin/omnipose-experiment-window-flow DATASET FIRST LAST [--windows | --dewarp]
+//                                                [--scatter-only]
 //     DATASET  a box-room dataset with groundtruth.tum (frames rendered without noise
 //              show the model's error alone); FIRST..LAST: the current frames K of the pairs
 //     --windows  also print every window of every pair
 //     --dewarp   add the de-warped registration (see above)
+//     --scatter-only  fit with MotionFit::Options::rotation_deformation 0: the in-window
+//                rotation equations weighted by their scatter alone (the fit before 2026-11-28)
 
 #include <Eigen/Geometry>
 #include <algorithm>
@@ -118,20 +121,25 @@ cv::Mat dewarp(const cv::Mat& current, double u_c, double v_c, double ln_x, doub
 
 void usage() {
   std::fprintf(stderr, "usage: omnipose-experiment-window-flow DATASET FIRST LAST "
-                       "[--windows | --dewarp]\n");
+                       "[--windows | --dewarp] [--scatter-only]\n");
 }
 
 int run(int argc, char** argv) {
-  const bool flag_known = argc == 5 && (std::strcmp(argv[4], "--windows") == 0 ||
-                                        std::strcmp(argv[4], "--dewarp") == 0);
-  if (argc < 4 || argc > 5 || (argc == 5 && !flag_known)) {
+  bool print_windows = false, with_dewarp = false, scatter_only = false, flags_known = true;
+  for (int i = 4; i < argc; ++i) {
+    const std::string flag = argv[i];
+    print_windows = print_windows || flag == "--windows";
+    with_dewarp = with_dewarp || flag == "--dewarp";
+    scatter_only = scatter_only || flag == "--scatter-only";
+    flags_known =
+        flags_known && (flag == "--windows" || flag == "--dewarp" || flag == "--scatter-only");
+  }
+  if (argc < 4 || !flags_known || (print_windows && with_dewarp)) {
     usage();
     return 2;
   }
   const Dataset dataset = Dataset::open(argv[1]);
   const int first = std::atoi(argv[2]), last = std::atoi(argv[3]);
-  const bool print_windows = argc == 5 && std::strcmp(argv[4], "--windows") == 0;
-  const bool with_dewarp = argc == 5 && std::strcmp(argv[4], "--dewarp") == 0;
   const int frames = static_cast<int>(dataset.frames.size());
   if (!dataset.groundtruth || first < 1 || last < first || last >= frames ||
       static_cast<int>(dataset.groundtruth->size()) != frames) {
@@ -146,6 +154,7 @@ int run(int argc, char** argv) {
   room.kind = synth::SceneKind::kBox;
 
   PipelineOptions options;
+  if (scatter_only) options.fit.rotation_deformation = 0.0;
   Pipeline pipeline(dataset.calibration, options);
   WindowRegistration registration(g.size(), options.registration);
   const int n = registration.windowCount(), length = options.registration.window;
