@@ -95,9 +95,10 @@ class MotionFit {
     /// its texture sets, an error its scatter does not show). The depths of the windows near
     /// the direction of travel, whose du hardly depends on them, then come from their
     /// neighbours instead of from the scale and the pull. Measured (docs/results/ANALYSIS.md):
-    /// the drift benchmark's rectangle in a room ends 0.88 instead of 1.66 deg off, the room
-    /// translation's direction is 14 % better, every frame-pair rotation cell within 4 %;
-    /// the pose covariance is then about twice too large (rotation NEES 1.3 of 3).
+    /// the drift benchmark's rectangle in a room ends 0.63 instead of 0.72 deg off (0.54
+    /// instead of 1.52 through an office texture), the room translation's direction is 16 %
+    /// better, every frame-pair rotation cell within 4 %; the pose covariance is then about
+    /// twice too large (rotation NEES 1.3 of 3).
     bool plane_depth_prior = false;
     /// With per_window_depth: how much of the horizontal expansion that a change of depth
     /// across a window adds the measured in-window scale carries. A window on a wall seen
@@ -131,8 +132,8 @@ class MotionFit {
     /// variances (0) count as the median. Off by default: it lowers the rotation error of
     /// frame pairs (indoor 7-17 %, Kogeto-like pitch 30 %), but the translation direction
     /// of the accuracy benchmark's room sequence is 46 % worse and the drift benchmark's
-    /// rectangle ends 1.87 instead of 1.67 degrees off (docs/results/ANALYSIS.md). false:
-    /// the confidence alone weighs both (the paper).
+    /// rectangle ends 1.87 instead of 1.67 degrees off (docs/results/ANALYSIS.md; measured
+    /// before rotation_deformation). false: the confidence alone weighs both (the paper).
     bool window_covariance = false;
 
     /// Every problem, one message per bad field, each starting with the field's name
