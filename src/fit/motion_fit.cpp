@@ -491,7 +491,11 @@ Eigen::Matrix<double, 6, 1> MotionFit::Impl::depthGaussNewton(
     Vec6 rhs = gx;
     Vec6 v = Vec6::Zero();
     double q = 0.0, cg = 0.0, e = 1.0;
+    // A window without information about its depth (no rows and a confidence of 0: masked,
+    // without a peak, or left out as moving content) has none to eliminate: its depth
+    // stays. (Dividing by its h of 0 made the whole step NaN, and every depth stayed 1.)
     for (int k = 0; k < n; ++k) {
+      if (!(h[k] > 0)) continue;
       const double c = gauge(k);
       S.noalias() -= depth_xl[k] * depth_xl[k].transpose() / h[k];
       rhs.noalias() -= depth_xl[k] * (g_lambda[k] / h[k]);
@@ -513,7 +517,8 @@ Eigen::Matrix<double, 6, 1> MotionFit::Impl::depthGaussNewton(
     const double mu = mu_scale * (cg - v.dot(dx) - e);  // Lagrange multiplier
     for (int k = 0; k < n; ++k) {
       depth_before[k] = depth[k];
-      depth_step[k] = (g_lambda[k] - depth_xl[k].dot(dx) - gauge(k) * mu) / h[k];
+      depth_step[k] =
+          h[k] > 0 ? (g_lambda[k] - depth_xl[k].dot(dx) - gauge(k) * mu) / h[k] : 0.0;
     }
     // Backtracking: the largest of 1, 1/2, 1/4, ... that does not raise the cost; none
     // (a minimum to rounding): stay and stop.

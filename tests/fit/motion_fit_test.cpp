@@ -188,6 +188,36 @@ TEST(MotionFit, PerWindowDepthRemovesTheYawBiasOfForwardMotionInARoom) {
   EXPECT_LT(worst, 0.2);  // 0.068 (2026-11-25)
 }
 
+// A window without a peak, masked, or left out as content moving on its own has confidence 0
+// and no equations: nothing to say about its depth. The other windows' depths are fitted all
+// the same (a window of confidence 0 used to make the whole Gauss-Newton step NaN, and the
+// fit silently fell back to one depth for all: 3 mrad of yaw on a park pair).
+TEST(MotionFit, AWindowWithoutConfidenceLeavesTheOthersTheirDepths) {
+  std::mt19937 rng(11);
+  const auto lambda = boxRoomInverseDepth(0.6, -0.9);
+  Vec6 x;
+  x << 0.0, 0.0, 0.01, 0.04, 0.01, 0.0;
+  const auto windows = synthesize(x, 0.05, 0.0, rng, 0.0, lambda);
+  MotionFit fit = makeFit(true, true);
+  const int used_all = fit.fit(windows, 0.0).windows_used;
+  for (int blank : {0, 1, 2}) {
+    std::vector<WindowMotion> w = windows;
+    WindowMotion& k = w[17];
+    k.confidence = 0.0;
+    k.rs_confidence = 0.0;
+    if (blank >= 1) k.valid = false;  // no peak
+    if (blank == 2) k.masked = true;  // masked
+    const MotionEstimate e = fit.fit(w, 0.0);
+    ASSERT_NE(e.status, FitStatus::kLost) << blank;
+    EXPECT_LT(std::abs(e.omega.z() - x[2]), 2e-4) << blank << ": " << e.omega.transpose();
+    EXPECT_GE(e.windows_used, used_all - 2) << blank;  // 29 of 50 with the fallback
+    double worst = 0.0;
+    for (int i = 0; i < kWindows; ++i)
+      if (i != 17) worst = std::max(worst, std::abs(fit.inverseDepth(i) - lambda[i]));
+    EXPECT_LT(worst, 0.2) << blank;
+  }
+}
+
 // Driving 1 m from a wall, each window's log-polar scale mixes its horizontal and vertical
 // expansion in its own texture's proportion (measured on an indoor photo: -0.1 to 1.5, median
 // about 0.6; docs/results/ANALYSIS.md), not in the model's halves. Read as depth at full
