@@ -56,9 +56,9 @@ class WindowRegistration {
     /// frequency of power |F|^2 counts |F|^2 / (|F|^2 + sigma^2 sum(taper^2)) as much in
     /// each of the two windows. Measured (docs/results/ANALYSIS.md, issue 29): indoor scenes
     /// (plain walls, blinds) gain, e.g. indoor yaw 0.028 -> 0.025 mrad and the box-room
-    /// rectangle's heading drift 0.72 -> 0.29 deg (through an office texture it loses, 1.52
-    /// -> 1.86 deg); dense outdoor texture (grass, whose fine detail the median reads as
-    /// noise) loses up to a third. The pose covariance still
+    /// rectangle's heading drift 0.72 -> 0.26 deg (through an office texture 1.52 -> 1.16);
+    /// dense outdoor texture (grass, whose fine detail the median reads as noise) loses up to
+    /// a third. The pose covariance still
     /// describes the errors (pose_covariance_test: mean rotation NEES about 2 of 3). Off by
     /// default. About 1 % more instructions per frame.
     bool noise_weighting = false;
