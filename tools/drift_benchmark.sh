@@ -270,7 +270,7 @@ echo
 echo "== done in $((elapsed / 60)) min $((elapsed % 60)) s: $out/DRIFT.md"
 if [ "$publish" = 1 ]; then
   published=docs/results/DRIFT.md
-  [ -n "${KEYFRAME_SLOTS:-}" ] && published=docs/results/DRIFT_KEYFRAMES.md
+  [ -n "$keyframes_yaml" ] && published=docs/results/DRIFT_KEYFRAMES.md
   mkdir -p docs/results
   cp "$out/DRIFT.md" "$published"
   echo "== published to $published"

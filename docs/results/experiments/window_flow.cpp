@@ -181,7 +181,7 @@ int run(int argc, char** argv) {
               "ln s - mix RMS  "
               "travel-direction ln s measured/exact%s\n",
               with_dewarp ? "  |  de-warped: residual ln s RMS, yaw error [mrad]" : "");
-  double sum[5] = {0, 0, 0, 0, 0};
+  double dewarped_yaw_sum = 0.0;
   Eigen::Vector3d attitude_sum[4] = {Eigen::Vector3d::Zero(), Eigen::Vector3d::Zero(),
                                      Eigen::Vector3d::Zero(), Eigen::Vector3d::Zero()};
   double sxx = 0, sxy = 0, syy = 0, sxl = 0, syl = 0;  // normal equations of ln s ~ a ex + b ey
@@ -251,13 +251,12 @@ int run(int argc, char** argv) {
           e.status != FitStatus::kLost ? Eigen::Vector3d(e.omega - omega_true)
                                        : Eigen::Vector3d::Constant(std::nan(""));
       yaw[i] = error.z();
-      sum[i] += yaw[i];
       attitude_sum[i] += error;
     }
     if (with_dewarp) {
       const MotionEstimate e = fit.fit(dewarped, g.forward_column);
       yaw[4] = e.status != FitStatus::kLost ? e.omega.z() - omega_true.z() : std::nan("");
-      sum[4] += yaw[4];
+      dewarped_yaw_sum += yaw[4];
     }
     std::printf("%5d  %+9.4f %+9.4f %+9.4f %+9.4f  |  %.5f  %s", k, yaw[0] * 1e3, yaw[1] * 1e3,
                 yaw[2] * 1e3, yaw[3] * 1e3, used > 0 ? std::sqrt(rr / used) : std::nan(""),
@@ -283,9 +282,9 @@ int run(int argc, char** argv) {
   const double to_deg = 180.0 / std::numbers::pi;
   std::printf("# sum over %d pairs [deg]: measured %+.3f  exact-uv %+.3f  exact-all %+.3f"
               "  exact-phi %+.3f",
-              last - first + 1, sum[0] * to_deg, sum[1] * to_deg, sum[2] * to_deg,
-              sum[3] * to_deg);
-  if (with_dewarp) std::printf("  de-warped %+.3f", sum[4] * to_deg);
+              last - first + 1, attitude_sum[0].z() * to_deg, attitude_sum[1].z() * to_deg,
+              attitude_sum[2].z() * to_deg, attitude_sum[3].z() * to_deg);
+  if (with_dewarp) std::printf("  de-warped %+.3f", dewarped_yaw_sum * to_deg);
   std::printf("\n");
   const char* names[4] = {"measured", "exact-uv", "exact-all", "exact-phi"};
   for (int i = 0; i < 4; ++i)
