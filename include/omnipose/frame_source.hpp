@@ -14,6 +14,7 @@
 #include <opencv2/core.hpp>
 #include <optional>
 #include <string>
+#include <vector>
 
 #include "omnipose/error.hpp"
 
@@ -57,6 +58,9 @@ class FrameSource {
 
   /// One line naming the source for logs and status ("v4l2 /dev/video0 1280x720 YUYV").
   virtual std::string describe() const = 0;
+  /// What open() noticed that a user should know but that does not stop the source (a
+  /// recording's timestamps going backwards, say), one message each. Empty by default.
+  virtual std::vector<std::string> warnings() const { return {}; }
 
   /// The sequence number the first frame after the last open() carries when nothing is
   /// dropped before it, so that frames passed over before the first delivered one are

@@ -1,4 +1,5 @@
 #include "omnipose/calibration.hpp"
+#include "omnipose/file_io.hpp"
 
 #include <yaml-cpp/yaml.h>
 
@@ -379,13 +380,9 @@ Calibration Calibration::parse(const std::string& text, const std::string& origi
 }
 
 Calibration Calibration::load(const std::filesystem::path& path) {
-  std::ifstream in(path);
-  if (!in) {
-    throw ConfigError(path.string() + ": cannot open calibration file");
-  }
-  std::stringstream ss;
-  ss << in.rdbuf();
-  return parse(ss.str(), path.string(), path.parent_path());
+  Expected<std::string> text = readTextFile(path);
+  if (!text) throw ConfigError(std::string(text.error().message()) + " (the calibration file)");
+  return parse(*text, path.string(), path.parent_path());
 }
 
 std::string Calibration::toYaml() const {

@@ -5,6 +5,7 @@
 #include <stdexcept>
 
 #include "common/problem_list.hpp"
+#include "omnipose/file_io.hpp"
 #include "omnipose/config_error.hpp"
 #include "omnipose/lens_model.hpp"
 
@@ -48,8 +49,12 @@ std::vector<std::string> MeiModel::validate() const {
 
 MeiModel MeiModel::loadFileStorage(const std::filesystem::path& path) {
   cv::FileStorage fs;
+  Expected<std::string> text = readTextFile(path);
+  if (!text) throw std::runtime_error(std::string(text.error().message()) + " (the omnidir calibration file)");
   try {
-    if (!fs.open(path.string(), cv::FileStorage::READ))
+    // From memory: the file was read with file_io's checks (regular, bounded); OpenCV tells
+    // YAML, XML and JSON apart by the content, as it does when it reads a file.
+    if (text->empty() || !fs.open(*text, cv::FileStorage::READ | cv::FileStorage::MEMORY))
       throw std::runtime_error(path.string() + ": cannot open omnidir calibration file");
   } catch (const cv::Exception& e) {
     throw std::runtime_error(path.string() + ": not a readable cv::FileStorage file: " + e.msg);

@@ -7,6 +7,7 @@
 #include <stdexcept>
 
 #include "common/problem_list.hpp"
+#include "omnipose/file_io.hpp"
 #include "omnipose/config_error.hpp"
 #include "omnipose/limits.hpp"
 #include "omnipose/lens_model.hpp"
@@ -199,11 +200,9 @@ OcamCalibModel OcamCalibModel::parse(const std::string& text, const std::string&
 }
 
 OcamCalibModel OcamCalibModel::load(const std::filesystem::path& path) {
-  std::ifstream in(path);
-  if (!in) throw std::runtime_error(path.string() + ": cannot open OCamCalib file");
-  std::stringstream ss;
-  ss << in.rdbuf();
-  return parse(ss.str(), path.string());
+  Expected<std::string> text = readTextFile(path);
+  if (!text) throw std::runtime_error(std::string(text.error().message()) + " (the OCamCalib file)");
+  return parse(*text, path.string());
 }
 
 double OcamCalibModel::f(double rho) const { return polyval(ss, rho); }

@@ -1,4 +1,5 @@
 #include "daemon/config.hpp"
+#include "omnipose/file_io.hpp"
 
 #include <yaml-cpp/yaml.h>
 
@@ -214,13 +215,9 @@ std::vector<std::string> DaemonConfig::checkAgainst(const Calibration& cal,
 }
 
 DaemonConfig DaemonConfig::load(const std::filesystem::path& path, Use use) {
-  std::ifstream in(path);
-  if (!in) {
-    throw ConfigError(path.string() + ": cannot open configuration file");
-  }
-  std::stringstream ss;
-  ss << in.rdbuf();
-  return parse(ss.str(), path.string(), path.parent_path(), use);
+  Expected<std::string> text = readTextFile(path);
+  if (!text) throw ConfigError(std::string(text.error().message()) + " (the configuration file)");
+  return parse(*text, path.string(), path.parent_path(), use);
 }
 
 std::string DaemonConfig::describe() const {

@@ -3,14 +3,19 @@
 #include <opencv2/core/utility.hpp>
 #include <stdexcept>
 
+#include "daemon/instance_lock.hpp"
 #include "daemon/source_factory.hpp"
 
 namespace omnipose::daemon {
 Daemon::Daemon(const DaemonConfig& config, std::FILE* log, std::unique_ptr<FrameSource> source,
                std::unique_ptr<MessageSink> sink, DaemonOptions options)
     : config_(config), options_(options), log_(log), board_(log) {
+  const auto phase = [&](const char* what) {
+    if (options_.phase != nullptr) options_.phase->store(what);
+  };
   cv::setNumThreads(1);
 
+  phase("loading the calibration");
   const Calibration calibration = Calibration::load(config_.calibration);
   // Before anything is sized by the pair (frame buffers, window spectra).
   if (const auto problems = config_.checkAgainst(
@@ -21,15 +26,19 @@ Daemon::Daemon(const DaemonConfig& config, std::FILE* log, std::unique_ptr<Frame
   }
   const cv::Size frame_size = inputFrameSize(calibration, config_.pipeline.unwrap.input);
 
+  phase("locking the camera");
+  source_lock_ = lockSource(config_.source);
   source_ = source ? std::move(source)
                    : makeFrameSource(config_.source, {frame_size, config_.calibration,
                                                      calibration.sensor.readout_s});
+  phase("opening the LCM output");
   sink_ = sink ? std::move(sink) : makeLcmSink(config_.lcm.url);
 
   const bool lossless = options_.force_lossless ||
                         (config_.source.type == SourceConfig::Type::kFile && !config_.source.realtime);
   mailbox_ = std::make_unique<FrameMailbox>(frame_size, lossless, 3, &board_.frames_skipped_stale);
 
+  phase("opening the source");
   if (auto opened = source_->open(); !opened) {
     throw std::runtime_error(std::string("source: ") + opened.error().c_str());
   }
@@ -44,6 +53,8 @@ Daemon::Daemon(const DaemonConfig& config, std::FILE* log, std::unique_ptr<Frame
                              std::to_string(frame_size.height));
   }
   source_description_ = source_->describe();
+  source_warnings_ = source_->warnings();
+  phase("building the pipeline (FFT plans)");
   processor_ = std::make_unique<Processor>(calibration, config_.odometry(), config_.lcm, *sink_,
                                            board_, source_description_);
   capture_ = std::make_unique<CaptureLoop>(*source_, *mailbox_, board_, options_.capture);

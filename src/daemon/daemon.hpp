@@ -6,7 +6,8 @@
 /// lcm.status_hz). After start() the per-frame path allocates nothing (DESIGN.md section 5).
 ///
 /// Life cycle: construct (throws on any start-up problem, with a message naming the file,
-/// key or device) -> start() -> either requestStop() (signal) or the source ends (a finite
+/// key or device; a camera or LCM log that another omniposed holds is refused with its
+/// PID, instance_lock.hpp) -> start() -> either requestStop() (signal) or the source ends (a finite
 /// file source: finished() becomes true after the last frame's pose) -> join(), which joins
 /// both threads and publishes the final status (status_t.final = true).
 ///
@@ -18,12 +19,14 @@
 /// possible" is as fast as the pipeline); every other source drops stale frames.
 
 #include <chrono>
+#include <atomic>
 #include <condition_variable>
 #include <cstdio>
 #include <memory>
 #include <mutex>
 #include <string>
 #include <thread>
+#include <vector>
 
 #include "daemon/capture_loop.hpp"
 #include "daemon/frame_mailbox.hpp"
@@ -31,15 +34,22 @@
 #include "daemon/processor.hpp"
 #include "daemon/status_board.hpp"
 #include "daemon/config.hpp"
+#include "omnipose/file_io.hpp"
 #include "omnipose/frame_source.hpp"
 
 namespace omnipose::daemon {
+
+/// What the constructor is doing, for a stop requested during start-up (runService()).
+/// Written by the constructor, read from another thread: a static string each.
+using StartupPhase = std::atomic<const char*>;
 
 /// Knobs that are not part of daemon.yaml (tests, tools).
 struct DaemonOptions {
   CaptureLoop::Options capture;
   /// Replay lossless even if the source is not a non-realtime file source (tests).
   bool force_lossless = false;
+  /// Updated with what start-up is doing ("loading the calibration", ...); may be null.
+  StartupPhase* phase = nullptr;
 };
 
 class Daemon {
@@ -75,6 +85,8 @@ class Daemon {
   bool alive(std::chrono::nanoseconds max_silence) const { return board_.alive(max_silence); }
   /// One line each: the source and the LCM transport.
   const std::string& sourceDescription() const { return source_description_; }
+  /// What the source noticed when it was opened (FrameSource::warnings()).
+  const std::vector<std::string>& sourceWarnings() const { return source_warnings_; }
   std::string sinkDescription() const { return sink_->describe(); }
 
  private:
@@ -90,6 +102,8 @@ class Daemon {
   std::unique_ptr<Processor> processor_;
   std::unique_ptr<CaptureLoop> capture_;
   std::string source_description_;
+  std::vector<std::string> source_warnings_;
+  FileLock source_lock_;
 
   std::thread capture_thread_;
   std::thread process_thread_;

@@ -64,6 +64,10 @@ std::string FileFrameSource::describe() const {
   return text;
 }
 
+std::vector<std::string> FileFrameSource::warnings() const {
+  return dataset_ ? dataset_->warnings : std::vector<std::string>{};
+}
+
 Expected<FrameInfo> FileFrameSource::next(cv::Mat& out, std::chrono::milliseconds timeout) {
   if (!dataset_) return fail(ErrorCode::kDisconnected, "%s: not open", options_.directory.c_str());
   const auto& frames = dataset_->frames;

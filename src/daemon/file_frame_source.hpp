@@ -67,6 +67,8 @@ class FileFrameSource final : public FrameSource {
   Expected<FrameInfo> next(cv::Mat& out, std::chrono::milliseconds timeout) override;
   void close() override;
   std::string describe() const override;
+  /// The dataset's timestamp warnings (Dataset::warnings).
+  std::vector<std::string> warnings() const override;
 
   /// The sequence number next() gives the next frame it reads (frames it passes over while
   /// catching up with realtime pacing count as lost).

@@ -1,8 +1,12 @@
 #include <fcntl.h>
+#include <sys/stat.h>
 #include <lcm/eventlog.h>
 #include <unistd.h>
 
 #include <cerrno>
+#include <cstdlib>
+#include <new>
+#include <optional>
 #include <cstdio>
 #include <cstring>
 #include <lcm/lcm-cpp.hpp>
@@ -10,9 +14,12 @@
 
 #include "daemon/message_sink.hpp"
 #include "daemon/wall_clock.hpp"
+#include "omnipose/file_io.hpp"
 
 namespace omnipose::daemon {
 namespace {
+
+constexpr FileKind kLcmLogKind{"an LCM log", looksLikeLcmLog};
 
 class LcmSink final : public MessageSink {
  public:
@@ -45,18 +52,39 @@ class LcmSink final : public MessageSink {
 /// there is room again.
 class FileLogSink final : public MessageSink {
  public:
-  FileLogSink(const std::string& url, const std::string& path, const char* mode)
-      : url_(url), path_(path) {
-    errno = 0;
-    log_ = lcm_eventlog_create(path.c_str(), mode);
-    if (log_ == nullptr) {
-      const int e = errno;
-      throw std::runtime_error("lcm.url \"" + url + "\": cannot open the log file " + path +
-                               " for writing" + (e != 0 ? std::string(": ") + std::strerror(e) : ""));
+  FileLogSink(const std::string& url, const std::string& path) : url_(url), path_(path) {
+    const std::string where = "lcm.url \"" + url + "\": ";
+    if (Expected<void> ok = checkReplaceable(path, kLcmLogKind); !ok)
+      throw std::runtime_error(where + std::string(ok.error().message()));
+    // One writer per log: a second daemon with the same configuration is refused here,
+    // before it replaces the first one's log.
+    Expected<FileLock> lock = FileLock::acquire(path + ".lock");
+    if (!lock) {
+      throw std::runtime_error(where + (lock.error().code() == ErrorCode::kBusy
+                                            ? "the log is in use by another omniposed: "
+                                            : "cannot lock the log: ") +
+                               std::string(lock.error().message()));
     }
+    lock_ = std::move(*lock);
+    // A new file renamed over the old log: never written through a symbolic link, never
+    // over a file that is not an LCM log, never a FIFO or a device.
+    const Expected<int> fd = createReplacing(path, kLcmLogKind);
+    if (!fd) throw std::runtime_error(where + "cannot create the log: " + std::string(fd.error().message()));
+    std::FILE* file = ::fdopen(*fd, "w");
+    if (file == nullptr) {
+      ::close(*fd);
+      throw std::runtime_error(where + "cannot open the log file " + path);
+    }
+    // lcm_eventlog_create() would fopen() the path itself; the struct is LCM's public one
+    // and lcm_eventlog_destroy() fcloses and frees it.
+    log_ = static_cast<lcm_eventlog_t*>(std::calloc(1, sizeof(lcm_eventlog_t)));
+    if (log_ == nullptr) {
+      std::fclose(file);
+      throw std::bad_alloc();
+    }
+    log_->f = file;
     std::setvbuf(log_->f, nullptr, _IONBF, 0);
-    good_end_ = ftello(log_->f);
-    if (good_end_ < 0) good_end_ = 0;
+    good_end_ = 0;
   }
   ~FileLogSink() override { lcm_eventlog_destroy(log_); }
   FileLogSink(const FileLogSink&) = delete;
@@ -90,31 +118,56 @@ class FileLogSink final : public MessageSink {
  private:
   std::string url_;
   std::string path_;
+  FileLock lock_;
   lcm_eventlog_t* log_ = nullptr;
   off_t good_end_ = 0;
   char error_[512] = {};
 };
 
-/// For `file://PATH?mode=w` (nothing else in the query): the path and the mode; else false.
-bool parseWritableLogUrl(const std::string& url, std::string& path, const char*& mode) {
+}  // namespace
+
+namespace {
+
+/// The path of any `file://PATH[?...]` URL; nullopt for other URLs.
+std::optional<std::string> filePathOf(const std::string& url) {
   constexpr std::string_view kScheme = "file://";
-  if (url.rfind(kScheme, 0) != 0) return false;
-  const std::string rest = url.substr(kScheme.size());
-  const auto q = rest.find('?');
-  if (q == std::string::npos) return false;  // LCM's default for file:// is read mode
-  const std::string query = rest.substr(q + 1);
-  if (query != "mode=w") return false;  // anything else is LCM's own file provider
-  mode = "w";
-  path = rest.substr(0, q);
-  return !path.empty();
+  if (url.rfind(kScheme, 0) != 0) return std::nullopt;
+  std::string path = url.substr(kScheme.size());
+  path = path.substr(0, path.find('?'));
+  if (path.empty()) return std::nullopt;
+  return path;
+}
+
+/// LCM's own file provider (a file:// URL that is not ours) would fopen() the path, which
+/// blocks on a FIFO without a peer: anything there that is not a regular file is refused.
+void refuseSpecialFile(const std::string& url) {
+  const std::optional<std::string> path = filePathOf(url);
+  struct stat st {};
+  if (path && ::stat(path->c_str(), &st) == 0 && !S_ISREG(st.st_mode))
+    throw std::runtime_error("lcm.url \"" + url + "\": " + *path + ": not a regular file");
 }
 
 }  // namespace
 
+std::optional<std::string> writableLogPath(const std::string& url) {
+  const auto q = url.find('?');
+  // Without a query LCM's file provider reads; any other query is LCM's own provider.
+  if (q == std::string::npos || url.substr(q + 1) != "mode=w") return std::nullopt;
+  return filePathOf(url);
+}
+
+std::optional<std::string> logProblem(const std::string& url) {
+  const std::optional<std::string> path = writableLogPath(url);
+  if (!path) return std::nullopt;
+  if (Expected<void> ok = checkReplaceable(*path, kLcmLogKind); !ok)
+    return "lcm.url \"" + url + "\": " + std::string(ok.error().message());
+  return std::nullopt;
+}
+
 std::unique_ptr<MessageSink> makeLcmSink(const std::string& url) {
-  std::string path;
-  const char* mode = nullptr;
-  if (parseWritableLogUrl(url, path, mode)) return std::make_unique<FileLogSink>(url, path, mode);
+  if (const std::optional<std::string> path = writableLogPath(url))
+    return std::make_unique<FileLogSink>(url, *path);
+  refuseSpecialFile(url);
   return std::make_unique<LcmSink>(url);
 }
 

@@ -6,6 +6,7 @@
 #include <cstddef>
 #include <cstdint>
 #include <memory>
+#include <optional>
 #include <string>
 
 namespace omnipose::daemon {
@@ -36,6 +37,20 @@ class MessageSink {
 /// udpm: no heap allocation; file:// log: none (the event is written from the caller's
 /// buffer); memq://: nothing when no one subscribes, else about three per message (the
 /// queued copy).
+///
+/// The log is created as a new file renamed over any old one (file_io.hpp): a symbolic
+/// link, a FIFO, a device or a file that is not an LCM log is refused by name, never
+/// written. A lock file beside it (`PATH.lock`, holding the PID) refuses a second daemon
+/// writing the same log ("the log is in use by another omniposed: ...: held by process N").
 std::unique_ptr<MessageSink> makeLcmSink(const std::string& url);
+
+/// The path of a `file://PATH?mode=w` URL (the log this daemon writes itself); nullopt for
+/// any other URL.
+std::optional<std::string> writableLogPath(const std::string& url);
+
+/// For `omniposed --check`, without writing anything: why the log of a `file://PATH?mode=w`
+/// URL could not be written (not replaceable: checkReplaceable(), file_io.hpp), naming the
+/// URL; nullopt when it could or the URL is not such a log.
+std::optional<std::string> logProblem(const std::string& url);
 
 }  // namespace omnipose::daemon

@@ -80,6 +80,7 @@ bool Processor::publish(const std::string& channel, std::vector<std::uint8_t>& b
                        channel.c_str(), *why ? ": " : "", why);
     return false;
   }
+  ++board_.messages_published;
   return true;
 }
 

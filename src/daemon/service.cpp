@@ -4,6 +4,11 @@
 #include <signal.h>
 
 #include <algorithm>
+#include <atomic>
+#include <cstdlib>
+#include <exception>
+#include <memory>
+#include <thread>
 #include <cerrno>
 #include <cstring>
 
@@ -36,6 +41,50 @@ std::string summary(const DaemonStats& s) {
   return text;
 }
 
+const char* signalName(int sig) {
+  return sig == SIGINT ? "SIGINT" : sig == SIGTERM ? "SIGTERM" : "SIGHUP";
+}
+
+/// Builds the Daemon on a thread of its own while this thread keeps answering signals: a
+/// start-up that waits (a slow camera, a patient FFT plan, a filesystem that hangs) still
+/// ends within 100 ms of SIGINT or SIGTERM, by exiting the process at once (the start-up
+/// thread may be inside a system call that does not return; nothing it holds outlives the
+/// process: locks are the kernel's, files are replaced by rename only when whole).
+std::unique_ptr<Daemon> startUp(const DaemonConfig& config, std::FILE* log, const sigset_t& set,
+                                const DaemonOptions& base_options) {
+  StartupPhase phase{"reading the configuration"};
+  DaemonOptions options = base_options;
+  options.phase = &phase;
+  std::unique_ptr<Daemon> daemon;
+  std::exception_ptr failure;
+  std::atomic<bool> done{false};
+  std::thread worker([&] {
+    try {
+      daemon = std::make_unique<Daemon>(config, log, nullptr, nullptr, options);
+    } catch (...) {
+      failure = std::current_exception();
+    }
+    done.store(true);
+  });
+  while (!done.load()) {
+    timespec timeout{0, 20'000'000};  // 20 ms
+    const int sig = sigtimedwait(&set, nullptr, &timeout);
+    if (sig == SIGINT || sig == SIGTERM) {
+      std::fprintf(log, "omniposed: %s received during start-up (%s): stopping\n",
+                   signalName(sig), phase.load());
+      std::fflush(log);
+      std::_Exit(kExitStoppedDuringStartup);
+    }
+    if (sig == SIGHUP) {
+      std::fprintf(log, "omniposed: SIGHUP received during start-up (%s): ignored\n", phase.load());
+      std::fflush(log);
+    }
+  }
+  worker.join();
+  if (failure) std::rethrow_exception(failure);
+  return daemon;
+}
+
 }  // namespace
 
 void blockStopSignals() {
@@ -43,13 +92,20 @@ void blockStopSignals() {
   pthread_sigmask(SIG_BLOCK, &set, nullptr);
 }
 
-int runService(const DaemonConfig& config, std::FILE* log) {
+void unblockStopSignals() {
+  const sigset_t set = stopSignals();
+  pthread_sigmask(SIG_UNBLOCK, &set, nullptr);
+}
+
+int runService(const DaemonConfig& config, std::FILE* log, const DaemonOptions& options) {
   // Stays blocked after return: a second signal during shutdown must not kill the
   // process half-way through writing its last messages.
   const sigset_t set = stopSignals();
   pthread_sigmask(SIG_BLOCK, &set, nullptr);
 
-  Daemon daemon(config, log);
+  const std::unique_ptr<Daemon> started = startUp(config, log, set, options);
+  Daemon& daemon = *started;
+  for (const std::string& w : daemon.sourceWarnings()) std::fprintf(log, "omniposed: warning: %s\n", w.c_str());
   SystemdNotifier notifier;
   std::fprintf(log, "omniposed: source: %s\nomniposed: output: %s (pose %s, status %s at %g Hz, "
                "diagnostics %s)\nomniposed: systemd notify: %s\n",
@@ -101,8 +157,7 @@ int runService(const DaemonConfig& config, std::FILE* log) {
     }
   }
   if (signal_number != 0) {
-    std::fprintf(log, "omniposed: %s received, stopping\n",
-                 signal_number == SIGINT ? "SIGINT" : "SIGTERM");
+    std::fprintf(log, "omniposed: %s received, stopping\n", signalName(signal_number));
     notifier.stopping();
     daemon.requestStop();
   } else {
@@ -111,7 +166,15 @@ int runService(const DaemonConfig& config, std::FILE* log) {
   }
   std::fflush(log);
   daemon.join();  // joins both threads, publishes the final status
-  std::fprintf(log, "omniposed: stopped: %s\n", summary(daemon.stats()).c_str());
+  const DaemonStats stats = daemon.stats();
+  std::fprintf(log, "omniposed: stopped: %s\n", summary(stats).c_str());
+  if (stats.publish_failures > 0 && stats.messages_published == 0) {
+    std::fprintf(log, "omniposed: every message failed to publish (%lld of %lld): nothing reached "
+                 "%s\n", static_cast<long long>(stats.publish_failures),
+                 static_cast<long long>(stats.publish_failures), daemon.sinkDescription().c_str());
+    std::fflush(log);
+    return kExitNothingPublished;
+  }
   std::fflush(log);
   return 0;
 }

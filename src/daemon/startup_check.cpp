@@ -2,12 +2,16 @@
 
 #include <exception>
 #include <filesystem>
+#include <optional>
 #include <string>
 
 #include "common/problem_list.hpp"
+#include "daemon/message_sink.hpp"
 #include "daemon/source_factory.hpp"
+#include "omnipose/io/dataset.hpp"
 #include "omnipose/calibration.hpp"
 #include "omnipose/pipeline.hpp"
+#include "registration/fft_plan.hpp"
 
 namespace omnipose::daemon {
 namespace {
@@ -35,12 +39,51 @@ void checkSource(const DaemonConfig& config, StartupCheck& out) {
                            s.format + ": options valid (the device is not opened by --check)");
 }
 
+/// A file source's recording as the source will read it (timestamps.txt, groundtruth.tum,
+/// the frame list), with the daemon's calibration, which has been checked already.
+void checkRecording(const DaemonConfig& config, StartupCheck& out) {
+  if (config.source.type != SourceConfig::Type::kFile) return;
+  const std::string origin = config.origin.empty() ? "daemon.yaml" : config.origin;
+  try {
+    const Dataset dataset = Dataset::open(config.source.path, config.calibration);
+    out.findings.push_back("recording " + config.source.path.string() + ": " +
+                           std::to_string(dataset.frames.size()) + " frames");
+    for (const std::string& w : dataset.warnings) out.findings.push_back("warning: " + w);
+  } catch (const std::exception& e) {
+    out.problems.push_back(origin + ": source.path: " + e.what());
+  }
+}
+
+/// pipeline.fftw_wisdom: a wisdom file, or nothing yet where the directory exists.
+void checkWisdom(const DaemonConfig& config, StartupCheck& out) {
+  const std::string& path = config.pipeline.fftw_wisdom;
+  if (path.empty()) return;
+  const std::string origin = config.origin.empty() ? "daemon.yaml" : config.origin;
+  if (const std::optional<std::string> problem = registration::wisdomFileProblem(path)) {
+    out.problems.push_back(origin + ": pipeline.fftw_wisdom: " + *problem);
+    return;
+  }
+  std::error_code ec;
+  const std::filesystem::path file(path);
+  if (std::filesystem::exists(file, ec)) {
+    out.findings.push_back("fftw_wisdom " + path + ": a wisdom file of " +
+                           std::to_string(std::filesystem::file_size(file, ec)) + " bytes");
+  } else if (std::filesystem::is_directory(file.has_parent_path() ? file.parent_path() : ".", ec)) {
+    out.findings.push_back("fftw_wisdom " + path + ": absent; written after the first start-up plans");
+  } else {
+    out.findings.push_back("fftw_wisdom " + path + ": its directory does not exist; the plans are "
+                           "not kept (every start-up plans again)");
+  }
+}
+
 }  // namespace
 
 StartupCheck checkStartup(const DaemonConfig& config) {
   StartupCheck out;
   const std::string origin = config.origin.empty() ? "daemon.yaml" : config.origin;
   checkSource(config, out);
+  if (const std::optional<std::string> problem = logProblem(config.lcm.url))
+    out.problems.push_back(origin + ": " + *problem);
 
   Calibration calibration;
   try {
@@ -53,12 +96,17 @@ StartupCheck checkStartup(const DaemonConfig& config) {
     out.problems.push_back(e.what());
     return out;
   }
+  if (std::filesystem::is_directory(config.source.path)) checkRecording(config, out);
   const auto fit = config.checkAgainst(calibration, origin);
   out.problems.insert(out.problems.end(), fit.begin(), fit.end());
   if (!out.problems.empty()) return out;
 
+  checkWisdom(config, out);
   try {
-    const Pipeline pipeline(calibration, config.pipeline);
+    // Without the wisdom file: --check writes nothing (planning would save it).
+    PipelineOptions options = config.pipeline;
+    options.fftw_wisdom.clear();
+    const Pipeline pipeline(calibration, options);
     out.findings.push_back(
         "calibration " + config.calibration.string() + ": lens model " +
         toString(calibration.omni.model) + (calibration.omni.mask.empty() ? "" : " with a mask") +

@@ -85,6 +85,7 @@ DaemonStats StatusBoard::snapshot() const {
   copyCounters(*this, s);
   s.segment = segment.load();
   s.source_state = sourceState();
+  s.messages_published = messages_published.load();
   return s;
 }
 

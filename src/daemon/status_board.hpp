@@ -40,6 +40,9 @@ struct DaemonStats {
 #undef OMNIPOSE_STATS_FIELD
   int segment = -1;                   ///< current chain segment (-1 before the first frame)
   SourceState source_state = SourceState::kStarting;
+  /// Messages (pose, status, diagnostics) published without an error: with
+  /// publish_failures, tells a run whose every message failed (not part of status_t).
+  std::int64_t messages_published = 0;
 };
 
 /// Fills the counters, segment and source state of a status message (status_t) from a
@@ -64,6 +67,7 @@ class StatusBoard {
   OMNIPOSE_DAEMON_COUNTERS(OMNIPOSE_BOARD_COUNTER)
 #undef OMNIPOSE_BOARD_COUNTER
   std::atomic<int> segment{-1};
+  std::atomic<std::int64_t> messages_published{0};  ///< DaemonStats::messages_published
 
   void setSourceState(SourceState state) { source_state_.store(state); }
   SourceState sourceState() const { return source_state_.load(); }

@@ -1,4 +1,5 @@
 #include "omnipose/image_decode.hpp"
+#include "omnipose/file_io.hpp"
 
 #include <algorithm>
 #include <climits>
@@ -219,34 +220,17 @@ Expected<void> decodeImage(std::span<const std::uint8_t> bytes, ImageColour colo
 namespace {
 
 /// The bytes of an image file into `buffer`, with the file checks of readImage(): a regular
-/// file of at most limits.max_file_bytes, read whole.
+/// file (opened without blocking) of at most limits.max_file_bytes, read whole. A file that
+/// is not regular, too large or changed while read is a bad frame.
 Expected<std::span<const std::uint8_t>> readFileBytes(const std::filesystem::path& path,
                                                       const ImageLimits& limits,
                                                       std::vector<std::uint8_t>& buffer) {
-  std::error_code ec;
-  const auto status = std::filesystem::status(path, ec);
-  if (ec || !std::filesystem::exists(status)) {
-    return fail(ErrorCode::kNotFound, "%s: no such file", path.c_str());
+  if (Expected<void> read = readRegularFile(path, limits.max_file_bytes, buffer); !read) {
+    const ErrorCode code = read.error().code() == ErrorCode::kInvalidArgument ? ErrorCode::kBadFrame
+                                                                               : read.error().code();
+    return std::unexpected(Error(code, read.error().message()));
   }
-  if (!std::filesystem::is_regular_file(status)) {
-    return fail(ErrorCode::kBadFrame, "%s: not a regular file", path.c_str());
-  }
-  const std::uintmax_t size = std::filesystem::file_size(path, ec);
-  if (ec) return fail(ErrorCode::kIoError, "%s: cannot read its size", path.c_str());
-  if (size > limits.max_file_bytes) {
-    return fail(ErrorCode::kBadFrame, "%s: %ju bytes, more than the %ju allowed", path.c_str(),
-                size, static_cast<std::uintmax_t>(limits.max_file_bytes));
-  }
-  std::FILE* file = std::fopen(path.c_str(), "rb");
-  if (!file) return fail(ErrorCode::kIoError, "%s: cannot open", path.c_str());
-  // One byte more than the size the file had: a file that grew meanwhile is noticed.
-  buffer.resize(static_cast<std::size_t>(size) + 1);
-  const std::size_t got = std::fread(buffer.data(), 1, buffer.size(), file);
-  const bool read_error = std::ferror(file) != 0;
-  std::fclose(file);
-  if (read_error) return fail(ErrorCode::kIoError, "%s: read failed", path.c_str());
-  if (got > size) return fail(ErrorCode::kBadFrame, "%s: changed while being read", path.c_str());
-  return std::span<const std::uint8_t>(buffer.data(), got);
+  return std::span<const std::uint8_t>(buffer.data(), buffer.size());
 }
 
 }  // namespace

@@ -1,12 +1,13 @@
 #include "omnipose/io/dataset.hpp"
 
+#include "common/problem_list.hpp"
+#include "io/text_records.hpp"
+#include "omnipose/file_io.hpp"
 #include "omnipose/image_decode.hpp"
 
 #include <algorithm>
 #include <cmath>
-#include <fstream>
 #include <map>
-#include <sstream>
 #include <stdexcept>
 
 namespace omnipose {
@@ -22,30 +23,33 @@ bool isImageFile(const fs::path& path) {
 namespace {
 
 constexpr double kMaxTimestamp = 1e10;
+constexpr std::size_t kMaxWarnings = 20;
 
-std::map<std::string, double> readTimestamps(const fs::path& path) {
-  std::ifstream in(path);
-  if (!in) throw std::runtime_error(path.string() + ": cannot open");
-  std::map<std::string, double> stamps;
-  std::string line;
-  int line_no = 0;
-  while (std::getline(in, line)) {
-    ++line_no;
-    const auto first = line.find_first_not_of(" \t\r");
-    if (first == std::string::npos || line[first] == '#') continue;
-    std::istringstream fields(line);
-    std::string name;
-    double t = 0;
-    if (!(fields >> name >> t)) {
-      throw std::runtime_error(path.string() + ":" + std::to_string(line_no) +
-                               ": expected '<file name> <seconds>'");
-    }
-    // Finite and within +-1e10 s (year 2286): pacing converts to integer microseconds.
-    if (!std::isfinite(t) || std::abs(t) > kMaxTimestamp) {
-      throw std::runtime_error(path.string() + ":" + std::to_string(line_no) +
-                               ": timestamp must be a finite number of seconds within +-1e10");
-    }
-    stamps[name] = t;
+struct Stamp {
+  double time = 0.0;
+  int line = 0;
+};
+
+/// timestamps.txt: "<file name> <seconds>" per line. A malformed line, a value that is not a
+/// plain decimal, a time beyond +-1e10 s or a name given twice is an error naming the line.
+std::map<std::string, Stamp, std::less<>> readTimestamps(const fs::path& path) {
+  const std::string text = readTextFileOrThrow(path);
+  std::map<std::string, Stamp, std::less<>> stamps;
+  const auto where = [&](int line) { return path.string() + ":" + std::to_string(line) + ": "; };
+  for (const io::TextRecord& r : io::splitRecords(text)) {
+    if (r.fields.size() < 2)
+      throw std::runtime_error(where(r.line) + "expected '<file name> <seconds>'");
+    const std::optional<double> t = io::parseDecimal(r.fields[1]);
+    if (!t)
+      throw std::runtime_error(where(r.line) + "'" + detail::shown(r.fields[1]) +
+                               "' is not a decimal number of seconds");
+    // Within +-1e10 s (year 2286): pacing converts to integer microseconds.
+    if (!(std::abs(*t) <= kMaxTimestamp))
+      throw std::runtime_error(where(r.line) + "timestamp must be a finite number of seconds within +-1e10");
+    const auto [it, inserted] = stamps.try_emplace(std::string(r.fields[0]), Stamp{*t, r.line});
+    if (!inserted)
+      throw std::runtime_error(where(r.line) + detail::shown(r.fields[0]) + " given twice (first on line " +
+                               std::to_string(it->second.line) + ")");
   }
   return stamps;
 }
@@ -70,23 +74,43 @@ Dataset Dataset::open(const fs::path& root, const std::optional<fs::path>& calib
             [](const DatasetFrame& a, const DatasetFrame& b) { return a.path.filename() < b.path.filename(); });
 
   const fs::path stamps_path = root / "timestamps.txt";
-  if (fs::exists(stamps_path)) {
+  if (fs::exists(fs::symlink_status(stamps_path))) {
     const auto stamps = readTimestamps(stamps_path);
-    for (auto& f : d.frames) {
+    std::size_t warned = 0, unwarned = 0;
+    const auto warn = [&](const std::string& text) {
+      if (warned < kMaxWarnings) {
+        d.warnings.push_back(text);
+        ++warned;
+      } else {
+        ++unwarned;
+      }
+    };
+    for (std::size_t i = 0; i < d.frames.size(); ++i) {
+      DatasetFrame& f = d.frames[i];
       const auto it = stamps.find(f.path.filename().string());
       if (it == stamps.end()) {
         throw std::runtime_error(stamps_path.string() + ": no timestamp for frame " +
                                  f.path.filename().string());
       }
-      f.timestamp = it->second;
+      f.timestamp = it->second.time;
+      const std::string where = stamps_path.string() + ":" + std::to_string(it->second.line) + ": ";
+      if (f.timestamp < 0.0)
+        warn(where + f.path.filename().string() + " at " + std::to_string(f.timestamp) +
+             " s: a negative time");
+      if (i > 0 && !(f.timestamp > d.frames[i - 1].timestamp))
+        warn(where + f.path.filename().string() + " at " + std::to_string(f.timestamp) +
+             " s is not after the frame before it (" + d.frames[i - 1].path.filename().string() +
+             " at " + std::to_string(d.frames[i - 1].timestamp) +
+             " s): not linked to it by time; the pipeline finds it again by the ring search");
     }
+    if (unwarned > 0) d.warnings.push_back("and " + std::to_string(unwarned) + " more timestamp warnings");
     d.timestamps_from_file = true;
   } else {
     for (std::size_t i = 0; i < d.frames.size(); ++i) d.frames[i].timestamp = i / kDefaultFps;
   }
 
   const fs::path gt_path = root / "groundtruth.tum";
-  if (fs::exists(gt_path)) d.groundtruth = readTum(gt_path);
+  if (fs::exists(fs::symlink_status(gt_path))) d.groundtruth = readTum(gt_path);
   return d;
 }
 

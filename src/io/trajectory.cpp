@@ -1,42 +1,31 @@
 #include "omnipose/io/trajectory.hpp"
 
+#include "io/text_records.hpp"
+#include "omnipose/file_io.hpp"
+
 #include <cmath>
 #include <cstdio>
 #include <fstream>
-#include <sstream>
+#include <optional>
 #include <stdexcept>
 
 namespace omnipose {
 
 std::vector<StampedPose> readTum(const std::filesystem::path& path) {
-  std::ifstream in(path);
-  if (!in) throw std::runtime_error(path.string() + ": cannot open TUM trajectory");
+  const std::string text = readTextFileOrThrow(path);
   std::vector<StampedPose> poses;
-  std::string line;
-  int line_no = 0;
-  while (std::getline(in, line)) {
-    ++line_no;
-    const auto first = line.find_first_not_of(" \t\r");
-    if (first == std::string::npos || line[first] == '#') continue;
-    std::istringstream fields(line);
+  for (const io::TextRecord& r : io::splitRecords(text)) {
+    const std::string where = path.string() + ":" + std::to_string(r.line) + ": ";
+    if (r.fields.size() < 8) throw std::runtime_error(where + "expected 'timestamp tx ty tz qx qy qz qw'");
     double v[8];
-    for (double& x : v) {
-      if (!(fields >> x)) {
-        throw std::runtime_error(path.string() + ":" + std::to_string(line_no) +
-                                 ": expected 'timestamp tx ty tz qx qy qz qw'");
-      }
-    }
-    for (const double x : v) {
-      if (!std::isfinite(x)) {
-        throw std::runtime_error(path.string() + ":" + std::to_string(line_no) +
-                                 ": every value must be a finite number");
-      }
+    for (int i = 0; i < 8; ++i) {
+      const std::optional<double> x = io::parseDecimal(r.fields[static_cast<std::size_t>(i)]);
+      if (!x || !std::isfinite(*x))
+        throw std::runtime_error(where + "every value must be a finite decimal number");
+      v[i] = *x;
     }
     Eigen::Quaterniond q(v[7], v[4], v[5], v[6]);
-    if (!(std::abs(q.norm() - 1.0) <= 1e-3)) {
-      throw std::runtime_error(path.string() + ":" + std::to_string(line_no) +
-                               ": quaternion is not unit length");
-    }
+    if (!(std::abs(q.norm() - 1.0) <= 1e-3)) throw std::runtime_error(where + "quaternion is not unit length");
     StampedPose p;
     p.timestamp = v[0];
     p.pose.linear() = q.normalized().toRotationMatrix();

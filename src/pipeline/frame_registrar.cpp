@@ -56,8 +56,14 @@ std::vector<double> windowCenters(const WindowRegistration& registration) {
 
 FrameRegistrar::WisdomFile::WisdomFile(std::string file)
     : path(std::move(file)),
-      loaded(registration::importWisdom(path)),
+      loaded(checked(path) && registration::importWisdom(path)),
       before(loaded ? registration::wisdomText() : std::string()) {}
+
+bool FrameRegistrar::WisdomFile::checked(const std::string& path) {
+  if (const std::optional<std::string> problem = registration::wisdomFileProblem(path))
+    throw std::invalid_argument("pipeline.fftw_wisdom: " + *problem);
+  return true;
+}
 
 registration::PlanEffort FrameRegistrar::WisdomFile::effort() const {
   // Plans that a file keeps are made once per machine: search them patiently. Without a

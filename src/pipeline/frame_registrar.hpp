@@ -126,9 +126,12 @@ class FrameRegistrar {
  private:
   /// The FFTW wisdom file of PipelineOptions::fftw_wisdom ("" = none), read before any plan
   /// is made; written after planning when it was not read or planning added to it (best
-  /// effort: an unwritable path only costs the determinism of the next start-up).
+  /// effort: an unwritable path only costs the determinism of the next start-up). A path
+  /// that can never be the wisdom file (a symbolic link, a FIFO or device, a file of another
+  /// kind, a missing directory) throws std::invalid_argument naming it.
   struct WisdomFile {
     explicit WisdomFile(std::string file);
+    static bool checked(const std::string& path);
     registration::PlanEffort effort() const;
     void saveIfPlanned() const;
     std::string path;

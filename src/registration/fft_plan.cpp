@@ -2,10 +2,13 @@
 
 #include <algorithm>
 #include <cstdlib>
+#include <filesystem>
 #include <initializer_list>
 #include <new>
 #include <stdexcept>
 #include <utility>
+
+#include "omnipose/file_io.hpp"
 
 namespace omnipose::registration {
 
@@ -14,14 +17,33 @@ std::mutex& fftwPlannerMutex() {
   return mutex;
 }
 
+namespace {
+
+constexpr FileKind kWisdomKind{"an FFTW wisdom file", looksLikeFftwWisdom};
+constexpr std::uintmax_t kMaxWisdomBytes = std::uintmax_t{16} << 20;
+
+}  // namespace
+
+std::optional<std::string> wisdomFileProblem(const std::string& path) {
+  std::error_code ec;
+  if (path.empty() || !std::filesystem::exists(std::filesystem::symlink_status(path, ec)))
+    return std::nullopt;  // written when planned, where the directory exists
+  if (Expected<void> ok = checkReplaceable(path, kWisdomKind); !ok) return std::string(ok.error().message());
+  return std::nullopt;
+}
+
 bool importWisdom(const std::string& path) {
+  if (path.empty() || wisdomFileProblem(path)) return false;
+  const Expected<std::string> text = readTextFile(path, kMaxWisdomBytes);
+  if (!text || !looksLikeFftwWisdom(*text)) return false;
   std::lock_guard lock(fftwPlannerMutex());
-  return !path.empty() && fftwf_import_wisdom_from_filename(path.c_str()) != 0;
+  return fftwf_import_wisdom_from_string(text->c_str()) != 0;
 }
 
 bool exportWisdom(const std::string& path) {
-  std::lock_guard lock(fftwPlannerMutex());
-  return !path.empty() && fftwf_export_wisdom_to_filename(path.c_str()) != 0;
+  if (path.empty()) return false;
+  const std::string text = wisdomText();
+  return !text.empty() && writeFileAtomically(path, text, kWisdomKind).has_value();
 }
 
 std::string wisdomText() {

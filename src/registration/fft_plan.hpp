@@ -9,6 +9,7 @@
 #include <complex>
 #include <cstddef>
 #include <mutex>
+#include <optional>
 #include <string>
 
 namespace omnipose::registration {
@@ -22,10 +23,16 @@ std::mutex& fftwPlannerMutex();
 /// algorithms: FFTW_MEASURE alone times candidates and picks differently from run to run
 /// (4 different r2c 112 x 112 plans in 12 start-ups), which changes both the speed and the
 /// last bits of the results. importWisdom() merges the file into the process's wisdom
-/// (false when it is missing or unreadable); exportWisdom() writes all wisdom gathered so
-/// far (false on failure). Both take fftwPlannerMutex().
+/// (false when it is missing, unreadable or not a wisdom file); exportWisdom() writes all
+/// wisdom gathered so far (false on failure) atomically (file_io.hpp: a temporary file
+/// renamed over the old one, never through a symbolic link, never over a file that is not
+/// a wisdom file). Both take fftwPlannerMutex().
 bool importWisdom(const std::string& path);
 bool exportWisdom(const std::string& path);
+/// Why the existing `path` cannot be the wisdom file, naming it ("...: exists and is not an
+/// FFTW wisdom file; not replaced", "...: not a regular file (a FIFO); not written", a
+/// symbolic link); nullopt when it can, when nothing is there yet, or for "" (no file).
+std::optional<std::string> wisdomFileProblem(const std::string& path);
 /// The process's wisdom as text (to notice that planning added to it). Takes the mutex.
 std::string wisdomText();
 

@@ -10,6 +10,7 @@
 #include <utility>
 
 #include "common/problem_list.hpp"
+#include "omnipose/file_io.hpp"
 #include "common/yaml_reader.hpp"
 #include "omnipose/synth/synth.hpp"
 
@@ -445,11 +446,9 @@ MotionScript MotionScript::parse(const std::string& yaml_text, const std::string
 }
 
 MotionScript MotionScript::load(const std::filesystem::path& path, std::optional<int> frames) {
-  std::ifstream in(path);
-  if (!in) throw MotionError(path.string() + ": cannot open motion script");
-  std::stringstream text;
-  text << in.rdbuf();
-  return parse(text.str(), path.string(), frames);
+  Expected<std::string> text = readTextFile(path);
+  if (!text) throw MotionError(std::string(text.error().message()) + " (the motion script)");
+  return parse(*text, path.string(), frames);
 }
 
 std::string MotionScript::presetYaml(const std::string& name) {

@@ -27,12 +27,14 @@ std::string lines(const std::vector<std::string>& v) {
   return out;
 }
 
-/// A dataset directory with only a calibration (the check reads no frames).
+/// A dataset directory with a calibration and one frame's name (the check lists the frames
+/// and reads the recording's text files, it decodes no frame).
 struct CheckCase {
   TempDir tmp{"check"};
   fs::path dataset() const { return tmp / "data"; }
   int run(const Calibration& c) {
     fs::create_directories(dataset() / "frames");
+    testing::writeText(dataset() / "frames/000000.png", "");
     c.save(dataset() / "calibration.yaml");
     testing::writeText(tmp / "daemon.yaml", testing::fileSourceConfig(dataset(), "memq://", false));
     return testing::runProcess({omniposed().string(), "--config", (tmp / "daemon.yaml").string(), "--check"},
@@ -132,7 +134,8 @@ TEST(DaemonCheck, EveryProblemIsListedAtOnceByTheKeyTheUserWrote) {
       << check.problems[1];
 
   // Fixed: the check builds the pipeline and reports what it found usable.
-  fs::create_directories(tmp / "no_such_dataset");
+  fs::create_directories(tmp / "no_such_dataset/frames");
+  testing::writeText(tmp / "no_such_dataset/frames/000000.png", "");
   c.panorama.height = 110;
   c.panorama.horizon_row = 54.5;
   c.save(tmp / "calibration.yaml");
@@ -140,10 +143,11 @@ TEST(DaemonCheck, EveryProblemIsListedAtOnceByTheKeyTheUserWrote) {
       "source: {type: file, path: no_such_dataset}\ncalibration: calibration.yaml\n",
       (tmp / "daemon.yaml").string(), tmp.path()));
   EXPECT_TRUE(fixed.problems.empty()) << lines(fixed.problems);
-  ASSERT_EQ(fixed.findings.size(), 2u);
-  EXPECT_NE(fixed.findings[1].find("lens model linear, panorama 1100x110: usable"),
+  ASSERT_EQ(fixed.findings.size(), 3u) << lines(fixed.findings);
+  EXPECT_NE(fixed.findings[1].find("no_such_dataset: 1 frames"), std::string::npos) << fixed.findings[1];
+  EXPECT_NE(fixed.findings[2].find("lens model linear, panorama 1100x110: usable"),
             std::string::npos)
-      << fixed.findings[1];
+      << fixed.findings[2];
 }
 
 TEST(DaemonCheck, CameraOptionsAreCheckedWithoutOpeningTheDevice) {

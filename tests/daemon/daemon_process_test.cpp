@@ -6,11 +6,13 @@
 #include <gtest/gtest.h>
 
 #include <sys/socket.h>
+#include <sys/stat.h>
 #include <sys/un.h>
 
 #include <algorithm>
 #include <csignal>
 #include <cstring>
+#include <thread>
 
 #include "bad_images.hpp"
 #include "daemon_test_support.hpp"
@@ -509,9 +511,9 @@ TEST(OmniposedFaults, UnusableLcmUrlAtStartupIsAClearErrorAndExitCodeOne) {
   const std::vector<Case> cases = {
       {"nonsense://x", {"lcm.url \"nonsense://x\"", "cannot initialise LCM"}},
       {"file://" + (tmp / "no-such-dir/run.lcm").string() + "?mode=w",
-       {"lcm.url", (tmp / "no-such-dir/run.lcm").string(), "No such file or directory"}},
+       {"lcm.url", (tmp / "no-such-dir/run.lcm").string(), "its directory", "does not exist"}},
       {"file://" + tmp.path().string() + "?mode=w",
-       {"cannot open the log file " + tmp.path().string(), "Is a directory"}},
+       {"lcm.url", tmp.path().string() + ": not a regular file (a directory)"}},
   };
   for (const Case& c : cases) {
     SCOPED_TRACE(c.url);
@@ -735,6 +737,188 @@ TEST(OmniposedFaults, LogDiskFullMidRunIsReportedPipelineKeepsGoingAndLogRecover
   for (std::size_t k = 1; k < log.poses.size(); ++k)
     jumped |= log.poses[k].sequence > log.poses[k - 1].sequence + 1;
   EXPECT_TRUE(jumped);
+}
+
+
+// ---------------------------------------------------------------------------------------
+// Start-up: nothing blocks, nothing runs away, a stop is obeyed, one writer per log
+// ---------------------------------------------------------------------------------------
+
+/// Waits until `file` holds `needle` (false after `timeout`).
+bool waitForText(const fs::path& file, const std::string& needle, std::chrono::milliseconds timeout) {
+  const auto deadline = std::chrono::steady_clock::now() + timeout;
+  while (testing::readText(file).find(needle) == std::string::npos) {
+    if (std::chrono::steady_clock::now() > deadline) return false;
+    std::this_thread::sleep_for(20ms);
+  }
+  return true;
+}
+
+TEST(OmniposedFaults, InputsThatWouldBlockOrRunAwayAreRefusedAtOnceByName) {
+  TempDir tmp("blocking-inputs");
+  ASSERT_EQ(::mkfifo((tmp / "fifo").c_str(), 0600), 0);
+  fs::create_directory(tmp / "config_dir");
+  testing::copyDataset(mixedDataset(), tmp / "fifo_stamps");
+  fs::remove(tmp / "fifo_stamps/timestamps.txt");
+  ASSERT_EQ(::mkfifo((tmp / "fifo_stamps/timestamps.txt").c_str(), 0600), 0);
+  testing::copyDataset(mixedDataset(), tmp / "zero_truth");
+  fs::remove(tmp / "zero_truth/groundtruth.tum");
+  fs::create_symlink("/dev/zero", tmp / "zero_truth/groundtruth.tum");
+  const std::string calibration_text = testing::readText(mixedDataset() / "calibration.yaml");
+  testing::writeText(tmp / "calibration_copy.yaml", calibration_text);
+  struct Case {
+    std::string name;
+    std::string config;  ///< "" = the configuration path is the directory config_dir
+    std::string says;
+  };
+  const std::string log = logUrl(tmp / "run.lcm");
+  const auto withPipeline = [&](const std::string& pipeline) {
+    return testing::fileSourceConfig(mixedDataset(), log, false) + "pipeline: {" + pipeline + "}\n";
+  };
+  const std::vector<Case> cases = {
+      {"timestamps.txt a FIFO", testing::fileSourceConfig(tmp / "fifo_stamps", log, false),
+       "timestamps.txt: not a regular file (a FIFO)"},
+      {"groundtruth.tum /dev/zero", testing::fileSourceConfig(tmp / "zero_truth", log, false),
+       "groundtruth.tum: not a regular file (a character device)"},
+      {"the log a FIFO without a reader", testing::fileSourceConfig(mixedDataset(), logUrl(tmp / "fifo"), false),
+       (tmp / "fifo").string() + ": not a regular file (a FIFO)"},
+      {"the wisdom a FIFO", withPipeline("fftw_wisdom: " + (tmp / "fifo").string()),
+       "pipeline.fftw_wisdom: " + (tmp / "fifo").string() + ": not a regular file (a FIFO)"},
+      {"the wisdom /dev/zero", withPipeline("fftw_wisdom: /dev/zero"),
+       "pipeline.fftw_wisdom: /dev/zero: not a regular file (a character device)"},
+      {"the wisdom a calibration", withPipeline("fftw_wisdom: " + (tmp / "calibration_copy.yaml").string()),
+       "calibration_copy.yaml: exists and is not an FFTW wisdom file; not replaced"},
+      {"the configuration a directory", "", "config_dir: not a regular file (a directory)"},
+  };
+  for (const Case& c : cases) {
+    SCOPED_TRACE(c.name);
+    const fs::path config = c.config.empty() ? tmp / "config_dir" : tmp / "daemon.yaml";
+    if (!c.config.empty()) testing::writeText(config, c.config);
+    for (const bool check : {false, true}) {
+      std::vector<std::string> argv = {omniposed().string(), "--config", config.string()};
+      if (check) argv.push_back("--check");
+      const auto start = std::chrono::steady_clock::now();
+      const int rc = testing::runProcess(argv, tmp / "out.txt", tmp / "err.txt", 20s);
+      const auto took = std::chrono::steady_clock::now() - start;
+      const std::string err = testing::readText(tmp / "err.txt");
+      EXPECT_EQ(rc, 1) << (check ? "--check\n" : "") << err;
+      EXPECT_LT(took, 5s) << "refused at once, not after reading or waiting";
+      EXPECT_NE(err.find(c.says), std::string::npos) << (check ? "--check\n" : "") << err;
+    }
+  }
+  EXPECT_EQ(testing::readText(tmp / "calibration_copy.yaml"), calibration_text) << "never overwritten";
+  EXPECT_TRUE(fs::is_fifo(tmp / "fifo"));
+}
+
+TEST(OmniposedFaults, CheckWritesNothing) {
+  TempDir tmp("check-writes-nothing");
+  const fs::path wisdom = tmp / "wisdom.txt";
+  const fs::path lcm_log = tmp / "run.lcm";
+  testing::writeText(tmp / "daemon.yaml", testing::fileSourceConfig(mixedDataset(), logUrl(lcm_log), false) +
+                                              "pipeline: {fftw_wisdom: " + wisdom.string() + "}\n");
+  const int rc = testing::runProcess({omniposed().string(), "--config", (tmp / "daemon.yaml").string(), "--check"},
+                                     tmp / "out.txt", tmp / "err.txt", 60s);
+  const std::string err = testing::readText(tmp / "err.txt");
+  EXPECT_EQ(rc, 0) << err;
+  EXPECT_NE(err.find("fftw_wisdom " + wisdom.string() + ": absent"), std::string::npos) << err;
+  std::vector<std::string> names;
+  for (const auto& e : fs::directory_iterator(tmp.path())) names.push_back(e.path().filename().string());
+  std::sort(names.begin(), names.end());
+  EXPECT_EQ(names, (std::vector<std::string>{"daemon.yaml", "err.txt", "out.txt"}))
+      << "no wisdom, log or lock file";
+}
+
+TEST(OmniposedFaults, SigtermDuringStartUpEndsTheProcessWithinASecond) {
+  // A start-up that takes seconds: FFTW plans 512 x 512 windows patiently (a wisdom file is
+  // given and empty) for a 3000 x 520 panorama.
+  TempDir tmp("startup-sigterm");
+  std::string calibration = testing::readText(mixedDataset() / "calibration.yaml");
+  const auto replace = [&](const std::string& from, const std::string& to) {
+    const auto at = calibration.find(from);
+    ASSERT_NE(at, std::string::npos) << from;
+    calibration.replace(at, from.size(), to);
+  };
+  replace("width: 1100", "width: 3000");
+  replace("height: 110", "height: 520");
+  replace("horizon_row: 54.5", "horizon_row: 259.5");
+  testing::writeText(tmp / "calibration.yaml", calibration);
+  testing::writeText(tmp / "daemon.yaml",
+                     "source: {type: file, path: " + mixedDataset().string() + ", realtime: false}\n"
+                     "calibration: " + (tmp / "calibration.yaml").string() + "\n"
+                     "pipeline: {window: 512, step: 64, fftw_wisdom: " + (tmp / "wisdom.txt").string() + "}\n"
+                     "lcm: {url: '" + logUrl(tmp / "run.lcm") + "'}\n");
+  testing::Child daemon({omniposed().string(), "--config", (tmp / "daemon.yaml").string()}, tmp / "out.txt",
+                        tmp / "err.txt");
+  ASSERT_TRUE(waitForText(tmp / "err.txt", "(effective values)", 20s)) << testing::readText(tmp / "err.txt");
+  std::this_thread::sleep_for(300ms);  // into the FFT planning
+  ASSERT_FALSE(waitForText(tmp / "err.txt", "omniposed: source:", 0ms))
+      << "start-up finished within 300 ms: this machine plans too fast for the test";
+  const auto sent = std::chrono::steady_clock::now();
+  daemon.signal(SIGTERM);
+  const int rc = daemon.wait(5s);
+  const auto took = std::chrono::steady_clock::now() - sent;
+  const std::string err = testing::readText(tmp / "err.txt");
+  EXPECT_EQ(rc, 0) << err;
+  EXPECT_LT(took, 1s) << err;
+  EXPECT_NE(err.find("omniposed: SIGTERM received during start-up (building the pipeline (FFT plans)): stopping"),
+            std::string::npos)
+      << err;
+}
+
+TEST(OmniposedFaults, ASecondDaemonOnTheSameLogIsRefusedWithTheHoldersPid) {
+  TempDir tmp("two-daemons");
+  const fs::path lcm_log = tmp / "run.lcm";
+  testing::writeText(tmp / "daemon.yaml",
+                     testing::fileSourceConfig(mixedDataset(), logUrl(lcm_log), /*realtime=*/true, /*loop=*/true));
+  testing::Child first({omniposed().string(), "--config", (tmp / "daemon.yaml").string()}, tmp / "out1.txt",
+                       tmp / "err1.txt");
+  ASSERT_TRUE(waitForText(tmp / "err1.txt", "omniposed: source:", 60s)) << testing::readText(tmp / "err1.txt");
+  const int rc = testing::runProcess({omniposed().string(), "--config", (tmp / "daemon.yaml").string()},
+                                     tmp / "out2.txt", tmp / "err2.txt", 30s);
+  const std::string err = testing::readText(tmp / "err2.txt");
+  EXPECT_EQ(rc, 1) << err;
+  EXPECT_NE(err.find("the log is in use by another omniposed: " + lcm_log.string() +
+                     ".lock: held by process " + std::to_string(first.pid())),
+            std::string::npos)
+      << err;
+  std::this_thread::sleep_for(500ms);
+  first.signal(SIGTERM);
+  ASSERT_EQ(first.wait(30s), 0) << testing::readText(tmp / "err1.txt");
+  const auto log = testing::readLcmLog(lcm_log);
+  EXPECT_EQ(log.undecodable, 0);
+  EXPECT_FALSE(log.poses.empty()) << "the first daemon's log is whole";
+  ASSERT_FALSE(log.statuses.empty());
+  EXPECT_TRUE(log.statuses.back().final);
+  // The lock goes with its holder: a third daemon starts.
+  testing::writeText(tmp / "daemon.yaml", testing::fileSourceConfig(mixedDataset(), logUrl(lcm_log), false));
+  EXPECT_EQ(testing::runProcess({omniposed().string(), "--config", (tmp / "daemon.yaml").string()},
+                                tmp / "out3.txt", tmp / "err3.txt", 60s),
+            0)
+      << testing::readText(tmp / "err3.txt");
+}
+
+TEST(OmniposedFaults, ARunInWhichEveryPublishFailedExitsNonZero) {
+  TempDir tmp("nothing-published");
+  TempDir mnt("nothing-published-mnt");
+  const auto unshare = unshareMountCommand(mnt);
+  if (unshare.empty()) {
+    GTEST_SKIP() << "mount namespaces are not allowed here (unshare -rm / -m failed: "
+                 << testing::readText(mnt / "u.err") << ")";
+  }
+  const fs::path lcm_log = mnt.path() / "run.lcm";
+  testing::writeText(tmp / "daemon.yaml", testing::fileSourceConfig(mixedDataset(), logUrl(lcm_log), false));
+  // A full 64 KiB tmpfs: the log is created (an inode is left), no byte of it is written.
+  const std::string script =
+      "set -e; mount -t tmpfs -o size=64k tmpfs '" + mnt.path().string() + "'\n"
+      "cat /dev/zero > '" + (mnt / "filler").string() + "' 2>/dev/null || true\n"
+      "exec '" + omniposed().string() + "' --config '" + (tmp / "daemon.yaml").string() + "'\n";
+  std::vector<std::string> argv = unshare;
+  argv.insert(argv.end(), {"/bin/sh", "-c", script});
+  const int rc = testing::runProcess(argv, tmp / "out.txt", tmp / "err.txt", 120s);
+  const std::string err = testing::readText(tmp / "err.txt");
+  EXPECT_EQ(rc, 3) << err;
+  EXPECT_NE(err.find("every message failed to publish"), std::string::npos) << err;
+  EXPECT_NE(err.find("No space left on device"), std::string::npos) << err;
 }
 
 }  // namespace

@@ -273,6 +273,7 @@ class Child {
   Child& operator=(const Child&) = delete;
 
   void signal(int sig) { ::kill(pid_, sig); }
+  pid_t pid() const { return pid_; }
   /// Exit code (128 + signal when killed by a signal), or -1 after `timeout`.
   int wait(std::chrono::milliseconds timeout) {
     const auto deadline = std::chrono::steady_clock::now() + timeout;

@@ -6,6 +6,9 @@
 // source factory building the camera sources, and a missing device as a start-up error.
 
 #include <gtest/gtest.h>
+#include <unistd.h>
+
+#include <fstream>
 
 #include <lcm/lcm-cpp.hpp>
 
@@ -143,8 +146,12 @@ struct Bus {
   }
 };
 
+/// The fake camera's path: one that does not exist, so no test takes the lock of a real
+/// camera of the machine (instance_lock.hpp) and parallel tests do not refuse each other.
+constexpr const char* kFakeDevice = "/dev/video-omnipose-fake";
+
 std::string daemonYaml(const fs::path& calibration, const std::string& format,
-                       const std::string& device = "/dev/video0") {
+                       const std::string& device = kFakeDevice) {
   const cv::Size s = omniSize();
   return "source: {type: v4l2, device: " + device + ", width: " + std::to_string(s.width) +
          ", height: " + std::to_string(s.height) + ", fps: 30, format: " + format +
@@ -154,6 +161,7 @@ std::string daemonYaml(const fs::path& calibration, const std::string& format,
 /// The fake streams the rendered frames in order, then stops (the camera goes quiet).
 std::unique_ptr<FakeV4l2Device> renderedCamera(int jpeg_quality = 95) {
   FakeV4l2Device::Config fc;
+  fc.path = kFakeDevice;
   fc.content_cycle = kFrames;
   fc.jpeg_quality = jpeg_quality;
   fc.stride_align = 64;
@@ -229,7 +237,7 @@ TEST_P(DaemonOnFakeV4l2, RenderedOmniFramesGivePosesMatchingTheGroundTruth) {
     // took the last one; the fake's virtual clock jumps to it, so every frame is processed.
     daemon::Daemon d(config, stderr, std::make_unique<V4l2Source>(daemon::v4l2Options(config.source), fake.get()),
                      std::make_unique<SharedLcmSink>(bus.lcm), losslessOptions());
-    EXPECT_NE(d.sourceDescription().find("v4l2 /dev/video0 720x720"), std::string::npos)
+    EXPECT_NE(d.sourceDescription().find("v4l2 /dev/video-omnipose-fake 720x720"), std::string::npos)
         << d.sourceDescription();
     bus.run(d, kFrames, 120s);
     const auto stats = d.stats();
@@ -260,7 +268,7 @@ TEST_P(DaemonOnFakeV4l2, RenderedOmniFramesGivePosesMatchingTheGroundTruth) {
   EXPECT_EQ(ok, kFrames - 1);
   ASSERT_FALSE(bus.statuses.empty());
   EXPECT_TRUE(bus.statuses.back().final);
-  EXPECT_NE(bus.statuses.back().source.find("v4l2 /dev/video0"), std::string::npos);
+  EXPECT_NE(bus.statuses.back().source.find("v4l2 /dev/video-omnipose-fake"), std::string::npos);
 }
 
 INSTANTIATE_TEST_SUITE_P(Formats, DaemonOnFakeV4l2, ::testing::Values("YUYV", "MJPG", "GREY"));
@@ -309,7 +317,7 @@ TEST(DaemonOnFakeV4l2Unplug, DeviceVanishingMidStreamIsReopenedByTheCaptureLoopA
   for (const status_t& s : bus.statuses)
     if (s.source_state == status_t::SOURCE_RECONNECTING) {
       saw_reconnecting = true;
-      EXPECT_NE(s.last_error.find("/dev/video0"), std::string::npos) << s.last_error;
+      EXPECT_NE(s.last_error.find("/dev/video-omnipose-fake"), std::string::npos) << s.last_error;
     }
   EXPECT_TRUE(saw_reconnecting) << "status showed the outage";
 
@@ -564,6 +572,50 @@ TEST(DaemonStartup, MissingV4l2DeviceIsAClearErrorNamingIt) {
     const std::string what = e.what();
     EXPECT_NE(what.find("/dev/video-omnipose-missing"), std::string::npos) << what;
     EXPECT_NE(what.find("no such device"), std::string::npos) << what;
+  }
+}
+
+
+TEST(DaemonStartup, ASecondDaemonOnTheSameCameraIsRefusedWithTheHoldersPid) {
+  TempDir tmp;
+  Calibration{}.save(tmp.path() / "calibration.yaml");
+  // A node the lock can take (the fake serves any path); a symbolic link to it is the same
+  // camera, as /dev/v4l/by-id/... is /dev/video0.
+  const fs::path node = tmp.path() / "video7";
+  std::ofstream(node).close();
+  fs::create_symlink(node, tmp.path() / "by-id");
+  const auto configFor = [&](const fs::path& device) {
+    return DaemonConfig::parse(daemonYaml(tmp.path() / "calibration.yaml", "YUYV", device.string()),
+                               "test.yaml", tmp.path());
+  };
+  const auto fakeAt = [](const fs::path& device) {
+    FakeV4l2Device::Config fc;
+    fc.path = device.string();
+    return std::make_unique<FakeV4l2Device>(fc);
+  };
+  lcm::LCM lcm("memq://");
+  const DaemonConfig first_config = configFor(node);
+  auto first_fake = fakeAt(node);
+  daemon::Daemon first(first_config, stderr,
+                       std::make_unique<V4l2Source>(daemon::v4l2Options(first_config.source), first_fake.get()),
+                       std::make_unique<SharedLcmSink>(lcm));
+  for (const fs::path& device : {node, tmp.path() / "by-id"}) {
+    SCOPED_TRACE(device);
+    const DaemonConfig config = configFor(device);
+    auto fake = fakeAt(device);
+    try {
+      daemon::Daemon second(config, stderr,
+                            std::make_unique<V4l2Source>(daemon::v4l2Options(config.source), fake.get()),
+                            std::make_unique<SharedLcmSink>(lcm));
+      ADD_FAILURE() << "a second daemon started on the camera";
+    } catch (const std::runtime_error& e) {
+      const std::string what = e.what();
+      EXPECT_NE(what.find("source: v4l2 " + device.string() + " is in use by another omniposed"),
+                std::string::npos)
+          << what;
+      EXPECT_NE(what.find("held by process " + std::to_string(::getpid())), std::string::npos) << what;
+    }
+    EXPECT_TRUE(fake->openAttempts().empty()) << "the refused daemon never opened the camera";
   }
 }
 

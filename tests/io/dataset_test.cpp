@@ -2,6 +2,8 @@
 
 #include <gtest/gtest.h>
 
+#include <sys/stat.h>
+
 #include <fstream>
 #include <opencv2/imgcodecs.hpp>
 
@@ -118,6 +120,95 @@ TEST(Trajectory, TumRoundTripAndMalformedLine) {
     EXPECT_NE(std::string(e.what()).find(":4:"), std::string::npos) << e.what();
   }
   fs::remove(path);
+}
+
+
+/// The message of Dataset::open()'s error for the dataset as it is.
+std::string openError(const fs::path& root) {
+  try {
+    Dataset::open(root);
+  } catch (const std::runtime_error& e) {
+    return e.what();
+  }
+  return "(opened)";
+}
+
+TEST_F(DatasetTest, TimestampsThatAreNotPlainDecimalsOrNameAFrameTwiceAreErrorsNamingTheLine) {
+  struct Case {
+    std::string text;
+    std::string says;
+  };
+  const std::vector<Case> cases = {
+      {"f0.png 1\nf1.png 2\nf2.png 0x1p3\n", "timestamps.txt:3: '0x1p3' is not a decimal number"},
+      {"f0.png 1\nf1.png inf\nf2.png 3\n", "timestamps.txt:2: 'inf' is not a decimal number"},
+      {"f0.png nan\nf1.png 2\nf2.png 3\n", "timestamps.txt:1: 'nan' is not a decimal number"},
+      {"f0.png 1e400\nf1.png 2\nf2.png 3\n", "timestamps.txt:1: '1e400' is not a decimal number"},
+      {"f0.png 1\nf1.png 2\nf2.png 3\nf1.png 4\n", "timestamps.txt:4: f1.png given twice (first on line 2)"},
+      {"f0.png 1\nf1.png\nf2.png 3\n", "timestamps.txt:2: expected '<file name> <seconds>'"},
+  };
+  for (const Case& c : cases) {
+    SCOPED_TRACE(c.text);
+    std::ofstream(root_ / "timestamps.txt") << c.text;
+    const std::string what = openError(root_);
+    EXPECT_NE(what.find(c.says), std::string::npos) << what;
+  }
+  std::ofstream(root_ / "timestamps.txt") << "f0.png +1.5\nf1.png 2.\nf2.png .25e1\n";
+  const Dataset d = Dataset::open(root_);
+  EXPECT_DOUBLE_EQ(d.frames[0].timestamp, 1.5);
+  EXPECT_DOUBLE_EQ(d.frames[1].timestamp, 2.0);
+  EXPECT_DOUBLE_EQ(d.frames[2].timestamp, 2.5);
+  EXPECT_TRUE(d.warnings.empty());
+}
+
+TEST_F(DatasetTest, NegativeAndBackwardsTimesAreWarningsNamingTheLine) {
+  std::ofstream(root_ / "timestamps.txt") << "# t\nf0.png -2\nf1.png -1\nf2.png -1.5\n";
+  const Dataset d = Dataset::open(root_);
+  ASSERT_EQ(d.warnings.size(), 4u);
+  EXPECT_NE(d.warnings[0].find("timestamps.txt:2: f0.png at -2.000000 s: a negative time"), std::string::npos)
+      << d.warnings[0];
+  EXPECT_NE(d.warnings[3].find("timestamps.txt:4: f2.png at -1.500000 s is not after the frame before it "
+                               "(f1.png at -1.000000 s)"),
+            std::string::npos)
+      << d.warnings[3];
+  // All equal: one warning per frame, at most 20 and then a count.
+  fs::remove_all(root_ / "frames");
+  fs::create_directories(root_ / "frames");
+  std::ofstream stamps(root_ / "timestamps.txt");
+  for (int i = 0; i < 30; ++i) {
+    const std::string name = "g" + std::to_string(100 + i) + ".png";
+    cv::imwrite((root_ / "frames" / name).string(), cv::Mat(720, 720, CV_8UC1, cv::Scalar(9)));
+    stamps << name << " 7\n";
+  }
+  stamps.close();
+  const Dataset equal = Dataset::open(root_);
+  ASSERT_EQ(equal.warnings.size(), 21u);
+  EXPECT_EQ(equal.warnings.back(), "and 9 more timestamp warnings");
+}
+
+TEST_F(DatasetTest, TextFilesThatAreDevicesOrFifosAreRefusedByNameWithoutReading) {
+  fs::create_symlink("/dev/zero", root_ / "timestamps.txt");
+  std::string what = openError(root_);
+  EXPECT_NE(what.find("timestamps.txt: not a regular file (a character device)"), std::string::npos) << what;
+  fs::remove(root_ / "timestamps.txt");
+  ASSERT_EQ(::mkfifo((root_ / "timestamps.txt").c_str(), 0600), 0);
+  what = openError(root_);
+  EXPECT_NE(what.find("timestamps.txt: not a regular file (a FIFO)"), std::string::npos) << what;
+  fs::remove(root_ / "timestamps.txt");
+  fs::create_symlink("/dev/zero", root_ / "groundtruth.tum");
+  what = openError(root_);
+  EXPECT_NE(what.find("groundtruth.tum: not a regular file (a character device)"), std::string::npos) << what;
+  fs::remove(root_ / "groundtruth.tum");
+  fs::remove(root_ / "calibration.yaml");
+  fs::create_directory(root_ / "calibration.yaml");
+  what = openError(root_);
+  EXPECT_NE(what.find("calibration.yaml: not a regular file (a directory)"), std::string::npos) << what;
+}
+
+TEST_F(DatasetTest, GroundTruthValuesMustBePlainFiniteDecimals) {
+  std::ofstream(root_ / "groundtruth.tum") << "0 0 0 0 0 0 0 1\n0.1 0x1 0 0 0 0 0 1\n";
+  const std::string what = openError(root_);
+  EXPECT_NE(what.find("groundtruth.tum:2: every value must be a finite decimal number"), std::string::npos)
+      << what;
 }
 
 }  // namespace

@@ -2,9 +2,10 @@
 /// dataset directory) and publishes pose and status over LCM. Configuration: daemon.yaml
 /// (DESIGN.md section 7, example: tools/omniposed/daemon.example.yaml).
 ///
-/// Exit codes: 0 = stopped by SIGINT/SIGTERM or a finite source finished; 1 = start-up
-/// failed (bad configuration, calibration, source or LCM URL; every problem is printed);
-/// 2 = bad command line.
+/// Exit codes: 0 = stopped by SIGINT/SIGTERM (at any time, start-up included) or a finite
+/// source finished; 1 = start-up failed (bad configuration, calibration, source or LCM URL;
+/// every problem is printed); 2 = bad command line; 3 = ran, but every message failed to
+/// publish.
 
 #include <csignal>
 #include <cstdio>
@@ -23,7 +24,8 @@ constexpr const char* kDescription =
     "Stops cleanly on SIGINT/SIGTERM (exit 0; a second one during the shutdown is ignored);\n"
     "a finite file source ends the daemon after the last frame's pose and a final status\n"
     "(exit 0). SIGHUP does not reload the configuration: it logs the counters and the daemon\n"
-    "keeps running. Exit codes: 0 stopped, 1 start-up failed, 2 bad command line.";
+    "keeps running. Exit codes: 0 stopped, 1 start-up failed, 2 bad command line, 3 every\n"
+    "message failed to publish.";
 
 }  // namespace
 
@@ -57,6 +59,8 @@ int main(int argc, char** argv) {
                  config.describe().c_str());
     std::fflush(stderr);
     if (check_only) {
+      // --check writes nothing and starts no daemon: a stop signal may simply end it.
+      omnipose::daemon::unblockStopSignals();
       // The whole start-up validation that needs no hardware, every problem at once.
       const auto check = omnipose::daemon::checkStartup(config);
       for (const auto& f : check.findings) std::fprintf(stderr, "omniposed: %s\n", f.c_str());

@@ -76,6 +76,7 @@ ReplaySummary run(const ReplayOptions& options, std::FILE* log) {
   const Dataset dataset = Dataset::open(options.dataset, options.calibration);
   if (const std::string assumed = dataset.assumptions(); !assumed.empty())
     std::fprintf(log, "warning: %s\n", assumed.c_str());
+  for (const std::string& w : dataset.warnings) std::fprintf(log, "warning: %s\n", w.c_str());
   auto odometry = makeOdometry(options.method, dataset.calibration, odometry_options);
 
   std::ofstream csv;

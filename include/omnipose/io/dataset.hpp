@@ -34,6 +34,10 @@ struct Dataset {
   std::optional<std::vector<StampedPose>> groundtruth;
   /// false: no timestamps.txt, the frames were stamped i / kDefaultFps.
   bool timestamps_from_file = false;
+  /// What timestamps.txt says that a user should know, each naming its line: a negative
+  /// time, a frame not after the one before it (the pipeline starts a new segment there).
+  /// At most 20, then one line counting the rest.
+  std::vector<std::string> warnings;
 
   /// A warning for the user when something the calibration needs had to be assumed: a
   /// rolling shutter (sensor.readout_s) with frame times that are not recorded. Empty when
@@ -43,7 +47,10 @@ struct Dataset {
   /// Opens `root`. `calibration_override` replaces DATASET/calibration.yaml when given.
   /// Throws std::runtime_error naming the path on: missing directory, missing frames/
   /// folder or no images in it, missing/invalid calibration (CalibrationError), a
-  /// malformed timestamps.txt line, or a frame without a timestamp.
+  /// timestamps.txt or groundtruth.tum that is not a regular file or is larger than
+  /// kMaxTextFileBytes (file_io.hpp), a malformed timestamps.txt line (a value that is not
+  /// a plain decimal within +-1e10 s, a file name given twice: the line is named), or a
+  /// frame without a timestamp.
   static Dataset open(const std::filesystem::path& root,
                       const std::optional<std::filesystem::path>& calibration_override = {});
 };
