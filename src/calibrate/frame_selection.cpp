@@ -21,6 +21,10 @@ std::vector<std::size_t> selectEvenly(std::size_t count, std::size_t max_frames)
   return out;
 }
 
+std::size_t centredRunStart(std::size_t count, std::size_t max_frames) {
+  return count > max_frames ? (count - max_frames) / 2 : 0;
+}
+
 std::string selectionMessage(std::size_t count, std::size_t selected) {
   if (selected >= count)
     return count == 1 ? std::string("using the 1 frame") : "using all " + std::to_string(count) + " frames";

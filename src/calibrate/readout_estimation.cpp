@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <numbers>
 #include <optional>
 #include <stdexcept>
 
@@ -18,22 +19,29 @@ std::string fixed(double v, int digits = 4) {
   return text;
 }
 
+/// Mean turn per pair below which the frames cannot show the readout, radians (0.1 deg).
+constexpr double kMinMeanTurnRad = 0.1 * std::numbers::pi / 180.0;
+
 /// Mean squared horizontal tau over the tracked pairs of `frames` replayed with `readout`;
-/// nullopt with fewer than kMinPairs tracked pairs.
+/// nullopt with fewer than kMinPairs tracked pairs. `mean_turn`: the mean rotation angle
+/// per tracked pair, radians.
 std::optional<double> translationScore(Calibration calibration, double readout,
                                        std::span<const cv::Mat> frames,
                                        std::span<const double> times,
-                                       const OdometryOptions& options, int& pairs) {
+                                       const OdometryOptions& options, int& pairs,
+                                       double& mean_turn) {
   calibration.sensor.readout_s = readout;
   Odometry odometry(calibration, options);
-  double sum = 0.0;
+  double sum = 0.0, turn = 0.0;
   pairs = 0;
   for (std::size_t k = 0; k < frames.size(); ++k) {
     const auto r = odometry.process(frames[k], {times[k]});
     if (!r || r->state != TrackState::kTracked) continue;
     sum += r->relative.estimate.tau.head<2>().squaredNorm();
+    turn += r->relative.estimate.omega.norm();
     ++pairs;
   }
+  mean_turn = pairs > 0 ? turn / pairs : 0.0;
   if (pairs < kMinPairs) return std::nullopt;
   return sum / pairs;
 }
@@ -73,10 +81,11 @@ ReadoutEstimate estimateReadout(const Calibration& calibration, std::span<const 
   }
 
   int pairs = 0, fewest_pairs = std::numeric_limits<int>::max();
+  double mean_turn = 0.0;
   const auto score = [&](double r) -> std::optional<double> {
     for (const auto& [tried, s] : out.curve)
       if (std::abs(tried - r) < 1e-9) return s;
-    const auto s = translationScore(calibration, r, frames, times_s, options.odometry, pairs);
+    const auto s = translationScore(calibration, r, frames, times_s, options.odometry, pairs, mean_turn);
     fewest_pairs = std::min(fewest_pairs, pairs);
     if (s) out.curve.emplace_back(r, *s);
     return s;
@@ -94,8 +103,24 @@ ReadoutEstimate estimateReadout(const Calibration& calibration, std::span<const 
                     std::to_string(kMinPairs) + " needed)";
       return out;
     }
+    if (i == -half && mean_turn < kMinMeanTurnRad) {
+      out.summary = "cannot: the camera hardly turns (" + fixed(mean_turn * 180.0 / std::numbers::pi, 3) +
+                    " deg per frame pair on average over " + std::to_string(pairs) +
+                    " pairs): record it turning in place, speeding up and slowing down";
+      return out;
+    }
   }
-  const double coarse_best = best().first;
+  // A flat curve says nothing, wherever its minimum happens to be (not the edge message).
+  const auto [coarse_best, coarse_score] = best();
+  double highest = coarse_score;
+  for (const auto& [r, s] : out.curve) highest = std::max(highest, s);
+  const double spread = (highest - coarse_score) / std::max(coarse_score, std::numeric_limits<double>::min());
+  if (!(spread >= options.min_contrast)) {
+    out.summary = "cannot: the frames hardly depend on the readout (scores spread by " +
+                  fixed(spread, 2) + " of the best over the range tried, at least " +
+                  fixed(options.min_contrast, 2) + " needed): turn in place, speeding up and slowing down";
+    return out;
+  }
   const double edge = half * options.coarse_step_s;
   if (std::abs(coarse_best) >= edge - 1e-9) {
     out.summary = "cannot: the best readout is at the end of the range tried (" +

@@ -86,11 +86,12 @@ void CaptureLoop::run() {
       }
       if (have_last && got->index >= 0 && got->index <= last_index) mailbox_.markGap();
       // Time must move forward: a frame stamped at or before its predecessor (a camera
-      // clock step, a broken recording) cannot be linked to it (the pose stream would go
-      // back in time). It is processed and starts a new segment; the fault is reported.
+      // clock step, a broken recording) cannot be linked to it by time. It is processed
+      // after a gap: the odometry finds it again by the whole-ring search (a new segment
+      // only when that fails); the fault is reported.
       else if (have_last && got->capture_time_us < last_capture_us) {
         board_.reportError("%s: frame %llu: capture time %lld us is before the previous "
-                           "frame's %lld us (time went backwards): new segment",
+                           "frame's %lld us (time went backwards): bridged as after a gap",
                            description_.c_str(), static_cast<unsigned long long>(got->sequence),
                            static_cast<long long>(got->capture_time_us),
                            static_cast<long long>(last_capture_us));
@@ -98,7 +99,7 @@ void CaptureLoop::run() {
       } else if (have_last && got->index > last_index &&
                  got->source_timestamp < last_source_timestamp) {
         board_.reportError("%s: frame %d: timestamp %.6f s is before the previous frame's "
-                           "%.6f s (time went backwards): new segment",
+                           "%.6f s (time went backwards): bridged as after a gap",
                            description_.c_str(), got->index, got->source_timestamp,
                            last_source_timestamp);
         mailbox_.markGap();

@@ -11,6 +11,7 @@
 #include <sstream>
 
 #include "common/problem_list.hpp"
+#include "registration/worker_pool.hpp"
 #include "common/yaml_reader.hpp"
 #include "omnipose/limits.hpp"
 
@@ -198,6 +199,15 @@ DaemonConfig DaemonConfig::parse(const std::string& text, const std::string& ori
     for (const auto& p : c.pipeline.validate()) r.add(yamlProblem(p));
   }
   r.throwIfProblems("invalid configuration");
+  // More workers than cores only makes them wait for each other (the cores this process may
+  // run on: its CPU affinity).
+  const int cores = registration::WorkerPool::onlineCores();
+  if (c.pipeline.threads > cores) {
+    c.warnings.push_back(origin + ": pipeline.threads: " + std::to_string(c.pipeline.threads) +
+                         " is more than the " + std::to_string(cores) +
+                         " cores this process may use: " + std::to_string(cores) + " are used");
+    c.pipeline.threads = cores;
+  }
   return c;
 }
 

@@ -73,6 +73,9 @@ struct DaemonConfig {
   PipelineOptions pipeline = allCores();
   KeyframeOptions keyframes;          ///< keyframes section (max_tilt_deg in degrees there)
   LcmConfig lcm;
+  /// What parse() changed or assumed that the user should know, each naming the file and
+  /// the key: pipeline.threads above the cores this process may use is clamped to them.
+  std::vector<std::string> warnings;
 
   /// The pipeline defaults of the daemon and the replay: the library's, on every online core.
   static PipelineOptions allCores() {

@@ -1,5 +1,6 @@
 #include "registration/worker_pool.hpp"
 
+#include <sched.h>
 #include <unistd.h>
 
 #include <algorithm>
@@ -36,7 +37,12 @@ bool WorkerPool::spinWhile(Waiting waiting) const {
 }
 
 int WorkerPool::onlineCores() {
-  const long n = sysconf(_SC_NPROCESSORS_ONLN);
+  // The cores this process may run on (taskset, cgroup cpusets), within the online ones.
+  cpu_set_t set;
+  CPU_ZERO(&set);
+  long n = sched_getaffinity(0, sizeof(set), &set) == 0 ? CPU_COUNT(&set) : 0;
+  const long online = sysconf(_SC_NPROCESSORS_ONLN);
+  if (n <= 0 || (online > 0 && n > online)) n = online;
   return n > 0 ? static_cast<int>(std::min(n, 256L)) : 1;
 }
 

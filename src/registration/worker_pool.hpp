@@ -61,7 +61,8 @@ class WorkerPool {
   /// How many times a worker has gone to sleep on the condition variable (for tests).
   long sleeps() const { return sleeps_.load(std::memory_order_relaxed); }
 
-  /// All online cores (sysconf(_SC_NPROCESSORS_ONLN)), at least 1.
+  /// The online cores this process may run on (its CPU affinity: taskset, a cgroup cpuset;
+  /// sysconf(_SC_NPROCESSORS_ONLN) without one), at least 1.
   static int onlineCores();
 
  private:

@@ -4,12 +4,21 @@
 
 #include <gtest/gtest.h>
 
+#include <fcntl.h>
+#include <spawn.h>
+#include <sys/resource.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
 #include <cmath>
+#include <fstream>
+#include <opencv2/imgcodecs.hpp>
 #include <filesystem>
 #include <sstream>
 #include <vector>
 
 #include "omnipose/synth/synth.hpp"
+#include "test_files.hpp"
 
 namespace omnipose::calibrate {
 namespace {
@@ -71,7 +80,9 @@ TEST(ReadoutEstimation, ACameraThatDoesNotTurnSaysItCannot) {
   render(0.0267, false, 12, images, times);
   const ReadoutEstimate e = estimateReadout(Calibration{}, images, times, quickSearch());
   EXPECT_FALSE(e.found) << e.summary;
-  EXPECT_NE(e.summary.find("cannot"), std::string::npos) << e.summary;
+  EXPECT_NE(e.summary.find("cannot: the camera hardly turns"), std::string::npos)
+      << "not blamed on translation: " << e.summary;
+  EXPECT_EQ(e.curve.size(), 1u) << "said after the first readout tried";
 }
 
 TEST(ReadoutEstimation, TooFewFramesAndBadOptionsAreNamed) {
@@ -93,6 +104,77 @@ TEST(ReadoutEstimation, TooFewFramesAndBadOptionsAreNamed) {
     EXPECT_NE(what.find("max_s"), std::string::npos) << what;
     EXPECT_NE(what.find("fine_step_s"), std::string::npos) << what;
   }
+}
+
+
+/// Runs omnipose-calibrate with `args`; its exit code and peak RSS (kB) from wait4().
+struct ToolRun {
+  int exit_code = -1;
+  long max_rss_kb = 0;
+};
+ToolRun runCalibrate(const std::vector<std::string>& args, const std::filesystem::path& log) {
+  const std::string tool = std::string(OMNIPOSE_BINARY_DIR) + "/bin/omnipose-calibrate";
+  std::vector<char*> argv{const_cast<char*>(tool.c_str())};
+  for (const auto& a : args) argv.push_back(const_cast<char*>(a.c_str()));
+  argv.push_back(nullptr);
+  posix_spawn_file_actions_t actions;
+  posix_spawn_file_actions_init(&actions);
+  posix_spawn_file_actions_addopen(&actions, 1, log.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+  posix_spawn_file_actions_adddup2(&actions, 1, 2);
+  pid_t pid = -1;
+  ToolRun run;
+  if (posix_spawn(&pid, tool.c_str(), &actions, nullptr, argv.data(), environ) != 0) return run;
+  posix_spawn_file_actions_destroy(&actions);
+  int status = 0;
+  rusage usage{};
+  wait4(pid, &status, 0, &usage);
+  run.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  run.max_rss_kb = usage.ru_maxrss;
+  return run;
+}
+
+TEST(ReadoutCli, DecodesAtMostMaxFramesSoItsMemoryDoesNotGrowWithTheRecording) {
+  // One rendered frame, linked as every frame of a 60- and a 1500-frame recording: the
+  // camera stands still, so the estimate stops after one replay (and says why).
+  std::vector<cv::Mat> images;
+  std::vector<double> times;
+  render(0.0, false, 2, images, times);
+  const auto root = std::filesystem::temp_directory_path() /
+                    ("omnipose_readout_cli_" + std::to_string(::getpid()));
+  std::filesystem::remove_all(root);
+  const auto makeRecording = [&](const std::string& name, int frames) {
+    const auto dir = root / name;
+    std::filesystem::create_directories(dir / "frames");
+    Calibration{}.save(dir / "calibration.yaml");
+    cv::imwrite((root / "frame.png").string(), images[0]);
+    std::ofstream stamps(dir / "timestamps.txt");
+    for (int k = 0; k < frames; ++k) {
+      char file[32];
+      std::snprintf(file, sizeof file, "%06d.png", k);
+      std::filesystem::create_hard_link(root / "frame.png", dir / "frames" / file);
+      stamps << file << " " << k / 30.0 << "\n";
+    }
+    return dir;
+  };
+  const auto small = makeRecording("small", 60);
+  const auto large = makeRecording("large", 1500);
+  const ToolRun a = runCalibrate({"--readout-from", small.string(), "--max-frames", "60", "--out",
+                                  (root / "a.yaml").string()},
+                                 root / "a.log");
+  const ToolRun b = runCalibrate({"--readout-from", large.string(), "--max-frames", "60", "--out",
+                                  (root / "b.yaml").string()},
+                                 root / "b.log");
+  const std::string log_b = omnipose::testing::readText(root / "b.log");
+  EXPECT_EQ(a.exit_code, 1) << omnipose::testing::readText(root / "a.log");
+  EXPECT_EQ(b.exit_code, 1) << log_b;
+  EXPECT_NE(log_b.find("using frames 720 to 779 of 1500"), std::string::npos) << log_b;
+  EXPECT_NE(log_b.find("cannot: the camera hardly turns"), std::string::npos) << log_b;
+  ::testing::Test::RecordProperty("max_rss_kb_60_of_60", std::to_string(a.max_rss_kb));
+  ::testing::Test::RecordProperty("max_rss_kb_60_of_1500", std::to_string(b.max_rss_kb));
+  ASSERT_GT(a.max_rss_kb, 0);
+  EXPECT_LE(b.max_rss_kb, a.max_rss_kb * 11 / 10) << "60 frames of 1500 cost what 60 of 60 do";
+  EXPECT_FALSE(std::filesystem::exists(root / "b.yaml"));
+  std::filesystem::remove_all(root);
 }
 
 }  // namespace

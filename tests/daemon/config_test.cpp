@@ -6,6 +6,7 @@
 #include <numbers>
 
 #include "omnipose/calibration.hpp"
+#include "registration/worker_pool.hpp"
 
 namespace omnipose {
 namespace {
@@ -103,10 +104,20 @@ bogus: 1
 TEST(DaemonConfig, PipelineThreads) {
   EXPECT_EQ(parseWith("").pipeline.threads, 0);  // default: all online cores
   EXPECT_EQ(DaemonConfig{}.odometry().pipeline.threads, 0) << "the replay without a daemon.yaml";
-  const DaemonConfig c = parseWith("pipeline: {threads: 2}\n");
-  EXPECT_EQ(c.pipeline.threads, 2);
-  EXPECT_NE(c.describe().find("threads: 2"), std::string::npos);
+  const int cores = registration::WorkerPool::onlineCores();
+  const DaemonConfig c = parseWith("pipeline: {threads: 1}\n");
+  EXPECT_EQ(c.pipeline.threads, 1);
+  EXPECT_NE(c.describe().find("threads: 1"), std::string::npos);
+  EXPECT_TRUE(c.warnings.empty());
   EXPECT_TRUE(mentions(problemsOf(kFileSource + "pipeline: {threads: -3}\n"), "pipeline.threads"));
+  // More than the cores this process may use: clamped, with a warning naming the key.
+  const DaemonConfig many = parseWith("pipeline: {threads: " + std::to_string(cores + 1) + "}\n");
+  EXPECT_EQ(many.pipeline.threads, cores);
+  ASSERT_EQ(many.warnings.size(), 1u);
+  EXPECT_NE(many.warnings[0].find("d.yaml: pipeline.threads: " + std::to_string(cores + 1) +
+                                  " is more than the " + std::to_string(cores) + " cores"),
+            std::string::npos)
+      << many.warnings[0];
 }
 
 TEST(DaemonConfig, MovingContentCheck) {

@@ -199,17 +199,30 @@ omnipose::calibrate::ModelImport importOcamCalibFile(const fs::path& file,
 
 /// --readout-from DATASET: the rolling-shutter readout from a recording of the robot turning
 /// in place at varying rates (readout_estimation.hpp); writes DATASET's calibration with
-/// sensor.readout_s to `out_yaml`. Exit 0 written, 1 not measurable or unreadable.
-int estimateReadoutOf(const fs::path& dataset_dir, const fs::path& out_yaml, bool quiet) {
+/// sensor.readout_s to `out_yaml`. Of a long recording, the `max_frames` consecutive frames
+/// in its middle are decoded (the pairs must be consecutive), no others. Exit 0 written, 1
+/// not measurable or unreadable.
+int estimateReadoutOf(const fs::path& dataset_dir, const fs::path& out_yaml, std::size_t max_frames,
+                      bool quiet) {
   const omnipose::Dataset dataset = omnipose::Dataset::open(dataset_dir);
   if (!dataset.timestamps_from_file)
     throw std::runtime_error((dataset_dir / "timestamps.txt").string() +
                              ": missing; the readout is measured against the frame times");
+  for (const std::string& w : dataset.warnings) std::fprintf(stderr, "omnipose-calibrate: warning: %s\n", w.c_str());
   std::vector<cv::Mat> frames;
   std::vector<double> times;
   const omnipose::OdometryOptions defaults;
   const cv::Size size = omnipose::inputFrameSize(dataset.calibration, defaults.pipeline.unwrap.input);
-  for (const auto& f : dataset.frames) {
+  const std::size_t first = omnipose::calibrate::centredRunStart(dataset.frames.size(), max_frames);
+  const std::size_t count = std::min(dataset.frames.size(), max_frames);
+  if (!quiet && count < dataset.frames.size())
+    std::printf("omnipose-calibrate: using frames %zu to %zu of %zu (--max-frames %zu consecutive "
+                "ones in the middle)\n",
+                first, first + count - 1, dataset.frames.size(), max_frames);
+  frames.reserve(count);
+  times.reserve(count);
+  for (std::size_t k = first; k < first + count; ++k) {
+    const omnipose::DatasetFrame& f = dataset.frames[k];
     auto image = omnipose::readFrame(f.path, size);
     if (!image) {
       if (!quiet) std::fprintf(stderr, "omnipose-calibrate: skipped %s\n", image.error().c_str());
@@ -396,7 +409,8 @@ int main(int argc, char** argv) {
   app.add_option_function<std::string>(
          "--max-frames", [&](const std::string& v) { max_frames = parseMaxFrames(v); },
          "use at most N of the FRAMES (or checkerboard IMAGES), evenly spread over them in "
-         "the given order (directories sorted by name), first and last included; only those "
+         "the given order (directories sorted by name), first and last included; with "
+         "--readout-from, the N consecutive frames in the middle of the recording; only those "
          "are read (default " +
              std::to_string(omnipose::calibrate::kDefaultMaxFrames) + ", at most " +
              std::to_string(omnipose::calibrate::kMaxFramesLimit) + ")")
@@ -419,7 +433,7 @@ int main(int argc, char** argv) {
     if (const auto problem = outputProblem("--out", out_text); !problem.empty())
       return cli.usageError(problem);
     try {
-      return estimateReadoutOf(readout_text, out_text, quiet);
+      return estimateReadoutOf(readout_text, out_text, max_frames, quiet);
     } catch (const std::exception& e) {
       std::fprintf(stderr, "omnipose-calibrate: %s\n", e.what());
       return 1;

@@ -57,6 +57,7 @@ int main(int argc, char** argv) {
     const auto config = omnipose::DaemonConfig::load(config_path);
     std::fprintf(stderr, "omniposed: configuration %s (effective values):\n%s", config_path.c_str(),
                  config.describe().c_str());
+    for (const std::string& w : config.warnings) std::fprintf(stderr, "omniposed: warning: %s\n", w.c_str());
     std::fflush(stderr);
     if (check_only) {
       // --check writes nothing and starts no daemon: a stop signal may simply end it.

@@ -69,8 +69,9 @@ std::unique_ptr<Odometry> makeOdometry(const std::string& method, const Calibrat
 ReplaySummary run(const ReplayOptions& options, std::FILE* log) {
   OdometryOptions odometry_options = DaemonConfig{}.odometry();  // what the daemon runs
   if (options.config) {
-    odometry_options =
-        DaemonConfig::load(*options.config, DaemonConfig::Use::kReplay).odometry();
+    const DaemonConfig config = DaemonConfig::load(*options.config, DaemonConfig::Use::kReplay);
+    for (const std::string& w : config.warnings) std::fprintf(log, "warning: %s\n", w.c_str());
+    odometry_options = config.odometry();
   }
   if (options.input) odometry_options.pipeline.unwrap.input = *options.input;
   const Dataset dataset = Dataset::open(options.dataset, options.calibration);

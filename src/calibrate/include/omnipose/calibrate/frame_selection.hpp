@@ -21,6 +21,11 @@ inline constexpr std::size_t kMaxFramesLimit = 500;
 /// (max_frames == 1) is the first. Empty when count or max_frames is 0.
 std::vector<std::size_t> selectEvenly(std::size_t count, std::size_t max_frames);
 
+/// First position of the `max_frames` consecutive frames in the middle of `count` (0 when
+/// count <= max_frames): a measurement that needs consecutive pairs (the rolling-shutter
+/// readout, `--readout-from`) uses that run, `min(count, max_frames)` frames from there.
+std::size_t centredRunStart(std::size_t count, std::size_t max_frames);
+
 /// What the selection did, for stderr: "using 60 of 1000 frames, every 16.9th" or
 /// "using all 10 frames".
 std::string selectionMessage(std::size_t count, std::size_t selected);
