@@ -26,6 +26,8 @@ enum class ErrorCode {
   kDisconnected,       ///< the device went away while streaming
   kEndOfStream,        ///< a finite source has delivered its last frame
   kIllConditioned,     ///< too few or degenerate measurements for a unique solution
+  kImplausible,        ///< a frame that decodes but whose motion cannot be believed (a
+                       ///< glitching camera: torn, repeated, flipped or foreign frame)
 };
 
 /// Short lower-case name of a code ("bad_frame", "timeout", ...), for logs and status text.
@@ -42,6 +44,7 @@ constexpr std::string_view toString(ErrorCode code) {
     case ErrorCode::kDisconnected: return "disconnected";
     case ErrorCode::kEndOfStream: return "end_of_stream";
     case ErrorCode::kIllConditioned: return "ill_conditioned";
+    case ErrorCode::kImplausible: return "implausible";
   }
   return "unknown";
 }

@@ -23,7 +23,9 @@
 /// keyframe, its yaw first found by a search over the whole ring (a circular correlation of
 /// the panoramas), roll and pitch by the fit. The chain goes on with the heading kept.
 /// Only when that fails too does a new segment start (status kLost, segment + 1, the pose
-/// held): the link across the gap is then unknown.
+/// held): the link across the gap is then unknown. A frame that decodes but cannot be
+/// believed (PlausibilityOptions) is dropped and the next one registered against the last
+/// believed frame; after max_rejected such frames in a row a new segment starts.
 ///
 /// Realtime: the constructor allocates everything (worker threads, keyframe slots: each
 /// holds the spectra of one panorama); process() allocates nothing and never throws. Not
@@ -81,9 +83,38 @@ struct KeyframeOptions {
   std::vector<std::string> validate() const;
 };
 
+/// Frames that decode but cannot be believed: a glitching camera's torn, repeated,
+/// flipped, rotated or foreign frame, or noise (DESIGN.md section 4, "Glitches"). Such a
+/// frame is not chained: process() returns kImplausible (the daemon counts it as bad, the
+/// replay skips it) and the next frame is found again against the last believed one (the
+/// ring search when that fails). Tests: rows bit-identical to the previous frame's after a
+/// pair that moved; the refined pass's median window confidence against the recent past;
+/// the rotation rate.
+struct PlausibilityOptions {
+  bool enabled = true;
+  /// Share of a frame's rows with content that may be bit-identical to the previous frame's
+  /// after a pair that moved, [0, 1]. A sensor's noise makes every row differ.
+  double max_repeated_rows = 0.25;
+  /// A pair whose fit is not kOk and whose windows' median confidence is below this
+  /// fraction of the median over the last believed pairs is not believed, [0, 1) (below
+  /// 0.05 it never is). A flipped or foreign frame falls to about 0.04 of it; believed pairs
+  /// stay above 0.85 of it on the benchmarks' renders and drop to 0.2 in motion blur.
+  double min_confidence_ratio = 0.3;
+  /// Fastest rotation the robot can make, radians per second (default 720 deg/s).
+  double max_rotation_rad_s = 4.0 * 3.14159265358979323846;
+  /// Frames rejected in a row after which the next one that fails starts a new segment
+  /// instead (the view changed for good: a camera knocked aside, the light switched off),
+  /// [1, 1000].
+  int max_rejected = 5;
+
+  /// One message per bad field, each starting with its name; empty when valid.
+  std::vector<std::string> validate() const;
+};
+
 struct OdometryOptions {
   PipelineOptions pipeline;
   KeyframeOptions keyframes;
+  PlausibilityOptions plausibility;
   /// Every problem of the options, each starting with the field's path
   /// ("pipeline.registration.window: ...", "keyframes.slots: ..."); empty when valid.
   std::vector<std::string> validate() const;
@@ -145,8 +176,9 @@ class Odometry {
   Odometry(const Odometry&) = delete;
   Odometry& operator=(const Odometry&) = delete;
 
-  /// Processes the next frame. An error (kBadFrame: wrong size or type, black) leaves the
-  /// state as it was, and the next frame is treated as after a gap.
+  /// Processes the next frame. An error (kBadFrame: wrong size or type, black;
+  /// kImplausible: a glitch, PlausibilityOptions) leaves the state as it was, and the next
+  /// frame is treated as after a gap.
   Expected<OdometryResult> process(const cv::Mat& frame, const FrameStamp& stamp);
   /// Reports a frame that could not be read (decode error): the next frame is bridged.
   void markGap();

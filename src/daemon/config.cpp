@@ -140,6 +140,27 @@ void parseKeyframes(Reader& r, const YAML::Node& node, KeyframeOptions& k) {
   }
 }
 
+void parsePlausibility(Reader& r, const YAML::Node& node, PlausibilityOptions& p) {
+  if (!r.checkMap(node, "plausibility",
+                  {"enabled", "max_repeated_rows", "min_confidence_ratio", "max_rotation_deg_s",
+                   "max_rejected"}))
+    return;
+  r.get(node, "plausibility", "enabled", p.enabled);
+  r.get(node, "plausibility", "max_repeated_rows", p.max_repeated_rows);
+  r.get(node, "plausibility", "min_confidence_ratio", p.min_confidence_ratio);
+  double rate_deg = p.max_rotation_rad_s * 180.0 / std::numbers::pi;
+  r.get(node, "plausibility", "max_rotation_deg_s", rate_deg);
+  p.max_rotation_rad_s = rate_deg * std::numbers::pi / 180.0;
+  r.get(node, "plausibility", "max_rejected", p.max_rejected);
+  // The ranges are the odometry's own (PlausibilityOptions::validate()), named by the key the
+  // user wrote (max_rotation_deg_s for the field max_rotation_rad_s).
+  for (std::string problem : p.validate()) {
+    if (problem.starts_with("max_rotation_rad_s:"))
+      problem = "max_rotation_deg_s: " + std::to_string(rate_deg) + " deg/s is outside (0, 18000]";
+    r.add("plausibility." + problem);
+  }
+}
+
 void parseLcm(Reader& r, const YAML::Node& node, LcmConfig& l) {
   if (!r.checkMap(node, "lcm", {"url", "pose_channel", "status_channel", "fit_channel",
                                 "status_hz"}))
@@ -173,7 +194,8 @@ DaemonConfig DaemonConfig::parse(const std::string& text, const std::string& ori
   YAML::Node root = detail::loadYaml(text, origin);
   r.checkDuplicateKeys(root);
   if (!root || root.IsNull()) root = YAML::Node(YAML::NodeType::Map);
-  if (r.checkMap(root, "", {"source", "calibration", "input", "pipeline", "keyframes", "lcm"})) {
+  if (r.checkMap(root, "", {"source", "calibration", "input", "pipeline", "keyframes",
+                            "plausibility", "lcm"})) {
     if (root["source"]) parseSource(r, root["source"], base_dir, c.source);
     else if (use == Use::kDaemon) r.problem("source", "missing section");
 
@@ -195,6 +217,7 @@ DaemonConfig DaemonConfig::parse(const std::string& text, const std::string& ori
 
     if (root["pipeline"]) parsePipeline(r, root["pipeline"], base_dir, c.pipeline);
     if (root["keyframes"]) parseKeyframes(r, root["keyframes"], c.keyframes);
+    if (root["plausibility"]) parsePlausibility(r, root["plausibility"], c.plausibility);
     if (root["lcm"]) parseLcm(r, root["lcm"], c.lcm);
     for (const auto& p : c.pipeline.validate()) r.add(yamlProblem(p));
   }
@@ -261,6 +284,11 @@ std::string DaemonConfig::describe() const {
     << "\n  max_tilt_deg: " << keyframes.max_tilt_rad * 180.0 / std::numbers::pi
     << "\n  min_ring_peak: " << keyframes.min_ring_peak
     << "\n  gap_after_s: " << keyframes.gap_after_s << "\n"
+    << "plausibility:\n  enabled: " << plausibility.enabled
+    << "\n  max_repeated_rows: " << plausibility.max_repeated_rows
+    << "\n  min_confidence_ratio: " << plausibility.min_confidence_ratio
+    << "\n  max_rotation_deg_s: " << plausibility.max_rotation_rad_s * 180.0 / std::numbers::pi
+    << "\n  max_rejected: " << plausibility.max_rejected << "\n"
     << "lcm:\n  url: \"" << lcm.url << "\"\n  pose_channel: " << lcm.pose_channel
     << "\n  status_channel: " << lcm.status_channel << "\n  fit_channel: \"" << lcm.fit_channel
     << "\"\n  status_hz: " << lcm.status_hz << "\n";

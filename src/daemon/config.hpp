@@ -72,6 +72,8 @@ struct DaemonConfig {
   /// and the replay (with or without a daemon.yaml) use every online core.
   PipelineOptions pipeline = allCores();
   KeyframeOptions keyframes;          ///< keyframes section (max_tilt_deg in degrees there)
+  /// plausibility section (max_rotation_deg_s in degrees per second there).
+  PlausibilityOptions plausibility;
   LcmConfig lcm;
   /// What parse() changed or assumed that the user should know, each naming the file and
   /// the key: pipeline.threads above the cores this process may use is clamped to them.
@@ -85,7 +87,7 @@ struct DaemonConfig {
   }
 
   /// The pipeline and keyframe settings as the Odometry takes them.
-  OdometryOptions odometry() const { return {pipeline, keyframes}; }
+  OdometryOptions odometry() const { return {pipeline, keyframes, plausibility}; }
 
   /// Reads and validates `path`. Throws ConfigError listing every problem, each prefixed
   /// with the path and the key (e.g. "daemon.yaml: pipeline.step: must be > 0").

@@ -13,6 +13,7 @@
 ///                     + frames_lost_upstream
 /// While they run, a frame is counted as received before its fate is, so received may be
 /// ahead by the frames in flight (at most the mailbox's slots), never behind.
+/// frames_implausible is a part of frames_bad (not a fate of its own).
 ///
 /// Header-only, no dependency beyond <cstdint>: tools (omnipose-listen) print status_t's
 /// counters through it as well.
@@ -34,7 +35,9 @@
   X(poses_lost, "lost poses", "poses published with STATUS_LOST")                            \
   X(source_failures, "source failures",                                                      \
     "times the source failed and was closed to be re-opened (one per outage)")               \
-  X(publish_failures, "publish failures", "messages that could not be encoded or published")
+  X(publish_failures, "publish failures", "messages that could not be encoded or published")  \
+  X(frames_implausible, "implausible",                                                       \
+    "of the bad frames, those that decoded but were not believed (a glitching camera)")
 
 namespace omnipose::daemon {
 

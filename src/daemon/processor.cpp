@@ -96,6 +96,7 @@ void Processor::handleFrame(const MailboxFrame& frame) {
       odometry_.process(*frame.image, {t, static_cast<std::int64_t>(info.sequence), frame.gap_before});
   if (!result) {
     ++board_.frames_bad;
+    if (result.error().code() == ErrorCode::kImplausible) ++board_.frames_implausible;
     if (info.index >= 0) {
       board_.reportError("frame %llu (dataset index %d): %s",
                          static_cast<unsigned long long>(info.sequence), info.index,

@@ -10,12 +10,18 @@
 #include "common/problem_list.hpp"
 #include "omnipose/so3.hpp"
 #include "pipeline/frame_registrar.hpp"
+#include "pipeline/plausibility.hpp"
 #include "pipeline/readout_yaw.hpp"
 
 namespace omnipose {
 namespace {
 
 using Clock = std::chrono::steady_clock;
+
+/// Why a frame after a rejected one is rejected too when the ring search cannot place it.
+const Error kNotFoundAgain(ErrorCode::kImplausible,
+                           "implausible frame: after a frame that was not believed, nothing of the "
+                           "last believed frame is found in it (the whole-ring search failed)");
 
 double secondsSince(Clock::time_point start) {
   return std::chrono::duration<double>(Clock::now() - start).count();
@@ -81,10 +87,25 @@ std::vector<std::string> KeyframeOptions::validate() const {
   return problems;
 }
 
+std::vector<std::string> PlausibilityOptions::validate() const {
+  std::vector<std::string> problems;
+  if (!(max_repeated_rows >= 0.0 && max_repeated_rows <= 1.0))
+    problems.push_back("max_repeated_rows: " + std::to_string(max_repeated_rows) + " is outside [0, 1]");
+  if (!(min_confidence_ratio >= 0.0 && min_confidence_ratio < 1.0))
+    problems.push_back("min_confidence_ratio: " + std::to_string(min_confidence_ratio) +
+                       " is outside [0, 1)");
+  if (!(max_rotation_rad_s > 0.0 && max_rotation_rad_s <= 100.0 * std::numbers::pi))
+    problems.push_back("max_rotation_rad_s: " + std::to_string(max_rotation_rad_s) +
+                       " rad/s is outside (0, 314] (0 to 18000 deg/s)");
+  detail::checkRange(problems, "max_rejected", max_rejected, 1, 1000, " frames");
+  return problems;
+}
+
 std::vector<std::string> OdometryOptions::validate() const {
   std::vector<std::string> problems;
   for (const auto& p : pipeline.validate()) problems.push_back("pipeline." + p);
   for (const auto& p : keyframes.validate()) problems.push_back("keyframes." + p);
+  for (const auto& p : plausibility.validate()) problems.push_back("plausibility." + p);
   return problems;
 }
 
@@ -94,6 +115,7 @@ std::vector<std::string> Odometry::validate(const Calibration& calibration,
   for (const auto& p : Pipeline::validate(calibration, options.pipeline))
     problems.push_back(p.starts_with("calibration") ? p : "pipeline." + p);
   for (const auto& p : options.keyframes.validate()) problems.push_back("keyframes." + p);
+  for (const auto& p : options.plausibility.validate()) problems.push_back("plausibility." + p);
   return problems;
 }
 
@@ -110,7 +132,10 @@ struct Odometry::Impl {
 
   Impl(const Calibration& c, const OdometryOptions& o)
       : keyframe_options(o.keyframes),
+        plausibility_options(o.plausibility),
         registrar(std::in_place, c, o.pipeline, std::max(o.keyframes.slots, 1)),
+        gate(std::in_place, o.plausibility, inputFrameSize(c, o.pipeline.unwrap.input).height,
+             registrar->windowCount()),
         keyframes(static_cast<std::size_t>(std::max(o.keyframes.slots, 1))),
         readout_yaw(registrar->meanWindowTime()) {}
   explicit Impl(std::unique_ptr<MotionEstimator> method)
@@ -122,8 +147,24 @@ struct Odometry::Impl {
   /// The current frame starts a segment: its pose is held, it becomes the only keyframe.
   void startSegment(OdometryResult& out, TrackState state);
   /// Registration of the current frame after a gap or a lost fit: ring search and fit
-  /// against the last keyframe. False when it fails.
-  bool bridge(OdometryResult& out);
+  /// against the last keyframe. False when it fails; kImplausible when the frame is not
+  /// believed (PlausibilityGate).
+  Expected<bool> bridge(OdometryResult& out);
+  /// The current frame is not believed (`why`): it is dropped and the next one bridged, or,
+  /// after PlausibilityOptions::max_rejected such frames in a row, it starts a new segment.
+  Expected<OdometryResult> rejectFrame(OdometryResult& out, const Error& why);
+  /// bridge(); when it fails, a new segment, or a rejection right after a rejected frame.
+  Expected<OdometryResult> bridgeOrRestart(OdometryResult& out);
+  /// The total time, segment and keyframe distance of `out`.
+  void finishTiming(OdometryResult& out) const;
+  /// The current frame was believed with the motion in `out`.
+  void believe(const OdometryResult& out) {
+    if (!gate) return;
+    const auto& e = out.relative.estimate;
+    gate->believe(out.relative.has_motion &&
+                  (e.omega.norm() > pipeline::PlausibilityGate::kMovedThreshold ||
+                   e.tau.norm() > pipeline::PlausibilityGate::kMovedThreshold));
+  }
   /// The kept keyframe to refine against at the predicted pose `predicted` of the current
   /// frame: the last one used while it is in reach, else the oldest in reach; -1 for none.
   int chooseKeyframe(const Eigen::Isometry3d& predicted) const;
@@ -171,7 +212,9 @@ struct Odometry::Impl {
               TrackState state);
 
   KeyframeOptions keyframe_options;
+  PlausibilityOptions plausibility_options;
   std::optional<pipeline::FrameRegistrar> registrar;  ///< the iFMI pipeline
+  std::optional<pipeline::PlausibilityGate> gate;     ///< with the iFMI pipeline
   std::unique_ptr<MotionEstimator> pairwise;          ///< or another per-pair method
   std::vector<Keyframe> keyframes;
   pipeline::ReadoutYaw readout_yaw;  ///< chains the pairs' yaws (rolling shutter)
@@ -212,6 +255,10 @@ void Odometry::Impl::startSegment(OdometryResult& out, TrackState state) {
   last_sequence = sequence;
   last_time = time;
   velocity_interval = 0.0;
+  if (gate) {
+    gate->restart();
+    gate->believe(false);
+  }
 }
 
 bool Odometry::Impl::inReach(const Keyframe& k, const Eigen::Isometry3d& predicted) const {
@@ -263,7 +310,7 @@ void Odometry::Impl::finish(OdometryResult& out, const Eigen::Isometry3d& T_esti
   last_time = time;
 }
 
-bool Odometry::Impl::bridge(OdometryResult& out) {
+Expected<bool> Odometry::Impl::bridge(OdometryResult& out) {
   if (active < 0) return false;
   const Keyframe& key = keyframes[static_cast<std::size_t>(active)];
   const std::optional<double> yaw = registrar->ringYaw(active, keyframe_options.min_ring_peak);
@@ -275,6 +322,9 @@ bool Odometry::Impl::bridge(OdometryResult& out) {
   const pipeline::PassResult pass = registrar->refine(
       *aligned, rotationFromVector(aligned->omega) * R0, aligned->tau, active);
   if (!pass.refined || pass.estimate.status == FitStatus::kLost) return false;
+  if (Expected<void> ok = gate->checkConfidence(pass.windows, pass.estimate.status); !ok) return std::unexpected(ok.error());
+  if (Expected<void> ok = gate->checkRotation(rotationVector(pass.rotation).norm(), time - key.time_s); !ok)
+    return std::unexpected(ok.error());
   const Eigen::Isometry3d T =
       key.pose * isometry(atTimestamps(pass, key.time_s, &key), pass.estimate.tau);
   out.keyframe_sequence = key.sequence;
@@ -285,7 +335,44 @@ bool Odometry::Impl::bridge(OdometryResult& out) {
   // Without keyframes the one slot follows the last good frame: this one.
   if (keyframe_options.slots == 0) addKeyframe(pose);
   gap = false;
+  believe(out);
   return true;
+}
+
+Expected<OdometryResult> Odometry::Impl::rejectFrame(OdometryResult& out, const Error& why) {
+  if (gate->rejectedInARow() >= plausibility_options.max_rejected) {
+    startSegment(out, TrackState::kLost);  // the view changed for good: start again from here
+    finishTiming(out);
+    return out;
+  }
+  // Nothing of the frame is kept: the previous frame stays the last believed one, and the
+  // next frame is registered against it (the whole-ring search when that fails, or after
+  // gap_after_s).
+  gate->reject();
+  return std::unexpected(why);
+}
+
+Expected<OdometryResult> Odometry::Impl::bridgeOrRestart(OdometryResult& out) {
+  const auto t_bridge = Clock::now();
+  const Expected<bool> bridged = bridge(out);
+  if (!bridged) return rejectFrame(out, bridged.error());
+  if (!*bridged) {
+    // Right after a frame that was not believed, a frame that cannot be found again is more
+    // of the glitch (until max_rejected); after an outage or a source that started over it
+    // is a view of its own: a new segment.
+    if (gate->rejectedInARow() > 0) return rejectFrame(out, kNotFoundAgain);
+    startSegment(out, TrackState::kLost);
+  }
+  out.relative.timing.refine = secondsSince(t_bridge);
+  finishTiming(out);
+  return out;
+}
+
+void Odometry::Impl::finishTiming(OdometryResult& out) const {
+  out.relative.timing.total = secondsSince(t_start);
+  out.segment = segment;
+  if (out.keyframe_sequence >= 0)
+    out.frames_since_keyframe = static_cast<int>(sequence - out.keyframe_sequence);
 }
 
 Expected<OdometryResult> Odometry::Impl::process(const cv::Mat& frame, const FrameStamp& stamp) {
@@ -309,26 +396,18 @@ Expected<OdometryResult> Odometry::Impl::process(const cv::Mat& frame, const Fra
     return std::unexpected(ok.error());
   }
   m.timing.unwrap = secondsSince(t_start);
-  const auto finishTiming = [&] {
-    m.timing.total = secondsSince(t_start);
-    out.segment = segment;
-    if (out.keyframe_sequence >= 0) out.frames_since_keyframe = static_cast<int>(sequence - out.keyframe_sequence);
-  };
+  const Expected<void> frame_ok = gate->checkFrame(frame);
 
   if (!started) {
     startSegment(out, TrackState::kSegmentStart);
-    finishTiming();
+    finishTiming(out);
     return out;
   }
-  if (gap) {
-    const auto t_bridge = Clock::now();
-    if (!bridge(out)) startSegment(out, TrackState::kLost);
-    m.timing.refine = secondsSince(t_bridge);
-    finishTiming();
-    return out;
-  }
+  if (!frame_ok) return rejectFrame(out, frame_ok.error());
+  if (gap) return bridgeOrRestart(out);
 
-  // First pass against the previous frame.
+  // First pass against the previous frame (after a frame that was not believed: the last
+  // believed one, the previous frame still).
   const auto t_reg = Clock::now();
   setShutter(last_time, true);
   const std::optional<MotionEstimate> first = r.firstPass(&m.timing.fit);
@@ -338,13 +417,15 @@ Expected<OdometryResult> Odometry::Impl::process(const cv::Mat& frame, const Fra
   }
   m.timing.registration = secondsSince(t_reg) - m.timing.fit;
   const auto t_refine = Clock::now();
-  if (first->status == FitStatus::kLost) {
-    // A lost fit: the motion since the previous frame is unknown.
-    if (!bridge(out)) startSegment(out, TrackState::kLost);
-    m.timing.refine = secondsSince(t_refine);
-    finishTiming();
-    return out;
-  }
+  // A lost fit: the motion since the previous frame is unknown.
+  if (first->status == FitStatus::kLost) return bridgeOrRestart(out);
+  // After a frame that was not believed the motion since the last believed one may be beyond
+  // a window's reach: then the whole-ring search decides.
+  const auto notBelieved = [&](const Error& why) {
+    return gate->rejectedInARow() > 0 ? bridgeOrRestart(out) : rejectFrame(out, why);
+  };
+  if (Expected<void> ok = gate->checkRotation(first->omega.norm(), time - last_time); !ok)
+    return notBelieved(ok.error());
 
   // Refinement against a keyframe at the predicted pose, or against the previous frame.
   const Eigen::Matrix3d R1 = rotationFromVector(first->omega);
@@ -358,15 +439,18 @@ Expected<OdometryResult> Odometry::Impl::process(const cv::Mat& frame, const Fra
         r.refine(*first, from_key.linear(), from_key.translation(), slot);
     const bool worse = !pass.refined || pass.estimate.status == FitStatus::kLost ||
                        (pass.estimate.status != FitStatus::kOk && first->status == FitStatus::kOk);
-    if (!worse) {
+    // The refined windows' confidence (the first pass's falls with fast roll and pitch,
+    // which the refinement takes out); a keyframe pass below it tries the previous frame.
+    if (!worse && gate->checkConfidence(pass.windows, pass.estimate.status)) {
       out.keyframe_sequence = key.sequence;
       const Eigen::Isometry3d T =
           key.pose * isometry(atTimestamps(pass, key.time_s, &key), pass.estimate.tau);
       useKeyframe(slot);
       r.advance();
       finish(out, T, pass, TrackState::kTracked);
+      believe(out);
       m.timing.refine = secondsSince(t_refine);
-      finishTiming();
+      finishTiming(out);
       return out;
     }
   }
@@ -374,14 +458,16 @@ Expected<OdometryResult> Odometry::Impl::process(const cv::Mat& frame, const Fra
   setShutter(last_time, true);
   const pipeline::PassResult pass =
       r.refine(*first, R1, first->tau, WindowRegistration::kPreviousFrame);
+  if (Expected<void> ok = gate->checkConfidence(pass.windows, pass.estimate.status); !ok) return notBelieved(ok.error());
   out.keyframe_sequence = last_sequence;
   const Eigen::Isometry3d T =
       pose * isometry(atTimestamps(pass, last_time), pass.estimate.tau);
   r.advance();
   finish(out, T, pass, TrackState::kTracked);
+  believe(out);
   addKeyframe(pose);  // without keyframes (slots 0) its one slot follows the previous frame
   m.timing.refine = secondsSince(t_refine);
-  finishTiming();
+  finishTiming(out);
   return out;
 }
 
@@ -438,6 +524,7 @@ void Odometry::reset() {
   s.active = -1;
   for (auto& k : s.keyframes) k.valid = false;
   if (s.registrar) s.registrar->forgetPrevious();
+  if (s.gate) s.gate->restart();
   if (s.pairwise) s.pairwise->reset();
 }
 

@@ -6,6 +6,7 @@
 #include <gtest/gtest.h>
 
 #include <functional>
+#include <numbers>
 #include <opencv2/imgcodecs.hpp>
 
 #include "daemon/capture_loop.hpp"
@@ -1108,6 +1109,35 @@ TEST(DaemonFaults, BombsTruncatedAndGarbageFramesAreSkippedCountedAndNamed) {
             std::string::npos)
       << logged;
   expectPosesMatchGroundTruth(bus.poses, tmp / "d", 0.01);
+}
+
+TEST(DaemonFaults, AFrameThatDecodesButDoesNotFitIsCountedAndTheChainIsUnharmed) {
+  // Frame 15 flipped upside down: a glitching camera. Before, its pair and the next came
+  // out "degraded" and every later pose was chained 8-19 degrees off.
+  TempDir tmp("daemon-glitch");
+  testing::copyDataset(yawDataset(), tmp / "d");
+  const fs::path glitch = tmp / "d/frames/000015.png";
+  cv::Mat flipped;
+  cv::flip(cv::imread(glitch.string(), cv::IMREAD_UNCHANGED), flipped, 0);
+  ASSERT_TRUE(cv::imwrite(glitch.string(), flipped));
+  Bus bus;
+  Daemon d(parseConfig(testing::fileSourceConfig(tmp / "d", "", /*realtime=*/false)), nullptr,
+           nullptr, bus.sink());
+  bus.run(d, 120s);
+  ASSERT_FALSE(bus.statuses.empty());
+  const status_t& last = bus.statuses.back();
+  EXPECT_EQ(last.frames_bad, 1);
+  EXPECT_EQ(last.frames_implausible, 1);
+  expectEveryFrameCountedOnce(last, kFrames);
+  EXPECT_NE(last.last_error.find("implausible frame"), std::string::npos) << last.last_error;
+  ASSERT_EQ(bus.poses.size(), static_cast<std::size_t>(kFrames - 1)) << "no pose for the glitch";
+  for (const pose_t& p : bus.poses) {
+    EXPECT_NE(p.source_index, 15);
+    EXPECT_EQ(p.segment, 0);
+    if (p.source_index == 16) EXPECT_EQ(p.reference_sequence, 14) << "against the last believed frame";
+    if (p.source_index > 0) EXPECT_EQ(p.status, pose_t::STATUS_OK) << "frame " << p.source_index;
+  }
+  expectChainMatchesGroundTruth(bus.poses, tmp / "d", 0.05 * std::numbers::pi / 180.0);
 }
 
 /// Runs the yaw dataset in realtime with `stamp(i)` as frame i's timestamp; returns the final

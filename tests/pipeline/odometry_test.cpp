@@ -194,18 +194,41 @@ TEST(Odometry, AnUnrelatedViewAfterAGapStartsANewSegmentWithThePoseHeld) {
   processOk(odometry, scene.frame(Eigen::Isometry3d::Identity(), 0), 0.0);
   const OdometryResult before = processOk(odometry, scene.frame(turned, 1), 1 / 30.0);
   ASSERT_EQ(before.state, TrackState::kTracked);
-  // A lens cap: noise only.
-  cv::Mat noise(Calibration{}.omni.image_height, Calibration{}.omni.image_width, CV_8UC1);
-  cv::randu(noise, 0, 255);
-  const OdometryResult lost = processOk(odometry, noise, 2 / 30.0, /*gap_before=*/true);
+  // A lens cap: a blank view, nothing for the whole-ring search.
+  const cv::Mat cap(Calibration{}.omni.image_height, Calibration{}.omni.image_width, CV_8UC1,
+                    cv::Scalar(60));
+  const OdometryResult lost = processOk(odometry, cap, 2 / 30.0, /*gap_before=*/true);
   EXPECT_EQ(lost.state, TrackState::kLost);
   EXPECT_EQ(lost.segment, 1);
   EXPECT_FALSE(lost.relative.has_motion);
   EXPECT_LT(rotationError(lost.pose, before.pose), 1e-12) << "the pose is held";
-  // The next frame goes on from the new segment's start.
+  // Nothing links the next view to a blank one either: another segment, the pose held.
   const OdometryResult next = processOk(odometry, scene.frame(turned, 3), 3 / 30.0);
-  EXPECT_EQ(next.segment, 1);
-  EXPECT_EQ(next.reference_sequence, 2);
+  EXPECT_EQ(next.state, TrackState::kLost);
+  EXPECT_EQ(next.segment, 2);
+  EXPECT_LT(rotationError(next.pose, before.pose), 1e-12);
+  // Then tracking goes on in that segment.
+  const OdometryResult after = processOk(odometry, scene.frame(attitude(0, 0, 6 * kDeg), 4), 4 / 30.0);
+  EXPECT_EQ(after.state, TrackState::kTracked);
+  EXPECT_EQ(after.segment, 2);
+  EXPECT_EQ(after.reference_sequence, 3);
+}
+
+TEST(Odometry, NoiseAfterATrackedFrameIsNotBelievedAndTheNextFrameGoesOnFromTheLastBelievedOne) {
+  Renderings scene;
+  Odometry odometry(Calibration{}, {});
+  const Eigen::Isometry3d turned = attitude(0, 0, 4 * kDeg);
+  processOk(odometry, scene.frame(Eigen::Isometry3d::Identity(), 0), 0.0);
+  const OdometryResult before = processOk(odometry, scene.frame(turned, 1), 1 / 30.0);
+  cv::Mat noise(Calibration{}.omni.image_height, Calibration{}.omni.image_width, CV_8UC1);
+  cv::randu(noise, 0, 255);
+  const auto glitch = odometry.process(noise, {2 / 30.0});
+  ASSERT_FALSE(glitch.has_value());
+  EXPECT_EQ(glitch.error().code(), ErrorCode::kImplausible);
+  const OdometryResult back = processOk(odometry, scene.frame(turned, 3), 3 / 30.0);
+  EXPECT_EQ(back.segment, 0);
+  EXPECT_EQ(back.reference_sequence, 1);
+  EXPECT_LT(rotationError(back.pose, before.pose), 1e-3);
 }
 
 TEST(Odometry, TranslationAndTiltSwitchTheKeyframe) {
@@ -298,7 +321,7 @@ TEST(Odometry, ProcessAllocatesNothingAfterWarmUpThroughKeyframesAndGaps) {
   Odometry odometry(Calibration{}, options);
   for (int k = 0; k < 6; ++k) ASSERT_TRUE(odometry.process(frames[k], {k / 30.0}).has_value());
   (void)odometry.process(wrong_size, {0.2});
-  ASSERT_TRUE(odometry.process(frames[0], {0.25}).has_value());  // bridged: warms that path
+  ASSERT_TRUE(odometry.process(frames[0], {0.25}).has_value());  // after the gap: warms that path
 
   testing::AllocationCounter counter;
   int ok = 0;

@@ -22,8 +22,9 @@ int main(int argc, char** argv) {
       "                       [--input omni|panorama] [--config daemon.yaml]\n"
       "                       [--calibration CAL.yaml] [--method NAME] [--quiet]",
       "Estimates the camera motion of every consecutive frame pair of a dataset directory.\n"
-      "Ends with: frames=N pairs=M skipped=K seconds_per_frame=X (median wall time per frame,\n"
-      "seconds). Exit codes: 0 done, 1 failed (or no pair estimated), 2 bad command line.");
+      "Ends with: frames=N pairs=M skipped=K implausible=I lost=L bridged=B seconds_per_frame=X\n"
+      "(skipped: unreadable frames and the I implausible ones, decoded but not believed: a\n"
+      "glitching camera; X: median wall time per frame, seconds). Exit codes: 0 done, 1 failed (or no pair estimated), 2 bad command line.");
   auto& app = cli.app();
   app.add_option("DATASET", dataset,
                  "directory with calibration.yaml, frames/, optional timestamps.txt and "
@@ -68,8 +69,8 @@ int main(int argc, char** argv) {
   else if (input == "panorama") options.input = omnipose::InputKind::kPanorama;
   try {
     const auto s = omnipose::replay::run(options, stderr);
-    std::printf("frames=%d pairs=%d skipped=%d lost=%d bridged=%d seconds_per_frame=%.6f\n",
-                s.frames, s.pairs, s.skipped, s.lost, s.bridged, s.median_seconds_per_frame);
+    std::printf("frames=%d pairs=%d skipped=%d implausible=%d lost=%d bridged=%d seconds_per_frame=%.6f\n",
+                s.frames, s.pairs, s.skipped, s.implausible, s.lost, s.bridged, s.median_seconds_per_frame);
     return s.pairs > 0 || s.frames == 1 ? 0 : 1;
   } catch (const std::exception& e) {
     std::fprintf(stderr, "omnipose-replay: %s\n", e.what());

@@ -108,6 +108,7 @@ ReplaySummary run(const ReplayOptions& options, std::FILE* log) {
     Expected<OdometryResult> result = odometry->process(*image, {f.timestamp, i});
     if (!result) {
       ++summary.skipped;
+      if (result.error().code() == ErrorCode::kImplausible) ++summary.implausible;
       std::fprintf(log, "skipped %s: %s\n", f.path.c_str(), result.error().c_str());
       continue;
     }

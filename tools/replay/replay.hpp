@@ -30,7 +30,8 @@ struct ReplayOptions {
 struct ReplaySummary {
   int frames = 0;   ///< frames in the dataset
   int pairs = 0;    ///< relative poses estimated (fit not lost)
-  int skipped = 0;  ///< unreadable / wrong-size / black frames
+  int skipped = 0;  ///< unreadable / wrong-size / black frames, and the implausible ones
+  int implausible = 0;  ///< of the skipped: decoded but not believed (PlausibilityOptions)
   int lost = 0;     ///< frames whose fit failed and could not be bridged (new segment)
   int bridged = 0;  ///< pairs found again across a gap or a lost fit (in pairs)
   double median_seconds_per_frame = 0.0;
