@@ -4,16 +4,18 @@
 # is made hostile by tools/common/hostile_dataset.py: bad frames between the good ones
 # (decompression bombs that declare 60000 x 60000 pixels, a complete 32000 x 32000 PNG,
 # truncated and garbage PNG, JPEG, PGM and BMP files, an empty file), a timestamp step
-# backwards and a forward jump of 1e6 s (each crossed on every loop); half way through, the
-# dataset directory vanishes for VANISH seconds. Every SAMPLE seconds it sends SIGHUP (the
+# backwards and a forward jump of 1e6 s, glitch frames that decode (flipped, repeated, torn,
+# noise; each crossed on every loop); a quarter of the way one frame file becomes a FIFO
+# without a writer, half way the dataset directory vanishes for VANISH seconds. Every SAMPLE seconds it sends SIGHUP (the
 # daemon logs its counters) and samples the daemon's resident set size (VmRSS). Then SIGTERM,
 # and the checks:
 #   - the daemon stops with exit code 0;
 #   - every frame is counted once: received = processed + skipped + bad + lost upstream, from
 #     the final status in the LCM log, and the log holds exactly `processed` poses;
-#   - the faults were met and reported: bad frames and a source failure counted, the bombs,
-#     the resynchronised jump and the re-opened source in the daemon's log (fault lines are
-#     rate-limited, so not every one is printed);
+#   - the faults were met and reported: bad frames, implausible frames and a source failure
+#     counted, the bombs, the resynchronised jump, the re-opened source, an implausible frame
+#     and the FIFO in the daemon's log (fault lines are rate-limited, so not every one is
+#     printed);
 #   - memory is flat: after the warm-up (the first max(1000, FRAMES/10) frames), no RSS
 #     sample exceeds the first post-warm-up sample by more than RSS_TOLERANCE_KB.
 # Usage: tools/soak.sh [FRAMES]   (default 10000: about 6 minutes)
@@ -53,6 +55,7 @@ echo "soak: rendering the recording"
 "$bin/omnipose-synth" --texture tests/data/equirect/indoor_1024x512.jpg --out "$work/data" \
   --preset mixed --frames 60 --seed 7 --supersample 1 >"$work/synth.log" 2>&1
 python3 tools/common/hostile_dataset.py "$work/data" --seed 7
+fifo_frame=000035.png  # far (> 200 ms) from the other faults: its line is not rate-limited away
 cat >"$work/daemon.yaml" <<YAML
 source: {type: file, path: data, realtime: true, loop: true}
 calibration: data/calibration.yaml
@@ -70,6 +73,7 @@ received=0
 last_received=0
 last_progress=$start
 vanished=0
+fifo_made=0
 samples=0
 printf 'soak: %8s %10s %10s\n' seconds received rss_kB
 while :; do
@@ -105,6 +109,13 @@ while :; do
     mv "$work/data.away" "$work/data"
     vanished=1
   fi
+  # A quarter of the way, while the source streams (it listed the frames when it opened):
+  # a FIFO without a writer where a frame file was, read without blocking and refused.
+  if [ "$fifo_made" -eq 0 ] && [ "$received" -ge $((frames / 4)) ]; then
+    rm "$work/data/frames/$fifo_frame"
+    mkfifo "$work/data/frames/$fifo_frame"
+    fifo_made=1
+  fi
   samples=$((samples + 1))
   last_kb=$rss_kb
   if [ "$received" -ge "$warmup" ]; then
@@ -134,6 +145,7 @@ received=$(status_count received)
 f_processed=$(status_count processed)
 skipped=$(status_count "skipped (stale)")
 bad=$(status_count bad)
+implausible=$(status_count implausible)
 lost=$(status_count upstream)
 failures=$(sed -n 's/.* source failures \([0-9]*\).*/\1/p' <<<"$final")
 poses=$(grep -c '^pose seq ' "$work/listen.txt" || true)
@@ -145,11 +157,11 @@ if [ "$received" -ne $((f_processed + skipped + bad + lost)) ]; then
   echo "soak: FAIL: received $received != processed $f_processed + skipped $skipped + bad $bad + lost $lost" >&2
   fail=1
 fi
-if [ "$bad" -eq 0 ] || [ "${failures:-0}" -eq 0 ]; then
-  echo "soak: FAIL: the faults were not all met: bad frames $bad, source failures ${failures:-?}" >&2
+if [ "$bad" -eq 0 ] || [ "${failures:-0}" -eq 0 ] || [ "${implausible:-0}" -eq 0 ]; then
+  echo "soak: FAIL: the faults were not all met: bad frames $bad, implausible ${implausible:-?}, source failures ${failures:-?}" >&2
   fail=1
 fi
-for fault in "60000x60000" "resynchronised" "source re-opened"; do
+for fault in "60000x60000" "resynchronised" "source re-opened" "implausible frame" "not a regular file (a FIFO)"; do
   if ! grep -q "$fault" "$work/daemon.err"; then
     echo "soak: FAIL: the daemon's log never mentions '$fault'" >&2
     fail=1
@@ -173,9 +185,9 @@ else
     fail=1
   fi
 fi
-printf 'soak: %d frames in %.0f s (%.1f frames/s); received %d = processed %d + skipped %d + bad %d + lost upstream %d; source failures %s; %d poses in the log; RSS after warm-up (%d frames) %s kB, max later %s kB, last %s kB (growth %s kB, tolerance %d kB); %d samples\n' \
+printf 'soak: %d frames in %.0f s (%.1f frames/s); received %d = processed %d + skipped %d + bad %d (%s implausible) + lost upstream %d; source failures %s; %d poses in the log; RSS after warm-up (%d frames) %s kB, max later %s kB, last %s kB (growth %s kB, tolerance %d kB); %d samples\n' \
   "$f_processed" "$seconds" "$(awk -v n="$f_processed" -v s="$seconds" 'BEGIN {print n / s}')" "$received" "$f_processed" \
-  "$skipped" "$bad" "$lost" "${failures:-?}" "$poses" "$warmup" "${baseline_kb:-?}" "$max_after_kb" "$last_kb" \
+  "$skipped" "$bad" "${implausible:-?}" "$lost" "${failures:-?}" "$poses" "$warmup" "${baseline_kb:-?}" "$max_after_kb" "$last_kb" \
   "${growth:-?}" "$tolerance_kb" "$samples"
 if [ "$fail" -ne 0 ]; then exit 1; fi
 echo "soak: PASS"

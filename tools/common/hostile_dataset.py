@@ -3,7 +3,9 @@
 
 Inserts bad frames after randomly chosen good ones: decompression bombs (a PNG and a JPEG whose
 headers declare 60000 x 60000 pixels, a complete 32000 x 32000 PNG of zeros), truncated PNG and
-JPEG copies of a real frame, and garbage named as PNG, JPEG, PGM and BMP. Each gets a timestamp
+JPEG copies of a real frame, and garbage named as PNG, JPEG, PGM and BMP; and, when the frames
+are grey PNGs, glitches that decode (a flipped copy of the next frame, the previous frame's
+bytes repeated, a frame torn between the previous and the next, noise). Each gets a timestamp
 between its neighbours'. Then the timestamps themselves are damaged: one step backwards and one
 forward jump of JUMP seconds. Prints what it did, one line. Seeded: the same seed gives the same
 dataset.
@@ -35,6 +37,47 @@ def zero_png(width, height):
     row = bytes(width + 1)
     data = b"".join(z.compress(row) for _ in range(height)) + z.flush()
     return png_header(width, height) + png_chunk(b"IDAT", data) + png_chunk(b"IEND", b"")
+
+
+def read_grey_png(data):
+    """(width, height, rows) of an 8-bit grey, non-interlaced PNG; rows are bytearrays."""
+    pos, idat, width, height = 8, b"", 0, 0
+    while pos < len(data):
+        length, kind = struct.unpack(">I4s", data[pos:pos + 8])
+        body = data[pos + 8:pos + 8 + length]
+        if kind == b"IHDR":
+            width, height, depth, colour, _, _, interlace = struct.unpack(">IIBBBBB", body)
+            if depth != 8 or colour != 0 or interlace != 0:
+                raise ValueError("not an 8-bit grey non-interlaced PNG")
+        elif kind == b"IDAT":
+            idat += body
+        pos += 12 + length
+    raw = zlib.decompress(idat)
+    rows, prev = [], bytearray(width)
+    for r in range(height):
+        kind = raw[r * (width + 1)]
+        line = bytearray(raw[r * (width + 1) + 1:(r + 1) * (width + 1)])
+        for x in range(width):
+            a = line[x - 1] if x else 0
+            b, c = prev[x], prev[x - 1] if x else 0
+            if kind == 1:
+                line[x] = (line[x] + a) & 255
+            elif kind == 2:
+                line[x] = (line[x] + b) & 255
+            elif kind == 3:
+                line[x] = (line[x] + (a + b) // 2) & 255
+            elif kind == 4:
+                p = a + b - c
+                pa, pb, pc = abs(p - a), abs(p - b), abs(p - c)
+                line[x] = (line[x] + (a if pa <= pb and pa <= pc else b if pb <= pc else c)) & 255
+        rows.append(line)
+        prev = line
+    return width, height, rows
+
+
+def grey_png(width, rows):
+    data = zlib.compress(b"".join(b"\0" + bytes(r) for r in rows), 6)
+    return png_header(width, len(rows)) + png_chunk(b"IDAT", data) + png_chunk(b"IEND", b"")
 
 
 def jpeg_bomb(width, height):
@@ -75,9 +118,33 @@ def main():
         ("garbage.bmp", lambda: b"BM" + bytes(rng.randrange(256) for _ in range(100))),
         ("empty.png", lambda: b""),
     ]
+    inserted = []
+    # Glitches: frames that decode but are not the scene of their moment (a flipped copy, a
+    # repeated buffer, a buffer torn between two frames, noise), when the frames are grey PNGs.
+    if names[0].endswith(".png"):
+        for k, label in enumerate(["flipped", "repeated", "torn", "noise"]):
+            after = rng.randrange(0, len(names) - 2)
+            with open(os.path.join(frames_dir, names[after]), "rb") as f:
+                before = f.read()
+            with open(os.path.join(frames_dir, names[after + 1]), "rb") as f:
+                width, height, nxt = read_grey_png(f.read())
+            if label == "flipped":
+                data = grey_png(width, nxt[::-1])
+            elif label == "repeated":
+                data = before
+            elif label == "torn":
+                _, _, prev = read_grey_png(before)
+                data = grey_png(width, prev[: height // 2] + nxt[height // 2:])
+            else:
+                data = grey_png(width, [bytearray(rng.randrange(256) for _ in range(width)) for _ in range(height)])
+            name = f"{os.path.splitext(names[after])[0]}_glitch_{k}_{label}.png"
+            with open(os.path.join(frames_dir, name), "wb") as f:
+                f.write(data)
+            t0, t1 = stamps[names[after]], stamps[names[after + 1]]
+            stamps[name] = t0 + (t1 - t0) * 0.5
+            inserted.append(name)
     # Damaged timestamps on good frames away from the inserted ones' neighbours.
     back, jump = sorted(rng.sample(range(2, len(names) - 1), 2))
-    inserted = []
     for k in range(args.bad_frames):
         label, make = makers[k % len(makers)]
         after = rng.randrange(0, len(names) - 1)
