@@ -39,6 +39,10 @@ inline constexpr std::uintmax_t kMaxTextFileBytes = std::uintmax_t{64} << 20;
 Expected<void> readRegularFile(const std::filesystem::path& path, std::uintmax_t max_bytes,
                                std::vector<std::uint8_t>& buffer);
 
+/// Whether `path` is a regular file, checked on a descriptor opened without blocking (for a
+/// file another library will open: a FIFO would block it). The errors of readRegularFile.
+Expected<void> checkRegularFile(const std::filesystem::path& path);
+
 /// The text of the regular file `path`, at most `max_bytes` (the errors of readRegularFile).
 Expected<std::string> readTextFile(const std::filesystem::path& path,
                                    std::uintmax_t max_bytes = kMaxTextFileBytes);
@@ -81,10 +85,10 @@ Expected<int> createReplacing(const std::filesystem::path& path, const FileKind&
 /// the process ends in any way.
 class FileLock {
  public:
-  /// Through the lock file `path` (created when missing), which then holds the holder's
-  /// PID (when it can be written: the lock holds on a full disk too). Takes the lock or fails without waiting. kBusy: "PATH: held by process 1234" (the
-  /// PID read from the file); other errors name the path (a symbolic link, not a regular
-  /// file, no permission).
+  /// Through the lock file `path` (created when missing), which then holds the holder's PID
+  /// (when it can be written: the lock holds on a full disk too). Takes the lock or fails
+  /// without waiting. kBusy: "PATH: held by process 1234" (the PID read from the file); other
+  /// errors name the path (a symbolic link, not a regular file, no permission).
   static Expected<FileLock> acquire(const std::filesystem::path& path);
   /// On the existing file or device node `path` itself (a camera's /dev/video0: nothing is
   /// written). kBusy: "PATH: held by process 1234" (the holder from /proc/locks);

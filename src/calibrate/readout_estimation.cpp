@@ -85,7 +85,8 @@ ReadoutEstimate estimateReadout(const Calibration& calibration, std::span<const 
   const auto score = [&](double r) -> std::optional<double> {
     for (const auto& [tried, s] : out.curve)
       if (std::abs(tried - r) < 1e-9) return s;
-    const auto s = translationScore(calibration, r, frames, times_s, options.odometry, pairs, mean_turn);
+    const auto s =
+        translationScore(calibration, r, frames, times_s, options.odometry, pairs, mean_turn);
     fewest_pairs = std::min(fewest_pairs, pairs);
     if (s) out.curve.emplace_back(r, *s);
     return s;
@@ -104,7 +105,8 @@ ReadoutEstimate estimateReadout(const Calibration& calibration, std::span<const 
       return out;
     }
     if (i == -half && mean_turn < kMinMeanTurnRad) {
-      out.summary = "cannot: the camera hardly turns (" + fixed(mean_turn * 180.0 / std::numbers::pi, 3) +
+      out.summary = "cannot: the camera hardly turns (" +
+                    fixed(mean_turn * 180.0 / std::numbers::pi, 3) +
                     " deg per frame pair on average over " + std::to_string(pairs) +
                     " pairs): record it turning in place, speeding up and slowing down";
       return out;
@@ -114,11 +116,13 @@ ReadoutEstimate estimateReadout(const Calibration& calibration, std::span<const 
   const auto [coarse_best, coarse_score] = best();
   double highest = coarse_score;
   for (const auto& [r, s] : out.curve) highest = std::max(highest, s);
-  const double spread = (highest - coarse_score) / std::max(coarse_score, std::numeric_limits<double>::min());
+  const double spread =
+      (highest - coarse_score) / std::max(coarse_score, std::numeric_limits<double>::min());
   if (!(spread >= options.min_contrast)) {
     out.summary = "cannot: the frames hardly depend on the readout (scores spread by " +
                   fixed(spread, 2) + " of the best over the range tried, at least " +
-                  fixed(options.min_contrast, 2) + " needed): turn in place, speeding up and slowing down";
+                  fixed(options.min_contrast, 2) +
+                  " needed): turn in place, speeding up and slowing down";
     return out;
   }
   const double edge = half * options.coarse_step_s;

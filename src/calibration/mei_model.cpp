@@ -50,7 +50,8 @@ std::vector<std::string> MeiModel::validate() const {
 MeiModel MeiModel::loadFileStorage(const std::filesystem::path& path) {
   cv::FileStorage fs;
   Expected<std::string> text = readTextFile(path);
-  if (!text) throw std::runtime_error(std::string(text.error().message()) + " (the omnidir calibration file)");
+  if (!text)
+    throw std::runtime_error(std::string(text.error().message()) + " (the omnidir calibration file)");
   try {
     // From memory: the file was read with file_io's checks (regular, bounded); OpenCV tells
     // YAML, XML and JSON apart by the content, as it does when it reads a file.

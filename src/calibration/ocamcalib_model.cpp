@@ -201,7 +201,8 @@ OcamCalibModel OcamCalibModel::parse(const std::string& text, const std::string&
 
 OcamCalibModel OcamCalibModel::load(const std::filesystem::path& path) {
   Expected<std::string> text = readTextFile(path);
-  if (!text) throw std::runtime_error(std::string(text.error().message()) + " (the OCamCalib file)");
+  if (!text)
+    throw std::runtime_error(std::string(text.error().message()) + " (the OCamCalib file)");
   return parse(*text, path.string());
 }
 

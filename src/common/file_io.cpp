@@ -39,9 +39,11 @@ struct Fd {
 };
 
 Error openError(const fs::path& path, int e) {
-  if (e == ENOENT || e == ENOTDIR) return Error::format(ErrorCode::kNotFound, "%s: no such file", path.c_str());
+  if (e == ENOENT || e == ENOTDIR)
+    return Error::format(ErrorCode::kNotFound, "%s: no such file", path.c_str());
   if (e == ELOOP)
-    return Error::format(ErrorCode::kInvalidArgument, "%s: is a symbolic link (not followed)", path.c_str());
+    return Error::format(ErrorCode::kInvalidArgument, "%s: is a symbolic link (not followed)",
+                         path.c_str());
   if (e == ENXIO)  // a socket, or a FIFO opened for writing without a reader
     return Error::format(ErrorCode::kInvalidArgument, "%s: not a regular file", path.c_str());
   return Error::format(ErrorCode::kIoError, "%s: cannot open: %s", path.c_str(), std::strerror(e));
@@ -87,7 +89,8 @@ Expected<void> checkDirectory(const fs::path& path) {
   const fs::path dir = path.has_parent_path() ? path.parent_path() : fs::path(".");
   struct stat st {};
   if (::stat(dir.c_str(), &st) != 0 || !S_ISDIR(st.st_mode))
-    return fail(ErrorCode::kNotFound, "%s: its directory %s does not exist", path.c_str(), dir.c_str());
+    return fail(ErrorCode::kNotFound, "%s: its directory %s does not exist", path.c_str(),
+                dir.c_str());
   return {};
 }
 
@@ -138,6 +141,14 @@ Expected<void> readRegularFile(const fs::path& path, std::uintmax_t max_bytes,
   return {};
 }
 
+Expected<void> checkRegularFile(const fs::path& path) {
+  struct stat st {};
+  const Expected<int> opened = openRegularForReading(path, true, st);
+  if (!opened) return std::unexpected(opened.error());
+  ::close(*opened);
+  return {};
+}
+
 Expected<std::string> readTextFile(const fs::path& path, std::uintmax_t max_bytes) {
   std::vector<std::uint8_t> bytes;
   if (auto r = readRegularFile(path, max_bytes, bytes); !r) return std::unexpected(r.error());
@@ -163,7 +174,8 @@ bool looksLikeFftwWisdom(std::string_view head) {
 
 bool looksLikeLcmLog(std::string_view head) {
   constexpr unsigned char kSync[4] = {0xED, 0xA1, 0xDA, 0x01};
-  return head.size() >= 4 && std::equal(kSync, kSync + 4, reinterpret_cast<const unsigned char*>(head.data()));
+  return head.size() >= 4 &&
+         std::equal(kSync, kSync + 4, reinterpret_cast<const unsigned char*>(head.data()));
 }
 
 Expected<void> checkReplaceable(const fs::path& path, const FileKind& kind) {
@@ -292,7 +304,8 @@ long flockHolder(int fd) {
     const std::size_t at = line.find(std::string(" ") + id + " ");
     if (at == std::string::npos) continue;
     const std::size_t pid_start = line.rfind(' ', at - 1);
-    if (pid_start != std::string::npos) return std::strtol(line.c_str() + pid_start + 1, nullptr, 10);
+    if (pid_start != std::string::npos)
+      return std::strtol(line.c_str() + pid_start + 1, nullptr, 10);
   }
   return 0;
 }

@@ -69,7 +69,8 @@ class FileLogSink final : public MessageSink {
     // A new file renamed over the old log: never written through a symbolic link, never
     // over a file that is not an LCM log, never a FIFO or a device.
     const Expected<int> fd = createReplacing(path, kLcmLogKind);
-    if (!fd) throw std::runtime_error(where + "cannot create the log: " + std::string(fd.error().message()));
+    if (!fd)
+      throw std::runtime_error(where + "cannot create the log: " + std::string(fd.error().message()));
     std::FILE* file = ::fdopen(*fd, "w");
     if (file == nullptr) {
       ::close(*fd);

@@ -105,7 +105,8 @@ int runService(const DaemonConfig& config, std::FILE* log, const DaemonOptions& 
 
   const std::unique_ptr<Daemon> started = startUp(config, log, set, options);
   Daemon& daemon = *started;
-  for (const std::string& w : daemon.sourceWarnings()) std::fprintf(log, "omniposed: warning: %s\n", w.c_str());
+  for (const std::string& w : daemon.sourceWarnings())
+    std::fprintf(log, "omniposed: warning: %s\n", w.c_str());
   SystemdNotifier notifier;
   std::fprintf(log, "omniposed: source: %s\nomniposed: output: %s (pose %s, status %s at %g Hz, "
                "diagnostics %s)\nomniposed: systemd notify: %s\n",

@@ -7,10 +7,11 @@
 /// progress, STATUS=, STOPPING=1); on a signal or at the end of a finite source joins both
 /// threads, publishes the last status and returns 0.
 ///
-/// Signals: SIGINT or SIGTERM stops cleanly, during start-up too (runService()); further SIGINT/SIGTERM during the shutdown are
-/// ignored (the shutdown is bounded: both threads wake at least every 200 ms). SIGHUP does
-/// not reload the configuration (the buffers are sized by it; restart to apply a change):
-/// it logs one line with the counters and the daemon keeps running.
+/// Signals: SIGINT or SIGTERM stops cleanly, during start-up too (runService()); further
+/// SIGINT/SIGTERM during the shutdown are ignored (the shutdown is bounded: both threads wake
+/// at least every 200 ms). SIGHUP does not reload the configuration (the buffers are sized by
+/// it; restart to apply a change): it logs one line with the counters and the daemon keeps
+/// running.
 
 #include <cstdio>
 

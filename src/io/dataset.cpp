@@ -45,7 +45,8 @@ std::map<std::string, Stamp, std::less<>> readTimestamps(const fs::path& path) {
                                "' is not a decimal number of seconds");
     // Within +-1e10 s (year 2286): pacing converts to integer microseconds.
     if (!(std::abs(*t) <= kMaxTimestamp))
-      throw std::runtime_error(where(r.line) + "timestamp must be a finite number of seconds within +-1e10");
+      throw std::runtime_error(where(r.line) +
+                               "timestamp must be a finite number of seconds within +-1e10");
     const auto [it, inserted] = stamps.try_emplace(std::string(r.fields[0]), Stamp{*t, r.line});
     if (!inserted)
       throw std::runtime_error(where(r.line) + detail::shown(r.fields[0]) + " given twice (first on line " +
@@ -103,7 +104,8 @@ Dataset Dataset::open(const fs::path& root, const std::optional<fs::path>& calib
              " at " + std::to_string(d.frames[i - 1].timestamp) +
              " s): not linked to it by time; the pipeline finds it again by the ring search");
     }
-    if (unwarned > 0) d.warnings.push_back("and " + std::to_string(unwarned) + " more timestamp warnings");
+    if (unwarned > 0)
+      d.warnings.push_back("and " + std::to_string(unwarned) + " more timestamp warnings");
     d.timestamps_from_file = true;
   } else {
     for (std::size_t i = 0; i < d.frames.size(); ++i) d.frames[i].timestamp = i / kDefaultFps;

@@ -16,7 +16,8 @@ std::vector<StampedPose> readTum(const std::filesystem::path& path) {
   std::vector<StampedPose> poses;
   for (const io::TextRecord& r : io::splitRecords(text)) {
     const std::string where = path.string() + ":" + std::to_string(r.line) + ": ";
-    if (r.fields.size() < 8) throw std::runtime_error(where + "expected 'timestamp tx ty tz qx qy qz qw'");
+    if (r.fields.size() < 8)
+      throw std::runtime_error(where + "expected 'timestamp tx ty tz qx qy qz qw'");
     double v[8];
     for (int i = 0; i < 8; ++i) {
       const std::optional<double> x = io::parseDecimal(r.fields[static_cast<std::size_t>(i)]);
@@ -25,7 +26,8 @@ std::vector<StampedPose> readTum(const std::filesystem::path& path) {
       v[i] = *x;
     }
     Eigen::Quaterniond q(v[7], v[4], v[5], v[6]);
-    if (!(std::abs(q.norm() - 1.0) <= 1e-3)) throw std::runtime_error(where + "quaternion is not unit length");
+    if (!(std::abs(q.norm() - 1.0) <= 1e-3))
+      throw std::runtime_error(where + "quaternion is not unit length");
     StampedPose p;
     p.timestamp = v[0];
     p.pose.linear() = q.normalized().toRotationMatrix();

@@ -90,7 +90,8 @@ std::vector<std::string> KeyframeOptions::validate() const {
 std::vector<std::string> PlausibilityOptions::validate() const {
   std::vector<std::string> problems;
   if (!(max_repeated_rows >= 0.0 && max_repeated_rows <= 1.0))
-    problems.push_back("max_repeated_rows: " + std::to_string(max_repeated_rows) + " is outside [0, 1]");
+    problems.push_back("max_repeated_rows: " + std::to_string(max_repeated_rows) +
+                       " is outside [0, 1]");
   if (!(min_confidence_ratio >= 0.0 && min_confidence_ratio < 1.0))
     problems.push_back("min_confidence_ratio: " + std::to_string(min_confidence_ratio) +
                        " is outside [0, 1)");
@@ -322,8 +323,10 @@ Expected<bool> Odometry::Impl::bridge(OdometryResult& out) {
   const pipeline::PassResult pass = registrar->refine(
       *aligned, rotationFromVector(aligned->omega) * R0, aligned->tau, active);
   if (!pass.refined || pass.estimate.status == FitStatus::kLost) return false;
-  if (Expected<void> ok = gate->checkConfidence(pass.windows, pass.estimate.status); !ok) return std::unexpected(ok.error());
-  if (Expected<void> ok = gate->checkRotation(rotationVector(pass.rotation).norm(), time - key.time_s); !ok)
+  if (Expected<void> ok = gate->checkConfidence(pass.windows, pass.estimate.status); !ok)
+    return std::unexpected(ok.error());
+  const double turned = rotationVector(pass.rotation).norm();
+  if (Expected<void> ok = gate->checkRotation(turned, time - key.time_s); !ok)
     return std::unexpected(ok.error());
   const Eigen::Isometry3d T =
       key.pose * isometry(atTimestamps(pass, key.time_s, &key), pass.estimate.tau);
@@ -458,7 +461,8 @@ Expected<OdometryResult> Odometry::Impl::process(const cv::Mat& frame, const Fra
   setShutter(last_time, true);
   const pipeline::PassResult pass =
       r.refine(*first, R1, first->tau, WindowRegistration::kPreviousFrame);
-  if (Expected<void> ok = gate->checkConfidence(pass.windows, pass.estimate.status); !ok) return notBelieved(ok.error());
+  if (Expected<void> ok = gate->checkConfidence(pass.windows, pass.estimate.status); !ok)
+    return notBelieved(ok.error());
   out.keyframe_sequence = last_sequence;
   const Eigen::Isometry3d T =
       pose * isometry(atTimestamps(pass, last_time), pass.estimate.tau);

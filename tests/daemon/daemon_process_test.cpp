@@ -183,6 +183,15 @@ TEST(Omniposed, EndToEndFileLogDecodesAndMatchesGroundTruth) {
             1);
   EXPECT_NE(testing::readText(tmp / "listen-bad.err").find("/nonexistent/dir/poses.tum: cannot write"),
             std::string::npos);
+  // A log that is a FIFO without a writer would block LCM's file provider: refused at once.
+  ASSERT_EQ(::mkfifo((tmp / "fifo.lcm").c_str(), 0600), 0);
+  EXPECT_EQ(testing::runProcess({(testing::binaryDir() / "omnipose-listen").string(), "--url",
+                                 "file://" + (tmp / "fifo.lcm").string() + "?speed=0"},
+                                tmp / "listen-fifo.out", tmp / "listen-fifo.err", 10s),
+            1);
+  EXPECT_NE(testing::readText(tmp / "listen-fifo.err").find("fifo.lcm: not a regular file (a FIFO)"),
+            std::string::npos)
+      << testing::readText(tmp / "listen-fifo.err");
 }
 
 TEST(Omniposed, AThirtyTwoThousandPixelPngCostsTheDaemonAndTheReplayNoMemory) {

@@ -1134,8 +1134,12 @@ TEST(DaemonFaults, AFrameThatDecodesButDoesNotFitIsCountedAndTheChainIsUnharmed)
   for (const pose_t& p : bus.poses) {
     EXPECT_NE(p.source_index, 15);
     EXPECT_EQ(p.segment, 0);
-    if (p.source_index == 16) EXPECT_EQ(p.reference_sequence, 14) << "against the last believed frame";
-    if (p.source_index > 0) EXPECT_EQ(p.status, pose_t::STATUS_OK) << "frame " << p.source_index;
+    if (p.source_index == 16) {
+      EXPECT_EQ(p.reference_sequence, 14) << "against the last believed frame";
+    }
+    if (p.source_index > 0) {
+      EXPECT_EQ(p.status, pose_t::STATUS_OK) << "frame " << p.source_index;
+    }
   }
   expectChainMatchesGroundTruth(bus.poses, tmp / "d", 0.05 * std::numbers::pi / 180.0);
 }

@@ -172,8 +172,11 @@ TEST(Glitches, TwoGlitchesInARowAreBothDroppedAndBridged) {
   EXPECT_EQ(run.rejected, (std::vector<int>{kGlitch, kGlitch + 1}));
   const OdometryRun clean = runOdometry(cleanFrames());
   EXPECT_LT(angleBetween(run.results.back().pose, clean.results.back().pose), 0.05 * kDeg);
-  for (const OdometryResult& r : run.results)
-    if (r.sequence == kGlitch + 2) EXPECT_EQ(r.reference_sequence, kGlitch - 1);
+  for (const OdometryResult& r : run.results) {
+    if (r.sequence == kGlitch + 2) {
+      EXPECT_EQ(r.reference_sequence, kGlitch - 1);
+    }
+  }
 }
 
 TEST(Glitches, AViewThatStaysUnbelievableStartsANewSegmentAfterMaxRejected) {

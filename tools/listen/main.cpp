@@ -22,6 +22,7 @@
 
 #include "cli.hpp"
 #include "daemon/counters.hpp"
+#include "omnipose/file_io.hpp"
 #include "omnipose/pose_t.hpp"
 #include "omnipose/status_t.hpp"
 
@@ -155,6 +156,16 @@ int main(int argc, char** argv) {
     printer.tum = tum.get();
   }
 
+  // A recorded log is read by LCM's file provider, whose fopen() blocks on a FIFO: anything
+  // that is not a regular file is refused by name first.
+  if (url.rfind("file://", 0) == 0) {
+    const std::string rest = url.substr(7);
+    const std::string path = rest.substr(0, rest.find('?'));
+    if (const omnipose::Expected<void> ok = omnipose::checkRegularFile(path); !ok) {
+      std::fprintf(stderr, "omnipose-listen: --url \"%s\": %s\n", url.c_str(), ok.error().c_str());
+      return 1;
+    }
+  }
   lcm::LCM lcm(url);
   if (!lcm.good()) {
     std::fprintf(stderr, "omnipose-listen: cannot initialise LCM with URL \"%s\"\n", url.c_str());

@@ -27,6 +27,7 @@
 
 #include "cli.hpp"
 #include "omnipose/eval/evaluation.hpp"
+#include "omnipose/file_io.hpp"
 #include "omnipose/io/trajectory.hpp"
 
 namespace {
@@ -122,8 +123,7 @@ int run(int argc, char** argv) {
   if (const auto exit_code = cli.parse(argc, argv)) return *exit_code;
 
   // Read and score every run.
-  std::ifstream in(manifest);
-  if (!in) throw std::runtime_error(manifest + ": cannot read");
+  std::istringstream in(omnipose::readTextFileOrThrow(manifest));
   std::vector<Run> runs;
   std::vector<std::string> scenes, methods, others;  // in order of appearance
   auto remember = [](std::vector<std::string>& list, const std::string& v) {

@@ -52,13 +52,13 @@ struct ReadoutEstimate {
 };
 
 /// Estimates sensor.readout_s from `frames` (as a FrameSource delivers them) captured at
-/// `times_s` (seconds, increasing) through `calibration` (its own sensor section is
-/// ignored). The robot should turn in place, speeding up and slowing down, for at least a
-/// few seconds. Not found (with the reason in summary): fewer than 10 frames, fewer than
-/// 8 tracked pairs at some readout, a camera that hardly turns (less than 0.1 deg per pair
-/// on average: identical frames, a robot standing still), a curve flatter than
-/// min_contrast, or a best readout at the end of the range. Throws std::invalid_argument on invalid options, a frame
-/// count different from the time count, or an invalid calibration.
+/// `times_s` (seconds, increasing) through `calibration` (its own sensor section is ignored).
+/// The robot should turn in place, speeding up and slowing down, for at least a few seconds.
+/// Not found (with the reason in summary): fewer than 10 frames, fewer than 8 tracked pairs at
+/// some readout, a camera that hardly turns (less than 0.1 deg per pair on average: identical
+/// frames, a robot standing still), a curve flatter than min_contrast, or a best readout at the
+/// end of the range. Throws std::invalid_argument on invalid options, a frame count different
+/// from the time count, or an invalid calibration.
 ReadoutEstimate estimateReadout(const Calibration& calibration, std::span<const cv::Mat> frames,
                                 std::span<const double> times_s,
                                 const ReadoutSearchOptions& options = {});
