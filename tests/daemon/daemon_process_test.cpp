@@ -620,7 +620,11 @@ TEST(OmniposedFaults, TimestampsGoingBackwardsAreAGapBridgedAndEveryFrameIsProce
       EXPECT_EQ(last.frames_received, kFrames);
       EXPECT_EQ(last.frames_processed, kFrames);
     }
-    EXPECT_NE(last.last_error.find("time went backwards"), std::string::npos) << last.last_error;
+    // The last fault, unless a slow machine (sanitizers) dropped stale frames in realtime: a
+    // frame across them may then be beyond a window's reach and not believed, a later fault.
+    if (!realtime || last.frames_skipped_stale == 0) {
+      EXPECT_NE(last.last_error.find("time went backwards"), std::string::npos) << last.last_error;
+    }
     bool saw_15 = false;
     for (std::size_t k = 1; k < log.poses.size(); ++k) {
       const pose_t& p = log.poses[k];
