@@ -34,7 +34,7 @@ function(omnipose_add_test name)
     OMNIPOSE_SOURCE_DIR="${CMAKE_SOURCE_DIR}"
     OMNIPOSE_BINARY_DIR="${CMAKE_BINARY_DIR}")
   set_target_properties(${name} PROPERTIES RUNTIME_OUTPUT_DIRECTORY ${CMAKE_BINARY_DIR}/tests)
-  # Labels: the test folder (tests/daemon -> "daemon"), plus "allocation" (below).
+  # Labels: the test folder (tests/daemon -> "daemon"), plus "allocation" (below) and "long".
   get_filename_component(folder ${CMAKE_CURRENT_SOURCE_DIR} NAME)
   set(labels ${folder})
   if(name IN_LIST OMNIPOSE_ALLOCATION_COUNTING_TESTS)
@@ -44,13 +44,24 @@ function(omnipose_add_test name)
   # gtest_discover_tests(PROPERTIES LABELS ...) of CMake 3.25 cannot pass a list: it wrote
   # "LABELS daemon allocation", which set the folder label only. The labels are set by a
   # script that ctest runs after the discovered tests' own (${name}_TESTS lists them).
+  # The tests named in tests/long_tests.txt also carry "long".
   set(label_script ${CMAKE_CURRENT_BINARY_DIR}/${name}_labels.cmake)
   file(WRITE ${label_script}
        "if(DEFINED ${name}_TESTS)\n"
        "  set_tests_properties(\${${name}_TESTS} PROPERTIES LABELS \"${labels}\")\n"
+       "  foreach(long_test ${OMNIPOSE_LONG_TESTS})\n"
+       "    list(FIND ${name}_TESTS \"\${long_test}\" index)\n"
+       "    if(NOT index EQUAL -1)\n"
+       "      set_tests_properties(\"\${long_test}\" PROPERTIES LABELS \"${labels};long\")\n"
+       "    endif()\n"
+       "  endforeach()\n"
        "endif()\n")
   set_property(DIRECTORY APPEND PROPERTY TEST_INCLUDE_FILES ${label_script})
 endfunction()
+
+# GoogleTest names labelled "long" (the file says which and why; tools/sanitize.sh skips them).
+file(STRINGS ${CMAKE_SOURCE_DIR}/tests/long_tests.txt OMNIPOSE_LONG_TESTS REGEX "^[A-Za-z]")
+set_property(DIRECTORY APPEND PROPERTY CMAKE_CONFIGURE_DEPENDS ${CMAKE_SOURCE_DIR}/tests/long_tests.txt)
 
 # Test binaries whose point is counting heap allocations (they link the one counter,
 # tests/support/allocation_counter.hpp, which interposes the malloc family and replaces

@@ -5,7 +5,8 @@
 #                              the whole ctest suite, except the tests labelled
 #                              "allocation" (they replace or interpose the malloc family to
 #                              count allocations; under ASan the sanitizer owns the allocator,
-#                              so they would bypass it and count its bookkeeping).
+#                              so they would bypass it and count its bookkeeping) and "long"
+#                              (tests/long_tests.txt says which and why).
 #   tools/sanitize.sh tsan     ThreadSanitizer (build-tsan/): the daemon and driver tests
 #                              (the two-thread daemon, its mailbox and status board, the
 #                              V4L2 / libcamera sources). Uninstrumented third-party code
@@ -29,8 +30,9 @@ case "$mode" in
   asan)
     dir=build-asan
     sanitize=address
-    # Under ASan every test is slower (3-5x); the pipeline tests are the long ones.
-    select=(-LE allocation)
+    # Under ASan every test is slower (3-5x). The "long" ones (tests/long_tests.txt: the
+    # statistics over pools of renders) are left to the Release suite.
+    select=(-LE '^(allocation|long)$')
     timeout=3600
     export ASAN_OPTIONS="halt_on_error=1:abort_on_error=0:detect_leaks=1:strict_string_checks=1:detect_stack_use_after_return=0:check_initialization_order=1"
     export UBSAN_OPTIONS="halt_on_error=1:print_stacktrace=1"
@@ -49,7 +51,10 @@ case "$mode" in
 esac
 
 start=$(date +%s)
+# -g1: line tables only, enough for the sanitizers' stack traces; full -g costs a third more
+# compile time (Eigen and GoogleTest instantiate much) and CI has 90 minutes for everything.
 nice -n "$nice_level" cmake -S . -B "$dir" -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo \
+  -DCMAKE_CXX_FLAGS_RELWITHDEBINFO="-O2 -g1 -DNDEBUG" -DCMAKE_C_FLAGS_RELWITHDEBINFO="-O2 -g1 -DNDEBUG" \
   -DOMNIPOSE_SANITIZE="$sanitize" -DOMNIPOSE_BUILD_BENCHMARKS=OFF >/dev/null
 if [ "$mode" = tsan ]; then
   # Only what the selected tests need.
@@ -62,6 +67,22 @@ else
 fi
 built=$(date +%s)
 echo "sanitize.sh $mode: build took $((built - start)) s"
+
+# Every name in tests/long_tests.txt must still name a test: a renamed test would otherwise
+# drop out of the "long" label and quietly cost the sanitizer run its time again.
+if [ "$mode" = asan ]; then
+  labelled=$(ctest --test-dir "$dir" -N -L '^long$' | sed -n 's/^ *Test *#[0-9]*: //p')
+  missing=0
+  while read -r name; do
+    case "$name" in ''|'#'*) continue ;; esac
+    if ! grep -qxF "$name" <<<"$labelled"; then
+      echo "sanitize.sh: tests/long_tests.txt names '$name', which is no test" >&2
+      missing=1
+    fi
+  done < tests/long_tests.txt
+  [ "$missing" = 0 ] || exit 1
+  echo "sanitize.sh $mode: $(grep -c . <<<"$labelled") long tests left to the Release suite"
+fi
 
 # shellcheck disable=SC2086
 nice -n "$nice_level" ctest --test-dir "$dir" --output-on-failure -j"$jobs" --timeout "$timeout" \
