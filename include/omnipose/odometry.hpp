@@ -31,13 +31,8 @@
 /// holds the spectra of one panorama); process() allocates nothing and never throws. Not
 /// thread-safe: one caller at a time.
 ///
-/// Example: the motion between two images (see README, "Use it as a library")
-/// ```
-///   omnipose::Odometry odometry(omnipose::Calibration::load("calibration.yaml"), {});
-///   odometry.process(cv::imread("a.png"), {0.0});
-///   auto step = odometry.process(cv::imread("b.png"), {0.033});
-///   if (step && step->tracked()) std::cout << step->relative.omega.transpose() << "\n";
-/// ```
+/// Example: the motion between two images, tests/install/downstream/two_images.cpp (the
+/// README shows it; the install test builds it against the installed package and runs it).
 
 #include <Eigen/Geometry>
 #include <cstdint>
@@ -188,6 +183,11 @@ class Odometry {
   const char* methodName() const;
   /// The iFMI pipeline's threads (1 for a pairwise method's chaining).
   int threads() const;
+  /// Time process() has spent waiting for its worker threads since construction, seconds:
+  /// for a job's last indices, still running on a worker, after the calling thread ran out
+  /// of its own. Small on a machine with cores to spare; it grows when other processes take
+  /// the workers' cores (0 with one thread and for a pairwise method).
+  double workerWaitSeconds() const;
   /// Whether the FFTW wisdom file was read (false for a pairwise method).
   bool wisdomLoaded() const;
   /// Windows per panorama (0 for a pairwise method).

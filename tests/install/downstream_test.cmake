@@ -35,7 +35,17 @@ message(STATUS "${last_output}")
 if(NOT last_output MATCHES "first frame accepted, \\|yaw\\| 0\\.03[0-9]+ rad \\(rendered 0\\.03491\\), proposed panorama 1885x257, pose_t encodes to")
   message(FATAL_ERROR "unexpected output: ${last_output}")
 endif()
-# The README's 15-line example on the two frames just written: a yaw of 2 degrees.
+# The README's 15-line example is this program, letter for letter (its first line, a comment
+# naming it, aside); run on the two frames just written, it reads a yaw of 2 degrees.
+file(READ ${SOURCE_DIR}/../../../README.md readme)
+string(REGEX MATCH "```cpp\n([^`]*)```" readme_block "${readme}")
+set(readme_example "${CMAKE_MATCH_1}")
+file(READ ${SOURCE_DIR}/two_images.cpp example)
+string(REGEX REPLACE "^//[^\n]*\n" "" example "${example}")
+if(NOT readme_example STREQUAL example)
+  message(FATAL_ERROR "README.md's cpp example is not tests/install/downstream/two_images.cpp:\n"
+                      "${readme_example}\n---\n${example}")
+endif()
 run(${WORK_DIR}/build/two_images ${WORK_DIR}/calibration.yaml ${WORK_DIR}/first.png
     ${WORK_DIR}/second.png)
 message(STATUS "${last_output}")

@@ -168,8 +168,9 @@ TEST_F(MovingContentTest, APersonMovingOnItsOwnIsFoundInTheWindowsItCovers) {
   const auto fraction = measure(scene.reference, scene.current, windows);
   expectFound(fraction, scene, 0.5);
   for (std::size_t k = 0; k < fraction.size(); ++k) {
-    if (coverage(k, scene.first + kPersonShift, scene.last() + kPersonShift) >= 0.1)
+    if (coverage(k, scene.first + kPersonShift, scene.last() + kPersonShift) >= 0.1) {
       EXPECT_GE(fraction[k], MovingContentCheck::kDropFraction) << "window " << k;
+    }
   }
 }
 
