@@ -5,18 +5,32 @@
 # received = FRAMES, skipped (stale) = 0, lost upstream (not read in time) = 0, bad = 0.
 # Prints the final status (processing and latency percentiles included). Meant for an idle
 # machine: the verdict is about this machine at the moment of the run, so it is not a test.
-# Usage: tools/realtime_check.sh [FPS] [FRAMES]   (default 60 fps, 180 frames)
+# Usage: tools/realtime_check.sh [--load N] [--nice K] [FPS] [FRAMES]   (default 60 fps, 180 frames)
+#   --load N   N busy processes (`while :; do :; done` at normal priority) run for the duration:
+#              the robot's controller and camera stack sharing the cores
+#   --nice K   omniposed runs at niceness K (a lower priority than the load when K > 0)
 # Environment: BUILD_DIR (default build; built with tools/build.sh when a program is missing),
 # THREADS (pipeline.threads, default 0 = all online cores), KEEP=1 keeps the working directory.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 # shellcheck source=tools/common/final_status.sh
 source tools/common/final_status.sh
+usage() { echo "usage: tools/realtime_check.sh [--load N] [--nice K] [FPS] [FRAMES]" >&2; exit 2; }
+load=0
+nice_level=0
+while [ $# -gt 0 ]; do
+  case "$1" in
+    --load) [ $# -ge 2 ] || usage; load=$2; shift 2 ;;
+    --nice) [ $# -ge 2 ] || usage; nice_level=$2; shift 2 ;;
+    -*) usage ;;
+    *) break ;;
+  esac
+done
 fps=${1:-60}
 frames=${2:-180}
-if ! [[ "$fps" =~ ^[0-9]+$ && "$frames" =~ ^[0-9]+$ ]] || [ "$fps" -lt 1 ] || [ "$frames" -lt 2 ]; then
-  echo "usage: tools/realtime_check.sh [FPS] [FRAMES]" >&2
-  exit 2
+if ! [[ "$fps" =~ ^[0-9]+$ && "$frames" =~ ^[0-9]+$ && "$load" =~ ^[0-9]+$ &&
+        "$nice_level" =~ ^[0-9]+$ ]] || [ "$fps" -lt 1 ] || [ "$frames" -lt 2 ]; then
+  usage
 fi
 bin=${BUILD_DIR:-build}/bin
 threads=${THREADS:-0}
@@ -25,7 +39,11 @@ if [ ! -x "$bin/omniposed" ] || [ ! -x "$bin/omnipose-synth" ] || [ ! -x "$bin/o
 fi
 
 work=$(mktemp -d "${TMPDIR:-/tmp}/omnipose-realtime-XXXXXX")
-cleanup() { if [ "${KEEP:-0}" = 1 ]; then echo "realtime_check: kept $work"; else rm -rf "$work"; fi; }
+busy=()
+cleanup() {
+  if [ ${#busy[@]} -gt 0 ]; then kill "${busy[@]}" 2>/dev/null || true; fi
+  if [ "${KEEP:-0}" = 1 ]; then echo "realtime_check: kept $work"; else rm -rf "$work"; fi
+}
 trap cleanup EXIT
 
 "$bin/omnipose-synth" --texture tests/data/equirect/indoor_1024x512.jpg --out "$work/data" \
@@ -41,9 +59,15 @@ pipeline: {threads: $threads}
 lcm: {url: "file://$work/run.lcm?mode=w", status_hz: 1}
 YAML
 
-echo "realtime_check: $frames frames at $fps fps, pipeline.threads $threads, load $(cut -d' ' -f1-3 /proc/loadavg)"
+for ((i = 0; i < load; ++i)); do
+  bash -c 'while :; do :; done' &
+  busy+=($!)
+done
+echo "realtime_check: $frames frames at $fps fps, pipeline.threads $threads, $load busy processes," \
+  "niceness $nice_level, load average $(cut -d' ' -f1-3 /proc/loadavg)"
 rc=0
-"$bin/omniposed" --config "$work/daemon.yaml" 2>"$work/daemon.err" || rc=$?
+nice -n "$nice_level" "$bin/omniposed" --config "$work/daemon.yaml" 2>"$work/daemon.err" || rc=$?
+if [ ${#busy[@]} -gt 0 ]; then kill "${busy[@]}" 2>/dev/null || true; busy=(); fi
 if [ "$rc" -ne 0 ]; then
   echo "realtime_check: FAIL: omniposed exited with $rc" >&2
   tail -20 "$work/daemon.err" >&2

@@ -34,6 +34,7 @@ constexpr const char* yamlTypeName() {
   else if constexpr (std::is_integral_v<T> && std::is_unsigned_v<T>) return "a non-negative integer";
   else if constexpr (std::is_integral_v<T>) return "an integer";
   else if constexpr (std::is_floating_point_v<T>) return "a number";
+  else if constexpr (std::is_same_v<T, std::vector<int>>) return "a list of integers";
   else return "a string";
 }
 

@@ -3,6 +3,7 @@
 
 #include <yaml-cpp/yaml.h>
 
+#include <algorithm>
 #include <cmath>
 #include <fstream>
 #include <numbers>
@@ -175,6 +176,17 @@ void parseLcm(Reader& r, const YAML::Node& node, LcmConfig& l) {
   r.range(l.status_hz, "lcm.status_hz", 0.0, 100.0, " Hz", true);
 }
 
+void parseScheduling(Reader& r, const YAML::Node& node, SchedulingConfig& s) {
+  if (!r.checkMap(node, "scheduling", {"fifo_priority", "cpus"})) return;
+  r.get(node, "scheduling", "fifo_priority", s.fifo_priority);
+  r.get(node, "scheduling", "cpus", s.cpus);
+  r.range(s.fifo_priority, "scheduling.fifo_priority", 0, 99);
+  if (s.cpus.size() > 1024) r.problem("scheduling.cpus", "more than 1024 CPUs listed");
+  for (int cpu : s.cpus) {
+    if (cpu < 0) r.problem("scheduling.cpus", std::to_string(cpu) + " is not a CPU number");
+  }
+}
+
 }  // namespace
 
 const char* toString(SourceConfig::Type type) {
@@ -195,7 +207,7 @@ DaemonConfig DaemonConfig::parse(const std::string& text, const std::string& ori
   r.checkDuplicateKeys(root);
   if (!root || root.IsNull()) root = YAML::Node(YAML::NodeType::Map);
   if (r.checkMap(root, "", {"source", "calibration", "input", "pipeline", "keyframes",
-                            "plausibility", "lcm"})) {
+                            "plausibility", "lcm", "scheduling"})) {
     if (root["source"]) parseSource(r, root["source"], base_dir, c.source);
     else if (use == Use::kDaemon) r.problem("source", "missing section");
 
@@ -219,12 +231,15 @@ DaemonConfig DaemonConfig::parse(const std::string& text, const std::string& ori
     if (root["keyframes"]) parseKeyframes(r, root["keyframes"], c.keyframes);
     if (root["plausibility"]) parsePlausibility(r, root["plausibility"], c.plausibility);
     if (root["lcm"]) parseLcm(r, root["lcm"], c.lcm);
+    if (root["scheduling"]) parseScheduling(r, root["scheduling"], c.scheduling);
     for (const auto& p : c.pipeline.validate()) r.add(yamlProblem(p));
   }
   r.throwIfProblems("invalid configuration");
   // More workers than cores only makes them wait for each other (the cores this process may
   // run on: its CPU affinity).
-  const int cores = registration::WorkerPool::onlineCores();
+  int cores = registration::WorkerPool::onlineCores();
+  if (!c.scheduling.cpus.empty())
+    cores = std::min(cores, static_cast<int>(c.scheduling.cpus.size()));
   if (c.pipeline.threads > cores) {
     c.warnings.push_back(origin + ": pipeline.threads: " + std::to_string(c.pipeline.threads) +
                          " is more than the " + std::to_string(cores) +
@@ -291,7 +306,11 @@ std::string DaemonConfig::describe() const {
     << "\n  max_rejected: " << plausibility.max_rejected << "\n"
     << "lcm:\n  url: \"" << lcm.url << "\"\n  pose_channel: " << lcm.pose_channel
     << "\n  status_channel: " << lcm.status_channel << "\n  fit_channel: \"" << lcm.fit_channel
-    << "\"\n  status_hz: " << lcm.status_hz << "\n";
+    << "\"\n  status_hz: " << lcm.status_hz << "\n"
+    << "scheduling:\n  fifo_priority: " << scheduling.fifo_priority << "\n  cpus: [";
+  for (std::size_t i = 0; i < scheduling.cpus.size(); ++i)
+    o << (i > 0 ? ", " : "") << scheduling.cpus[i];
+  o << "]\n";
   return o.str();
 }
 

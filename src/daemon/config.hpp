@@ -17,6 +17,7 @@
 ///             gap_after_s: 0.15}
 /// lcm: {url: "", pose_channel: OMNI_POSE, status_channel: OMNI_STATUS, fit_channel: "",
 ///       status_hz: 1.0}
+/// scheduling: {fifo_priority: 0, cpus: []}
 /// ```
 
 #include <filesystem>
@@ -55,6 +56,19 @@ struct LcmConfig {
   double status_hz = 1.0;
 };
 
+/// How the daemon's threads are scheduled (src/daemon/scheduling.hpp applies it at start-up,
+/// before any thread starts). The default changes nothing: normal time-sharing on every CPU.
+struct SchedulingConfig {
+  /// 0: the normal policy (SCHED_OTHER). 1-99: every thread of the daemon runs SCHED_FIFO at
+  /// this priority: it preempts every normal process on its core (the kernel still leaves them
+  /// 5 % of each second, /proc/sys/kernel/sched_rt_runtime_us). Needs CAP_SYS_NICE or an
+  /// RLIMIT_RTPRIO of at least the priority; refused at start-up otherwise.
+  int fifo_priority = 0;
+  /// The CPUs the daemon may run on (sched_setaffinity; numbered as in /proc/cpuinfo); empty:
+  /// every CPU. pipeline.threads 0 then means one worker per CPU listed.
+  std::vector<int> cpus;
+};
+
 struct DaemonConfig {
   /// kDaemon: `source` and `calibration` are required. kReplay: both are optional (the
   /// dataset comes from the command line).
@@ -75,6 +89,7 @@ struct DaemonConfig {
   /// plausibility section (max_rotation_deg_s in degrees per second there).
   PlausibilityOptions plausibility;
   LcmConfig lcm;
+  SchedulingConfig scheduling;
   /// What parse() changed or assumed that the user should know, each naming the file and
   /// the key: pipeline.threads above the cores this process may use is clamped to them.
   std::vector<std::string> warnings;

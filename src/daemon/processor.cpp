@@ -1,5 +1,7 @@
 #include "daemon/processor.hpp"
 
+#include <time.h>
+
 #include <cmath>
 #include <limits>
 
@@ -27,6 +29,14 @@ double millisSince(SteadyClock::time_point start) {
   return std::chrono::duration<double, std::milli>(SteadyClock::now() - start).count();
 }
 
+/// A CPU-time clock (CLOCK_THREAD_CPUTIME_ID, CLOCK_PROCESS_CPUTIME_ID), nanoseconds; 0 if
+/// it cannot be read.
+std::int64_t cpuTimeNs(clockid_t clock) {
+  timespec ts{};
+  if (clock_gettime(clock, &ts) != 0) return 0;
+  return static_cast<std::int64_t>(ts.tv_sec) * 1'000'000'000 + ts.tv_nsec;
+}
+
 }  // namespace
 
 Processor::Processor(const Calibration& calibration, const OdometryOptions& odometry,
@@ -43,6 +53,8 @@ Processor::Processor(const Calibration& calibration, const OdometryOptions& odom
       error_text_(kMaxText + 1, '\0'),
       started_(SteadyClock::now()),
       last_status_time_(started_) {
+  process_cpu_at_start_ns_ = cpuTimeNs(CLOCK_PROCESS_CPUTIME_ID);  // the start-up's is not load
+  load_.process_cpu_ns = load_at_status_.process_cpu_ns = process_cpu_at_start_ns_;
   *pose_ = pose_t{};
   pose_buffer_.resize(static_cast<std::size_t>(pose_->getEncodedSize()));
 
@@ -92,8 +104,13 @@ void Processor::handleFrame(const MailboxFrame& frame) {
   const double t = info.index >= 0 ? info.source_timestamp
                                    : static_cast<double>(info.capture_time_us) * 1e-6;
 
+  const std::int64_t cpu_start = cpuTimeNs(CLOCK_THREAD_CPUTIME_ID);
   Expected<OdometryResult> result =
       odometry_.process(*frame.image, {t, static_cast<std::int64_t>(info.sequence), frame.gap_before});
+  load_.processing_cpu_ns += cpuTimeNs(CLOCK_THREAD_CPUTIME_ID) - cpu_start;
+  load_.processing_wall_ns +=
+      std::chrono::duration_cast<std::chrono::nanoseconds>(SteadyClock::now() - t_start).count();
+  ++load_.frames;
   if (!result) {
     ++board_.frames_bad;
     if (result.error().code() == ErrorCode::kImplausible) ++board_.frames_implausible;
@@ -205,6 +222,28 @@ void Processor::fillDiagnostics(const FrameInfo& info, const OdometryResult& r,
   }
 }
 
+void Processor::fillLoad(status_t& s, bool final) {
+  load_.process_cpu_ns = cpuTimeNs(CLOCK_PROCESS_CPUTIME_ID);
+  load_.worker_wait_s = odometry_.workerWaitSeconds();
+  const LoadTotals since = final ? LoadTotals{process_cpu_at_start_ns_} : load_at_status_;
+  const double wall_ns = 1e3 * static_cast<double>(s.uptime_us) -
+                         (final ? 0.0 : 1e3 * static_cast<double>(status_uptime_us_));
+  const double processing_ns = static_cast<double>(load_.processing_wall_ns - since.processing_wall_ns);
+  const double frames = static_cast<double>(load_.frames - since.frames);
+  s.cpu_cores = wall_ns > 0 ? static_cast<float>(
+                                  static_cast<double>(load_.process_cpu_ns - since.process_cpu_ns) / wall_ns)
+                            : 0.0f;
+  s.processing_cpu_share =
+      processing_ns > 0 ? static_cast<float>(
+                              static_cast<double>(load_.processing_cpu_ns - since.processing_cpu_ns) /
+                              processing_ns)
+                        : 0.0f;
+  s.worker_wait_ms =
+      frames > 0 ? static_cast<float>(1e3 * (load_.worker_wait_s - since.worker_wait_s) / frames) : 0.0f;
+  load_at_status_ = load_;
+  status_uptime_us_ = s.uptime_us;
+}
+
 void Processor::publishStatus(bool final) {
   const auto now = SteadyClock::now();
   status_t& s = *status_;
@@ -226,6 +265,7 @@ void Processor::publishStatus(bool final) {
   s.processing_ms_p99 = processing_ms_.percentile(0.99);
   s.latency_ms_p50 = latency_ms_.percentile(0.50);
   s.latency_ms_p99 = latency_ms_.percentile(0.99);
+  fillLoad(s, final);
   s.last_error_utime = board_.lastError(error_text_.data(), error_text_.size());
   s.last_error.assign(error_text_.data());  // within the reserved capacity: no allocation
   s.final = final ? 1 : 0;

@@ -62,6 +62,8 @@ class Processor {
 
  private:
   bool publish(const std::string& channel, std::vector<std::uint8_t>& buffer, int size);
+  /// The load fields of a status (`s.uptime_us` set): since the last status, or the run.
+  void fillLoad(status_t& s, bool final);
   void fillDiagnostics(const FrameInfo& info, const OdometryResult& result, std::int8_t status);
 
   Odometry odometry_;
@@ -84,6 +86,19 @@ class Processor {
   SteadyClock::time_point last_status_time_;
   std::int64_t last_status_received_ = 0;
   std::int64_t last_status_processed_ = 0;
+  /// Load accounting (status_t.cpu_cores, processing_cpu_share, worker_wait_ms): totals
+  /// since start-up, and their values at the last status. Nanoseconds, seconds for the wait.
+  struct LoadTotals {
+    std::int64_t process_cpu_ns = 0;     ///< CLOCK_PROCESS_CPUTIME_ID
+    std::int64_t processing_wall_ns = 0;  ///< in Odometry::process()
+    std::int64_t processing_cpu_ns = 0;   ///< of it, this thread's CLOCK_THREAD_CPUTIME_ID
+    double worker_wait_s = 0;             ///< Odometry::workerWaitSeconds()
+    std::int64_t frames = 0;              ///< frames given to Odometry::process()
+  };
+  LoadTotals load_;
+  LoadTotals load_at_status_;
+  std::int64_t process_cpu_at_start_ns_ = 0;
+  std::int64_t status_uptime_us_ = 0;  ///< uptime_us of the last status
 };
 
 }  // namespace omnipose::daemon

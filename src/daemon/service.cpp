@@ -8,11 +8,13 @@
 #include <cstdlib>
 #include <exception>
 #include <memory>
+#include <stdexcept>
 #include <thread>
 #include <cerrno>
 #include <cstring>
 
 #include "daemon/daemon.hpp"
+#include "daemon/scheduling.hpp"
 #include "daemon/systemd_notify.hpp"
 
 namespace omnipose::daemon {
@@ -102,6 +104,15 @@ int runService(const DaemonConfig& config, std::FILE* log, const DaemonOptions& 
   // process half-way through writing its last messages.
   const sigset_t set = stopSignals();
   pthread_sigmask(SIG_BLOCK, &set, nullptr);
+
+  // Before any thread of the daemon starts: they all inherit it.
+  const std::vector<std::string> refused = applyScheduling(config.scheduling);
+  if (!refused.empty()) {
+    std::string text = "scheduling refused:";
+    for (const std::string& problem : refused) text += "\n  " + config.origin + ": " + problem;
+    throw std::runtime_error(text);
+  }
+  std::fprintf(log, "omniposed: scheduling: %s\n", describeScheduling(config.scheduling).c_str());
 
   const std::unique_ptr<Daemon> started = startUp(config, log, set, options);
   Daemon& daemon = *started;

@@ -1,5 +1,7 @@
 #include "daemon/startup_check.hpp"
 
+#include "daemon/scheduling.hpp"
+
 #include <exception>
 #include <filesystem>
 #include <optional>
@@ -84,6 +86,8 @@ StartupCheck checkStartup(const DaemonConfig& config) {
   checkSource(config, out);
   if (const std::optional<std::string> problem = logProblem(config.lcm.url))
     out.problems.push_back(origin + ": " + *problem);
+  for (const std::string& problem : checkScheduling(config.scheduling))
+    out.problems.push_back(origin + ": " + problem);
 
   Calibration calibration;
   try {
@@ -115,6 +119,7 @@ StartupCheck checkStartup(const DaemonConfig& config) {
   } catch (const std::invalid_argument& e) {
     out.problems.push_back(config.calibration.string() + ": " + e.what());
   }
+  out.findings.push_back("scheduling: " + describeScheduling(config.scheduling));
   return out;
 }
 

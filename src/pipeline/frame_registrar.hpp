@@ -118,6 +118,8 @@ class FrameRegistrar {
   int windowCount() const { return registration_.windowCount(); }
   double windowAttenuation() const { return fit_.kappa(); }
   int threads() const { return pool_.size(); }
+  /// Time the calling thread has waited for indices running on pool threads, seconds in all.
+  double workerWaitSeconds() const { return pool_.waitSeconds(); }
   bool wisdomLoaded() const { return wisdom_.loaded; }
   /// The windows' mean capture time after the frame's timestamp, seconds (the mean of their
   /// taper-weighted capture times, Calibration::captureTime()); 0 for a global shutter.

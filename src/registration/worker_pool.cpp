@@ -1,38 +1,55 @@
 #include "registration/worker_pool.hpp"
 
+#include <linux/futex.h>
 #include <sched.h>
+#include <sys/syscall.h>
 #include <unistd.h>
 
 #include <algorithm>
 #include <chrono>
+#include <climits>
 
 namespace omnipose::registration {
 namespace {
 
-/// How long a worker waiting for the next job, and the caller waiting for the workers, spin
-/// before they block on the condition variable. A pipeline frame is seven jobs (unwrap;
+/// How long a worker waiting for the next job, and the caller waiting for a claimed index,
+/// spin before they sleep on a futex. A pipeline frame is seven jobs (unwrap;
 /// column FFTs, windows; projection grid, de-rotated rows; column FFTs, windows), most of them
 /// back to back or a fit (~0.15 ms) apart; a futex wake-up costs tens of microseconds per job
 /// on the development VM. 50 us takes most of the gain of spinning (docs/PERFORMANCE.md)
 /// and leaves the core to the daemon's capture thread between frames.
 constexpr auto kSpin = std::chrono::microseconds(50);
 
+using Word = std::atomic_ref<std::uint32_t>;
+
+/// Sleeps while `*word` holds `expected` (returns at once when it does not; may return early).
+void futexWait(std::uint32_t* word, std::uint32_t expected) {
+  syscall(SYS_futex, word, FUTEX_WAIT_PRIVATE, expected, nullptr, nullptr, 0);
+}
+
+void futexWake(std::uint32_t* word, int count) {
+  syscall(SYS_futex, word, FUTEX_WAKE_PRIVATE, count, nullptr, nullptr, 0);
+}
+
+inline void cpuRelax() {
+#if defined(__x86_64__) || defined(__i386__)
+  __builtin_ia32_pause();
+#elif defined(__aarch64__)
+  asm volatile("yield");
+#endif
+}
+
 }  // namespace
 
-template <class Waiting>
-bool WorkerPool::spinWhile(Waiting waiting) const {
+template <class Waiting, class Unbounded>
+bool WorkerPool::spinWhile(Waiting waiting, Unbounded unbounded) const {
   const auto deadline = std::chrono::steady_clock::now() + kSpin;
   for (;;) {
     for (int i = 0; i < 64; ++i) {
       if (!waiting()) return true;
-#if defined(__x86_64__) || defined(__i386__)
-      __builtin_ia32_pause();
-#elif defined(__aarch64__)
-      asm volatile("yield");
-#endif
+      cpuRelax();
     }
-    if (!burst_.load(std::memory_order_relaxed) && std::chrono::steady_clock::now() > deadline)
-      return !waiting();
+    if (!unbounded() && std::chrono::steady_clock::now() > deadline) return !waiting();
   }
 }
 
@@ -53,28 +70,48 @@ WorkerPool::WorkerPool(int threads) {
 }
 
 WorkerPool::~WorkerPool() {
-  {
-    std::lock_guard lock(mutex_);
-    stop_ = true;
-    burst_.store(false, std::memory_order_relaxed);
-  }
-  start_.notify_all();
+  stop_.store(true);
+  burst_.store(false);
+  wakeWorkers();
   for (auto& t : threads_) t.join();
 }
 
-void WorkerPool::drain(int worker) {
-  for (int i = next_.fetch_add(1, std::memory_order_relaxed); i < count_;
-       i = next_.fetch_add(1, std::memory_order_relaxed))
-    function_(context_, worker, i);
+void WorkerPool::wakeWorkers() {
+  // After the change (sequentially consistent): a worker that counted itself a sleeper before
+  // the bump below sees the change, or sleeps on the old word value and is woken here.
+  Word(wake_).fetch_add(1);
+  if (sleepers_.load() > 0) futexWake(&wake_, INT_MAX);
+}
+
+int WorkerPool::drain(int worker, std::uint64_t ticket) {
+  const std::uint32_t tag = tagOf(ticket);
+  int ran = 0;
+  while (tagOf(ticket) == tag && indexOf(ticket) < countOf(ticket)) {
+    // A claim succeeds only while the ticket still holds this job's tag and index: a worker
+    // that read the ticket of a job since finished cannot take an index of the next one.
+    if (!ticket_.compare_exchange_weak(ticket, ticket + 1, std::memory_order_acq_rel,
+                                       std::memory_order_acquire))
+      continue;  // `ticket` now holds the current value
+    // The job's slot was written before its ticket was published (release), and is not
+    // rewritten before this index has finished (two jobs later).
+    const Slot& slot = slots_[tag & 1];
+    const int index = indexOf(ticket);
+    slot.function.load(std::memory_order_relaxed)(slot.context.load(std::memory_order_relaxed),
+                                                  worker, index);
+    ++ran;
+    const auto count = static_cast<std::uint32_t>(countOf(ticket));
+    if (Word(finished_).fetch_add(1) + 1 == count && worker != 0 && caller_sleeps_.load())
+      futexWake(&finished_, 1);
+    ticket = ticket_.load(std::memory_order_acquire);
+  }
+  return ran;
 }
 
 void WorkerPool::beginBurst() {
   if (threads_.empty()) return;
-  {
-    std::lock_guard lock(mutex_);
-    burst_.store(true, std::memory_order_relaxed);
-  }
-  start_.notify_all();
+  bursts_.fetch_add(1);
+  burst_.store(true);
+  wakeWorkers();
 }
 
 void WorkerPool::endBurst() { burst_.store(false, std::memory_order_relaxed); }
@@ -85,46 +122,79 @@ void WorkerPool::runRaw(int count, Function function, void* context) {
     for (int i = 0; i < count; ++i) function(context, 0, i);
     return;
   }
-  {
-    std::lock_guard lock(mutex_);
-    function_ = function;
-    context_ = context;
-    count_ = count;
-    next_.store(0, std::memory_order_relaxed);
-    busy_.store(static_cast<int>(threads_.size()), std::memory_order_relaxed);
-    generation_.fetch_add(1, std::memory_order_release);
+  runJob(count, function, context);
+}
+
+void WorkerPool::runJob(int count, Function function, void* context) {
+  // Jobs of more than kMaxCount indices are not expected (a frame's largest is its rows or
+  // columns); they would run on the caller alone rather than overflow the ticket.
+  if (count > kMaxCount) {
+    for (int i = 0; i < count; ++i) function(context, 0, i);
+    return;
   }
-  start_.notify_all();
-  drain(0);
-  if (spinWhile([this] { return busy_.load(std::memory_order_acquire) != 0; })) return;
-  std::unique_lock lock(mutex_);
-  done_.wait(lock, [this] { return busy_.load(std::memory_order_acquire) == 0; });
+  const std::uint32_t tag = ++last_tag_;
+  Slot& slot = slots_[tag & 1];
+  slot.function.store(function, std::memory_order_relaxed);
+  slot.context.store(context, std::memory_order_relaxed);
+  Word(finished_).store(0, std::memory_order_relaxed);
+  const std::uint64_t ticket = (std::uint64_t{tag} << 32) | (std::uint64_t(count) << 16);
+  ticket_.store(ticket);  // publishes the slot and the reset count (sequentially consistent)
+  wakeWorkers();
+  drain(0, ticket);
+  const auto total = static_cast<std::uint32_t>(count);
+  if (Word(finished_).load() == total) return;
+  const auto waiting_since = std::chrono::steady_clock::now();
+  if (!spinWhile([&] { return Word(finished_).load(std::memory_order_acquire) != total; },
+                 [] { return false; })) {
+    caller_sleeps_.store(true);
+    // The worker that finishes the last index wakes the caller if it saw caller_sleeps_; if it
+    // did not, its increment came first and the load here sees it.
+    for (std::uint32_t done = Word(finished_).load(); done != total;
+         done = Word(finished_).load())
+      futexWait(&finished_, done);
+    caller_sleeps_.store(false);
+  }
+  waits_.fetch_add(1, std::memory_order_relaxed);
+  wait_ns_.fetch_add(std::chrono::duration_cast<std::chrono::nanoseconds>(
+                         std::chrono::steady_clock::now() - waiting_since).count(),
+                     std::memory_order_relaxed);
 }
 
 void WorkerPool::work(int worker) {
-  unsigned long seen = 0;
+  std::uint32_t seen = 0;  // the tag of the last job this worker looked at
+  // Set (to the burst's number) when this worker, spinning through that burst, found a job
+  // already fully claimed: its core is shared, so it spins within kSpin until the burst ends.
+  unsigned crowded_in = 0;
+  // A real-time thread (SCHED_FIFO, SCHED_RR: daemon.yaml's scheduling) never spins without
+  // a limit: it would keep every normal thread off its core for the whole frame.
+  const int policy = sched_getscheduler(0);
+  const bool may_spin_through = policy != SCHED_FIFO && policy != SCHED_RR;
+  const auto fresh = [&] { return tagOf(ticket_.load(std::memory_order_acquire)) != seen; };
+  const auto spin_on = [&] {
+    return may_spin_through && burst_.load(std::memory_order_relaxed) &&
+           crowded_in != bursts_.load(std::memory_order_relaxed);
+  };
   for (;;) {
-    if (spinWhile([&] { return generation_.load(std::memory_order_acquire) == seen; })) {
-      seen = generation_.load(std::memory_order_acquire);
-    } else {
-      std::unique_lock lock(mutex_);
+    const bool spun = spinWhile([&] { return !fresh(); }, spin_on);
+    if (!spun) {
+      // Counted as a sleeper before the last look: a change after the look bumps wake_ and
+      // wakes it (wakeWorkers()).
+      const std::uint32_t word = Word(wake_).load();
+      sleepers_.fetch_add(1);
       sleeps_.fetch_add(1, std::memory_order_relaxed);
-      start_.wait(lock, [&] {
-        return stop_ || burst_.load(std::memory_order_relaxed) ||
-               generation_.load(std::memory_order_relaxed) != seen;
-      });
-      if (stop_) return;
-      if (generation_.load(std::memory_order_relaxed) == seen) continue;  // a burst: spin
-      seen = generation_.load(std::memory_order_relaxed);
+      while (!stop_.load() && !fresh() && !spin_on() && Word(wake_).load() == word)
+        futexWait(&wake_, word);
+      sleepers_.fetch_sub(1);
+      if (stop_.load()) return;
+      if (!fresh()) continue;  // a burst began, or woken early: look again
     }
-    // The job's fields were written under the mutex before generation_ changed.
-    drain(worker);
-    bool last = false;
-    {
-      std::lock_guard lock(mutex_);
-      last = busy_.fetch_sub(1, std::memory_order_acq_rel) == 1;
+    const std::uint64_t ticket = ticket_.load(std::memory_order_acquire);
+    seen = tagOf(ticket);
+    if (drain(worker, ticket) == 0) {
+      late_.fetch_add(1, std::memory_order_relaxed);
+      if (spun && burst_.load(std::memory_order_relaxed))
+        crowded_in = bursts_.load(std::memory_order_relaxed);
     }
-    if (last) done_.notify_one();
   }
 }
 

@@ -156,6 +156,32 @@ TEST(DaemonConfig, KeyframesSection) {
   EXPECT_TRUE(mentions(problems, "cadence"));
 }
 
+TEST(DaemonConfig, SchedulingSection) {
+  const DaemonConfig defaults = parseWith("");
+  EXPECT_EQ(defaults.scheduling.fifo_priority, 0) << "normal scheduling by default";
+  EXPECT_TRUE(defaults.scheduling.cpus.empty()) << "every CPU by default";
+  EXPECT_NE(defaults.describe().find("scheduling:\n  fifo_priority: 0\n  cpus: []"),
+            std::string::npos)
+      << defaults.describe();
+  const DaemonConfig c = parseWith("scheduling: {fifo_priority: 20, cpus: [0, 1]}\n");
+  EXPECT_EQ(c.scheduling.fifo_priority, 20);
+  EXPECT_EQ(c.scheduling.cpus, (std::vector<int>{0, 1}));
+  EXPECT_NE(c.describe().find("cpus: [0, 1]"), std::string::npos) << c.describe();
+  // pipeline.threads above the CPUs listed is clamped to them.
+  const DaemonConfig one = parseWith("scheduling: {cpus: [0]}\npipeline: {threads: 2}\n");
+  EXPECT_EQ(one.pipeline.threads, 1);
+  EXPECT_EQ(one.warnings.size(), 1u);
+  const auto problems = problemsOf(
+      kFileSource + "scheduling: {fifo_priority: 100, cpus: [-1, x], policy: rr}\n");
+  EXPECT_TRUE(mentions(problems, "scheduling.fifo_priority")) << problems.size();
+  EXPECT_TRUE(mentions(problems, "scheduling.cpus: cannot read '[-1, x]' as a list of integers"));
+  EXPECT_TRUE(mentions(problems, "scheduling.policy"));
+  EXPECT_TRUE(mentions(problemsOf(kFileSource + "scheduling: {cpus: [-2]}\n"),
+                       "scheduling.cpus: -2 is not a CPU number"));
+  EXPECT_TRUE(mentions(problemsOf(kFileSource + "scheduling: {fifo_priority: -1}\n"),
+                       "scheduling.fifo_priority"));
+}
+
 TEST(DaemonConfig, ReplayUseNeedsNoSource) {
   const DaemonConfig c = DaemonConfig::parse("input: panorama\npipeline: {refine_iterations: 2}\n",
                                              "r.yaml", "/tmp", DaemonConfig::Use::kReplay);

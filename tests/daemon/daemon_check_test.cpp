@@ -120,18 +120,21 @@ TEST(DaemonCheck, EveryProblemIsListedAtOnceByTheKeyTheUserWrote) {
   c.save(tmp / "calibration.yaml");
   const DaemonConfig config = DaemonConfig::parse(
       "source: {type: file, path: no_such_dataset}\ncalibration: calibration.yaml\n"
-      "pipeline: {window: 100}\n",
+      "pipeline: {window: 100}\nscheduling: {cpus: [4000]}\n",
       (tmp / "daemon.yaml").string(), tmp.path());
   const daemon::StartupCheck check = daemon::checkStartup(config);
-  ASSERT_EQ(check.problems.size(), 2u) << lines(check.problems);
+  ASSERT_EQ(check.problems.size(), 3u) << lines(check.problems);
   EXPECT_NE(check.problems[0].find("daemon.yaml: source.path: "), std::string::npos)
       << check.problems[0];
   EXPECT_NE(check.problems[0].find("no_such_dataset is not a directory"), std::string::npos)
       << check.problems[0];
-  EXPECT_NE(check.problems[1].find("daemon.yaml: pipeline.window: 100 is larger than the "
-                                   "panorama (1100 x 80)"),
+  EXPECT_NE(check.problems[1].find("daemon.yaml: scheduling.cpus: CPU 4000 does not exist"),
             std::string::npos)
       << check.problems[1];
+  EXPECT_NE(check.problems[2].find("daemon.yaml: pipeline.window: 100 is larger than the "
+                                   "panorama (1100 x 80)"),
+            std::string::npos)
+      << check.problems[2];
 
   // Fixed: the check builds the pipeline and reports what it found usable.
   fs::create_directories(tmp / "no_such_dataset/frames");
@@ -143,7 +146,8 @@ TEST(DaemonCheck, EveryProblemIsListedAtOnceByTheKeyTheUserWrote) {
       "source: {type: file, path: no_such_dataset}\ncalibration: calibration.yaml\n",
       (tmp / "daemon.yaml").string(), tmp.path()));
   EXPECT_TRUE(fixed.problems.empty()) << lines(fixed.problems);
-  ASSERT_EQ(fixed.findings.size(), 3u) << lines(fixed.findings);
+  ASSERT_EQ(fixed.findings.size(), 4u) << lines(fixed.findings);
+  EXPECT_EQ(fixed.findings[3], "scheduling: normal scheduling on every CPU");
   EXPECT_NE(fixed.findings[1].find("no_such_dataset: 1 frames"), std::string::npos) << fixed.findings[1];
   EXPECT_NE(fixed.findings[2].find("lens model linear, panorama 1100x110: usable"),
             std::string::npos)

@@ -303,6 +303,18 @@ TEST(Omniposed, BadConfigurationReportsEveryProblemAndExitsNonZero) {
                                 tmp / "out", tmp / "err", 30s),
             1);
   EXPECT_NE(testing::readText(tmp / "err").find("start-up failed"), std::string::npos);
+  // Scheduling that cannot be had stops the start-up, named, before anything runs.
+  testing::writeText(tmp / "daemon.yaml",
+                     testing::fileSourceConfig(mixedDataset(), "memq://", false) +
+                         "scheduling: {cpus: [4000]}\n");
+  EXPECT_EQ(testing::runProcess({omniposed().string(), "--config", (tmp / "daemon.yaml").string()},
+                                tmp / "out", tmp / "err", 30s),
+            1);
+  const std::string refused = testing::readText(tmp / "err");
+  EXPECT_NE(refused.find("start-up failed: scheduling refused:"), std::string::npos) << refused;
+  EXPECT_NE(refused.find("daemon.yaml: scheduling.cpus: CPU 4000 does not exist"),
+            std::string::npos)
+      << refused;
 }
 
 void expectCleanStopOn(int sig, const char* name) {

@@ -686,6 +686,19 @@ TEST(Daemon, PublishesOnePosePerFrameStatusAtItsRateAndAFinalStatus) {
   EXPECT_EQ(last.source_state, status_t::SOURCE_ENDED);
   EXPECT_GT(last.processing_ms_p50, 0.0f);
   EXPECT_GE(last.latency_ms_p99, last.latency_ms_p50);
+  // The load over the run: the process used some CPU; the pipeline's thread ran for a part
+  // of its time in the pipeline (CPU time is counted in ticks of the kernel's clock: a little
+  // above 1 can be rounding); waiting for workers takes no more than the whole frame.
+  EXPECT_GT(last.cpu_cores, 0.0f);
+  EXPECT_GT(last.processing_cpu_share, 0.0f);
+  EXPECT_LE(last.processing_cpu_share, 1.1f);
+  EXPECT_GE(last.worker_wait_ms, 0.0f);
+  EXPECT_LE(last.worker_wait_ms, last.processing_ms_p99 * 1.5f);
+  for (const status_t& s : bus.statuses) {
+    EXPECT_GE(s.cpu_cores, 0.0f);
+    EXPECT_GE(s.processing_cpu_share, 0.0f);
+    EXPECT_GE(s.worker_wait_ms, 0.0f);
+  }
   EXPECT_EQ(last.source, "memory (6 frames)");
   for (std::size_t k = 0; k + 1 < bus.statuses.size(); ++k) EXPECT_FALSE(bus.statuses[k].final);
   EXPECT_TRUE(bus.diagnostics.empty()) << "diagnostics are off by default";
