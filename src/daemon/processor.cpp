@@ -226,20 +226,17 @@ void Processor::fillLoad(status_t& s, bool final) {
   load_.process_cpu_ns = cpuTimeNs(CLOCK_PROCESS_CPUTIME_ID);
   load_.worker_wait_s = odometry_.workerWaitSeconds();
   const LoadTotals since = final ? LoadTotals{process_cpu_at_start_ns_} : load_at_status_;
-  const double wall_ns = 1e3 * static_cast<double>(s.uptime_us) -
-                         (final ? 0.0 : 1e3 * static_cast<double>(status_uptime_us_));
-  const double processing_ns = static_cast<double>(load_.processing_wall_ns - since.processing_wall_ns);
-  const double frames = static_cast<double>(load_.frames - since.frames);
-  s.cpu_cores = wall_ns > 0 ? static_cast<float>(
-                                  static_cast<double>(load_.process_cpu_ns - since.process_cpu_ns) / wall_ns)
-                            : 0.0f;
+  const auto ratio = [](double part, double whole) {
+    return whole > 0 ? static_cast<float>(part / whole) : 0.0f;
+  };
+  const double wall_ns =
+      1e3 * static_cast<double>(s.uptime_us - (final ? 0 : status_uptime_us_));
+  s.cpu_cores = ratio(static_cast<double>(load_.process_cpu_ns - since.process_cpu_ns), wall_ns);
   s.processing_cpu_share =
-      processing_ns > 0 ? static_cast<float>(
-                              static_cast<double>(load_.processing_cpu_ns - since.processing_cpu_ns) /
-                              processing_ns)
-                        : 0.0f;
-  s.worker_wait_ms =
-      frames > 0 ? static_cast<float>(1e3 * (load_.worker_wait_s - since.worker_wait_s) / frames) : 0.0f;
+      ratio(static_cast<double>(load_.processing_cpu_ns - since.processing_cpu_ns),
+            static_cast<double>(load_.processing_wall_ns - since.processing_wall_ns));
+  s.worker_wait_ms = ratio(1e3 * (load_.worker_wait_s - since.worker_wait_s),
+                           static_cast<double>(load_.frames - since.frames));
   load_at_status_ = load_;
   status_uptime_us_ = s.uptime_us;
 }
