@@ -3,8 +3,8 @@
 # per second (the file source paces frames by their timestamps, as a camera would deliver
 # them) with a file:// LCM log, and the final status must show that no frame was dropped:
 # received = FRAMES, skipped (stale) = 0, lost upstream (not read in time) = 0, bad = 0.
-# Prints the final status (processing and latency percentiles included). Meant for an idle
-# machine: the verdict is about this machine at the moment of the run, so it is not a test.
+# Prints the final status (processing and latency percentiles, the load fields). The verdict is
+# about this machine at the moment of the run (idle, or with --load), so it is not a test.
 # Usage: tools/realtime_check.sh [--load N] [--nice K] [FPS] [FRAMES]   (default 60 fps, 180 frames)
 #   --load N   N busy processes (`while :; do :; done` at normal priority) run for the duration:
 #              the robot's controller and camera stack sharing the cores
@@ -40,8 +40,12 @@ fi
 
 work=$(mktemp -d "${TMPDIR:-/tmp}/omnipose-realtime-XXXXXX")
 busy=()
-cleanup() {
+stop_load() {
   if [ ${#busy[@]} -gt 0 ]; then kill "${busy[@]}" 2>/dev/null || true; fi
+  busy=()
+}
+cleanup() {
+  stop_load
   if [ "${KEEP:-0}" = 1 ]; then echo "realtime_check: kept $work"; else rm -rf "$work"; fi
 }
 trap cleanup EXIT
@@ -67,7 +71,7 @@ echo "realtime_check: $frames frames at $fps fps, pipeline.threads $threads, $lo
   "niceness $nice_level, load average $(cut -d' ' -f1-3 /proc/loadavg)"
 rc=0
 nice -n "$nice_level" "$bin/omniposed" --config "$work/daemon.yaml" 2>"$work/daemon.err" || rc=$?
-if [ ${#busy[@]} -gt 0 ]; then kill "${busy[@]}" 2>/dev/null || true; busy=(); fi
+stop_load
 if [ "$rc" -ne 0 ]; then
   echo "realtime_check: FAIL: omniposed exited with $rc" >&2
   tail -20 "$work/daemon.err" >&2

@@ -53,8 +53,8 @@ Processor::Processor(const Calibration& calibration, const OdometryOptions& odom
       error_text_(kMaxText + 1, '\0'),
       started_(SteadyClock::now()),
       last_status_time_(started_) {
-  process_cpu_at_start_ns_ = cpuTimeNs(CLOCK_PROCESS_CPUTIME_ID);  // the start-up's is not load
-  load_.process_cpu_ns = load_at_status_.process_cpu_ns = process_cpu_at_start_ns_;
+  load_.process_cpu_ns = cpuTimeNs(CLOCK_PROCESS_CPUTIME_ID);
+  load_at_start_ = load_at_status_ = load_;
   *pose_ = pose_t{};
   pose_buffer_.resize(static_cast<std::size_t>(pose_->getEncodedSize()));
 
@@ -222,23 +222,21 @@ void Processor::fillDiagnostics(const FrameInfo& info, const OdometryResult& r,
   }
 }
 
-void Processor::fillLoad(status_t& s, bool final) {
+void Processor::fillLoad(status_t& s, bool final, double wall_s) {
   load_.process_cpu_ns = cpuTimeNs(CLOCK_PROCESS_CPUTIME_ID);
   load_.worker_wait_s = odometry_.workerWaitSeconds();
-  const LoadTotals since = final ? LoadTotals{process_cpu_at_start_ns_} : load_at_status_;
+  const LoadTotals& since = final ? load_at_start_ : load_at_status_;
   const auto ratio = [](double part, double whole) {
     return whole > 0 ? static_cast<float>(part / whole) : 0.0f;
   };
-  const double wall_ns =
-      1e3 * static_cast<double>(s.uptime_us - (final ? 0 : status_uptime_us_));
-  s.cpu_cores = ratio(static_cast<double>(load_.process_cpu_ns - since.process_cpu_ns), wall_ns);
+  s.cpu_cores =
+      ratio(static_cast<double>(load_.process_cpu_ns - since.process_cpu_ns), 1e9 * wall_s);
   s.processing_cpu_share =
       ratio(static_cast<double>(load_.processing_cpu_ns - since.processing_cpu_ns),
             static_cast<double>(load_.processing_wall_ns - since.processing_wall_ns));
   s.worker_wait_ms = ratio(1e3 * (load_.worker_wait_s - since.worker_wait_s),
                            static_cast<double>(load_.frames - since.frames));
   load_at_status_ = load_;
-  status_uptime_us_ = s.uptime_us;
 }
 
 void Processor::publishStatus(bool final) {
@@ -262,7 +260,7 @@ void Processor::publishStatus(bool final) {
   s.processing_ms_p99 = processing_ms_.percentile(0.99);
   s.latency_ms_p50 = latency_ms_.percentile(0.50);
   s.latency_ms_p99 = latency_ms_.percentile(0.99);
-  fillLoad(s, final);
+  fillLoad(s, final, dt);
   s.last_error_utime = board_.lastError(error_text_.data(), error_text_.size());
   s.last_error.assign(error_text_.data());  // within the reserved capacity: no allocation
   s.final = final ? 1 : 0;

@@ -62,8 +62,8 @@ class Processor {
 
  private:
   bool publish(const std::string& channel, std::vector<std::uint8_t>& buffer, int size);
-  /// The load fields of a status (`s.uptime_us` set): since the last status, or the run.
-  void fillLoad(status_t& s, bool final);
+  /// The load fields of a status over `wall_s` seconds: since the last status, or the run.
+  void fillLoad(status_t& s, bool final, double wall_s);
   void fillDiagnostics(const FrameInfo& info, const OdometryResult& result, std::int8_t status);
 
   Odometry odometry_;
@@ -96,9 +96,8 @@ class Processor {
     std::int64_t frames = 0;              ///< frames given to Odometry::process()
   };
   LoadTotals load_;
+  LoadTotals load_at_start_;   ///< after the constructor: the start-up's CPU time is not load
   LoadTotals load_at_status_;
-  std::int64_t process_cpu_at_start_ns_ = 0;
-  std::int64_t status_uptime_us_ = 0;  ///< uptime_us of the last status
 };
 
 }  // namespace omnipose::daemon

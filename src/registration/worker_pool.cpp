@@ -118,17 +118,9 @@ void WorkerPool::endBurst() { burst_.store(false, std::memory_order_relaxed); }
 
 void WorkerPool::runRaw(int count, Function function, void* context) {
   if (count <= 0) return;
-  if (threads_.empty() || count == 1) {
-    for (int i = 0; i < count; ++i) function(context, 0, i);
-    return;
-  }
-  runJob(count, function, context);
-}
-
-void WorkerPool::runJob(int count, Function function, void* context) {
   // Jobs of more than kMaxCount indices are not expected (a frame's largest is its rows or
-  // columns); they would run on the caller alone rather than overflow the ticket.
-  if (count > kMaxCount) {
+  // columns); they run on the caller alone rather than overflow the ticket.
+  if (threads_.empty() || count == 1 || count > kMaxCount) {
     for (int i = 0; i < count; ++i) function(context, 0, i);
     return;
   }

@@ -95,7 +95,6 @@ class WorkerPool {
   static int indexOf(std::uint64_t t) { return static_cast<int>(t & 0xFFFF); }
 
   void runRaw(int count, Function function, void* context);
-  void runJob(int count, Function function, void* context);
   void work(int worker);
   /// Claims and runs indices of the job `ticket` belongs to until none is left or another job
   /// began; returns how many it ran.
