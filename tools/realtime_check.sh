@@ -5,23 +5,31 @@
 # received = FRAMES, skipped (stale) = 0, lost upstream (not read in time) = 0, bad = 0.
 # Prints the final status (processing and latency percentiles, the load fields). The verdict is
 # about this machine at the moment of the run (idle, or with --load), so it is not a test.
-# Usage: tools/realtime_check.sh [--load N] [--nice K] [FPS] [FRAMES]   (default 60 fps, 180 frames)
+# Usage: tools/realtime_check.sh [--load N] [--nice K | --fifo P] [FPS] [FRAMES]
+#        (default 60 fps, 180 frames)
 #   --load N   N busy processes (`while :; do :; done` at normal priority) run for the duration:
 #              the robot's controller and camera stack sharing the cores
 #   --nice K   omniposed runs at niceness K (a lower priority than the load when K > 0)
+#   --fifo P   daemon.yaml asks for SCHED_FIFO at priority P (scheduling.fifo_priority, 1-99:
+#              needs root or CAP_SYS_NICE; omniposed refuses to start without)
 # Environment: BUILD_DIR (default build; built with tools/build.sh when a program is missing),
 # THREADS (pipeline.threads, default 0 = all online cores), KEEP=1 keeps the working directory.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 # shellcheck source=tools/common/final_status.sh
 source tools/common/final_status.sh
-usage() { echo "usage: tools/realtime_check.sh [--load N] [--nice K] [FPS] [FRAMES]" >&2; exit 2; }
+usage() {
+  echo "usage: tools/realtime_check.sh [--load N] [--nice K | --fifo P] [FPS] [FRAMES]" >&2
+  exit 2
+}
 load=0
 nice_level=0
+fifo=0
 while [ $# -gt 0 ]; do
   case "$1" in
     --load) [ $# -ge 2 ] || usage; load=$2; shift 2 ;;
     --nice) [ $# -ge 2 ] || usage; nice_level=$2; shift 2 ;;
+    --fifo) [ $# -ge 2 ] || usage; fifo=$2; shift 2 ;;
     -*) usage ;;
     *) break ;;
   esac
@@ -29,7 +37,8 @@ done
 fps=${1:-60}
 frames=${2:-180}
 if ! [[ "$fps" =~ ^[0-9]+$ && "$frames" =~ ^[0-9]+$ && "$load" =~ ^[0-9]+$ &&
-        "$nice_level" =~ ^[0-9]+$ ]] || [ "$fps" -lt 1 ] || [ "$frames" -lt 2 ]; then
+        "$nice_level" =~ ^[0-9]+$ && "$fifo" =~ ^[0-9]+$ ]] || [ "$fps" -lt 1 ] ||
+   [ "$frames" -lt 2 ] || [ "$fifo" -gt 99 ] || { [ "$fifo" -gt 0 ] && [ "$nice_level" -gt 0 ]; }; then
   usage
 fi
 bin=${BUILD_DIR:-build}/bin
@@ -60,6 +69,7 @@ cat >"$work/daemon.yaml" <<YAML
 source: {type: file, path: data, realtime: true, loop: false}
 calibration: data/calibration.yaml
 pipeline: {threads: $threads}
+scheduling: {fifo_priority: $fifo}
 lcm: {url: "file://$work/run.lcm?mode=w", status_hz: 1}
 YAML
 
@@ -68,7 +78,8 @@ for ((i = 0; i < load; ++i)); do
   busy+=($!)
 done
 echo "realtime_check: $frames frames at $fps fps, pipeline.threads $threads, $load busy processes," \
-  "niceness $nice_level, load average $(cut -d' ' -f1-3 /proc/loadavg)"
+  "niceness $nice_level, SCHED_FIFO priority $fifo (0: not), load average" \
+  "$(cut -d' ' -f1-3 /proc/loadavg)"
 rc=0
 nice -n "$nice_level" "$bin/omniposed" --config "$work/daemon.yaml" 2>"$work/daemon.err" || rc=$?
 stop_load

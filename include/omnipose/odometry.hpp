@@ -188,6 +188,10 @@ class Odometry {
   /// of its own. Small on a machine with cores to spare; it grows when other processes take
   /// the workers' cores (0 with one thread and for a pairwise method).
   double workerWaitSeconds() const;
+  /// Threads (the calling one included) that take part in the next frame: threads(), or fewer
+  /// while other processes' load on the machine made frames on fewer of them faster (measured
+  /// frame by frame; 1 for a pairwise method).
+  int activeThreads() const;
   /// Whether the FFTW wisdom file was read (false for a pairwise method).
   bool wisdomLoaded() const;
   /// Windows per panorama (0 for a pairwise method).

@@ -236,6 +236,8 @@ void Processor::fillLoad(status_t& s, bool final, double wall_s) {
             static_cast<double>(load_.processing_wall_ns - since.processing_wall_ns));
   s.worker_wait_ms = ratio(1e3 * (load_.worker_wait_s - since.worker_wait_s),
                            static_cast<double>(load_.frames - since.frames));
+  s.threads = static_cast<std::int16_t>(odometry_.threads());
+  s.threads_active = static_cast<std::int16_t>(odometry_.activeThreads());
   load_at_status_ = load_;
 }
 

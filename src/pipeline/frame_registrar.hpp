@@ -118,6 +118,7 @@ class FrameRegistrar {
   int windowCount() const { return registration_.windowCount(); }
   double windowAttenuation() const { return fit_.kappa(); }
   int threads() const { return pool_.size(); }
+  int activeThreads() const { return pool_.activeWorkers(); }
   /// Time the calling thread has waited for indices running on pool threads, seconds in all.
   double workerWaitSeconds() const { return pool_.waitSeconds(); }
   bool wisdomLoaded() const { return wisdom_.loaded; }

@@ -536,6 +536,9 @@ const char* Odometry::methodName() const {
   return impl_->pairwise ? impl_->pairwise->name() : "ifmi";
 }
 int Odometry::threads() const { return impl_->registrar ? impl_->registrar->threads() : 1; }
+int Odometry::activeThreads() const {
+  return impl_->registrar ? impl_->registrar->activeThreads() : 1;
+}
 double Odometry::workerWaitSeconds() const {
   return impl_->registrar ? impl_->registrar->workerWaitSeconds() : 0.0;
 }

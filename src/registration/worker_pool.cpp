@@ -63,7 +63,7 @@ int WorkerPool::onlineCores() {
   return n > 0 ? static_cast<int>(std::min(n, 256L)) : 1;
 }
 
-WorkerPool::WorkerPool(int threads) {
+WorkerPool::WorkerPool(int threads) : active_(std::max(threads, 1)), tuner_(threads) {
   const int extra = std::max(threads, 1) - 1;
   threads_.reserve(extra);
   for (int w = 1; w <= extra; ++w) threads_.emplace_back([this, w] { work(w); });
@@ -73,6 +73,7 @@ WorkerPool::~WorkerPool() {
   stop_.store(true);
   burst_.store(false);
   wakeWorkers();
+  setActive(active_.load());  // wakes the parked workers, which see stop_
   for (auto& t : threads_) t.join();
 }
 
@@ -81,6 +82,12 @@ void WorkerPool::wakeWorkers() {
   // the bump below sees the change, or sleeps on the old word value and is woken here.
   Word(wake_).fetch_add(1);
   if (sleepers_.load() > 0) futexWake(&wake_, INT_MAX);
+}
+
+void WorkerPool::setActive(int count) {
+  active_.store(count);
+  Word(park_).fetch_add(1);
+  futexWake(&park_, INT_MAX);
 }
 
 int WorkerPool::drain(int worker, std::uint64_t ticket) {
@@ -109,18 +116,31 @@ int WorkerPool::drain(int worker, std::uint64_t ticket) {
 
 void WorkerPool::beginBurst() {
   if (threads_.empty()) return;
+  burst_start_ = std::chrono::steady_clock::now();
+  burst_wait_ns_ = wait_ns_.load(std::memory_order_relaxed);
+  if (active_.load(std::memory_order_relaxed) == 1) return;  // nobody to keep awake
   bursts_.fetch_add(1);
   burst_.store(true);
   wakeWorkers();
 }
 
-void WorkerPool::endBurst() { burst_.store(false, std::memory_order_relaxed); }
+void WorkerPool::endBurst() {
+  if (threads_.empty()) return;
+  burst_.store(false, std::memory_order_relaxed);
+  const double seconds =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - burst_start_).count();
+  const double waited = 1e-9 * static_cast<double>(wait_ns_.load(std::memory_order_relaxed) -
+                                                   burst_wait_ns_);
+  const int next = tuner_.frameEnded(seconds, waited);
+  if (next != active_.load(std::memory_order_relaxed)) setActive(next);
+}
 
 void WorkerPool::runRaw(int count, Function function, void* context) {
   if (count <= 0) return;
   // Jobs of more than kMaxCount indices are not expected (a frame's largest is its rows or
   // columns); they run on the caller alone rather than overflow the ticket.
-  if (threads_.empty() || count == 1 || count > kMaxCount) {
+  if (threads_.empty() || count == 1 || count > kMaxCount ||
+      active_.load(std::memory_order_relaxed) == 1) {
     for (int i = 0; i < count; ++i) function(context, 0, i);
     return;
   }
@@ -167,6 +187,14 @@ void WorkerPool::work(int worker) {
            crowded_in != bursts_.load(std::memory_order_relaxed);
   };
   for (;;) {
+    if (worker >= active_.load()) {
+      // Parked: asleep until the count of workers taking part changes or the pool stops.
+      // The word is read before the count, so a change after the look wakes it.
+      const std::uint32_t word = Word(park_).load();
+      if (!stop_.load() && worker >= active_.load()) futexWait(&park_, word);
+      if (stop_.load()) return;
+      continue;
+    }
     const bool spun = spinWhile([&] { return !fresh(); }, spin_on);
     if (!spun) {
       // Counted as a sleeper before the last look: a change after the look bumps wake_ and
@@ -182,6 +210,7 @@ void WorkerPool::work(int worker) {
     }
     const std::uint64_t ticket = ticket_.load(std::memory_order_acquire);
     seen = tagOf(ticket);
+    if (worker >= active_.load(std::memory_order_relaxed)) continue;  // parked since
     if (drain(worker, ticket) == 0) {
       late_.fetch_add(1, std::memory_order_relaxed);
       if (spun && burst_.load(std::memory_order_relaxed))

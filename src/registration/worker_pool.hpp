@@ -25,12 +25,19 @@
 /// job after the others had claimed every index while it spun: its core was taken, spinning
 /// only costs the others CPU time, and it spins within the limit until the burst ends. Threads
 /// under a real-time policy (SCHED_FIFO, SCHED_RR) always spin within the limit.
+/// How many workers take part is chosen frame by frame (WorkerCountTuner, from each burst's
+/// wall time and the caller's waits): on a machine whose other processes keep a worker from
+/// running, the frame may run on fewer workers, the others parked (asleep, not woken by jobs).
+/// Outside bursts the count stays as the last burst left it.
 /// One caller at a time (the pipeline's processing thread).
 
 #include <atomic>
+#include <chrono>
 #include <cstdint>
 #include <thread>
 #include <vector>
+
+#include "registration/worker_count_tuner.hpp"
 
 namespace omnipose::registration {
 
@@ -44,6 +51,8 @@ class WorkerPool {
 
   /// Number of workers, the calling thread included.
   int size() const { return static_cast<int>(threads_.size()) + 1; }
+  /// Workers that take part in jobs now, the calling thread included, in [1, size()].
+  int activeWorkers() const { return active_.load(std::memory_order_relaxed); }
 
   /// Calls task(worker, index) for every index in [0, count); returns when all returned.
   /// `task` must not throw.
@@ -108,6 +117,8 @@ class WorkerPool {
 
   /// Wakes the sleeping workers after a change of what they wait for (ticket, burst, stop).
   void wakeWorkers();
+  /// Sets how many workers take part (the caller's, between jobs); wakes the parked ones.
+  void setActive(int count);
 
   std::vector<std::thread> threads_;
   Slot slots_[2];
@@ -123,6 +134,13 @@ class WorkerPool {
   /// Bursts begun so far (from 1), to tell one burst from the next.
   std::atomic<unsigned> bursts_{0};
   std::atomic<bool> stop_{false};
+  /// Workers 0 .. active_ - 1 claim indices; the others sleep on park_ (a futex word, bumped
+  /// when active_ changes or the pool stops).
+  std::atomic<int> active_{1};
+  alignas(4) std::uint32_t park_ = 0;
+  WorkerCountTuner tuner_;  ///< the caller's
+  std::chrono::steady_clock::time_point burst_start_;
+  std::int64_t burst_wait_ns_ = 0;  ///< wait_ns_ when the burst began
   std::atomic<long> sleeps_{0}, waits_{0}, late_{0};
   std::atomic<std::int64_t> wait_ns_{0};
 };

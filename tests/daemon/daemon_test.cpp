@@ -18,6 +18,7 @@
 #include "daemon/source_factory.hpp"
 #include "daemon/status_board.hpp"
 #include "daemon/wall_clock.hpp"
+#include "registration/worker_pool.hpp"
 #include <sys/stat.h>
 
 #include "bad_images.hpp"
@@ -698,6 +699,10 @@ TEST(Daemon, PublishesOnePosePerFrameStatusAtItsRateAndAFinalStatus) {
     EXPECT_GE(s.cpu_cores, 0.0f);
     EXPECT_GE(s.processing_cpu_share, 0.0f);
     EXPECT_GE(s.worker_wait_ms, 0.0f);
+    // pipeline.threads 0: every core this process may use, of which 1 or more take part.
+    EXPECT_EQ(s.threads, omnipose::registration::WorkerPool::onlineCores());
+    EXPECT_GE(s.threads_active, 1);
+    EXPECT_LE(s.threads_active, s.threads);
   }
   EXPECT_EQ(last.source, "memory (6 frames)");
   for (std::size_t k = 0; k + 1 < bus.statuses.size(); ++k) EXPECT_FALSE(bus.statuses[k].final);

@@ -3,7 +3,8 @@
 // spinning for the job (jobs back to back) or asleep on the condition variable (jobs further
 // apart than the spin); within a burst the workers stay awake across gaps, and sleep after
 // it; the pool is torn down cleanly in either state. A worker that does not run (the kernel
-// gave its core to another process) holds no job up: the others take its share.
+// gave its core to another process) holds no job up: the others take its share; one that
+// holds frames up inside its indices is left out of the next frames (WorkerCountTuner).
 #include <gtest/gtest.h>
 #include <signal.h>
 #include <sys/syscall.h>
@@ -152,6 +153,48 @@ TEST(WorkerPool, AWorkerThatDoesNotRunHoldsNoJobUp) {
     runAndCheck(pool, 201, 64, out, calls);  // the released worker joins in again
   }
   ASSERT_EQ(sigaction(SIGUSR1, &previous, nullptr), 0);
+}
+
+TEST(WorkerPool, AWorkerThatHoldsFramesUpIsLeftOut) {
+  // Worker 1 stands for a worker whose core another process takes: every index it claims
+  // keeps it 3 ms, while the caller runs an index in 20 us. Within a few frames (bursts) the
+  // frames run on the caller alone, and do every index once.
+  WorkerPool pool(2);
+  ASSERT_EQ(pool.activeWorkers(), 2);
+  std::vector<int> out(64), calls(64);
+  std::atomic<bool> slow_worker{true};
+  std::atomic<int> on_worker_1{0};
+  auto task = [&](int worker, int index) {
+    if (worker == 1) {
+      on_worker_1.fetch_add(1);
+      if (slow_worker.load()) std::this_thread::sleep_for(std::chrono::milliseconds(3));
+    } else {
+      const auto until = std::chrono::steady_clock::now() + std::chrono::microseconds(20);
+      while (std::chrono::steady_clock::now() < until) {
+      }
+    }
+    out[index] = index;
+    ++calls[index];
+  };
+  int frames = 0;
+  for (; frames < 40 && pool.activeWorkers() == 2; ++frames) {
+    WorkerPool::Burst burst(pool);
+    std::fill(calls.begin(), calls.end(), 0);
+    pool.run(64, task);
+    for (int i = 0; i < 64; ++i) ASSERT_EQ(calls[i], 1) << "frame " << frames << " index " << i;
+  }
+  EXPECT_EQ(pool.activeWorkers(), 1) << "after " << frames << " frames";
+  EXPECT_GT(on_worker_1.load(), 0) << "the worker took part at first";
+  // Left out: the next frames (fewer than a probe's hold) run on the caller alone.
+  on_worker_1 = 0;
+  slow_worker = false;
+  for (int frame = 0; frame < 10; ++frame) {
+    WorkerPool::Burst burst(pool);
+    std::fill(calls.begin(), calls.end(), 0);
+    pool.run(64, task);
+    for (int i = 0; i < 64; ++i) ASSERT_EQ(calls[i], 1) << "frame " << frame << " index " << i;
+  }
+  EXPECT_EQ(on_worker_1.load(), 0);
 }
 
 TEST(WorkerPool, EmptyAndSingleJobsRunOnTheCaller) {

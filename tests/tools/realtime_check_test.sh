@@ -5,7 +5,8 @@
 set -euo pipefail
 src=$1
 bash -n "$src/tools/realtime_check.sh"
-for args in "--load" "--load x 30" "--nice -1" "--frobnicate" "0" "30 1"; do
+for args in "--load" "--load x 30" "--nice -1" "--frobnicate" "0" "30 1" "--fifo 100" \
+            "--fifo 5 --nice 5" "--fifo"; do
   rc=0
   # shellcheck disable=SC2086
   out=$(bash "$src/tools/realtime_check.sh" $args 2>&1) || rc=$?
@@ -13,7 +14,8 @@ for args in "--load" "--load x 30" "--nice -1" "--frobnicate" "0" "30 1"; do
     echo "realtime_check.sh $args: exit $rc, expected 2: $out" >&2
     exit 1
   fi
-  if ! grep -qF "usage: tools/realtime_check.sh [--load N] [--nice K] [FPS] [FRAMES]" <<<"$out"; then
+  if ! grep -qF "usage: tools/realtime_check.sh [--load N] [--nice K | --fifo P] [FPS] [FRAMES]" \
+       <<<"$out"; then
     echo "realtime_check.sh $args: no usage line: $out" >&2
     exit 1
   fi
