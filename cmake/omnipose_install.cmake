@@ -5,7 +5,8 @@
 #   package omnipose (COMPONENT runtime):
 #   bin/                             the programs
 #   lib/systemd/system/              omniposed.service, with the installed path of omniposed
-#   share/doc/omnipose/              DESIGN.md, README.md, LICENSE, daemon.example.yaml
+#   share/doc/omnipose/              DESIGN.md, README.md, CHANGELOG.md, LICENSE,
+#                                    daemon.example.yaml
 #   lib/python3/dist-packages/omnipose/   the LCM types for Python (lcm_types/CMakeLists.txt)
 #   share/java/omnipose_lcm_types.jar     the LCM types for Java, lcm-spy (when built)
 #
@@ -80,7 +81,7 @@ install(CODE "
   file(INSTALL \"${CMAKE_BINARY_DIR}/omniposed.service\" DESTINATION \"\${unit_dir}\")
 " COMPONENT runtime)
 install(FILES ${CMAKE_SOURCE_DIR}/docs/DESIGN.md ${CMAKE_SOURCE_DIR}/README.md
-              ${CMAKE_SOURCE_DIR}/LICENSE ${CMAKE_SOURCE_DIR}/tools/omniposed/daemon.example.yaml
+              ${CMAKE_SOURCE_DIR}/CHANGELOG.md ${CMAKE_SOURCE_DIR}/LICENSE ${CMAKE_SOURCE_DIR}/tools/omniposed/daemon.example.yaml
         DESTINATION ${CMAKE_INSTALL_DOCDIR} COMPONENT runtime)
 
 # cpack -G DEB: one package per component, named the Debian way; the programs' dependencies

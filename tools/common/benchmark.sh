@@ -90,3 +90,9 @@ bench_tools() {
   cmake -S . -B "$build" -G Ninja -DCMAKE_BUILD_TYPE=Release >/dev/null
   cmake --build "$build" -j"$(nproc 2>/dev/null || echo 2)" --target "$@"
 }
+
+# bench_version BIN_DIR: sets `version` to what the build under test says of itself
+# (`omnipose-replay --version`), which a published report names beside its command and date.
+bench_version() {
+  version=$("$1/omnipose-replay" --version 2>/dev/null || echo "omnipose (version unknown)")
+}
