@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Accuracy benchmark (GitHub issue 3): renders a fixed, seeded suite of omni sequences from
+# Accuracy benchmark: renders a fixed, seeded suite of omni sequences from
 # real 360-degree photos with exact ground truth (the paper's protocol: roll-only,
 # pitch-only and yaw-only sequences of 1..6 deg per frame on two real scenes and on a
 # Kogeto-like degraded copy of one; plus mixed-axis, large-step (6..12 deg) and
@@ -110,7 +110,7 @@ suite=(
   "room_translate|indoor-room|$indoor|preset:translate|601|$clean"
 )
 
-# Table III (issue 9): the lens suite, run after the main suite (see "lenses and masks").
+# Table III: the lens suite, run after the main suite (see "lenses and masks").
 catadioptric=$root/tests/data/catadioptric
 # name | reference (main suite) | lens label | calibration ("" = the default linear lens) | extra flags
 lens_suite=(

@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Cross-builds omnipose for arm64 (AArch64) with Debian 12's cross toolchain and runs the
 # registration, fit, pipeline, unwrap, calibration and io test binaries under qemu-user.
-# Also checks that the NEON branch of src/registration/simd.hpp is the one compiled.
+# Also checks that the NEON branch of src/runtime/simd.hpp is the one compiled.
 #
 # Too slow for CI (first run: ~400 MB of arm64 packages, a full cross build, tests under
 # emulation: 20-40 min on the 2-core development VM). Run as root (or with sudo):
@@ -104,7 +104,8 @@ cmake -S . -B "$OUT/build" -G Ninja -DCMAKE_BUILD_TYPE=Release \
   -DCMAKE_TOOLCHAIN_FILE="$OUT/toolchain.cmake" -DOMNIPOSE_WITH_LIBCAMERA=OFF \
   -DOMNIPOSE_WITH_SYSTEMD=OFF -DOMNIPOSE_BUILD_BENCHMARKS=ON >/dev/null
 TESTS=(registration_test registration_alloc_test simd_check_test fft_plan_test noise_weighting_test
-  column_spectra_test worker_pool_test fit_test pipeline_test pipeline_alloc_test calibration_test io_test)
+  column_spectra_test worker_pool_test worker_count_tuner_test fit_test pipeline_test
+  pipeline_alloc_test calibration_test io_test)
 jobs=$(nproc 2>/dev/null || echo 2)
 nice -n 10 cmake --build "$OUT/build" -j"$jobs" --target "${TESTS[@]}" omnipose-bench-pipeline \
   omnipose-bench-instructions

@@ -48,7 +48,7 @@ dir=build-fuzz
 # members, P0848) but still reports __cpp_concepts 201907, which hides std::expected from it:
 # the fuzz build states the level it has.
 flags="-U__cpp_concepts -D__cpp_concepts=202002L -Wno-builtin-macro-redefined"
-# src/registration/simd.hpp uses GCC's __builtin_shuffle (one and two operands):
+# src/runtime/simd.hpp uses GCC's __builtin_shuffle (one and two operands):
 # tests/fuzz/clang_compat.hpp gives clang the same (element-wise) shuffles.
 flags="$flags -include $PWD/tests/fuzz/clang_compat.hpp"
 flags="$flags -fsanitize=fuzzer-no-link,address,undefined -fno-sanitize=vptr -fno-sanitize-recover=all -fno-omit-frame-pointer -g"

@@ -12,6 +12,7 @@
 
 #include "common/grey_convert.hpp"
 #include "common/streaming.hpp"
+#include "omnipose/calibration.hpp"
 #include "omnipose/limits.hpp"
 
 namespace omnipose {
@@ -93,9 +94,11 @@ std::vector<std::string> validate(const V4l2Options& o) {
   if (o.buffer_count < 2 || o.buffer_count > 32)
     problems.push_back("buffer_count: must be in [2, 32], is " + std::to_string(o.buffer_count));
   drivers::appendClockProblems(problems, o.clock_resync, o.clock_samples);
-  if (!(std::abs(o.readout_s) <= 0.1))
-    problems.push_back("readout_s: must be finite with |readout_s| <= 0.1 s (sensor.readout_s of "
-                       "the calibration), is " + std::to_string(o.readout_s));
+  if (!(std::abs(o.readout_s) <= SensorTiming::kMaxReadoutS))
+    problems.push_back("readout_s: must be finite with |readout_s| <= " +
+                       std::to_string(SensorTiming::kMaxReadoutS) +
+                       " s (sensor.readout_s of the calibration), is " +
+                       std::to_string(o.readout_s));
   return problems;
 }
 

@@ -38,7 +38,6 @@ namespace omnipose {
 struct PipelineOptions {
   Unwrapper::Options unwrap;
   /// Window size/step and iFMI settings; the panorama size is the calibration's.
-  /// registration.threads is ignored (see threads).
   WindowRegistration::Options registration;
   MotionFit::Options fit;
   /// Warp-and-refit passes after the linear fit (0 = plain first-order fit).
@@ -51,7 +50,8 @@ struct PipelineOptions {
   bool moving_content = true;
   /// Worker threads for the window registration and the de-rotation, the processing thread
   /// included, created at start-up (1 = everything on the calling thread; 0 = all online
-  /// cores). The result is bit-identical for any value. registration.threads is ignored.
+  /// cores; at most WindowRegistration::kMaxThreads). The result is bit-identical for any
+  /// value.
   /// A library starts no threads unless asked: the default is 1 (omniposed and
   /// omnipose-replay default to 0). Idle workers spin up to 50 us after each job, then block.
   int threads = 1;

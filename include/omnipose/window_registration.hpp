@@ -54,12 +54,9 @@ class WindowRegistration {
     /// is measured on every frame kept as the next reference (Donoho's median of the 2 x 2
     /// diagonal Haar details, over the windows' rows and the usable pixels), and a
     /// frequency of power |F|^2 counts |F|^2 / (|F|^2 + sigma^2 sum(taper^2)) as much in
-    /// each of the two windows. Measured (docs/results/ANALYSIS.md, issue 29): indoor scenes
-    /// (plain walls, blinds) gain, e.g. indoor yaw 0.028 -> 0.025 mrad and the box-room
-    /// rectangle's heading drift 0.72 -> 0.26 deg (through an office texture 1.52 -> 1.16);
-    /// dense outdoor texture (grass, whose fine detail the median reads as noise) loses up to
-    /// a third. The pose covariance still
-    /// describes the errors (pose_covariance_test: mean rotation NEES about 2 of 3). Off by
+    /// each of the two windows. Indoor scenes (plain walls, blinds) gain; dense outdoor
+    /// texture (grass, whose fine detail the median reads as noise) loses
+    /// (docs/results/ANALYSIS.md). The pose covariance still describes the errors. Off by
     /// default. About 1 % more instructions per frame.
     bool noise_weighting = false;
     double max_rotation_rad = 0.35;  ///< |phi| searched around 0 (no 180-degree ambiguity), in (0, pi/4)
@@ -69,7 +66,6 @@ class WindowRegistration {
     double min_usable_fraction = 0.5;  ///< with a mask (setValidity): windows whose
                                        ///< taper-weighted usable fraction is below this
                                        ///< are not measured (WindowMotion::masked)
-    int threads = 1;  ///< workers (calling thread included); 0 = all online cores; in [0, 256]
 
     /// Every problem, one message per bad field, each starting with the field's name
     /// ("window: 8 is outside [16, 512] pixels"); empty when valid.
@@ -78,6 +74,8 @@ class WindowRegistration {
 
   /// Largest window side, pixels.
   static constexpr int kMaxWindow = 512;
+  /// Most worker threads a registration or a pipeline runs (PipelineOptions::threads).
+  static constexpr int kMaxThreads = 256;
   /// Largest step between windows, pixels.
   static constexpr int kMaxStep = 4096;
   /// Most window samples of one frame (windows x L^2): 16 Mi, 25 times the paper's setting
@@ -93,18 +91,20 @@ class WindowRegistration {
   /// with the field's name (or "panorama"). Empty when they fit.
   static std::vector<std::string> validate(cv::Size panorama, const Options& options);
 
-  /// Registration of panoramas of `panorama` pixels (W x H: the calibration's panorama).
-  /// Throws std::invalid_argument listing every problem of validate(panorama, options).
-  WindowRegistration(cv::Size panorama, const Options& options);
+  /// Registration of panoramas of `panorama` pixels (W x H: the calibration's panorama) on
+  /// `threads` workers, the calling thread included (0 = all online cores; the result is the
+  /// same for any count). Throws std::invalid_argument listing every problem of
+  /// validate(panorama, options), and a thread count outside [0, kMaxThreads].
+  WindowRegistration(cv::Size panorama, const Options& options, int threads = 1);
   /// Internal to the library: what the pipeline hands the registration it embeds (the
   /// worker pool it shares among its stages and how long FFTW plans). Only declared here;
   /// its definition is private (src/registration/pipeline_resources.hpp), so code outside
   /// the library cannot make one and uses the constructor above.
   struct PipelineResources;
   /// Internal (the pipeline): as the constructor above, but runs on the shared pool of
-  /// `resources` (which must outlive this object) instead of a pool of its own, so
-  /// options.threads is ignored, and plans with its effort (the constructor above uses
-  /// FFTW_MEASURE). Throws std::invalid_argument as the constructor above.
+  /// `resources` (which must outlive this object) instead of a pool of its own, and plans
+  /// with its effort (the constructor above uses FFTW_MEASURE). Throws
+  /// std::invalid_argument as the constructor above.
   WindowRegistration(cv::Size panorama, const Options& options,
                      const PipelineResources& resources);
   ~WindowRegistration();
@@ -179,9 +179,11 @@ class WindowRegistration {
 
   /// measure()'s `against` for the reference (the previous frame).
   static constexpr int kPreviousFrame = -1;
+  /// The most keyframe slots reserveKeyframes() takes (keyframes.slots of daemon.yaml).
+  static constexpr int kMaxKeyframeSlots = 16;
   /// Start-up only: allocates `slots` keyframe slots (spectra of a whole panorama each,
   /// as much memory as the reference). Drops any stored keyframe. Throws
-  /// std::invalid_argument outside [0, 16].
+  /// std::invalid_argument outside [0, kMaxKeyframeSlots].
   void reserveKeyframes(int slots);
   /// Keyframe slots reserved.
   int keyframeSlots() const;

@@ -12,7 +12,7 @@
 #include <sstream>
 
 #include "common/problem_list.hpp"
-#include "registration/worker_pool.hpp"
+#include "runtime/worker_pool.hpp"
 #include "common/yaml_reader.hpp"
 #include "omnipose/limits.hpp"
 
@@ -237,7 +237,7 @@ DaemonConfig DaemonConfig::parse(const std::string& text, const std::string& ori
   r.throwIfProblems("invalid configuration");
   // More workers than cores only makes them wait for each other (the cores this process may
   // run on: its CPU affinity).
-  int cores = registration::WorkerPool::onlineCores();
+  int cores = runtime::WorkerPool::onlineCores();
   if (!c.scheduling.cpus.empty())
     cores = std::min(cores, static_cast<int>(c.scheduling.cpus.size()));
   if (c.pipeline.threads > cores) {

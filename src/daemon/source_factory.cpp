@@ -4,7 +4,7 @@
 #include <string>
 #include <vector>
 
-#include "daemon/file_frame_source.hpp"
+#include "file/file_frame_source.hpp"
 #include "v4l2/v4l2_source.hpp"
 #if defined(OMNIPOSE_HAVE_LIBCAMERA)
 #include "libcamera/libcamera_source.hpp"

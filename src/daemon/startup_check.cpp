@@ -13,7 +13,7 @@
 #include "omnipose/io/dataset.hpp"
 #include "omnipose/calibration.hpp"
 #include "omnipose/pipeline.hpp"
-#include "registration/fft_plan.hpp"
+#include "runtime/fft_plan.hpp"
 
 namespace omnipose::daemon {
 namespace {
@@ -61,7 +61,7 @@ void checkWisdom(const DaemonConfig& config, StartupCheck& out) {
   const std::string& path = config.pipeline.fftw_wisdom;
   if (path.empty()) return;
   const std::string origin = config.origin.empty() ? "daemon.yaml" : config.origin;
-  if (const std::optional<std::string> problem = registration::wisdomFileProblem(path)) {
+  if (const std::optional<std::string> problem = runtime::wisdomFileProblem(path)) {
     out.problems.push_back(origin + ": pipeline.fftw_wisdom: " + *problem);
     return;
   }

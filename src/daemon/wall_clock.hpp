@@ -4,17 +4,13 @@
 /// time, publication time) and the steady clock for intervals and deadlines.
 
 #include <chrono>
-#include <cstdint>
-#include <ctime>
+
+#include "common/wall_clock.hpp"
 
 namespace omnipose::daemon {
 
-/// Wall clock (CLOCK_REALTIME), microseconds since the Unix epoch. Allocation-free.
-inline std::int64_t wallClockMicros() {
-  timespec ts{};
-  clock_gettime(CLOCK_REALTIME, &ts);
-  return static_cast<std::int64_t>(ts.tv_sec) * 1000000 + ts.tv_nsec / 1000;
-}
+/// Wall clock (CLOCK_REALTIME), microseconds since the Unix epoch: the drivers' clock.
+using drivers::wallClockMicros;
 
 using SteadyClock = std::chrono::steady_clock;
 

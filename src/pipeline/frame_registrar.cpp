@@ -14,8 +14,8 @@
 
 #include "omnipose/motion_model.hpp"
 #include "omnipose/so3.hpp"
-#include "registration/fft_plan.hpp"
-#include "registration/pipeline_resources.hpp"
+#include "runtime/fft_plan.hpp"
+#include "runtime/pipeline_resources.hpp"
 
 namespace omnipose::pipeline {
 namespace {
@@ -56,31 +56,31 @@ std::vector<double> windowCenters(const WindowRegistration& registration) {
 
 FrameRegistrar::WisdomFile::WisdomFile(std::string file)
     : path(std::move(file)),
-      loaded(checked(path) && registration::importWisdom(path)),
-      before(loaded ? registration::wisdomText() : std::string()) {}
+      loaded(checked(path) && runtime::importWisdom(path)),
+      before(loaded ? runtime::wisdomText() : std::string()) {}
 
 bool FrameRegistrar::WisdomFile::checked(const std::string& path) {
-  if (const std::optional<std::string> problem = registration::wisdomFileProblem(path))
+  if (const std::optional<std::string> problem = runtime::wisdomFileProblem(path))
     throw std::invalid_argument("pipeline.fftw_wisdom: " + *problem);
   return true;
 }
 
-registration::PlanEffort FrameRegistrar::WisdomFile::effort() const {
+runtime::PlanEffort FrameRegistrar::WisdomFile::effort() const {
   // Plans that a file keeps are made once per machine: search them patiently. Without a
   // file every start-up plans again, so it measures only.
-  return path.empty() ? registration::PlanEffort::kMeasure : registration::PlanEffort::kPatient;
+  return path.empty() ? runtime::PlanEffort::kMeasure : runtime::PlanEffort::kPatient;
 }
 
 void FrameRegistrar::WisdomFile::saveIfPlanned() const {
-  if (!path.empty() && (!loaded || registration::wisdomText() != before))
-    (void)registration::exportWisdom(path);
+  if (!path.empty() && (!loaded || runtime::wisdomText() != before))
+    (void)runtime::exportWisdom(path);
 }
 
 FrameRegistrar::FrameRegistrar(const Calibration& c, const PipelineOptions& o, int keyframe_slots)
     : calibration_(c),
       options_(o),
       wisdom_(o.fftw_wisdom),
-      pool_(o.threads > 0 ? o.threads : registration::WorkerPool::onlineCores()),
+      pool_(o.threads > 0 ? o.threads : runtime::WorkerPool::onlineCores()),
       unwrapper_(c, o.unwrap),
       registration_(c.panorama.size(), registrationOptions(o),
                     WindowRegistration::PipelineResources{pool_, wisdom_.effort()}),

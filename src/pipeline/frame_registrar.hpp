@@ -24,7 +24,7 @@
 #include "pipeline/moving_content.hpp"
 #include "pipeline/panorama_warp.hpp"
 #include "pipeline/ring_alignment.hpp"
-#include "registration/worker_pool.hpp"
+#include "runtime/worker_pool.hpp"
 
 namespace omnipose::pipeline {
 
@@ -63,8 +63,8 @@ class FrameRegistrar {
 
   /// Keeps the workers awake between the jobs of one frame (WorkerPool::Burst): held by
   /// the caller for the whole of one frame's processing.
-  [[nodiscard]] registration::WorkerPool::Burst frameBurst() {
-    return registration::WorkerPool::Burst(pool_);
+  [[nodiscard]] runtime::WorkerPool::Burst frameBurst() {
+    return runtime::WorkerPool::Burst(pool_);
   }
 
   /// Unwraps `frame` into the current panorama (kBadFrame / kInvalidArgument on a frame of
@@ -135,7 +135,7 @@ class FrameRegistrar {
   struct WisdomFile {
     explicit WisdomFile(std::string file);
     static bool checked(const std::string& path);
-    registration::PlanEffort effort() const;
+    runtime::PlanEffort effort() const;
     void saveIfPlanned() const;
     std::string path;
     bool loaded;         ///< the file was read
@@ -180,7 +180,7 @@ class FrameRegistrar {
   Calibration calibration_;
   PipelineOptions options_;
   WisdomFile wisdom_;
-  registration::WorkerPool pool_;
+  runtime::WorkerPool pool_;
   Unwrapper unwrapper_;
   WindowRegistration registration_;
   MotionFit fit_;

@@ -207,7 +207,7 @@ void MovingContentCheck::sampleRow(int r, const cv::Mat& reference, const cv::Ma
 
 void MovingContentCheck::measure(const cv::Mat& reference, const cv::Mat& current,
                                  const PanoramaWarp& warp, std::span<const WindowMotion> windows,
-                                 registration::WorkerPool& pool, std::span<double> fraction,
+                                 runtime::WorkerPool& pool, std::span<double> fraction,
                                  std::span<const Eigen::Vector2d> expected) {
   std::fill(fraction.begin(), fraction.end(), 0.0);
   if (windows.size() != centers_.size() || fraction.size() != centers_.size() ||

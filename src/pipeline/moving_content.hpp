@@ -42,7 +42,7 @@
 
 #include "omnipose/window_motion.hpp"
 #include "pipeline/panorama_warp.hpp"
-#include "registration/worker_pool.hpp"
+#include "runtime/worker_pool.hpp"
 
 namespace omnipose::pipeline {
 
@@ -88,7 +88,7 @@ class MovingContentCheck {
   /// windows.size() == fraction.size() (== expected.size() when given) == the constructor's
   /// window count.
   void measure(const cv::Mat& reference, const cv::Mat& current, const PanoramaWarp& warp,
-               std::span<const WindowMotion> windows, registration::WorkerPool& pool,
+               std::span<const WindowMotion> windows, runtime::WorkerPool& pool,
                std::span<double> fraction, std::span<const Eigen::Vector2d> expected = {});
 
   /// The factor on a window's confidences for a moving fraction `f`: 1 up to kKeepFraction,

@@ -71,7 +71,8 @@ const char* toString(TrackState state) {
 
 std::vector<std::string> KeyframeOptions::validate() const {
   std::vector<std::string> problems;
-  detail::checkRange(problems, "slots", slots, 0, 16, " (0 = no keyframes)");
+  detail::checkRange(problems, "slots", slots, 0, WindowRegistration::kMaxKeyframeSlots,
+                     " (0 = no keyframes)");
   if (!(max_translation >= 0.0 && max_translation <= 1.0))
     problems.push_back("max_translation: " + std::to_string(max_translation) +
                        " is outside [0, 1] scene distances");

@@ -3,7 +3,7 @@
 #include <algorithm>
 #include <cmath>
 
-#include "registration/simd.hpp"
+#include "runtime/simd.hpp"
 
 namespace omnipose {
 // Image sampling: cubic convolution (Keys kernel with a = -0.75, OpenCV's INTER_CUBIC). Of
@@ -96,7 +96,7 @@ void PanoramaWarp::derotateRows(cv::Mat& out, int first, int last) const {
   // biased by the fractional part of the motion. Four pixels at a time: the 4 columns of one
   // grid cell share their grid corners; per pixel the 4 x 4 taps are four row vectors
   // weighted by the row weights, then by the column weights.
-  namespace simd = registration::simd;
+  namespace simd = runtime::simd;
   static_assert(kGridStep == 4, "one grid cell = one group of four lanes");
   const int PW = padded_.cols;
   const simd::F4 fx{0.0f, 0.25f, 0.5f, 0.75f};

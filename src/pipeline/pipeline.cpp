@@ -28,7 +28,8 @@ std::vector<std::string> otherProblems(const PipelineOptions& o) {
   for (const auto& p : o.unwrap.validate()) problems.push_back("unwrap." + p);
   for (const auto& p : o.fit.validate()) problems.push_back("fit." + p);
   detail::checkRange(problems, "refine_iterations", o.refine_iterations, 0, 5);
-  detail::checkRange(problems, "threads", o.threads, 0, 256, " (0 = all online cores)");
+  detail::checkRange(problems, "threads", o.threads, 0, WindowRegistration::kMaxThreads,
+                     " (0 = all online cores)");
   return problems;
 }
 

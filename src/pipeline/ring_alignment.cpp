@@ -8,8 +8,6 @@
 
 namespace omnipose::pipeline {
 
-namespace reg = registration;
-
 RingAlignment::RingAlignment(cv::Size panorama)
     : width_(panorama.width),
       height_(panorama.height),
@@ -23,15 +21,15 @@ RingAlignment::RingAlignment(cv::Size panorama)
     throw std::invalid_argument("RingAlignment: needs a panorama of at least 4 x 4");
   taper_.resize(static_cast<std::size_t>(height_));
   for (int v = 0; v < height_; ++v) taper_[v] = static_cast<float>(windowTaper(v, height_));
-  forward_ = reg::FftPlan::realToComplex(height_, width_, input_.data(), spectrum_.data());
-  inverse_ = reg::FftPlan::complexToReal(height_, width_, cross_.data(), surface_.data());
+  forward_ = runtime::FftPlan::realToComplex(height_, width_, input_.data(), spectrum_.data());
+  inverse_ = runtime::FftPlan::complexToReal(height_, width_, cross_.data(), surface_.data());
   input_.clear();
   spectrum_.clear();
   cross_.clear();
   surface_.clear();
 }
 
-void RingAlignment::whitenedSpectrum(const cv::Mat& panorama, reg::Complex* out) {
+void RingAlignment::whitenedSpectrum(const cv::Mat& panorama, runtime::Complex* out) {
   double sum = 0.0;
   for (int v = 0; v < height_; ++v) {
     const float* row = panorama.ptr<float>(v);
@@ -46,7 +44,7 @@ void RingAlignment::whitenedSpectrum(const cv::Mat& panorama, reg::Complex* out)
   forward_.execute();
   for (std::size_t i = 0; i < spectrum_.size(); ++i) {
     const float magnitude = std::abs(spectrum_[i]);
-    out[i] = magnitude > 1e-12f ? spectrum_[i] / magnitude : reg::Complex{};
+    out[i] = magnitude > 1e-12f ? spectrum_[i] / magnitude : runtime::Complex{};
   }
 }
 

@@ -13,7 +13,7 @@
 #include <opencv2/core.hpp>
 #include <vector>
 
-#include "registration/fft_plan.hpp"
+#include "runtime/fft_plan.hpp"
 
 namespace omnipose::pipeline {
 
@@ -33,13 +33,13 @@ class RingAlignment {
 
  private:
   /// Tapered, mean-free copy of `panorama` into input_, transformed and whitened into `out`.
-  void whitenedSpectrum(const cv::Mat& panorama, registration::Complex* out);
+  void whitenedSpectrum(const cv::Mat& panorama, runtime::Complex* out);
 
   int width_, height_, bins_;
   std::vector<float> taper_;  ///< Hann along v
-  registration::FftwArray<float> input_, surface_;
-  registration::FftwArray<registration::Complex> spectrum_, earlier_, cross_;
-  registration::FftPlan forward_, inverse_;
+  runtime::FftwArray<float> input_, surface_;
+  runtime::FftwArray<runtime::Complex> spectrum_, earlier_, cross_;
+  runtime::FftPlan forward_, inverse_;
 };
 
 }  // namespace omnipose::pipeline

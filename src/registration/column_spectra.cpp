@@ -7,9 +7,13 @@
 #include <stdexcept>
 #include <utility>
 
-#include "registration/simd.hpp"
+#include "runtime/simd.hpp"
 
 namespace omnipose::registration {
+
+using runtime::fftwPlannerMutex;
+using runtime::planFlags;
+namespace simd = runtime::simd;
 namespace {
 
 /// Columns per chunk of the column stage: a multiple of 8, so every chunk's arrays have the

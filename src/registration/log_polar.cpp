@@ -5,9 +5,11 @@
 #include <numbers>
 #include <stdexcept>
 
-#include "registration/simd.hpp"
+#include "runtime/simd.hpp"
 
 namespace omnipose::registration {
+
+namespace simd = runtime::simd;
 namespace {
 
 /// Fraction of the log-radius axis covered by a cosine ramp at each end (Tukey taper).

@@ -20,9 +20,11 @@
 
 #include <vector>
 
-#include "registration/fft_plan.hpp"
+#include "runtime/fft_plan.hpp"
 
 namespace omnipose::registration {
+
+using runtime::Complex;
 
 class LogPolarMap {
  public:

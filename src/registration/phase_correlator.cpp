@@ -7,10 +7,12 @@
 #include <limits>
 #include <numbers>
 
-#include "registration/simd.hpp"
+#include "runtime/simd.hpp"
 #include "registration/subpixel_peak.hpp"
 
 namespace omnipose::registration {
+
+namespace simd = runtime::simd;
 namespace {
 
 /// W below exp(-kBandCut^2 / 2) ~ 1.1% is dropped from the band. A narrower band (2.5)

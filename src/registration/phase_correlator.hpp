@@ -15,9 +15,14 @@
 #include <cstddef>
 #include <limits>
 
-#include "registration/fft_plan.hpp"
+#include "runtime/fft_plan.hpp"
 
 namespace omnipose::registration {
+
+using runtime::Complex;
+using runtime::FftPlan;
+using runtime::FftwArray;
+using runtime::PlanEffort;
 
 /// Peak of a correlation surface.
 struct CorrelationPeak {

@@ -5,9 +5,11 @@
 #include <limits>
 
 #include "common/periodic.hpp"
-#include "registration/simd.hpp"
+#include "runtime/simd.hpp"
 
 namespace omnipose::registration {
+
+namespace simd = runtime::simd;
 namespace {
 
 using detail::wrapIndex;

@@ -13,13 +13,13 @@
 
 #include "common/problem_list.hpp"
 #include "registration/column_spectra.hpp"
-#include "registration/fft_plan.hpp"
+#include "runtime/fft_plan.hpp"
 #include "registration/log_polar.hpp"
 #include "registration/noise_estimate.hpp"
 #include "registration/phase_correlator.hpp"
-#include "registration/pipeline_resources.hpp"
-#include "registration/simd.hpp"
-#include "registration/worker_pool.hpp"
+#include "runtime/pipeline_resources.hpp"
+#include "runtime/simd.hpp"
+#include "runtime/worker_pool.hpp"
 
 // Per window (DESIGN.md section 4; Buelow & Birk, iFMI):
 //   1. cut the L x L window (wrapping around u), remove its taper-weighted mean, apply a
@@ -102,19 +102,19 @@ std::vector<float> taperTable(int length) {
 /// sum_j a[j] b[j] (four lanes, so no serial chain of additions).
 OMNIPOSE_SIMD_CLONES
 float dot(const float* a, const float* b, int count) {
-  reg::simd::F4 acc = reg::simd::broadcast(0.0f);
+  runtime::simd::F4 acc = runtime::simd::broadcast(0.0f);
   int j = 0;
-  for (; j + 4 <= count; j += 4) acc += reg::simd::load(a + j) * reg::simd::load(b + j);
+  for (; j + 4 <= count; j += 4) acc += runtime::simd::load(a + j) * runtime::simd::load(b + j);
   float tail = 0.0f;
   for (; j < count; ++j) tail += a[j] * b[j];
-  return reg::simd::sum(acc) + tail;
+  return runtime::simd::sum(acc) + tail;
 }
 
 /// out[j] = h * taper[j] * (in[j] - mean) for j < count; returns sum_j out[j]^2. `out` may
 /// be `in` (in place).
 OMNIPOSE_SIMD_CLONES
 float taperRow(float* out, const float* in, const float* taper, float h, float mean, int count) {
-  namespace simd = reg::simd;
+  namespace simd = runtime::simd;
   const simd::F4 h4 = simd::broadcast(h), m4 = simd::broadcast(mean);
   simd::F4 energy = simd::broadcast(0.0f);
   int j = 0;
@@ -158,7 +158,7 @@ void sampleRowWrapped(const float* image, std::size_t stride, int width, float u
 OMNIPOSE_SIMD_CLONES
 void sampleRow(const float* image, std::size_t stride, float u0, float du, float v0, float dv,
                float max_v, float* out, int count) {
-  namespace simd = reg::simd;
+  namespace simd = runtime::simd;
   const simd::F4 lane{0.0f, 1.0f, 2.0f, 3.0f};
   const simd::F4 zero = simd::broadcast(0.0f), top = simd::broadcast(max_v);
   int j = 0;
@@ -205,7 +205,6 @@ std::vector<std::string> WindowRegistration::Options::validate() const {
   detail::checkRange(p, "max_log_scale", max_log_scale, 0.0, 0.5, "", true);
   detail::checkRange(p, "min_confidence", min_confidence, 0.0, 1.0);
   detail::checkRange(p, "min_usable_fraction", min_usable_fraction, 0.0, 1.0);
-  detail::checkRange(p, "threads", threads, 0, 256, " (0 = all online cores)");
   return p;
 }
 
@@ -237,8 +236,8 @@ std::vector<std::string> WindowRegistration::validate(cv::Size panorama, const O
 
 /// Whitened spectra of every window of one frame: what the next frame is registered against.
 struct WindowSpectra {
-  reg::FftwArray<reg::Complex> translation;  ///< translation bands, window after window
-  reg::FftwArray<reg::Complex> log_polar;    ///< log-polar bands, window after window
+  runtime::FftwArray<runtime::Complex> translation;  ///< translation bands, window after window
+  runtime::FftwArray<runtime::Complex> log_polar;    ///< log-polar bands, window after window
   std::vector<unsigned char> textured;       ///< per window: has usable texture
   std::vector<reg::PhaseNoise> translation_noise;  ///< per window: whiten()'s phase noise
 
@@ -260,31 +259,31 @@ struct TaperedWindow {
 struct Worker {
   /// max_rotation_rad: the rotation search's reach (Options), so that the log-polar
   /// correlation computes only the surface rows it searches.
-  Worker(int fft_size, double max_rotation_rad, reg::PlanEffort effort);
+  Worker(int fft_size, double max_rotation_rad, runtime::PlanEffort effort);
 
   // Window stage: tapered window (n x n, zero padding) -> half spectrum; or the window's
   // second stage from the panorama's column spectra.
-  reg::FftwArray<float> window;
-  reg::FftwArray<reg::Complex> spectrum;
-  reg::FftPlan window_fft;
+  runtime::FftwArray<float> window;
+  runtime::FftwArray<runtime::Complex> spectrum;
+  runtime::FftPlan window_fft;
   reg::WindowSpectrum from_columns;
   reg::PhaseCorrelator translation;
 
   // Log-polar stage: H |F| -> log-polar image -> half spectrum.
   reg::LogPolarMap log_polar_map;
-  reg::FftwArray<float> log_polar;
-  reg::FftwArray<reg::Complex> log_polar_spectrum;
-  reg::FftPlan log_polar_fft;
+  runtime::FftwArray<float> log_polar;
+  runtime::FftwArray<runtime::Complex> log_polar_spectrum;
+  runtime::FftPlan log_polar_fft;
   reg::PhaseCorrelator rotation_scale;
 
   // One window's bands when the current frame is not kept, and the de-rotated band.
-  reg::FftwArray<reg::Complex> scratch_translation, scratch_log_polar, derotated;
+  runtime::FftwArray<runtime::Complex> scratch_translation, scratch_log_polar, derotated;
 };
 
-Worker::Worker(int fft_size, double max_rotation_rad, reg::PlanEffort effort)
+Worker::Worker(int fft_size, double max_rotation_rad, runtime::PlanEffort effort)
     : window(static_cast<std::size_t>(fft_size) * fft_size),
       spectrum(static_cast<std::size_t>(fft_size) * (fft_size / 2 + 1)),
-      window_fft(reg::FftPlan::realToComplex(fft_size, fft_size, window.data(), spectrum.data(),
+      window_fft(runtime::FftPlan::realToComplex(fft_size, fft_size, window.data(), spectrum.data(),
                                              effort)),
       from_columns(fft_size, effort),
       translation(fft_size, fft_size, kTuning.translation_sigma_px, kTuning.translation_sigma_px,
@@ -296,7 +295,7 @@ Worker::Worker(int fft_size, double max_rotation_rad, reg::PlanEffort effort)
       log_polar(static_cast<std::size_t>(kTuning.log_polar_angles) * kTuning.log_polar_radii),
       log_polar_spectrum(static_cast<std::size_t>(kTuning.log_polar_angles) *
                          (kTuning.log_polar_radii / 2 + 1)),
-      log_polar_fft(reg::FftPlan::realToComplex(kTuning.log_polar_angles, kTuning.log_polar_radii,
+      log_polar_fft(runtime::FftPlan::realToComplex(kTuning.log_polar_angles, kTuning.log_polar_radii,
                                                 log_polar.data(), log_polar_spectrum.data(),
                                                 effort)),
       rotation_scale(kTuning.log_polar_angles, kTuning.log_polar_radii, kTuning.log_polar_sigma,
@@ -310,8 +309,9 @@ Worker::Worker(int fft_size, double max_rotation_rad, reg::PlanEffort effort)
 }
 
 struct WindowRegistration::Impl {
-  Impl(cv::Size panorama, const Options& o, reg::WorkerPool* shared_pool,
-       reg::PlanEffort effort);
+  /// On `shared_pool`, or (nullptr) on a pool of its own of `threads` workers (0 = all cores).
+  Impl(cv::Size panorama, const Options& o, runtime::WorkerPool* shared_pool, int threads,
+       runtime::PlanEffort effort);
 
   Options options;
   int width, height;  ///< panorama size, pixels
@@ -324,8 +324,8 @@ struct WindowRegistration::Impl {
   double taper_weight;       ///< sum over the window of h_i h_j
   double taper_weight2;      ///< sum over the window of (h_i h_j)^2
 
-  std::unique_ptr<reg::WorkerPool> own_pool;  ///< when no pool is shared
-  reg::WorkerPool* pool;
+  std::unique_ptr<runtime::WorkerPool> own_pool;  ///< when no pool is shared
+  runtime::WorkerPool* pool;
   std::vector<std::unique_ptr<Worker>> workers;  ///< one per pool worker
   std::size_t translation_band, log_polar_band;  ///< band sizes (the same for every worker)
   double angle_step, log_step;                   ///< log-polar grid steps
@@ -397,7 +397,7 @@ struct WindowRegistration::Impl {
   /// F_c of window k from the column spectra (transformColumns() of this panorama done).
   TaperedWindow transformFromColumns(Worker& w, int k) const;
   TaperedWindow transformWindow(Worker& w, const cv::Mat& panorama, int k,
-                                reg::Complex* log_polar_band) const;
+                                runtime::Complex* log_polar_band) const;
   /// Pixel noise energy per spectral bin of window k for unit pixel noise variance: the
   /// sum of its squared taper weights.
   double noiseEnergy(int k) const { return windowMasked(k) ? masked_weight2[k] : taper_weight2; }
@@ -408,14 +408,15 @@ struct WindowRegistration::Impl {
   /// Registers window k of the current frame (F_c in w.spectrum) against `ref`; the current
   /// whitened bands when already made (else nullptr) with their phase noise.
   void measureWindow(Worker& w, const cv::Mat& panorama, int k, const TaperedWindow& cur,
-                     const reg::Complex* cur_translation, reg::PhaseNoise cur_translation_noise,
-                     const reg::Complex* cur_log_polar,
+                     const runtime::Complex* cur_translation, reg::PhaseNoise cur_translation_noise,
+                     const runtime::Complex* cur_log_polar,
                      const WindowMotion* known, double expected_dv, const WindowSpectra& ref,
                      WindowMotion& out) const;
 };
 
 WindowRegistration::Impl::Impl(cv::Size panorama, const Options& o,
-                                reg::WorkerPool* shared_pool, reg::PlanEffort effort)
+                                runtime::WorkerPool* shared_pool, int threads,
+                                runtime::PlanEffort effort)
     : options(o),
       width(panorama.width),
       height(panorama.height),
@@ -426,8 +427,8 @@ WindowRegistration::Impl::Impl(cv::Size panorama, const Options& o,
       taper(taperTable(o.window)),
       own_pool(shared_pool != nullptr
                    ? nullptr
-                   : std::make_unique<reg::WorkerPool>(
-                         o.threads > 0 ? o.threads : reg::WorkerPool::onlineCores())),
+                   : std::make_unique<runtime::WorkerPool>(
+                         threads > 0 ? threads : runtime::WorkerPool::onlineCores())),
       pool(shared_pool != nullptr ? shared_pool : own_pool.get()) {
   workers.reserve(pool->size());
   for (int i = 0; i < pool->size(); ++i)
@@ -632,7 +633,7 @@ TaperedWindow WindowRegistration::Impl::taperWindow(Worker& w, int k, WindowRows
 }
 
 TaperedWindow WindowRegistration::Impl::transformWindow(Worker& w, const cv::Mat& panorama, int k,
-                                                        reg::Complex* log_polar_band) const {
+                                                        runtime::Complex* log_polar_band) const {
   if (mostlyMasked(k)) return {};  // not measured, no FFT
   // Step 1: F_c of the tapered window (left in `spectrum`).
   TaperedWindow tw;
@@ -653,9 +654,9 @@ TaperedWindow WindowRegistration::Impl::transformWindow(Worker& w, const cv::Mat
 
 void WindowRegistration::Impl::measureWindow(Worker& w, const cv::Mat& panorama, int k,
                                              const TaperedWindow& cur,
-                                             const reg::Complex* cur_translation,
+                                             const runtime::Complex* cur_translation,
                                              reg::PhaseNoise cur_translation_noise,
-                                             const reg::Complex* cur_log_polar,
+                                             const runtime::Complex* cur_log_polar,
                                              const WindowMotion* known, double expected_dv,
                                              const WindowSpectra& ref, WindowMotion& out) const {
   out = WindowMotion{};
@@ -689,7 +690,7 @@ void WindowRegistration::Impl::measureWindow(Worker& w, const cv::Mat& panorama,
   // Step 3: de-rotate/de-scale the current window (sampled from the panorama, so nothing is
   // lost at its border) when that moves its corners noticeably; else use F_c.
   const double corner = std::numbers::sqrt2 * 0.5 * options.window;
-  const reg::Complex* translation_band_ptr = cur_translation;
+  const runtime::Complex* translation_band_ptr = cur_translation;
   if (corner * std::max(std::abs(rotation), std::abs(std::log(scale))) > kTuning.derotate_min_px) {
     const TaperedWindow tw = loadWarpedWindow(w, panorama, k, rotation, scale);
     w.window_fft.execute();
@@ -707,7 +708,7 @@ void WindowRegistration::Impl::measureWindow(Worker& w, const cv::Mat& panorama,
   // or within kExpectedDvReachPx of an expected dv (a peak on that band's border may be
   // cut off: the window is then not used).
   const double everywhere = std::numeric_limits<double>::infinity();
-  const reg::Complex* reference_band = ref.translation.data() + k * translation_band;
+  const runtime::Complex* reference_band = ref.translation.data() + k * translation_band;
   const reg::CorrelationPeak t =
       std::isfinite(expected_dv)
           ? w.translation.correlateNear(reference_band, translation_band_ptr, expected_dv, everywhere)
@@ -733,15 +734,17 @@ void requireValid(cv::Size panorama, const WindowRegistration::Options& options)
 }
 }  // namespace
 
-WindowRegistration::WindowRegistration(cv::Size panorama, const Options& options) {
-  requireValid(panorama, options);
-  impl_ = std::make_unique<Impl>(panorama, options, nullptr, reg::PlanEffort::kMeasure);
+WindowRegistration::WindowRegistration(cv::Size panorama, const Options& options, int threads) {
+  std::vector<std::string> problems = validate(panorama, options);
+  detail::checkRange(problems, "threads", threads, 0, kMaxThreads, " (0 = all online cores)");
+  detail::throwIfProblems("WindowRegistration", problems);
+  impl_ = std::make_unique<Impl>(panorama, options, nullptr, threads, runtime::PlanEffort::kMeasure);
 }
 
 WindowRegistration::WindowRegistration(cv::Size panorama, const Options& options,
                                        const PipelineResources& resources) {
   requireValid(panorama, options);
-  impl_ = std::make_unique<Impl>(panorama, options, &resources.pool, resources.effort);
+  impl_ = std::make_unique<Impl>(panorama, options, &resources.pool, 1, resources.effort);
 }
 
 WindowRegistration::~WindowRegistration() = default;
@@ -824,13 +827,13 @@ bool WindowRegistration::measure(const cv::Mat& current, std::span<WindowMotion>
     Worker& w = *s.workers[worker];
     // Without a search for rotation/scale the current log-polar spectrum is not needed.
     const auto i = static_cast<std::size_t>(k);
-    reg::Complex* cur_log_polar = keep_as_next
+    runtime::Complex* cur_log_polar = keep_as_next
                                       ? next.log_polar.data() + k * s.log_polar_band
                                       : (known ? nullptr : w.scratch_log_polar.data());
     const TaperedWindow tw = s.transformWindow(w, current, k, cur_log_polar);
     // The un-rotated F_c is whitened here only when it becomes the next reference;
     // measureWindow() whitens it itself when it needs it.
-    reg::Complex* cur_translation = nullptr;
+    runtime::Complex* cur_translation = nullptr;
     reg::PhaseNoise translation_noise{};
     if (keep_as_next) {
       next.textured[k] = tw.textured;
@@ -861,9 +864,10 @@ void WindowRegistration::advance() {
 }
 
 void WindowRegistration::reserveKeyframes(int slots) {
-  if (slots < 0 || slots > 16)
+  if (slots < 0 || slots > kMaxKeyframeSlots)
     throw std::invalid_argument("WindowRegistration::reserveKeyframes: " + std::to_string(slots) +
-                                " slots is outside [0, 16]");
+                                " slots is outside [0, " + std::to_string(kMaxKeyframeSlots) +
+                                "]");
   Impl& s = *impl_;
   s.keyframes.clear();
   for (int i = 0; i < slots; ++i)

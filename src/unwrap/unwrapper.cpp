@@ -8,7 +8,7 @@
 #include <string>
 
 #include "common/problem_list.hpp"
-#include "registration/simd.hpp"
+#include "runtime/simd.hpp"
 
 namespace omnipose {
 
@@ -184,7 +184,7 @@ void Unwrapper::unwrapRows(const cv::Mat& grey, cv::Mat& panorama, int first, in
   // Bilinear lookup through the precomputed table: a = p00 + ax (p01 - p00), b likewise on
   // the row below, a + ay (b - a); four pixels at a time, the same operations per pixel in
   // the last W % 4.
-  namespace simd = registration::simd;
+  namespace simd = runtime::simd;
   const int W = panorama.cols;
   const std::size_t stride = static_cast<std::size_t>(grey.cols);  // continuous (toGrey())
   const uint8_t* src = grey.ptr<uint8_t>(0);

@@ -1,4 +1,4 @@
-// Tests of the feature-based baselines (issue 3): each of orb5pt, akaze5pt, orbrot and
+// Tests of the feature-based baselines: each of orb5pt, akaze5pt, orbrot and
 // akazerot recovers a rendered +-3 deg yaw within 0.01 rad on omni and panorama input,
 // which proves the bearing conversion (PanoramaGeometry::bearing) and OpenGV's (R12, t12)
 // convention against DESIGN.md section 2; the five-point solvers recover the direction of a

@@ -1,7 +1,7 @@
 // The registration's four FFTs, as FftPlan makes them (two batched 1-D FFTW plans through a
 // scratch array; FFTW_MEASURE and FFTW_PATIENT) and as FFTW's own 2-D plan
 // (fftwf_plan_dft_r2c_2d / c2r_2d, FFTW_MEASURE | FFTW_NO_BUFFERING), on the same arrays:
-// the measurement behind src/registration/fft_plan.hpp's choice. Reports; never gates CI.
+// the measurement behind src/runtime/fft_plan.hpp's choice. Reports; never gates CI.
 // Run: build/bin/omnipose-bench-fft
 #include <benchmark/benchmark.h>
 #include <fftw3.h>
@@ -12,11 +12,11 @@
 #include <mutex>
 
 #include "bench_stats.hpp"
-#include "registration/fft_plan.hpp"
+#include "runtime/fft_plan.hpp"
 
 namespace {
 
-namespace reg = omnipose::registration;
+namespace runtime = omnipose::runtime;
 
 /// The transforms of one window registration at the paper setting (L = 110).
 enum Transform : int {
@@ -46,22 +46,22 @@ void BM_Fft(benchmark::State& state) {
   const Shape s = shapeOf(static_cast<int>(state.range(0)));
   const auto method = static_cast<Method>(state.range(1));
   const std::size_t bins = static_cast<std::size_t>(s.rows) * (s.cols / 2 + 1);
-  reg::FftwArray<float> real(static_cast<std::size_t>(s.rows) * s.cols);
-  reg::FftwArray<reg::Complex> spectrum(bins);
+  runtime::FftwArray<float> real(static_cast<std::size_t>(s.rows) * s.cols);
+  runtime::FftwArray<runtime::Complex> spectrum(bins);
   fftwf_plan plan2d = nullptr;
-  reg::FftPlan plan;
+  runtime::FftPlan plan;
   if (method == kFftw2d) {
-    std::lock_guard lock(reg::fftwPlannerMutex());
+    std::lock_guard lock(runtime::fftwPlannerMutex());
     auto* z = reinterpret_cast<fftwf_complex*>(spectrum.data());
     const unsigned flags = FFTW_MEASURE | FFTW_NO_BUFFERING;
     plan2d = s.forward ? fftwf_plan_dft_r2c_2d(s.rows, s.cols, real.data(), z, flags)
                        : fftwf_plan_dft_c2r_2d(s.rows, s.cols, z, real.data(), flags);
   } else {
     const auto effort =
-        method == kTwoPassPatient ? reg::PlanEffort::kPatient : reg::PlanEffort::kMeasure;
+        method == kTwoPassPatient ? runtime::PlanEffort::kPatient : runtime::PlanEffort::kMeasure;
     plan = s.forward
-               ? reg::FftPlan::realToComplex(s.rows, s.cols, real.data(), spectrum.data(), effort)
-               : reg::FftPlan::complexToReal(s.rows, s.cols, spectrum.data(), real.data(), effort);
+               ? runtime::FftPlan::realToComplex(s.rows, s.cols, real.data(), spectrum.data(), effort)
+               : runtime::FftPlan::complexToReal(s.rows, s.cols, spectrum.data(), real.data(), effort);
   }
   for (std::size_t i = 0; i < real.size(); ++i) real[i] = std::sin(0.37f * static_cast<float>(i));
   for (std::size_t i = 0; i < bins; ++i) {
@@ -71,12 +71,12 @@ void BM_Fft(benchmark::State& state) {
   // The 2-D c2r plan overwrites its input on every execute (FFTW's default for c2r, as in
   // the pipeline before FftPlan): it gets the same input again, outside the timing.
   const bool refresh = plan2d != nullptr && !s.forward;
-  reg::FftwArray<reg::Complex> input(bins);
-  std::memcpy(input.data(), spectrum.data(), bins * sizeof(reg::Complex));
+  runtime::FftwArray<runtime::Complex> input(bins);
+  std::memcpy(input.data(), spectrum.data(), bins * sizeof(runtime::Complex));
   for (auto _ : state) {
     if (refresh) {
       state.PauseTiming();
-      std::memcpy(spectrum.data(), input.data(), bins * sizeof(reg::Complex));
+      std::memcpy(spectrum.data(), input.data(), bins * sizeof(runtime::Complex));
       state.ResumeTiming();
     }
     if (plan2d != nullptr)
@@ -86,7 +86,7 @@ void BM_Fft(benchmark::State& state) {
     benchmark::ClobberMemory();
   }
   if (plan2d != nullptr) {
-    std::lock_guard lock(reg::fftwPlannerMutex());
+    std::lock_guard lock(runtime::fftwPlannerMutex());
     fftwf_destroy_plan(plan2d);
   }
 }

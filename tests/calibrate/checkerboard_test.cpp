@@ -1,4 +1,4 @@
-// omnipose-calibrate --checkerboard (issue 9): the Mei model of a lens recovered by
+// omnipose-calibrate --checkerboard: the Mei model of a lens recovered by
 // cv::omnidir from checkerboard views rendered exactly through a known Mei model.
 #include "omnipose/calibrate/checkerboard.hpp"
 

@@ -95,7 +95,7 @@ TEST_P(CalibrateLens, RecoversTheRenderersCalibration) {
   const auto& got = res.calibration.omni;
   const auto& want = seq.truth.omni;
 
-  // Circles (issue 6: centre within 1 px, radii within 2 px).
+  // Circles (centre within 1 px, radii within 2 px).
   ASSERT_TRUE(res.ring);
   EXPECT_LT((res.ring->center - Eigen::Vector2d(want.center_x, want.center_y)).norm(), 1.0);
   EXPECT_NEAR(res.ring->radius_inner, want.radius_inner, 2.0);

@@ -1,4 +1,4 @@
-// omnipose-calibrate --propose-mask (issue 9): on a rendered turn with a static mast, the
+// omnipose-calibrate --propose-mask: on a rendered turn with a static mast, the
 // proposed mask covers the mast and little else; frames without motion are refused.
 #include "omnipose/calibrate/mask_proposal.hpp"
 

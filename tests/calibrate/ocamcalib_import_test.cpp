@@ -1,4 +1,4 @@
-// omnipose-calibrate --from-ocamcalib (issue 9): a calibration for an OCamCalib lens that
+// omnipose-calibrate --from-ocamcalib: a calibration for an OCamCalib lens that
 // the pipeline accepts, or a refusal that says what to change.
 #include "omnipose/calibrate/ocamcalib_import.hpp"
 

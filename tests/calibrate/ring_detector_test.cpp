@@ -19,8 +19,8 @@ using testing::makeCalibration;
 using omnipose::testing::recordFigure;
 using testing::renderOmni;
 
-constexpr double kCentreTolerance = 1.0;  ///< pixels (issue 6)
-constexpr double kRadiusTolerance = 2.0;  ///< pixels (issue 6)
+constexpr double kCentreTolerance = 1.0;  ///< pixels
+constexpr double kRadiusTolerance = 2.0;  ///< pixels
 
 struct Case {
   const char* name;

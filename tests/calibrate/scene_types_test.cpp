@@ -1,4 +1,4 @@
-// The calibration tool on the scene types that defeat a texture-based ring search (issue 9):
+// The calibration tool on the scene types that defeat a texture-based ring search:
 // dark floor, textureless bands at either ring edge, night, bright sky, rich texture. For
 // each: the centre within 1 px and both ring edges within 2 px of the rendered lens, or a
 // refusal (std::runtime_error naming the reason and what to try) - never a silently wrong

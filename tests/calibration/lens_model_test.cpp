@@ -1,4 +1,4 @@
-// Lens models (issue 9): OCamCalib and Mei in both directions, their YAML keys, and the
+// Lens models: OCamCalib and Mei in both directions, their YAML keys, and the
 // start-up errors for bad lens files.
 #include <gtest/gtest.h>
 

@@ -1,4 +1,4 @@
-// omniposed --check (issue 9): the calibration and what it names (lens model, mask) and the
+// omniposed --check: the calibration and what it names (lens model, mask) and the
 // pipeline against it are validated without opening a camera; every problem is a non-zero
 // exit naming the file and the field.
 #include <gtest/gtest.h>

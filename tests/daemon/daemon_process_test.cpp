@@ -487,7 +487,7 @@ TEST(Omniposed, LcmLoggerRecordsTheDaemonOnAPrivateNetwork) {
 }
 
 // ---------------------------------------------------------------------------------------
-// Faults the daemon must survive (issue 12, point 5).
+// Faults the daemon must survive.
 // ---------------------------------------------------------------------------------------
 
 /// Starts omniposed on an endless source (the 30-frame recording looped, paced in real time)

@@ -12,13 +12,13 @@
 #include "daemon/capture_loop.hpp"
 #include "daemon/counters.hpp"
 #include "daemon/daemon.hpp"
-#include "daemon/file_frame_source.hpp"
+#include "file/file_frame_source.hpp"
 #include "daemon/frame_mailbox.hpp"
 #include "daemon/sample_ring.hpp"
 #include "daemon/source_factory.hpp"
 #include "daemon/status_board.hpp"
 #include "daemon/wall_clock.hpp"
-#include "registration/worker_pool.hpp"
+#include "runtime/worker_pool.hpp"
 #include <sys/stat.h>
 
 #include "bad_images.hpp"
@@ -32,7 +32,6 @@ namespace {
 using namespace std::chrono_literals;
 namespace fs = std::filesystem;
 using daemon::Daemon;
-using daemon::FileFrameSource;
 using daemon::FrameMailbox;
 using daemon::MailboxFrame;
 using daemon::SteadyClock;
@@ -700,7 +699,7 @@ TEST(Daemon, PublishesOnePosePerFrameStatusAtItsRateAndAFinalStatus) {
     EXPECT_GE(s.processing_cpu_share, 0.0f);
     EXPECT_GE(s.worker_wait_ms, 0.0f);
     // pipeline.threads 0: every core this process may use, of which 1 or more take part.
-    EXPECT_EQ(s.threads, omnipose::registration::WorkerPool::onlineCores());
+    EXPECT_EQ(s.threads, omnipose::runtime::WorkerPool::onlineCores());
     EXPECT_GE(s.threads_active, 1);
     EXPECT_LE(s.threads_active, s.threads);
   }

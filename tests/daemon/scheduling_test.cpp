@@ -17,7 +17,7 @@
 #include <string>
 #include <thread>
 
-#include "registration/worker_pool.hpp"
+#include "runtime/worker_pool.hpp"
 
 namespace omnipose::daemon {
 namespace {
@@ -70,7 +70,7 @@ TEST(Scheduling, ACpuThatDoesNotExistIsRefusedAndNothingChanges) {
   EXPECT_TRUE(mentions(checkScheduling(config), "scheduling.cpus: CPU 4000 does not exist"));
   cpu_set_t now;
   ASSERT_EQ(sched_getaffinity(0, sizeof(now), &now), 0);
-  EXPECT_EQ(CPU_COUNT(&now), registration::WorkerPool::onlineCores()) << "the affinity is unchanged";
+  EXPECT_EQ(CPU_COUNT(&now), runtime::WorkerPool::onlineCores()) << "the affinity is unchanged";
 }
 
 TEST(Scheduling, CpusAreAppliedAndInheritedByLaterThreads) {

@@ -1,6 +1,6 @@
 #pragma once
 // Force-included (-include) into every file of the fuzz build (clang): GCC's vector shuffles,
-// used by src/registration/simd.hpp, which clang does not have (clang has
+// used by src/runtime/simd.hpp, which clang does not have (clang has
 // __builtin_shufflevector with constant indices instead). Same semantics as GCC's, for
 // vectors of N elements (N a power of two, as GCC requires):
 //   one operand:  element i of the result is a[mask[i] mod N];

@@ -34,17 +34,18 @@ Eigen::Isometry3d truthAt(int k) {
 }
 
 /// The sequence: a turn of 2.5 deg per frame with roll and pitch, sensor noise sigma 2.
-const std::vector<cv::Mat>& cleanFrames() {
-  static const std::vector<cv::Mat> frames = [] {
+/// The clean sequence's frames, at least its first `count` (rendered on first use, each once:
+/// frame k is the same whichever test asks first).
+const std::vector<cv::Mat>& cleanFrames(int count = kFrames) {
+  static std::vector<cv::Mat> frames;
+  if (static_cast<int>(frames.size()) < count) {
     const synth::Renderer renderer(synth::Scene::load(testing::indoorPhoto(), synth::SceneKind::kSphere),
                                    Calibration{}, {});
-    std::vector<cv::Mat> out;
     synth::DegradeOptions noise;
     noise.noise_sigma = 2.0;
-    for (int k = 0; k < kFrames; ++k)
-      out.push_back(synth::degrade(renderer.render(truthAt(k)), noise, static_cast<std::uint64_t>(k)));
-    return out;
-  }();
+    for (int k = static_cast<int>(frames.size()); k < count; ++k)
+      frames.push_back(synth::degrade(renderer.render(truthAt(k)), noise, static_cast<std::uint64_t>(k)));
+  }
   return frames;
 }
 
@@ -54,7 +55,7 @@ cv::Mat foreignFrame() {
                                        "/tests/data/catadioptric/mirror_office_1920x1080.jpg",
                                    cv::IMREAD_GRAYSCALE);
   cv::Mat out;
-  cv::resize(photo, out, cleanFrames()[0].size(), 0, 0, cv::INTER_AREA);
+  cv::resize(photo, out, cleanFrames(1)[0].size(), 0, 0, cv::INTER_AREA);
   return out;
 }
 
@@ -219,7 +220,8 @@ TEST(Glitches, ATurnFasterThanTheRobotCanTurnIsNotBelieved) {
   OdometryOptions options;
   options.plausibility.max_rotation_rad_s = 30.0 * kDeg;  // the turn is 75 deg/s
   options.plausibility.max_rejected = 1000;
-  const OdometryRun run = runOdometry(std::vector<cv::Mat>(cleanFrames().begin(), cleanFrames().begin() + 3), options);
+  const std::vector<cv::Mat>& clean = cleanFrames(3);  // a turn's first three frames
+  const OdometryRun run = runOdometry(std::vector<cv::Mat>(clean.begin(), clean.begin() + 3), options);
   ASSERT_FALSE(run.rejected.empty());
   EXPECT_EQ(run.rejected.front(), 1);
   EXPECT_NE(run.messages.front().find("faster than the 30 deg/s the robot can turn"), std::string::npos)

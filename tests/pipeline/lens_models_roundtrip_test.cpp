@@ -1,4 +1,4 @@
-// Renderer round trip through non-linear lenses (issue 9): frames rendered through an
+// Renderer round trip through non-linear lenses: frames rendered through an
 // OCamCalib mirror (real and made-up) and a Mei (cv::omnidir) lens, unwrapped with the
 // same model, give back the rendered rotation and translation in sign and magnitude.
 #include <gtest/gtest.h>

@@ -137,7 +137,7 @@ class MovingContentTest : public ::testing::Test {
   PanoramaGeometry geometry_;
   int width_, height_;
   PanoramaWarp warp_;
-  registration::WorkerPool pool_;
+  runtime::WorkerPool pool_;
   std::vector<double> centers_;
 };
 

@@ -12,7 +12,7 @@
 #include <vector>
 
 #include "registration/column_spectra.hpp"
-#include "registration/fft_plan.hpp"
+#include "runtime/fft_plan.hpp"
 
 namespace omnipose::registration {
 namespace {

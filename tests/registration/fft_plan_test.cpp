@@ -12,7 +12,7 @@
 #include <random>
 #include <vector>
 
-#include "registration/fft_plan.hpp"
+#include "runtime/fft_plan.hpp"
 #include "registration/phase_correlator.hpp"
 
 namespace omnipose::registration {

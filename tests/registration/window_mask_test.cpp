@@ -1,4 +1,4 @@
-/// Static masks in the window registration (issue 9): a textured occluder that stays still
+/// Static masks in the window registration: a textured occluder that stays still
 /// while the scene shifts pulls the windows it covers towards zero shift; with its mask the
 /// shift comes back, and windows mostly masked are not measured.
 

@@ -51,9 +51,9 @@ TEST_P(WindowRegistrationRealtime, MeasureAndAdvanceAllocateNothing) {
   const auto [a, b] = framePair();
   const auto [threads, noise_weighting] = GetParam();
   WindowRegistration::Options options;
-  options.threads = threads;  // 1: the calling thread only; more: the worker pool
   options.noise_weighting = noise_weighting;  // the noise measurement's selection too
-  WindowRegistration reg(a.size(), options);
+  // 1 thread: the calling thread only; more: the worker pool.
+  WindowRegistration reg(a.size(), options, threads);
   ASSERT_EQ(reg.threads(), threads);
   std::vector<WindowMotion> out(reg.windowCount());
   reg.setReference(a);

@@ -2,6 +2,8 @@
 #include <gtest/gtest.h>
 
 #include <cstring>
+#include <stdexcept>
+#include <string>
 #include <opencv2/imgproc.hpp>
 
 #include "omnipose/window_registration.hpp"
@@ -25,8 +27,7 @@ cv::Mat texture() {
 std::vector<double> trace(int threads, const cv::Mat& a, const cv::Mat& b, const cv::Mat& c,
                           const cv::Mat& validity = cv::Mat()) {
   WindowRegistration::Options o;
-  o.threads = threads;
-  WindowRegistration reg(a.size(), o);
+  WindowRegistration reg(a.size(), o, threads);
   EXPECT_EQ(reg.threads(), threads);
   if (!validity.empty()) reg.setValidity(validity);
   std::vector<WindowMotion> out(reg.windowCount());
@@ -79,13 +80,19 @@ TEST(WindowRegistrationThreads, ResultIsBitIdenticalForAnyThreadCount) {
 }
 
 TEST(WindowRegistrationThreads, ThreadCountIsValidated) {
-  WindowRegistration::Options o;
-  o.threads = -1;
-  ASSERT_EQ(o.validate().size(), 1u);
-  EXPECT_EQ(o.validate()[0].rfind("threads: ", 0), 0u) << o.validate()[0];
-  o.threads = 0;
-  EXPECT_TRUE(o.validate().empty());
-  WindowRegistration reg(cv::Size(1100, 110), o);
+  const WindowRegistration::Options o;
+  for (int threads : {-1, WindowRegistration::kMaxThreads + 1}) {
+    try {
+      WindowRegistration reg(cv::Size(1100, 110), o, threads);
+      ADD_FAILURE() << threads << " threads accepted";
+    } catch (const std::invalid_argument& e) {
+      EXPECT_NE(std::string(e.what()).find("threads: " + std::to_string(threads) +
+                                           " is outside [0, 256] (0 = all online cores)"),
+                std::string::npos)
+          << e.what();
+    }
+  }
+  WindowRegistration reg(cv::Size(1100, 110), o, 0);  // every online core
   EXPECT_GE(reg.threads(), 1);
 }
 

@@ -1,6 +1,6 @@
 #pragma once
 /// \file test_figures.hpp
-/// Figures a test measures go to gtest, not stdout (issue 28): as test properties named
+/// Figures a test measures go to gtest, not stdout: as test properties named
 /// after what they measure (RecordProperty: in the report of --gtest_output=xml or json, not
 /// in the console log), and, where a reader of a failing test's log needs the figure, in the
 /// assertion's message or a SCOPED_TRACE as well. RecordProperty takes a string or an int, so

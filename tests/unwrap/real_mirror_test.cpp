@@ -1,5 +1,5 @@
-// The real mirror image of tests/data/catadioptric unwrapped with its OCamCalib file
-// (issue 9): vertical building edges must come out vertical in the panorama.
+// The real mirror image of tests/data/catadioptric unwrapped with its OCamCalib file:
+// vertical building edges must come out vertical in the panorama.
 #include <gtest/gtest.h>
 
 #include <algorithm>

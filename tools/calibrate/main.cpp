@@ -1,4 +1,4 @@
-// omnipose-calibrate: lens calibration from omni images (GitHub issue 6). A thin main over
+// omnipose-calibrate: lens calibration from omni images. A thin main over
 // omnipose_calibrate (src/calibrate): parses the options, loads the frames, writes the
 // calibration YAML, the preview PNG and the report.
 #include <algorithm>

@@ -23,7 +23,7 @@ std::unique_ptr<MotionEstimator> makeEstimator(const std::string& method,
                                                const Calibration& calibration,
                                                const PipelineOptions& options) {
   if (method == "ifmi") return std::make_unique<Pipeline>(calibration, options);
-  // Feature baselines (issue 3): same unwrapping (input kind, black-frame threshold).
+  // Feature baselines: same unwrapping (input kind, black-frame threshold).
   if (auto feature = baselines::FeatureMotionOptions::forMethod(method)) {
     feature->unwrap = options.unwrap;
     return std::make_unique<baselines::FeatureMotionEstimator>(calibration, *feature);

@@ -1,6 +1,6 @@
 #pragma once
 /// \file lens_calibrator.hpp
-/// The whole lens calibration of GitHub issue 6 behind one entry point: ring detection on
+/// The whole lens calibration behind one entry point: ring detection on
 /// every frame (median over frames), safety margins, the proposed panorama size, the
 /// orientation values, and a note for every value saying how it was determined.
 ///

@@ -1,13 +1,14 @@
-#include "daemon/file_frame_source.hpp"
+#include "file/file_frame_source.hpp"
 
 #include <opencv2/imgproc.hpp>
 #include <thread>
 
-#include "daemon/wall_clock.hpp"
+#include "common/wall_clock.hpp"
 #include "omnipose/image_decode.hpp"
 
-namespace omnipose::daemon {
+namespace omnipose {
 namespace fs = std::filesystem;
+using drivers::wallClockMicros;
 
 FileFrameSource::FileFrameSource(Options options) : options_(std::move(options)) {}
 
@@ -178,4 +179,4 @@ Expected<FrameInfo> FileFrameSource::next(cv::Mat& out, std::chrono::millisecond
   return info;
 }
 
-}  // namespace omnipose::daemon
+}  // namespace omnipose

@@ -1,9 +1,9 @@
-#include "registration/worker_count_tuner.hpp"
+#include "runtime/worker_count_tuner.hpp"
 
 #include <algorithm>
 #include <cmath>
 
-namespace omnipose::registration {
+namespace omnipose::runtime {
 namespace {
 
 /// Weight of the newest frame in the averages, once a count has run this many frames (before,
@@ -70,4 +70,4 @@ void WorkerCountTuner::judgeProbe(double seconds, double waited) {
   tried.backoff = std::min(2 * tried.backoff, kMaxHoldFrames);
 }
 
-}  // namespace omnipose::registration
+}  // namespace omnipose::runtime

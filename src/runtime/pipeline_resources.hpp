@@ -5,17 +5,17 @@
 /// constructor that takes it, and the public header names none of these private types.
 
 #include "omnipose/window_registration.hpp"
-#include "registration/fft_plan.hpp"
-#include "registration/worker_pool.hpp"
+#include "runtime/fft_plan.hpp"
+#include "runtime/worker_pool.hpp"
 
 namespace omnipose {
 
 struct WindowRegistration::PipelineResources {
   /// The workers the registration runs on (shared with the pipeline's other stages); must
   /// outlive the registration.
-  registration::WorkerPool& pool;
+  runtime::WorkerPool& pool;
   /// How long FFTW plans (kPatient when the plans are kept in a wisdom file).
-  registration::PlanEffort effort;
+  runtime::PlanEffort effort;
 };
 
 }  // namespace omnipose

@@ -37,9 +37,9 @@
 #include <thread>
 #include <vector>
 
-#include "registration/worker_count_tuner.hpp"
+#include "runtime/worker_count_tuner.hpp"
 
-namespace omnipose::registration {
+namespace omnipose::runtime {
 
 class WorkerPool {
  public:
@@ -145,4 +145,4 @@ class WorkerPool {
   std::atomic<std::int64_t> wait_ns_{0};
 };
 
-}  // namespace omnipose::registration
+}  // namespace omnipose::runtime

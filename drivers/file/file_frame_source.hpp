@@ -42,7 +42,7 @@
 #include "omnipose/frame_source.hpp"
 #include "omnipose/io/dataset.hpp"
 
-namespace omnipose::daemon {
+namespace omnipose {
 
 class FileFrameSource final : public FrameSource {
  public:
@@ -89,4 +89,4 @@ class FileFrameSource final : public FrameSource {
   std::vector<std::uint8_t> bytes_;  ///< the file being decoded, reused frame to frame
 };
 
-}  // namespace omnipose::daemon
+}  // namespace omnipose

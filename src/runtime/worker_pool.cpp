@@ -1,4 +1,4 @@
-#include "registration/worker_pool.hpp"
+#include "runtime/worker_pool.hpp"
 
 #include <linux/futex.h>
 #include <sched.h>
@@ -9,7 +9,7 @@
 #include <chrono>
 #include <climits>
 
-namespace omnipose::registration {
+namespace omnipose::runtime {
 namespace {
 
 /// How long a worker waiting for the next job, and the caller waiting for a claimed index,
@@ -219,4 +219,4 @@ void WorkerPool::work(int worker) {
   }
 }
 
-}  // namespace omnipose::registration
+}  // namespace omnipose::runtime

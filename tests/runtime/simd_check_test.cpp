@@ -1,4 +1,4 @@
-// Which branch of src/registration/simd.hpp this build compiled, and that its lane-wise
+// Which branch of src/runtime/simd.hpp this build compiled, and that its lane-wise
 // helpers agree with scalar arithmetic. tools/arm64_check.sh runs this binary under
 // qemu-aarch64 and also greps the binary itself (strings, not its output) for the backend
 // marker string below.
@@ -8,9 +8,9 @@
 #include <cstring>
 #include <limits>
 
-#include "registration/simd.hpp"
+#include "runtime/simd.hpp"
 
-namespace omnipose::registration {
+namespace omnipose::runtime {
 namespace {
 
 // Kept whole in the binary's read-only data (gnu::used: emitted even if the compiler could
@@ -110,4 +110,4 @@ TEST(Simd, FloorToIntRoundsTowardsMinusInfinity) {
 }
 
 }  // namespace
-}  // namespace omnipose::registration
+}  // namespace omnipose::runtime

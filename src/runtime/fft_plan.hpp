@@ -12,7 +12,7 @@
 #include <optional>
 #include <string>
 
-namespace omnipose::registration {
+namespace omnipose::runtime {
 
 using Complex = std::complex<float>;
 
@@ -121,4 +121,4 @@ class FftPlan {
   fftwf_plan first_ = nullptr, second_ = nullptr, third_ = nullptr;
 };
 
-}  // namespace omnipose::registration
+}  // namespace omnipose::runtime

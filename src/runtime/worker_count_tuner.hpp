@@ -18,7 +18,7 @@
 
 #include <vector>
 
-namespace omnipose::registration {
+namespace omnipose::runtime {
 
 class WorkerCountTuner {
  public:
@@ -60,4 +60,4 @@ class WorkerCountTuner {
   Direction fewer_, more_;
 };
 
-}  // namespace omnipose::registration
+}  // namespace omnipose::runtime

@@ -1,4 +1,4 @@
-// The worker pool (src/registration/worker_pool.hpp): every index of a job runs exactly
+// The worker pool (src/runtime/worker_pool.hpp): every index of a job runs exactly
 // once and its writes are visible to the caller when run() returns, whether the workers were
 // spinning for the job (jobs back to back) or asleep on the condition variable (jobs further
 // apart than the spin); within a burst the workers stay awake across gaps, and sleep after
@@ -19,9 +19,9 @@
 #include <thread>
 #include <vector>
 
-#include "registration/worker_pool.hpp"
+#include "runtime/worker_pool.hpp"
 
-namespace omnipose::registration {
+namespace omnipose::runtime {
 namespace {
 
 /// Runs one job of `count` indices that writes job + index into out[index] and counts the
@@ -231,4 +231,4 @@ TEST(WorkerPool, TearsDownWhileWorkersSpinOrSleep) {
 }
 
 }  // namespace
-}  // namespace omnipose::registration
+}  // namespace omnipose::runtime

@@ -43,7 +43,7 @@
 #define OMNIPOSE_HAS_SIMD_CLONES 0
 #endif
 
-namespace omnipose::registration::simd {
+namespace omnipose::runtime::simd {
 
 /// Which branch of this header was compiled: "sse2", "neon" or "scalar"
 /// (tools/arm64_check.sh checks for "neon" in the arm64 build).
@@ -154,4 +154,4 @@ inline F4 mulConj(F4 a, F4 b) {
   return a * b_real + a_swapped * b_imag * sign;
 }
 
-}  // namespace omnipose::registration::simd
+}  // namespace omnipose::runtime::simd

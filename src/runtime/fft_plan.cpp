@@ -1,4 +1,4 @@
-#include "registration/fft_plan.hpp"
+#include "runtime/fft_plan.hpp"
 
 #include <algorithm>
 #include <cstdlib>
@@ -10,7 +10,7 @@
 
 #include "omnipose/file_io.hpp"
 
-namespace omnipose::registration {
+namespace omnipose::runtime {
 
 std::mutex& fftwPlannerMutex() {
   static std::mutex mutex;
@@ -170,4 +170,4 @@ FftPlan& FftPlan::operator=(FftPlan&& other) noexcept {
   return *this;
 }
 
-}  // namespace omnipose::registration
+}  // namespace omnipose::runtime

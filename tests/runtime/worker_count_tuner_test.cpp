@@ -1,4 +1,4 @@
-// How many workers take part (src/registration/worker_count_tuner.hpp), on modelled machines:
+// How many workers take part (src/runtime/worker_count_tuner.hpp), on modelled machines:
 // idle, every worker always; a worker that the machine keeps from running, fewer and stays so;
 // a load under which fewer workers are slower, at most one probe frame in many; the load gone,
 // all workers again; noisy frame times, no wandering.
@@ -8,9 +8,9 @@
 #include <limits>
 #include <random>
 
-#include "registration/worker_count_tuner.hpp"
+#include "runtime/worker_count_tuner.hpp"
 
-namespace omnipose::registration {
+namespace omnipose::runtime {
 namespace {
 
 /// A machine: the wall time and the wait of one frame run on `count` workers.
@@ -140,4 +140,4 @@ TEST(WorkerCountTuner, IgnoresFramesWithoutATime) {
 }
 
 }  // namespace
-}  // namespace omnipose::registration
+}  // namespace omnipose::runtime
