@@ -44,7 +44,9 @@ class WorkerCountTuner {
  private:
   struct Direction {
     int hold = 0;                  ///< frames before the next probe this way is allowed
-    int backoff = kMinHoldFrames;  ///< the hold after the next lost probe, halved
+    /// The hold after the next lost probe this way: kMinHoldFrames after a kept probe, doubled
+    /// by each lost one up to kMaxHoldFrames.
+    int backoff = kMinHoldFrames;
   };
   /// Starts a one-frame probe of `count` workers.
   void probe(int count);
