@@ -48,11 +48,10 @@ install(TARGETS omnipose omnipose_io omnipose_synth omnipose_eval omnipose_calib
                 omnipose_lcm_types EXPORT omniposeTargets
         ARCHIVE DESTINATION ${CMAKE_INSTALL_LIBDIR} COMPONENT dev
         INCLUDES DESTINATION ${CMAKE_INSTALL_INCLUDEDIR})
-# include/omnipose as in the source tree: the core's headers and io/, synth/, eval/.
+# include/omnipose as in the source tree: the core's headers and io/, synth/, eval/,
+# calibrate/; not baselines/ (the feature-based baselines are built for evaluation only).
 install(DIRECTORY ${CMAKE_SOURCE_DIR}/include/omnipose DESTINATION ${CMAKE_INSTALL_INCLUDEDIR}
-        COMPONENT dev)
-install(DIRECTORY ${CMAKE_SOURCE_DIR}/src/calibrate/include/omnipose/calibrate
-        DESTINATION ${CMAKE_INSTALL_INCLUDEDIR}/omnipose COMPONENT dev)
+        COMPONENT dev PATTERN baselines EXCLUDE)
 install(EXPORT omniposeTargets NAMESPACE omnipose:: DESTINATION ${CMAKE_INSTALL_LIBDIR}/cmake/omnipose
         COMPONENT dev)
 set(OMNIPOSE_INSTALL_LCM_TYPES_DIR ${CMAKE_INSTALL_DATADIR}/omnipose/lcm_types)

@@ -2,8 +2,9 @@
 # Installs the Debian packages, builds everything and runs the test suite.
 #
 #   tools/test.sh           every test except those labelled "long" (a few minutes after the build)
-#   tools/test.sh --long    only the "long" ones (tests/long_tests.txt and the benchmark scripts:
-#                           the statistics over pools of renders); CI runs both
+#   tools/test.sh --long    only the "long" ones (tests/long_tests.txt, the benchmark scripts:
+#                           the statistics over pools of renders; the downstream build and the
+#                           .deb packages of tests/install); CI runs both
 #   tools/test.sh --all     both
 set -euo pipefail
 cd "$(dirname "$0")/.."

@@ -16,7 +16,7 @@
 ///
 /// Realtime: the constructor allocates everything (FFTW plans, aligned buffers, the
 /// reference spectra, the worker threads); measure()/advance() allocate nothing and never
-/// throw. Windows are registered in parallel on a pool of Options::threads workers (the
+/// throw. Windows are registered in parallel on a pool of `threads` workers (the
 /// calling thread is one of them), each with its own FFTW plans and buffers; every window's
 /// result is computed by the same code on the same data whichever worker runs it, so the
 /// output is bit-identical for any thread count. Not thread-safe: one caller at a time
@@ -96,17 +96,6 @@ class WindowRegistration {
   /// same for any count). Throws std::invalid_argument listing every problem of
   /// validate(panorama, options), and a thread count outside [0, kMaxThreads].
   WindowRegistration(cv::Size panorama, const Options& options, int threads = 1);
-  /// Internal to the library: what the pipeline hands the registration it embeds (the
-  /// worker pool it shares among its stages and how long FFTW plans). Only declared here;
-  /// its definition is private (src/registration/pipeline_resources.hpp), so code outside
-  /// the library cannot make one and uses the constructor above.
-  struct PipelineResources;
-  /// Internal (the pipeline): as the constructor above, but runs on the shared pool of
-  /// `resources` (which must outlive this object) instead of a pool of its own, and plans
-  /// with its effort (the constructor above uses FFTW_MEASURE). Throws
-  /// std::invalid_argument as the constructor above.
-  WindowRegistration(cv::Size panorama, const Options& options,
-                     const PipelineResources& resources);
   ~WindowRegistration();
   WindowRegistration(const WindowRegistration&) = delete;
   WindowRegistration& operator=(const WindowRegistration&) = delete;
@@ -197,6 +186,10 @@ class WindowRegistration {
 
  private:
   struct Impl;
+  /// The library's pipeline builds its registration on the worker pool it shares among its
+  /// stages (src/registration/shared_pool_registration.hpp, private).
+  friend class SharedPoolRegistration;
+  explicit WindowRegistration(std::unique_ptr<Impl> impl);
   std::unique_ptr<Impl> impl_;
 };
 

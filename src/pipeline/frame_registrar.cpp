@@ -14,8 +14,8 @@
 
 #include "omnipose/motion_model.hpp"
 #include "omnipose/so3.hpp"
+#include "registration/shared_pool_registration.hpp"
 #include "runtime/fft_plan.hpp"
-#include "runtime/pipeline_resources.hpp"
 
 namespace omnipose::pipeline {
 namespace {
@@ -82,8 +82,8 @@ FrameRegistrar::FrameRegistrar(const Calibration& c, const PipelineOptions& o, i
       wisdom_(o.fftw_wisdom),
       pool_(o.threads > 0 ? o.threads : runtime::WorkerPool::onlineCores()),
       unwrapper_(c, o.unwrap),
-      registration_(c.panorama.size(), registrationOptions(o),
-                    WindowRegistration::PipelineResources{pool_, wisdom_.effort()}),
+      registration_(SharedPoolRegistration::make(c.panorama.size(), registrationOptions(o), pool_,
+                                                 wisdom_.effort())),
       fit_(o.fit, c.panorama.gamma(), o.registration.window, registration_.windowCount()),
       window_overlap_(windowOverlapFactor(o.registration.window, o.registration.step)),
       warp_(c.panorama),

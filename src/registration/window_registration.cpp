@@ -13,11 +13,11 @@
 
 #include "common/problem_list.hpp"
 #include "registration/column_spectra.hpp"
-#include "runtime/fft_plan.hpp"
 #include "registration/log_polar.hpp"
 #include "registration/noise_estimate.hpp"
 #include "registration/phase_correlator.hpp"
-#include "runtime/pipeline_resources.hpp"
+#include "registration/shared_pool_registration.hpp"
+#include "runtime/fft_plan.hpp"
 #include "runtime/simd.hpp"
 #include "runtime/worker_pool.hpp"
 
@@ -741,10 +741,15 @@ WindowRegistration::WindowRegistration(cv::Size panorama, const Options& options
   impl_ = std::make_unique<Impl>(panorama, options, nullptr, threads, runtime::PlanEffort::kMeasure);
 }
 
-WindowRegistration::WindowRegistration(cv::Size panorama, const Options& options,
-                                       const PipelineResources& resources) {
+WindowRegistration::WindowRegistration(std::unique_ptr<Impl> impl) : impl_(std::move(impl)) {}
+
+WindowRegistration SharedPoolRegistration::make(cv::Size panorama,
+                                                const WindowRegistration::Options& options,
+                                                runtime::WorkerPool& pool,
+                                                runtime::PlanEffort effort) {
   requireValid(panorama, options);
-  impl_ = std::make_unique<Impl>(panorama, options, &resources.pool, 1, resources.effort);
+  return WindowRegistration(
+      std::make_unique<WindowRegistration::Impl>(panorama, options, &pool, 1, effort));
 }
 
 WindowRegistration::~WindowRegistration() = default;

@@ -88,6 +88,7 @@ set(dev_paths usr/include/omnipose/pipeline.hpp usr/include/omnipose/calibrate/
     ${libdir}/cmake/omnipose/omniposeTargets.cmake usr/share/omnipose/lcm_types/pose_t.lcm)
 expect_in(omnipose "${runtime_listing}" ${runtime_paths} NOT usr/include/ ${libdir}/ usr/share/omnipose/)
 expect_in(libomnipose-dev "${dev_listing}" ${dev_paths} NOT usr/bin/ lib/systemd/ usr/lib/python3/
+          usr/include/omnipose/baselines/
           usr/share/java/ usr/lib/libomnipose.a usr/lib/cmake/)
 
 # The unpacked runtime package works.

@@ -1,6 +1,6 @@
-// omnipose-calibrate: lens calibration from omni images. A thin main over
-// omnipose_calibrate (src/calibrate): parses the options, loads the frames, writes the
-// calibration YAML, the preview PNG and the report.
+// omnipose-calibrate: lens calibration from omni images, over omnipose_calibrate
+// (src/calibrate): parses the options, loads the frames, writes the calibration YAML, the
+// preview PNG and the report.
 #include <algorithm>
 #include <cctype>
 #include <cerrno>
@@ -195,8 +195,6 @@ omnipose::calibrate::ModelImport importOcamCalibFile(const fs::path& file,
   return omnipose::calibrate::importOcamCalib(file, modelImportOptions(given), frames);
 }
 
-}  // namespace
-
 /// --readout-from DATASET: the rolling-shutter readout from a recording of the robot turning
 /// in place at varying rates (readout_estimation.hpp); writes DATASET's calibration with
 /// sensor.readout_s to `out_yaml`. Of a long recording, the `max_frames` consecutive frames
@@ -250,46 +248,43 @@ int estimateReadoutOf(const fs::path& dataset_dir, const fs::path& out_yaml, std
   return 0;
 }
 
-int main(int argc, char** argv) {
-  omnipose::tools::quietOpenCvWarnings();
+/// The command line, as parsed.
+struct Args {
   LensCalibratorOptions options;
-  std::vector<std::string> inputs_text;
-  std::string out_text, preview_text, ocamcalib_text, readout_text;
-  std::string checkerboard;
+  std::vector<std::string> inputs;
+  std::string out, preview, ocamcalib, readout, checkerboard;
   std::optional<double> square;
   bool quiet = false, propose_mask = false, no_replay = false;
   std::size_t max_frames = omnipose::calibrate::kDefaultMaxFrames;
+};
 
-  omnipose::tools::Cli cli("omnipose-calibrate", kUsage, kDescription);
-  auto& app = cli.app();
-  // A number into an optional (CLI11 converts it and names the flag when it cannot).
-  auto number = [&](const char* flag, std::optional<double>& target, const std::string& help) {
-    return app.add_option_function<double>(flag, [&target](const double& v) { target = v; }, help);
-  };
-  auto integer = [&](const char* flag, std::optional<int>& target, const std::string& help) {
-    // As before: any number, truncated to an integer.
-    return app.add_option_function<double>(
-        flag, [&target](const double& v) { target = static_cast<int>(v); }, help);
-  };
-  auto point = [&](const char* flag, std::optional<Eigen::Vector2d>& target,
-                   const std::string& help) {
-    return app
-        .add_option_function<std::string>(
-            flag, [&target, flag](const std::string& v) { target = parsePoint(flag, v); }, help)
-        ->type_name("X,Y");
-  };
-  auto topOrBottom = [](const std::string& v) {
-    return v == "top" ? omnipose::OuterEdge::kTop : omnipose::OuterEdge::kBottom;
-  };
+/// A number into an optional (CLI11 converts it and names the flag when it cannot).
+CLI::Option* addNumber(CLI::App& app, const char* flag, std::optional<double>& target,
+                       const std::string& help) {
+  return app.add_option_function<double>(flag, [&target](const double& v) { target = v; }, help);
+}
 
-  app.add_option("FRAMES", inputs_text,
-                 "omni images, or directories of images (sorted by name)");
-  app.add_option("--out", out_text, "calibration YAML (or mask PNG) to write (required)")
-      ->type_name("FILE");
-  app.add_option("--preview", preview_text,
-                 "preview PNG (default: FILE of --out with _preview.png)")
-      ->type_name("FILE");
+/// As addNumber, truncated to an integer (any number is accepted).
+CLI::Option* addInteger(CLI::App& app, const char* flag, std::optional<int>& target,
+                        const std::string& help) {
+  return app.add_option_function<double>(
+      flag, [&target](const double& v) { target = static_cast<int>(v); }, help);
+}
 
+/// "X,Y" pixels into an optional.
+CLI::Option* addPoint(CLI::App& app, const char* flag, std::optional<Eigen::Vector2d>& target,
+                      const std::string& help) {
+  return app
+      .add_option_function<std::string>(
+          flag, [&target, flag](const std::string& v) { target = parsePoint(flag, v); }, help)
+      ->type_name("X,Y");
+}
+
+omnipose::OuterEdge topOrBottom(const std::string& v) {
+  return v == "top" ? omnipose::OuterEdge::kTop : omnipose::OuterEdge::kBottom;
+}
+
+void addOrientationOptions(CLI::App& app, LensCalibratorOptions& options) {
   const std::string orientation = "Orientation";
   app.add_flag("--turn-left", options.turn_left,
                "the FRAMES, in this order, show the robot turning left in place (positive "
@@ -316,24 +311,28 @@ int main(int argc, char** argv) {
       ->type_name("top|bottom")
       ->check(omnipose::tools::oneOf({"top", "bottom"}))
       ->group(orientation);
-  number("--forward-angle", options.forward_angle_deg,
-         "image angle atan2(y - cy, x - cx) of the robot's +x axis, degrees")
+  addNumber(app, "--forward-angle", options.forward_angle_deg,
+            "image angle atan2(y - cy, x - cx) of the robot's +x axis, degrees")
       ->type_name("DEG")
       ->group(orientation);
-  point("--forward-point", options.forward_point,
-        "an image point straight ahead of the robot, pixels (instead of --forward-angle)")
+  addPoint(app, "--forward-point", options.forward_point,
+           "an image point straight ahead of the robot, pixels (instead of --forward-angle)")
       ->group(orientation);
+}
 
+void addByHandOptions(CLI::App& app, LensCalibratorOptions& options) {
   const std::string by_hand = "Fix any value by hand";
-  point("--center", options.center, "centre of the donut, pixels")->group(by_hand);
-  number("--radius-inner", options.radius_inner, "used inner radius, pixels (no margin applied)")
+  addPoint(app, "--center", options.center, "centre of the donut, pixels")->group(by_hand);
+  addNumber(app, "--radius-inner", options.radius_inner,
+            "used inner radius, pixels (no margin applied)")
       ->type_name("R")
       ->group(by_hand);
-  number("--radius-outer", options.radius_outer, "used outer radius, pixels (no margin applied)")
+  addNumber(app, "--radius-outer", options.radius_outer,
+            "used outer radius, pixels (no margin applied)")
       ->type_name("R")
       ->group(by_hand);
-  number("--margin", options.margin,
-         "safety margin at both edges, pixels (default: 1 px + 2 x edge blur)")
+  addNumber(app, "--margin", options.margin,
+            "safety margin at both edges, pixels (default: 1 px + 2 x edge blur)")
       ->type_name("PX")
       ->group(by_hand);
   app.add_option_function<std::string>(
@@ -352,12 +351,17 @@ int main(int argc, char** argv) {
       ->type_name("top|bottom")
       ->check(omnipose::tools::oneOf({"top", "bottom"}))
       ->group(by_hand);
-  integer("--width", options.width, "panorama width W, pixels")->type_name("W")->group(by_hand);
-  integer("--height", options.height, "panorama height H, pixels")->type_name("H")->group(by_hand);
-  number("--horizon-row", options.horizon_row, "panorama row V of the horizon, pixels")
+  addInteger(app, "--width", options.width, "panorama width W, pixels")
+      ->type_name("W")
+      ->group(by_hand);
+  addInteger(app, "--height", options.height, "panorama height H, pixels")
+      ->type_name("H")
+      ->group(by_hand);
+  addNumber(app, "--horizon-row", options.horizon_row, "panorama row V of the horizon, pixels")
       ->type_name("V")
       ->group(by_hand);
-  number("--horizon-radius", options.horizon_radius, "omni-image radius R of the horizon, pixels")
+  addNumber(app, "--horizon-radius", options.horizon_radius,
+            "omni-image radius R of the horizon, pixels")
       ->type_name("R")
       ->group(by_hand);
   app.add_option_function<double>(
@@ -365,49 +369,54 @@ int main(int argc, char** argv) {
          "panorama column U of the robot's +x axis, pixels (default 0)")
       ->type_name("U")
       ->group(by_hand);
-  number("--radial-scale", options.radial_scale,
-         "image px per radian of elevation at the horizon radius (from a lens model); "
-         "default: the donut is taken as isotropic there")
+  addNumber(app, "--radial-scale", options.radial_scale,
+            "image px per radian of elevation at the horizon radius (from a lens model); "
+            "default: the donut is taken as isotropic there")
       ->type_name("S")
       ->group(by_hand);
+}
 
+void addHintOptions(CLI::App& app, LensCalibratorOptions& options) {
   const std::string hints = "Detection hints";
-  point("--center-guess", options.detector.center_guess, "rough centre of the donut, pixels")
+  addPoint(app, "--center-guess", options.detector.center_guess, "rough centre of the donut, pixels")
       ->group(hints);
-  number("--inner-guess", options.detector.inner_guess, "rough inner radius, pixels")
+  addNumber(app, "--inner-guess", options.detector.inner_guess, "rough inner radius, pixels")
       ->type_name("R")
       ->group(hints);
-  number("--outer-guess", options.detector.outer_guess, "rough outer radius, pixels")
+  addNumber(app, "--outer-guess", options.detector.outer_guess, "rough outer radius, pixels")
       ->type_name("R")
       ->group(hints);
+}
 
+/// The lens-model, mask and other options (after the orientation, by-hand and hint groups).
+void addModeOptions(CLI::App& app, Args& a) {
   const std::string models = "Lens models";
-  app.add_option("--from-ocamcalib", ocamcalib_text,
+  app.add_option("--from-ocamcalib", a.ocamcalib,
                  "the lens is Scaramuzza's OCamCalib calib_results.txt: writes model ocamcalib "
                  "(the file is copied beside --out), the ring from its ROI line (or "
                  "--radius-inner/--radius-outer), a panorama inside the ring's elevations; "
                  "FRAMES (optional) are previewed (and measure the direction with --turn-left)")
       ->type_name("FILE")
       ->group(models);
-  app.add_option("--checkerboard", checkerboard,
+  app.add_option("--checkerboard", a.checkerboard,
                  "FRAMES are checkerboard views (COLSxROWS inner corners): calibrates the mei "
                  "model with cv::omnidir, reports its reprojection error; ring given or detected")
       ->type_name("COLSxROWS")
       ->group(models);
   app.add_option_function<double>(
-         "--square", [&](const double& v) { square = v; },
+         "--square", [&a](const double& v) { a.square = v; },
          "checkerboard square size, metres (with --checkerboard)")
       ->type_name("METRES")
       ->group(models);
 
-  app.add_flag("--propose-mask", propose_mask,
+  app.add_flag("--propose-mask", a.propose_mask,
                "FRAMES of the robot turning or driving: writes to --out an 8-bit mask (0 = "
                "never use) of the textured pixels that stay still while the rest of the ring "
                "moves (mast, body, cables, bezel), and a preview; name it in calibration.yaml "
                "(omni.mask)")
       ->group("Masks");
   app.add_option_function<std::string>(
-         "--max-frames", [&](const std::string& v) { max_frames = parseMaxFrames(v); },
+         "--max-frames", [&a](const std::string& v) { a.max_frames = parseMaxFrames(v); },
          "use at most N of the FRAMES (or checkerboard IMAGES), evenly spread over them in "
          "the given order (directories sorted by name), first and last included; with "
          "--readout-from, the N consecutive frames in the middle of the recording; only those "
@@ -416,36 +425,136 @@ int main(int argc, char** argv) {
              std::to_string(omnipose::calibrate::kMaxFramesLimit) + ")")
       ->type_name("N")
       ->group("Other");
-  app.add_flag("--no-replay", no_replay, "skip the Pipeline replay of consecutive frames")
+  app.add_flag("--no-replay", a.no_replay, "skip the Pipeline replay of consecutive frames")
       ->group("Other");
-  app.add_option("--readout-from", readout_text,
+  app.add_option("--readout-from", a.readout,
                  "DATASET (calibration.yaml, frames/, timestamps.txt) of the robot turning in "
                  "place, speeding up and slowing down: measures the rolling shutter's "
                  "sensor.readout_s and writes that calibration with it to --out")
       ->type_name("DATASET")
       ->group(models);
-  app.add_flag("--quiet", quiet, "print only errors")->group("Other");
-  if (const auto exit_code = cli.parse(argc, argv)) return *exit_code;
-  if (!readout_text.empty()) {
-    if (out_text.empty()) return cli.usageError("--out FILE is required");
-    if (!inputs_text.empty() || !ocamcalib_text.empty() || !checkerboard.empty() || propose_mask)
-      return cli.usageError("--readout-from takes no FRAMES and no other mode");
-    if (const auto problem = outputProblem("--out", out_text); !problem.empty())
-      return cli.usageError(problem);
-    try {
-      return estimateReadoutOf(readout_text, out_text, max_frames, quiet);
-    } catch (const std::exception& e) {
-      std::fprintf(stderr, "omnipose-calibrate: %s\n", e.what());
-      return 1;
+  app.add_flag("--quiet", a.quiet, "print only errors")->group("Other");
+}
+
+void addOptions(CLI::App& app, Args& a) {
+  app.add_option("FRAMES", a.inputs, "omni images, or directories of images (sorted by name)");
+  app.add_option("--out", a.out, "calibration YAML (or mask PNG) to write (required)")
+      ->type_name("FILE");
+  app.add_option("--preview", a.preview, "preview PNG (default: FILE of --out with _preview.png)")
+      ->type_name("FILE");
+  addOrientationOptions(app, a.options);
+  addByHandOptions(app, a.options);
+  addHintOptions(app, a.options);
+  addModeOptions(app, a);
+}
+
+/// --readout-from: the usage checks, then estimateReadoutOf().
+int runReadout(const omnipose::tools::Cli& cli, const Args& a) {
+  if (a.out.empty()) return cli.usageError("--out FILE is required");
+  if (!a.inputs.empty() || !a.ocamcalib.empty() || !a.checkerboard.empty() || a.propose_mask)
+    return cli.usageError("--readout-from takes no FRAMES and no other mode");
+  if (const auto problem = outputProblem("--out", a.out); !problem.empty())
+    return cli.usageError(problem);
+  return estimateReadoutOf(a.readout, a.out, a.max_frames, a.quiet);
+}
+
+/// Frames: files as given, directories expanded (sorted by name).
+std::vector<fs::path> expandInputs(const std::vector<fs::path>& inputs) {
+  std::vector<fs::path> files;
+  for (const auto& in : inputs) {
+    if (fs::is_directory(in)) {
+      std::vector<fs::path> dir;
+      for (const auto& e : fs::directory_iterator(in))
+        if (e.is_regular_file() && isImage(e.path())) dir.push_back(e.path());
+      std::sort(dir.begin(), dir.end());
+      if (dir.empty()) throw std::runtime_error(in.string() + ": no images in this directory");
+      files.insert(files.end(), dir.begin(), dir.end());
+    } else if (fs::exists(in)) {
+      files.push_back(in);
+    } else {
+      throw std::runtime_error(in.string() + ": no such file or directory");
     }
   }
+  return files;
+}
 
-  if (no_replay) options.replay = false;
-  std::vector<fs::path> inputs(inputs_text.begin(), inputs_text.end());
-  fs::path out_yaml = out_text, preview = preview_text, from_ocamcalib = ocamcalib_text;
+/// At most `max_frames` of `files`, evenly spread; only those are decoded. A frame that
+/// cannot be read is named and skipped; `files` becomes the list of the frames returned.
+std::vector<cv::Mat> readSelectedFrames(std::vector<fs::path>& files, std::size_t max_frames,
+                                        bool quiet) {
+  std::vector<cv::Mat> frames;
+  if (files.empty()) return frames;
+  const auto chosen = omnipose::calibrate::selectEvenly(files.size(), max_frames);
+  if (!quiet)
+    std::fprintf(stderr, "omnipose-calibrate: %s\n",
+                 omnipose::calibrate::selectionMessage(files.size(), chosen.size()).c_str());
+  std::vector<fs::path> used;
+  std::size_t unreadable = 0;
+  for (const std::size_t i : chosen) {
+    omnipose::ImageLimits limits;
+    limits.apply_exif_orientation = true;  // photos of the lens, as a viewer shows them
+    omnipose::Expected<cv::Mat> m = omnipose::readImage(files[i], omnipose::ImageColour::kBgr, limits);
+    if (!m) {
+      std::fprintf(stderr, "omnipose-calibrate: %s, skipped\n", m.error().c_str());
+      ++unreadable;
+      continue;
+    }
+    frames.push_back(std::move(*m));
+    used.push_back(files[i]);
+  }
+  if (frames.empty())
+    throw std::runtime_error(chosen.size() == 1
+                                 ? files[chosen.front()].string() + ": cannot read image"
+                                 : "none of the " + std::to_string(chosen.size()) +
+                                       " frames selected could be read as an image");
+  if (unreadable > 0 && !quiet)
+    std::fprintf(stderr, "omnipose-calibrate: %zu of %zu selected frames could not be read; "
+                 "using the other %zu\n", unreadable, chosen.size(), frames.size());
+  files = std::move(used);
+  return frames;
+}
+
+/// The default mode: measures the lens from the frames, writes the calibration (after the
+/// quality gate, read back), the preview and the report.
+int writeLensCalibration(const std::vector<cv::Mat>& frames, const LensCalibratorOptions& options,
+                         const fs::path& out_yaml, const fs::path& preview, bool quiet) {
+  if (!quiet) std::printf("omnipose-calibrate: %zu frame(s), %dx%d\n", frames.size(),
+                          frames.front().cols, frames.front().rows);
+  const auto result = omnipose::calibrate::calibrateLens(frames, options);
+  requirePipelineAccepts(result.calibration);
+  {
+    std::ofstream out(out_yaml);
+    if (!out) throw std::runtime_error(out_yaml.string() + ": cannot write");
+    out << result.yaml();
+    if (!out) throw std::runtime_error(out_yaml.string() + ": write failed");
+  }
+  // Read it back: what we wrote must be a valid calibration.
+  omnipose::Calibration::load(out_yaml);
+
+  const auto lines = result.summaryLines();
+  const omnipose::calibrate::RingDetection* det = nullptr;
+  if (!result.detection_errors.empty() && result.detection_errors.front().empty())
+    det = &result.detections.front();
+  const cv::Mat picture = omnipose::calibrate::renderPreview(frames, result.calibration, det, lines);
+  if (!cv::imwrite(preview.string(), picture))
+    throw std::runtime_error(preview.string() + ": cannot write preview");
+  if (!quiet) {
+    std::fputs(result.report().c_str(), stdout);
+    std::printf("wrote %s and %s\n", out_yaml.c_str(), preview.c_str());
+  }
+  return 0;
+}
+
+/// Every mode but --readout-from: the usage checks (every file written is checked before a
+/// frame is read), then the frames, then the mode's work.
+int runOnFrames(const omnipose::tools::Cli& cli, Args& a) {
+  if (a.no_replay) a.options.replay = false;
+  const std::vector<fs::path> inputs(a.inputs.begin(), a.inputs.end());
+  const fs::path out_yaml = a.out, from_ocamcalib = a.ocamcalib;
+  fs::path preview = a.preview;
   if (inputs.empty() && from_ocamcalib.empty()) return cli.usageError("no FRAMES given");
   if (out_yaml.empty()) return cli.usageError("--out FILE is required");
-  if (int(propose_mask) + int(!from_ocamcalib.empty()) + int(!checkerboard.empty()) > 1)
+  if (int(a.propose_mask) + int(!from_ocamcalib.empty()) + int(!a.checkerboard.empty()) > 1)
     return cli.usageError("--propose-mask, --from-ocamcalib and --checkerboard are separate "
                           "steps: run them one by one");
   const bool preview_given = !preview.empty();
@@ -454,17 +563,17 @@ int main(int argc, char** argv) {
     preview.replace_filename(out_yaml.stem().string() + "_preview.png");
   }
   omnipose::calibrate::CheckerboardOptions board;
-  if (!checkerboard.empty()) {
+  if (!a.checkerboard.empty()) {
     try {
-      omnipose::calibrate::parsePatternSize(checkerboard, board);
+      omnipose::calibrate::parsePatternSize(a.checkerboard, board);
     } catch (const std::exception& e) {
       return cli.usageError(std::string("--checkerboard: ") + e.what());
     }
-    if (!square) return cli.usageError("--checkerboard needs --square METRES");
-    board.square_m = *square;
+    if (!a.square) return cli.usageError("--checkerboard needs --square METRES");
+    board.square_m = *a.square;
   }
-  // Every file written is checked before a frame is read: --out (the OCamCalib file is
-  // copied into its directory) and the preview, written whenever frames are given.
+  // --out (the OCamCalib file is copied into its directory) and the preview, written
+  // whenever frames are given.
   if (const auto problem = outputProblem("--out", out_yaml); !problem.empty())
     return cli.usageError(problem);
   if (!inputs.empty())
@@ -473,96 +582,28 @@ int main(int argc, char** argv) {
         !problem.empty())
       return cli.usageError(problem);
 
-  try {
-    // Frames: files as given, directories expanded (sorted by name).
-    std::vector<fs::path> files;
-    for (const auto& in : inputs) {
-      if (fs::is_directory(in)) {
-        std::vector<fs::path> dir;
-        for (const auto& e : fs::directory_iterator(in))
-          if (e.is_regular_file() && isImage(e.path())) dir.push_back(e.path());
-        std::sort(dir.begin(), dir.end());
-        if (dir.empty()) throw std::runtime_error(in.string() + ": no images in this directory");
-        files.insert(files.end(), dir.begin(), dir.end());
-      } else if (fs::exists(in)) {
-        files.push_back(in);
-      } else {
-        throw std::runtime_error(in.string() + ": no such file or directory");
-      }
-    }
-    // At most max_frames of them, evenly spread; only those are decoded. A frame that
-    // cannot be read is named and skipped.
-    std::vector<cv::Mat> frames;
-    if (!files.empty()) {
-      const auto chosen = omnipose::calibrate::selectEvenly(files.size(), max_frames);
-      if (!quiet)
-        std::fprintf(stderr, "omnipose-calibrate: %s\n",
-                     omnipose::calibrate::selectionMessage(files.size(), chosen.size()).c_str());
-      std::vector<fs::path> used;
-      std::size_t unreadable = 0;
-      for (const std::size_t i : chosen) {
-        omnipose::ImageLimits limits;
-        limits.apply_exif_orientation = true;  // photos of the lens, as a viewer shows them
-        omnipose::Expected<cv::Mat> m = omnipose::readImage(files[i], omnipose::ImageColour::kBgr, limits);
-        if (!m) {
-          std::fprintf(stderr, "omnipose-calibrate: %s, skipped\n", m.error().c_str());
-          ++unreadable;
-          continue;
-        }
-        frames.push_back(std::move(*m));
-        used.push_back(files[i]);
-      }
-      if (frames.empty())
-        throw std::runtime_error(
-            chosen.size() == 1 ? files[chosen.front()].string() + ": cannot read image"
-                               : "none of the " + std::to_string(chosen.size()) +
-                                     " frames selected could be read as an image");
-      if (unreadable > 0 && !quiet)
-        std::fprintf(stderr, "omnipose-calibrate: %zu of %zu selected frames could not be read; "
-                     "using the other %zu\n", unreadable, chosen.size(), frames.size());
-      files = std::move(used);
-    }
-    if (propose_mask) return writeMaskProposal(frames, out_yaml, preview, quiet);
-    if (!from_ocamcalib.empty()) {
-      return writeModelCalibration(importOcamCalibFile(from_ocamcalib, options, frames, files),
-                                   frames, out_yaml, preview, quiet);
-    }
-    if (!checkerboard.empty()) {
-      return writeModelCalibration(
-          omnipose::calibrate::importCheckerboard(frames, board, modelImportOptions(options)),
-          frames, out_yaml, preview, quiet);
-    }
-    if (!quiet) std::printf("omnipose-calibrate: %zu frame(s), %dx%d\n", frames.size(),
-                            frames.front().cols, frames.front().rows);
+  std::vector<fs::path> files = expandInputs(inputs);
+  const std::vector<cv::Mat> frames = readSelectedFrames(files, a.max_frames, a.quiet);
+  if (a.propose_mask) return writeMaskProposal(frames, out_yaml, preview, a.quiet);
+  if (!from_ocamcalib.empty())
+    return writeModelCalibration(importOcamCalibFile(from_ocamcalib, a.options, frames, files),
+                                 frames, out_yaml, preview, a.quiet);
+  if (!a.checkerboard.empty())
+    return writeModelCalibration(
+        omnipose::calibrate::importCheckerboard(frames, board, modelImportOptions(a.options)),
+        frames, out_yaml, preview, a.quiet);
+  return writeLensCalibration(frames, a.options, out_yaml, preview, a.quiet);
+}
 
-    const auto result = omnipose::calibrate::calibrateLens(frames, options);
-    requirePipelineAccepts(result.calibration);
+}  // namespace
 
-    {
-      std::ofstream out(out_yaml);
-      if (!out) throw std::runtime_error(out_yaml.string() + ": cannot write");
-      out << result.yaml();
-      if (!out) throw std::runtime_error(out_yaml.string() + ": write failed");
-    }
-    // Read it back: what we wrote must be a valid calibration.
-    omnipose::Calibration::load(out_yaml);
-
-    const auto lines = result.summaryLines();
-    const omnipose::calibrate::RingDetection* det = nullptr;
-    if (!result.detection_errors.empty() && result.detection_errors.front().empty())
-      det = &result.detections.front();
-    const cv::Mat picture =
-        omnipose::calibrate::renderPreview(frames, result.calibration, det, lines);
-    if (!cv::imwrite(preview.string(), picture))
-      throw std::runtime_error(preview.string() + ": cannot write preview");
-
-    if (!quiet) {
-      std::fputs(result.report().c_str(), stdout);
-      std::printf("wrote %s and %s\n", out_yaml.c_str(), preview.c_str());
-    }
-    return 0;
-  } catch (const std::exception& e) {
-    std::fprintf(stderr, "omnipose-calibrate: %s\n", e.what());
-    return 1;
-  }
+int main(int argc, char** argv) {
+  omnipose::tools::quietOpenCvWarnings();
+  Args args;
+  omnipose::tools::Cli cli("omnipose-calibrate", kUsage, kDescription);
+  addOptions(cli.app(), args);
+  if (const auto exit_code = cli.parse(argc, argv)) return *exit_code;
+  return omnipose::tools::runProgram(cli, [&] {
+    return args.readout.empty() ? runOnFrames(cli, args) : runReadout(cli, args);
+  });
 }

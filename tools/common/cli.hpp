@@ -18,8 +18,10 @@
 
 #include <algorithm>
 #include <cstdio>
+#include <exception>
 #include <optional>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "omnipose_version.hpp"
@@ -28,6 +30,8 @@ namespace omnipose::tools {
 
 /// Exit code of every command-line mistake, in every program.
 inline constexpr int kUsageExitCode = 2;
+/// Exit code of a program whose work failed (an unreadable file, a failed calibration ...).
+inline constexpr int kFailureExitCode = 1;
 
 /// The project's version, as `--version` prints it.
 inline constexpr const char* kVersion = OMNIPOSE_VERSION;
@@ -130,6 +134,30 @@ class Cli {
   std::string name_;
   CLI::App app_;
 };
+
+/// The main() wrapper of every program: returns `body()` (the exit code); an exception
+/// escaping it is printed as "PREFIX: MESSAGE" on stderr and gives kFailureExitCode.
+/// `prefix`: the program's name, with what failed where that helps ("omniposed: start-up
+/// failed").
+///
+///   int main(int argc, char** argv) {
+///     return omnipose::tools::runProgram("omnipose-eval", [&] { return run(argc, argv); });
+///   }
+template <class Body>
+int runProgram(const std::string& prefix, Body&& body) {
+  try {
+    return body();
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "%s: %s\n", prefix.c_str(), e.what());
+    return kFailureExitCode;
+  }
+}
+
+/// As above, named by the program's command line.
+template <class Body>
+int runProgram(const Cli& cli, Body&& body) {
+  return runProgram(cli.name(), std::forward<Body>(body));
+}
 
 /// Validator: a value CLI11 parsed must be one of `names` (error: "--input: must be omni or
 /// panorama, not 'x'"); for options whose conversion the program does itself.

@@ -105,79 +105,75 @@ struct Printer {
   }
 };
 
-}  // namespace
-
-int main(int argc, char** argv) {
+/// The command line, as parsed.
+struct Args {
   std::string url, pose_channel = "OMNI_POSE", status_channel = "OMNI_STATUS", tum_path;
   double count = 0, timeout = 0;
-  omnipose::tools::Cli cli(
-      "omnipose-listen",
-      "usage: omnipose-listen [--url URL] [--channel OMNI_POSE] [--status-channel OMNI_STATUS]\n"
-      "                       [--count N] [--timeout SECONDS] [--tum OUT.tum]",
-      "Prints the poses (and status) omniposed publishes over LCM, one line per message.\n"
-      "Exit codes: 0 done (Ctrl-C, --count reached, end of a log), 1 LCM failed or OUT.tum\n"
-      "cannot be written, 2 bad command line, 3 --timeout expired.");
-  auto& app = cli.app();
-  app.add_option("--url", url,
+};
+
+void addOptions(CLI::App& app, Args& a) {
+  app.add_option("--url", a.url,
                  "LCM URL (default: LCM's default, udpm multicast; a log file: "
                  "file:///path/run.lcm?speed=0 replays it as fast as possible)");
-  app.add_option("--channel", pose_channel, "pose channel")
+  app.add_option("--channel", a.pose_channel, "pose channel")
       ->type_name("NAME")
       ->capture_default_str();
-  app.add_option("--status-channel", status_channel,
+  app.add_option("--status-channel", a.status_channel,
                  "status channel (\"\" = do not print status)")
       ->type_name("NAME")
       ->capture_default_str();
-  app.add_option("--count", count, "exit after N poses (default: run until Ctrl-C)")
+  app.add_option("--count", a.count, "exit after N poses (default: run until Ctrl-C)")
       ->type_name("N")
       ->check(omnipose::tools::nonNegative());
-  app.add_option("--timeout", timeout,
+  app.add_option("--timeout", a.timeout,
                  "exit (code 3) when no message arrived for this long, seconds (default: never)")
       ->type_name("SECONDS")
       ->check(omnipose::tools::nonNegative());
-  app.add_option("--tum", tum_path,
+  app.add_option("--tum", a.tum_path,
                  "also write every pose's chained pose to OUT.tum (TUM: timestamp tx ty tz qx "
                  "qy qz qw; the recorded timestamp for a file source, else utime in seconds)")
       ->type_name("OUT.tum");
-  if (const auto exit_code = cli.parse(argc, argv)) return *exit_code;
+}
 
+/// Subscribes and prints until a stop signal, --count poses, the end of a log or --timeout.
+int listen(const Args& a) {
   Printer printer;
   struct FileCloser {
     void operator()(std::FILE* f) const { std::fclose(f); }
   };
   std::unique_ptr<std::FILE, FileCloser> tum;
-  if (!tum_path.empty()) {
-    tum.reset(std::fopen(tum_path.c_str(), "w"));
+  if (!a.tum_path.empty()) {
+    tum.reset(std::fopen(a.tum_path.c_str(), "w"));
     if (!tum) {
-      std::fprintf(stderr, "omnipose-listen: %s: cannot write: %s\n", tum_path.c_str(),
+      std::fprintf(stderr, "omnipose-listen: %s: cannot write: %s\n", a.tum_path.c_str(),
                    std::strerror(errno));
       return 1;
     }
     std::fprintf(tum.get(), "# timestamp tx ty tz qx qy qz qw (omnipose-listen, channel %s)\n",
-                 pose_channel.c_str());
+                 a.pose_channel.c_str());
     printer.tum = tum.get();
   }
 
   // A recorded log is read by LCM's file provider, whose fopen() blocks on a FIFO: anything
   // that is not a regular file is refused by name first.
-  if (url.rfind("file://", 0) == 0) {
-    const std::string rest = url.substr(7);
+  if (a.url.rfind("file://", 0) == 0) {
+    const std::string rest = a.url.substr(7);
     const std::string path = rest.substr(0, rest.find('?'));
     if (const omnipose::Expected<void> ok = omnipose::checkRegularFile(path); !ok) {
-      std::fprintf(stderr, "omnipose-listen: --url \"%s\": %s\n", url.c_str(), ok.error().c_str());
+      std::fprintf(stderr, "omnipose-listen: --url \"%s\": %s\n", a.url.c_str(), ok.error().c_str());
       return 1;
     }
   }
-  lcm::LCM lcm(url);
+  lcm::LCM lcm(a.url);
   if (!lcm.good()) {
-    std::fprintf(stderr, "omnipose-listen: cannot initialise LCM with URL \"%s\"\n", url.c_str());
+    std::fprintf(stderr, "omnipose-listen: cannot initialise LCM with URL \"%s\"\n", a.url.c_str());
     return 1;
   }
   std::signal(SIGINT, onSignal);
   std::signal(SIGTERM, onSignal);
 
-  lcm.subscribe(pose_channel, &Printer::onPose, &printer);
-  if (!status_channel.empty()) lcm.subscribe(status_channel, &Printer::onStatus, &printer);
+  lcm.subscribe(a.pose_channel, &Printer::onPose, &printer);
+  if (!a.status_channel.empty()) lcm.subscribe(a.status_channel, &Printer::onStatus, &printer);
 
   auto last_message = std::chrono::steady_clock::now();
   while (!g_stop) {
@@ -187,15 +183,34 @@ int main(int argc, char** argv) {
     if (printer.got_message) {
       printer.got_message = false;
       last_message = now;
-    } else if (timeout > 0 && now - last_message > std::chrono::duration<double>(timeout)) {
-      std::fprintf(stderr, "omnipose-listen: no message for %.1f s\n", timeout);
+    } else if (a.timeout > 0 && now - last_message > std::chrono::duration<double>(a.timeout)) {
+      std::fprintf(stderr, "omnipose-listen: no message for %.1f s\n", a.timeout);
       return 3;
     }
-    if (count > 0 && printer.poses >= static_cast<long>(count)) break;
+    if (a.count > 0 && printer.poses >= static_cast<long>(a.count)) break;
   }
   if (tum && (printer.tum_failed || std::fclose(tum.release()) != 0)) {
-    std::fprintf(stderr, "omnipose-listen: %s: cannot write\n", tum_path.c_str());
+    std::fprintf(stderr, "omnipose-listen: %s: cannot write\n", a.tum_path.c_str());
     return 1;
   }
   return 0;
+}
+
+constexpr const char* kUsage =
+    "usage: omnipose-listen [--url URL] [--channel OMNI_POSE] [--status-channel OMNI_STATUS]\n"
+    "                       [--count N] [--timeout SECONDS] [--tum OUT.tum]";
+
+constexpr const char* kDescription =
+    "Prints the poses (and status) omniposed publishes over LCM, one line per message.\n"
+    "Exit codes: 0 done (Ctrl-C, --count reached, end of a log), 1 LCM failed or OUT.tum\n"
+    "cannot be written, 2 bad command line, 3 --timeout expired.";
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  Args args;
+  omnipose::tools::Cli cli("omnipose-listen", kUsage, kDescription);
+  addOptions(cli.app(), args);
+  if (const auto exit_code = cli.parse(argc, argv)) return *exit_code;
+  return omnipose::tools::runProgram(cli, [&] { return listen(args); });
 }

@@ -53,7 +53,7 @@ int main(int argc, char** argv) {
                      "and exit; opens no camera");
   if (const auto exit_code = cli.parse(argc, argv)) return *exit_code;
 
-  try {
+  return omnipose::tools::runProgram("omniposed: start-up failed", [&] {
     const auto config = omnipose::DaemonConfig::load(config_path);
     std::fprintf(stderr, "omniposed: configuration %s (effective values):\n%s", config_path.c_str(),
                  config.describe().c_str());
@@ -73,8 +73,5 @@ int main(int argc, char** argv) {
       return 0;
     }
     return omnipose::daemon::runService(config, stderr);
-  } catch (const std::exception& e) {
-    std::fprintf(stderr, "omniposed: start-up failed: %s\n", e.what());
-    return 1;
-  }
+  });
 }

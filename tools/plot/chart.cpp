@@ -102,6 +102,90 @@ void dashedLine(cv::Mat& img, cv::Point2d a, cv::Point2d b, const cv::Scalar& co
   }
 }
 
+/// Data coordinates (log10 of the value on a logarithmic axis) to plot-area pixels.
+struct AxisMap {
+  cv::Rect area;
+  double xlo, xhi, ylo, yhi;
+  bool log_x, log_y;
+  double tx(double x) const { return axisValue(x, log_x); }
+  double ty(double y) const { return axisValue(y, log_y); }
+  /// The image pixel of an axis value, relative to the plot area's corner.
+  cv::Point2d point(double x, double y) const {
+    const double px = area.x + (x - xlo) / (xhi - xlo) * area.width;
+    const double py = area.y + (yhi - y) / (yhi - ylo) * area.height;
+    return {px - area.x, py - area.y};
+  }
+};
+
+/// One series into `view` (the plot area), points and lines as its style says.
+void drawSeries(cv::Mat& view, const Series& s, const AxisMap& map) {
+  const std::size_t n = std::min(s.x.size(), s.y.size());
+  const bool lines = s.style == Style::kLine || s.style == Style::kDashed ||
+                     s.style == Style::kLineMarkers;
+  const bool markers = s.style == Style::kMarkers || s.style == Style::kLineMarkers ||
+                       s.style == Style::kHollowMarkers;
+  double phase = 0.0;
+  for (std::size_t i = 0; i < n; ++i) {
+    const double x = map.tx(s.x[i]), y = map.ty(s.y[i]);
+    if (!std::isfinite(y) || !std::isfinite(x)) continue;
+    const cv::Point2d p = map.point(x, y);
+    const double x1 = i + 1 < n ? map.tx(s.x[i + 1]) : x, y1 = i + 1 < n ? map.ty(s.y[i + 1]) : y;
+    if (lines && i + 1 < n && std::isfinite(y1) && std::isfinite(x1)) {
+      const cv::Point2d q = map.point(x1, y1);
+      if (s.style == Style::kDashed) dashedLine(view, p, q, s.color, s.thickness, phase);
+      else
+        cv::line(view, sub(p.x, p.y), sub(q.x, q.y), s.color, s.thickness, cv::LINE_AA, kShift);
+    }
+    if (markers) {
+      const bool hollow = s.style == Style::kHollowMarkers;
+      cv::circle(view, sub(p.x, p.y), static_cast<int>(3.5 * kSub), s.color,
+                 hollow ? 1 : cv::FILLED, cv::LINE_AA, kShift);
+    }
+  }
+}
+
+/// `label` turned a quarter left, left of `area`, centred on it vertically.
+void drawVerticalLabel(cv::Mat& img, const std::string& label_text, const cv::Rect& area) {
+  const cv::Size ts = textSize(label_text);
+  cv::Mat label(ts.height + 8, ts.width + 4, CV_8UC3, kWhite);
+  text(label, label_text, {2, ts.height + 2});
+  cv::Mat rotated;
+  cv::rotate(label, rotated, cv::ROTATE_90_COUNTERCLOCKWISE);
+  const int x = 4, y = area.y + (area.height - rotated.rows) / 2;
+  if (y >= 0 && y + rotated.rows <= img.rows && x + rotated.cols <= img.cols)
+    rotated.copyTo(img(cv::Rect(x, y, rotated.cols, rotated.rows)));
+}
+
+/// The legend of the labelled series, in the column right of `area`.
+void drawLegend(cv::Mat& img, const std::vector<Series>& series, const cv::Rect& area) {
+  std::vector<const Series*> entries;
+  int width = 0;
+  for (const Series& s : series) {
+    if (s.label.empty()) continue;
+    entries.push_back(&s);
+    width = std::max(width, textSize(s.label).width);
+  }
+  if (entries.empty()) return;
+  const int row = 19;
+  const cv::Rect box(area.x + area.width + 10, area.y, width + 46,
+                     row * static_cast<int>(entries.size()) + 8);
+  cv::rectangle(img, box, {200, 200, 200}, 1);
+  for (std::size_t k = 0; k < entries.size(); ++k) {
+    const Series& s = *entries[k];
+    const int y = box.y + 4 + row * static_cast<int>(k) + row / 2;
+    const cv::Point2d a(box.x + 6, y), b(box.x + 32, y);
+    double phase = 0.0;
+    if (s.style == Style::kDashed) dashedLine(img, a, b, s.color, s.thickness, phase);
+    else if (s.style != Style::kMarkers && s.style != Style::kHollowMarkers)
+      cv::line(img, sub(a.x, a.y), sub(b.x, b.y), s.color, s.thickness, cv::LINE_AA, kShift);
+    if (s.style == Style::kMarkers || s.style == Style::kLineMarkers ||
+        s.style == Style::kHollowMarkers)
+      cv::circle(img, {box.x + 19, y}, 4, s.color,
+                 s.style == Style::kHollowMarkers ? 1 : cv::FILLED, cv::LINE_AA);
+    text(img, s.label, {box.x + 38, y + 5});
+  }
+}
+
 }  // namespace
 
 cv::Scalar paletteColor(int i) {
@@ -197,32 +281,9 @@ cv::Mat Chart::render(cv::Size size) const {
   }
 
   // Series, clipped to the plot area by drawing into its view.
+  const AxisMap map{area, xlo, xhi, ylo, yhi, log_x_, log_y_};
   cv::Mat view = img(area);
-  for (const Series& s : series_) {
-    const std::size_t n = std::min(s.x.size(), s.y.size());
-    const bool lines = s.style == Style::kLine || s.style == Style::kDashed ||
-                       s.style == Style::kLineMarkers;
-    const bool markers = s.style == Style::kMarkers || s.style == Style::kLineMarkers ||
-                         s.style == Style::kHollowMarkers;
-    double phase = 0.0;
-    for (std::size_t i = 0; i < n; ++i) {
-      const double x = tx(s.x[i]), y = ty(s.y[i]);
-      if (!std::isfinite(y) || !std::isfinite(x)) continue;
-      const cv::Point2d p(px(x) - area.x, py(y) - area.y);
-      const double x1 = i + 1 < n ? tx(s.x[i + 1]) : x, y1 = i + 1 < n ? ty(s.y[i + 1]) : y;
-      if (lines && i + 1 < n && std::isfinite(y1) && std::isfinite(x1)) {
-        const cv::Point2d q(px(x1) - area.x, py(y1) - area.y);
-        if (s.style == Style::kDashed) dashedLine(view, p, q, s.color, s.thickness, phase);
-        else
-          cv::line(view, sub(p.x, p.y), sub(q.x, q.y), s.color, s.thickness, cv::LINE_AA, kShift);
-      }
-      if (markers) {
-        const bool hollow = s.style == Style::kHollowMarkers;
-        cv::circle(view, sub(p.x, p.y), static_cast<int>(3.5 * kSub), s.color,
-                   hollow ? 1 : cv::FILLED, cv::LINE_AA, kShift);
-      }
-    }
-  }
+  for (const Series& s : series_) drawSeries(view, s, map);
 
   // Frame, title, axis labels.
   cv::rectangle(img, area, kAxis, 1);
@@ -230,45 +291,9 @@ cv::Mat Chart::render(cv::Size size) const {
        1);
   text(img, x_label_,
        {area.x + (area.width - textSize(x_label_).width) / 2, size.height - 10});
-  {
-    const cv::Size ts = textSize(y_label_);
-    cv::Mat label(ts.height + 8, ts.width + 4, CV_8UC3, kWhite);
-    text(label, y_label_, {2, ts.height + 2});
-    cv::Mat rotated;
-    cv::rotate(label, rotated, cv::ROTATE_90_COUNTERCLOCKWISE);
-    const int x = 4, y = area.y + (area.height - rotated.rows) / 2;
-    if (y >= 0 && y + rotated.rows <= img.rows && x + rotated.cols <= img.cols)
-      rotated.copyTo(img(cv::Rect(x, y, rotated.cols, rotated.rows)));
-  }
+  drawVerticalLabel(img, y_label_, area);
 
-  // Legend, in the column right of the plot area.
-  std::vector<const Series*> entries;
-  int width = 0;
-  for (const Series& s : series_) {
-    if (s.label.empty()) continue;
-    entries.push_back(&s);
-    width = std::max(width, textSize(s.label).width);
-  }
-  if (!entries.empty()) {
-    const int row = 19;
-    const cv::Rect box(area.x + area.width + 10, area.y, width + 46,
-                       row * static_cast<int>(entries.size()) + 8);
-    cv::rectangle(img, box, {200, 200, 200}, 1);
-    for (std::size_t k = 0; k < entries.size(); ++k) {
-      const Series& s = *entries[k];
-      const int y = box.y + 4 + row * static_cast<int>(k) + row / 2;
-      const cv::Point2d a(box.x + 6, y), b(box.x + 32, y);
-      double phase = 0.0;
-      if (s.style == Style::kDashed) dashedLine(img, a, b, s.color, s.thickness, phase);
-      else if (s.style != Style::kMarkers && s.style != Style::kHollowMarkers)
-        cv::line(img, sub(a.x, a.y), sub(b.x, b.y), s.color, s.thickness, cv::LINE_AA, kShift);
-      if (s.style == Style::kMarkers || s.style == Style::kLineMarkers ||
-          s.style == Style::kHollowMarkers)
-        cv::circle(img, {box.x + 19, y}, 4, s.color,
-                   s.style == Style::kHollowMarkers ? 1 : cv::FILLED, cv::LINE_AA);
-      text(img, s.label, {box.x + 38, y + 5});
-    }
-  }
+  drawLegend(img, series_, area);
   return img;
 }
 

@@ -31,47 +31,36 @@ std::vector<std::string> split(const std::string& s, char sep) {
   return parts;
 }
 
-int run(int argc, char** argv) {
+/// The command line, as parsed.
+struct Args {
   std::vector<std::string> files, labels;
   std::string out, title, axis_name = "auto", labels_text;
   int width = 1100;
-  tools::Cli cli("omnipose-plot-angles",
-                 "usage: omnipose-plot-angles GT.tum EST.tum [EST2.tum ...] --out FIG.png\n"
-                 "                            [--labels A,B,...] [--axis roll|pitch|yaw|auto]\n"
-                 "                            [--title TEXT] [--width PIXELS]",
-                 "Fig. 5 of the paper: per-frame rotation about one axis (degrees) of the\n"
-                 "ground truth and each estimate, RMSE (mrad) in the legend, errors below.\n"
-                 "Exit codes: 0 drawn, 1 failed, 2 bad command line.");
-  auto& app = cli.app();
-  app.add_option("FILES", files,
+};
+
+void addOptions(CLI::App& app, Args& a) {
+  app.add_option("FILES", a.files,
                  "GT.tum EST.tum [EST2.tum ...]: the ground-truth trajectory, then one or more "
                  "estimated ones (TUM format)")
       ->required();
-  app.add_option("--out", out, "figure to write (PNG)")->type_name("FIG.png")->required();
-  app.add_option("--labels", labels_text,
+  app.add_option("--out", a.out, "figure to write (PNG)")->type_name("FIG.png")->required();
+  app.add_option("--labels", a.labels_text,
                  "legend name of each estimate, comma-separated (default: the file names)")
       ->type_name("A,B,...");
-  app.add_option("--axis", axis_name,
+  app.add_option("--axis", a.axis_name,
                  "the rotation axis drawn; auto takes the axis the ground truth turns most about")
       ->type_name("roll|pitch|yaw|auto")
       ->check(tools::oneOf({"roll", "pitch", "yaw", "auto"}))
       ->capture_default_str();
-  app.add_option("--title", title, "figure title")->type_name("TEXT");
-  app.add_option("--width", width, "figure width, pixels")
+  app.add_option("--title", a.title, "figure title")->type_name("TEXT");
+  app.add_option("--width", a.width, "figure width, pixels")
       ->type_name("PIXELS")
       ->check(CLI::PositiveNumber)
       ->capture_default_str();
-  if (const auto exit_code = cli.parse(argc, argv)) return *exit_code;
-  if (files.size() < 2) return cli.usageError("FILES: give GT.tum and at least one EST.tum");
-  if (app.count("--labels") > 0) labels = split(labels_text, ',');
-  if (!labels.empty() && labels.size() != files.size() - 1)
-    throw std::invalid_argument("--labels: " + std::to_string(labels.size()) + " labels for " +
-                                std::to_string(files.size() - 1) + " estimates");
+}
 
-  const std::vector<StampedPose> gt = readTum(files[0]);
-  const EvaluationResult truth = evaluate(gt, gt);
-
-  // Axis: given, or the one with the largest ground-truth RMS rotation.
+/// The axis drawn: `axis_name`, or with "auto" the one the ground truth turns most about.
+int chooseAxis(const std::string& axis_name, const EvaluationResult& truth) {
   int axis = -1;
   const std::map<std::string, int> axes = {{"roll", 0}, {"pitch", 1}, {"yaw", 2}};
   if (axis_name == "auto") {
@@ -83,8 +72,18 @@ int run(int argc, char** argv) {
   } else {
     throw std::invalid_argument("--axis must be roll, pitch, yaw or auto, not '" + axis_name + "'");
   }
-  static const char* kAxisNames[] = {"roll (x)", "pitch (y)", "yaw (z)"};
+  return axis;
+}
 
+const char* const kAxisNames[] = {"roll (x)", "pitch (y)", "yaw (z)"};
+
+/// The figure: the angles of the ground truth and every estimate above, their errors below.
+cv::Mat drawFigure(const Args& a, const std::vector<StampedPose>& gt,
+                   const EvaluationResult& truth, int axis) {
+  const std::vector<std::string>& files = a.files;
+  const std::vector<std::string>& labels = a.labels;
+  const std::string& title = a.title;
+  const int width = a.width;
   // Frame index of each ground-truth timestamp: pair (k-1, k) is drawn at k.
   auto frameOf = [&](double t) {
     for (std::size_t k = 0; k < gt.size(); ++k)
@@ -147,22 +146,43 @@ int run(int argc, char** argv) {
   angles.setXRange(0, x_max);
   errors.setXRange(0, x_max);
 
-  const cv::Mat figure = plot::stackVertical(
-      {angles.render({width, 420}), errors.render({width, 260})});
-  if (!cv::imwrite(out, figure, {cv::IMWRITE_PNG_COMPRESSION, 9}))
-    throw std::runtime_error(out + ": cannot write");
-  std::printf("omnipose-plot-angles: %s (%s, %zu estimates)\n", out.c_str(), kAxisNames[axis],
-              files.size() - 1);
+  return plot::stackVertical({angles.render({width, 420}), errors.render({width, 260})});
+}
+
+constexpr const char* kUsage =
+    "usage: omnipose-plot-angles GT.tum EST.tum [EST2.tum ...] --out FIG.png\n"
+    "                            [--labels A,B,...] [--axis roll|pitch|yaw|auto]\n"
+    "                            [--title TEXT] [--width PIXELS]";
+
+constexpr const char* kDescription =
+    "Fig. 5 of the paper: per-frame rotation about one axis (degrees) of the\n"
+    "ground truth and each estimate, RMSE (mrad) in the legend, errors below.\n"
+    "Exit codes: 0 drawn, 1 failed, 2 bad command line.";
+
+int run(int argc, char** argv) {
+  Args a;
+  tools::Cli cli("omnipose-plot-angles", kUsage, kDescription);
+  addOptions(cli.app(), a);
+  if (const auto exit_code = cli.parse(argc, argv)) return *exit_code;
+  if (a.files.size() < 2) return cli.usageError("FILES: give GT.tum and at least one EST.tum");
+  if (cli.app().count("--labels") > 0) a.labels = split(a.labels_text, ',');
+  if (!a.labels.empty() && a.labels.size() != a.files.size() - 1)
+    throw std::invalid_argument("--labels: " + std::to_string(a.labels.size()) + " labels for " +
+                                std::to_string(a.files.size() - 1) + " estimates");
+
+  const std::vector<StampedPose> gt = readTum(a.files[0]);
+  const EvaluationResult truth = evaluate(gt, gt);
+  const int axis = chooseAxis(a.axis_name, truth);
+  const cv::Mat figure = drawFigure(a, gt, truth, axis);
+  if (!cv::imwrite(a.out, figure, {cv::IMWRITE_PNG_COMPRESSION, 9}))
+    throw std::runtime_error(a.out + ": cannot write");
+  std::printf("omnipose-plot-angles: %s (%s, %zu estimates)\n", a.out.c_str(), kAxisNames[axis],
+              a.files.size() - 1);
   return 0;
 }
 
 }  // namespace
 
 int main(int argc, char** argv) {
-  try {
-    return run(argc, argv);
-  } catch (const std::exception& e) {
-    std::fprintf(stderr, "omnipose-plot-angles: %s\n", e.what());
-    return 1;
-  }
+  return omnipose::tools::runProgram("omnipose-plot-angles", [&] { return run(argc, argv); });
 }

@@ -379,10 +379,5 @@ int main(int argc, char** argv) {
     return cli.usageError("--label given " + std::to_string(args.labels.size()) + " times for " +
                           std::to_string(args.textures.size()) + " --texture");
   }
-  try {
-    return run(args);
-  } catch (const std::exception& e) {
-    std::fprintf(stderr, "omnipose-plot-uncertainty: error: %s\n", e.what());
-    return 1;
-  }
+  return tools::runProgram(cli, [&] { return run(args); });
 }

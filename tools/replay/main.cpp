@@ -8,72 +8,89 @@
 #include "replay.hpp"
 #include "quiet_opencv.hpp"
 
-int main(int argc, char** argv) {
-  omnipose::tools::quietOpenCvWarnings();
-  omnipose::replay::ReplayOptions options;
+namespace {
+
+/// The command line, as parsed.
+struct Args {
   std::string dataset, input, out_tum, relative_csv, config, calibration;
+  std::string method = omnipose::replay::ReplayOptions{}.method;
   bool quiet = false;
+};
+
+void addOptions(CLI::App& app, Args& a) {
   std::string methods;
   for (const auto& m : omnipose::replay::methodNames()) methods += (methods.empty() ? "" : "|") + m;
-
-  omnipose::tools::Cli cli(
-      "omnipose-replay",
-      "usage: omnipose-replay DATASET [--out EST.tum] [--relative REL.csv]\n"
-      "                       [--input omni|panorama] [--config daemon.yaml]\n"
-      "                       [--calibration CAL.yaml] [--method NAME] [--quiet]",
-      "Estimates the camera motion of every consecutive frame pair of a dataset directory.\n"
-      "Ends with: frames=N pairs=M skipped=K implausible=I lost=L bridged=B seconds_per_frame=X\n"
-      "(skipped: unreadable frames and the I implausible ones, decoded but not believed: a\n"
-      "glitching camera; X: median wall time per frame, seconds). Exit codes: 0 done, 1 failed (or no pair estimated), 2 bad command line.");
-  auto& app = cli.app();
-  app.add_option("DATASET", dataset,
+  app.add_option("DATASET", a.dataset,
                  "directory with calibration.yaml, frames/, optional timestamps.txt and "
                  "groundtruth.tum")
       ->required();
-  app.add_option("--out", out_tum,
+  app.add_option("--out", a.out_tum,
                  "TUM trajectory to write (timestamp s, position, quaternion; first frame at "
                  "identity; position up to scale)")
       ->type_name("EST.tum");
-  app.add_option("--relative", relative_csv,
+  app.add_option("--relative", a.relative_csv,
                  "per-pair CSV: rotation vector (rad), translation direction (unit), |tau|, "
                  "residual (px), windows used, status, track state, segment, keyframe, seconds "
                  "in all and per stage (unwrap, registration, fit, refinement)")
       ->type_name("REL.csv");
-  app.add_option("--input", input, "frames are omni donuts (default) or panoramas")
+  app.add_option("--input", a.input, "frames are omni donuts (default) or panoramas")
       ->type_name("omni|panorama")
       ->check(omnipose::tools::oneOf({"omni", "panorama"}));
-  app.add_option("--config", config,
+  app.add_option("--config", a.config,
                  "daemon.yaml whose input/pipeline sections are used")
       ->type_name("daemon.yaml");
-  app.add_option("--calibration", calibration,
+  app.add_option("--calibration", a.calibration,
                  "calibration YAML instead of DATASET/calibration.yaml")
       ->type_name("CAL.yaml");
-  app.add_option("--method", options.method,
+  app.add_option("--method", a.method,
                  "ifmi (default, this project) | orb5pt | akaze5pt | orbrot | akazerot (the "
                  "feature-based baselines: ORB/AKAZE with OpenGV 5-point or 2-point "
                  "rotation-only RANSAC)")
       ->type_name(methods)
       ->check(omnipose::tools::oneOf(omnipose::replay::methodNames()));
-  app.add_flag("--quiet", quiet, "no progress line (it is shown only on a terminal anyway)");
-  if (const auto exit_code = cli.parse(argc, argv)) return *exit_code;
+  app.add_flag("--quiet", a.quiet, "no progress line (it is shown only on a terminal anyway)");
+}
 
-  options.dataset = dataset;
-  // Given (even as ""), as the optional paths of ReplayOptions tell.
+/// The replay's options from the command line: the optional paths only when given (even as "").
+omnipose::replay::ReplayOptions replayOptions(const CLI::App& app, const Args& a) {
+  omnipose::replay::ReplayOptions options;
+  options.dataset = a.dataset;
+  options.method = a.method;
   auto given = [&](const char* flag) { return app.count(flag) > 0; };
-  if (given("--out")) options.out_tum = out_tum;
-  if (given("--relative")) options.relative_csv = relative_csv;
-  if (given("--config")) options.config = config;
-  if (given("--calibration")) options.calibration = calibration;
-  options.progress = !quiet;
-  if (input == "omni") options.input = omnipose::InputKind::kOmni;
-  else if (input == "panorama") options.input = omnipose::InputKind::kPanorama;
-  try {
+  if (given("--out")) options.out_tum = a.out_tum;
+  if (given("--relative")) options.relative_csv = a.relative_csv;
+  if (given("--config")) options.config = a.config;
+  if (given("--calibration")) options.calibration = a.calibration;
+  options.progress = !a.quiet;
+  if (a.input == "omni") options.input = omnipose::InputKind::kOmni;
+  else if (a.input == "panorama") options.input = omnipose::InputKind::kPanorama;
+  return options;
+}
+
+constexpr const char* kUsage =
+    "usage: omnipose-replay DATASET [--out EST.tum] [--relative REL.csv]\n"
+    "                       [--input omni|panorama] [--config daemon.yaml]\n"
+    "                       [--calibration CAL.yaml] [--method NAME] [--quiet]";
+
+constexpr const char* kDescription =
+    "Estimates the camera motion of every consecutive frame pair of a dataset directory.\n"
+    "Ends with: frames=N pairs=M skipped=K implausible=I lost=L bridged=B seconds_per_frame=X\n"
+    "(skipped: unreadable frames and the I implausible ones, decoded but not believed: a\n"
+    "glitching camera; X: median wall time per frame, seconds). Exit codes: 0 done, 1 failed (or no pair estimated), 2 bad command line.";
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  omnipose::tools::quietOpenCvWarnings();
+  Args args;
+  omnipose::tools::Cli cli("omnipose-replay", kUsage, kDescription);
+  addOptions(cli.app(), args);
+  if (const auto exit_code = cli.parse(argc, argv)) return *exit_code;
+  const omnipose::replay::ReplayOptions options = replayOptions(cli.app(), args);
+  return omnipose::tools::runProgram(cli, [&] {
     const auto s = omnipose::replay::run(options, stderr);
     std::printf("frames=%d pairs=%d skipped=%d implausible=%d lost=%d bridged=%d seconds_per_frame=%.6f\n",
                 s.frames, s.pairs, s.skipped, s.implausible, s.lost, s.bridged, s.median_seconds_per_frame);
     return s.pairs > 0 || s.frames == 1 ? 0 : 1;
-  } catch (const std::exception& e) {
-    std::fprintf(stderr, "omnipose-replay: %s\n", e.what());
-    return 1;
-  }
+  });
 }

@@ -74,10 +74,5 @@ int main(int argc, char** argv) {
     return cli.usageError("--width " + std::to_string(args.width) +
                           " is not an even number in [16, 16384]");
   }
-  try {
-    return run(args);
-  } catch (const std::exception& e) {
-    std::cerr << "omnipose-equirect: error: " << e.what() << "\n";
-    return 1;
-  }
+  return tools::runProgram(cli, [&] { return run(args); });
 }

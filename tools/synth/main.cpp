@@ -93,7 +93,8 @@ std::pair<double, double> parseDistance(const std::string& text) {
   return {number(text.substr(0, comma)), number(text.substr(comma + 1))};
 }
 
-void addOptions(CLI::App& app, Args& a, Raw& raw) {
+/// The scene, the motion, the output and the simple degradations.
+void addSceneOptions(CLI::App& app, Args& a, Raw& raw) {
   app.add_option("--texture", a.texture, "equirectangular photo (2:1), converted to grey (required)")
       ->type_name("PHOTO");
   app.add_option("--texture-width", a.texture_width,
@@ -139,6 +140,10 @@ void addOptions(CLI::App& app, Args& a, Raw& raw) {
                  "lens and panorama; default: 720x720, centre 359.5, radii 120/300 px, "
                  "panorama 1100x110, horizon row 54.5")
       ->type_name("CAL.yaml");
+}
+
+/// The camera's shutter and exposure, the walkers, and the other degradations.
+void addEffectOptions(CLI::App& app, Args& a, Raw& raw) {
   app.add_option("--readout", a.readout,
                  "rolling shutter: rows read out over S seconds, first to last (negative: last "
                  "to first), each row rendered from the pose at its own capture time along the "
@@ -204,6 +209,11 @@ void addOptions(CLI::App& app, Args& a, Raw& raw) {
                "also write mask.png hiding the occluder (2 deg margin) and name it in "
                "calibration.yaml (omni.mask)");
   app.add_flag("--quiet", a.quiet, "no progress line (it is shown only on a terminal anyway)");
+}
+
+void addOptions(CLI::App& app, Args& a, Raw& raw) {
+  addSceneOptions(app, a, raw);
+  addEffectOptions(app, a, raw);
 }
 
 /// Converts what CLI11 left as text and checks what it cannot; throws UsageError.
@@ -306,6 +316,95 @@ std::optional<synth::Walkers> walkersOf(const Args& a, const synth::MotionScript
   return w;
 }
 
+/// The sub-exposure counts of the frames rendered (0 and 0 without rolling shutter or blur).
+struct SampleRange {
+  int fewest = 0, most = 0;
+};
+
+/// Renders, degrades and writes every frame, with a progress line.
+SampleRange renderFrames(const Args& a, const synth::Renderer& renderer,
+                         const std::vector<StampedPose>& poses, double readout,
+                         const synth::DegradeOptions& degrade, const cv::Mat& vignette,
+                         const Calibration& calibration, synth::DatasetWriter& writer) {
+  tools::ProgressLine progress(stderr, static_cast<int>(poses.size()), "frames", !a.quiet);
+  SampleRange samples;
+  for (std::size_t k = 0; k < poses.size(); ++k) {
+    const double stamp = poses[k].timestamp;
+    const auto pose_at = [&](double t) {
+      return synth::poseAtTime(poses, stamp + t, a.between_frames);
+    };
+    cv::Mat image;
+    if (readout == 0.0 && a.exposure_time == 0.0) {
+      // Global shutter: the frame's own pose (and the walkers at its timestamp).
+      image = renderer.walkers().empty() ? renderer.render(poses[k].pose)
+                                         : renderer.render(poses[k].pose, stamp);
+    } else {
+      synth::FrameTiming timing{.timestamp_s = stamp,
+                                .readout_s = readout,
+                                .exposure_s = a.exposure_time,
+                                .exposure_samples = a.exposure_samples};
+      timing.exposure_samples = renderer.exposureSamples(pose_at, timing);
+      samples.fewest = k == 0 ? timing.exposure_samples
+                              : std::min(samples.fewest, timing.exposure_samples);
+      samples.most = std::max(samples.most, timing.exposure_samples);
+      image = renderer.render(pose_at, timing);
+    }
+    if (a.occluder) a.occluder->paint(image, calibration);
+    if (!vignette.empty()) cv::multiply(image, vignette, image);
+    writer.addFrame(synth::degrade(image, degrade, k), poses[k]);
+    progress.update(static_cast<int>(k + 1));
+  }
+  progress.finish();
+  writer.finish();
+  return samples;
+}
+
+/// The summary line's list of what the frames show beyond the motion (", vibration ...").
+std::string effectsText(const Args& a, const synth::MotionScript& script, double readout,
+                        const synth::Renderer& renderer, const synth::Scene& scene,
+                        SampleRange samples) {
+  std::string vibration;
+  if (script.vibration) {
+    char text[128];
+    std::snprintf(text, sizeof(text), ", vibration %.2f deg at %.3g..%.3g Hz",
+                  script.vibration->amplitude_deg, script.vibration->min_hz,
+                  script.vibration->max_hz);
+    vibration = text;
+  }
+  std::string shutter;
+  if (readout != 0.0) {
+    char text[96];
+    std::snprintf(text, sizeof(text), ", rolling shutter %.4g s %s", std::abs(readout),
+                  readout > 0.0 ? "first row first" : "last row first");
+    shutter = text;
+  }
+  std::string effects;
+  if (a.exposure_time > 0.0) {
+    char text[96];
+    std::snprintf(text, sizeof(text), ", exposure %.4g s in %d..%d sub-exposures",
+                  a.exposure_time, samples.fewest, samples.most);
+    effects += text;
+  }
+  if (!renderer.walkers().empty()) {
+    char text[96];
+    std::snprintf(text, sizeof(text), ", %zu walkers at %.3g m/s", renderer.walkers().size(),
+                  scene.walkers.speed_m_s);
+    effects += text;
+  }
+  if (a.exposure_step > 0.0) {
+    char text[96];
+    std::snprintf(text, sizeof(text), ", exposure steps x%.3g every %d frames",
+                  1.0 + a.exposure_step, a.exposure_step_every);
+    effects += text;
+  }
+  if (a.vignetting > 0.0) {
+    char text[64];
+    std::snprintf(text, sizeof(text), ", vignetting %.3g", a.vignetting);
+    effects += text;
+  }
+  return vibration + shutter + effects;
+}
+
 int run(const Args& a) {
   Calibration calibration =
       a.calibration.empty() ? Calibration{} : Calibration::load(a.calibration);
@@ -380,85 +479,19 @@ int run(const Args& a) {
   synth::DatasetWriter writer(a.out, calibration, a.jpeg);
 
   const auto start = std::chrono::steady_clock::now();
-  tools::ProgressLine progress(stderr, static_cast<int>(poses.size()), "frames", !a.quiet);
-  int fewest_samples = 0, most_samples = 0;
-  for (std::size_t k = 0; k < poses.size(); ++k) {
-    const double stamp = poses[k].timestamp;
-    const auto pose_at = [&](double t) {
-      return synth::poseAtTime(poses, stamp + t, a.between_frames);
-    };
-    cv::Mat image;
-    if (readout == 0.0 && a.exposure_time == 0.0) {
-      // Global shutter: the frame's own pose (and the walkers at its timestamp).
-      image = renderer.walkers().empty() ? renderer.render(poses[k].pose)
-                                         : renderer.render(poses[k].pose, stamp);
-    } else {
-      synth::FrameTiming timing{.timestamp_s = stamp,
-                                .readout_s = readout,
-                                .exposure_s = a.exposure_time,
-                                .exposure_samples = a.exposure_samples};
-      timing.exposure_samples = renderer.exposureSamples(pose_at, timing);
-      fewest_samples = k == 0 ? timing.exposure_samples
-                              : std::min(fewest_samples, timing.exposure_samples);
-      most_samples = std::max(most_samples, timing.exposure_samples);
-      image = renderer.render(pose_at, timing);
-    }
-    if (a.occluder) a.occluder->paint(image, calibration);
-    if (!vignette.empty()) cv::multiply(image, vignette, image);
-    writer.addFrame(synth::degrade(image, degrade, k), poses[k]);
-    progress.update(static_cast<int>(k + 1));
-  }
-  progress.finish();
-  writer.finish();
+  const SampleRange samples =
+      renderFrames(a, renderer, poses, readout, degrade, vignette, calibration, writer);
   const double seconds =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
 
   const cv::Size size = renderer.outputSize();
-  std::string vibration;
-  if (script.vibration) {
-    char text[128];
-    std::snprintf(text, sizeof(text), ", vibration %.2f deg at %.3g..%.3g Hz",
-                  script.vibration->amplitude_deg, script.vibration->min_hz,
-                  script.vibration->max_hz);
-    vibration = text;
-  }
-  std::string shutter;
-  if (readout != 0.0) {
-    char text[96];
-    std::snprintf(text, sizeof(text), ", rolling shutter %.4g s %s", std::abs(readout),
-                  readout > 0.0 ? "first row first" : "last row first");
-    shutter = text;
-  }
-  std::string effects;
-  if (a.exposure_time > 0.0) {
-    char text[96];
-    std::snprintf(text, sizeof(text), ", exposure %.4g s in %d..%d sub-exposures",
-                  a.exposure_time, fewest_samples, most_samples);
-    effects += text;
-  }
-  if (!renderer.walkers().empty()) {
-    char text[96];
-    std::snprintf(text, sizeof(text), ", %zu walkers at %.3g m/s", renderer.walkers().size(),
-                  scene.walkers.speed_m_s);
-    effects += text;
-  }
-  if (a.exposure_step > 0.0) {
-    char text[96];
-    std::snprintf(text, sizeof(text), ", exposure steps x%.3g every %d frames",
-                  1.0 + a.exposure_step, a.exposure_step_every);
-    effects += text;
-  }
-  if (a.vignetting > 0.0) {
-    char text[64];
-    std::snprintf(text, sizeof(text), ", vignetting %.3g", a.vignetting);
-    effects += text;
-  }
-  std::printf("omnipose-synth: wrote %zu %s frames %dx%d (%s scene, %s, seed %llu%s%s%s) to %s "
+  const std::string effects = effectsText(a, script, readout, renderer, scene, samples);
+  std::printf("omnipose-synth: wrote %zu %s frames %dx%d (%s scene, %s, seed %llu%s) to %s "
               "in %.1f s (%.0f ms/frame)\n",
               poses.size(), synth::toString(a.output), size.width, size.height,
               synth::toString(kind), motion_name.c_str(),
-              static_cast<unsigned long long>(script.seed), vibration.c_str(), shutter.c_str(),
-              effects.c_str(), a.out.c_str(), seconds, 1000.0 * seconds / poses.size());
+              static_cast<unsigned long long>(script.seed), effects.c_str(), a.out.c_str(), seconds,
+              1000.0 * seconds / poses.size());
   return 0;
 }
 
@@ -471,17 +504,16 @@ int main(int argc, char** argv) {
   tools::Cli cli("omnipose-synth", kUsage, kDescription);
   addOptions(cli.app(), args, raw);
   if (const auto exit_code = cli.parse(argc, argv)) return *exit_code;
-  try {
-    finish(cli.app(), args, raw);
-    if (!args.print_preset.empty()) {
-      std::cout << synth::MotionScript::presetYaml(args.print_preset);
-      return 0;
+  return tools::runProgram(cli, [&] {
+    try {
+      finish(cli.app(), args, raw);
+      if (!args.print_preset.empty()) {
+        std::cout << synth::MotionScript::presetYaml(args.print_preset);
+        return 0;
+      }
+      return run(args);
+    } catch (const UsageError& e) {
+      return cli.usageError(e.what());
     }
-    return run(args);
-  } catch (const UsageError& e) {
-    return cli.usageError(e.what());
-  } catch (const std::exception& e) {
-    std::cerr << "omnipose-synth: error: " << e.what() << "\n";
-    return 1;
-  }
+  });
 }
