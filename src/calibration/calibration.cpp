@@ -73,9 +73,12 @@ Eigen::Vector3d PanoramaGeometry::bearing(double u, double v) const {
 // Validation
 // ---------------------------------------------------------------------------------------
 
-std::vector<std::string> Calibration::validate() const {
-  std::vector<std::string> p;
-  const auto& o = omni;
+namespace {
+
+/// The fields each on their own and against each other: sizes, the ring, the readout, the
+/// panorama's rows and columns.
+void checkFields(const Calibration& c, std::vector<std::string>& p) {
+  const auto& o = c.omni;
   const auto size = [&](int v, int max, const char* name) {
     if (v < 1 || v > max)
       p.push_back(std::string(name) + ": " + std::to_string(v) + " must be in [1, " + std::to_string(max) + "]");
@@ -105,12 +108,12 @@ std::vector<std::string> Calibration::validate() const {
       p.push_back("omni.radius_outer: must be at most " + std::to_string(2 * limits::kMaxImageSide));
   }
   finite(o.azimuth_zero_deg, "omni.azimuth_zero_deg");
-  if (finite(sensor.readout_s, "sensor.readout_s") &&
-      !(std::abs(sensor.readout_s) <= SensorTiming::kMaxReadoutS))
-    p.push_back("sensor.readout_s: " + std::to_string(sensor.readout_s) +
+  if (finite(c.sensor.readout_s, "sensor.readout_s") &&
+      !(std::abs(c.sensor.readout_s) <= SensorTiming::kMaxReadoutS))
+    p.push_back("sensor.readout_s: " + std::to_string(c.sensor.readout_s) +
                 " s is longer than a frame can be read out (|readout_s| <= " +
                 std::to_string(SensorTiming::kMaxReadoutS) + " s; 0 = global shutter)");
-  const auto& q = panorama;
+  const auto& q = c.panorama;
   size(q.width, limits::kMaxPanoramaWidth, "panorama.width");
   size(q.height, limits::kMaxPanoramaHeight, "panorama.height");
   if (finite(q.horizon_row, "panorama.horizon_row") &&
@@ -121,6 +124,11 @@ std::vector<std::string> Calibration::validate() const {
       !(q.forward_column >= 0 && q.forward_column < q.width))
     p.push_back("panorama.forward_column: must be in [0, width)");
 
+}
+
+/// The lens model: loaded, of the image's size; the mask: of the image's size.
+void checkLensModel(const Calibration& c, std::vector<std::string>& p) {
+  const auto& o = c.omni;
   switch (o.model) {
     case LensModelKind::kLinear: break;
     case LensModelKind::kOcamCalib:
@@ -146,10 +154,12 @@ std::vector<std::string> Calibration::validate() const {
                 " channel(s), expected 8-bit grey " + std::to_string(o.image_width) + "x" +
                 std::to_string(o.image_height));
   }
-  if (!p.empty() || o.model == LensModelKind::kLinear) return p;
+}
 
-  // The model's elevation must be monotonic over the used ring (else two rows of the
-  // panorama would sample the same radius), and every panorama row must lie inside it.
+/// A model's elevation must be monotonic over the used ring (else two rows of the panorama
+/// would sample the same radius). False (with the problem added) when it is not.
+bool checkMonotonicOverRing(const Calibration& c, std::vector<std::string>& p) {
+  const auto& o = c.omni;
   const auto elevationAt = [&](double r) -> std::optional<double> {
     if (o.model == LensModelKind::kOcamCalib) return o.ocamcalib->elevation(r);
     const auto d = o.mei->direction({o.mei->cx + r, o.mei->cy});
@@ -165,7 +175,7 @@ std::vector<std::string> Calibration::validate() const {
     const auto e = elevationAt(r);
     if (!e) {
       p.push_back(source + " has no bearing at radius " + fixed(r) + " px inside the ring");
-      return p;
+      return false;
     }
     if (previous) {
       const int d = *e > *previous ? 1 : (*e < *previous ? -1 : 0);
@@ -173,13 +183,20 @@ std::vector<std::string> Calibration::validate() const {
         p.push_back(source + " is not monotonic over the ring [" + fixed(o.radius_inner) + ", " +
                     fixed(o.radius_outer) + "] px: its elevation turns at radius " + fixed(r) +
                     " px (" + fixed(deg(*e), 2) + " deg)");
-        return p;
+        return false;
       }
       direction = d;
     }
     previous = e;
   }
-  const auto [e_in, e_out] = ringElevations();
+  return true;
+}
+
+/// Every panorama row must lie inside the ring's elevations.
+void checkRowsInsideRing(const Calibration& c, std::vector<std::string>& p) {
+  const auto& o = c.omni;
+  const auto& q = c.panorama;
+  const auto [e_in, e_out] = c.ringElevations();
   const double lo = std::min(e_in, e_out), hi = std::max(e_in, e_out);
   const auto rowElevation = [&](double v) { return std::atan(q.cylinderHeight(v)); };
   int first_out = -1, last_out = -1;
@@ -197,6 +214,16 @@ std::vector<std::string> Calibration::validate() const {
                 fixed(o.radius_inner) + " and radius_outer " + fixed(o.radius_outer) +
                 " px); lower panorama.height, move horizon_row or widen the ring");
   }
+}
+
+}  // namespace
+
+std::vector<std::string> Calibration::validate() const {
+  std::vector<std::string> p;
+  checkFields(*this, p);
+  checkLensModel(*this, p);
+  if (!p.empty() || omni.model == LensModelKind::kLinear) return p;
+  if (checkMonotonicOverRing(*this, p)) checkRowsInsideRing(*this, p);
   return p;
 }
 
@@ -204,16 +231,194 @@ std::vector<std::string> Calibration::validate() const {
 // YAML
 // ---------------------------------------------------------------------------------------
 
+namespace {
+
+/// Reads calibration.yaml's omni section into a Calibration, every problem into the reader,
+/// in the order the keys are checked: the model, its own keys (the OCamCalib file, the mei
+/// model, the linear lens's centre and edge), the image size and ring, then the azimuth
+/// and the mask.
+class OmniSection {
+ public:
+  OmniSection(YamlReader& r, YAML::Node omni, const std::filesystem::path& base_dir, Calibration& c)
+      : r_(r), omni_(std::move(omni)), base_dir_(base_dir), c_(c) {}
+
+  void read() {
+    readModel();
+    if (c_.omni.model == LensModelKind::kOcamCalib) {
+      readOcamCalib();
+    } else {
+      notWith("ocamcalib_file", "it is the ocamcalib model's file");
+      r_.get(omni_, "omni", "image_width", c_.omni.image_width, Need::kRequired);
+      r_.get(omni_, "omni", "image_height", c_.omni.image_height, Need::kRequired);
+      r_.get(omni_, "omni", "radius_inner", c_.omni.radius_inner, Need::kRequired);
+      r_.get(omni_, "omni", "radius_outer", c_.omni.radius_outer, Need::kRequired);
+    }
+    if (c_.omni.model == LensModelKind::kMei) {
+      readMei();
+    } else {
+      for (const char* key : {"omnidir_file", "xi", "K", "D"}) notWith(key, "it belongs to the mei model");
+    }
+    if (c_.omni.model == LensModelKind::kLinear) readLinear();
+    readAzimuth();
+    readMask();
+  }
+
+ private:
+  std::filesystem::path resolve(const std::string& file) const {
+    const std::filesystem::path p(file);
+    return p.is_absolute() || base_dir_.empty() ? p : base_dir_ / p;
+  }
+
+  /// A lens model file's own problems, each under the key that names the file.
+  void fileProblems(const std::string& key, const std::exception& e) {
+    const auto* listed = dynamic_cast<const ConfigError*>(&e);
+    if (!listed || listed->problems().empty()) {
+      r_.problem(key, e.what());
+      return;
+    }
+    for (const auto& p : listed->problems()) r_.problem(key, p);
+  }
+
+  void notWith(const char* key, const char* why) {
+    if (omni_ && omni_[key])
+      r_.problem(std::string("omni.") + key, std::string("not used with model ") + model_ + ": " + why);
+  }
+
+  void readModel() {
+    r_.get(omni_, "omni", "model", model_, Need::kOptional);
+    if (model_ == "linear") c_.omni.model = LensModelKind::kLinear;
+    else if (model_ == "ocamcalib") c_.omni.model = LensModelKind::kOcamCalib;
+    else if (model_ == "mei") c_.omni.model = LensModelKind::kMei;
+    else r_.problem("omni.model", "'" + detail::shown(model_) + "' is not linear, ocamcalib or mei");
+  }
+
+  /// The OCamCalib file gives the image size, the centre and (with its ROI line) the ring.
+  void readOcamCalib() {
+    notWith("center", "the centre comes from ocamcalib_file");
+    notWith("outer_edge", "the polynomial gives every radius its elevation");
+    if (r_.get(omni_, "omni", "ocamcalib_file", c_.omni.ocamcalib_file, Need::kRequired)) {
+      try {
+        c_.omni.ocamcalib = OcamCalibModel::load(resolve(c_.omni.ocamcalib_file));
+        const OcamCalibModel& m = *c_.omni.ocamcalib;
+        c_.omni.image_width = m.width;
+        c_.omni.image_height = m.height;
+        c_.omni.center_x = m.yc;
+        c_.omni.center_y = m.xc;
+        if (m.roi_min_radius) c_.omni.radius_inner = *m.roi_min_radius;
+        if (m.roi_max_radius) c_.omni.radius_outer = *m.roi_max_radius;
+      } catch (const std::exception& e) {
+        fileProblems("omni.ocamcalib_file", e);
+      }
+    }
+    int w = c_.omni.image_width, h = c_.omni.image_height;
+    if (r_.get(omni_, "omni", "image_width", w, Need::kOptional) && c_.omni.ocamcalib &&
+        w != c_.omni.image_width)
+      r_.problem("omni.image_width", std::to_string(w) + " disagrees with the OCamCalib file (" +
+                                         std::to_string(c_.omni.image_width) + " with its crops)");
+    if (r_.get(omni_, "omni", "image_height", h, Need::kOptional) && c_.omni.ocamcalib &&
+        h != c_.omni.image_height)
+      r_.problem("omni.image_height", std::to_string(h) + " disagrees with the OCamCalib file (" +
+                                          std::to_string(c_.omni.image_height) + ")");
+    const bool has_roi = c_.omni.ocamcalib && c_.omni.ocamcalib->roi_max_radius;
+    const Need need_radii = !has_roi && c_.omni.ocamcalib ? Need::kRequired : Need::kOptional;
+    r_.get(omni_, "omni", "radius_inner", c_.omni.radius_inner, need_radii);
+    r_.get(omni_, "omni", "radius_outer", c_.omni.radius_outer, need_radii);
+  }
+
+  /// The mei model from omnidir_file or from xi, K and D; its principal point is the centre.
+  void readMei() {
+    notWith("center", "the centre is K's principal point");
+    notWith("outer_edge", "the model gives every radius its elevation");
+    const bool inline_model = omni_ && (omni_["xi"] || omni_["K"] || omni_["D"]);
+    if (r_.get(omni_, "omni", "omnidir_file", c_.omni.omnidir_file, Need::kOptional)) {
+      if (inline_model) r_.problem("omni.omnidir_file", "give either omnidir_file or xi, K and D, not both");
+      try {
+        c_.omni.mei = MeiModel::loadFileStorage(resolve(c_.omni.omnidir_file));
+      } catch (const std::exception& e) {
+        fileProblems("omni.omnidir_file", e);
+      }
+    } else {
+      MeiModel m;
+      std::vector<double> K, D;
+      const bool ok_xi = r_.get(omni_, "omni", "xi", m.xi, Need::kRequired);
+      const bool ok_k = r_.getNumbers(omni_, "omni", "K", 9, K);
+      const bool ok_d = r_.getNumbers(omni_, "omni", "D", 4, D);
+      if (ok_xi && ok_k && ok_d) {
+        m.fx = K[0], m.s = K[1], m.cx = K[2], m.fy = K[4], m.cy = K[5];
+        m.k1 = D[0], m.k2 = D[1], m.p1 = D[2], m.p2 = D[3];
+        c_.omni.mei = m;
+      }
+    }
+    if (c_.omni.mei) {
+      c_.omni.center_x = c_.omni.mei->cx;
+      c_.omni.center_y = c_.omni.mei->cy;
+    }
+  }
+
+  /// The linear lens: its centre [x, y] and which panorama edge the outer ring becomes.
+  void readLinear() {
+    if (omni_) {
+      const YAML::Node center = omni_["center"];
+      if (!center) {
+        r_.problem("omni.center", "missing");
+      } else if (!center.IsSequence() || center.size() != 2) {
+        r_.problem("omni.center", "must be a list [x, y]");
+      } else {
+        try {
+          c_.omni.center_x = center[0].as<double>();
+          c_.omni.center_y = center[1].as<double>();
+        } catch (const YAML::Exception&) {
+          r_.problem("omni.center", "must hold two numbers");
+        }
+      }
+    }
+    std::string edge = "top";
+    r_.get(omni_, "omni", "outer_edge", edge, Need::kOptional);
+    if (edge == "top") c_.omni.outer_edge = OuterEdge::kTop;
+    else if (edge == "bottom") c_.omni.outer_edge = OuterEdge::kBottom;
+    else r_.problem("omni.outer_edge", "'" + detail::shown(edge) + "' is not top or bottom");
+  }
+
+  void readAzimuth() {
+    r_.get(omni_, "omni", "azimuth_zero_deg", c_.omni.azimuth_zero_deg, Need::kOptional);
+    std::string direction = "cw";
+    r_.get(omni_, "omni", "azimuth_direction", direction, Need::kOptional);
+    if (direction == "cw") c_.omni.azimuth_direction = AzimuthDirection::kCw;
+    else if (direction == "ccw") c_.omni.azimuth_direction = AzimuthDirection::kCcw;
+    else r_.problem("omni.azimuth_direction", "'" + detail::shown(direction) + "' is not cw or ccw");
+  }
+
+  void readMask() {
+    if (!r_.get(omni_, "omni", "mask", c_.omni.mask_file, Need::kOptional)) return;
+    const std::filesystem::path file = resolve(c_.omni.mask_file);
+    const Expected<cv::Mat> mask = readImage(file, ImageColour::kAsStored);
+    if (!mask) {
+      // The decoder's message starts with the path: keep only its reason.
+      std::string why(mask.error().message());
+      if (why.starts_with(file.string() + ": ")) why.erase(0, file.string().size() + 2);
+      r_.problem("omni.mask", file.string() + ": cannot read the mask image (" + why + ")");
+    } else if (mask->type() != CV_8UC1) {
+      r_.problem("omni.mask", file.string() + ": must be an 8-bit grey image (0 = never use)");
+    } else {
+      c_.omni.mask = *mask;
+    }
+  }
+
+  YamlReader& r_;
+  const YAML::Node omni_;
+  const std::filesystem::path& base_dir_;
+  Calibration& c_;
+  std::string model_ = "linear";
+};
+
+}  // namespace
+
 Calibration Calibration::parse(const std::string& text, const std::string& origin,
                                const std::filesystem::path& base_dir) {
   YamlReader r(origin);
   const YAML::Node root = detail::loadYaml(text, origin);
   r.checkDuplicateKeys(root);
   Calibration c;
-  const auto resolve = [&](const std::string& file) {
-    const std::filesystem::path p(file);
-    return p.is_absolute() || base_dir.empty() ? p : base_dir / p;
-  };
   if (!root || !root.IsMap()) {
     r.problem("(document)", "expected a map with sections 'omni' and 'panorama'");
   } else {
@@ -230,135 +435,7 @@ Calibration Calibration::parse(const std::string& text, const std::string& origi
         "omni", {"model", "image_width", "image_height", "center", "radius_inner", "radius_outer",
                  "azimuth_zero_deg", "azimuth_direction", "outer_edge", "ocamcalib_file",
                  "omnidir_file", "xi", "K", "D", "mask"});
-    // A lens model file's own problems, each under the key that names the file.
-    const auto fileProblems = [&](const std::string& key, const std::exception& e) {
-      const auto* listed = dynamic_cast<const ConfigError*>(&e);
-      if (!listed || listed->problems().empty()) {
-        r.problem(key, e.what());
-        return;
-      }
-      for (const auto& p : listed->problems()) r.problem(key, p);
-    };
-    std::string model = "linear";
-    r.get(omni, "omni", "model", model, Need::kOptional);
-    if (model == "linear") c.omni.model = LensModelKind::kLinear;
-    else if (model == "ocamcalib") c.omni.model = LensModelKind::kOcamCalib;
-    else if (model == "mei") c.omni.model = LensModelKind::kMei;
-    else r.problem("omni.model", "'" + detail::shown(model) + "' is not linear, ocamcalib or mei");
-    const bool linear = c.omni.model == LensModelKind::kLinear;
-    const bool ocam = c.omni.model == LensModelKind::kOcamCalib;
-    const bool mei = c.omni.model == LensModelKind::kMei;
-    const auto notWith = [&](const char* key, const char* why) {
-      if (omni && omni[key]) r.problem(std::string("omni.") + key, std::string("not used with model ") + model + ": " + why);
-    };
-
-    if (ocam) {
-      notWith("center", "the centre comes from ocamcalib_file");
-      notWith("outer_edge", "the polynomial gives every radius its elevation");
-      if (r.get(omni, "omni", "ocamcalib_file", c.omni.ocamcalib_file, Need::kRequired)) {
-        try {
-          c.omni.ocamcalib = OcamCalibModel::load(resolve(c.omni.ocamcalib_file));
-          const OcamCalibModel& m = *c.omni.ocamcalib;
-          c.omni.image_width = m.width;
-          c.omni.image_height = m.height;
-          c.omni.center_x = m.yc;
-          c.omni.center_y = m.xc;
-          if (m.roi_min_radius) c.omni.radius_inner = *m.roi_min_radius;
-          if (m.roi_max_radius) c.omni.radius_outer = *m.roi_max_radius;
-        } catch (const std::exception& e) {
-          fileProblems("omni.ocamcalib_file", e);
-        }
-      }
-      int w = c.omni.image_width, h = c.omni.image_height;
-      if (r.get(omni, "omni", "image_width", w, Need::kOptional) && c.omni.ocamcalib && w != c.omni.image_width)
-        r.problem("omni.image_width", std::to_string(w) + " disagrees with the OCamCalib file (" +
-                                          std::to_string(c.omni.image_width) + " with its crops)");
-      if (r.get(omni, "omni", "image_height", h, Need::kOptional) && c.omni.ocamcalib && h != c.omni.image_height)
-        r.problem("omni.image_height", std::to_string(h) + " disagrees with the OCamCalib file (" +
-                                           std::to_string(c.omni.image_height) + ")");
-      const bool has_roi = c.omni.ocamcalib && c.omni.ocamcalib->roi_max_radius;
-      const Need need_radii = !has_roi && c.omni.ocamcalib ? Need::kRequired : Need::kOptional;
-      r.get(omni, "omni", "radius_inner", c.omni.radius_inner, need_radii);
-      r.get(omni, "omni", "radius_outer", c.omni.radius_outer, need_radii);
-    } else {
-      notWith("ocamcalib_file", "it is the ocamcalib model's file");
-      r.get(omni, "omni", "image_width", c.omni.image_width, Need::kRequired);
-      r.get(omni, "omni", "image_height", c.omni.image_height, Need::kRequired);
-      r.get(omni, "omni", "radius_inner", c.omni.radius_inner, Need::kRequired);
-      r.get(omni, "omni", "radius_outer", c.omni.radius_outer, Need::kRequired);
-    }
-    if (mei) {
-      notWith("center", "the centre is K's principal point");
-      notWith("outer_edge", "the model gives every radius its elevation");
-      const bool inline_model = omni && (omni["xi"] || omni["K"] || omni["D"]);
-      if (r.get(omni, "omni", "omnidir_file", c.omni.omnidir_file, Need::kOptional)) {
-        if (inline_model) r.problem("omni.omnidir_file", "give either omnidir_file or xi, K and D, not both");
-        try {
-          c.omni.mei = MeiModel::loadFileStorage(resolve(c.omni.omnidir_file));
-        } catch (const std::exception& e) {
-          fileProblems("omni.omnidir_file", e);
-        }
-      } else {
-        MeiModel m;
-        std::vector<double> K, D;
-        const bool ok_xi = r.get(omni, "omni", "xi", m.xi, Need::kRequired);
-        const bool ok_k = r.getNumbers(omni, "omni", "K", 9, K);
-        const bool ok_d = r.getNumbers(omni, "omni", "D", 4, D);
-        if (ok_xi && ok_k && ok_d) {
-          m.fx = K[0], m.s = K[1], m.cx = K[2], m.fy = K[4], m.cy = K[5];
-          m.k1 = D[0], m.k2 = D[1], m.p1 = D[2], m.p2 = D[3];
-          c.omni.mei = m;
-        }
-      }
-      if (c.omni.mei) {
-        c.omni.center_x = c.omni.mei->cx;
-        c.omni.center_y = c.omni.mei->cy;
-      }
-    } else {
-      for (const char* key : {"omnidir_file", "xi", "K", "D"}) notWith(key, "it belongs to the mei model");
-    }
-    if (linear) {
-      if (omni) {
-        const YAML::Node center = omni["center"];
-        if (!center) {
-          r.problem("omni.center", "missing");
-        } else if (!center.IsSequence() || center.size() != 2) {
-          r.problem("omni.center", "must be a list [x, y]");
-        } else {
-          try {
-            c.omni.center_x = center[0].as<double>();
-            c.omni.center_y = center[1].as<double>();
-          } catch (const YAML::Exception&) {
-            r.problem("omni.center", "must hold two numbers");
-          }
-        }
-      }
-      std::string edge = "top";
-      r.get(omni, "omni", "outer_edge", edge, Need::kOptional);
-      if (edge == "top") c.omni.outer_edge = OuterEdge::kTop;
-      else if (edge == "bottom") c.omni.outer_edge = OuterEdge::kBottom;
-      else r.problem("omni.outer_edge", "'" + detail::shown(edge) + "' is not top or bottom");
-    }
-    r.get(omni, "omni", "azimuth_zero_deg", c.omni.azimuth_zero_deg, Need::kOptional);
-    std::string direction = "cw";
-    r.get(omni, "omni", "azimuth_direction", direction, Need::kOptional);
-    if (direction == "cw") c.omni.azimuth_direction = AzimuthDirection::kCw;
-    else if (direction == "ccw") c.omni.azimuth_direction = AzimuthDirection::kCcw;
-    else r.problem("omni.azimuth_direction", "'" + detail::shown(direction) + "' is not cw or ccw");
-    if (r.get(omni, "omni", "mask", c.omni.mask_file, Need::kOptional)) {
-      const std::filesystem::path file = resolve(c.omni.mask_file);
-      const Expected<cv::Mat> mask = readImage(file, ImageColour::kAsStored);
-      if (!mask) {
-        // The decoder's message starts with the path: keep only its reason.
-        std::string why(mask.error().message());
-        if (why.starts_with(file.string() + ": ")) why.erase(0, file.string().size() + 2);
-        r.problem("omni.mask", file.string() + ": cannot read the mask image (" + why + ")");
-      } else if (mask->type() != CV_8UC1) {
-        r.problem("omni.mask", file.string() + ": must be an 8-bit grey image (0 = never use)");
-      } else {
-        c.omni.mask = *mask;
-      }
-    }
+    OmniSection(r, omni, base_dir, c).read();
 
     const YAML::Node pano = section("panorama", {"width", "height", "horizon_row", "forward_column"});
     r.get(pano, "panorama", "width", c.panorama.width, Need::kRequired);

@@ -42,26 +42,92 @@ bool CaptureLoop::reopen() {
   return true;
 }
 
+void CaptureLoop::accept(const FrameInfo& got) {
+  Timeline& t = timeline_;
+  if (t.expected_sequence && got.sequence > *t.expected_sequence) {
+    const auto lost = static_cast<std::int64_t>(got.sequence - *t.expected_sequence);
+    board_.frames_lost_upstream += lost;
+    board_.frames_received += lost;
+  }
+  t.expected_sequence = got.sequence + 1;
+  if (got.resynchronised) {
+    board_.reportError("%s: frame %d: timestamp %.6f s is more than the pacing bound after "
+                       "the previous frame's: pacing resynchronised, not waited out",
+                       description_.c_str(), got.index, got.source_timestamp);
+  }
+  if (t.have_last && got.index >= 0 && got.index <= t.last_index) mailbox_.markGap();
+  // Time must move forward: a frame stamped at or before its predecessor (a camera
+  // clock step, a broken recording) cannot be linked to it by time. It is processed
+  // after a gap: the odometry finds it again by the whole-ring search (a new segment
+  // only when that fails); the fault is reported.
+  else if (t.have_last && got.capture_time_us < t.last_capture_us) {
+    board_.reportError("%s: frame %llu: capture time %lld us is before the previous "
+                       "frame's %lld us (time went backwards): bridged as after a gap",
+                       description_.c_str(), static_cast<unsigned long long>(got.sequence),
+                       static_cast<long long>(got.capture_time_us),
+                       static_cast<long long>(t.last_capture_us));
+    mailbox_.markGap();
+  } else if (t.have_last && got.index > t.last_index &&
+             got.source_timestamp < t.last_source_timestamp) {
+    board_.reportError("%s: frame %d: timestamp %.6f s is before the previous frame's "
+                       "%.6f s (time went backwards): bridged as after a gap",
+                       description_.c_str(), got.index, got.source_timestamp,
+                       t.last_source_timestamp);
+    mailbox_.markGap();
+  }
+  t.have_last = true;
+  t.last_index = got.index;
+  t.last_capture_us = got.capture_time_us;
+  t.last_source_timestamp = got.source_timestamp;
+  ++board_.frames_received;
+  mailbox_.post(got);
+}
+
+bool CaptureLoop::handleFailure(const Error& error) {
+  switch (error.code()) {
+    case ErrorCode::kTimeout:
+      break;
+    case ErrorCode::kBadFrame:
+      ++board_.frames_received;
+      ++board_.frames_bad;
+      // The bad frame used a sequence number: not lost.
+      if (timeline_.expected_sequence) ++*timeline_.expected_sequence;
+      board_.reportError(error);
+      mailbox_.markGap();
+      break;
+    case ErrorCode::kEndOfStream:
+      board_.setSourceState(SourceState::kEnded);
+      board_.logInfo("end of stream: %s", error.c_str());
+      return false;
+    default:  // kDisconnected, kIoError, ...: close, re-open with back-off
+      ++board_.source_failures;
+      board_.reportError(error);
+      board_.setSourceState(SourceState::kReconnecting);
+      source_.close();
+      open_ = false;
+      timeline_.have_last = false;
+      timeline_.expected_sequence.reset();
+      mailbox_.markGap();
+      break;
+  }
+  return true;
+}
+
 void CaptureLoop::run() {
   board_.setSourceState(SourceState::kStreaming);
-  bool open = true;
-  bool have_last = false;
-  int last_index = -1;
-  std::int64_t last_capture_us = 0;
-  double last_source_timestamp = 0.0;
-  // The sequence number the next frame should carry: a larger one means frames were lost
-  // upstream (unknown after a camera's re-open until its first frame arrives).
-  std::optional<std::uint64_t> expected_sequence = source_.sequenceOrigin();
+  open_ = true;
+  timeline_ = Timeline{};
+  timeline_.expected_sequence = source_.sequenceOrigin();
   Backoff backoff(options_.reconnect_initial, options_.reconnect_max);
 
   while (!mailbox_.stopRequested()) {
     board_.beatCapture();
-    if (!open) {
+    if (!open_) {
       // Re-open with exponential back-off.
       if (sleepUnlessStopped(backoff.next())) break;
       if (!reopen()) continue;
-      open = true;
-      expected_sequence = source_.sequenceOrigin();
+      open_ = true;
+      timeline_.expected_sequence = source_.sequenceOrigin();
       backoff.reset();
       board_.setSourceState(SourceState::kStreaming);
       board_.logInfo("source re-opened: %s", description_.c_str());
@@ -73,73 +139,12 @@ void CaptureLoop::run() {
 
     Expected<FrameInfo> got = source_.next(mailbox_.writeBuffer(), options_.poll);
     if (got) {
-      if (expected_sequence && got->sequence > *expected_sequence) {
-        const auto lost = static_cast<std::int64_t>(got->sequence - *expected_sequence);
-        board_.frames_lost_upstream += lost;
-        board_.frames_received += lost;
-      }
-      expected_sequence = got->sequence + 1;
-      if (got->resynchronised) {
-        board_.reportError("%s: frame %d: timestamp %.6f s is more than the pacing bound after "
-                           "the previous frame's: pacing resynchronised, not waited out",
-                           description_.c_str(), got->index, got->source_timestamp);
-      }
-      if (have_last && got->index >= 0 && got->index <= last_index) mailbox_.markGap();
-      // Time must move forward: a frame stamped at or before its predecessor (a camera
-      // clock step, a broken recording) cannot be linked to it by time. It is processed
-      // after a gap: the odometry finds it again by the whole-ring search (a new segment
-      // only when that fails); the fault is reported.
-      else if (have_last && got->capture_time_us < last_capture_us) {
-        board_.reportError("%s: frame %llu: capture time %lld us is before the previous "
-                           "frame's %lld us (time went backwards): bridged as after a gap",
-                           description_.c_str(), static_cast<unsigned long long>(got->sequence),
-                           static_cast<long long>(got->capture_time_us),
-                           static_cast<long long>(last_capture_us));
-        mailbox_.markGap();
-      } else if (have_last && got->index > last_index &&
-                 got->source_timestamp < last_source_timestamp) {
-        board_.reportError("%s: frame %d: timestamp %.6f s is before the previous frame's "
-                           "%.6f s (time went backwards): bridged as after a gap",
-                           description_.c_str(), got->index, got->source_timestamp,
-                           last_source_timestamp);
-        mailbox_.markGap();
-      }
-      have_last = true;
-      last_index = got->index;
-      last_capture_us = got->capture_time_us;
-      last_source_timestamp = got->source_timestamp;
-      ++board_.frames_received;
-      mailbox_.post(*got);
-      continue;
-    }
-    const Error& error = got.error();
-    switch (error.code()) {
-      case ErrorCode::kTimeout:
-        break;
-      case ErrorCode::kBadFrame:
-        ++board_.frames_received;
-        ++board_.frames_bad;
-        if (expected_sequence) ++*expected_sequence;  // the bad frame used a sequence number: not lost
-        board_.reportError(error);
-        mailbox_.markGap();
-        break;
-      case ErrorCode::kEndOfStream:
-        board_.setSourceState(SourceState::kEnded);
-        board_.logInfo("end of stream: %s", error.c_str());
-        source_.close();
-        mailbox_.close();
-        board_.markCaptureFinished();
-        return;
-      default:  // kDisconnected, kIoError, ...: close, re-open with back-off
-        ++board_.source_failures;
-        board_.reportError(error);
-        board_.setSourceState(SourceState::kReconnecting);
-        source_.close();
-        open = false;
-        have_last = false;
-        expected_sequence.reset();
-        mailbox_.markGap();
-        break;
+      accept(*got);
+    } else if (!handleFailure(got.error())) {
+      source_.close();
+      mailbox_.close();
+      board_.markCaptureFinished();
+      return;
     }
   }
   source_.close();

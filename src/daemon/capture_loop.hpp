@@ -35,6 +35,8 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cstdint>
+#include <optional>
 #include <string>
 #include <opencv2/core.hpp>
 
@@ -82,9 +84,26 @@ class CaptureLoop {
   void run();
 
  private:
+  /// What the loop knows of the frames since the source was (re-)opened.
+  struct Timeline {
+    bool have_last = false;
+    int last_index = -1;
+    std::int64_t last_capture_us = 0;
+    double last_source_timestamp = 0.0;
+    /// The sequence number the next frame should carry: a larger one means frames were
+    /// lost upstream (unknown after a camera's re-open until its first frame arrives).
+    std::optional<std::uint64_t> expected_sequence;
+  };
+
   /// Waits `delay` unless stop is requested first; true when stop was requested.
   bool sleepUnlessStopped(std::chrono::milliseconds delay);
   bool reopen();
+  /// A frame the source delivered: counts the frames lost upstream before it, marks a gap
+  /// where its index or time goes backwards, and posts it.
+  void accept(const FrameInfo& frame);
+  /// A failed next(): counts and reports it; closes the source on a fault (open_ false: the
+  /// loop re-opens it). False at the end of the stream (the loop returns).
+  bool handleFailure(const Error& error);
 
   FrameSource& source_;
   FrameMailbox& mailbox_;
@@ -92,6 +111,8 @@ class CaptureLoop {
   Options options_;
   cv::Size frame_size_;
   std::string description_;  ///< source_.describe() at start-up (logging must not allocate)
+  bool open_ = true;
+  Timeline timeline_;
 };
 
 }  // namespace omnipose::daemon
