@@ -69,96 +69,69 @@ std::vector<std::string> FileFrameSource::warnings() const {
   return dataset_ ? dataset_->warnings : std::vector<std::string>{};
 }
 
-Expected<FrameInfo> FileFrameSource::next(cv::Mat& out, std::chrono::milliseconds timeout) {
-  if (!dataset_) return fail(ErrorCode::kDisconnected, "%s: not open", options_.directory.c_str());
+bool FileFrameSource::startOver() {
+  if (!options_.loop) return false;
   const auto& frames = dataset_->frames;
-  if (next_index_ >= frames.size()) {
-    if (!options_.loop) return fail(ErrorCode::kEndOfStream, "%s: end of dataset",
-                                    options_.directory.c_str());
-    // Loop: frame 0 follows the last frame one mean frame interval later.
-    if (has_origin_) {
-      const double span = frames.back().timestamp - frames.front().timestamp;
-      double period = frames.size() > 1 ? span / static_cast<double>(frames.size() - 1)
-                                        : 1.0 / Dataset::kDefaultFps;
-      if (!(period > 0)) period = 1.0 / Dataset::kDefaultFps;  // timestamps not increasing
-      origin_wall_us_ += static_cast<std::int64_t>((frames.back().timestamp - origin_stamp_ +
-                                                    period) * 1e6);
-      origin_stamp_ = frames.front().timestamp;
-    }
-    next_index_ = 0;
+  // Loop: frame 0 follows the last frame one mean frame interval later.
+  if (has_origin_) {
+    const double span = frames.back().timestamp - frames.front().timestamp;
+    double period = frames.size() > 1 ? span / static_cast<double>(frames.size() - 1)
+                                      : 1.0 / Dataset::kDefaultFps;
+    if (!(period > 0)) period = 1.0 / Dataset::kDefaultFps;  // timestamps not increasing
+    origin_wall_us_ += static_cast<std::int64_t>((frames.back().timestamp - origin_stamp_ +
+                                                  period) * 1e6);
+    origin_stamp_ = frames.front().timestamp;
   }
+  next_index_ = 0;
+  return true;
+}
 
-  // Pacing: wait for the frame's due time, at most `timeout`.
-  std::int64_t capture_us = 0;
-  bool resynchronised = false;
-  if (options_.realtime) {
-    if (!has_origin_) {
-      origin_wall_us_ = wallClockMicros();
-      origin_stamp_ = frames[next_index_].timestamp;
-      has_origin_ = true;
-    }
-    // A frame stamped before its predecessor (a broken recording): pacing starts again
-    // from it (it is due now) instead of treating every frame up to the old time as late.
-    auto backwards = [&](std::size_t i) { return i > 0 && frames[i].timestamp < frames[i - 1].timestamp; };
-    auto restartAt = [&](std::size_t i) {
-      origin_wall_us_ = wallClockMicros();
-      origin_stamp_ = frames[i].timestamp;
-    };
-    if (backwards(next_index_)) restartAt(next_index_);
-    auto dueOf = [&](std::size_t i) {
-      return origin_wall_us_ + static_cast<std::int64_t>((frames[i].timestamp - origin_stamp_) * 1e6);
-    };
-    // Running late (the reader was busy longer than a frame interval): like a camera,
-    // deliver the frame that is current now; the ones missed in between are never read
-    // (the sequence number jumps over them).
-    const std::int64_t now_us = wallClockMicros();
-    while (next_index_ + 1 < frames.size() && !backwards(next_index_ + 1) &&
-           dueOf(next_index_ + 1) <= now_us) {
-      ++next_index_;
-      ++sequence_;
-    }
-    // A gap in the recording longer than the pacing bound (a jump in timestamps.txt, or a
-    // loop whose mean interval such a jump inflated): pacing starts again from this frame,
-    // which is due now, instead of the daemon sleeping through the gap.
-    if (dueOf(next_index_) - now_us > static_cast<std::int64_t>(options_.max_pacing_gap_s * 1e6)) {
-      restartAt(next_index_);
-      resynchronised = true;
-    }
-    const std::int64_t due_us = dueOf(next_index_);
-    const std::int64_t wait_us = due_us - wallClockMicros();
-    if (wait_us > std::chrono::duration_cast<std::chrono::microseconds>(timeout).count()) {
-      std::this_thread::sleep_for(timeout);
-      return fail(ErrorCode::kTimeout, "%s: next frame not due yet", options_.directory.c_str());
-    }
-    if (wait_us > 0) std::this_thread::sleep_for(std::chrono::microseconds(wait_us));
-    capture_us = due_us;
+Expected<FileFrameSource::Due> FileFrameSource::pace(std::chrono::milliseconds timeout) {
+  const auto& frames = dataset_->frames;
+  Due due;
+  if (!has_origin_) {
+    origin_wall_us_ = wallClockMicros();
+    origin_stamp_ = frames[next_index_].timestamp;
+    has_origin_ = true;
   }
-
-  const DatasetFrame& frame = frames[next_index_];
-
-  // Read and check the frame. A missing directory is a disconnect (not consumed), a
-  // missing or undecodable file a bad frame (consumed).
-  std::error_code ec;
-  if (!fs::is_directory(frame.path.parent_path(), ec)) {
-    return fail(ErrorCode::kDisconnected, "%s: dataset directory vanished",
-                options_.directory.c_str());
+  // A frame stamped before its predecessor (a broken recording): pacing starts again
+  // from it (it is due now) instead of treating every frame up to the old time as late.
+  auto backwards = [&](std::size_t i) { return i > 0 && frames[i].timestamp < frames[i - 1].timestamp; };
+  auto restartAt = [&](std::size_t i) {
+    origin_wall_us_ = wallClockMicros();
+    origin_stamp_ = frames[i].timestamp;
+  };
+  if (backwards(next_index_)) restartAt(next_index_);
+  auto dueOf = [&](std::size_t i) {
+    return origin_wall_us_ + static_cast<std::int64_t>((frames[i].timestamp - origin_stamp_) * 1e6);
+  };
+  // Running late (the reader was busy longer than a frame interval): like a camera,
+  // deliver the frame that is current now; the ones missed in between are never read
+  // (the sequence number jumps over them).
+  const std::int64_t now_us = wallClockMicros();
+  while (next_index_ + 1 < frames.size() && !backwards(next_index_ + 1) &&
+         dueOf(next_index_ + 1) <= now_us) {
+    ++next_index_;
+    ++sequence_;
   }
-  FrameInfo info;
-  info.sequence = sequence_++;
-  info.index = static_cast<int>(next_index_);
-  info.source_timestamp = frame.timestamp;
-  info.resynchronised = resynchronised;
-  ++next_index_;
-
-  if (Expected<void> read = readFrame(frame.path, options_.frame_size, bytes_, decoded_); !read) {
-    if (!fs::is_directory(frame.path.parent_path(), ec)) {  // vanished while reading
-      --next_index_;
-      --sequence_;
-      return fail(ErrorCode::kDisconnected, "%s: dataset directory vanished",
-                  options_.directory.c_str());
-    }
-    return fail(ErrorCode::kBadFrame, "%s", read.error().c_str());
+  // A gap in the recording longer than the pacing bound (a jump in timestamps.txt, or a
+  // loop whose mean interval such a jump inflated): pacing starts again from this frame,
+  // which is due now, instead of the daemon sleeping through the gap.
+  if (dueOf(next_index_) - now_us > static_cast<std::int64_t>(options_.max_pacing_gap_s * 1e6)) {
+    restartAt(next_index_);
+    due.resynchronised = true;
   }
+  due.capture_us = dueOf(next_index_);
+  const std::int64_t wait_us = due.capture_us - wallClockMicros();
+  if (wait_us > std::chrono::duration_cast<std::chrono::microseconds>(timeout).count()) {
+    std::this_thread::sleep_for(timeout);
+    return fail(ErrorCode::kTimeout, "%s: next frame not due yet", options_.directory.c_str());
+  }
+  if (wait_us > 0) std::this_thread::sleep_for(std::chrono::microseconds(wait_us));
+  return due;
+}
+
+Expected<void> FileFrameSource::toGrey(const DatasetFrame& frame, cv::Mat& out) const {
   if (out.size() != options_.frame_size || out.type() != CV_8UC1) {
     return fail(ErrorCode::kInvalidArgument, "output buffer must be %dx%d CV_8UC1",
                 options_.frame_size.width, options_.frame_size.height);
@@ -175,7 +148,48 @@ Expected<FrameInfo> FileFrameSource::next(cv::Mat& out, std::chrono::millisecond
   if (out.data != target) {  // would break the caller's slot ownership; never expected
     return fail(ErrorCode::kInvalidArgument, "output buffer was reallocated");
   }
-  info.capture_time_us = options_.realtime ? capture_us : wallClockMicros();
+  return {};
+}
+
+Expected<FrameInfo> FileFrameSource::next(cv::Mat& out, std::chrono::milliseconds timeout) {
+  if (!dataset_) return fail(ErrorCode::kDisconnected, "%s: not open", options_.directory.c_str());
+  const auto& frames = dataset_->frames;
+  if (next_index_ >= frames.size() && !startOver())
+    return fail(ErrorCode::kEndOfStream, "%s: end of dataset", options_.directory.c_str());
+
+  Due due;
+  if (options_.realtime) {
+    Expected<Due> paced = pace(timeout);
+    if (!paced) return std::unexpected(paced.error());
+    due = *paced;
+  }
+  const DatasetFrame& frame = frames[next_index_];
+
+  // Read and check the frame. A missing directory is a disconnect (not consumed), a
+  // missing or undecodable file a bad frame (consumed).
+  std::error_code ec;
+  if (!fs::is_directory(frame.path.parent_path(), ec)) {
+    return fail(ErrorCode::kDisconnected, "%s: dataset directory vanished",
+                options_.directory.c_str());
+  }
+  FrameInfo info;
+  info.sequence = sequence_++;
+  info.index = static_cast<int>(next_index_);
+  info.source_timestamp = frame.timestamp;
+  info.resynchronised = due.resynchronised;
+  ++next_index_;
+
+  if (Expected<void> read = readFrame(frame.path, options_.frame_size, bytes_, decoded_); !read) {
+    if (!fs::is_directory(frame.path.parent_path(), ec)) {  // vanished while reading
+      --next_index_;
+      --sequence_;
+      return fail(ErrorCode::kDisconnected, "%s: dataset directory vanished",
+                  options_.directory.c_str());
+    }
+    return fail(ErrorCode::kBadFrame, "%s", read.error().c_str());
+  }
+  if (Expected<void> grey = toGrey(frame, out); !grey) return std::unexpected(grey.error());
+  info.capture_time_us = options_.realtime ? due.capture_us : wallClockMicros();
   return info;
 }
 

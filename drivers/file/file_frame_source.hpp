@@ -78,6 +78,22 @@ class FileFrameSource final : public FrameSource {
   int frameCount() const;
 
  private:
+  /// When the pacing lets the next frame go: its capture time (the wall clock's time it is
+  /// due at) and whether pacing started again from it.
+  struct Due {
+    std::int64_t capture_us = 0;
+    bool resynchronised = false;
+  };
+  /// After the last frame: with loop, frame 0 again one mean frame interval later (true);
+  /// false without loop.
+  bool startOver();
+  /// Realtime pacing: waits for the next frame's due time, at most `timeout` (kTimeout
+  /// when it is not due by then); skips the frames missed while the reader was late.
+  Expected<Due> pace(std::chrono::milliseconds timeout);
+  /// The decoded frame, as 8-bit grey, into `out` (which must be the frame size, CV_8UC1,
+  /// and is not reallocated).
+  Expected<void> toGrey(const DatasetFrame& frame, cv::Mat& out) const;
+
   Options options_;
   std::optional<Dataset> dataset_;
   std::size_t next_index_ = 0;   ///< dataset index of the next frame
