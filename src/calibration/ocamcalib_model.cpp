@@ -75,17 +75,74 @@ double polyder(const std::vector<double>& p, double x) {
   return y;
 }
 
+/// The problems of one file, each "ORIGIN: line N: what".
+struct FileProblems {
+  const std::string& origin;
+  std::vector<std::string> list;
+
+  void add(int line, const std::string& what) {
+    list.push_back(origin + (line > 0 ? ": line " + std::to_string(line) : std::string()) + ": " +
+                   what);
+  }
+  /// Whether every value of `d` is finite (else the problem is added).
+  bool finite(const DataLine& d, const char* what) {
+    for (double v : d.values) {
+      if (!std::isfinite(v)) {
+        add(d.number, std::string(what) + ": values must be finite");
+        return false;
+      }
+    }
+    return true;
+  }
+  void throwIfAny() const {
+    if (!list.empty()) throw ConfigError(detail::joinProblems(list), list);
+  }
+};
+
+/// pyomniunwarp's extensions after the five standard lines, recognised by their comment
+/// lines: the ROI (max min radius) and the crop (left right).
+void readExtensions(const std::vector<DataLine>& lines, OcamCalibModel& m, FileProblems& problems) {
+  for (std::size_t i = 5; i < lines.size(); ++i) {
+    const DataLine& d = lines[i];
+    if (!d.parsed) {
+      problems.add(d.number, "'" + detail::shown(d.bad_token) + "' is not a number");
+    } else if (mentions(d.comment, "roi")) {
+      if (d.values.size() != 2 || !problems.finite(d, "ROI")) {
+        if (d.values.size() != 2) problems.add(d.number, "ROI: expected 2 numbers (max min radius)");
+        continue;
+      }
+      m.roi_max_radius = d.values[0];
+      m.roi_min_radius = d.values[1];
+      if (!(d.values[1] >= 0 && d.values[0] > d.values[1]))
+        problems.add(d.number, "ROI: expected max radius > min radius >= 0");
+    } else if (mentions(d.comment, "crop")) {
+      if (d.values.size() != 2 || !problems.finite(d, "crop")) {
+        if (d.values.size() != 2) problems.add(d.number, "crop: expected 2 numbers (left right)");
+        continue;
+      }
+      const double l = d.values[0], r = d.values[1];
+      if (l != std::floor(l) || r != std::floor(r) || l < 0 || r < 0 || l > limits::kMaxImageSide ||
+          r > limits::kMaxImageSide) {
+        problems.add(d.number, "crop: left and right must be whole numbers of pixels >= 0");
+        continue;
+      }
+      m.crop_left = static_cast<int>(l);
+      m.crop_right = static_cast<int>(r);
+    } else {
+      problems.add(d.number, "unexpected data line (after the image size only the ROI and crop "
+                             "lines are known, each below a comment naming it)");
+    }
+  }
+}
+
 }  // namespace
 
 OcamCalibModel OcamCalibModel::parse(const std::string& text, const std::string& origin) {
   OcamCalibModel m;
   m.origin = origin;
   m.text = text;
-  std::vector<std::string> problems;
-  const auto problem = [&](int line, const std::string& what) {
-    problems.push_back(origin + (line > 0 ? ": line " + std::to_string(line) : std::string()) +
-                       ": " + what);
-  };
+  FileProblems problems{origin, {}};
+  const auto problem = [&](int line, const std::string& what) { problems.add(line, what); };
   const std::vector<DataLine> lines = dataLines(text);
   static constexpr const char* kFields[] = {
       "direct polynomial (ss: count, then coefficients)",
@@ -98,17 +155,9 @@ OcamCalibModel OcamCalibModel::parse(const std::string& text, const std::string&
       problem(lines[i].number, std::string(kFields[i]) + ": '" + detail::shown(lines[i].bad_token) + "' is not a number");
     }
   }
-  if (!problems.empty()) throw ConfigError(detail::joinProblems(problems), problems);
+  problems.throwIfAny();
 
-  const auto finite = [&](const DataLine& d, const char* what) {
-    for (double v : d.values) {
-      if (!std::isfinite(v)) {
-        problem(d.number, std::string(what) + ": values must be finite");
-        return false;
-      }
-    }
-    return true;
-  };
+  const auto finite = [&](const DataLine& d, const char* what) { return problems.finite(d, what); };
   // Polynomials: "N a0 a1 ... a(N-1)".
   const auto polynomial = [&](const DataLine& d, const char* what, std::vector<double>& out) {
     if (d.values.empty() || !finite(d, what)) return;
@@ -156,45 +205,14 @@ OcamCalibModel OcamCalibModel::parse(const std::string& text, const std::string&
       }
     }
   }
-  // pyomniunwarp's extensions, recognised by their comment lines.
-  for (std::size_t i = 5; i < lines.size(); ++i) {
-    const DataLine& d = lines[i];
-    if (!d.parsed) {
-      problem(d.number, "'" + detail::shown(d.bad_token) + "' is not a number");
-    } else if (mentions(d.comment, "roi")) {
-      if (d.values.size() != 2 || !finite(d, "ROI")) {
-        if (d.values.size() != 2) problem(d.number, "ROI: expected 2 numbers (max min radius)");
-        continue;
-      }
-      m.roi_max_radius = d.values[0];
-      m.roi_min_radius = d.values[1];
-      if (!(d.values[1] >= 0 && d.values[0] > d.values[1]))
-        problem(d.number, "ROI: expected max radius > min radius >= 0");
-    } else if (mentions(d.comment, "crop")) {
-      if (d.values.size() != 2 || !finite(d, "crop")) {
-        if (d.values.size() != 2) problem(d.number, "crop: expected 2 numbers (left right)");
-        continue;
-      }
-      const double l = d.values[0], r = d.values[1];
-      if (l != std::floor(l) || r != std::floor(r) || l < 0 || r < 0 || l > limits::kMaxImageSide ||
-          r > limits::kMaxImageSide) {
-        problem(d.number, "crop: left and right must be whole numbers of pixels >= 0");
-        continue;
-      }
-      m.crop_left = static_cast<int>(l);
-      m.crop_right = static_cast<int>(r);
-    } else {
-      problem(d.number, "unexpected data line (after the image size only the ROI and crop lines "
-                        "are known, each below a comment naming it)");
-    }
-  }
-  if (!problems.empty()) throw ConfigError(detail::joinProblems(problems), problems);
+  readExtensions(lines, m, problems);
+  problems.throwIfAny();
   m.height = static_cast<int>(height);
   m.width = static_cast<int>(width) + m.crop_left + m.crop_right;
   m.yc += m.crop_left;
   if (m.width > limits::kMaxImageSide) {
     problem(lines[4].number, "image size: width plus crops exceeds " + std::to_string(limits::kMaxImageSide));
-    throw ConfigError(detail::joinProblems(problems), problems);
+    problems.throwIfAny();
   }
   return m;
 }
