@@ -108,6 +108,13 @@ struct LibcameraSource::Impl final : libcam::CameraListener {
   }
 
   Expected<void> start();
+  /// The camera named by options.camera, acquired.
+  Expected<void> acquireCamera();
+  /// One video stream in a grey-convertible format, read back after validate(); true when
+  /// the format asked for was not offered and another was taken.
+  Expected<bool> configureStream();
+  /// describe_text of the running stream.
+  void describeStream(bool substituted);
   Expected<void> mapBuffers(const std::vector<std::vector<libcam::BufferPlane>>& buffers);
   void teardown();
   bool requeue(std::uint64_t cookie);
@@ -116,14 +123,8 @@ struct LibcameraSource::Impl final : libcam::CameraListener {
   Expected<void> convert(const libcam::Completion& completion, cv::Mat& out);
 };
 
-Expected<void> LibcameraSource::Impl::start() {
-  if (!manager) {
-    auto m = open_manager();
-    if (!m) return std::unexpected(m.error());
-    manager = *m;
-  }
-
-  // The camera, by index or id.
+Expected<void> LibcameraSource::Impl::acquireCamera() {
+  // By index or id.
   const std::vector<std::shared_ptr<libcam::Camera>> cameras = manager->cameras();
   std::vector<std::string> ids;
   for (const auto& c : cameras) ids.push_back(c->id());
@@ -138,8 +139,10 @@ Expected<void> LibcameraSource::Impl::start() {
                 "libcamera camera %s: cannot acquire it (%s; in use by another process?)", name(),
                 std::strerror(-r));
   acquired = true;
+  return {};
+}
 
-  // One video stream in a grey-convertible format, read back after validate().
+Expected<bool> LibcameraSource::Impl::configureStream() {
   libcam::StreamSettings sc;
   std::vector<std::uint32_t> offered;
   if (!camera->generateVideoConfiguration(sc, offered))
@@ -165,6 +168,31 @@ Expected<void> LibcameraSource::Impl::start() {
   if (format->conversion != libcam::GreyConversion::kJpeg && stride == 0)
     stride = static_cast<std::size_t>(size.width) *
              (format->conversion == libcam::GreyConversion::kLumaPlane ? 1 : 2);
+  return choice->substituted;
+}
+
+void LibcameraSource::Impl::describeStream(bool substituted) {
+  std::ostringstream d;
+  d << "libcamera " << camera_id << " " << size.width << "x" << size.height << " "
+    << format->name;
+  if (fps > 0) d << " " << fps << " fps";
+  else d << " (frame rate not settable)";
+  d << ", " << planes.size() << " buffers";
+  if (substituted) d << " (" << options.format << " not offered)";
+  if (size != cv::Size(options.width, options.height))
+    d << " (asked " << options.width << "x" << options.height << ")";
+  describe_text = d.str();
+}
+
+Expected<void> LibcameraSource::Impl::start() {
+  if (!manager) {
+    auto m = open_manager();
+    if (!m) return std::unexpected(m.error());
+    manager = *m;
+  }
+  if (auto acquired_camera = acquireCamera(); !acquired_camera) return acquired_camera;
+  const Expected<bool> substituted = configureStream();
+  if (!substituted) return std::unexpected(substituted.error());
 
   if (const int r = camera->configure(); r < 0)
     return fail(r == -EBUSY ? ErrorCode::kBusy : ErrorCode::kIoError,
@@ -208,16 +236,7 @@ Expected<void> LibcameraSource::Impl::start() {
   // open()): ours goes on.
   sequence.restart();
 
-  std::ostringstream d;
-  d << "libcamera " << camera_id << " " << size.width << "x" << size.height << " "
-    << format->name;
-  if (fps > 0) d << " " << fps << " fps";
-  else d << " (frame rate not settable)";
-  d << ", " << planes.size() << " buffers";
-  if (choice->substituted) d << " (" << options.format << " not offered)";
-  if (size != cv::Size(options.width, options.height))
-    d << " (asked " << options.width << "x" << options.height << ")";
-  describe_text = d.str();
+  describeStream(*substituted);
   return {};
 }
 

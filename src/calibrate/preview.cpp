@@ -62,15 +62,13 @@ cv::Mat unwrapColour(const cv::Mat& frame, const Calibration& cal) {
   return pano;
 }
 
-cv::Mat renderPreview(std::span<const cv::Mat> frames, const Calibration& cal,
-                      const RingDetection* detection, std::span<const std::string> lines,
-                      int max_panoramas) {
-  if (frames.empty()) throw std::invalid_argument("renderPreview: no frames");
+namespace {
+
+/// The first frame with the detected edges, the ring used, the centre and the axes drawn.
+cv::Mat annotatedDonut(const cv::Mat& frame, const Calibration& cal, const RingDetection* detection) {
   const auto& lens = cal.omni;
   const Eigen::Vector2d c(lens.center_x, lens.center_y);
-
-  // --- the donut ------------------------------------------------------------------------
-  cv::Mat donut = toBgr8(frames.front());
+  cv::Mat donut = toBgr8(frame);
   const double thick = std::max(1.0, std::max(donut.cols, donut.rows) / 700.0);
   const int t = static_cast<int>(std::lround(thick));
   if (detection) {
@@ -111,21 +109,32 @@ cv::Mat renderPreview(std::span<const cv::Mat> frames, const Calibration& cal,
   cv::polylines(donut, arc, false, kYellow, t, cv::LINE_AA);
   cv::arrowedLine(donut, arc[arc.size() - 4], arc.back(), kYellow, t, cv::LINE_AA, 0, 1.0);
 
-  // --- panoramas -------------------------------------------------------------------------
+  return donut;
+}
+
+/// A frame unwrapped, with azimuth ticks every 45 deg and the horizon row.
+cv::Mat annotatedPanorama(const cv::Mat& frame, const Calibration& cal) {
+  cv::Mat p = unwrapColour(frame, cal);
+  for (int deg = 0; deg < 360; deg += 45) {
+    const int u = static_cast<int>(std::lround(cal.panorama.column(deg * kPi / 180.0)));
+    cv::line(p, {u, 0}, {u, deg % 90 == 0 ? p.rows / 6 : p.rows / 12}, kYellow, 1);
+    if (deg % 90 == 0) label(p, std::to_string(deg), {u + 3, 14}, 0.45, kYellow);
+  }
+  const int vh = static_cast<int>(std::lround(cal.panorama.horizon_row));
+  for (int u = 0; u < p.cols; u += 12) cv::line(p, {u, vh}, {u + 5, vh}, kMagenta, 1);
+  return p;
+}
+
+}  // namespace
+
+cv::Mat renderPreview(std::span<const cv::Mat> frames, const Calibration& cal,
+                      const RingDetection* detection, std::span<const std::string> lines,
+                      int max_panoramas) {
+  if (frames.empty()) throw std::invalid_argument("renderPreview: no frames");
+  const cv::Mat donut = annotatedDonut(frames.front(), cal, detection);
   std::vector<cv::Mat> panos;
   const int n_pano = std::min<int>(max_panoramas, static_cast<int>(frames.size()));
-  for (int k = 0; k < n_pano; ++k) {
-    cv::Mat p = unwrapColour(frames[static_cast<std::size_t>(k)], cal);
-    // Azimuth ticks every 45 deg, the horizon row.
-    for (int deg = 0; deg < 360; deg += 45) {
-      const int u = static_cast<int>(std::lround(cal.panorama.column(deg * kPi / 180.0)));
-      cv::line(p, {u, 0}, {u, deg % 90 == 0 ? p.rows / 6 : p.rows / 12}, kYellow, 1);
-      if (deg % 90 == 0) label(p, std::to_string(deg), {u + 3, 14}, 0.45, kYellow);
-    }
-    const int vh = static_cast<int>(std::lround(cal.panorama.horizon_row));
-    for (int u = 0; u < p.cols; u += 12) cv::line(p, {u, vh}, {u + 5, vh}, kMagenta, 1);
-    panos.push_back(p);
-  }
+  for (int k = 0; k < n_pano; ++k) panos.push_back(annotatedPanorama(frames[static_cast<std::size_t>(k)], cal));
 
   // --- composite ------------------------------------------------------------------------
   const int max_width = 1800;
