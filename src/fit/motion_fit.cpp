@@ -91,6 +91,20 @@ struct MotionFit::Impl {
 
   MotionEstimate fit(std::span<const WindowMotion> windows, double forward_column,
                      std::span<const RowScale> row_scale);
+  /// Adds the in-window rotation and log-scale rows of the kept windows, weighted by their
+  /// own noise relative to the shifts, and runs irls() again on all rows (x and n_rows are
+  /// updated, its iterations added). False when that fit failed.
+  bool addRotationScaleRows(std::span<const WindowMotion> windows, double forward_column,
+                            Eigen::Matrix<double, 6, 1>& x, int& n_rows, int& iterations);
+  /// The information matrix of (omega, tau) with the per-window inverse depths as nuisance
+  /// parameters: the Schur complement N - N_xl N_ll^-1 N_lx of the inlier rows' normal
+  /// matrix N under the gauge constraint; `depth_dof` receives the degrees of freedom the
+  /// depths use up (sum of h / (h + prior)).
+  Eigen::Matrix<double, 6, 6> depthMarginalInformation(std::span<const WindowMotion> windows,
+                                                       int n_rows,
+                                                       const Eigen::Matrix<double, 6, 1>& x,
+                                                       const Eigen::Matrix<double, 6, 6>& N,
+                                                       double& depth_dof);
   int buildTranslationRows(std::span<const WindowMotion> windows, double forward_column,
                            std::span<const RowScale> row_scale);
   /// Relative standard deviations of the kept windows' du or dv (window_covariance):
@@ -118,6 +132,19 @@ struct MotionFit::Impl {
   Eigen::Matrix<double, 6, 1> depthGaussNewton(std::span<const WindowMotion> windows,
                                                int n_rows, Eigen::Matrix<double, 6, 1> x,
                                                double sigma, int& iterations);
+  /// depthGaussNewton's normal equations at (x, depth), priors included: N and gx of
+  /// (omega, tau), and per window k its depth's information h[k], gradient g_lambda[k] and
+  /// cross term depth_xl[k].
+  void depthNormals(std::span<const WindowMotion> windows, int n_rows,
+                    const Eigen::Matrix<double, 6, 1>& x, Eigen::Matrix<double, 6, 6>& N,
+                    Eigen::Matrix<double, 6, 1>& gx, double* h, double* g_lambda);
+  /// Backtracks the joint step (dx, depth_step) from (x, depth_before): the largest of 1,
+  /// 1/2, 1/4, ... that does not raise depthCost() above `cost` is taken (x, depth and
+  /// `cost` updated) and returned; 0 when none does (a minimum to rounding: x and the
+  /// depths stay).
+  double backtrackDepthStep(std::span<const WindowMotion> windows, int n_rows,
+                            Eigen::Matrix<double, 6, 1>& x, const Eigen::Matrix<double, 6, 1>& dx,
+                            const double* depth_before, const double* depth_step, double& cost);
   /// Sets b of every log-scale row to its window's measured ln s less the horizontal expansion that
   /// the change of inverse depth across the window adds (Options::scale_depth_gradient):
   /// alpha * dlambda/dtheta * D_k, with D_k the translation part of the window's du per
@@ -421,6 +448,63 @@ double MotionFit::Impl::depthCost(std::span<const WindowMotion> windows, int n_r
   return cost;
 }
 
+void MotionFit::Impl::depthNormals(std::span<const WindowMotion> windows, int n_rows,
+                                   const Eigen::Matrix<double, 6, 1>& x,
+                                   Eigen::Matrix<double, 6, 6>& N,
+                                   Eigen::Matrix<double, 6, 1>& gx, double* h, double* g_lambda) {
+  const int n = static_cast<int>(windows.size());
+  N.setZero();
+  gx.setZero();
+  for (int k = 0; k < n; ++k) {
+    const double prior = depth_prior_weight * windows[k].confidence;
+    depth_xl[k].setZero();
+    h[k] = depthPriorInformation(windows[k]);
+    g_lambda[k] = prior * (1.0 - depth[k]);
+    // The plane prior's mean is taken at the neighbours' depths this step starts from.
+    if (depth_plane_weight > 0)
+      g_lambda[k] += depth_plane_weight * windows[k].confidence *
+                     (planeDepth(windows, k) - depth[k]);
+  }
+  for (int i = 0; i < n_rows; ++i) {
+    const Row& row = rows[i];
+    if (row.weight <= 0) continue;
+    const int k = row.window;
+    Eigen::Matrix<double, 1, 6> Jx = row.a0;
+    Jx.tail<3>() *= depth[k];
+    const double Jl = row.a0.tail<3>().dot(x.tail<3>());
+    const double r = row.b - Jx.dot(x);
+    N.noalias() += row.weight * Jx.transpose() * Jx;
+    gx.noalias() += row.weight * r * Jx.transpose();
+    depth_xl[k].noalias() += row.weight * Jl * Jx.transpose();
+    h[k] += row.weight * Jl * Jl;
+    g_lambda[k] += row.weight * Jl * r;
+  }
+}
+
+double MotionFit::Impl::backtrackDepthStep(std::span<const WindowMotion> windows, int n_rows,
+                                           Eigen::Matrix<double, 6, 1>& x,
+                                           const Eigen::Matrix<double, 6, 1>& dx,
+                                           const double* depth_before, const double* depth_step,
+                                           double& cost) {
+  constexpr int kMaxHalvings = 6;
+  const int n = static_cast<int>(windows.size());
+  const Eigen::Matrix<double, 6, 1> x_before = x;
+  double t = 1.0;
+  for (int halving = 0; halving <= kMaxHalvings; ++halving, t *= 0.5) {
+    x = x_before + t * dx;
+    for (int k = 0; k < n; ++k)
+      depth[k] = std::clamp(depth_before[k] + t * depth_step[k], 0.25, 4.0);
+    const double trial = depthCost(windows, n_rows, x);
+    if (trial <= cost) {
+      cost = trial;
+      return t;
+    }
+  }
+  x = x_before;
+  for (int k = 0; k < n; ++k) depth[k] = depth_before[k];
+  return 0.0;
+}
+
 Eigen::Matrix<double, 6, 1> MotionFit::Impl::depthGaussNewton(
     std::span<const WindowMotion> windows, int n_rows, Eigen::Matrix<double, 6, 1> x,
     double sigma, int& iterations) {
@@ -445,7 +529,6 @@ Eigen::Matrix<double, 6, 1> MotionFit::Impl::depthGaussNewton(
   // 20-iteration cap. A looser kNegligibleStep (1e-2) and Newton's Hessian cost accuracy
   // (docs/PERFORMANCE.md).
   constexpr double kNegligibleStep = 1e-3;
-  constexpr int kMaxHalvings = 6;
   double total = 0.0;
   for (int k = 0; k < n; ++k) total += keep[k] ? windows[k].confidence : 0.0;
   const auto gauge = [&](int k) {
@@ -457,32 +540,9 @@ Eigen::Matrix<double, 6, 1> MotionFit::Impl::depthGaussNewton(
     // backtracking's costs, use the terms of the point it starts from.
     depthGradientTerms(windows, n_rows, x);
     cost = depthCost(windows, n_rows, x);
-    Mat6 N = Mat6::Zero();
-    Vec6 gx = Vec6::Zero();
-    for (int k = 0; k < n; ++k) {
-      const double prior = depth_prior_weight * windows[k].confidence;
-      depth_xl[k].setZero();
-      h[k] = depthPriorInformation(windows[k]);
-      g_lambda[k] = prior * (1.0 - depth[k]);
-      // The plane prior's mean is taken at the neighbours' depths this step starts from.
-      if (depth_plane_weight > 0)
-        g_lambda[k] += depth_plane_weight * windows[k].confidence *
-                       (planeDepth(windows, k) - depth[k]);
-    }
-    for (int i = 0; i < n_rows; ++i) {
-      const Row& row = rows[i];
-      if (row.weight <= 0) continue;
-      const int k = row.window;
-      Eigen::Matrix<double, 1, 6> Jx = row.a0;
-      Jx.tail<3>() *= depth[k];
-      const double Jl = row.a0.tail<3>().dot(x.tail<3>());
-      const double r = row.b - Jx.dot(x);
-      N.noalias() += row.weight * Jx.transpose() * Jx;
-      gx.noalias() += row.weight * r * Jx.transpose();
-      depth_xl[k].noalias() += row.weight * Jl * Jx.transpose();
-      h[k] += row.weight * Jl * Jl;
-      g_lambda[k] += row.weight * Jl * r;
-    }
+    Mat6 N;
+    Vec6 gx;
+    depthNormals(windows, n_rows, x, N, gx, h, g_lambda);
     // Gauge: sum_k c_k lambda_k = 1 (c_k = gauge(k)), a hard constraint that keeps
     // tau = t / (mean scene distance). Eliminating lambda and the multiplier:
     // (N - B D^-1 B^T + v v^T / q) dx = g_x - B D^-1 g_l + v (c^T D^-1 g_l - e) / q,
@@ -520,26 +580,9 @@ Eigen::Matrix<double, 6, 1> MotionFit::Impl::depthGaussNewton(
       depth_step[k] =
           h[k] > 0 ? (g_lambda[k] - depth_xl[k].dot(dx) - gauge(k) * mu) / h[k] : 0.0;
     }
-    // Backtracking: the largest of 1, 1/2, 1/4, ... that does not raise the cost; none
-    // (a minimum to rounding): stay and stop.
-    const Vec6 x_before = x;
-    double t = 1.0;
-    bool lowered = false;
-    for (int halving = 0; halving <= kMaxHalvings; ++halving, t *= 0.5) {
-      x = x_before + t * dx;
-      for (int k = 0; k < n; ++k)
-        depth[k] = std::clamp(depth_before[k] + t * depth_step[k], 0.25, 4.0);
-      const double trial = depthCost(windows, n_rows, x);
-      if (trial <= cost) {
-        cost = trial;
-        lowered = true;
-        break;
-      }
-    }
-    if (!lowered) {
-      x = x_before;
-      for (int k = 0; k < n; ++k) depth[k] = depth_before[k];
-    }
+    // Backtracked; no step lowers the cost (a minimum to rounding): stay and stop.
+    const double t = backtrackDepthStep(windows, n_rows, x, dx, depth_before, depth_step, cost);
+    const bool lowered = t > 0;
     ++iterations;
     for (int i = 0; i < n_rows; ++i) {
       Row& row = rows[i];
@@ -603,6 +646,86 @@ double MotionFit::Impl::standardizedResidualPx(int i,
   return r_px / std::sqrt(std::max(1.0 - row.leverage, 0.05));
 }
 
+bool MotionFit::Impl::addRotationScaleRows(std::span<const WindowMotion> windows,
+                                           double forward_column, Eigen::Matrix<double, 6, 1>& x,
+                                           int& n_rows, int& iterations) {
+  const double sigma_t = shiftSigma(x, n_rows);
+  const int n_trans = n_rows;
+  for (std::size_t k = 0; k < windows.size(); ++k) {
+    if (!keep[k] || windows[k].rs_confidence <= 0 || !(windows[k].scale > 0)) continue;
+    const double theta = gamma * (windows[k].center_u - forward_column);
+    const ModelRows m = modelRows(theta, kappa);
+    const double conf = windows[k].rs_confidence;
+    const int w = static_cast<int>(k);
+    rows[n_rows++] =
+        Row{m.rotation, m.rotation, windows[k].rotation, 1.0, conf, conf, kRotation, w};
+    rows[n_rows++] = Row{m.log_scale, m.log_scale, std::log(windows[k].scale), 1.0, conf,
+                          conf, kLogScale, w};
+  }
+  if (n_rows > n_trans) {
+    const double floor_rs = 1e-4;
+    // The rotation equations' error under translation (Options::rotation_deformation),
+    // in quadrature with their scatter.
+    const double deformation = options.rotation_deformation * x.tail<3>().norm();
+    const double sigma_r = std::hypot(std::max(robustSigma(kRotation, x, n_rows), floor_rs),
+                                      deformation);
+    const double sigma_s = std::max(robustSigma(kLogScale, x, n_rows), floor_rs);
+    for (int i = n_trans; i < n_rows; ++i) {
+      Row& row = rows[i];
+      const double sigma = row.kind == kRotation ? sigma_r : sigma_s;
+      // Residuals expressed in "equivalent shift pixels" for the loss, weights by 1/var.
+      row.scale = sigma_t / sigma / gamma;
+      row.prior_weight *= (sigma_t / sigma) * (sigma_t / sigma);
+      if (row.kind == kLogScale && options.plane_depth_prior)
+        row.prior_weight *= kPlaneScaleWeight;
+      row.weight = row.prior_weight;
+    }
+    for (int i = 0; i < n_trans; ++i) rows[i].weight = rows[i].prior_weight;
+    int more = 0;
+    bool ok = false;
+    x = irls(n_rows, more, ok);
+    iterations += more;
+    return ok;
+  }
+  return true;
+}
+
+Eigen::Matrix<double, 6, 6> MotionFit::Impl::depthMarginalInformation(
+    std::span<const WindowMotion> windows, int n_rows, const Eigen::Matrix<double, 6, 1>& x,
+    const Eigen::Matrix<double, 6, 6>& N, double& depth_dof) {
+  using Vec6 = Eigen::Matrix<double, 6, 1>;
+  Eigen::Matrix<double, 6, 6> information = N;
+  depth_dof = 0.0;
+  const int n = static_cast<int>(windows.size());
+  for (int k = 0; k < n; ++k) {
+    depth_xl[k].setZero();
+    scratch[k] = 0.0;
+  }
+  for (int i = 0; i < n_rows; ++i) {
+    const Row& row = rows[i];
+    if (row.weight <= 0) continue;
+    const double J = row.a0.tail<3>().dot(x.tail<3>());  // d(prediction)/d(lambda_k)
+    depth_xl[row.window].noalias() += row.weight * J * row.a.transpose();
+    scratch[row.window] += row.weight * J * J;
+  }
+  double total = 0.0, q = 0.0;
+  for (int k = 0; k < n; ++k) total += keep[k] ? windows[k].confidence : 0.0;
+  Vec6 v = Vec6::Zero();
+  for (int k = 0; k < n; ++k) {
+    if (!keep[k]) continue;
+    // The plane prior's mean is itself uncertain (the neighbours' depths): only the
+    // pull towards 1 counts as prior information here.
+    const double h = scratch[k], prior = depth_prior_weight * windows[k].confidence;
+    information.noalias() -= depth_xl[k] * depth_xl[k].transpose() / (h + prior);
+    depth_dof += h / (h + prior);
+    const double c = windows[k].confidence / total;
+    v.noalias() += depth_xl[k] * (c / (h + prior));
+    q += c * c / (h + prior);
+  }
+  if (q > 0) information.noalias() += v * v.transpose() / q;  // the gauge constraint
+  return information;
+}
+
 MotionEstimate MotionFit::Impl::fit(std::span<const WindowMotion> windows,
                                     double forward_column, std::span<const RowScale> row_scale) {
   using Mat6 = Eigen::Matrix<double, 6, 6>;
@@ -626,45 +749,9 @@ MotionEstimate MotionFit::Impl::fit(std::span<const WindowMotion> windows,
   if (!ok) return est;
 
   // In-window rotation and scale, weighted by their own noise relative to the shifts.
-  if (options.use_rotation_scale) {
-    const double sigma_t = shiftSigma(x, n_rows);
-    const int n_trans = n_rows;
-    for (std::size_t k = 0; k < windows.size(); ++k) {
-      if (!keep[k] || windows[k].rs_confidence <= 0 || !(windows[k].scale > 0)) continue;
-      const double theta = gamma * (windows[k].center_u - forward_column);
-      const ModelRows m = modelRows(theta, kappa);
-      const double conf = windows[k].rs_confidence;
-      const int w = static_cast<int>(k);
-      rows[n_rows++] =
-          Row{m.rotation, m.rotation, windows[k].rotation, 1.0, conf, conf, kRotation, w};
-      rows[n_rows++] = Row{m.log_scale, m.log_scale, std::log(windows[k].scale), 1.0, conf,
-                            conf, kLogScale, w};
-    }
-    if (n_rows > n_trans) {
-      const double floor_rs = 1e-4;
-      // The rotation equations' error under translation (Options::rotation_deformation),
-      // in quadrature with their scatter.
-      const double deformation = options.rotation_deformation * x.tail<3>().norm();
-      const double sigma_r = std::hypot(std::max(robustSigma(kRotation, x, n_rows), floor_rs),
-                                        deformation);
-      const double sigma_s = std::max(robustSigma(kLogScale, x, n_rows), floor_rs);
-      for (int i = n_trans; i < n_rows; ++i) {
-        Row& row = rows[i];
-        const double sigma = row.kind == kRotation ? sigma_r : sigma_s;
-        // Residuals expressed in "equivalent shift pixels" for the loss, weights by 1/var.
-        row.scale = sigma_t / sigma / gamma;
-        row.prior_weight *= (sigma_t / sigma) * (sigma_t / sigma);
-        if (row.kind == kLogScale && options.plane_depth_prior)
-          row.prior_weight *= kPlaneScaleWeight;
-        row.weight = row.prior_weight;
-      }
-      for (int i = 0; i < n_trans; ++i) rows[i].weight = rows[i].prior_weight;
-      int more = 0;
-      x = irls(n_rows, more, ok);
-      est.iterations += more;
-      if (!ok) return est;
-    }
-  }
+  if (options.use_rotation_scale &&
+      !addRotationScaleRows(windows, forward_column, x, n_rows, est.iterations))
+    return est;
 
   if (options.per_window_depth) x = fitDepth(windows, n_rows, x, est.iterations);
 
@@ -713,35 +800,8 @@ MotionEstimate MotionFit::Impl::fit(std::span<const WindowMotion> windows,
   // degrees of freedom.
   Mat6 information = N;
   double depth_dof = 0.0;
-  if (options.per_window_depth && depthFitted()) {
-    const int n = static_cast<int>(windows.size());
-    for (int k = 0; k < n; ++k) {
-      depth_xl[k].setZero();
-      scratch[k] = 0.0;
-    }
-    for (int i = 0; i < n_rows; ++i) {
-      const Row& row = rows[i];
-      if (row.weight <= 0) continue;
-      const double J = row.a0.tail<3>().dot(x.tail<3>());  // d(prediction)/d(lambda_k)
-      depth_xl[row.window].noalias() += row.weight * J * row.a.transpose();
-      scratch[row.window] += row.weight * J * J;
-    }
-    double total = 0.0, q = 0.0;
-    for (int k = 0; k < n; ++k) total += keep[k] ? windows[k].confidence : 0.0;
-    Vec6 v = Vec6::Zero();
-    for (int k = 0; k < n; ++k) {
-      if (!keep[k]) continue;
-      // The plane prior's mean is itself uncertain (the neighbours' depths): only the
-      // pull towards 1 counts as prior information here.
-      const double h = scratch[k], prior = depth_prior_weight * windows[k].confidence;
-      information.noalias() -= depth_xl[k] * depth_xl[k].transpose() / (h + prior);
-      depth_dof += h / (h + prior);
-      const double c = windows[k].confidence / total;
-      v.noalias() += depth_xl[k] * (c / (h + prior));
-      q += c * c / (h + prior);
-    }
-    if (q > 0) information.noalias() += v * v.transpose() / q;  // the gauge constraint
-  }
+  if (options.per_window_depth && depthFitted())
+    information = depthMarginalInformation(windows, n_rows, x, N, depth_dof);
   const double dof = std::max(used_rows - 6 - depth_dof, 1.0);
   const Eigen::LDLT<Mat6> marginal(information);
   est.covariance = (wrr / dof) * marginal.solve(Mat6::Identity());
