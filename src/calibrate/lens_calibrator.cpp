@@ -113,8 +113,14 @@ std::vector<PairMotion> replayPairs(std::span<const cv::Mat> frames, const Calib
   return out;
 }
 
-LensCalibrationResult calibrateLens(std::span<const cv::Mat> frames,
-                                    const LensCalibratorOptions& o) {
+namespace {
+
+void addNote(LensCalibrationResult& res, std::string key, std::string value, std::string how) {
+  res.provenance.push_back({std::move(key), std::move(value), std::move(how)});
+}
+
+/// Valid options, and frames that are all there and of one size; throws std::invalid_argument.
+void checkInputs(std::span<const cv::Mat> frames, const LensCalibratorOptions& o) {
   if (const auto problems = o.validate(); !problems.empty()) {
     std::string msg = "invalid calibration options:";
     for (const auto& p : problems) msg += "\n  " + p;
@@ -130,18 +136,12 @@ LensCalibrationResult calibrateLens(std::span<const cv::Mat> frames,
                                          size.height));
   }
 
-  LensCalibrationResult res;
-  auto& cal = res.calibration;
-  auto& lens = cal.omni;
-  lens.image_width = size.width;
-  lens.image_height = size.height;
-  auto note = [&](std::string key, std::string value, std::string how) {
-    res.provenance.push_back({std::move(key), std::move(value), std::move(how)});
-  };
-  note("omni.image_width/height", format("%d x %d", size.width, size.height),
-       format("measured: size of the %zu frame(s)", frames.size()));
+}
 
-  // --- centre and radii: detection per frame, median over frames --------------------------
+/// The ring per frame and its median (res.detections, detection_errors, ring), through the
+/// quality gates (ring_checks.hpp): right or refuse.
+void measureRing(std::span<const cv::Mat> frames, const LensCalibratorOptions& o,
+                 LensCalibrationResult& res) {
   const bool need_detection = !(o.center && o.radius_inner && o.radius_outer);
   RingDetectorOptions dopt = o.detector;
   if (o.center) dopt.fixed_center = o.center;
@@ -161,8 +161,6 @@ LensCalibrationResult calibrateLens(std::span<const cv::Mat> frames,
         "no ring found in any frame; give --center-guess and/or --inner-guess/--outer-guess, or "
         "fix the values by hand with --center, --radius-inner, --radius-outer:" + why);
   }
-  const std::string frames_note =
-      res.ring ? format("%d of %zu frames", res.ring->frames, frames.size()) : std::string();
   // Quality gates: right or refuse (ring_checks.hpp).
   if (res.ring && !(o.radius_inner && o.radius_outer)) {
     const RingCheck check = checkRing(frames, *res.ring, res.detections);
@@ -172,19 +170,29 @@ LensCalibrationResult calibrateLens(std::span<const cv::Mat> frames,
       throw std::runtime_error(why);
     }
     for (const auto& n : check.notes) {
-      if (n.rfind("ring checked", 0) == 0) note("ring check", "passed", n);
+      if (n.rfind("ring checked", 0) == 0) addNote(res, "ring check", "passed", n);
       else res.warnings.push_back(n);
     }
   }
 
+}
+
+/// The centre and the used radii (given, or measured less the safety margins); a warning
+/// when the outer circle leaves the image. Throws when the used ring is empty.
+void setCentreAndRadii(std::span<const cv::Mat> frames, const LensCalibratorOptions& o,
+                       LensCalibrationResult& res) {
+  auto& lens = res.calibration.omni;
+  const cv::Size size = frames.front().size();
+  const std::string frames_note =
+      res.ring ? format("%d of %zu frames", res.ring->frames, frames.size()) : std::string();
   if (o.center) {
     lens.center_x = o.center->x();
     lens.center_y = o.center->y();
-    note("omni.center", format("[%.2f, %.2f]", lens.center_x, lens.center_y), "given (--center)");
+    addNote(res, "omni.center", format("[%.2f, %.2f]", lens.center_x, lens.center_y), "given (--center)");
   } else {
     lens.center_x = res.ring->center.x();
     lens.center_y = res.ring->center.y();
-    note("omni.center", format("[%.2f, %.2f]", lens.center_x, lens.center_y),
+    addNote(res, "omni.center", format("[%.2f, %.2f]", lens.center_x, lens.center_y),
          format("measured: concentric circle fit to the inner and outer ring edges, median over "
                 "%s (largest deviation of a frame %.2f px)",
                 frames_note.c_str(), res.ring->center_spread));
@@ -194,11 +202,11 @@ LensCalibrationResult calibrateLens(std::span<const cv::Mat> frames,
   auto autoMargin = [](double width) { return 1.0 + 2.0 * width; };
   if (o.radius_inner) {
     lens.radius_inner = *o.radius_inner;
-    note("omni.radius_inner", format("%.2f", lens.radius_inner), "given (--radius-inner)");
+    addNote(res, "omni.radius_inner", format("%.2f", lens.radius_inner), "given (--radius-inner)");
   } else {
     res.margin_inner = o.margin ? *o.margin : autoMargin(res.ring->edge_width_inner);
     lens.radius_inner = res.ring->radius_inner + res.margin_inner;
-    note("omni.radius_inner", format("%.2f", lens.radius_inner),
+    addNote(res, "omni.radius_inner", format("%.2f", lens.radius_inner),
          format("measured: inner edge (end of the dark centre / camera reflection) at %.2f px "
                 "(median over %s, spread %.2f px%s) + safety margin %.2f px (%s)",
                 res.ring->radius_inner, frames_note.c_str(), res.ring->inner_spread,
@@ -210,11 +218,11 @@ LensCalibrationResult calibrateLens(std::span<const cv::Mat> frames,
   }
   if (o.radius_outer) {
     lens.radius_outer = *o.radius_outer;
-    note("omni.radius_outer", format("%.2f", lens.radius_outer), "given (--radius-outer)");
+    addNote(res, "omni.radius_outer", format("%.2f", lens.radius_outer), "given (--radius-outer)");
   } else {
     res.margin_outer = o.margin ? *o.margin : autoMargin(res.ring->edge_width_outer);
     lens.radius_outer = res.ring->radius_outer - res.margin_outer;
-    note("omni.radius_outer", format("%.2f", lens.radius_outer),
+    addNote(res, "omni.radius_outer", format("%.2f", lens.radius_outer),
          format("measured: outer edge (start of the lens body) at %.2f px (median over %s, "
                 "spread %.2f px%s) - safety margin %.2f px (%s)",
                 res.ring->radius_outer, frames_note.c_str(), res.ring->outer_spread,
@@ -243,18 +251,27 @@ LensCalibrationResult calibrateLens(std::span<const cv::Mat> frames,
     throw std::runtime_error(format("the used ring is empty: radius_inner %.1f, radius_outer %.1f",
                                     lens.radius_inner, lens.radius_outer));
 
-  // --- outer edge: vertical appearance cue ----------------------------------------------
+}
+
+void setOuterEdge(std::span<const cv::Mat> frames, const LensCalibratorOptions& o,
+                  LensCalibrationResult& res) {
+  auto& lens = res.calibration.omni;
+  // The vertical appearance cue.
   if (o.outer_edge) {
     lens.outer_edge = *o.outer_edge;
-    note("omni.outer_edge", name(lens.outer_edge), "given (--outer-edge)");
+    addNote(res, "omni.outer_edge", name(lens.outer_edge), "given (--outer-edge)");
   } else {
     res.outer_edge = outerEdgeFromAppearance(frames, lens, o.up_cue, o.default_outer_edge);
     lens.outer_edge = res.outer_edge->edge;
-    note("omni.outer_edge", name(lens.outer_edge),
+    addNote(res, "omni.outer_edge", name(lens.outer_edge),
          (res.outer_edge->decisive ? "measured: " : "default: ") + res.outer_edge->how);
   }
 
-  // --- panorama size -------------------------------------------------------------------
+}
+
+void setPanorama(const LensCalibratorOptions& o, LensCalibrationResult& res) {
+  auto& cal = res.calibration;
+  auto& lens = cal.omni;
   const PanoramaProposal pp = proposePanorama(lens.radius_inner, lens.radius_outer,
                                               lens.outer_edge, o.width, o.height,
                                               o.horizon_radius, o.radial_scale);
@@ -262,13 +279,13 @@ LensCalibrationResult calibrateLens(std::span<const cv::Mat> frames,
   cal.panorama.height = pp.height;
   cal.panorama.horizon_row = o.horizon_row ? *o.horizon_row : pp.horizon_row;
   cal.panorama.forward_column = o.forward_column;
-  note("panorama.width", std::to_string(pp.width),
+  addNote(res, "panorama.width", std::to_string(pp.width),
        o.width ? "given (--width)"
                : format("proposed: 2 pi r_out = %.1f (one column per pixel of the outer circumference)",
                         2.0 * kPi * lens.radius_outer));
   const double exact_h =
       pp.width * (lens.radius_outer - lens.radius_inner) / (2.0 * kPi * pp.radial_scale);
-  note("panorama.height", std::to_string(pp.height),
+  addNote(res, "panorama.height", std::to_string(pp.height),
        o.height         ? std::string("given (--height)")
        : o.radial_scale ? format("proposed: square pixels at the horizon radius r_h = %.1f px with "
                                  "the given radial scale %.1f px/rad: W (r_out - r_in) / (2 pi s) "
@@ -278,44 +295,53 @@ LensCalibrationResult calibrateLens(std::span<const cv::Mat> frames,
                                  "conformal mirror, an assumption otherwise; give "
                                  "--radial-scale from a lens model): W (r_out - r_in) / (2 pi r_h) "
                                  "= %.1f", pp.horizon_radius, exact_h));
-  note("panorama.horizon_row", format("%.2f", cal.panorama.horizon_row),
+  addNote(res, "panorama.horizon_row", format("%.2f", cal.panorama.horizon_row),
        o.horizon_row      ? "given (--horizon-row)"
        : o.horizon_radius ? format("row of the given horizon radius %.1f px", *o.horizon_radius)
                           : std::string("assumed: the middle of the ring (no mirror model; "
                                         "fix with --horizon-radius or --horizon-row)"));
-  note("panorama.forward_column", format("%.2f", cal.panorama.forward_column),
+  addNote(res, "panorama.forward_column", format("%.2f", cal.panorama.forward_column),
        o.forward_column != 0.0 ? "given (--forward-column)" : "default: 0");
 
-  // --- azimuth zero ----------------------------------------------------------------------
+}
+
+void setAzimuthZero(const LensCalibratorOptions& o, LensCalibrationResult& res) {
+  auto& lens = res.calibration.omni;
   if (o.forward_angle_deg) {
     lens.azimuth_zero_deg = *o.forward_angle_deg;
-    note("omni.azimuth_zero_deg", format("%.2f", lens.azimuth_zero_deg),
+    addNote(res, "omni.azimuth_zero_deg", format("%.2f", lens.azimuth_zero_deg),
          "given (--forward-angle): image angle of the robot's +x axis");
   } else if (o.forward_point) {
     lens.azimuth_zero_deg = imageAngleDeg(lens, *o.forward_point);
-    note("omni.azimuth_zero_deg", format("%.2f", lens.azimuth_zero_deg),
+    addNote(res, "omni.azimuth_zero_deg", format("%.2f", lens.azimuth_zero_deg),
          format("given (--forward-point %.1f,%.1f): image angle of that point about the centre",
                 o.forward_point->x(), o.forward_point->y()));
   } else {
     lens.azimuth_zero_deg = 0.0;
-    note("omni.azimuth_zero_deg", "0.00",
+    addNote(res, "omni.azimuth_zero_deg", "0.00",
          "default: 0 (image +x axis is forward); set it with --forward-angle DEG or "
          "--forward-point X,Y");
   }
 
-  // --- azimuth direction: turn-left sequence -------------------------------------------
+}
+
+/// Given, measured from a turn-left sequence, or assumed from the outer edge.
+void setAzimuthDirection(std::span<const cv::Mat> frames, const LensCalibratorOptions& o,
+                         LensCalibrationResult& res) {
+  auto& cal = res.calibration;
+  auto& lens = cal.omni;
   if (o.direction) {
     lens.azimuth_direction = *o.direction;
-    note("omni.azimuth_direction", name(lens.azimuth_direction), "given (--direction)");
+    addNote(res, "omni.azimuth_direction", name(lens.azimuth_direction), "given (--direction)");
   } else if (o.turn_left && frames.size() >= 2) {
     res.direction = directionFromTurnLeft(frames, cal);
     if (res.direction->decisive) {
       lens.azimuth_direction = res.direction->direction;
-      note("omni.azimuth_direction", name(lens.azimuth_direction),
+      addNote(res, "omni.azimuth_direction", name(lens.azimuth_direction),
            "measured: " + res.direction->how);
     } else {
       lens.azimuth_direction = assumedDirection(lens.outer_edge);
-      note("omni.azimuth_direction", name(lens.azimuth_direction),
+      addNote(res, "omni.azimuth_direction", name(lens.azimuth_direction),
            format("assumed %s from outer_edge %s for an unmirrored camera image, because the %s",
                   name(lens.azimuth_direction), name(lens.outer_edge), res.direction->how.c_str()));
     }
@@ -323,12 +349,33 @@ LensCalibrationResult calibrateLens(std::span<const cv::Mat> frames,
     if (o.turn_left)
       res.warnings.push_back("--turn-left needs at least 2 frames; the direction is assumed");
     lens.azimuth_direction = assumedDirection(lens.outer_edge);
-    note("omni.azimuth_direction", name(lens.azimuth_direction),
+    addNote(res, "omni.azimuth_direction", name(lens.azimuth_direction),
          format("assumed: %s for outer_edge %s and an unmirrored camera image (camera looking %s "
                 "at the mirror); not measured: pass a turn-left sequence with --turn-left",
                 name(lens.azimuth_direction), name(lens.outer_edge),
                 lens.outer_edge == OuterEdge::kTop ? "up" : "down"));
   }
+
+}
+
+}  // namespace
+
+LensCalibrationResult calibrateLens(std::span<const cv::Mat> frames,
+                                    const LensCalibratorOptions& o) {
+  checkInputs(frames, o);
+  const cv::Size size = frames.front().size();
+  LensCalibrationResult res;
+  auto& cal = res.calibration;
+  cal.omni.image_width = size.width;
+  cal.omni.image_height = size.height;
+  addNote(res, "omni.image_width/height", format("%d x %d", size.width, size.height),
+          format("measured: size of the %zu frame(s)", frames.size()));
+  measureRing(frames, o, res);
+  setCentreAndRadii(frames, o, res);
+  setOuterEdge(frames, o, res);
+  setPanorama(o, res);
+  setAzimuthZero(o, res);
+  setAzimuthDirection(frames, o, res);
 
   if (const auto problems = cal.validate(); !problems.empty()) {
     std::string msg = "the resulting calibration is invalid:";
