@@ -544,6 +544,155 @@ Eigen::Vector2d voteCenter(const cv::Mat& grey, int vote_size) {
   return {(bx + 0.5) * sx - 0.5, (by + 0.5) * sy - 0.5};
 }
 
+namespace {
+
+/// Step 3b: a textureless band of the scene at a ring edge (ceiling, sky, floor) ends
+/// the texture interval inside the ring. The ring's edges are the strongest steps that
+/// are coherent over all rays (a lens-body edge is a circle; scene edges average out in
+/// the median): where a clearly stronger one lies beyond the texture interval, the
+/// boundary moves onto it.
+/// `w_in` and `w_out` are the search windows about r_in and r_out.
+void moveToCoherentSteps(const Polar& polar, const RingDetectorOptions& o, double w_in,
+                         double w_out, double& r_in, double& r_out, RingDetection& det) {
+  cv::Mat smooth0, deriv0;
+  radialDerivative(polar, o.edge_sigma, smooth0, deriv0);
+  PolarDeriv pd{polar, smooth0, deriv0};
+  const cv::Mat inside = derivativeInside(pd);
+  const std::vector<double> m = medianDerivative(std::span<const cv::Mat>(&inside, 1));
+  struct Step {
+    double strength = 0.0;  ///< |M|
+    double radius = 0.0;
+    int sign = 0;           ///< +1: brighter outward
+  };
+  const auto strongest = [&](double a, double b) {
+    Step best;
+    for (int k = std::max(0, static_cast<int>(a / o.radial_step));
+         k <= std::min(static_cast<int>(m.size()) - 1, static_cast<int>(b / o.radial_step)); ++k) {
+      const double v = m[static_cast<std::size_t>(k)];
+      if (std::abs(v) > best.strength) best = {std::abs(v), k * o.radial_step, v > 0 ? 1 : -1};
+    }
+    return best;
+  };
+  const double last = (static_cast<int>(m.size()) - 3) * o.radial_step;
+  // Only across a band free of other coherent steps: a lens body beyond the ring
+  // (bezels, housings) is a stack of concentric steps, a textureless scene band is not.
+  const auto clearBand = [&](double a, double b, double strength) {
+    return strongest(a, b).strength < kClearBandRatio * strength;
+  };
+  // A step of the other polarity at the texture boundary is a scene edge (a horizon
+  // under a bright sky); one of the same polarity may be the ring's own edge in front
+  // of a brighter bezel, so then the step beyond must be much stronger.
+  const auto moves = [&](const Step& here, const Step& there) {
+    const double ratio = there.strength / std::max(here.strength, 1e-9);
+    return ratio > (here.sign != there.sign ? kCoherentStepRatio : kSamePolarityStepRatio);
+  };
+  const double lobe = 2.0 + 3.0 * o.edge_sigma;  // an edge's own derivative lobe
+  if (!o.outer_guess) {
+    const auto here = strongest(r_out - w_out, r_out + w_out);
+    const auto beyond = strongest(r_out + w_out, last);
+    if (moves(here, beyond) && clearBand(r_out + w_out, beyond.radius - lobe, beyond.strength)) {
+      r_out = beyond.radius;
+      det.outer_moved_to_step = true;
+    }
+  }
+  if (!o.inner_guess) {
+    const auto here = strongest(r_in - w_in, r_in + w_in);
+    const auto before = strongest(o.min_radius, r_in - w_in);
+    if (moves(here, before) && clearBand(before.radius + lobe, r_in - w_in, before.strength)) {
+      r_in = before.radius;
+      det.inner_moved_to_step = true;
+    }
+  }
+}
+
+/// Both rings share the mirror axis: the concentric geometric fit on the two circles'
+/// inliers (about the fixed centre `c`, only the radii, when `fixed_center`).
+std::optional<ConcentricFit> concentricFit(const EdgeSearch& inner, const EdgeSearch& outer,
+                                           const CircleFit& fit_in, const CircleFit& fit_out,
+                                           const Eigen::Vector2d& c, bool fixed_center) {
+  std::vector<Eigen::Vector2d> pin, pout;
+  for (int i : fit_in.inliers) pin.push_back(inner.points[static_cast<std::size_t>(i)]);
+  for (int i : fit_out.inliers) pout.push_back(outer.points[static_cast<std::size_t>(i)]);
+  if (!fixed_center) {
+    ConcentricFit init;
+    init.center = 0.5 * (fit_in.circle.center + fit_out.circle.center);
+    init.radius1 = fit_in.circle.radius;
+    init.radius2 = fit_out.circle.radius;
+    return fitConcentric(pin, pout, init);
+  }
+  ConcentricFit cf;
+  cf.center = c;
+  cf.radius1 = fit_in.circle.radius;
+  cf.radius2 = fit_out.circle.radius;
+  double ss = 0.0;
+  for (const auto& p : pin) ss += std::pow((p - c).norm() - cf.radius1, 2);
+  for (const auto& p : pout) ss += std::pow((p - c).norm() - cf.radius2, 2);
+  cf.rms = std::sqrt(ss / static_cast<double>(pin.size() + pout.size()));
+  return cf;
+}
+
+/// An edge's result: its circle, points and inliers, width, polarity and contrast.
+void fillEdge(RingEdge& e, const EdgeSearch& s, const CircleFit& f, const cv::Mat& deriv,
+              const RingDetectorOptions& o) {
+  e.circle = f.circle;
+  e.points = s.points;
+  e.inliers = f.inliers;
+  e.rms = f.rms;
+  e.inlier_fraction = static_cast<double>(f.inliers.size()) / o.rays;
+  e.polarity = s.polarity;
+  e.width = edgeWidth(deriv, s, f.inliers, o.radial_step, o.edge_sigma);
+  std::vector<double> h;
+  for (int i : f.inliers) h.push_back(std::abs(s.step_height[static_cast<std::size_t>(i)]));
+  e.contrast = median(h);
+}
+
+}  // namespace
+
+namespace {
+
+/// Step 2: the polar image about `c`, out to the farthest image corner (or o.max_radius).
+Polar polarAbout(const cv::Mat& grey, const Eigen::Vector2d& c, const RingDetectorOptions& o) {
+  const double corner = std::max({(c - Eigen::Vector2d(0, 0)).norm(),
+                                  (c - Eigen::Vector2d(grey.cols - 1, 0)).norm(),
+                                  (c - Eigen::Vector2d(0, grey.rows - 1)).norm(),
+                                  (c - Eigen::Vector2d(grey.cols - 1, grey.rows - 1)).norm()});
+  const double r_max = o.max_radius ? std::min(*o.max_radius, corner) : corner;
+  return samplePolar(grey, c, o.rays, o.radial_step, r_max);
+}
+
+/// Step 3 (the first pass): the coarse ring radii r_in, r_out and their search windows
+/// w_in, w_out (not overlapping), from the texture profile and the coherent steps.
+Expected<void> coarseRing(const Polar& polar, const RingDetectorOptions& o,
+                          const Eigen::Vector2d& c, RingDetection& det, double& r_in,
+                          double& r_out, double& w_in, double& w_out) {
+  // Step 3: coarse ring from the tangential texture profile.
+  det.texture_profile = textureProfile(polar, o);
+  const auto interval = ringInterval(det.texture_profile, o.radial_step);
+  if (!interval && !(o.inner_guess && o.outer_guess))
+    return fail(ErrorCode::kIllConditioned,
+                "ring detector: no textured ring found about (%.1f, %.1f)", c.x(), c.y());
+  r_in = o.inner_guess ? *o.inner_guess : interval->first;
+  r_out = o.outer_guess ? *o.outer_guess : interval->second;
+  w_in = std::max(6.0, o.search_fraction * r_in);
+  w_out = std::max(6.0, o.search_fraction * r_out);
+  // Step 3b: edges moved onto the ring's coherent steps.
+  moveToCoherentSteps(polar, o, w_in, w_out, r_in, r_out, det);
+  w_in = std::max(6.0, o.search_fraction * r_in);
+  w_out = std::max(6.0, o.search_fraction * r_out);
+  det.coarse_inner = r_in;
+  det.coarse_outer = r_out;
+  // The two windows must not overlap: split at the middle.
+  const double mid = 0.5 * (r_in + r_out);
+  w_in = std::min(w_in, mid - r_in - 1.0);
+  w_out = std::min(w_out, r_out - mid - 1.0);
+  if (w_in < 2.0 || w_out < 2.0)
+    return fail(ErrorCode::kIllConditioned, "ring detector: ring too narrow (%.1f..%.1f px)",
+                r_in, r_out);
+  return {};
+}
+
+}  // namespace
+
 Expected<RingDetection> detectRing(const cv::Mat& image, const RingDetectorOptions& o) {
   if (const auto problems = o.validate(); !problems.empty())
     return fail(ErrorCode::kInvalidArgument, "ring detector: %s", problems.front().c_str());
@@ -562,91 +711,11 @@ Expected<RingDetection> detectRing(const cv::Mat& image, const RingDetectorOptio
   int pol_in = 0, pol_out = 0;
   for (int pass = 0; pass < o.passes; ++pass) {
     // Step 2: polar resampling about the current centre.
-    const double corner = std::max({(c - Eigen::Vector2d(0, 0)).norm(),
-                                    (c - Eigen::Vector2d(grey.cols - 1, 0)).norm(),
-                                    (c - Eigen::Vector2d(0, grey.rows - 1)).norm(),
-                                    (c - Eigen::Vector2d(grey.cols - 1, grey.rows - 1)).norm()});
-    const double r_max = o.max_radius ? std::min(*o.max_radius, corner) : corner;
-    const Polar polar = samplePolar(grey, c, o.rays, o.radial_step, r_max);
+    const Polar polar = polarAbout(grey, c, o);
 
     if (pass == 0) {
-      // Step 3: coarse ring from the tangential texture profile.
-      det.texture_profile = textureProfile(polar, o);
-      const auto interval = ringInterval(det.texture_profile, o.radial_step);
-      if (!interval && !(o.inner_guess && o.outer_guess))
-        return fail(ErrorCode::kIllConditioned,
-                    "ring detector: no textured ring found about (%.1f, %.1f)", c.x(), c.y());
-      r_in = o.inner_guess ? *o.inner_guess : interval->first;
-      r_out = o.outer_guess ? *o.outer_guess : interval->second;
-      w_in = std::max(6.0, o.search_fraction * r_in);
-      w_out = std::max(6.0, o.search_fraction * r_out);
-      // Step 3b: a textureless band of the scene at a ring edge (ceiling, sky, floor) ends
-      // the texture interval inside the ring. The ring's edges are the strongest steps that
-      // are coherent over all rays (a lens-body edge is a circle; scene edges average out in
-      // the median): where a clearly stronger one lies beyond the texture interval, the
-      // boundary moves onto it.
-      {
-        cv::Mat smooth0, deriv0;
-        radialDerivative(polar, o.edge_sigma, smooth0, deriv0);
-        PolarDeriv pd{polar, smooth0, deriv0};
-        const cv::Mat inside = derivativeInside(pd);
-        const std::vector<double> m = medianDerivative(std::span<const cv::Mat>(&inside, 1));
-        struct Step {
-          double strength = 0.0;  ///< |M|
-          double radius = 0.0;
-          int sign = 0;           ///< +1: brighter outward
-        };
-        const auto strongest = [&](double a, double b) {
-          Step best;
-          for (int k = std::max(0, static_cast<int>(a / o.radial_step));
-               k <= std::min(static_cast<int>(m.size()) - 1, static_cast<int>(b / o.radial_step)); ++k) {
-            const double v = m[static_cast<std::size_t>(k)];
-            if (std::abs(v) > best.strength) best = {std::abs(v), k * o.radial_step, v > 0 ? 1 : -1};
-          }
-          return best;
-        };
-        const double last = (static_cast<int>(m.size()) - 3) * o.radial_step;
-        // Only across a band free of other coherent steps: a lens body beyond the ring
-        // (bezels, housings) is a stack of concentric steps, a textureless scene band is not.
-        const auto clearBand = [&](double a, double b, double strength) {
-          return strongest(a, b).strength < kClearBandRatio * strength;
-        };
-        // A step of the other polarity at the texture boundary is a scene edge (a horizon
-        // under a bright sky); one of the same polarity may be the ring's own edge in front
-        // of a brighter bezel, so then the step beyond must be much stronger.
-        const auto moves = [&](const Step& here, const Step& there) {
-          const double ratio = there.strength / std::max(here.strength, 1e-9);
-          return ratio > (here.sign != there.sign ? kCoherentStepRatio : kSamePolarityStepRatio);
-        };
-        const double lobe = 2.0 + 3.0 * o.edge_sigma;  // an edge's own derivative lobe
-        if (!o.outer_guess) {
-          const auto here = strongest(r_out - w_out, r_out + w_out);
-          const auto beyond = strongest(r_out + w_out, last);
-          if (moves(here, beyond) && clearBand(r_out + w_out, beyond.radius - lobe, beyond.strength)) {
-            r_out = beyond.radius;
-            det.outer_moved_to_step = true;
-          }
-        }
-        if (!o.inner_guess) {
-          const auto here = strongest(r_in - w_in, r_in + w_in);
-          const auto before = strongest(o.min_radius, r_in - w_in);
-          if (moves(here, before) && clearBand(before.radius + lobe, r_in - w_in, before.strength)) {
-            r_in = before.radius;
-            det.inner_moved_to_step = true;
-          }
-        }
-        w_in = std::max(6.0, o.search_fraction * r_in);
-        w_out = std::max(6.0, o.search_fraction * r_out);
-      }
-      det.coarse_inner = r_in;
-      det.coarse_outer = r_out;
-      // The two windows must not overlap: split at the middle.
-      const double mid = 0.5 * (r_in + r_out);
-      w_in = std::min(w_in, mid - r_in - 1.0);
-      w_out = std::min(w_out, r_out - mid - 1.0);
-      if (w_in < 2.0 || w_out < 2.0)
-        return fail(ErrorCode::kIllConditioned, "ring detector: ring too narrow (%.1f..%.1f px)",
-                    r_in, r_out);
+      if (auto coarse = coarseRing(polar, o, c, det, r_in, r_out, w_in, w_out); !coarse)
+        return std::unexpected(coarse.error());
     }
 
     // Step 4: radial derivative of the smoothed polar image (a little angular smoothing too).
@@ -678,44 +747,13 @@ Expected<RingDetection> detectRing(const cv::Mat& image, const RingDetectorOptio
                   !fit_in ? "inner" : "outer", !fit_in ? inner.points.size() : outer.points.size(),
                   !fit_in ? r_in : r_out);
 
-    // Both rings share the mirror axis: concentric geometric fit on the inliers.
-    std::vector<Eigen::Vector2d> pin, pout;
-    for (int i : fit_in->inliers) pin.push_back(inner.points[static_cast<std::size_t>(i)]);
-    for (int i : fit_out->inliers) pout.push_back(outer.points[static_cast<std::size_t>(i)]);
-    ConcentricFit cf;
-    if (o.fixed_center) {
-      cf.center = c;
-      cf.radius1 = fit_in->circle.radius;
-      cf.radius2 = fit_out->circle.radius;
-      double ss = 0.0;
-      for (const auto& p : pin) ss += std::pow((p - c).norm() - cf.radius1, 2);
-      for (const auto& p : pout) ss += std::pow((p - c).norm() - cf.radius2, 2);
-      cf.rms = std::sqrt(ss / static_cast<double>(pin.size() + pout.size()));
-    } else {
-      ConcentricFit init;
-      init.center = 0.5 * (fit_in->circle.center + fit_out->circle.center);
-      init.radius1 = fit_in->circle.radius;
-      init.radius2 = fit_out->circle.radius;
-      const auto fitted = fitConcentric(pin, pout, init);
-      if (!fitted)
-        return fail(ErrorCode::kIllConditioned, "ring detector: concentric fit failed");
-      cf = *fitted;
-    }
+    const std::optional<ConcentricFit> fitted =
+        concentricFit(inner, outer, *fit_in, *fit_out, c, o.fixed_center.has_value());
+    if (!fitted) return fail(ErrorCode::kIllConditioned, "ring detector: concentric fit failed");
+    const ConcentricFit& cf = *fitted;
 
-    auto fillEdge = [&](RingEdge& e, const EdgeSearch& s, const CircleFit& f) {
-      e.circle = f.circle;
-      e.points = s.points;
-      e.inliers = f.inliers;
-      e.rms = f.rms;
-      e.inlier_fraction = static_cast<double>(f.inliers.size()) / o.rays;
-      e.polarity = s.polarity;
-      e.width = edgeWidth(deriv, s, f.inliers, o.radial_step, o.edge_sigma);
-      std::vector<double> h;
-      for (int i : f.inliers) h.push_back(std::abs(s.step_height[static_cast<std::size_t>(i)]));
-      e.contrast = median(h);
-    };
-    fillEdge(det.inner, inner, *fit_in);
-    fillEdge(det.outer, outer, *fit_out);
+    fillEdge(det.inner, inner, *fit_in, deriv, o);
+    fillEdge(det.outer, outer, *fit_out, deriv, o);
     det.center = cf.center;
     det.radius_inner = cf.radius1;
     det.radius_outer = cf.radius2;
