@@ -38,9 +38,7 @@ root=$(pwd)
 # shellcheck source=tools/common/benchmark.sh
 source tools/common/benchmark.sh
 bench_args accuracy_benchmark -- "$@"
-build=${BUILD_DIR:-build}
 out=${out:-$build/accuracy}
-data=${DATA_DIR:-$root/../shared/data/equirect}
 frames=${FRAMES:-24}
 supersample=${SUPERSAMPLE:-2}
 methods=${METHODS:-"ifmi orb5pt akaze5pt orbrot akazerot"}

@@ -47,7 +47,6 @@ root=$(pwd)
 # shellcheck source=tools/common/benchmark.sh
 source tools/common/benchmark.sh
 bench_args drift_benchmark --evo -- "$@"
-build=${BUILD_DIR:-build}
 out=${out:-$build/drift}
 supersample=${SUPERSAMPLE:-2}
 bin=$build/bin

@@ -55,9 +55,7 @@ root=$(pwd)
 # shellcheck source=tools/common/benchmark.sh
 source tools/common/benchmark.sh
 bench_args real_camera_benchmark -- "$@"
-build=${BUILD_DIR:-build}
 out=${out:-$build/real_camera}
-data=${DATA_DIR:-$root/../shared/data/equirect}
 photo=${PHOTO:-$data/park_theta_v_5376x2688.jpg}
 frames=${FRAMES:-60}
 supersample=${SUPERSAMPLE:-2}

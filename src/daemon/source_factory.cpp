@@ -33,11 +33,9 @@ void throwIfInvalid(const std::vector<std::string>& problems) {
   throw std::runtime_error(text);
 }
 
-}  // namespace
-
-V4l2Options v4l2Options(const SourceConfig& config) {
-  V4l2Options o;
-  o.device = config.device;
+/// The stream settings the cameras share (size, rate, pixel format), from the source section.
+template <typename CameraOptions>
+CameraOptions withStreamSettings(const SourceConfig& config, CameraOptions o) {
   o.width = config.width;
   o.height = config.height;
   o.fps = config.fps;
@@ -45,15 +43,19 @@ V4l2Options v4l2Options(const SourceConfig& config) {
   return o;
 }
 
+}  // namespace
+
+V4l2Options v4l2Options(const SourceConfig& config) {
+  V4l2Options o;
+  o.device = config.device;
+  return withStreamSettings(config, o);
+}
+
 #if defined(OMNIPOSE_HAVE_LIBCAMERA)
 LibcameraOptions libcameraOptions(const SourceConfig& config) {
   LibcameraOptions o;
   o.camera = config.camera;
-  o.width = config.width;
-  o.height = config.height;
-  o.fps = config.fps;
-  o.format = config.format;
-  return o;
+  return withStreamSettings(config, o);
 }
 #endif
 

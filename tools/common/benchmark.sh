@@ -6,7 +6,8 @@
 # bench_args NAME [--FLAG ...] -- ARGS...: parses the script's ARGS: --publish (publish=1),
 # -h/--help (prints the script's header comment and exits 0), one OUTDIR (out), and each
 # --FLAG listed before `--` (sets the variable FLAG, without the dashes, to 1; it starts at
-# 0). Anything else is a usage error naming NAME (exit 2).
+# 0). Anything else is a usage error naming NAME (exit 2). Sets build (BUILD_DIR, default
+# build) and data (DATA_DIR, default ../shared/data/equirect beside the repository).
 bench_args() {
   local name=$1 arg flag
   shift
@@ -30,6 +31,8 @@ bench_args() {
       *) [ -z "$out" ] || { echo "$name: one OUTDIR only" >&2; exit 2; }; out=$arg ;;
     esac
   done
+  build=${BUILD_DIR:-build}
+  data=${DATA_DIR:-$PWD/../shared/data/equirect}
 }
 
 # bench_command_line SCRIPT ARGS... -- VAR...: sets command_line to "SCRIPT ARGS", preceded by
