@@ -94,11 +94,9 @@ class MotionFit {
     /// window's log-polar scale mixes its horizontal and vertical expansion in a proportion
     /// its texture sets, an error its scatter does not show). The depths of the windows near
     /// the direction of travel, whose du hardly depends on them, then come from their
-    /// neighbours instead of from the scale and the pull. Measured (docs/results/ANALYSIS.md):
-    /// the drift benchmark's rectangle in a room ends 0.63 instead of 0.72 deg off (0.54
-    /// instead of 1.52 through an office texture), the room translation's direction is 16 %
-    /// better, every frame-pair rotation cell within 4 %; the pose covariance is then about
-    /// twice too large (rotation NEES 1.3 of 3).
+    /// neighbours instead of from the scale and the pull. It lowers the chained drift in
+    /// rooms and leaves the frame-pair rotation as it is; the pose covariance is then about
+    /// twice too large (docs/results/ANALYSIS.md has the figures).
     bool plane_depth_prior = false;
     /// With per_window_depth: how much of the horizontal expansion that a change of depth
     /// across a window adds the measured in-window scale carries. A window on a wall seen
@@ -108,8 +106,8 @@ class MotionFit {
     /// an anisotropic expansion is a mix of the two. The fit subtracts
     /// scale_depth_gradient * dlambda/dtheta * D from ln s, dlambda/dtheta taken from the
     /// neighbouring windows' depths. 0.5 (default): the isotropic mix, a texture without a
-    /// preferred direction; 0: the model without the term, which read the expansion as
-    /// depth and let a robot driving along a wall turn (docs/results/ANALYSIS.md). [0, 1].
+    /// preferred direction; 0: the model without the term, which reads the expansion as
+    /// depth and lets a robot driving along a wall turn (docs/results/ANALYSIS.md). [0, 1].
     double scale_depth_gradient = 0.5;
     /// With use_rotation_scale: the in-window rotation equations' error under translation,
     /// per unit of |tau| (the expansion a translation gives a window at the mean depth),
@@ -120,8 +118,7 @@ class MotionFit {
     /// reads part of that as a rotation whose sign the window's texture sets: the same
     /// pair after pair of a straight drive, which it rolled and pitched. Turning in place
     /// leaves the equations their full weight. 1 (default): an error as large as the
-    /// deformation; 0: their scatter alone, which let the drift benchmark's rectangle roll
-    /// 0.6 deg on one straight and end 1.66 instead of 0.72 deg off
+    /// deformation; 0: their scatter alone, which lets a straight drive roll
     /// (docs/results/ANALYSIS.md). [0, 100].
     double rotation_deformation = 1.0;
     /// Each window's du and dv equations weighted by their own variance
@@ -130,10 +127,8 @@ class MotionFit {
     /// only vertical edges gives its du and hardly its dv; the loss and the inlier test
     /// read its residuals in units of its own standard deviation. Windows without
     /// variances (0) count as the median. Off by default: it lowers the rotation error of
-    /// frame pairs (indoor 7-17 %, Kogeto-like pitch 30 %), but the translation direction
-    /// of the accuracy benchmark's room sequence is 46 % worse and the drift benchmark's
-    /// rectangle ends 1.87 instead of 1.67 degrees off (docs/results/ANALYSIS.md; measured
-    /// before rotation_deformation). false: the confidence alone weighs both (the paper).
+    /// frame pairs, but the translation direction in a room and the chained drift get worse
+    /// (docs/results/ANALYSIS.md). false: the confidence alone weighs both (the paper).
     bool window_covariance = false;
 
     /// Every problem, one message per bad field, each starting with the field's name

@@ -55,9 +55,8 @@ struct KeyframeOptions {
   /// about 5 MB at the default window settings). 0 = no keyframes: every frame is refined
   /// against the previous one (frame-to-frame chaining; a gap is still bridged against the
   /// last good frame). Off by default: with keyframes the chain does not drift, but each
-  /// frame pair's motion (the difference of two keyframe-relative estimates) is 1.3-1.9x
-  /// less accurate on the accuracy benchmark (docs/results/DRIFT_KEYFRAMES.md against
-  /// docs/results/DRIFT.md).
+  /// frame pair's motion (the difference of two keyframe-relative estimates) is less
+  /// accurate (docs/results/DRIFT_KEYFRAMES.md against docs/results/DRIFT.md).
   int slots = 0;
   /// A frame is refined against a keyframe only while the predicted translation from it is
   /// at most this, in scene distances (|t| / rho, the unit of MotionEstimate::tau): beyond
