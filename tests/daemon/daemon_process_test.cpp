@@ -246,10 +246,14 @@ TEST(Omniposed, RealtimeReplayAt30FpsKeepsTheRecordedTimingAndReportsLatency) {
   ASSERT_FALSE(log.statuses.empty());
   const status_t& last = log.statuses.back();
   EXPECT_TRUE(last.final);
-  // Each frame is processed, skipped as stale, or (source running late) never read.
+  // Each frame is processed, skipped as stale, not believed, or (source running late) never
+  // read. On a starved machine (a sanitizer build beside other tests) most frames go stale,
+  // and a frame far from the last processed one can be too different to be believed.
   EXPECT_EQ(last.frames_received, kFrames);
-  EXPECT_EQ(last.frames_processed + last.frames_skipped_stale + last.frames_lost_upstream,
-            last.frames_received);
+  EXPECT_EQ(last.frames_processed + last.frames_skipped_stale + last.frames_bad +
+                last.frames_lost_upstream,
+            last.frames_received)
+      << r.err;
   EXPECT_EQ(static_cast<std::int64_t>(log.poses.size()), last.frames_processed);
   EXPECT_EQ(log.poses.back().source_index, kFrames - 1) << "the last frame is always processed";
   // Capture stamps follow the recording: (t_k - t_0) of timestamps.txt on the wall clock.
