@@ -2,7 +2,7 @@
 #include <fstream>
 #include <opencv2/imgcodecs.hpp>
 
-#include "omnipose/synth/synth.hpp"
+#include "omnipose/synth/dataset_writer.hpp"
 
 namespace omnipose::synth {
 

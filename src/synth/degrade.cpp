@@ -1,7 +1,7 @@
 #include <cmath>
 #include <opencv2/imgproc.hpp>
 
-#include "omnipose/synth/synth.hpp"
+#include "omnipose/synth/degrade.hpp"
 #include "synth/seeding.hpp"
 
 namespace omnipose::synth {

@@ -12,7 +12,7 @@
 #include "common/problem_list.hpp"
 #include "omnipose/file_io.hpp"
 #include "common/yaml_reader.hpp"
-#include "omnipose/synth/synth.hpp"
+#include "omnipose/synth/motion.hpp"
 
 namespace omnipose::synth {
 namespace {

@@ -2,7 +2,7 @@
 #include <numbers>
 #include <stdexcept>
 
-#include "omnipose/synth/synth.hpp"
+#include "omnipose/synth/occluder.hpp"
 
 namespace omnipose::synth {
 namespace {

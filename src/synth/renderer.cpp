@@ -5,7 +5,7 @@
 #include <span>
 
 #include "omnipose/so3.hpp"
-#include "omnipose/synth/synth.hpp"
+#include "omnipose/synth/renderer.hpp"
 #include "synth/equirect.hpp"
 #include "synth/walker_hit.hpp"
 

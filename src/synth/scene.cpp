@@ -1,7 +1,7 @@
 #include <limits>
 #include "omnipose/image_decode.hpp"
 
-#include "omnipose/synth/synth.hpp"
+#include "omnipose/synth/scene.hpp"
 
 namespace omnipose::synth {
 namespace {

@@ -11,7 +11,7 @@
 #include <opencv2/core.hpp>
 #include <opencv2/imgproc.hpp>
 
-#include "omnipose/synth/synth.hpp"
+#include "omnipose/synth/equirect_from_omni.hpp"
 
 namespace omnipose::synth {
 namespace {

@@ -2,7 +2,7 @@
 #include <cmath>
 #include <stdexcept>
 
-#include "omnipose/synth/synth.hpp"
+#include "omnipose/synth/vignetting.hpp"
 
 namespace omnipose::synth {
 

@@ -6,7 +6,7 @@
 #include <Eigen/Core>
 #include <optional>
 
-#include "omnipose/synth/synth.hpp"
+#include "omnipose/synth/scene.hpp"
 
 namespace omnipose::synth::detail {
 

@@ -6,7 +6,7 @@
 #include <sstream>
 
 #include "common/problem_list.hpp"
-#include "omnipose/synth/synth.hpp"
+#include "omnipose/synth/scene.hpp"
 #include "synth/seeding.hpp"
 #include "synth/walker_hit.hpp"
 

@@ -111,7 +111,7 @@ void addSceneOptions(CLI::App& app, Args& a, Raw& raw) {
                  "donut image of the lens (default) or the unwrapped panorama")
       ->type_name("omni|panorama");
   app.add_option("--motion", a.motion,
-                 "motion script (format: include/omnipose/synth/synth.hpp, example: "
+                 "motion script (format: include/omnipose/synth/motion.hpp, example: "
                  "tools/synth/examples/tour.yaml)")
       ->type_name("MOTION.yaml");
   app.add_option("--preset", a.preset,
