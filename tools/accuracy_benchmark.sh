@@ -58,13 +58,7 @@ for photo in "$indoor" "$park"; do
   [ -f "$photo" ] || { echo "accuracy_benchmark: missing photo $photo (set DATA_DIR)" >&2; exit 1; }
 done
 
-start=$(date +%s)
-load_start=$(cut -d' ' -f1-3 /proc/loadavg)
-case "$(cd "$(dirname "$out")" 2>/dev/null && pwd)/$(basename "$out")" in
-  /|"$root"|"$root/"|"$root/."|"$HOME") echo "accuracy_benchmark: refusing to clear $out" >&2; exit 2 ;;
-esac
-rm -rf "$out"
-mkdir -p "$out/motions" "$out/report"
+bench_fresh_out accuracy_benchmark motions report
 report=$out/report
 # The ifmi replays' configuration: the FFTW wisdom file (see WISDOM above), as an absolute
 # path (a relative one would be taken relative to the configuration's directory), and the

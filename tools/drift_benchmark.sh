@@ -73,13 +73,7 @@ if [ "$evo" = 1 ]; then
   [ -x "$evo_ape" ] || { echo "drift_benchmark: $evo_ape missing after installing evo" >&2; exit 1; }
 fi
 
-start=$(date +%s)
-load_start=$(cut -d' ' -f1-3 /proc/loadavg)
-case "$(cd "$(dirname "$out")" 2>/dev/null && pwd)/$(basename "$out")" in
-  /|"$root"|"$root/"|"$root/."|"$HOME") echo "drift_benchmark: refusing to clear $out" >&2; exit 2 ;;
-esac
-rm -rf "$out"
-mkdir -p "$out"
+bench_fresh_out drift_benchmark
 out=$(realpath "$out")
 wisdom=$(realpath -m "${WISDOM:-$build/drift.wisdom}")
 

@@ -76,13 +76,7 @@ bench_tools --require real_camera_benchmark "$build" omnipose-synth omnipose-rep
 [ -f "$photo" ] || { echo "real_camera_benchmark: missing photo $photo (set DATA_DIR or PHOTO)" >&2; exit 1; }
 command -v python3 > /dev/null || { echo "real_camera_benchmark: python3 is needed for the report" >&2; exit 1; }
 
-start=$(date +%s)
-load_start=$(cut -d' ' -f1-3 /proc/loadavg)
-case "$(cd "$(dirname "$out")" 2>/dev/null && pwd)/$(basename "$out")" in
-  /|"$root"|"$root/"|"$root/."|"$HOME") echo "real_camera_benchmark: refusing to clear $out" >&2; exit 2 ;;
-esac
-rm -rf "$out"
-mkdir -p "$out/motions" "$out/report"
+bench_fresh_out real_camera_benchmark motions report
 out=$(realpath "$out")
 photo=$(realpath "$photo")
 report=$out/report

@@ -177,6 +177,47 @@ void measureRing(std::span<const cv::Mat> frames, const LensCalibratorOptions& o
 
 }
 
+enum class Edge { kInner, kOuter };
+
+/// The used radius at the ring's inner or outer edge, with its note: given (--radius-inner,
+/// --radius-outer), or the measured edge moved into the ring by the safety margin (given by
+/// --margin, or 1 px for the bilinear footprint + 2 x the edge blur, std). Needs res.ring
+/// when not given.
+double usedRadius(const LensCalibratorOptions& o, Edge edge, const std::string& frames_note,
+                  LensCalibrationResult& res) {
+  const bool inner = edge == Edge::kInner;
+  const char* key = inner ? "omni.radius_inner" : "omni.radius_outer";
+  if (const std::optional<double>& given = inner ? o.radius_inner : o.radius_outer) {
+    addNote(res, key, format("%.2f", *given),
+            inner ? "given (--radius-inner)" : "given (--radius-outer)");
+    return *given;
+  }
+  struct Measured {
+    double radius, spread, blur, first;
+    int stacked;
+  };
+  const RingEstimate& ring = *res.ring;
+  const Measured m = inner ? Measured{ring.radius_inner, ring.inner_spread, ring.edge_width_inner,
+                                      ring.first_inner, ring.stacked_inner}
+                           : Measured{ring.radius_outer, ring.outer_spread, ring.edge_width_outer,
+                                      ring.first_outer, ring.stacked_outer};
+  const double margin = o.margin ? *o.margin : 1.0 + 2.0 * m.blur;
+  (inner ? res.margin_inner : res.margin_outer) = margin;
+  const double radius = inner ? m.radius + margin : m.radius - margin;
+  addNote(res, key, format("%.2f", radius),
+          format("measured: %s at %.2f px (median over %s, spread %.2f px%s) %c safety margin "
+                 "%.2f px (%s)",
+                 inner ? "inner edge (end of the dark centre / camera reflection)"
+                       : "outer edge (start of the lens body)",
+                 m.radius, frames_note.c_str(), m.spread,
+                 stackedNote(m.stacked, m.first, inner ? "outward" : "inward",
+                             o.detector.stack_min_contrast)
+                     .c_str(),
+                 inner ? '+' : '-', margin,
+                 o.margin ? "--margin" : format("1 px + 2 x edge blur %.2f px", m.blur).c_str()));
+  return radius;
+}
+
 /// The centre and the used radii (given, or measured less the safety margins); a warning
 /// when the outer circle leaves the image. Throws when the used ring is empty.
 void setCentreAndRadii(std::span<const cv::Mat> frames, const LensCalibratorOptions& o,
@@ -198,40 +239,8 @@ void setCentreAndRadii(std::span<const cv::Mat> frames, const LensCalibratorOpti
                 frames_note.c_str(), res.ring->center_spread));
   }
 
-  // Safety margins: 1 px for the bilinear footprint + 2 x the edge blur (std).
-  auto autoMargin = [](double width) { return 1.0 + 2.0 * width; };
-  if (o.radius_inner) {
-    lens.radius_inner = *o.radius_inner;
-    addNote(res, "omni.radius_inner", format("%.2f", lens.radius_inner), "given (--radius-inner)");
-  } else {
-    res.margin_inner = o.margin ? *o.margin : autoMargin(res.ring->edge_width_inner);
-    lens.radius_inner = res.ring->radius_inner + res.margin_inner;
-    addNote(res, "omni.radius_inner", format("%.2f", lens.radius_inner),
-         format("measured: inner edge (end of the dark centre / camera reflection) at %.2f px "
-                "(median over %s, spread %.2f px%s) + safety margin %.2f px (%s)",
-                res.ring->radius_inner, frames_note.c_str(), res.ring->inner_spread,
-                stackedNote(res.ring->stacked_inner, res.ring->first_inner, "outward",
-                            o.detector.stack_min_contrast).c_str(),
-                res.margin_inner,
-                o.margin ? "--margin"
-                         : format("1 px + 2 x edge blur %.2f px", res.ring->edge_width_inner).c_str()));
-  }
-  if (o.radius_outer) {
-    lens.radius_outer = *o.radius_outer;
-    addNote(res, "omni.radius_outer", format("%.2f", lens.radius_outer), "given (--radius-outer)");
-  } else {
-    res.margin_outer = o.margin ? *o.margin : autoMargin(res.ring->edge_width_outer);
-    lens.radius_outer = res.ring->radius_outer - res.margin_outer;
-    addNote(res, "omni.radius_outer", format("%.2f", lens.radius_outer),
-         format("measured: outer edge (start of the lens body) at %.2f px (median over %s, "
-                "spread %.2f px%s) - safety margin %.2f px (%s)",
-                res.ring->radius_outer, frames_note.c_str(), res.ring->outer_spread,
-                stackedNote(res.ring->stacked_outer, res.ring->first_outer, "inward",
-                            o.detector.stack_min_contrast).c_str(),
-                res.margin_outer,
-                o.margin ? "--margin"
-                         : format("1 px + 2 x edge blur %.2f px", res.ring->edge_width_outer).c_str()));
-  }
+  lens.radius_inner = usedRadius(o, Edge::kInner, frames_note, res);
+  lens.radius_outer = usedRadius(o, Edge::kOuter, frames_note, res);
   // Part of the used ring outside the image gives black panorama pixels: say so.
   {
     int outside = 0;

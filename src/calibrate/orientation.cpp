@@ -7,6 +7,7 @@
 #include <opencv2/imgproc.hpp>
 #include <stdexcept>
 
+#include "common/named_values.hpp"
 #include "omnipose/calibrate/ring_detector.hpp"
 #include "omnipose/unwrapper.hpp"
 
@@ -121,21 +122,19 @@ DirectionResult directionFromTurnLeft(std::span<const cv::Mat> frames,
   return res;
 }
 
+namespace {
+
+constexpr detail::Named<UpCue> kUpCues[] = {
+    {UpCue::kBright, "bright"}, {UpCue::kDark, "dark"}, {UpCue::kNone, "none"}};
+
+}  // namespace
+
 UpCue parseUpCue(const std::string& name) {
-  if (name == "bright") return UpCue::kBright;
-  if (name == "dark") return UpCue::kDark;
-  if (name == "none") return UpCue::kNone;
-  throw std::invalid_argument("up cue '" + name + "' is not bright, dark or none");
+  if (const auto cue = detail::valueNamed(kUpCues, name)) return *cue;
+  throw std::invalid_argument("up cue '" + name + "' is not " + detail::nameList(kUpCues));
 }
 
-const char* toString(UpCue cue) {
-  switch (cue) {
-    case UpCue::kBright: return "bright";
-    case UpCue::kDark: return "dark";
-    case UpCue::kNone: return "none";
-  }
-  return "?";
-}
+const char* toString(UpCue cue) { return detail::nameOf(kUpCues, cue); }
 
 OuterEdgeResult outerEdgeFromAppearance(std::span<const cv::Mat> frames, const OmniLens& lens,
                                         UpCue cue, OuterEdge fallback, double min_contrast) {

@@ -10,6 +10,7 @@
 #include <opencv2/imgcodecs.hpp>
 #include <sstream>
 
+#include "common/named_values.hpp"
 #include "common/problem_list.hpp"
 #include "common/yaml_reader.hpp"
 #include "omnipose/image_decode.hpp"
@@ -21,6 +22,10 @@ namespace {
 constexpr double kPi = std::numbers::pi;
 constexpr double kDegToRad = kPi / 180.0;
 constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
+
+constexpr detail::Named<LensModelKind> kLensModels[] = {{LensModelKind::kLinear, "linear"},
+                                                        {LensModelKind::kOcamCalib, "ocamcalib"},
+                                                        {LensModelKind::kMei, "mei"}};
 
 using detail::YamlReader;
 using Need = YamlReader::Need;
@@ -47,14 +52,7 @@ Eigen::Vector3d bearingOf(double theta, double elevation) {
 
 }  // namespace
 
-const char* toString(LensModelKind kind) {
-  switch (kind) {
-    case LensModelKind::kLinear: return "linear";
-    case LensModelKind::kOcamCalib: return "ocamcalib";
-    case LensModelKind::kMei: return "mei";
-  }
-  return "?";
-}
+const char* toString(LensModelKind kind) { return detail::nameOf(kLensModels, kind); }
 
 double PanoramaGeometry::gamma() const { return 2.0 * kPi / width; }
 
@@ -286,10 +284,8 @@ class OmniSection {
 
   void readModel() {
     r_.get(omni_, "omni", "model", model_, Need::kOptional);
-    if (model_ == "linear") c_.omni.model = LensModelKind::kLinear;
-    else if (model_ == "ocamcalib") c_.omni.model = LensModelKind::kOcamCalib;
-    else if (model_ == "mei") c_.omni.model = LensModelKind::kMei;
-    else r_.problem("omni.model", "'" + detail::shown(model_) + "' is not linear, ocamcalib or mei");
+    if (const auto kind = detail::valueNamed(kLensModels, model_)) c_.omni.model = *kind;
+    else r_.problem("omni.model", "'" + detail::shown(model_) + "' is not " + detail::nameList(kLensModels));
   }
 
   /// The OCamCalib file gives the image size, the centre and (with its ROI line) the ring.

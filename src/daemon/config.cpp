@@ -11,6 +11,7 @@
 #include <string_view>
 #include <sstream>
 
+#include "common/named_values.hpp"
 #include "common/problem_list.hpp"
 #include "runtime/worker_pool.hpp"
 #include "common/yaml_reader.hpp"
@@ -22,6 +23,11 @@ namespace {
 using detail::YamlReader;
 using Reader = YamlReader;
 
+constexpr detail::Named<SourceConfig::Type> kSourceTypes[] = {
+    {SourceConfig::Type::kFile, "file"},
+    {SourceConfig::Type::kV4l2, "v4l2"},
+    {SourceConfig::Type::kLibcamera, "libcamera"}};
+
 void parseSource(Reader& r, const YAML::Node& node, const std::filesystem::path& base,
                  SourceConfig& s) {
   if (!r.checkMap(node, "source", {"type", "path", "realtime", "loop", "device", "camera",
@@ -29,10 +35,8 @@ void parseSource(Reader& r, const YAML::Node& node, const std::filesystem::path&
     return;
   std::string type = "file";
   r.get(node, "source", "type", type);
-  if (type == "file") s.type = SourceConfig::Type::kFile;
-  else if (type == "v4l2") s.type = SourceConfig::Type::kV4l2;
-  else if (type == "libcamera") s.type = SourceConfig::Type::kLibcamera;
-  else r.problem("source.type", "'" + detail::shown(type) + "' is not file, v4l2 or libcamera");
+  if (const auto named = detail::valueNamed(kSourceTypes, type)) s.type = *named;
+  else r.problem("source.type", "'" + detail::shown(type) + "' is not " + detail::nameList(kSourceTypes));
   std::string path;
   r.get(node, "source", "path", path);
   if (!path.empty()) {
@@ -190,12 +194,7 @@ void parseScheduling(Reader& r, const YAML::Node& node, SchedulingConfig& s) {
 }  // namespace
 
 const char* toString(SourceConfig::Type type) {
-  switch (type) {
-    case SourceConfig::Type::kFile: return "file";
-    case SourceConfig::Type::kV4l2: return "v4l2";
-    case SourceConfig::Type::kLibcamera: return "libcamera";
-  }
-  return "unknown";
+  return detail::nameOf(kSourceTypes, type, "unknown");
 }
 
 DaemonConfig DaemonConfig::parse(const std::string& text, const std::string& origin,

@@ -10,6 +10,7 @@
 #include <stdexcept>
 #include <string>
 
+#include "common/named_values.hpp"
 #include "common/periodic.hpp"
 #include "common/problem_list.hpp"
 #include "omnipose/motion_model.hpp"
@@ -42,12 +43,9 @@ double medianOf(double* begin, int n) {
 }  // namespace
 
 const char* toString(FitStatus status) {
-  switch (status) {
-    case FitStatus::kOk: return "ok";
-    case FitStatus::kDegraded: return "degraded";
-    case FitStatus::kLost: return "lost";
-  }
-  return "unknown";
+  constexpr detail::Named<FitStatus> kNames[] = {
+      {FitStatus::kOk, "ok"}, {FitStatus::kDegraded, "degraded"}, {FitStatus::kLost, "lost"}};
+  return detail::nameOf(kNames, status, "unknown");
 }
 
 std::vector<std::string> MotionFit::Options::validate() const {

@@ -21,14 +21,9 @@
 #include <span>
 #include <vector>
 
-#include "runtime/fft_plan.hpp"
+#include "registration/fft.hpp"
 
 namespace omnipose::registration {
-
-using runtime::Complex;
-using runtime::FftPlan;
-using runtime::FftwArray;
-using runtime::PlanEffort;
 
 /// Column (v-direction) half spectra of the v-tapered rows [top, top + L) of a W-column
 /// panorama: C_u(k_v) = sum_{i < L} h_i x(top + i, u) e^{-2 pi i k_v i / n}, k_v = 0 .. n/2.

@@ -20,11 +20,9 @@
 
 #include <vector>
 
-#include "runtime/fft_plan.hpp"
+#include "registration/fft.hpp"
 
 namespace omnipose::registration {
-
-using runtime::Complex;
 
 class LogPolarMap {
  public:

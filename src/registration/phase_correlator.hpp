@@ -15,14 +15,9 @@
 #include <cstddef>
 #include <limits>
 
-#include "runtime/fft_plan.hpp"
+#include "registration/fft.hpp"
 
 namespace omnipose::registration {
-
-using runtime::Complex;
-using runtime::FftPlan;
-using runtime::FftwArray;
-using runtime::PlanEffort;
 
 /// Peak of a correlation surface.
 struct CorrelationPeak {

@@ -20,10 +20,7 @@
 namespace omnipose::calibrate {
 namespace {
 
-using testing::kIndoor;
-using testing::kPark;
-using testing::makeCalibration;
-using testing::renderOmni;
+using namespace omnipose::calibrate::testing;  // synthetic.hpp
 
 constexpr double kPi = std::numbers::pi;
 

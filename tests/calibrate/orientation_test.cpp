@@ -14,10 +14,7 @@
 namespace omnipose::calibrate {
 namespace {
 
-using testing::kIndoor;
-using testing::kPark;
-using testing::makeCalibration;
-using testing::renderOmni;
+using namespace omnipose::calibrate::testing;  // synthetic.hpp
 
 cv::Mat randomPanorama(int w, int h, std::uint64_t seed) {
   cv::Mat p(h, w, CV_32FC1);

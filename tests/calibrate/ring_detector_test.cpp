@@ -14,10 +14,8 @@
 namespace omnipose::calibrate {
 namespace {
 
-using testing::kIndoor;
-using testing::makeCalibration;
+using namespace omnipose::calibrate::testing;  // synthetic.hpp
 using omnipose::testing::recordFigure;
-using testing::renderOmni;
 
 constexpr double kCentreTolerance = 1.0;  ///< pixels
 constexpr double kRadiusTolerance = 2.0;  ///< pixels

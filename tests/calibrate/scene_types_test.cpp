@@ -19,10 +19,8 @@
 namespace omnipose::calibrate {
 namespace {
 
-using testing::kIndoor;
-using testing::makeCalibration;
+using namespace omnipose::calibrate::testing;  // synthetic.hpp
 using omnipose::testing::recordFigure;
-using testing::renderOmni;
 
 /// Latitude (degrees, +90 = zenith) of texture row y of an equirect of `rows` rows.
 double latitude(int y, int rows) { return 90.0 - 180.0 * (y + 0.5) / rows; }

@@ -101,9 +101,7 @@ TEST(Omniposed, EndToEndFileLogDecodesAndMatchesGroundTruth) {
     const pose_t& p = log.poses[static_cast<std::size_t>(k)];
     EXPECT_EQ(p.sequence, k);
     EXPECT_EQ(p.source_index, k);
-    char name[32];
-    std::snprintf(name, sizeof(name), "%06d.png", k);
-    EXPECT_DOUBLE_EQ(p.source_timestamp, stamps.at(name));
+    EXPECT_DOUBLE_EQ(p.source_timestamp, stamps.at(testing::frameName(k)));
     EXPECT_GE(p.utime, t_start_us);
     EXPECT_LE(p.utime, t_end_us);
     EXPECT_LE(p.utime, log.pose_log_utime[static_cast<std::size_t>(k)]) << "captured before published";
@@ -606,13 +604,7 @@ TEST(OmniposedFaults, TimestampsGoingBackwardsAreAGapBridgedAndEveryFrameIsProce
   TempDir tmp("backwards");
   testing::copyDataset(mixedDataset(), tmp / "d");
   // Frames 0..14 at k/30 s, then frame 15 goes back to 5/30 s and the clock runs on from there.
-  std::ostringstream stamps;
-  for (int k = 0; k < kFrames; ++k) {
-    char name[32];
-    std::snprintf(name, sizeof(name), "%06d.png", k);
-    stamps << name << " " << (k < 15 ? k : k - 10) / 30.0 << "\n";
-  }
-  testing::writeText(tmp / "d/timestamps.txt", stamps.str());
+  testing::writeTimestamps(tmp / "d", kFrames, [](int k) { return (k < 15 ? k : k - 10) / 30.0; });
   for (const bool realtime : {true, false}) {
     SCOPED_TRACE(realtime ? "realtime" : "as fast as possible");
     const fs::path lcm_log = tmp / (realtime ? "rt.lcm" : "fast.lcm");

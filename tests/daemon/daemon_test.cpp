@@ -261,8 +261,7 @@ TEST(FileFrameSource, DeliversEveryFrameInOrderAsGreyWithItsTimestamp) {
     ASSERT_TRUE(got.has_value()) << got.error().c_str();
     EXPECT_EQ(got->index, i);
     EXPECT_EQ(got->sequence, static_cast<std::uint64_t>(i));
-    char name[32];
-    std::snprintf(name, sizeof(name), "%06d.png", i);
+    const std::string name = testing::frameName(i);
     EXPECT_DOUBLE_EQ(got->source_timestamp, stamps.at(name));
     EXPECT_GE(got->capture_time_us, last_capture);
     last_capture = got->capture_time_us;
@@ -280,14 +279,7 @@ TEST(FileFrameSource, DeliversEveryFrameInOrderAsGreyWithItsTimestamp) {
 TEST(FileFrameSource, RealtimeDeliversAtTheRecordedIntervals) {
   TempDir tmp("filesrc-rt");
   testing::copyDataset(yawDataset(), tmp / "d");
-  // 25 ms between frames.
-  std::string stamps;
-  for (int i = 0; i < kFrames; ++i) {
-    char line[64];
-    std::snprintf(line, sizeof(line), "%06d.png %.6f\n", i, 100.0 + 0.025 * i);
-    stamps += line;
-  }
-  testing::writeText(tmp / "d" / "timestamps.txt", stamps);
+  testing::writeTimestamps(tmp / "d", kFrames, [](int i) { return 100.0 + 0.025 * i; });  // 25 ms
   FileFrameSource source(fileOptions(tmp / "d", /*realtime=*/true));
   ASSERT_TRUE(source.open().has_value());
   cv::Mat buffer(omniSize(), CV_8UC1);
@@ -380,11 +372,7 @@ TEST(FileFrameSource, RealtimeResynchronisesOnAJumpInsteadOfSleepingThroughIt) {
   // is inflated by the jump too. Every frame comes at once, the jumped ones flagged.
   TempDir tmp("file-jump");
   testing::copyDataset(yawDataset(), tmp / "d");
-  for (int i = 4; i < kFrames; ++i) {
-    char name[16];
-    std::snprintf(name, sizeof name, "%06d.png", i);
-    fs::remove(tmp / "d/frames" / name);
-  }
+  for (int i = 4; i < kFrames; ++i) fs::remove(tmp / "d/frames" / testing::frameName(i));
   testing::writeText(tmp / "d/timestamps.txt",
                      "000000.png 0\n000001.png 0.0333\n000002.png 0.0667\n000003.png 86400\n");
   FileFrameSource::Options options = fileOptions(tmp / "d", /*realtime=*/true, /*loop=*/true);
@@ -879,13 +867,7 @@ TEST(Daemon, StaleFramesAreSkippedAndLatencyStaysBounded) {
   // A 200 fps recording replayed in real time: far faster than the pipeline.
   TempDir tmp("daemon-stale");
   testing::copyDataset(yawDataset(), tmp / "d");
-  std::string stamps;
-  for (int i = 0; i < kFrames; ++i) {
-    char line[64];
-    std::snprintf(line, sizeof(line), "%06d.png %.6f\n", i, 0.005 * i);
-    stamps += line;
-  }
-  testing::writeText(tmp / "d" / "timestamps.txt", stamps);
+  testing::writeTimestamps(tmp / "d", kFrames, [](int i) { return 0.005 * i; });
   Bus bus;
   auto config = parseConfig(testing::fileSourceConfig(tmp / "d", "", /*realtime=*/true, /*loop=*/true) +
                             "  status_hz: 10\n");
@@ -1167,14 +1149,7 @@ std::pair<status_t, double> runWithTimestamps(const std::function<double(int)>& 
                                               const std::string& tag) {
   TempDir tmp(tag);
   testing::copyDataset(yawDataset(), tmp / "d");
-  std::ostringstream text;
-  text.precision(17);
-  for (int i = 0; i < kFrames; ++i) {
-    char name[16];
-    std::snprintf(name, sizeof name, "%06d.png", i);
-    text << name << " " << stamp(i) << "\n";
-  }
-  testing::writeText(tmp / "d/timestamps.txt", text.str());
+  testing::writeTimestamps(tmp / "d", kFrames, stamp);
   Bus bus;
   Daemon d(parseConfig(testing::fileSourceConfig(tmp / "d", "", /*realtime=*/true)), nullptr,
            nullptr, bus.sink());

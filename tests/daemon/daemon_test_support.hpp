@@ -13,6 +13,7 @@
 
 #include <Eigen/Geometry>
 #include <chrono>
+#include <cstdio>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
@@ -144,6 +145,22 @@ inline void writeText(const fs::path& path, const std::string& text) {
   std::ofstream out(path);
   out << text;
   if (!out) throw std::runtime_error("cannot write " + path.string());
+}
+
+/// File name of frame i of a rendered dataset ("000007.png").
+inline std::string frameName(int i) {
+  char name[16];
+  std::snprintf(name, sizeof name, "%06d.png", i);
+  return name;
+}
+
+/// Writes DATASET/timestamps.txt: frame i < `frames` at stamp(i) seconds (17 digits).
+inline void writeTimestamps(const fs::path& dataset, int frames,
+                            const std::function<double(int)>& stamp) {
+  std::ostringstream text;
+  text.precision(17);
+  for (int i = 0; i < frames; ++i) text << frameName(i) << " " << stamp(i) << "\n";
+  writeText(dataset / "timestamps.txt", text.str());
 }
 
 /// "name seconds" lines of DATASET/timestamps.txt.

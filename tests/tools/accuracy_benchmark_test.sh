@@ -6,9 +6,7 @@
 # by omnipose-equirect and the uncertainty calibration of both lenses.
 # Usage: accuracy_benchmark_test.sh SOURCE_DIR BUILD_DIR   (BUILD_DIR/bin holds the binaries)
 set -euo pipefail
-src=$1
-build=$2
-script=$src/tools/accuracy_benchmark.sh
+src=$1 build=$2 script=$1/tools/accuracy_benchmark.sh
 # shellcheck source=tests/tools/benchmark_script_checks.sh
 source "$src/tests/tools/benchmark_script_checks.sh"
 

@@ -6,9 +6,7 @@
 # poses and the rolling-shutter calibration stripped of its readout for "readout unknown".
 # Usage: real_camera_benchmark_test.sh SOURCE_DIR BUILD_DIR   (BUILD_DIR/bin holds the binaries)
 set -euo pipefail
-src=$1
-build=$2
-script=$src/tools/real_camera_benchmark.sh
+src=$1 build=$2 script=$1/tools/real_camera_benchmark.sh
 # shellcheck source=tests/tools/benchmark_script_checks.sh
 source "$src/tests/tools/benchmark_script_checks.sh"
 

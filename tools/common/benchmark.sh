@@ -99,3 +99,19 @@ bench_tools() {
 bench_version() {
   version=$("$1/omnipose-replay" --version 2>/dev/null || echo "omnipose (version unknown)")
 }
+
+# bench_fresh_out NAME [SUBDIR...]: sets `start` (epoch seconds) and `load_start` (the load
+# averages, for the report), then empties OUTDIR `out` and creates it with the subfolders
+# given. Refuses (exit 2, naming NAME) to clear /, the repository `root` or $HOME.
+bench_fresh_out() {
+  local name=$1 d
+  shift
+  start=$(date +%s)
+  load_start=$(cut -d' ' -f1-3 /proc/loadavg)
+  case "$(cd "$(dirname "$out")" 2>/dev/null && pwd)/$(basename "$out")" in
+    /|"$root"|"$root/"|"$root/."|"$HOME") echo "$name: refusing to clear $out" >&2; exit 2 ;;
+  esac
+  rm -rf "$out"
+  mkdir -p "$out"
+  for d in "$@"; do mkdir -p "$out/$d"; done
+}

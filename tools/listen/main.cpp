@@ -21,6 +21,7 @@
 #include <string>
 
 #include "cli.hpp"
+#include "common/named_values.hpp"
 #include "daemon/counters.hpp"
 #include "omnipose/file_io.hpp"
 #include "omnipose/pose_t.hpp"
@@ -32,12 +33,10 @@ volatile std::sig_atomic_t g_stop = 0;
 void onSignal(int) { g_stop = 1; }
 
 const char* statusName(std::int8_t status) {
-  switch (status) {
-    case omnipose::pose_t::STATUS_OK: return "ok";
-    case omnipose::pose_t::STATUS_DEGRADED: return "degraded";
-    case omnipose::pose_t::STATUS_LOST: return "lost";
-  }
-  return "?";
+  using omnipose::pose_t;
+  constexpr omnipose::detail::Named<std::int8_t> kNames[] = {
+      {pose_t::STATUS_OK, "ok"}, {pose_t::STATUS_DEGRADED, "degraded"}, {pose_t::STATUS_LOST, "lost"}};
+  return omnipose::detail::nameOf(kNames, status);
 }
 
 const char* sourceStateName(std::int8_t state) {
