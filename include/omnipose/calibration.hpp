@@ -44,6 +44,10 @@ enum class LensModelKind { kLinear, kOcamCalib, kMei };
 
 /// "linear" | "ocamcalib" | "mei".
 const char* toString(LensModelKind kind);
+/// "cw" | "ccw" (the calibration file's omni.azimuth_direction).
+const char* toString(AzimuthDirection direction);
+/// "top" | "bottom" (the calibration file's omni.outer_edge).
+const char* toString(OuterEdge edge);
 
 /// The donut in the omni image. Lengths in pixels, angles in degrees.
 /// For `ocamcalib` the image size and centre come from the OCamCalib file (the keys may be

@@ -9,6 +9,31 @@
 namespace omnipose::calibrate {
 namespace {
 
+/// One step of a least-squares fit by Gauss-Newton: the step -(J^T J)^-1 J^T d, halved until
+/// the cost does not grow (at most 20 times; the iteration stays monotone), applied to x with
+/// its cost f. None when J^T J is singular or the step not finite; otherwise whether the fit
+/// goes on (the cost fell by more than rounding and the step was not negligible).
+template <typename Vec, typename Mat, typename Cost>
+std::optional<bool> descend(Vec& x, double& f, const Mat& jtj, const Vec& jtd, const Cost& cost) {
+  const Eigen::LDLT<Mat> ldlt(jtj);
+  if (ldlt.info() != Eigen::Success) return std::nullopt;
+  const Vec step = -ldlt.solve(jtd);
+  if (!step.allFinite()) return std::nullopt;
+  double scale = 1.0;
+  bool improved = false;
+  for (int h = 0; h < 20; ++h, scale *= 0.5) {
+    const Vec trial = x + scale * step;
+    const double ft = cost(trial);
+    if (ft <= f) {
+      x = trial;
+      improved = f - ft > 1e-15 * (1.0 + f);
+      f = ft;
+      break;
+    }
+  }
+  return improved && scale * step.norm() >= 1e-10;
+}
+
 double median(std::vector<double> v) {
   if (v.empty()) return 0.0;
   const auto mid = v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2);
@@ -85,46 +110,32 @@ std::optional<Circle> fitCircleAlgebraic(std::span<const Eigen::Vector2d> points
 std::optional<Circle> fitCircleGeometric(std::span<const Eigen::Vector2d> points,
                                          const Circle& initial, int max_iterations) {
   if (points.size() < 3) return std::nullopt;
-  auto cost = [&](const Circle& c) {
+  auto cost = [&](const Eigen::Vector3d& x) {
     double s = 0.0;
-    for (const auto& p : points) s += std::pow(c.distance(p), 2);
+    for (const auto& p : points) s += std::pow((p - x.head<2>()).norm() - x(2), 2);
     return s;
   };
-  Circle c = initial;
-  double f = cost(c);
+  Eigen::Vector3d x(initial.center.x(), initial.center.y(), initial.radius);
+  double f = cost(x);
   for (int it = 0; it < max_iterations; ++it) {
     // Gauss-Newton on d_i = |p_i - c| - r: J_i = [-(p_i - c)^T / |p_i - c|, -1].
     Eigen::Matrix3d jtj = Eigen::Matrix3d::Zero();
     Eigen::Vector3d jtd = Eigen::Vector3d::Zero();
     for (const auto& p : points) {
-      const Eigen::Vector2d d = p - c.center;
+      const Eigen::Vector2d d = p - x.head<2>();
       const double rho = d.norm();
       if (rho < 1e-12) continue;
       const Eigen::Vector3d j(-d.x() / rho, -d.y() / rho, -1.0);
       jtj += j * j.transpose();
-      jtd += j * (rho - c.radius);
+      jtd += j * (rho - x(2));
     }
-    Eigen::LDLT<Eigen::Matrix3d> ldlt(jtj);
-    if (ldlt.info() != Eigen::Success) return std::nullopt;
-    const Eigen::Vector3d step = -ldlt.solve(jtd);
-    if (!step.allFinite()) return std::nullopt;
-    // Step halving keeps the iteration monotone.
-    double scale = 1.0;
-    bool improved = false;
-    for (int h = 0; h < 20; ++h, scale *= 0.5) {
-      Circle trial;
-      trial.center = c.center + scale * step.head<2>();
-      trial.radius = c.radius + scale * step.z();
-      const double ft = cost(trial);
-      if (ft <= f) {
-        c = trial;
-        improved = f - ft > 1e-15 * (1.0 + f);
-        f = ft;
-        break;
-      }
-    }
-    if (!improved || scale * step.norm() < 1e-10) break;
+    const std::optional<bool> go_on = descend(x, f, jtj, jtd, cost);
+    if (!go_on) return std::nullopt;
+    if (!*go_on) break;
   }
+  Circle c;
+  c.center = x.head<2>();
+  c.radius = x(2);
   if (!(c.radius > 0) || !c.center.allFinite()) return std::nullopt;
   return c;
 }
@@ -246,23 +257,9 @@ std::optional<ConcentricFit> fitConcentric(std::span<const Eigen::Vector2d> poin
     };
     accumulate(points1, 2);
     accumulate(points2, 3);
-    Eigen::LDLT<Eigen::Matrix4d> ldlt(jtj);
-    if (ldlt.info() != Eigen::Success) return std::nullopt;
-    const Vec4 step = -ldlt.solve(jtd);
-    if (!step.allFinite()) return std::nullopt;
-    double scale = 1.0;
-    bool improved = false;
-    for (int h = 0; h < 20; ++h, scale *= 0.5) {
-      const Vec4 trial = x + scale * step;
-      const double ft = cost(trial);
-      if (ft <= f) {
-        x = trial;
-        improved = f - ft > 1e-15 * (1.0 + f);
-        f = ft;
-        break;
-      }
-    }
-    if (!improved || scale * step.norm() < 1e-10) break;
+    const std::optional<bool> go_on = descend(x, f, jtj, jtd, cost);
+    if (!go_on) return std::nullopt;
+    if (!*go_on) break;
   }
   ConcentricFit out;
   out.center = x.head<2>();

@@ -30,8 +30,6 @@ std::string stackedNote(int stacked, double first, const char* way, double min_r
                 first, way, stacked, 100.0 * min_ratio);
 }
 
-const char* name(AzimuthDirection d) { return d == AzimuthDirection::kCw ? "cw" : "ccw"; }
-const char* name(OuterEdge e) { return e == OuterEdge::kTop ? "top" : "bottom"; }
 
 }  // namespace
 
@@ -268,11 +266,11 @@ void setOuterEdge(std::span<const cv::Mat> frames, const LensCalibratorOptions& 
   // The vertical appearance cue.
   if (o.outer_edge) {
     lens.outer_edge = *o.outer_edge;
-    addNote(res, "omni.outer_edge", name(lens.outer_edge), "given (--outer-edge)");
+    addNote(res, "omni.outer_edge", toString(lens.outer_edge), "given (--outer-edge)");
   } else {
     res.outer_edge = outerEdgeFromAppearance(frames, lens, o.up_cue, o.default_outer_edge);
     lens.outer_edge = res.outer_edge->edge;
-    addNote(res, "omni.outer_edge", name(lens.outer_edge),
+    addNote(res, "omni.outer_edge", toString(lens.outer_edge),
          (res.outer_edge->decisive ? "measured: " : "default: ") + res.outer_edge->how);
   }
 
@@ -341,27 +339,27 @@ void setAzimuthDirection(std::span<const cv::Mat> frames, const LensCalibratorOp
   auto& lens = cal.omni;
   if (o.direction) {
     lens.azimuth_direction = *o.direction;
-    addNote(res, "omni.azimuth_direction", name(lens.azimuth_direction), "given (--direction)");
+    addNote(res, "omni.azimuth_direction", toString(lens.azimuth_direction), "given (--direction)");
   } else if (o.turn_left && frames.size() >= 2) {
     res.direction = directionFromTurnLeft(frames, cal);
     if (res.direction->decisive) {
       lens.azimuth_direction = res.direction->direction;
-      addNote(res, "omni.azimuth_direction", name(lens.azimuth_direction),
+      addNote(res, "omni.azimuth_direction", toString(lens.azimuth_direction),
            "measured: " + res.direction->how);
     } else {
       lens.azimuth_direction = assumedDirection(lens.outer_edge);
-      addNote(res, "omni.azimuth_direction", name(lens.azimuth_direction),
+      addNote(res, "omni.azimuth_direction", toString(lens.azimuth_direction),
            format("assumed %s from outer_edge %s for an unmirrored camera image, because the %s",
-                  name(lens.azimuth_direction), name(lens.outer_edge), res.direction->how.c_str()));
+                  toString(lens.azimuth_direction), toString(lens.outer_edge), res.direction->how.c_str()));
     }
   } else {
     if (o.turn_left)
       res.warnings.push_back("--turn-left needs at least 2 frames; the direction is assumed");
     lens.azimuth_direction = assumedDirection(lens.outer_edge);
-    addNote(res, "omni.azimuth_direction", name(lens.azimuth_direction),
+    addNote(res, "omni.azimuth_direction", toString(lens.azimuth_direction),
          format("assumed: %s for outer_edge %s and an unmirrored camera image (camera looking %s "
                 "at the mirror); not measured: pass a turn-left sequence with --turn-left",
-                name(lens.azimuth_direction), name(lens.outer_edge),
+                toString(lens.azimuth_direction), toString(lens.outer_edge),
                 lens.outer_edge == OuterEdge::kTop ? "up" : "down"));
   }
 
@@ -461,7 +459,7 @@ std::vector<std::string> LensCalibrationResult::summaryLines() const {
                          ring ? ring->radius_outer : o.radius_outer));
   lines.push_back(format("azimuth_zero %.1f deg  direction %s  outer_edge %s  panorama %d x %d  "
                          "horizon row %.1f",
-                         o.azimuth_zero_deg, name(o.azimuth_direction), name(o.outer_edge),
+                         o.azimuth_zero_deg, toString(o.azimuth_direction), toString(o.outer_edge),
                          p.width, p.height, p.horizon_row));
   for (const auto& pr : provenance) {
     if (pr.key == "omni.azimuth_direction" || pr.key == "omni.outer_edge" ||

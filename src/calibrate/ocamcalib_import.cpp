@@ -78,7 +78,7 @@ void finishModelCalibration(Calibration& c, const ModelImportOptions& options,
       throw std::runtime_error("--turn-left: the frames do not show a clear turn (" + d.how +
                                "); try frames further apart or give --direction");
     lens.azimuth_direction = d.direction;
-    direction_how = std::string(d.direction == AzimuthDirection::kCw ? "cw" : "ccw") +
+    direction_how = std::string(toString(d.direction)) +
                     " measured from the turn-left sequence (" + d.how + ")";
   }
   notes.push_back(format("forward (+x) at image angle %.1f deg, azimuth direction ",

@@ -140,7 +140,7 @@ OuterEdgeResult outerEdgeFromAppearance(std::span<const cv::Mat> frames, const O
                                         UpCue cue, OuterEdge fallback, double min_contrast) {
   OuterEdgeResult res;
   res.edge = fallback;
-  const char* fallback_name = fallback == OuterEdge::kTop ? "top" : "bottom";
+  const char* fallback_name = toString(fallback);
   if (cue == UpCue::kNone || frames.empty()) {
     res.how = format("no vertical cue (--up-cue none): default %s", fallback_name);
     return res;
@@ -202,7 +202,7 @@ OuterEdgeResult outerEdgeFromAppearance(std::span<const cv::Mat> frames, const O
   res.edge = outer_is_up ? OuterEdge::kTop : OuterEdge::kBottom;
   res.how = format("up cue '%s': %s; the %s side is up, so the outer ring is the %s edge",
                    toString(cue), levels.c_str(), outer_is_up ? "outer" : "inner",
-                   outer_is_up ? "top" : "bottom");
+                   toString(res.edge));
   return res;
 }
 

@@ -26,6 +26,10 @@ constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 constexpr detail::Named<LensModelKind> kLensModels[] = {{LensModelKind::kLinear, "linear"},
                                                         {LensModelKind::kOcamCalib, "ocamcalib"},
                                                         {LensModelKind::kMei, "mei"}};
+constexpr detail::Named<AzimuthDirection> kAzimuthDirections[] = {{AzimuthDirection::kCw, "cw"},
+                                                                  {AzimuthDirection::kCcw, "ccw"}};
+constexpr detail::Named<OuterEdge> kOuterEdges[] = {{OuterEdge::kTop, "top"},
+                                                    {OuterEdge::kBottom, "bottom"}};
 
 using detail::YamlReader;
 using Need = YamlReader::Need;
@@ -53,6 +57,10 @@ Eigen::Vector3d bearingOf(double theta, double elevation) {
 }  // namespace
 
 const char* toString(LensModelKind kind) { return detail::nameOf(kLensModels, kind); }
+const char* toString(AzimuthDirection direction) {
+  return detail::nameOf(kAzimuthDirections, direction);
+}
+const char* toString(OuterEdge edge) { return detail::nameOf(kOuterEdges, edge); }
 
 double PanoramaGeometry::gamma() const { return 2.0 * kPi / width; }
 
@@ -370,18 +378,19 @@ class OmniSection {
     }
     std::string edge = "top";
     r_.get(omni_, "omni", "outer_edge", edge, Need::kOptional);
-    if (edge == "top") c_.omni.outer_edge = OuterEdge::kTop;
-    else if (edge == "bottom") c_.omni.outer_edge = OuterEdge::kBottom;
-    else r_.problem("omni.outer_edge", "'" + detail::shown(edge) + "' is not top or bottom");
+    if (const auto named = detail::valueNamed(kOuterEdges, edge)) c_.omni.outer_edge = *named;
+    else r_.problem("omni.outer_edge", "'" + detail::shown(edge) + "' is not " + detail::nameList(kOuterEdges));
   }
 
   void readAzimuth() {
     r_.get(omni_, "omni", "azimuth_zero_deg", c_.omni.azimuth_zero_deg, Need::kOptional);
     std::string direction = "cw";
     r_.get(omni_, "omni", "azimuth_direction", direction, Need::kOptional);
-    if (direction == "cw") c_.omni.azimuth_direction = AzimuthDirection::kCw;
-    else if (direction == "ccw") c_.omni.azimuth_direction = AzimuthDirection::kCcw;
-    else r_.problem("omni.azimuth_direction", "'" + detail::shown(direction) + "' is not cw or ccw");
+    if (const auto named = detail::valueNamed(kAzimuthDirections, direction))
+      c_.omni.azimuth_direction = *named;
+    else
+      r_.problem("omni.azimuth_direction",
+                 "'" + detail::shown(direction) + "' is not " + detail::nameList(kAzimuthDirections));
   }
 
   void readMask() {
@@ -479,10 +488,10 @@ std::string Calibration::toYaml() const {
   o << "  radius_inner: " << omni.radius_inner << "\n"
     << "  radius_outer: " << omni.radius_outer << "\n"
     << "  azimuth_zero_deg: " << omni.azimuth_zero_deg << "\n"
-    << "  azimuth_direction: " << (omni.azimuth_direction == AzimuthDirection::kCw ? "cw" : "ccw")
+    << "  azimuth_direction: " << toString(omni.azimuth_direction)
     << "\n";
   if (omni.model == LensModelKind::kLinear)
-    o << "  outer_edge: " << (omni.outer_edge == OuterEdge::kTop ? "top" : "bottom") << "\n";
+    o << "  outer_edge: " << toString(omni.outer_edge) << "\n";
   if (!omni.mask.empty())
     o << "  mask: " << std::filesystem::path(omni.mask_file.empty() ? "mask.png" : omni.mask_file).filename().string()
       << "\n";

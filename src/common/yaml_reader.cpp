@@ -14,30 +14,24 @@ void flow(const YAML::Node& node, std::string& out, std::size_t limit) {
   };
   switch (node.Type()) {
     case YAML::NodeType::Scalar: append(node.Scalar()); return;
-    case YAML::NodeType::Sequence: {
-      append("[");
+    case YAML::NodeType::Sequence:
+    case YAML::NodeType::Map: {
+      const bool map = node.IsMap();
+      append(map ? "{" : "[");
       bool first = true;
       for (const auto& item : node) {
         if (out.size() > limit) return;
         if (!first) append(", ");
         first = false;
-        flow(item, out, limit);
+        if (map) {
+          flow(item.first, out, limit);
+          append(": ");
+          flow(item.second, out, limit);
+        } else {
+          flow(item, out, limit);
+        }
       }
-      append("]");
-      return;
-    }
-    case YAML::NodeType::Map: {
-      append("{");
-      bool first = true;
-      for (const auto& kv : node) {
-        if (out.size() > limit) return;
-        if (!first) append(", ");
-        first = false;
-        flow(kv.first, out, limit);
-        append(": ");
-        flow(kv.second, out, limit);
-      }
-      append("}");
+      append(map ? "}" : "]");
       return;
     }
     case YAML::NodeType::Null: append("~"); return;

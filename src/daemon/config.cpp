@@ -23,6 +23,16 @@ namespace {
 using detail::YamlReader;
 using Reader = YamlReader;
 
+/// Reads `key`, given in degrees, into `radians` (kept when the key is absent); returns the
+/// value in degrees, for messages.
+double getDegrees(Reader& r, const YAML::Node& node, const std::string& path, const std::string& key,
+                  double& radians) {
+  double degrees = radians * 180.0 / std::numbers::pi;
+  r.get(node, path, key, degrees);
+  radians = degrees * std::numbers::pi / 180.0;
+  return degrees;
+}
+
 constexpr detail::Named<SourceConfig::Type> kSourceTypes[] = {
     {SourceConfig::Type::kFile, "file"},
     {SourceConfig::Type::kV4l2, "v4l2"},
@@ -132,9 +142,7 @@ void parseKeyframes(Reader& r, const YAML::Node& node, KeyframeOptions& k) {
     return;
   r.get(node, "keyframes", "slots", k.slots);
   r.get(node, "keyframes", "max_translation", k.max_translation);
-  double tilt_deg = k.max_tilt_rad * 180.0 / std::numbers::pi;
-  r.get(node, "keyframes", "max_tilt_deg", tilt_deg);
-  k.max_tilt_rad = tilt_deg * std::numbers::pi / 180.0;
+  getDegrees(r, node, "keyframes", "max_tilt_deg", k.max_tilt_rad);
   r.get(node, "keyframes", "min_ring_peak", k.min_ring_peak);
   r.get(node, "keyframes", "gap_after_s", k.gap_after_s);
   // The ranges are the odometry's own (KeyframeOptions::validate(), checked by parse()),
@@ -153,9 +161,7 @@ void parsePlausibility(Reader& r, const YAML::Node& node, PlausibilityOptions& p
   r.get(node, "plausibility", "enabled", p.enabled);
   r.get(node, "plausibility", "max_repeated_rows", p.max_repeated_rows);
   r.get(node, "plausibility", "min_confidence_ratio", p.min_confidence_ratio);
-  double rate_deg = p.max_rotation_rad_s * 180.0 / std::numbers::pi;
-  r.get(node, "plausibility", "max_rotation_deg_s", rate_deg);
-  p.max_rotation_rad_s = rate_deg * std::numbers::pi / 180.0;
+  const double rate_deg = getDegrees(r, node, "plausibility", "max_rotation_deg_s", p.max_rotation_rad_s);
   r.get(node, "plausibility", "max_rejected", p.max_rejected);
   // The ranges are the odometry's own (PlausibilityOptions::validate()), named by the key the
   // user wrote (max_rotation_deg_s for the field max_rotation_rad_s).

@@ -7,6 +7,17 @@
 #endif
 
 namespace omnipose::daemon {
+namespace {
+
+/// Sends `state` (sd_notify's "KEY=VALUE" lines) to the service manager; nothing in a build
+/// without systemd.
+void send([[maybe_unused]] const std::string& state) {
+#ifdef OMNIPOSE_HAVE_SYSTEMD
+  sd_notify(0, state.c_str());
+#endif
+}
+
+}  // namespace
 
 bool SystemdNotifier::compiledIn() {
 #ifdef OMNIPOSE_HAVE_SYSTEMD
@@ -24,28 +35,20 @@ SystemdNotifier::SystemdNotifier() {
 #endif
 }
 
-void SystemdNotifier::ready([[maybe_unused]] const std::string& status) {
-#ifdef OMNIPOSE_HAVE_SYSTEMD
-  if (enabled_) sd_notifyf(0, "READY=1\nSTATUS=%s", status.c_str());
-#endif
+void SystemdNotifier::ready(const std::string& status) {
+  if (enabled_) send("READY=1\nSTATUS=" + status);
 }
 
 void SystemdNotifier::watchdog() {
-#ifdef OMNIPOSE_HAVE_SYSTEMD
-  if (watchdog_) sd_notify(0, "WATCHDOG=1");
-#endif
+  if (watchdog_) send("WATCHDOG=1");
 }
 
-void SystemdNotifier::status([[maybe_unused]] const std::string& status) {
-#ifdef OMNIPOSE_HAVE_SYSTEMD
-  if (enabled_) sd_notifyf(0, "STATUS=%s", status.c_str());
-#endif
+void SystemdNotifier::status(const std::string& status) {
+  if (enabled_) send("STATUS=" + status);
 }
 
 void SystemdNotifier::stopping() {
-#ifdef OMNIPOSE_HAVE_SYSTEMD
-  if (enabled_) sd_notify(0, "STOPPING=1");
-#endif
+  if (enabled_) send("STOPPING=1");
 }
 
 }  // namespace omnipose::daemon

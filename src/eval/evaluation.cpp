@@ -12,6 +12,12 @@
 namespace omnipose {
 namespace {
 
+std::vector<StampedPose> sortedByTime(std::vector<StampedPose> poses) {
+  std::sort(poses.begin(), poses.end(),
+            [](const StampedPose& a, const StampedPose& b) { return a.timestamp < b.timestamp; });
+  return poses;
+}
+
 /// Index of the pose with timestamp t (within tol) in a time-sorted trajectory, or -1.
 int findPose(const std::vector<StampedPose>& poses, double t, double tol) {
   auto it = std::lower_bound(poses.begin(), poses.end(), t - tol,
@@ -34,9 +40,7 @@ void finish(ErrorStats& s) { s.rmse = s.count > 0 ? std::sqrt(s.rmse / s.count) 
 EvaluationResult evaluate(const std::vector<StampedPose>& groundtruth,
                           const std::vector<StampedPose>& estimate,
                           const EvaluationOptions& options) {
-  std::vector<StampedPose> est = estimate;
-  std::sort(est.begin(), est.end(),
-            [](const StampedPose& a, const StampedPose& b) { return a.timestamp < b.timestamp; });
+  const std::vector<StampedPose> est = sortedByTime(estimate);
   EvaluationResult r;
   for (std::size_t k = 1; k < groundtruth.size(); ++k) {
     ++r.pairs_expected;
@@ -75,9 +79,7 @@ EvaluationResult evaluate(const std::vector<StampedPose>& groundtruth,
 DriftResult evaluateDrift(const std::vector<StampedPose>& groundtruth,
                           const std::vector<StampedPose>& estimate,
                           const EvaluationOptions& options) {
-  std::vector<StampedPose> est = estimate;
-  std::sort(est.begin(), est.end(),
-            [](const StampedPose& a, const StampedPose& b) { return a.timestamp < b.timestamp; });
+  const std::vector<StampedPose> est = sortedByTime(estimate);
   DriftResult r;
   r.poses_expected = static_cast<int>(groundtruth.size());
   std::optional<Eigen::Matrix3d> align;

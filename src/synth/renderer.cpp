@@ -278,6 +278,23 @@ struct Renderer::PixelRays {
   std::vector<Ray> rays;                ///< k x k sub-samples, row by row
 };
 
+namespace {
+
+/// The box filter's sub-samples of pixel (x, y): sets rays.rays to k x k entries, row by row,
+/// each given by set(sx, sy, ray) at its sub-pixel centre (x + (i + 0.5) / k - 0.5, ...).
+template <typename Rays, typename Set>
+void forSubPixels(int k, double x, double y, Rays& rays, const Set& set) {
+  rays.rays.resize(static_cast<std::size_t>(k * k));
+  for (int j = 0; j < k; ++j) {
+    const double sy = y + (j + 0.5) / k - 0.5;
+    for (int i = 0; i < k; ++i) {
+      set(x + (i + 0.5) / k - 0.5, sy, rays.rays[static_cast<std::size_t>(j * k + i)]);
+    }
+  }
+}
+
+}  // namespace
+
 void Renderer::renderRows(std::span<const View> views, int n, int row_begin, int row_end,
                           cv::Mat& out) const {
   const bool omni = options_.output == OutputKind::kOmni;
@@ -329,16 +346,9 @@ void Renderer::panoramaRays(int u, int v, PixelRays& rays) const {
   rays.centre = pano.bearing(u, v);
   rays.right = pano.bearing(u + 1, v);
   rays.below = pano.bearing(u, v + 1);
-  // Box filter: a K x K grid of sub-pixel centres.
-  const int k = options_.supersample;
-  rays.rays.resize(static_cast<std::size_t>(k * k));
-  for (int j = 0; j < k; ++j) {
-    const double sv = v + (j + 0.5) / k - 0.5;
-    for (int i = 0; i < k; ++i) {
-      const double su = u + (i + 0.5) / k - 0.5;
-      rays.rays[static_cast<std::size_t>(j * k + i)] = {pano.bearing(su, sv), 0.0f, true};
-    }
-  }
+  forSubPixels(options_.supersample, u, v, rays, [&](double su, double sv, PixelRays::Ray& ray) {
+    ray = {pano.bearing(su, sv), 0.0f, true};
+  });
 }
 
 void Renderer::omniRays(int x, int y, PixelRays& rays) const {
@@ -363,21 +373,13 @@ void Renderer::omniRays(int x, int y, PixelRays& rays) const {
     rays.right = bearingAt(x + 1, y);
     rays.below = bearingAt(x, y + 1);
   }
-  // Box filter: a K x K grid of sub-pixel centres.
-  const int k = options_.supersample;
-  rays.rays.resize(static_cast<std::size_t>(k * k));
-  for (int j = 0; j < k; ++j) {
-    const double sy = y + (j + 0.5) / k - 0.5;
-    for (int i = 0; i < k; ++i) {
-      const double sx = x + (i + 0.5) / k - 0.5;
-      const auto b = touches_ring && inRing(sx, sy) ? calibration_.bearingOfPixel(sx, sy)
-                                                    : std::nullopt;
-      PixelRays::Ray& ray = rays.rays[static_cast<std::size_t>(j * k + i)];
-      ray.scene = b.has_value();
-      if (b) ray.bearing = *b;
-      else ray.body = lensBody(lens, calibration_.ringRadius(sx, sy));
-    }
-  }
+  forSubPixels(options_.supersample, x, y, rays, [&](double sx, double sy, PixelRays::Ray& ray) {
+    const auto b =
+        touches_ring && inRing(sx, sy) ? calibration_.bearingOfPixel(sx, sy) : std::nullopt;
+    ray.scene = b.has_value();
+    if (b) ray.bearing = *b;
+    else ray.body = lensBody(lens, calibration_.ringRadius(sx, sy));
+  });
 }
 
 float Renderer::shade(const PixelRays& rays, const Eigen::Isometry3d& T,
