@@ -104,25 +104,18 @@ TEST_P(YawTest, RecoversThreeDegreeYawWithinTenMilliradians) {
   EXPECT_LT(m.estimate.residual_rms_px, 1.0);
 }
 
-INSTANTIATE_TEST_SUITE_P(
-    AllBaselines, YawTest,
-    testing::Values(YawCase{"orb5pt", InputKind::kOmni, +1},
-                    YawCase{"orb5pt", InputKind::kOmni, -1},
-                    YawCase{"akaze5pt", InputKind::kOmni, +1},
-                    YawCase{"akaze5pt", InputKind::kOmni, -1},
-                    YawCase{"orbrot", InputKind::kOmni, +1},
-                    YawCase{"orbrot", InputKind::kOmni, -1},
-                    YawCase{"akazerot", InputKind::kOmni, +1},
-                    YawCase{"akazerot", InputKind::kOmni, -1},
-                    YawCase{"orb5pt", InputKind::kPanorama, +1},
-                    YawCase{"orb5pt", InputKind::kPanorama, -1},
-                    YawCase{"akaze5pt", InputKind::kPanorama, +1},
-                    YawCase{"akaze5pt", InputKind::kPanorama, -1},
-                    YawCase{"orbrot", InputKind::kPanorama, +1},
-                    YawCase{"orbrot", InputKind::kPanorama, -1},
-                    YawCase{"akazerot", InputKind::kPanorama, +1},
-                    YawCase{"akazerot", InputKind::kPanorama, -1}),
-    caseName);
+/// Every baseline on both inputs, turning left and right.
+std::vector<YawCase> allYawCases() {
+  std::vector<YawCase> cases;
+  for (const InputKind input : {InputKind::kOmni, InputKind::kPanorama}) {
+    for (const char* method : {"orb5pt", "akaze5pt", "orbrot", "akazerot"}) {
+      for (const double sign : {+1.0, -1.0}) cases.push_back({method, input, sign});
+    }
+  }
+  return cases;
+}
+
+INSTANTIATE_TEST_SUITE_P(AllBaselines, YawTest, testing::ValuesIn(allYawCases()), caseName);
 
 // Roll and pitch exercise the elevation part of the bearing (h = gamma (v_h - v)).
 TEST(FeatureMotionEstimator, RotationOnlyRecoversRollAndPitch) {

@@ -9,6 +9,8 @@
 #include <fstream>
 #include <sys/wait.h>
 
+#include "omnipose/io/trajectory.hpp"
+#include "omnipose/synth/synth.hpp"
 #include "test_files.hpp"
 
 namespace omnipose::calibrate {
@@ -85,12 +87,6 @@ TEST(OcamCalibImport, NoRoiLineNeedsTheRing) {
   fs::remove_all(dir);
 }
 
-}  // namespace
-}  // namespace omnipose::calibrate
-
-namespace omnipose::calibrate {
-namespace {
-
 // The tool's quality gate: a panorama the default pipeline would refuse (lower than its
 // 110-pixel window) is not written; exit code 1 and the reason on stderr.
 TEST(OcamCalibImportCli, RefusesWhatReplayWouldRefuse) {
@@ -113,15 +109,6 @@ TEST(OcamCalibImportCli, RefusesWhatReplayWouldRefuse) {
   EXPECT_NO_THROW(Calibration::load(dir / "cal.yaml"));
   fs::remove_all(dir);
 }
-
-}  // namespace
-}  // namespace omnipose::calibrate
-
-#include "omnipose/io/trajectory.hpp"
-#include "omnipose/synth/synth.hpp"
-
-namespace omnipose::calibrate {
-namespace {
 
 // A mirrored capture flips the azimuth direction: a turn-left sequence measures it.
 TEST(OcamCalibImport, TurnLeftSequenceMeasuresTheDirection) {

@@ -53,14 +53,20 @@ std::string ocamYaml(const std::string& file, const std::string& extra = "") {
          "panorama: {width: 1100, height: 110, horizon_row: 54.5}\n";
 }
 
-/// Every problem of a CalibrationError, or "" when parsing succeeded.
-std::string parseError(const std::string& yaml, const fs::path& base) {
+/// Every problem of the CalibrationError that `read` throws, or "" when it succeeds.
+template <typename Read>
+std::string errorOf(const Read& read) {
   try {
-    Calibration::parse(yaml, "cal.yaml", base);
+    read();
   } catch (const CalibrationError& e) {
     return e.what();
   }
   return "";
+}
+
+/// Every problem of a CalibrationError, or "" when parsing succeeded.
+std::string parseError(const std::string& yaml, const fs::path& base) {
+  return errorOf([&] { Calibration::parse(yaml, "cal.yaml", base); });
 }
 
 // ---------------------------------------------------------------------------------------
@@ -333,14 +339,10 @@ TEST(Mei, ReadsAnOmnidirFileStorage) {
   dir.write("bad.yaml", "omni:\n  model: mei\n  omnidir_file: bad.yml\n  image_width: 800\n"
                         "  image_height: 800\n  radius_inner: 90\n  radius_outer: 330\n"
                         "panorama: {width: 1100, height: 110}\n");
-  try {
-    Calibration::load(dir.path() / "bad.yaml");
-    FAIL() << "expected an error";
-  } catch (const CalibrationError& e) {
-    const std::string what = e.what();
-    EXPECT_NE(what.find("bad.yml: D: missing"), std::string::npos) << what;
-    EXPECT_NE(what.find("bad.yml: xi: missing"), std::string::npos) << what;
-  }
+  const std::string what = errorOf([&] { Calibration::load(dir.path() / "bad.yaml"); });
+  ASSERT_FALSE(what.empty()) << "expected an error";
+  EXPECT_NE(what.find("bad.yml: D: missing"), std::string::npos) << what;
+  EXPECT_NE(what.find("bad.yml: xi: missing"), std::string::npos) << what;
 }
 
 TEST(Mei, AMatrixDeclaringAHugeShapeIsRefusedBeforeItIsAllocated) {
@@ -354,14 +356,10 @@ TEST(Mei, AMatrixDeclaringAHugeShapeIsRefusedBeforeItIsAllocated) {
   dir.write("cal.yaml", "omni:\n  model: mei\n  omnidir_file: huge.yml\n  image_width: 800\n"
                         "  image_height: 800\n  radius_inner: 90\n  radius_outer: 330\n"
                         "panorama: {width: 1100, height: 110}\n");
-  try {
-    Calibration::load(dir.path() / "cal.yaml");
-    FAIL() << "expected an error";
-  } catch (const CalibrationError& e) {
-    const std::string what = e.what();
-    EXPECT_NE(what.find("huge.yml: K: expected 9 numbers"), std::string::npos) << what;
-    EXPECT_EQ(what.find("D:"), std::string::npos) << "D is well-formed: " << what;
-  }
+  const std::string what = errorOf([&] { Calibration::load(dir.path() / "cal.yaml"); });
+  ASSERT_FALSE(what.empty()) << "expected an error";
+  EXPECT_NE(what.find("huge.yml: K: expected 9 numbers"), std::string::npos) << what;
+  EXPECT_EQ(what.find("D:"), std::string::npos) << "D is well-formed: " << what;
 }
 
 TEST(Mei, SaveLoadRoundTripInline) {

@@ -659,6 +659,12 @@ TEST(OmniposedFaults, TimestampsGoingBackwardsAreAGapBridgedAndEveryFrameIsProce
   }
 }
 
+/// Why a test that needs a mount namespace is skipped (after unshareMountCommand failed).
+std::string noMountNamespace(const TempDir& tmp) {
+  return "mount namespaces are not allowed here (unshare -rm / -m failed: " +
+         testing::readText(tmp / "u.err") + ")";
+}
+
 /// "unshare -rm" (or "-m" as root) when this system allows mount namespaces.
 std::vector<std::string> unshareMountCommand(const TempDir& tmp) {
   for (const char* flags : {"-rm", "-m"}) {
@@ -674,10 +680,7 @@ TEST(OmniposedFaults, LogDiskFullMidRunIsReportedPipelineKeepsGoingAndLogRecover
   TempDir tmp("diskfull");
   TempDir mnt("diskfull-mnt");
   const auto unshare = unshareMountCommand(mnt);
-  if (unshare.empty()) {
-    GTEST_SKIP() << "mount namespaces are not allowed here (unshare -rm / -m failed: "
-                 << testing::readText(mnt / "u.err") << ")";
-  }
+  if (unshare.empty()) GTEST_SKIP() << noMountNamespace(mnt);
   const fs::path small = mnt.path();  // a 2 MiB tmpfs inside the namespace
   const fs::path lcm_log = small / "run.lcm";
   testing::writeText(tmp / "daemon.yaml",
@@ -922,10 +925,7 @@ TEST(OmniposedFaults, ARunInWhichEveryPublishFailedExitsNonZero) {
   TempDir tmp("nothing-published");
   TempDir mnt("nothing-published-mnt");
   const auto unshare = unshareMountCommand(mnt);
-  if (unshare.empty()) {
-    GTEST_SKIP() << "mount namespaces are not allowed here (unshare -rm / -m failed: "
-                 << testing::readText(mnt / "u.err") << ")";
-  }
+  if (unshare.empty()) GTEST_SKIP() << noMountNamespace(mnt);
   const fs::path lcm_log = mnt.path() / "run.lcm";
   testing::writeText(tmp / "daemon.yaml", testing::fileSourceConfig(mixedDataset(), logUrl(lcm_log), false));
   // A full 64 KiB tmpfs: the log is created (an inode is left), no byte of it is written.

@@ -34,6 +34,7 @@
 #include "omnipose/pose_t.hpp"
 #include "omnipose/status_t.hpp"
 #include "omnipose/synth/synth.hpp"
+#include "shared_lcm_sink.hpp"
 #include "test_files.hpp"
 
 extern char** environ;
@@ -381,19 +382,6 @@ class MemorySource final : public FrameSource {
   long delivery_ = 0;
   int opens_ = 0;
   std::chrono::steady_clock::time_point next_due_{};
-};
-
-/// Publishes into an lcm::LCM owned by the test (memq:// shares one instance).
-class SharedLcmSink final : public daemon::MessageSink {
- public:
-  explicit SharedLcmSink(lcm::LCM& lcm) : lcm_(lcm) {}
-  bool publish(const std::string& channel, const std::uint8_t* data, std::size_t size) override {
-    return lcm_.publish(channel, data, static_cast<unsigned int>(size)) == 0;
-  }
-  std::string describe() const override { return "shared lcm (test)"; }
-
- private:
-  lcm::LCM& lcm_;
 };
 
 }  // namespace omnipose::testing

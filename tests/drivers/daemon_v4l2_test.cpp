@@ -33,6 +33,7 @@
 #include "omnipose/pose_t.hpp"
 #include "omnipose/status_t.hpp"
 #include "omnipose/synth/synth.hpp"
+#include "shared_lcm_sink.hpp"
 #include "omnipose/io/trajectory.hpp"
 #include "v4l2/v4l2_source.hpp"
 
@@ -91,19 +92,6 @@ const Rendered& rendered() {
 }
 
 cv::Size omniSize() { return {Calibration{}.omni.image_width, Calibration{}.omni.image_height}; }
-
-/// Publishes into the test's memq:// LCM (one instance shared with the subscribers).
-class SharedLcmSink final : public daemon::MessageSink {
- public:
-  explicit SharedLcmSink(lcm::LCM& lcm) : lcm_(lcm) {}
-  bool publish(const std::string& channel, const std::uint8_t* data, std::size_t size) override {
-    return lcm_.publish(channel, data, static_cast<unsigned int>(size)) == 0;
-  }
-  std::string describe() const override { return "memq (test)"; }
-
- private:
-  lcm::LCM& lcm_;
-};
 
 /// Whether, by `status`, every frame the daemon received has been processed (or counted as
 /// skipped, bad or lost) and the poses of the processed ones (`poses` of them) have arrived.
@@ -236,7 +224,7 @@ TEST_P(DaemonOnFakeV4l2, RenderedOmniFramesGivePosesMatchingTheGroundTruth) {
     // Lossless pacing: the capture thread asks for the next frame only when the processor
     // took the last one; the fake's virtual clock jumps to it, so every frame is processed.
     daemon::Daemon d(config, stderr, std::make_unique<V4l2Source>(daemon::v4l2Options(config.source), fake.get()),
-                     std::make_unique<SharedLcmSink>(bus.lcm), losslessOptions());
+                     std::make_unique<testing::SharedLcmSink>(bus.lcm), losslessOptions());
     EXPECT_NE(d.sourceDescription().find("v4l2 /dev/video-omnipose-fake 720x720"), std::string::npos)
         << d.sourceDescription();
     bus.run(d, kFrames, 120s);
@@ -290,7 +278,7 @@ TEST(DaemonOnFakeV4l2Unplug, DeviceVanishingMidStreamIsReopenedByTheCaptureLoopA
     options.capture.reconnect_initial = 100ms;  // attempts after 100, +200, +400 ms
     options.capture.reconnect_max = 2000ms;
     daemon::Daemon d(config, stderr, std::make_unique<V4l2Source>(daemon::v4l2Options(config.source), fake.get()),
-                     std::make_unique<SharedLcmSink>(bus.lcm), options);
+                     std::make_unique<testing::SharedLcmSink>(bus.lcm), options);
     bus.run(d, kFrames, 120s);
     stats = d.stats();
   }
@@ -373,7 +361,7 @@ TEST(DaemonOnFakeLibcameraUnplug, CameraVanishingMidStreamIsReopenedByTheCapture
   {
     daemon::Daemon d(config, stderr,
                      std::make_unique<LibcameraSource>(o, testing::FakeCameraManager::opener(manager)),
-                     std::make_unique<SharedLcmSink>(bus.lcm), options);
+                     std::make_unique<testing::SharedLcmSink>(bus.lcm), options);
     manager->startFreeRunning(camera.id, 30ms);
     d.start();
     enum class Phase { kStreaming, kUnplugged, kReplugged, kDone } phase = Phase::kStreaming;
@@ -474,12 +462,16 @@ TEST(CameraSourceFactory, MapsTheSourceSectionToEachDriversOptions) {
   c.height = 600;
   c.fps = 12.5;
   c.format = "MJPG";
+  // The stream settings both sources share, each copied from daemon.yaml.
+  const auto expectStreamSettings = [](const auto& o) {
+    EXPECT_EQ(o.width, 800);
+    EXPECT_EQ(o.height, 600);
+    EXPECT_EQ(o.fps, 12.5);
+    EXPECT_EQ(o.format, "MJPG");
+  };
   const V4l2Options v = daemon::v4l2Options(c);
   EXPECT_EQ(v.device, "/dev/video3");
-  EXPECT_EQ(v.width, 800);
-  EXPECT_EQ(v.height, 600);
-  EXPECT_EQ(v.fps, 12.5);
-  EXPECT_EQ(v.format, "MJPG");
+  expectStreamSettings(v);
   const V4l2Options defaults;
   EXPECT_EQ(v.buffer_count, defaults.buffer_count) << "tuning is not in daemon.yaml";
   EXPECT_EQ(v.clock_resync, defaults.clock_resync);
@@ -488,10 +480,7 @@ TEST(CameraSourceFactory, MapsTheSourceSectionToEachDriversOptions) {
   c.type = SourceConfig::Type::kLibcamera;
   const LibcameraOptions l = daemon::libcameraOptions(c);
   EXPECT_EQ(l.camera, "/base/soc/i2c0mux/i2c@1/imx219@10");
-  EXPECT_EQ(l.width, 800);
-  EXPECT_EQ(l.height, 600);
-  EXPECT_EQ(l.fps, 12.5);
-  EXPECT_EQ(l.format, "MJPG");
+  expectStreamSettings(l);
   EXPECT_EQ(l.buffer_count, LibcameraOptions{}.buffer_count);
 #endif
 }
@@ -566,7 +555,7 @@ TEST(DaemonStartup, MissingV4l2DeviceIsAClearErrorNamingIt) {
       "test.yaml", tmp.path());
   lcm::LCM lcm("memq://");
   try {
-    daemon::Daemon d(config, stderr, nullptr, std::make_unique<SharedLcmSink>(lcm));
+    daemon::Daemon d(config, stderr, nullptr, std::make_unique<testing::SharedLcmSink>(lcm));
     ADD_FAILURE() << "expected a start-up error";
   } catch (const std::runtime_error& e) {
     const std::string what = e.what();
@@ -598,7 +587,7 @@ TEST(DaemonStartup, ASecondDaemonOnTheSameCameraIsRefusedWithTheHoldersPid) {
   auto first_fake = fakeAt(node);
   daemon::Daemon first(first_config, stderr,
                        std::make_unique<V4l2Source>(daemon::v4l2Options(first_config.source), first_fake.get()),
-                       std::make_unique<SharedLcmSink>(lcm));
+                       std::make_unique<testing::SharedLcmSink>(lcm));
   for (const fs::path& device : {node, tmp.path() / "by-id"}) {
     SCOPED_TRACE(device);
     const DaemonConfig config = configFor(device);
@@ -606,7 +595,7 @@ TEST(DaemonStartup, ASecondDaemonOnTheSameCameraIsRefusedWithTheHoldersPid) {
     try {
       daemon::Daemon second(config, stderr,
                             std::make_unique<V4l2Source>(daemon::v4l2Options(config.source), fake.get()),
-                            std::make_unique<SharedLcmSink>(lcm));
+                            std::make_unique<testing::SharedLcmSink>(lcm));
       ADD_FAILURE() << "a second daemon started on the camera";
     } catch (const std::runtime_error& e) {
       const std::string what = e.what();
