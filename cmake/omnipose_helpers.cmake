@@ -28,7 +28,7 @@ function(omnipose_add_test name)
   add_executable(${name} ${ARG_UNPARSED_ARGUMENTS})
   omnipose_tsan_serial_opencv(${name})
   target_link_libraries(${name} PRIVATE ${ARG_LIBS} omnipose_synth omnipose_eval omnipose_io
-                        GTest::gtest GTest::gtest_main)
+                        GTest::gmock GTest::gtest GTest::gtest_main)
   target_include_directories(${name} PRIVATE ${CMAKE_SOURCE_DIR}/tests/support)  # test_files.hpp
   target_compile_definitions(${name} PRIVATE
     OMNIPOSE_SOURCE_DIR="${CMAKE_SOURCE_DIR}"

@@ -2,36 +2,72 @@
 
 #include <Eigen/Dense>
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <limits>
 #include <random>
+#include <span>
+#include <utility>
 
 namespace omnipose::calibrate {
 namespace {
 
-/// One step of a least-squares fit by Gauss-Newton: the step -(J^T J)^-1 J^T d, halved until
-/// the cost does not grow (at most 20 times; the iteration stays monotone), applied to x with
-/// its cost f. None when J^T J is singular or the step not finite; otherwise whether the fit
-/// goes on (the cost fell by more than rounding and the step was not negligible).
-template <typename Vec, typename Mat, typename Cost>
-std::optional<bool> descend(Vec& x, double& f, const Mat& jtj, const Vec& jtd, const Cost& cost) {
-  const Eigen::LDLT<Mat> ldlt(jtj);
-  if (ldlt.info() != Eigen::Success) return std::nullopt;
-  const Vec step = -ldlt.solve(jtd);
-  if (!step.allFinite()) return std::nullopt;
-  double scale = 1.0;
-  bool improved = false;
-  for (int h = 0; h < 20; ++h, scale *= 0.5) {
-    const Vec trial = x + scale * step;
-    const double ft = cost(trial);
-    if (ft <= f) {
-      x = trial;
-      improved = f - ft > 1e-15 * (1.0 + f);
-      f = ft;
-      break;
+/// Rings sharing one centre fitted to their points by Gauss-Newton on the orthogonal
+/// distances d = |p - c| - r_k: x = (c_x, c_y, r_1, ..., r_K), starting at `x`, at most
+/// `max_iterations` steps, each halved until the cost (the sum of d^2) does not grow (at most 20
+/// times: the iteration stays monotone). Stops when the cost falls by no more than rounding or
+/// the step is negligible. Returns x and its cost; none when the normal equations are singular
+/// or a step is not finite.
+template <int N>
+std::optional<std::pair<Eigen::Matrix<double, N, 1>, double>> fitRings(
+    const std::array<std::span<const Eigen::Vector2d>, N - 2>& rings, Eigen::Matrix<double, N, 1> x,
+    int max_iterations) {
+  using Vec = Eigen::Matrix<double, N, 1>;
+  using Mat = Eigen::Matrix<double, N, N>;
+  const auto cost = [&](const Vec& v) {
+    double s = 0.0;
+    for (int k = 0; k < N - 2; ++k) {
+      for (const auto& p : rings[k]) s += std::pow((p - v.template head<2>()).norm() - v(2 + k), 2);
     }
+    return s;
+  };
+  double f = cost(x);
+  for (int it = 0; it < max_iterations; ++it) {
+    // J_i = [-(p_i - c)^T / |p_i - c|, -1 at the ring's radius].
+    Mat jtj = Mat::Zero();
+    Vec jtd = Vec::Zero();
+    for (int k = 0; k < N - 2; ++k) {
+      for (const auto& p : rings[k]) {
+        const Eigen::Vector2d d = p - x.template head<2>();
+        const double rho = d.norm();
+        if (rho < 1e-12) continue;
+        Vec j = Vec::Zero();
+        j(0) = -d.x() / rho;
+        j(1) = -d.y() / rho;
+        j(2 + k) = -1.0;
+        jtj += j * j.transpose();
+        jtd += j * (rho - x(2 + k));
+      }
+    }
+    const Eigen::LDLT<Mat> ldlt(jtj);
+    if (ldlt.info() != Eigen::Success) return std::nullopt;
+    const Vec step = -ldlt.solve(jtd);
+    if (!step.allFinite()) return std::nullopt;
+    double scale = 1.0;
+    bool improved = false;
+    for (int h = 0; h < 20; ++h, scale *= 0.5) {
+      const Vec trial = x + scale * step;
+      const double ft = cost(trial);
+      if (ft <= f) {
+        x = trial;
+        improved = f - ft > 1e-15 * (1.0 + f);
+        f = ft;
+        break;
+      }
+    }
+    if (!improved || scale * step.norm() < 1e-10) break;
   }
-  return improved && scale * step.norm() >= 1e-10;
+  return std::pair{x, f};
 }
 
 double median(std::vector<double> v) {
@@ -110,29 +146,11 @@ std::optional<Circle> fitCircleAlgebraic(std::span<const Eigen::Vector2d> points
 std::optional<Circle> fitCircleGeometric(std::span<const Eigen::Vector2d> points,
                                          const Circle& initial, int max_iterations) {
   if (points.size() < 3) return std::nullopt;
-  auto cost = [&](const Eigen::Vector3d& x) {
-    double s = 0.0;
-    for (const auto& p : points) s += std::pow((p - x.head<2>()).norm() - x(2), 2);
-    return s;
-  };
-  Eigen::Vector3d x(initial.center.x(), initial.center.y(), initial.radius);
-  double f = cost(x);
-  for (int it = 0; it < max_iterations; ++it) {
-    // Gauss-Newton on d_i = |p_i - c| - r: J_i = [-(p_i - c)^T / |p_i - c|, -1].
-    Eigen::Matrix3d jtj = Eigen::Matrix3d::Zero();
-    Eigen::Vector3d jtd = Eigen::Vector3d::Zero();
-    for (const auto& p : points) {
-      const Eigen::Vector2d d = p - x.head<2>();
-      const double rho = d.norm();
-      if (rho < 1e-12) continue;
-      const Eigen::Vector3d j(-d.x() / rho, -d.y() / rho, -1.0);
-      jtj += j * j.transpose();
-      jtd += j * (rho - x(2));
-    }
-    const std::optional<bool> go_on = descend(x, f, jtj, jtd, cost);
-    if (!go_on) return std::nullopt;
-    if (!*go_on) break;
-  }
+  const auto fit = fitRings<3>({points},
+                               Eigen::Vector3d(initial.center.x(), initial.center.y(), initial.radius),
+                               max_iterations);
+  if (!fit) return std::nullopt;
+  const Eigen::Vector3d& x = fit->first;
   Circle c;
   c.center = x.head<2>();
   c.radius = x(2);
@@ -229,38 +247,12 @@ std::optional<ConcentricFit> fitConcentric(std::span<const Eigen::Vector2d> poin
                                            std::span<const Eigen::Vector2d> points2,
                                            const ConcentricFit& initial, int max_iterations) {
   if (points1.size() < 3 || points2.size() < 3) return std::nullopt;
-  using Vec4 = Eigen::Vector4d;
-  auto cost = [&](const Vec4& x) {
-    double s = 0.0;
-    for (const auto& p : points1) s += std::pow((p - x.head<2>()).norm() - x(2), 2);
-    for (const auto& p : points2) s += std::pow((p - x.head<2>()).norm() - x(3), 2);
-    return s;
-  };
-  Vec4 x(initial.center.x(), initial.center.y(), initial.radius1, initial.radius2);
-  double f = cost(x);
-  for (int it = 0; it < max_iterations; ++it) {
-    // Gauss-Newton on the orthogonal distances of both rings to one centre.
-    Eigen::Matrix4d jtj = Eigen::Matrix4d::Zero();
-    Vec4 jtd = Vec4::Zero();
-    auto accumulate = [&](std::span<const Eigen::Vector2d> pts, int radius_index) {
-      for (const auto& p : pts) {
-        const Eigen::Vector2d d = p - x.head<2>();
-        const double rho = d.norm();
-        if (rho < 1e-12) continue;
-        Vec4 j = Vec4::Zero();
-        j(0) = -d.x() / rho;
-        j(1) = -d.y() / rho;
-        j(radius_index) = -1.0;
-        jtj += j * j.transpose();
-        jtd += j * (rho - x(radius_index));
-      }
-    };
-    accumulate(points1, 2);
-    accumulate(points2, 3);
-    const std::optional<bool> go_on = descend(x, f, jtj, jtd, cost);
-    if (!go_on) return std::nullopt;
-    if (!*go_on) break;
-  }
+  const auto fit = fitRings<4>({points1, points2},
+                               Eigen::Vector4d(initial.center.x(), initial.center.y(),
+                                               initial.radius1, initial.radius2),
+                               max_iterations);
+  if (!fit) return std::nullopt;
+  const auto& [x, f] = *fit;
   ConcentricFit out;
   out.center = x.head<2>();
   out.radius1 = x(2);

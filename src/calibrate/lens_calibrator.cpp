@@ -8,6 +8,7 @@
 #include <sstream>
 #include <stdexcept>
 
+#include "common/format.hpp"
 #include "omnipose/pipeline.hpp"
 #include "omnipose/unwrapper.hpp"
 
@@ -16,11 +17,7 @@ namespace {
 
 constexpr double kPi = std::numbers::pi;
 
-std::string format(const char* fmt, auto... args) {
-  char buf[1024];
-  std::snprintf(buf, sizeof buf, fmt, args...);
-  return buf;
-}
+using omnipose::detail::format;
 
 std::string stackedNote(int stacked, double first, const char* way, double min_ratio) {
   if (stacked == 0) return "";

@@ -8,15 +8,13 @@
 #include <opencv2/imgproc.hpp>
 #include <stdexcept>
 
+#include "common/format.hpp"
+
 namespace omnipose::calibrate {
 namespace {
 
 
-std::string format(const char* fmt, double a, double b = 0) {
-  char buf[200];
-  std::snprintf(buf, sizeof buf, fmt, a, b);
-  return buf;
-}
+using omnipose::detail::format;
 
 }  // namespace
 

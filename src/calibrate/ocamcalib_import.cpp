@@ -7,16 +7,14 @@
 #include <numbers>
 #include <stdexcept>
 
+#include "common/format.hpp"
+
 namespace omnipose::calibrate {
 namespace {
 
 constexpr double kDeg = std::numbers::pi / 180.0;
 
-std::string format(const char* fmt, double a, double b = 0, double c = 0, double d = 0) {
-  char buf[256];
-  std::snprintf(buf, sizeof buf, fmt, a, b, c, d);
-  return buf;
-}
+using omnipose::detail::format;
 
 }  // namespace
 
@@ -35,7 +33,7 @@ std::string placePanoramaInRing(Calibration& c, int width, int height,
   const double span_rows = (h_hi - h_lo) / gamma;         // rows that fit
   if (!(span_rows >= p.height)) {
     throw std::runtime_error(
-        origin + format(": a %.0f x %.0f panorama does not fit into the ring's elevations "
+        origin + format(": a %d x %d panorama does not fit into the ring's elevations "
                         "%.1f..%.1f deg",
                         p.width, p.height, lo / kDeg, hi / kDeg) +
         format(" (%.0f rows at this width): lower --height or --width", std::floor(span_rows)));
@@ -104,10 +102,10 @@ ModelImport importOcamCalib(const std::filesystem::path& file,
   lens.image_height = m.height;
   lens.center_x = m.yc;
   lens.center_y = m.xc;
-  out.notes.push_back(format("centre (%.2f, %.2f) px and frame %.0f x %.0f from the file", m.yc,
+  out.notes.push_back(format("centre (%.2f, %.2f) px and frame %d x %d from the file", m.yc,
                              m.xc, m.width, m.height) +
                       (m.crop_left || m.crop_right
-                           ? format(" (calibrated on a crop: %.0f px left, %.0f px right)",
+                           ? format(" (calibrated on a crop: %d px left, %d px right)",
                                     m.crop_left, m.crop_right)
                            : std::string()));
 

@@ -7,6 +7,7 @@
 #include <opencv2/imgproc.hpp>
 #include <stdexcept>
 
+#include "common/format.hpp"
 #include "common/named_values.hpp"
 #include "omnipose/calibrate/ring_detector.hpp"
 #include "omnipose/unwrapper.hpp"
@@ -17,11 +18,7 @@ namespace {
 constexpr double kPi = std::numbers::pi;
 constexpr double kBandFraction = 0.25;  ///< inner / outer band of the ring for the up cue
 
-std::string format(const char* fmt, auto... args) {
-  char buf[512];
-  std::snprintf(buf, sizeof buf, fmt, args...);
-  return buf;
-}
+using omnipose::detail::format;
 
 }  // namespace
 

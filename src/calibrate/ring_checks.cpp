@@ -7,14 +7,12 @@
 #include <tuple>
 #include <opencv2/imgproc.hpp>
 
+#include "common/format.hpp"
+
 namespace omnipose::calibrate {
 namespace {
 
-std::string format(const char* fmt, double a = 0, double b = 0, double c = 0, double d = 0) {
-  char buf[400];
-  std::snprintf(buf, sizeof buf, fmt, a, b, c, d);
-  return buf;
-}
+using omnipose::detail::format;
 
 
 /// Mean over rays (inside the image) and consecutive frame pairs of the squared change, per
@@ -138,12 +136,12 @@ RingCheck checkRing(std::span<const cv::Mat> frames, const RingEstimate& ring,
   };
   const double gap_in = 3.0 + 2.0 * ring.edge_width_inner, gap_out = 3.0 + 2.0 * ring.edge_width_outer;
   if (const int r = moving(r_out + gap_out, r_out + gap_out + o.band_px); r >= 0)
-    out.refusals.push_back(format("the scene moves at radius %.0f px, beyond the outer edge found at "
+    out.refusals.push_back(format("the scene moves at radius %d px, beyond the outer edge found at "
                                   "%.1f px: that edge is inside the ring (a scene edge that is a "
                                   "circle, e.g. a horizon); ",
                                   r, r_out) + hint_outer);
   if (const int r = moving(r_in - gap_in - o.band_px, r_in - gap_in); r >= 0)
-    out.refusals.push_back(format("the scene moves at radius %.0f px, inside the inner edge found at "
+    out.refusals.push_back(format("the scene moves at radius %d px, inside the inner edge found at "
                                   "%.1f px: that edge is inside the ring (e.g. where a dark floor "
                                   "begins); ",
                                   r, r_in) + hint_inner);

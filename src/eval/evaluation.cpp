@@ -9,6 +9,8 @@
 #include <string>
 #include <vector>
 
+#include "common/format.hpp"
+
 namespace omnipose {
 namespace {
 
@@ -120,39 +122,35 @@ DriftResult evaluateDrift(const std::vector<StampedPose>& groundtruth,
 std::string formatDriftTable(const DriftResult& d, const EvaluationResult& pairs,
                              const std::string& title) {
   constexpr double kDeg = 180.0 / std::numbers::pi;
-  std::vector<char> buf(title.size() + 512);
-  std::snprintf(buf.data(), buf.size(),
-                "%s: %d of %d poses matched, aligned at t = %.6f s\n"
-                "  end-point rotation error  %10.4f deg at t = %.6f s%s"
-                " (rotvec %+.4f %+.4f %+.4f deg)\n"
-                "  ATE rotation RMSE         %10.4f deg\n"
-                "  max rotation error        %10.4f deg at t = %.6f s\n"
-                "  per-pair eps RMSE         %10.4f mrad (%d pairs, %d missing)\n",
-                title.c_str(), d.poses_matched, d.poses_expected, d.start_timestamp,
-                d.end_error * kDeg, d.end_timestamp, d.end_is_last ? "" : " (not the last frame)",
-                d.end_error_rotvec.x() * kDeg, d.end_error_rotvec.y() * kDeg,
-                d.end_error_rotvec.z() * kDeg, d.ate_rmse * kDeg, d.max_error * kDeg,
-                d.max_timestamp, pairs.angle.rmse * 1e3, static_cast<int>(pairs.pairs.size()),
-                pairs.pairs_missing);
-  return buf.data();
+  return detail::format(
+      "%s: %d of %d poses matched, aligned at t = %.6f s\n"
+      "  end-point rotation error  %10.4f deg at t = %.6f s%s"
+      " (rotvec %+.4f %+.4f %+.4f deg)\n"
+      "  ATE rotation RMSE         %10.4f deg\n"
+      "  max rotation error        %10.4f deg at t = %.6f s\n"
+      "  per-pair eps RMSE         %10.4f mrad (%d pairs, %d missing)\n",
+      title.c_str(), d.poses_matched, d.poses_expected, d.start_timestamp,
+      d.end_error * kDeg, d.end_timestamp, d.end_is_last ? "" : " (not the last frame)",
+      d.end_error_rotvec.x() * kDeg, d.end_error_rotvec.y() * kDeg,
+      d.end_error_rotvec.z() * kDeg, d.ate_rmse * kDeg, d.max_error * kDeg,
+      d.max_timestamp, pairs.angle.rmse * 1e3, static_cast<int>(pairs.pairs.size()),
+      pairs.pairs_missing);
 }
 
 std::string formatDriftJson(const DriftResult& d, const EvaluationResult& pairs,
                             const std::string& name) {
-  std::vector<char> buf(name.size() + 1024);
-  std::snprintf(buf.data(), buf.size(),
-                "{\"name\": \"%s\", \"poses_expected\": %d, \"poses_matched\": %d, "
-                "\"start_timestamp\": %.6f, \"end_timestamp\": %.6f, \"end_is_last\": %s, "
-                "\"end_error\": %.9g, \"end_error_rotvec\": [%.9g, %.9g, %.9g], "
-                "\"ate_rmse\": %.9g, \"max_error\": %.9g, \"max_timestamp\": %.6f, "
-                "\"eps\": {\"rmse\": %.9g, \"max\": %.9g, \"count\": %d}, "
-                "\"pairs_missing\": %d}",
-                name.c_str(), d.poses_expected, d.poses_matched, d.start_timestamp,
-                d.end_timestamp, d.end_is_last ? "true" : "false", d.end_error,
-                d.end_error_rotvec.x(), d.end_error_rotvec.y(), d.end_error_rotvec.z(),
-                d.ate_rmse, d.max_error, d.max_timestamp, pairs.angle.rmse, pairs.angle.max,
-                pairs.angle.count, pairs.pairs_missing);
-  return buf.data();
+  return detail::format(
+      "{\"name\": \"%s\", \"poses_expected\": %d, \"poses_matched\": %d, "
+      "\"start_timestamp\": %.6f, \"end_timestamp\": %.6f, \"end_is_last\": %s, "
+      "\"end_error\": %.9g, \"end_error_rotvec\": [%.9g, %.9g, %.9g], "
+      "\"ate_rmse\": %.9g, \"max_error\": %.9g, \"max_timestamp\": %.6f, "
+      "\"eps\": {\"rmse\": %.9g, \"max\": %.9g, \"count\": %d}, "
+      "\"pairs_missing\": %d}",
+      name.c_str(), d.poses_expected, d.poses_matched, d.start_timestamp,
+      d.end_timestamp, d.end_is_last ? "true" : "false", d.end_error,
+      d.end_error_rotvec.x(), d.end_error_rotvec.y(), d.end_error_rotvec.z(),
+      d.ate_rmse, d.max_error, d.max_timestamp, pairs.angle.rmse, pairs.angle.max,
+      pairs.angle.count, pairs.pairs_missing);
 }
 
 std::string formatDriftCsv(const DriftResult& d) {

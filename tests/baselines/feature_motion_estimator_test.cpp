@@ -4,6 +4,7 @@
 // convention against DESIGN.md section 2; the five-point solvers recover the direction of a
 // rendered forward step; invalid options are rejected naming the field.
 
+#include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -14,6 +15,8 @@
 #include "omnipose/baselines/feature_motion_estimator.hpp"
 #include "omnipose/io/trajectory.hpp"
 #include "omnipose/synth/synth.hpp"
+
+using ::testing::HasSubstr;
 
 namespace omnipose::baselines {
 namespace {
@@ -239,8 +242,8 @@ TEST(FeatureMotionEstimator, ConstructorListsEveryBadField) {
     FAIL() << "invalid options accepted";
   } catch (const std::invalid_argument& e) {
     const std::string what = e.what();
-    EXPECT_NE(what.find("ratio"), std::string::npos) << what;
-    EXPECT_NE(what.find("threshold_px"), std::string::npos) << what;
+    EXPECT_THAT(what, HasSubstr("ratio"));
+    EXPECT_THAT(what, HasSubstr("threshold_px"));
   }
 }
 

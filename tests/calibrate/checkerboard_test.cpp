@@ -2,6 +2,7 @@
 // cv::omnidir from checkerboard views rendered exactly through a known Mei model.
 #include "omnipose/calibrate/checkerboard.hpp"
 
+#include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
 #include <Eigen/Geometry>
@@ -10,6 +11,8 @@
 #include <string>
 
 #include "test_figures.hpp"
+
+using ::testing::HasSubstr;
 
 namespace omnipose::calibrate {
 namespace {
@@ -130,7 +133,7 @@ TEST(Checkerboard, ImportWritesAValidMeiCalibration) {
   EXPECT_TRUE(r.calibration.validate().empty());
   EXPECT_EQ(r.calibration.omni.image_width, 800);
   const std::string yaml = r.calibration.toYaml();
-  EXPECT_NE(yaml.find("model: mei"), std::string::npos) << yaml;
+  EXPECT_THAT(yaml, HasSubstr("model: mei"));
   EXPECT_NO_THROW(Calibration::parse(yaml, "checkerboard.yaml"));
 }
 
@@ -141,7 +144,7 @@ TEST(Checkerboard, TooFewBoardsIsRefusedWithAHint) {
     calibrateCheckerboard(blank, o);
     FAIL();
   } catch (const std::runtime_error& e) {
-    EXPECT_NE(std::string(e.what()).find("found in 0 image(s), need 3"), std::string::npos) << e.what();
+    EXPECT_THAT(e.what(), HasSubstr("found in 0 image(s), need 3"));
   }
   EXPECT_THROW(parsePatternSize("9by6", o), std::invalid_argument);
   parsePatternSize("7x5", o);

@@ -2,6 +2,7 @@
 // turn-left sequence with a known calibration, the panorama proposal, hand overrides and
 // errors.
 
+#include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
 #include <chrono>
@@ -16,6 +17,9 @@
 #include "omnipose/calibrate/lens_calibrator.hpp"
 #include "synthetic.hpp"
 #include "test_files.hpp"
+
+using ::testing::HasSubstr;
+using ::testing::Not;
 
 namespace omnipose::calibrate {
 namespace {
@@ -140,7 +144,7 @@ TEST_P(CalibrateLens, RecoversTheRenderersCalibration) {
     EXPECT_NE(find(res, key), nullptr) << key;
   const Calibration back = Calibration::parse(res.yaml(), "yaml()");
   EXPECT_EQ(back.toYaml(), res.calibration.toYaml());
-  EXPECT_NE(res.yaml().find("# "), std::string::npos);
+  EXPECT_THAT(res.yaml(), HasSubstr("# "));
 }
 
 INSTANTIATE_TEST_SUITE_P(
@@ -205,7 +209,7 @@ TEST(CalibrateLensOptions, Errors) {
     calibrateLens(blank, o);
     ADD_FAILURE() << "no exception";
   } catch (const std::runtime_error& e) {
-    EXPECT_NE(std::string(e.what()).find("--center"), std::string::npos) << e.what();
+    EXPECT_THAT(e.what(), HasSubstr("--center"));
   }
   LensCalibratorOptions bad;
   bad.forward_angle_deg = 0;
@@ -249,9 +253,9 @@ TEST(CalibrateCli, WritesCalibrationPreviewAndReport) {
   const cv::Mat preview = cv::imread((dir / "cal_preview.png").string());
   EXPECT_GT(preview.rows, seq.frames[0].rows);  // donut + panoramas + text
   const std::string report = omnipose::testing::readText(log);
-  EXPECT_NE(report.find("omni.azimuth_direction"), std::string::npos);
-  EXPECT_NE(report.find("measured: turn-left sequence"), std::string::npos) << report;
-  EXPECT_NE(report.find("yaw"), std::string::npos);
+  EXPECT_THAT(report, HasSubstr("omni.azimuth_direction"));
+  EXPECT_THAT(report, HasSubstr("measured: turn-left sequence"));
+  EXPECT_THAT(report, HasSubstr("yaw"));
 
   // Usage errors exit with 2, failures with 1.
   EXPECT_EQ(run("--out " + yaml.string(), log), 2);
@@ -293,9 +297,10 @@ TEST(CalibrateCli, UsesAtMostMaxFramesEvenlySpreadAndReadsOnlyThose) {
     SCOPED_TRACE("--max-frames 3 of 21");
     ASSERT_EQ(run(base + " --max-frames 3", log), 0) << omnipose::testing::readText(log);
     const std::string text = omnipose::testing::readText(log);
-    EXPECT_NE(text.find("using 3 of 21 frames, every 10.0th"), std::string::npos) << text;
-    EXPECT_EQ(text.find("cannot decode"), std::string::npos) << "a frame not selected was read:\n" << text;
-    EXPECT_NE(text.find("3 frame(s)"), std::string::npos) << text;
+    EXPECT_THAT(text, HasSubstr("using 3 of 21 frames, every 10.0th"));
+    EXPECT_THAT(text, Not(HasSubstr("cannot decode")))
+        << "a frame not selected was read:\n" << text;
+    EXPECT_THAT(text, HasSubstr("3 frame(s)"));
     const Calibration cal = Calibration::load(yaml);
     EXPECT_NEAR(cal.omni.center_x, seq.truth.omni.center_x, 1.0);
     EXPECT_EQ(cal.omni.azimuth_direction, AzimuthDirection::kCcw);
@@ -306,12 +311,12 @@ TEST(CalibrateCli, UsesAtMostMaxFramesEvenlySpreadAndReadsOnlyThose) {
     std::filesystem::remove(yaml);
     ASSERT_EQ(run(base + " --max-frames 5", log), 0) << omnipose::testing::readText(log);
     const std::string text = omnipose::testing::readText(log);
-    EXPECT_NE(text.find("using 5 of 21 frames"), std::string::npos) << text;
+    EXPECT_THAT(text, HasSubstr("using 5 of 21 frames"));
     for (std::size_t k = 0; k <= 20; ++k) {
       const bool named = text.find(frameName(k) + ": cannot decode") != std::string::npos;
       EXPECT_EQ(named, k == 5 || k == 15) << frameName(k) << "\n" << text;
     }
-    EXPECT_NE(text.find("2 of 5 selected frames could not be read"), std::string::npos) << text;
+    EXPECT_THAT(text, HasSubstr("2 of 5 selected frames could not be read"));
     EXPECT_TRUE(std::filesystem::exists(yaml));
   }
   {
@@ -319,8 +324,8 @@ TEST(CalibrateCli, UsesAtMostMaxFramesEvenlySpreadAndReadsOnlyThose) {
     SCOPED_TRACE("default of 21");
     ASSERT_EQ(run(base, log), 0) << omnipose::testing::readText(log);
     const std::string text = omnipose::testing::readText(log);
-    EXPECT_NE(text.find("using all 21 frames"), std::string::npos) << text;
-    EXPECT_NE(text.find(frameName(1) + ": cannot decode"), std::string::npos) << text;
+    EXPECT_THAT(text, HasSubstr("using all 21 frames"));
+    EXPECT_THAT(text, HasSubstr(frameName(1) + ": cannot decode"));
   }
   {
     // None readable: a clear error (exit 1), nothing written.
@@ -331,7 +336,7 @@ TEST(CalibrateCli, UsesAtMostMaxFramesEvenlySpreadAndReadsOnlyThose) {
     const auto none = dir / "none.yaml";
     EXPECT_EQ(run((dir / "bad").string() + " --out " + none.string(), log), 1);
     const std::string text = omnipose::testing::readText(log);
-    EXPECT_NE(text.find("none of the 2 frames selected could be read"), std::string::npos) << text;
+    EXPECT_THAT(text, HasSubstr("none of the 2 frames selected could be read"));
     EXPECT_FALSE(std::filesystem::exists(none));
   }
   std::filesystem::remove_all(dir);
@@ -346,8 +351,8 @@ TEST(CalibrateCli, MaxFramesMustBeAWholeNumberInRange) {
     SCOPED_TRACE("--max-frames " + bad);
     EXPECT_EQ(run("frames --out " + (dir / "c.yaml").string() + " --max-frames '" + bad + "'", log), 2);
     const std::string text = omnipose::testing::readText(log);
-    EXPECT_NE(text.find("--max-frames"), std::string::npos) << text;
-    EXPECT_NE(text.find("whole number from 1 to 500"), std::string::npos) << text;
+    EXPECT_THAT(text, HasSubstr("--max-frames"));
+    EXPECT_THAT(text, HasSubstr("whole number from 1 to 500"));
   }
   std::filesystem::remove_all(dir);
 }
@@ -391,9 +396,9 @@ TEST(CalibrateCli, OutputPathsAreCheckedBeforeAnyFrameIsRead) {
         std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     EXPECT_LT(seconds, 1.0) << "the check must come before the 200 frames are read";
     const std::string text = omnipose::testing::readText(log);
-    EXPECT_NE(text.find(c.option), std::string::npos) << text;
-    EXPECT_NE(text.find(c.path), std::string::npos) << text;
-    EXPECT_EQ(text.find("using "), std::string::npos) << "no frame selection before the check:\n" << text;
+    EXPECT_THAT(text, HasSubstr(c.option));
+    EXPECT_THAT(text, HasSubstr(c.path));
+    EXPECT_THAT(text, Not(HasSubstr("using "))) << "no frame selection before the check:\n" << text;
   }
   EXPECT_FALSE(std::filesystem::exists(dir / "cal.yaml")) << "nothing written on a failed check";
   EXPECT_FALSE(std::filesystem::exists(dir / "missing"));

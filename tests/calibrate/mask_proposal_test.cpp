@@ -2,6 +2,7 @@
 // proposed mask covers the mast and little else; frames without motion are refused.
 #include "omnipose/calibrate/mask_proposal.hpp"
 
+#include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -10,6 +11,8 @@
 #include "omnipose/io/trajectory.hpp"
 #include "omnipose/synth/synth.hpp"
 #include "test_figures.hpp"
+
+using ::testing::HasSubstr;
 
 namespace omnipose::calibrate {
 namespace {
@@ -73,8 +76,8 @@ TEST(MaskProposal, RefusesFramesWithoutMotion) {
     proposeMask(frames);
     FAIL() << "expected a refusal";
   } catch (const std::runtime_error& e) {
-    EXPECT_NE(std::string(e.what()).find("hardly moved"), std::string::npos) << e.what();
-    EXPECT_NE(std::string(e.what()).find("record a short turn"), std::string::npos) << e.what();
+    EXPECT_THAT(e.what(), HasSubstr("hardly moved"));
+    EXPECT_THAT(e.what(), HasSubstr("record a short turn"));
   }
 }
 

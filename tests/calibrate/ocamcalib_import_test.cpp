@@ -2,6 +2,7 @@
 // the pipeline accepts, or a refusal that says what to change.
 #include "omnipose/calibrate/ocamcalib_import.hpp"
 
+#include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -12,6 +13,8 @@
 #include "omnipose/io/trajectory.hpp"
 #include "omnipose/synth/synth.hpp"
 #include "test_files.hpp"
+
+using ::testing::HasSubstr;
 
 namespace omnipose::calibrate {
 namespace {
@@ -62,10 +65,8 @@ TEST(OcamCalibImport, PanoramaTooTallForTheRingIsRefusedWithAHint) {
   ModelImportOptions o;
   o.height = 400;
   const std::string what = errorOf(kOffice, o);
-  EXPECT_NE(what.find("mirror_office_ocamcalib.txt: a 1100 x 400 panorama does not fit"),
-            std::string::npos)
-      << what;
-  EXPECT_NE(what.find("lower --height or --width"), std::string::npos) << what;
+  EXPECT_THAT(what, HasSubstr("mirror_office_ocamcalib.txt: a 1100 x 400 panorama does not fit"));
+  EXPECT_THAT(what, HasSubstr("lower --height or --width"));
 }
 
 TEST(OcamCalibImport, NoRoiLineNeedsTheRing) {
@@ -75,9 +76,7 @@ TEST(OcamCalibImport, NoRoiLineNeedsTheRing) {
   s = s.substr(0, s.find("#ROI"));
   std::ofstream(dir / "noroi.txt") << s;
   const std::string what = errorOf(dir / "noroi.txt", {});
-  EXPECT_NE(what.find("noroi.txt: has no ROI line: give the used ring with --radius-inner"),
-            std::string::npos)
-      << what;
+  EXPECT_THAT(what, HasSubstr("noroi.txt: has no ROI line: give the used ring with --radius-inner"));
   ModelImportOptions o;
   o.radius_inner = 250;
   o.radius_outer = 560;
@@ -99,9 +98,7 @@ TEST(OcamCalibImportCli, RefusesWhatReplayWouldRefuse) {
   EXPECT_EQ(WEXITSTATUS(status), 1);
   EXPECT_FALSE(fs::exists(dir / "cal.yaml"));
   const std::string err = omnipose::testing::readText(dir / "err.txt");
-  EXPECT_NE(err.find("registration.window: 110 is larger than the panorama (1100 x 80)"),
-            std::string::npos)
-      << err;
+  EXPECT_THAT(err, HasSubstr("registration.window: 110 is larger than the panorama (1100 x 80)"));
   status = std::system(base.c_str());
   EXPECT_EQ(WEXITSTATUS(status), 0);
   EXPECT_TRUE(fs::exists(dir / "cal.yaml"));

@@ -2,6 +2,7 @@
 // against renders whose rows the exact renderer drew at their own capture times.
 #include "omnipose/calibrate/readout_estimation.hpp"
 
+#include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
 #include <fcntl.h>
@@ -19,6 +20,8 @@
 
 #include "omnipose/synth/synth.hpp"
 #include "test_files.hpp"
+
+using ::testing::HasSubstr;
 
 namespace omnipose::calibrate {
 namespace {
@@ -80,7 +83,7 @@ TEST(ReadoutEstimation, ACameraThatDoesNotTurnSaysItCannot) {
   render(0.0267, false, 12, images, times);
   const ReadoutEstimate e = estimateReadout(Calibration{}, images, times, quickSearch());
   EXPECT_FALSE(e.found) << e.summary;
-  EXPECT_NE(e.summary.find("cannot: the camera hardly turns"), std::string::npos)
+  EXPECT_THAT(e.summary, HasSubstr("cannot: the camera hardly turns"))
       << "not blamed on translation: " << e.summary;
   EXPECT_EQ(e.curve.size(), 1u) << "said after the first readout tried";
 }
@@ -90,7 +93,7 @@ TEST(ReadoutEstimation, TooFewFramesAndBadOptionsAreNamed) {
   std::vector<double> times = {0, 0.033, 0.067, 0.1, 0.133};
   const ReadoutEstimate e = estimateReadout(Calibration{}, images, times);
   EXPECT_FALSE(e.found);
-  EXPECT_NE(e.summary.find("5 frames"), std::string::npos) << e.summary;
+  EXPECT_THAT(e.summary, HasSubstr("5 frames"));
   times.pop_back();
   EXPECT_THROW(estimateReadout(Calibration{}, images, times), std::invalid_argument);
   ReadoutSearchOptions bad;
@@ -101,8 +104,8 @@ TEST(ReadoutEstimation, TooFewFramesAndBadOptionsAreNamed) {
     FAIL();
   } catch (const std::invalid_argument& error) {
     const std::string what = error.what();
-    EXPECT_NE(what.find("max_s"), std::string::npos) << what;
-    EXPECT_NE(what.find("fine_step_s"), std::string::npos) << what;
+    EXPECT_THAT(what, HasSubstr("max_s"));
+    EXPECT_THAT(what, HasSubstr("fine_step_s"));
   }
 }
 
@@ -167,8 +170,8 @@ TEST(ReadoutCli, DecodesAtMostMaxFramesSoItsMemoryDoesNotGrowWithTheRecording) {
   const std::string log_b = omnipose::testing::readText(root / "b.log");
   EXPECT_EQ(a.exit_code, 1) << omnipose::testing::readText(root / "a.log");
   EXPECT_EQ(b.exit_code, 1) << log_b;
-  EXPECT_NE(log_b.find("using frames 720 to 779 of 1500"), std::string::npos) << log_b;
-  EXPECT_NE(log_b.find("cannot: the camera hardly turns"), std::string::npos) << log_b;
+  EXPECT_THAT(log_b, HasSubstr("using frames 720 to 779 of 1500"));
+  EXPECT_THAT(log_b, HasSubstr("cannot: the camera hardly turns"));
   ::testing::Test::RecordProperty("max_rss_kb_60_of_60", std::to_string(a.max_rss_kb));
   ::testing::Test::RecordProperty("max_rss_kb_60_of_1500", std::to_string(b.max_rss_kb));
   ASSERT_GT(a.max_rss_kb, 0);

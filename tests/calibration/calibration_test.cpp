@@ -1,5 +1,6 @@
 #include "omnipose/calibration.hpp"
 
+#include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -8,6 +9,9 @@
 #include <numbers>
 #include <string>
 #include <utility>
+
+using ::testing::HasSubstr;
+using ::testing::Not;
 
 namespace omnipose {
 namespace {
@@ -58,12 +62,12 @@ extra: 1
     FAIL() << "expected CalibrationError";
   } catch (const CalibrationError& e) {
     const std::string what = e.what();
-    EXPECT_NE(what.find("cal.yaml: omni.image_height"), std::string::npos) << what;
-    EXPECT_NE(what.find("omni.center"), std::string::npos) << what;
-    EXPECT_NE(what.find("omni.radius_outer: missing"), std::string::npos) << what;
-    EXPECT_NE(what.find("omni.azimuth_direction"), std::string::npos) << what;
-    EXPECT_NE(what.find("omni.colour: unknown key"), std::string::npos) << what;
-    EXPECT_NE(what.find("extra: unknown section"), std::string::npos) << what;
+    EXPECT_THAT(what, HasSubstr("cal.yaml: omni.image_height"));
+    EXPECT_THAT(what, HasSubstr("omni.center"));
+    EXPECT_THAT(what, HasSubstr("omni.radius_outer: missing"));
+    EXPECT_THAT(what, HasSubstr("omni.azimuth_direction"));
+    EXPECT_THAT(what, HasSubstr("omni.colour: unknown key"));
+    EXPECT_THAT(what, HasSubstr("extra: unknown section"));
     EXPECT_EQ(e.problems().size(), 6u) << what;
   }
 }
@@ -77,9 +81,9 @@ TEST(Calibration, RangeChecksNameTheField) {
   ASSERT_GE(problems.size(), 3u);
   std::string all;
   for (const auto& p : problems) all += p + "\n";
-  EXPECT_NE(all.find("omni.radius_outer"), std::string::npos) << all;
-  EXPECT_NE(all.find("omni.center"), std::string::npos) << all;
-  EXPECT_NE(all.find("panorama.height"), std::string::npos) << all;
+  EXPECT_THAT(all, HasSubstr("omni.radius_outer"));
+  EXPECT_THAT(all, HasSubstr("omni.center"));
+  EXPECT_THAT(all, HasSubstr("panorama.height"));
 }
 
 TEST(Calibration, MissingFileIsNamed) {
@@ -87,7 +91,7 @@ TEST(Calibration, MissingFileIsNamed) {
     Calibration::load("/nonexistent/calibration.yaml");
     FAIL();
   } catch (const CalibrationError& e) {
-    EXPECT_NE(std::string(e.what()).find("/nonexistent/calibration.yaml"), std::string::npos);
+    EXPECT_THAT(e.what(), HasSubstr("/nonexistent/calibration.yaml"));
   }
 }
 
@@ -112,8 +116,8 @@ TEST(CalibrationSensor, ReadoutTimeIsReadValidatedAndSaved) {
   const Calibration c =
       Calibration::parse(std::string(kValid) + "sensor:\n  readout_s: -0.0267\n");
   EXPECT_DOUBLE_EQ(c.sensor.readout_s, -0.0267);
-  EXPECT_NE(c.toYaml().find("sensor:\n  readout_s: -0.0267"), std::string::npos) << c.toYaml();
-  EXPECT_EQ(Calibration::parse(kValid).toYaml().find("sensor"), std::string::npos)
+  EXPECT_THAT(c.toYaml(), HasSubstr("sensor:\n  readout_s: -0.0267"));
+  EXPECT_THAT(Calibration::parse(kValid).toYaml(), Not(HasSubstr("sensor")))
       << "a global shutter writes no section: files stay as they were";
 
   const auto problemsOf = [](const std::string& sensor) {
@@ -127,10 +131,10 @@ TEST(CalibrationSensor, ReadoutTimeIsReadValidatedAndSaved) {
   for (const char* bad : {"sensor:\n  readout_s: 0.15\n", "sensor:\n  readout_s: -0.2\n",
                           "sensor:\n  readout_s: .nan\n", "sensor:\n  readout_s: fast\n"}) {
     const std::string what = problemsOf(bad);
-    EXPECT_NE(what.find("cal.yaml: sensor.readout_s"), std::string::npos) << bad << what;
+    EXPECT_THAT(what, HasSubstr("cal.yaml: sensor.readout_s")) << bad << what;
   }
-  EXPECT_NE(problemsOf("sensor:\n  exposure_s: 0.01\n").find("sensor.exposure_s: unknown key"),
-            std::string::npos);
+  EXPECT_THAT(problemsOf("sensor:\n  exposure_s: 0.01\n"),
+              HasSubstr("sensor.exposure_s: unknown key"));
   EXPECT_EQ(problemsOf("sensor:\n  readout_s: 0.1\n"), "") << "the longest readout is allowed";
 }
 
@@ -226,16 +230,15 @@ int lineCount(const std::string& text) {
 TEST(CalibrationYaml, DuplicateKeysAtEveryLevelNameTheKeyAndBothLines) {
   const std::string text = std::string(kValid) + "omni:\n  image_width: 720\n";  // omni again
   auto [what, problems] = calibrationError(text);
-  EXPECT_NE(what.find("cal.yaml: omni: given twice, lines 1 and 15"), std::string::npos) << what;
+  EXPECT_THAT(what, HasSubstr("cal.yaml: omni: given twice, lines 1 and 15"));
   std::string nested = kValid;
   nested.insert(nested.find("panorama:"), "  radius_inner: -5\n");  // line 10, first at 5
   std::tie(what, problems) = calibrationError(nested);
-  EXPECT_NE(what.find("cal.yaml: omni.radius_inner: given twice, lines 5 and 10"), std::string::npos)
-      << what;
+  EXPECT_THAT(what, HasSubstr("cal.yaml: omni.radius_inner: given twice, lines 5 and 10"));
   std::tie(what, problems) =
       calibrationError("omni: {image_width: 720, image_width: abc}\npanorama: {width: 1, width: [1, 2]}\n");
-  EXPECT_NE(what.find("omni.image_width: given twice, lines 1 and 1"), std::string::npos) << what;
-  EXPECT_NE(what.find("panorama.width: given twice, lines 2 and 2"), std::string::npos) << what;
+  EXPECT_THAT(what, HasSubstr("omni.image_width: given twice, lines 1 and 1"));
+  EXPECT_THAT(what, HasSubstr("panorama.width: given twice, lines 2 and 2"));
 }
 
 TEST(CalibrationYaml, LongStringsAreProblemsAndEchoedShort) {
@@ -243,13 +246,13 @@ TEST(CalibrationYaml, LongStringsAreProblemsAndEchoedShort) {
   text.insert(text.find("panorama:"), "  mask: " + std::string(5'000'000, 'm') + "\n");
   const auto [what, problems] = calibrationError(text);
   EXPECT_LT(what.size(), 1024u) << what.substr(0, 2000);
-  EXPECT_NE(what.find("omni.mask: '" + std::string(60, 'm') + "... (5000000 bytes)' is longer than 4096 bytes"),
-            std::string::npos)
+  EXPECT_THAT(what,
+              HasSubstr("omni.mask: '" + std::string(60, 'm') + "... (5000000 bytes)' is longer than 4096 bytes"))
       << what.substr(0, 2000);
   // At the bound: accepted as a string (the mask file itself does not exist).
   std::string at_bound = kValid;
   at_bound.insert(at_bound.find("panorama:"), "  mask: " + std::string(4096, 'm') + "\n");
-  EXPECT_EQ(calibrationError(at_bound).first.find("longer than"), std::string::npos);
+  EXPECT_THAT(calibrationError(at_bound).first, Not(HasSubstr("longer than")));
 }
 
 TEST(CalibrationYaml, ControlCharactersAreEscapedSoNothingCutsTheMessage) {
@@ -258,8 +261,8 @@ TEST(CalibrationYaml, ControlCharactersAreEscapedSoNothingCutsTheMessage) {
   text.insert(text.find("panorama:"), "  \"col\\0our\\t\": 1\n");
   const auto [what, problems] = calibrationError(text);
   EXPECT_EQ(std::string(what.c_str()), what) << "a NUL in what()";
-  EXPECT_NE(what.find("omni.col\\0our\\t: unknown key"), std::string::npos) << what;
-  EXPECT_NE(what.find("omni.azimuth_direction: 'c\\x01w' is not cw or ccw"), std::string::npos) << what;
+  EXPECT_THAT(what, HasSubstr("omni.col\\0our\\t: unknown key"));
+  EXPECT_THAT(what, HasSubstr("omni.azimuth_direction: 'c\\x01w' is not cw or ccw"));
   for (const auto& p : problems) EXPECT_EQ(std::string(p.c_str()), p);
 }
 
@@ -269,9 +272,9 @@ TEST(CalibrationYaml, AtMostTwentyProblemsAreListedThenHowManyMore) {
   const auto [what, problems] = calibrationError(text);
   EXPECT_EQ(problems.size(), 30u);
   EXPECT_EQ(lineCount(what), 22) << what;  // heading, 20 problems, "and 10 more"
-  EXPECT_NE(what.find("\n  and 10 more"), std::string::npos) << what;
-  EXPECT_NE(what.find("extra19: unknown section"), std::string::npos) << what;
-  EXPECT_EQ(what.find("extra20: unknown section"), std::string::npos) << what;
+  EXPECT_THAT(what, HasSubstr("\n  and 10 more"));
+  EXPECT_THAT(what, HasSubstr("extra19: unknown section"));
+  EXPECT_THAT(what, Not(HasSubstr("extra20: unknown section")));
 }
 
 }  // namespace

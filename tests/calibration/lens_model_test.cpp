@@ -1,5 +1,6 @@
 // Lens models: OCamCalib and Mei in both directions, their YAML keys, and the
 // start-up errors for bad lens files.
+#include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -15,6 +16,9 @@
 #include "omnipose/calibration.hpp"
 #include "omnipose/lens_model.hpp"
 #include "test_files.hpp"
+
+using ::testing::HasSubstr;
+using ::testing::Not;
 
 namespace omnipose {
 namespace {
@@ -214,29 +218,29 @@ TEST(OcamCalib, BadFilesNameTheFileAndTheLine) {
   const std::string truncated = good.substr(0, good.find("#affine"));
   dir.write("truncated.txt", truncated);
   std::string what = parseError(ocamYaml("truncated.txt"), dir.path());
-  EXPECT_NE(what.find("omni.ocamcalib_file"), std::string::npos) << what;
-  EXPECT_NE(what.find("truncated.txt"), std::string::npos) << what;
-  EXPECT_NE(what.find("affine"), std::string::npos) << what;
-  EXPECT_NE(what.find("end of the file"), std::string::npos) << what;
+  EXPECT_THAT(what, HasSubstr("omni.ocamcalib_file"));
+  EXPECT_THAT(what, HasSubstr("truncated.txt"));
+  EXPECT_THAT(what, HasSubstr("affine"));
+  EXPECT_THAT(what, HasSubstr("end of the file"));
 
   // A coefficient that is not a number, on line 3.
   std::string bad = good;
   bad.replace(bad.find("1.220001e-03"), 12, "1.22x01e-03");
   dir.write("garbled.txt", bad);
   what = parseError(ocamYaml("garbled.txt"), dir.path());
-  EXPECT_NE(what.find("garbled.txt: line 3"), std::string::npos) << what;
-  EXPECT_NE(what.find("'1.22x01e-03' is not a number"), std::string::npos) << what;
+  EXPECT_THAT(what, HasSubstr("garbled.txt: line 3"));
+  EXPECT_THAT(what, HasSubstr("'1.22x01e-03' is not a number"));
 
   // The count disagrees with the coefficients.
   bad = good;
   bad.replace(bad.find("\n5 -2.66"), 3, "\n6 ");
   dir.write("count.txt", bad);
   what = parseError(ocamYaml("count.txt"), dir.path());
-  EXPECT_NE(what.find("line 3: ss: the count says 6 coefficients, the line has 5"), std::string::npos) << what;
+  EXPECT_THAT(what, HasSubstr("line 3: ss: the count says 6 coefficients, the line has 5"));
 
   // Missing file.
   what = parseError(ocamYaml("absent.txt"), dir.path());
-  EXPECT_NE(what.find("absent.txt: no such file"), std::string::npos) << what;
+  EXPECT_THAT(what, HasSubstr("absent.txt: no such file"));
 }
 
 TEST(OcamCalib, NonMonotonicPolynomialOverTheRingIsRefused) {
@@ -248,9 +252,8 @@ TEST(OcamCalib, NonMonotonicPolynomialOverTheRingIsRefused) {
   text.replace(at, end - at, "5 -1.776981460e+02 0 6.0e-03 -1.6e-05 0");
   dir.write("turning.txt", text);
   const std::string what = parseError(ocamYaml("turning.txt"), dir.path());
-  EXPECT_NE(what.find("turning.txt: line 3: the direct polynomial is not monotonic over the ring"),
-            std::string::npos)
-      << what;
+  EXPECT_THAT(what,
+              HasSubstr("turning.txt: line 3: the direct polynomial is not monotonic over the ring"));
 }
 
 TEST(OcamCalib, PanoramaRowsOutsideTheRingAreNamed) {
@@ -258,21 +261,28 @@ TEST(OcamCalib, PanoramaRowsOutsideTheRingAreNamed) {
   const std::string yaml = "omni:\n  model: ocamcalib\n  ocamcalib_file: " + kSteep.string() +
                            "\npanorama: {width: 1100, height: 400}\n";
   const std::string what = parseError(yaml, {});
-  EXPECT_NE(what.find("panorama: rows 0.."), std::string::npos) << what;
-  EXPECT_NE(what.find("lie outside the lens ring (elevations -45."), std::string::npos) << what;
+  EXPECT_THAT(what, HasSubstr("panorama: rows 0.."));
+  EXPECT_THAT(what, HasSubstr("lie outside the lens ring (elevations -45."));
 }
 
 TEST(OcamCalib, KeysOfOtherModelsAreRefused) {
   const std::string what =
       parseError(ocamYaml(kSteep.string(), "  center: [1, 2]\n  xi: 0.8\n  outer_edge: top\n"), {});
-  EXPECT_NE(what.find("omni.center: not used with model ocamcalib"), std::string::npos) << what;
-  EXPECT_NE(what.find("omni.xi: not used with model ocamcalib"), std::string::npos) << what;
-  EXPECT_NE(what.find("omni.outer_edge: not used with model ocamcalib"), std::string::npos) << what;
+  EXPECT_THAT(what, HasSubstr("omni.center: not used with model ocamcalib"));
+  EXPECT_THAT(what, HasSubstr("omni.xi: not used with model ocamcalib"));
+  EXPECT_THAT(what, HasSubstr("omni.outer_edge: not used with model ocamcalib"));
 }
 
 // ---------------------------------------------------------------------------------------
 // Mei (cv::omnidir)
 // ---------------------------------------------------------------------------------------
+
+/// The calibration.yaml of an 800 x 800 Mei lens whose parameters are in omnidir file `file`.
+std::string meiWithFile(const std::string& file) {
+  return "omni:\n  model: mei\n  omnidir_file: " + file +
+         "\n  image_width: 800\n  image_height: 800\n  radius_inner: 90\n  radius_outer: 330\n"
+         "panorama: {width: 1100, height: 110}\n";
+}
 
 const char* kMeiYaml = R"(omni:
   model: mei
@@ -323,9 +333,7 @@ TEST(Mei, ReadsAnOmnidirFileStorage) {
     fs << "D" << (cv::Mat_<double>(1, 4) << -0.04, 0.006, 0.0004, -0.0003);
     fs << "xi" << (cv::Mat_<double>(1, 1) << 0.92);
   }
-  dir.write("cal.yaml", "omni:\n  model: mei\n  omnidir_file: omnidir.yml\n  image_width: 800\n"
-                        "  image_height: 800\n  radius_inner: 90\n  radius_outer: 330\n"
-                        "panorama: {width: 1100, height: 110}\n");
+  dir.write("cal.yaml", meiWithFile("omnidir.yml"));
   const Calibration c = Calibration::load(dir.path() / "cal.yaml");
   ASSERT_TRUE(c.omni.mei);
   EXPECT_DOUBLE_EQ(c.omni.mei->xi, 0.92);
@@ -336,13 +344,11 @@ TEST(Mei, ReadsAnOmnidirFileStorage) {
     cv::FileStorage fs((dir.path() / "bad.yml").string(), cv::FileStorage::WRITE);
     fs << "K" << (cv::Mat_<double>(3, 3) << 205.0, 0, 401.5, 0, 204.2, 398.0, 0, 0, 1);
   }
-  dir.write("bad.yaml", "omni:\n  model: mei\n  omnidir_file: bad.yml\n  image_width: 800\n"
-                        "  image_height: 800\n  radius_inner: 90\n  radius_outer: 330\n"
-                        "panorama: {width: 1100, height: 110}\n");
+  dir.write("bad.yaml", meiWithFile("bad.yml"));
   const std::string what = errorOf([&] { Calibration::load(dir.path() / "bad.yaml"); });
   ASSERT_FALSE(what.empty()) << "expected an error";
-  EXPECT_NE(what.find("bad.yml: D: missing"), std::string::npos) << what;
-  EXPECT_NE(what.find("bad.yml: xi: missing"), std::string::npos) << what;
+  EXPECT_THAT(what, HasSubstr("bad.yml: D: missing"));
+  EXPECT_THAT(what, HasSubstr("bad.yml: xi: missing"));
 }
 
 TEST(Mei, AMatrixDeclaringAHugeShapeIsRefusedBeforeItIsAllocated) {
@@ -353,13 +359,11 @@ TEST(Mei, AMatrixDeclaringAHugeShapeIsRefusedBeforeItIsAllocated) {
                         "   data: [ 205., 0., 401.5, 0., 204.2, 398., 0., 0., 1. ]\n"
                         "D: !!opencv-matrix\n   rows: 1\n   cols: 4\n   dt: d\n"
                         "   data: [ -0.04, 0.006, 0.0004, -0.0003 ]\nxi: 0.92\n");
-  dir.write("cal.yaml", "omni:\n  model: mei\n  omnidir_file: huge.yml\n  image_width: 800\n"
-                        "  image_height: 800\n  radius_inner: 90\n  radius_outer: 330\n"
-                        "panorama: {width: 1100, height: 110}\n");
+  dir.write("cal.yaml", meiWithFile("huge.yml"));
   const std::string what = errorOf([&] { Calibration::load(dir.path() / "cal.yaml"); });
   ASSERT_FALSE(what.empty()) << "expected an error";
-  EXPECT_NE(what.find("huge.yml: K: expected 9 numbers"), std::string::npos) << what;
-  EXPECT_EQ(what.find("D:"), std::string::npos) << "D is well-formed: " << what;
+  EXPECT_THAT(what, HasSubstr("huge.yml: K: expected 9 numbers"));
+  EXPECT_THAT(what, Not(HasSubstr("D:"))) << "D is well-formed: " << what;
 }
 
 TEST(Mei, SaveLoadRoundTripInline) {
@@ -387,10 +391,10 @@ TEST(Mask, WrongSizeOrMissingIsNamed) {
     return y.replace(y.find("MASK"), 4, mask);
   };
   std::string what = parseError(yaml("small.png"), dir.path());
-  EXPECT_NE(what.find("omni.mask: small.png is 100x100"), std::string::npos) << what;
-  EXPECT_NE(what.find("expected 8-bit grey 720x720"), std::string::npos) << what;
+  EXPECT_THAT(what, HasSubstr("omni.mask: small.png is 100x100"));
+  EXPECT_THAT(what, HasSubstr("expected 8-bit grey 720x720"));
   what = parseError(yaml("none.png"), dir.path());
-  EXPECT_NE(what.find("none.png: cannot read the mask image"), std::string::npos) << what;
+  EXPECT_THAT(what, HasSubstr("none.png: cannot read the mask image"));
   cv::imwrite((dir.path() / "good.png").string(), cv::Mat(720, 720, CV_8UC1, cv::Scalar(255)));
   EXPECT_EQ(parseError(yaml("good.png"), dir.path()), "");
 }
@@ -404,11 +408,11 @@ TEST(NumericFields, NonFiniteAndHugeValuesAreStartUpErrors) {
     return y.replace(y.find("PW"), 2, pw);
   };
   std::string what = parseError(yaml(".inf", "1100"), {});
-  EXPECT_NE(what.find("omni.radius_outer: must be a finite number"), std::string::npos) << what;
+  EXPECT_THAT(what, HasSubstr("omni.radius_outer: must be a finite number"));
   what = parseError(yaml(".nan", "1100"), {});
-  EXPECT_NE(what.find("omni.radius_outer: must be a finite number"), std::string::npos) << what;
+  EXPECT_THAT(what, HasSubstr("omni.radius_outer: must be a finite number"));
   what = parseError(yaml("300", "1000000000"), {});
-  EXPECT_NE(what.find("panorama.width: 1000000000 must be in [1, 16384]"), std::string::npos) << what;
+  EXPECT_THAT(what, HasSubstr("panorama.width: 1000000000 must be in [1, 16384]"));
 }
 
 }  // namespace
@@ -426,8 +430,8 @@ TEST(CalibrationYaml, KeysThatAreNotPlainNamesAreReportedNotThrown) {
       Calibration::parse(text, "fuzz.yaml");
       FAIL() << "expected a CalibrationError for:\n" << text;
     } catch (const CalibrationError& e) {
-      EXPECT_NE(std::string(e.what()).find("fuzz.yaml"), std::string::npos) << e.what();
-      EXPECT_NE(std::string(e.what()).find("keys must be plain names"), std::string::npos) << e.what();
+      EXPECT_THAT(e.what(), HasSubstr("fuzz.yaml"));
+      EXPECT_THAT(e.what(), HasSubstr("keys must be plain names"));
     }
   }
 }
@@ -467,8 +471,8 @@ TEST(OcamCalib, GarbledFileGivesABoundedMessage) {
     EXPECT_EQ(e.problems().size(), 150'000u);
     EXPECT_LE(lineCount(what), 21) << what;
     EXPECT_LT(what.size(), 4096u) << what;
-    EXPECT_NE(what.find("'gar\\0bled\\x01' is not a number"), std::string::npos) << what;
-    EXPECT_NE(what.find("and 149980 more"), std::string::npos) << what;
+    EXPECT_THAT(what, HasSubstr("'gar\\0bled\\x01' is not a number"));
+    EXPECT_THAT(what, HasSubstr("and 149980 more"));
   }
   // Named by calibration.yaml: the same bound, each problem under omni.ocamcalib_file.
   TempDir dir;
@@ -481,10 +485,9 @@ TEST(OcamCalib, GarbledFileGivesABoundedMessage) {
     const std::string what = e.what();
     EXPECT_LE(lineCount(what), 22) << what;  // heading, 20 problems, "and N more"
     EXPECT_LT(what.size(), 8192u) << what;
-    EXPECT_NE(what.find("omni.ocamcalib_file: " + (dir.path() / "garbled.txt").string() + ": line"),
-              std::string::npos)
-        << what;
-    EXPECT_NE(what.find("more"), std::string::npos) << what;
+    EXPECT_THAT(what,
+                HasSubstr("omni.ocamcalib_file: " + (dir.path() / "garbled.txt").string() + ": line"));
+    EXPECT_THAT(what, HasSubstr("more"));
   }
 }
 
@@ -497,8 +500,8 @@ TEST(OcamCalib, LongTokenIsEchoedShort) {
   } catch (const ConfigError& e) {
     const std::string what = e.what();
     EXPECT_LT(what.size(), 512u) << what.substr(0, 1000);
-    EXPECT_NE(what.find("'" + std::string(60, 'z') + "... (1000000 bytes)' is not a number"),
-              std::string::npos)
+    EXPECT_THAT(what,
+                HasSubstr("'" + std::string(60, 'z') + "... (1000000 bytes)' is not a number"))
         << what.substr(0, 1000);
   }
 }

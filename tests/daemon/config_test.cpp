@@ -1,5 +1,6 @@
 #include "daemon/config.hpp"
 
+#include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -7,6 +8,9 @@
 
 #include "omnipose/calibration.hpp"
 #include "runtime/worker_pool.hpp"
+
+using ::testing::HasSubstr;
+using ::testing::Not;
 
 namespace omnipose {
 namespace {
@@ -44,7 +48,7 @@ void expectBooleanPipelineKey(const std::string& key, bool default_value,
   const std::string other = default_value ? "false" : "true";
   const DaemonConfig set = parseWith("pipeline: {" + key + ": " + other + "}\n");
   EXPECT_EQ(get(set), !default_value);
-  EXPECT_NE(set.describe().find(key + ": " + other), std::string::npos) << set.describe();
+  EXPECT_THAT(set.describe(), HasSubstr(key + ": " + other));
   EXPECT_TRUE(mentions(problemsOf(kFileSource + "pipeline: {" + key + ": " + bad + "}\n"),
                        "pipeline." + key));
 }
@@ -63,7 +67,7 @@ TEST(DaemonConfig, DefaultsAreThePapersValues) {
   EXPECT_EQ(c.lcm.status_channel, "OMNI_STATUS");
   EXPECT_EQ(c.lcm.fit_channel, "");
   EXPECT_DOUBLE_EQ(c.lcm.status_hz, 1.0);
-  EXPECT_NE(c.describe().find("window: 110"), std::string::npos);
+  EXPECT_THAT(c.describe(), HasSubstr("window: 110"));
 }
 
 TEST(DaemonConfig, EveryProblemIsReportedAtOnce) {
@@ -87,14 +91,14 @@ bogus: 1
     for (const char* key : {"source.type", "source.speed: unknown key", "input", "pipeline.colour",
                             "lcm.status_hz", "bogus: unknown key", "calibration: missing",
                             "daemon.yaml: pipeline.step: 0 is outside [1, 4096] pixels"}) {
-      EXPECT_NE(what.find(key), std::string::npos) << key << " not in:\n" << what;
+      EXPECT_THAT(what, HasSubstr(key)) << key << " not in:\n" << what;
     }
     EXPECT_GE(e.problems().size(), 8u) << what;
     // Every problem is named by a key the user can write, once.
     int step_problems = 0;
     for (const auto& p : e.problems()) {
-      EXPECT_EQ(p.find("registration"), std::string::npos) << p;
-      EXPECT_EQ(p.find("built-in"), std::string::npos) << p;
+      EXPECT_THAT(p, Not(HasSubstr("registration")));
+      EXPECT_THAT(p, Not(HasSubstr("built-in")));
       step_problems += p.find("pipeline.step") != std::string::npos;
     }
     EXPECT_EQ(step_problems, 1) << what;
@@ -107,17 +111,15 @@ TEST(DaemonConfig, PipelineThreads) {
   const int cores = runtime::WorkerPool::onlineCores();
   const DaemonConfig c = parseWith("pipeline: {threads: 1}\n");
   EXPECT_EQ(c.pipeline.threads, 1);
-  EXPECT_NE(c.describe().find("threads: 1"), std::string::npos);
+  EXPECT_THAT(c.describe(), HasSubstr("threads: 1"));
   EXPECT_TRUE(c.warnings.empty());
   EXPECT_TRUE(mentions(problemsOf(kFileSource + "pipeline: {threads: -3}\n"), "pipeline.threads"));
   // More than the cores this process may use: clamped, with a warning naming the key.
   const DaemonConfig many = parseWith("pipeline: {threads: " + std::to_string(cores + 1) + "}\n");
   EXPECT_EQ(many.pipeline.threads, cores);
   ASSERT_EQ(many.warnings.size(), 1u);
-  EXPECT_NE(many.warnings[0].find("d.yaml: pipeline.threads: " + std::to_string(cores + 1) +
-                                  " is more than the " + std::to_string(cores) + " cores"),
-            std::string::npos)
-      << many.warnings[0];
+  EXPECT_THAT(many.warnings[0],
+              HasSubstr("d.yaml: pipeline.threads: " + std::to_string(cores + 1) + " is more than the " + std::to_string(cores) + " cores"));
 }
 
 TEST(DaemonConfig, MovingContentCheck) {
@@ -148,7 +150,7 @@ TEST(DaemonConfig, KeyframesSection) {
   EXPECT_DOUBLE_EQ(c.keyframes.max_translation, 0.05);
   EXPECT_NEAR(c.keyframes.max_tilt_rad, 3 * std::numbers::pi / 180.0, 1e-12);
   EXPECT_DOUBLE_EQ(c.keyframes.min_ring_peak, 0.1);
-  EXPECT_NE(c.describe().find("slots: 4"), std::string::npos);
+  EXPECT_THAT(c.describe(), HasSubstr("slots: 4"));
   const auto problems =
       problemsOf(kFileSource + "keyframes: {slots: 17, max_tilt_deg: 40, cadence: 3}\n");
   EXPECT_TRUE(mentions(problems, "keyframes.slots"));
@@ -160,13 +162,11 @@ TEST(DaemonConfig, SchedulingSection) {
   const DaemonConfig defaults = parseWith("");
   EXPECT_EQ(defaults.scheduling.fifo_priority, 0) << "normal scheduling by default";
   EXPECT_TRUE(defaults.scheduling.cpus.empty()) << "every CPU by default";
-  EXPECT_NE(defaults.describe().find("scheduling:\n  fifo_priority: 0\n  cpus: []"),
-            std::string::npos)
-      << defaults.describe();
+  EXPECT_THAT(defaults.describe(), HasSubstr("scheduling:\n  fifo_priority: 0\n  cpus: []"));
   const DaemonConfig c = parseWith("scheduling: {fifo_priority: 20, cpus: [0, 1]}\n");
   EXPECT_EQ(c.scheduling.fifo_priority, 20);
   EXPECT_EQ(c.scheduling.cpus, (std::vector<int>{0, 1}));
-  EXPECT_NE(c.describe().find("cpus: [0, 1]"), std::string::npos) << c.describe();
+  EXPECT_THAT(c.describe(), HasSubstr("cpus: [0, 1]"));
   // pipeline.threads above the CPUs listed is clamped to them.
   const DaemonConfig one = parseWith("scheduling: {cpus: [0]}\npipeline: {threads: 2}\n");
   EXPECT_EQ(one.pipeline.threads, 1);
@@ -196,7 +196,7 @@ TEST(DaemonConfig, MissingFileAndBrokenYamlAreClear) {
     DaemonConfig::parse("source: [unclosed\n", "x.yaml", "/tmp");
     FAIL();
   } catch (const ConfigError& e) {
-    EXPECT_NE(std::string(e.what()).find("x.yaml: not valid YAML"), std::string::npos);
+    EXPECT_THAT(e.what(), HasSubstr("x.yaml: not valid YAML"));
   }
 }
 
@@ -270,7 +270,7 @@ TEST(DaemonConfig, OddYamlShapesAreProblemsNotExceptions) {
       ADD_FAILURE() << "accepted";
     } catch (const ConfigError& e) {
       EXPECT_FALSE(e.problems().empty());
-      EXPECT_NE(std::string(e.what()).find("daemon.yaml"), std::string::npos) << e.what();
+      EXPECT_THAT(e.what(), HasSubstr("daemon.yaml"));
     }
   }
   EXPECT_TRUE(mentions(problemsOf("? [a, b]\n: 1\nsource: {type: file, path: x}\ncalibration: c\n"),
@@ -287,17 +287,16 @@ TEST(DaemonConfig, PipelineSizesAreCheckedAgainstTheCalibrationBeforeAnythingIsA
   tall.pipeline.registration.window = 200;
   const auto p1 = tall.checkAgainst(cal, tall.origin);
   ASSERT_EQ(p1.size(), 1u);
-  EXPECT_NE(p1[0].find("/etc/d.yaml: pipeline.window: 200 is larger than the panorama (1100 x 110"),
-            std::string::npos)
-      << p1[0];
+  EXPECT_THAT(p1[0],
+              HasSubstr("/etc/d.yaml: pipeline.window: 200 is larger than the panorama (1100 x 110"));
   auto dense = c;
   dense.pipeline.registration.step = 1;
   dense.pipeline.registration.window = 110;
   cal.panorama.width = 8000;
   const auto p2 = dense.checkAgainst(cal, dense.origin);
   ASSERT_EQ(p2.size(), 1u);
-  EXPECT_NE(p2[0].find("/etc/d.yaml: pipeline.step: 1 gives 8000 windows"), std::string::npos) << p2[0];
-  EXPECT_NE(p2[0].find("largest supported is 16777216"), std::string::npos) << p2[0];
+  EXPECT_THAT(p2[0], HasSubstr("/etc/d.yaml: pipeline.step: 1 gives 8000 windows"));
+  EXPECT_THAT(p2[0], HasSubstr("largest supported is 16777216"));
 }
 
 int lineCount(const std::string& text) {
@@ -335,9 +334,8 @@ TEST(DaemonConfig, AMultiMegabyteValueGivesAShortMessage) {
   const std::string big(8u << 20, 'p');  // 2048 times the bound
   const std::string what = whatOf("source: {type: file, path: " + big + "}\ncalibration: c.yaml\n");
   EXPECT_LT(what.size(), 1024u) << what.substr(0, 300);
-  EXPECT_NE(what.find("source.path: '" + std::string(60, 'p') +
-                      "... (8388608 bytes)' is longer than 4096 bytes"),
-            std::string::npos)
+  EXPECT_THAT(what,
+              HasSubstr("source.path: '" + std::string(60, 'p') + "... (8388608 bytes)' is longer than 4096 bytes"))
       << what.substr(0, 300);
   // A long number and a long (explicit) key are echoed short too.
   const std::string mb(1u << 20, 'p');
@@ -347,7 +345,7 @@ TEST(DaemonConfig, AMultiMegabyteValueGivesAShortMessage) {
     const std::string short_what = whatOf(text);
     SCOPED_TRACE(short_what.substr(0, 300));
     EXPECT_LT(short_what.size(), 1024u);
-    EXPECT_NE(short_what.find(std::string(60, 'p') + "... (1048576 bytes)"), std::string::npos);
+    EXPECT_THAT(short_what, HasSubstr(std::string(60, 'p') + "... (1048576 bytes)"));
   }
 }
 
@@ -355,9 +353,8 @@ TEST(DaemonConfig, ControlCharactersInKeysAndValuesAreEscaped) {
   const std::string what =
       whatOf("source: {type: \"fi\\0le\", path: run1}\ncalibration: c.yaml\n\"bo\\0gus\\r\": 1\n");
   EXPECT_EQ(std::string(what.c_str()), what) << "a NUL in what()";
-  EXPECT_NE(what.find("source.type: 'fi\\0le' is not file, v4l2 or libcamera"), std::string::npos)
-      << what;
-  EXPECT_NE(what.find("bo\\0gus\\r: unknown key"), std::string::npos) << what;
+  EXPECT_THAT(what, HasSubstr("source.type: 'fi\\0le' is not file, v4l2 or libcamera"));
+  EXPECT_THAT(what, HasSubstr("bo\\0gus\\r: unknown key"));
 }
 
 TEST(DaemonConfig, AtMostTwentyProblemsAreListed) {
@@ -366,7 +363,7 @@ TEST(DaemonConfig, AtMostTwentyProblemsAreListed) {
   EXPECT_EQ(problemsOf(text).size(), 25u);
   const std::string what = whatOf(text);
   EXPECT_EQ(lineCount(what), 22) << what;
-  EXPECT_NE(what.find("\n  and 5 more"), std::string::npos) << what;
+  EXPECT_THAT(what, HasSubstr("\n  and 5 more"));
 }
 
 }  // namespace

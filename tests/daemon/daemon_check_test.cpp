@@ -1,6 +1,7 @@
 // omniposed --check: the calibration and what it names (lens model, mask) and the
 // pipeline against it are validated without opening a camera; every problem is a non-zero
 // exit naming the file and the field.
+#include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -11,6 +12,9 @@
 #include "daemon/startup_check.hpp"
 #include "daemon_test_support.hpp"
 #include "omnipose/calibration.hpp"
+
+using ::testing::HasSubstr;
+using ::testing::Not;
 
 namespace omnipose {
 namespace {
@@ -52,9 +56,7 @@ TEST(DaemonCheck, AnOcamCalibLensWithAMaskPasses) {
   c.omni.mask = cv::Mat(800, 800, CV_8UC1, cv::Scalar(255));
   c.omni.mask_file = "mask.png";
   EXPECT_EQ(t.run(c), 0) << t.err();
-  EXPECT_NE(t.err().find("lens model ocamcalib with a mask, panorama 1100x110: usable"),
-            std::string::npos)
-      << t.err();
+  EXPECT_THAT(t.err(), HasSubstr("lens model ocamcalib with a mask, panorama 1100x110: usable"));
 }
 
 TEST(DaemonCheck, AMaskOfTheWrongSizeFailsNamingTheFile) {
@@ -68,7 +70,7 @@ TEST(DaemonCheck, AMaskOfTheWrongSizeFailsNamingTheFile) {
   EXPECT_EQ(testing::runProcess({omniposed().string(), "--config", (t.tmp / "daemon.yaml").string(), "--check"},
                                 t.tmp / "out", t.tmp / "err", 60s),
             1);
-  EXPECT_NE(t.err().find("omni.mask: mask.png is 10x10"), std::string::npos) << t.err();
+  EXPECT_THAT(t.err(), HasSubstr("omni.mask: mask.png is 10x10"));
 }
 
 TEST(DaemonCheck, AMaskThatLeavesTooFewWindowsFailsSayingHowManyAreLeft) {
@@ -81,8 +83,7 @@ TEST(DaemonCheck, AMaskThatLeavesTooFewWindowsFailsSayingHowManyAreLeft) {
   c.omni.mask = mask;
   c.omni.mask_file = "mask.png";
   EXPECT_EQ(t.run(c), 1) << t.err();
-  EXPECT_NE(t.err().find("windows measurable; the fit needs at least 4"), std::string::npos)
-      << t.err();
+  EXPECT_THAT(t.err(), HasSubstr("windows measurable; the fit needs at least 4"));
   // The same mask over half the ring starts.
   cv::ellipse(mask, {360, 360}, {360, 360}, 0, 0, 180, cv::Scalar(255), cv::FILLED);
   c.omni.mask = mask;
@@ -95,10 +96,10 @@ TEST(DaemonCheck, TheListingShowsAtMostTwentyProblemsEscaped) {
   check.problems[0] += std::string("\0hidden", 7);
   const std::string listing = check.listing();
   EXPECT_EQ(std::count(listing.begin(), listing.end(), '\n'), 20) << listing;
-  EXPECT_NE(listing.find("key19: bad"), std::string::npos) << listing;
-  EXPECT_EQ(listing.find("key20: bad"), std::string::npos) << listing;
-  EXPECT_NE(listing.find("and 5 more"), std::string::npos) << listing;
-  EXPECT_NE(listing.find("bad\\0hidden"), std::string::npos) << listing;
+  EXPECT_THAT(listing, HasSubstr("key19: bad"));
+  EXPECT_THAT(listing, Not(HasSubstr("key20: bad")));
+  EXPECT_THAT(listing, HasSubstr("and 5 more"));
+  EXPECT_THAT(listing, HasSubstr("bad\\0hidden"));
 }
 
 TEST(DaemonCheck, APanoramaLowerThanTheWindowFails) {
@@ -107,9 +108,8 @@ TEST(DaemonCheck, APanoramaLowerThanTheWindowFails) {
   c.panorama.height = 80;
   c.panorama.horizon_row = 39.5;
   EXPECT_EQ(t.run(c), 1);
-  EXPECT_NE(t.err().find("daemon.yaml: pipeline.window: 110 is larger than the panorama (1100 x 80)"),
-            std::string::npos)
-      << t.err();
+  EXPECT_THAT(t.err(),
+              HasSubstr("daemon.yaml: pipeline.window: 110 is larger than the panorama (1100 x 80)"));
 }
 
 TEST(DaemonCheck, EveryProblemIsListedAtOnceByTheKeyTheUserWrote) {
@@ -124,17 +124,11 @@ TEST(DaemonCheck, EveryProblemIsListedAtOnceByTheKeyTheUserWrote) {
       (tmp / "daemon.yaml").string(), tmp.path());
   const daemon::StartupCheck check = daemon::checkStartup(config);
   ASSERT_EQ(check.problems.size(), 3u) << lines(check.problems);
-  EXPECT_NE(check.problems[0].find("daemon.yaml: source.path: "), std::string::npos)
-      << check.problems[0];
-  EXPECT_NE(check.problems[0].find("no_such_dataset is not a directory"), std::string::npos)
-      << check.problems[0];
-  EXPECT_NE(check.problems[1].find("daemon.yaml: scheduling.cpus: CPU 4000 does not exist"),
-            std::string::npos)
-      << check.problems[1];
-  EXPECT_NE(check.problems[2].find("daemon.yaml: pipeline.window: 100 is larger than the "
-                                   "panorama (1100 x 80)"),
-            std::string::npos)
-      << check.problems[2];
+  EXPECT_THAT(check.problems[0], HasSubstr("daemon.yaml: source.path: "));
+  EXPECT_THAT(check.problems[0], HasSubstr("no_such_dataset is not a directory"));
+  EXPECT_THAT(check.problems[1], HasSubstr("daemon.yaml: scheduling.cpus: CPU 4000 does not exist"));
+  EXPECT_THAT(check.problems[2],
+              HasSubstr("daemon.yaml: pipeline.window: 100 is larger than the " "panorama (1100 x 80)"));
 
   // Fixed: the check builds the pipeline and reports what it found usable.
   fs::create_directories(tmp / "no_such_dataset/frames");
@@ -148,10 +142,8 @@ TEST(DaemonCheck, EveryProblemIsListedAtOnceByTheKeyTheUserWrote) {
   EXPECT_TRUE(fixed.problems.empty()) << lines(fixed.problems);
   ASSERT_EQ(fixed.findings.size(), 4u) << lines(fixed.findings);
   EXPECT_EQ(fixed.findings[3], "scheduling: normal scheduling on every CPU");
-  EXPECT_NE(fixed.findings[1].find("no_such_dataset: 1 frames"), std::string::npos) << fixed.findings[1];
-  EXPECT_NE(fixed.findings[2].find("lens model linear, panorama 1100x110: usable"),
-            std::string::npos)
-      << fixed.findings[2];
+  EXPECT_THAT(fixed.findings[1], HasSubstr("no_such_dataset: 1 frames"));
+  EXPECT_THAT(fixed.findings[2], HasSubstr("lens model linear, panorama 1100x110: usable"));
 }
 
 TEST(DaemonCheck, CameraOptionsAreCheckedWithoutOpeningTheDevice) {
@@ -165,15 +157,12 @@ TEST(DaemonCheck, CameraOptionsAreCheckedWithoutOpeningTheDevice) {
   // A device that does not exist: --check does not open it, so only the options count.
   const auto bad = check("{type: v4l2, device: /dev/no_such_video, format: RGB3}");
   ASSERT_EQ(bad.problems.size(), 1u) << lines(bad.problems);
-  EXPECT_NE(bad.problems[0].find("daemon.yaml: source.format: 'RGB3' is not a V4L2 format"),
-            std::string::npos)
-      << bad.problems[0];
+  EXPECT_THAT(bad.problems[0], HasSubstr("daemon.yaml: source.format: 'RGB3' is not a V4L2 format"));
   const auto good = check("{type: v4l2, device: /dev/no_such_video, format: GREY}");
   EXPECT_TRUE(good.problems.empty()) << lines(good.problems);
   ASSERT_FALSE(good.findings.empty());
-  EXPECT_NE(good.findings[0].find("source: v4l2 /dev/no_such_video, 1280x720 GREY: options valid"),
-            std::string::npos)
-      << good.findings[0];
+  EXPECT_THAT(good.findings[0],
+              HasSubstr("source: v4l2 /dev/no_such_video, 1280x720 GREY: options valid"));
 }
 
 }  // namespace

@@ -3,6 +3,7 @@
 // checked against ground truth; real-time replay timing; bad configuration; SIGINT/SIGTERM;
 // a corrupt frame; lcm-logger recording the daemon's udpm traffic in a private network
 // namespace (never any multicast outside it).
+#include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
 #include <sys/socket.h>
@@ -17,6 +18,8 @@
 #include "bad_images.hpp"
 #include "daemon_test_support.hpp"
 #include "test_figures.hpp"
+
+using ::testing::HasSubstr;
 
 namespace omnipose {
 namespace {
@@ -83,9 +86,9 @@ TEST(Omniposed, EndToEndFileLogDecodesAndMatchesGroundTruth) {
                             std::chrono::system_clock::now().time_since_epoch()).count();
   ASSERT_EQ(r.exit_code, 0) << r.err;
   // The effective configuration is logged at start-up.
-  EXPECT_NE(r.err.find("effective values"), std::string::npos) << r.err;
-  EXPECT_NE(r.err.find("window: 110"), std::string::npos) << r.err;
-  EXPECT_NE(r.err.find("status_channel: OMNI_STATUS"), std::string::npos) << r.err;
+  EXPECT_THAT(r.err, HasSubstr("effective values"));
+  EXPECT_THAT(r.err, HasSubstr("window: 110"));
+  EXPECT_THAT(r.err, HasSubstr("status_channel: OMNI_STATUS"));
 
   const testing::DecodedLog& log = r.log;
   EXPECT_EQ(log.undecodable, 0);
@@ -143,7 +146,7 @@ TEST(Omniposed, EndToEndFileLogDecodesAndMatchesGroundTruth) {
   EXPECT_EQ(last.frames_bad, 0);
   EXPECT_EQ(last.poses_lost, 1);
   EXPECT_EQ(last.source_state, status_t::SOURCE_ENDED);
-  EXPECT_NE(last.source.find(data.string()), std::string::npos) << last.source;
+  EXPECT_THAT(last.source, HasSubstr(data.string()));
   EXPECT_TRUE(last.last_error.empty()) << last.last_error;
 
   // The listener, as a user runs it, prints every pose from the log.
@@ -157,7 +160,7 @@ TEST(Omniposed, EndToEndFileLogDecodesAndMatchesGroundTruth) {
   for (std::size_t at = printed.find("pose seq "); at != std::string::npos; at = printed.find("pose seq ", at + 1))
     ++pose_lines;
   EXPECT_EQ(pose_lines, kFrames) << printed;
-  EXPECT_NE(printed.find("pose seq 29 "), std::string::npos) << printed;
+  EXPECT_THAT(printed, HasSubstr("pose seq 29 "));
 
   // --tum: every pose's chained pose at its recorded timestamp, as published.
   const int tum_rc = testing::runProcess(
@@ -179,17 +182,16 @@ TEST(Omniposed, EndToEndFileLogDecodesAndMatchesGroundTruth) {
                                  "/nonexistent/dir/poses.tum"},
                                 tmp / "listen-bad.out", tmp / "listen-bad.err", 60s),
             1);
-  EXPECT_NE(testing::readText(tmp / "listen-bad.err").find("/nonexistent/dir/poses.tum: cannot write"),
-            std::string::npos);
+  EXPECT_THAT(testing::readText(tmp / "listen-bad.err"),
+              HasSubstr("/nonexistent/dir/poses.tum: cannot write"));
   // A log that is a FIFO without a writer would block LCM's file provider: refused at once.
   ASSERT_EQ(::mkfifo((tmp / "fifo.lcm").c_str(), 0600), 0);
   EXPECT_EQ(testing::runProcess({(testing::binaryDir() / "omnipose-listen").string(), "--url",
                                  "file://" + (tmp / "fifo.lcm").string() + "?speed=0"},
                                 tmp / "listen-fifo.out", tmp / "listen-fifo.err", 10s),
             1);
-  EXPECT_NE(testing::readText(tmp / "listen-fifo.err").find("fifo.lcm: not a regular file (a FIFO)"),
-            std::string::npos)
-      << testing::readText(tmp / "listen-fifo.err");
+  EXPECT_THAT(testing::readText(tmp / "listen-fifo.err"),
+              HasSubstr("fifo.lcm: not a regular file (a FIFO)"));
 }
 
 TEST(Omniposed, AThirtyTwoThousandPixelPngCostsTheDaemonAndTheReplayNoMemory) {
@@ -221,9 +223,8 @@ TEST(Omniposed, AThirtyTwoThousandPixelPngCostsTheDaemonAndTheReplayNoMemory) {
       rss_kb[with_bomb] = peak(argv, tag, exit_code);
       ASSERT_EQ(exit_code, 0) << testing::readText(tmp / (tag + ".err"));
       if (with_bomb) {
-        EXPECT_NE(testing::readText(tmp / (tag + ".err")).find("32000x32000, expected 720x720"),
-                  std::string::npos)
-            << testing::readText(tmp / (tag + ".err"));
+        EXPECT_THAT(testing::readText(tmp / (tag + ".err")),
+                    HasSubstr("32000x32000, expected 720x720"));
       }
     }
     RecordProperty(std::string(program) + "_peak_rss_kb_normal", std::to_string(rss_kb[0]));
@@ -289,13 +290,13 @@ TEST(Omniposed, BadConfigurationReportsEveryProblemAndExitsNonZero) {
   EXPECT_EQ(rc, 1) << err;
   for (const char* needle : {"source.speed", "input", "fisheye", "pipeline.", "step", "lcm.status_hz",
                              "lcm.pose_chanel", "extra"}) {
-    EXPECT_NE(err.find(needle), std::string::npos) << "missing '" << needle << "' in:\n" << err;
+    EXPECT_THAT(err, HasSubstr(needle)) << "missing '" << needle << "' in:\n" << err;
   }
   // A missing file and a missing argument.
   EXPECT_EQ(testing::runProcess({omniposed().string(), "--config", (tmp / "none.yaml").string()},
                                 tmp / "out", tmp / "err", 30s),
             1);
-  EXPECT_NE(testing::readText(tmp / "err").find("none.yaml"), std::string::npos);
+  EXPECT_THAT(testing::readText(tmp / "err"), HasSubstr("none.yaml"));
   EXPECT_EQ(testing::runProcess({omniposed().string()}, tmp / "out", tmp / "err", 30s), 2);
   // A valid file whose source is missing: start-up fails naming it.
   testing::writeText(tmp / "daemon.yaml",
@@ -304,7 +305,7 @@ TEST(Omniposed, BadConfigurationReportsEveryProblemAndExitsNonZero) {
   EXPECT_EQ(testing::runProcess({omniposed().string(), "--config", (tmp / "daemon.yaml").string()},
                                 tmp / "out", tmp / "err", 30s),
             1);
-  EXPECT_NE(testing::readText(tmp / "err").find("start-up failed"), std::string::npos);
+  EXPECT_THAT(testing::readText(tmp / "err"), HasSubstr("start-up failed"));
   // Scheduling that cannot be had stops the start-up, named, before anything runs.
   testing::writeText(tmp / "daemon.yaml",
                      testing::fileSourceConfig(mixedDataset(), "memq://", false) +
@@ -313,10 +314,8 @@ TEST(Omniposed, BadConfigurationReportsEveryProblemAndExitsNonZero) {
                                 tmp / "out", tmp / "err", 30s),
             1);
   const std::string refused = testing::readText(tmp / "err");
-  EXPECT_NE(refused.find("start-up failed: scheduling refused:"), std::string::npos) << refused;
-  EXPECT_NE(refused.find("daemon.yaml: scheduling.cpus: CPU 4000 does not exist"),
-            std::string::npos)
-      << refused;
+  EXPECT_THAT(refused, HasSubstr("start-up failed: scheduling refused:"));
+  EXPECT_THAT(refused, HasSubstr("daemon.yaml: scheduling.cpus: CPU 4000 does not exist"));
 }
 
 void expectCleanStopOn(int sig, const char* name) {
@@ -339,8 +338,8 @@ void expectCleanStopOn(int sig, const char* name) {
   const int rc = child.wait(15s);
   const std::string err = testing::readText(tmp / "err");
   ASSERT_EQ(rc, 0) << name << ":\n" << err;
-  EXPECT_NE(err.find(std::string(name) + " received"), std::string::npos) << err;
-  EXPECT_NE(err.find("stopped:"), std::string::npos) << err;
+  EXPECT_THAT(err, HasSubstr(std::string(name) + " received"));
+  EXPECT_THAT(err, HasSubstr("stopped:"));
   const auto log = testing::readLcmLog(lcm_log);
   EXPECT_GT(log.poses.size(), 3u);
   ASSERT_FALSE(log.statuses.empty());
@@ -361,11 +360,11 @@ TEST(Omniposed, KeepsRunningThroughACorruptFrameAndEndsWithExitZero) {
   const fs::path lcm_log = tmp / "run.lcm";
   const DaemonRun r = runDaemon(tmp, testing::fileSourceConfig(tmp / "d", logUrl(lcm_log), false), lcm_log);
   ASSERT_EQ(r.exit_code, 0) << r.err;
-  EXPECT_NE(r.err.find("000011.png"), std::string::npos) << "the fault is logged naming the file:\n" << r.err;
+  EXPECT_THAT(r.err, HasSubstr("000011.png")) << "the fault is logged naming the file:\n" << r.err;
   ASSERT_EQ(r.log.poses.size(), static_cast<std::size_t>(kFrames - 1));
   const status_t& last = r.log.statuses.back();
   EXPECT_EQ(last.frames_bad, 1);
-  EXPECT_NE(last.last_error.find("000011.png"), std::string::npos) << last.last_error;
+  EXPECT_THAT(last.last_error, HasSubstr("000011.png"));
   // The frame after the corrupt one is registered against the keyframe: the chain goes on.
   for (const pose_t& p : r.log.poses) {
     EXPECT_EQ(p.segment, 0);
@@ -470,7 +469,7 @@ TEST(Omniposed, LcmLoggerRecordsTheDaemonOnAPrivateNetwork) {
   const int rc = testing::runProcess(argv, tmp / "ns.out", tmp / "ns.err", 180s);
   const std::string out = testing::readText(tmp / "ns.out");
   ASSERT_EQ(rc, 0) << out << testing::readText(tmp / "ns.err");
-  EXPECT_NE(out.find("listener=0"), std::string::npos) << out;
+  EXPECT_THAT(out, HasSubstr("listener=0"));
 
   // What the independent logger recorded decodes into the full run.
   const auto log = testing::readLcmLog(logger_log);
@@ -543,7 +542,7 @@ TEST(OmniposedFaults, UnusableLcmUrlAtStartupIsAClearErrorAndExitCodeOne) {
     const DaemonRun r = runDaemon(tmp, testing::fileSourceConfig(mixedDataset(), c.url, false), {},
                                   60s);
     EXPECT_EQ(r.exit_code, 1) << r.err;
-    EXPECT_NE(r.err.find("start-up failed"), std::string::npos) << r.err;
+    EXPECT_THAT(r.err, HasSubstr("start-up failed"));
     for (const auto& needle : c.says) EXPECT_NE(r.err.find(needle), std::string::npos) << r.err;
   }
 }
@@ -565,8 +564,8 @@ TEST(OmniposedFaults, SighupIsLoggedWithTheCountersAndTheDaemonKeepsRunning) {
     std::this_thread::sleep_for(50ms);
   const std::string before_stop = d.err();
   EXPECT_EQ(countOf(before_stop, "SIGHUP received"), 2u) << before_stop;
-  EXPECT_NE(before_stop.find("configuration not reloaded"), std::string::npos) << before_stop;
-  EXPECT_NE(before_stop.find("processed "), std::string::npos) << before_stop;
+  EXPECT_THAT(before_stop, HasSubstr("configuration not reloaded"));
+  EXPECT_THAT(before_stop, HasSubstr("processed "));
   d.child->signal(SIGTERM);
   ASSERT_EQ(d.child->wait(15s), 0) << d.err();
   const auto log = testing::readLcmLog(lcm_log);
@@ -613,7 +612,7 @@ TEST(OmniposedFaults, TimestampsGoingBackwardsAreAGapBridgedAndEveryFrameIsProce
                                   lcm_log);
     const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     ASSERT_EQ(r.exit_code, 0) << r.err;
-    EXPECT_NE(r.err.find("time went backwards"), std::string::npos) << r.err;
+    EXPECT_THAT(r.err, HasSubstr("time went backwards"));
     const auto& log = r.log;
     ASSERT_FALSE(log.statuses.empty());
     const status_t& last = log.statuses.back();
@@ -631,7 +630,7 @@ TEST(OmniposedFaults, TimestampsGoingBackwardsAreAGapBridgedAndEveryFrameIsProce
     // The last fault, unless a slow machine (sanitizers) dropped stale frames in realtime: a
     // frame across them may then be beyond a window's reach and not believed, a later fault.
     if (!realtime || last.frames_skipped_stale == 0) {
-      EXPECT_NE(last.last_error.find("time went backwards"), std::string::npos) << last.last_error;
+      EXPECT_THAT(last.last_error, HasSubstr("time went backwards"));
     }
     bool saw_15 = false;
     for (std::size_t k = 1; k < log.poses.size(); ++k) {
@@ -717,7 +716,7 @@ TEST(OmniposedFaults, LogDiskFullMidRunIsReportedPipelineKeepsGoingAndLogRecover
   ASSERT_TRUE(waitForText(tmp / "err", "No space left on device", 120s))
       << testing::readText(tmp / "err") << testing::readText(tmp / "ns.err");
   const std::string full = testing::readText(tmp / "err");
-  EXPECT_NE(full.find(lcm_log.string()), std::string::npos) << "the fault names the log:\n" << full;
+  EXPECT_THAT(full, HasSubstr(lcm_log.string())) << "the fault names the log:\n" << full;
   ASSERT_TRUE(waitForText(tmp / "pid", "\n", 10s));
   const pid_t daemon_pid = std::stoi(testing::readText(tmp / "pid"));
   // The pipeline keeps going while nothing can be written: ask for the counters twice.
@@ -732,7 +731,7 @@ TEST(OmniposedFaults, LogDiskFullMidRunIsReportedPipelineKeepsGoingAndLogRecover
   const int rc = ns.wait(30s);
   const std::string err = testing::readText(tmp / "err");
   ASSERT_EQ(rc, 0) << "no crash, clean stop:\n" << err << testing::readText(tmp / "ns.err");
-  EXPECT_NE(err.find("stopped:"), std::string::npos) << err;
+  EXPECT_THAT(err, HasSubstr("stopped:"));
   // The counters logged at the end: frames went on being processed while the log was full.
   const auto at = err.rfind("stopped:");
   ASSERT_NE(at, std::string::npos);
@@ -754,8 +753,8 @@ TEST(OmniposedFaults, LogDiskFullMidRunIsReportedPipelineKeepsGoingAndLogRecover
   EXPECT_TRUE(last.final) << "the final status was written after space came back";
   EXPECT_EQ(last.frames_processed, processed);
   EXPECT_LT(static_cast<long long>(log.poses.size()), processed) << "poses lost while full";
-  EXPECT_NE(last.last_error.find("No space left on device"), std::string::npos) << last.last_error;
-  EXPECT_NE(last.last_error.find(lcm_log.string()), std::string::npos) << last.last_error;
+  EXPECT_THAT(last.last_error, HasSubstr("No space left on device"));
+  EXPECT_THAT(last.last_error, HasSubstr(lcm_log.string()));
   // Sequence numbers jump over the poses that could not be written, and resume after.
   bool jumped = false;
   for (std::size_t k = 1; k < log.poses.size(); ++k)
@@ -827,7 +826,7 @@ TEST(OmniposedFaults, InputsThatWouldBlockOrRunAwayAreRefusedAtOnceByName) {
       const std::string err = testing::readText(tmp / "err.txt");
       EXPECT_EQ(rc, 1) << (check ? "--check\n" : "") << err;
       EXPECT_LT(took, 5s) << "refused at once, not after reading or waiting";
-      EXPECT_NE(err.find(c.says), std::string::npos) << (check ? "--check\n" : "") << err;
+      EXPECT_THAT(err, HasSubstr(c.says)) << (check ? "--check\n" : "") << err;
     }
   }
   EXPECT_EQ(testing::readText(tmp / "calibration_copy.yaml"), calibration_text) << "never overwritten";
@@ -844,7 +843,7 @@ TEST(OmniposedFaults, CheckWritesNothing) {
                                      tmp / "out.txt", tmp / "err.txt", 60s);
   const std::string err = testing::readText(tmp / "err.txt");
   EXPECT_EQ(rc, 0) << err;
-  EXPECT_NE(err.find("fftw_wisdom " + wisdom.string() + ": absent"), std::string::npos) << err;
+  EXPECT_THAT(err, HasSubstr("fftw_wisdom " + wisdom.string() + ": absent"));
   std::vector<std::string> names;
   for (const auto& e : fs::directory_iterator(tmp.path())) names.push_back(e.path().filename().string());
   std::sort(names.begin(), names.end());
@@ -884,9 +883,8 @@ TEST(OmniposedFaults, SigtermDuringStartUpEndsTheProcessWithinASecond) {
   const std::string err = testing::readText(tmp / "err.txt");
   EXPECT_EQ(rc, 0) << err;
   EXPECT_LT(took, 1s) << err;
-  EXPECT_NE(err.find("omniposed: SIGTERM received during start-up (building the pipeline (FFT plans)): stopping"),
-            std::string::npos)
-      << err;
+  EXPECT_THAT(err,
+              HasSubstr("omniposed: SIGTERM received during start-up (building the pipeline (FFT plans)): stopping"));
 }
 
 TEST(OmniposedFaults, ASecondDaemonOnTheSameLogIsRefusedWithTheHoldersPid) {
@@ -901,10 +899,8 @@ TEST(OmniposedFaults, ASecondDaemonOnTheSameLogIsRefusedWithTheHoldersPid) {
                                      tmp / "out2.txt", tmp / "err2.txt", 30s);
   const std::string err = testing::readText(tmp / "err2.txt");
   EXPECT_EQ(rc, 1) << err;
-  EXPECT_NE(err.find("the log is in use by another omniposed: " + lcm_log.string() +
-                     ".lock: held by process " + std::to_string(first.pid())),
-            std::string::npos)
-      << err;
+  EXPECT_THAT(err,
+              HasSubstr("the log is in use by another omniposed: " + lcm_log.string() + ".lock: held by process " + std::to_string(first.pid())));
   std::this_thread::sleep_for(500ms);
   first.signal(SIGTERM);
   ASSERT_EQ(first.wait(30s), 0) << testing::readText(tmp / "err1.txt");
@@ -938,8 +934,8 @@ TEST(OmniposedFaults, ARunInWhichEveryPublishFailedExitsNonZero) {
   const int rc = testing::runProcess(argv, tmp / "out.txt", tmp / "err.txt", 120s);
   const std::string err = testing::readText(tmp / "err.txt");
   EXPECT_EQ(rc, 3) << err;
-  EXPECT_NE(err.find("every message failed to publish"), std::string::npos) << err;
-  EXPECT_NE(err.find("No space left on device"), std::string::npos) << err;
+  EXPECT_THAT(err, HasSubstr("every message failed to publish"));
+  EXPECT_THAT(err, HasSubstr("No space left on device"));
 }
 
 }  // namespace

@@ -3,6 +3,7 @@
 // daemon runs over LCM memq:// (one lcm::LCM shared by the daemon's sink and the test's
 // subscribers): poses per frame, status, corrupt frames mid-stream, a vanishing dataset
 // directory, stale frames, fit diagnostics, start-up failures, publish failures.
+#include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
 #include <functional>
@@ -25,6 +26,8 @@
 #include "daemon_test_support.hpp"
 #include "daemon/config.hpp"
 #include "replay.hpp"
+
+using ::testing::HasSubstr;
 
 namespace omnipose {
 namespace {
@@ -323,9 +326,9 @@ TEST(FileFrameSource, CorruptAndWrongSizeFramesAreBadFramesNamingTheFile) {
     errors.emplace_back(got.error().message());
   }
   ASSERT_EQ(errors.size(), 2u);
-  EXPECT_NE(errors[0].find("000002.png"), std::string::npos) << errors[0];
-  EXPECT_NE(errors[1].find("000004.png"), std::string::npos) << errors[1];
-  EXPECT_NE(errors[1].find("120x100"), std::string::npos) << errors[1];
+  EXPECT_THAT(errors[0], HasSubstr("000002.png"));
+  EXPECT_THAT(errors[1], HasSubstr("000004.png"));
+  EXPECT_THAT(errors[1], HasSubstr("120x100"));
   EXPECT_EQ(delivered.size(), static_cast<std::size_t>(kFrames - 2));
   EXPECT_EQ(std::count(delivered.begin(), delivered.end(), 2), 0);
 }
@@ -341,8 +344,7 @@ TEST(FileFrameSource, VanishedDirectoryIsADisconnectAndReopenResumesAtTheSameFra
   auto gone = source.next(buffer, 10ms);
   ASSERT_FALSE(gone.has_value());
   EXPECT_EQ(gone.error().code(), ErrorCode::kDisconnected);
-  EXPECT_NE(gone.error().message().find((tmp / "d").string()), std::string::npos)
-      << gone.error().c_str();
+  EXPECT_THAT(gone.error().message(), HasSubstr((tmp / "d").string())) << gone.error().c_str();
   source.close();
   auto reopen = source.open();
   ASSERT_FALSE(reopen.has_value());
@@ -400,12 +402,12 @@ TEST(SourceFactory, BuildsTheConfiguredSourceOrSaysWhatIsNotBuiltIn) {
   config.path = yawDataset();
   auto source = daemon::makeFrameSource(config, {omniSize(), yawDataset() / "calibration.yaml"});
   ASSERT_NE(source, nullptr);
-  EXPECT_NE(source->describe().find(yawDataset().string()), std::string::npos);
+  EXPECT_THAT(source->describe(), HasSubstr(yawDataset().string()));
   // Camera sources are created, not opened: no device is needed. V4L2 is always built in.
   config.type = SourceConfig::Type::kV4l2;
   auto v4l2 = daemon::makeFrameSource(config, {omniSize(), {}});
   ASSERT_NE(v4l2, nullptr);
-  EXPECT_NE(v4l2->describe().find("v4l2 " + config.device), std::string::npos) << v4l2->describe();
+  EXPECT_THAT(v4l2->describe(), HasSubstr("v4l2 " + config.device));
   // libcamera is built in when drivers/libcamera found it (OMNIPOSE_HAVE_LIBCAMERA, set for
   // this test as for the source factory: tests/daemon/CMakeLists.txt); else a clear
   // start-up error that names it.
@@ -413,15 +415,14 @@ TEST(SourceFactory, BuildsTheConfiguredSourceOrSaysWhatIsNotBuiltIn) {
 #if defined(OMNIPOSE_HAVE_LIBCAMERA)
   auto camera = daemon::makeFrameSource(config, {omniSize(), {}});
   ASSERT_NE(camera, nullptr);
-  EXPECT_NE(camera->describe().find("libcamera camera " + config.camera), std::string::npos)
-      << camera->describe();
+  EXPECT_THAT(camera->describe(), HasSubstr("libcamera camera " + config.camera));
 #else
   try {
     daemon::makeFrameSource(config, {omniSize(), {}});
     ADD_FAILURE() << "expected 'not built into this daemon' for libcamera";
   } catch (const std::runtime_error& e) {
-    EXPECT_NE(std::string(e.what()).find("not built into this daemon"), std::string::npos) << e.what();
-    EXPECT_NE(std::string(e.what()).find("libcamera"), std::string::npos) << e.what();
+    EXPECT_THAT(e.what(), HasSubstr("not built into this daemon"));
+    EXPECT_THAT(e.what(), HasSubstr("libcamera"));
   }
 #endif
 }
@@ -714,15 +715,15 @@ TEST(Daemon, CorruptFramesMidStreamAreSkippedReportedAndMarkTheGap) {
   EXPECT_EQ(last.frames_bad, 2);
   EXPECT_EQ(last.frames_received, kFrames);
   EXPECT_EQ(last.frames_processed, kFrames - 2);
-  EXPECT_NE(last.last_error.find("000015.png"), std::string::npos) << last.last_error;
-  EXPECT_NE(last.last_error.find("360x360"), std::string::npos) << last.last_error;
+  EXPECT_THAT(last.last_error, HasSubstr("000015.png"));
+  EXPECT_THAT(last.last_error, HasSubstr("360x360"));
   EXPECT_GT(last.last_error_utime, 0);
   // The first fault was logged with its file name.
   std::rewind(log);
   std::string logged(1 << 16, '\0');
   logged.resize(std::fread(logged.data(), 1, logged.size(), log));
   std::fclose(log);
-  EXPECT_NE(logged.find("000008.png"), std::string::npos) << logged;
+  EXPECT_THAT(logged, HasSubstr("000008.png"));
 
   // The frame after each bad one is found again against the keyframe: the chain goes on in
   // segment 0, its relative pose spans the gap (checked against the ground truth below).
@@ -843,7 +844,7 @@ TEST(Daemon, VanishingDirectoryIsReportedRetriedWithBackoffAndMarksTheGap) {
   for (const auto& s : bus.statuses) {
     if (s.source_state == status_t::SOURCE_RECONNECTING) {
       saw_reconnecting = true;
-      EXPECT_NE(s.last_error.find((tmp / "d").string()), std::string::npos) << s.last_error;
+      EXPECT_THAT(s.last_error, HasSubstr((tmp / "d").string()));
     }
   }
   EXPECT_TRUE(saw_reconnecting);
@@ -961,7 +962,7 @@ TEST(Daemon, StartupFailuresNameTheCulprit) {
       Daemon d(c, nullptr);
       ADD_FAILURE() << "expected a start-up error mentioning " << needle;
     } catch (const std::runtime_error& e) {
-      EXPECT_NE(std::string(e.what()).find(needle), std::string::npos) << e.what();
+      EXPECT_THAT(e.what(), HasSubstr(needle));
     }
   };
   expectStartupError(parseConfig("source: {type: file, path: /no/such/dataset}\ncalibration: " +
@@ -1030,8 +1031,8 @@ TEST(DaemonFaults, CaptureClockGoingBackwardsIsAGapBridgedAndReported) {
   const status_t& last = bus.statuses.back();
   EXPECT_EQ(last.frames_processed, 12);
   EXPECT_EQ(last.poses_lost, 1);
-  EXPECT_NE(last.last_error.find("time went backwards"), std::string::npos) << last.last_error;
-  EXPECT_NE(last.last_error.find("clock-step source"), std::string::npos) << last.last_error;
+  EXPECT_THAT(last.last_error, HasSubstr("time went backwards"));
+  EXPECT_THAT(last.last_error, HasSubstr("clock-step source"));
 }
 
 TEST(DaemonFaults, AnLcmLogThatIsNotARegularFileIsRefusedAtStartUp) {
@@ -1057,8 +1058,8 @@ TEST(DaemonFaults, AnLcmLogThatIsNotARegularFileIsRefusedAtStartUp) {
       ADD_FAILURE() << "started with the log " << target;
     } catch (const std::runtime_error& e) {
       const std::string what = e.what();
-      EXPECT_NE(what.find(target + ": not a regular file"), std::string::npos) << what;
-      EXPECT_NE(what.find("lcm.url"), std::string::npos) << what;
+      EXPECT_THAT(what, HasSubstr(target + ": not a regular file"));
+      EXPECT_THAT(what, HasSubstr("lcm.url"));
     }
   }
 }
@@ -1099,14 +1100,12 @@ TEST(DaemonFaults, BombsTruncatedAndGarbageFramesAreSkippedCountedAndNamed) {
   expectEveryFrameCountedOnce(last, kFrames + static_cast<std::int64_t>(rejected.size()));
   std::string last_name;  // the daemon reads frames in name order
   for (const auto& f : rejected) last_name = std::max(last_name, f.name);
-  EXPECT_NE(last.last_error.find("000010_" + last_name), std::string::npos) << last.last_error;
+  EXPECT_THAT(last.last_error, HasSubstr("000010_" + last_name));
   std::rewind(log);
   std::string logged(1 << 16, '\0');
   logged.resize(std::fread(logged.data(), 1, logged.size(), log));
   std::fclose(log);
-  EXPECT_NE(logged.find("000010_bomb_60000.jpg: 60000x60000, expected 720x720"),
-            std::string::npos)
-      << logged;
+  EXPECT_THAT(logged, HasSubstr("000010_bomb_60000.jpg: 60000x60000, expected 720x720"));
   expectPosesMatchGroundTruth(bus.poses, tmp / "d", 0.01);
 }
 
@@ -1128,7 +1127,7 @@ TEST(DaemonFaults, AFrameThatDecodesButDoesNotFitIsCountedAndTheChainIsUnharmed)
   EXPECT_EQ(last.frames_bad, 1);
   EXPECT_EQ(last.frames_implausible, 1);
   expectEveryFrameCountedOnce(last, kFrames);
-  EXPECT_NE(last.last_error.find("implausible frame"), std::string::npos) << last.last_error;
+  EXPECT_THAT(last.last_error, HasSubstr("implausible frame"));
   ASSERT_EQ(bus.poses.size(), static_cast<std::size_t>(kFrames - 1)) << "no pose for the glitch";
   for (const pose_t& p : bus.poses) {
     EXPECT_NE(p.source_index, 15);
@@ -1174,7 +1173,7 @@ TEST(DaemonFaults, EveryFrameIsCountedOnceUnderEqualBackwardAndJumpingTimestamps
         runWithTimestamps([](int i) { return 0.02 * i - (i % 8 == 7 ? 0.1 : 0.0); }, "daemon-back");
     EXPECT_TRUE(s.final);
     expectEveryFrameCountedOnce(s, kFrames);
-    EXPECT_NE(s.last_error.find("time went backwards"), std::string::npos) << s.last_error;
+    EXPECT_THAT(s.last_error, HasSubstr("time went backwards"));
   }
   {
     SCOPED_TRACE("a forward jump of 1e9 s: reported and resynchronised, not waited out");
@@ -1183,8 +1182,8 @@ TEST(DaemonFaults, EveryFrameIsCountedOnceUnderEqualBackwardAndJumpingTimestamps
     EXPECT_TRUE(s.final);
     expectEveryFrameCountedOnce(s, kFrames);
     EXPECT_EQ(s.frames_lost_upstream, 0);
-    EXPECT_NE(s.last_error.find("frame 12"), std::string::npos) << s.last_error;
-    EXPECT_NE(s.last_error.find("resynchronised"), std::string::npos) << s.last_error;
+    EXPECT_THAT(s.last_error, HasSubstr("frame 12"));
+    EXPECT_THAT(s.last_error, HasSubstr("resynchronised"));
     EXPECT_LT(seconds, 20.0);
   }
 }
@@ -1231,9 +1230,8 @@ TEST(DaemonFaults, FailedPublishesAreCountedInThePublishedStatus) {
   EXPECT_EQ(last.frames_processed, kTotal);
   EXPECT_EQ(last.publish_failures, kTotal) << "one per refused pose; every status went out";
   EXPECT_EQ(d.stats().publish_failures, kTotal);
-  EXPECT_NE(last.last_error.find("channel OMNI_POSE"), std::string::npos) << last.last_error;
-  EXPECT_NE(last.last_error.find("test sink refuses the channel"), std::string::npos)
-      << last.last_error;
+  EXPECT_THAT(last.last_error, HasSubstr("channel OMNI_POSE"));
+  EXPECT_THAT(last.last_error, HasSubstr("test sink refuses the channel"));
   bool periodic_carried_it = false;  // not only the final status
   for (std::size_t k = 1; k < bus.statuses.size(); ++k) {
     EXPECT_GE(bus.statuses[k].publish_failures, bus.statuses[k - 1].publish_failures);

@@ -5,6 +5,7 @@
 // owner of reconnection) on V4L2 and on a fake libcamera, the
 // source factory building the camera sources, and a missing device as a start-up error.
 
+#include <gmock/gmock.h>
 #include <gtest/gtest.h>
 #include <unistd.h>
 
@@ -36,6 +37,8 @@
 #include "shared_lcm_sink.hpp"
 #include "omnipose/io/trajectory.hpp"
 #include "v4l2/v4l2_source.hpp"
+
+using ::testing::HasSubstr;
 
 namespace omnipose {
 namespace {
@@ -225,8 +228,7 @@ TEST_P(DaemonOnFakeV4l2, RenderedOmniFramesGivePosesMatchingTheGroundTruth) {
     // took the last one; the fake's virtual clock jumps to it, so every frame is processed.
     daemon::Daemon d(config, stderr, std::make_unique<V4l2Source>(daemon::v4l2Options(config.source), fake.get()),
                      std::make_unique<testing::SharedLcmSink>(bus.lcm), losslessOptions());
-    EXPECT_NE(d.sourceDescription().find("v4l2 /dev/video-omnipose-fake 720x720"), std::string::npos)
-        << d.sourceDescription();
+    EXPECT_THAT(d.sourceDescription(), HasSubstr("v4l2 /dev/video-omnipose-fake 720x720"));
     bus.run(d, kFrames, 120s);
     const auto stats = d.stats();
     EXPECT_EQ(stats.frames_received, kFrames);
@@ -256,7 +258,7 @@ TEST_P(DaemonOnFakeV4l2, RenderedOmniFramesGivePosesMatchingTheGroundTruth) {
   EXPECT_EQ(ok, kFrames - 1);
   ASSERT_FALSE(bus.statuses.empty());
   EXPECT_TRUE(bus.statuses.back().final);
-  EXPECT_NE(bus.statuses.back().source.find("v4l2 /dev/video-omnipose-fake"), std::string::npos);
+  EXPECT_THAT(bus.statuses.back().source, HasSubstr("v4l2 /dev/video-omnipose-fake"));
 }
 
 INSTANTIATE_TEST_SUITE_P(Formats, DaemonOnFakeV4l2, ::testing::Values("YUYV", "MJPG", "GREY"));
@@ -305,7 +307,7 @@ TEST(DaemonOnFakeV4l2Unplug, DeviceVanishingMidStreamIsReopenedByTheCaptureLoopA
   for (const status_t& s : bus.statuses)
     if (s.source_state == status_t::SOURCE_RECONNECTING) {
       saw_reconnecting = true;
-      EXPECT_NE(s.last_error.find("/dev/video-omnipose-fake"), std::string::npos) << s.last_error;
+      EXPECT_THAT(s.last_error, HasSubstr("/dev/video-omnipose-fake"));
     }
   EXPECT_TRUE(saw_reconnecting) << "status showed the outage";
 
@@ -440,7 +442,7 @@ TEST(CameraSourceFactory, BuildsV4l2AndReportsEveryBadKey) {
   c.format = "MJPG";
   auto source = daemon::makeFrameSource(c, {omniSize(), {}});
   ASSERT_NE(source, nullptr);
-  EXPECT_NE(source->describe().find("v4l2 /dev/video3"), std::string::npos) << source->describe();
+  EXPECT_THAT(source->describe(), HasSubstr("v4l2 /dev/video3"));
 
   c.format = "RGB3";
   c.fps = 0;
@@ -448,8 +450,8 @@ TEST(CameraSourceFactory, BuildsV4l2AndReportsEveryBadKey) {
     daemon::makeFrameSource(c, {omniSize(), {}});
     ADD_FAILURE() << "expected an error";
   } catch (const std::runtime_error& e) {
-    EXPECT_NE(std::string(e.what()).find("source.format: 'RGB3'"), std::string::npos) << e.what();
-    EXPECT_NE(std::string(e.what()).find("source.fps"), std::string::npos) << e.what();
+    EXPECT_THAT(e.what(), HasSubstr("source.format: 'RGB3'"));
+    EXPECT_THAT(e.what(), HasSubstr("source.fps"));
   }
 }
 
@@ -506,7 +508,7 @@ TEST(CameraSourceFactory, CheckSourceOptionsListsEveryProblemWithoutOpeningAnyth
     ADD_FAILURE() << "expected an error";
   } catch (const std::runtime_error& e) {
     for (const auto& p : problems)
-      EXPECT_NE(std::string(e.what()).find(p), std::string::npos) << e.what();
+      EXPECT_THAT(e.what(), HasSubstr(p));
   }
 
   c.type = SourceConfig::Type::kLibcamera;
@@ -521,8 +523,7 @@ TEST(CameraSourceFactory, CheckSourceOptionsListsEveryProblemWithoutOpeningAnyth
 #else
   const auto lp = daemon::checkSourceOptions(c);
   ASSERT_EQ(lp.size(), 1u);
-  EXPECT_NE(lp[0].find("source.type: 'libcamera' is not built into this daemon"),
-            std::string::npos) << lp[0];
+  EXPECT_THAT(lp[0], HasSubstr("source.type: 'libcamera' is not built into this daemon"));
 #endif
 
   c.type = SourceConfig::Type::kFile;  // no driver options; the directory is checked elsewhere
@@ -536,13 +537,13 @@ TEST(CameraSourceFactory, LibcameraIsBuiltWhenFound) {
 #if defined(OMNIPOSE_HAVE_LIBCAMERA)
   auto source = daemon::makeFrameSource(c, {omniSize(), {}});
   ASSERT_NE(source, nullptr);
-  EXPECT_NE(source->describe().find("libcamera camera 0"), std::string::npos);
+  EXPECT_THAT(source->describe(), HasSubstr("libcamera camera 0"));
 #else
   try {
     daemon::makeFrameSource(c, {omniSize(), {}});
     ADD_FAILURE() << "expected 'not built into this daemon'";
   } catch (const std::runtime_error& e) {
-    EXPECT_NE(std::string(e.what()).find("not built into this daemon"), std::string::npos);
+    EXPECT_THAT(e.what(), HasSubstr("not built into this daemon"));
   }
 #endif
 }
@@ -559,8 +560,8 @@ TEST(DaemonStartup, MissingV4l2DeviceIsAClearErrorNamingIt) {
     ADD_FAILURE() << "expected a start-up error";
   } catch (const std::runtime_error& e) {
     const std::string what = e.what();
-    EXPECT_NE(what.find("/dev/video-omnipose-missing"), std::string::npos) << what;
-    EXPECT_NE(what.find("no such device"), std::string::npos) << what;
+    EXPECT_THAT(what, HasSubstr("/dev/video-omnipose-missing"));
+    EXPECT_THAT(what, HasSubstr("no such device"));
   }
 }
 
@@ -599,10 +600,9 @@ TEST(DaemonStartup, ASecondDaemonOnTheSameCameraIsRefusedWithTheHoldersPid) {
       ADD_FAILURE() << "a second daemon started on the camera";
     } catch (const std::runtime_error& e) {
       const std::string what = e.what();
-      EXPECT_NE(what.find("source: v4l2 " + device.string() + " is in use by another omniposed"),
-                std::string::npos)
-          << what;
-      EXPECT_NE(what.find("held by process " + std::to_string(::getpid())), std::string::npos) << what;
+      EXPECT_THAT(what,
+                  HasSubstr("source: v4l2 " + device.string() + " is in use by another omniposed"));
+      EXPECT_THAT(what, HasSubstr("held by process " + std::to_string(::getpid())));
     }
     EXPECT_TRUE(fake->openAttempts().empty()) << "the refused daemon never opened the camera";
   }

@@ -4,6 +4,7 @@
 // policy, sequence gaps, SensorTimestamp and the clock offset, unplug (the camera released,
 // the owner re-opens) and replug, stop with requests in flight.
 
+#include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
 #include <cerrno>
@@ -12,6 +13,8 @@
 
 #include "fake_libcamera.hpp"
 #include "libcamera/libcamera_source.hpp"
+
+using ::testing::HasSubstr;
 
 namespace omnipose {
 namespace {
@@ -127,7 +130,7 @@ TEST_F(LibcameraStreamTest, SizeAdjustedToTheNearestSupportedAndReadBack) {
   auto s = source(options("YUYV", 700, 500));
   ASSERT_TRUE(s->open());
   EXPECT_EQ(s->frameSize(), cv::Size(640, 480));
-  EXPECT_NE(s->describe().find("asked 700x500"), std::string::npos) << s->describe();
+  EXPECT_THAT(s->describe(), HasSubstr("asked 700x500"));
   produce(1);
   cv::Mat out(480, 640, CV_8UC1);
   ASSERT_TRUE(s->next(out, 1000ms));
@@ -138,8 +141,8 @@ TEST_F(LibcameraStreamTest, FormatNotOfferedIsReplacedByTheBestOffered) {
   auto s = source(options("GREY"));  // the camera offers XR24, NV12, YUYV
   ASSERT_TRUE(s->open());
   EXPECT_EQ(camera_->configured().fourcc, kFakeNV12);
-  EXPECT_NE(s->describe().find("NV12"), std::string::npos);
-  EXPECT_NE(s->describe().find("(GREY not offered)"), std::string::npos) << s->describe();
+  EXPECT_THAT(s->describe(), HasSubstr("NV12"));
+  EXPECT_THAT(s->describe(), HasSubstr("(GREY not offered)"));
   auto a = source(options("auto"));
   s->close();
   ASSERT_TRUE(a->open());
@@ -161,8 +164,7 @@ TEST_F(LibcameraStreamTest, NothingConvertibleOrInvalidConfigurationReleasesTheC
   r = s->open();
   ASSERT_FALSE(r);
   EXPECT_EQ(r.error().code(), ErrorCode::kUnsupportedFormat);
-  EXPECT_NE(r.error().message().find("rejects NV12 640x480"), std::string_view::npos)
-      << r.error().message();
+  EXPECT_THAT(r.error().message(), HasSubstr("rejects NV12 640x480"));
   EXPECT_FALSE(camera_->acquired());
   manager_->rejectConfigurations(false);
   EXPECT_TRUE(s->open());
@@ -189,7 +191,7 @@ TEST_F(LibcameraStreamTest, CameraChoiceBusyMissingAndById) {
   o.camera = config_.id;
   auto by_id = source(o);
   ASSERT_TRUE(by_id->open());
-  EXPECT_NE(by_id->describe().find(config_.id), std::string::npos);
+  EXPECT_THAT(by_id->describe(), HasSubstr(config_.id));
   EXPECT_TRUE(camera_->running());
 
   // A second source on the same camera: libcamera's acquire() refuses it.
@@ -204,7 +206,7 @@ TEST_F(LibcameraStreamTest, FrameRateSetsFrameDurationLimitsWhereSettable) {
   auto s = source(o);
   ASSERT_TRUE(s->open());
   EXPECT_EQ(camera_->frameDurationUs(), 40000);
-  EXPECT_NE(s->describe().find("25 fps"), std::string::npos) << s->describe();
+  EXPECT_THAT(s->describe(), HasSubstr("25 fps"));
   s->close();
 
   FakeCameraConfig c;
@@ -212,7 +214,7 @@ TEST_F(LibcameraStreamTest, FrameRateSetsFrameDurationLimitsWhereSettable) {
   replugWith(c);
   ASSERT_TRUE(s->open());
   EXPECT_EQ(camera_->frameDurationUs(), 0);
-  EXPECT_NE(s->describe().find("frame rate not settable"), std::string::npos);
+  EXPECT_THAT(s->describe(), HasSubstr("frame rate not settable"));
 }
 
 // ---- newest frame, stale and lost frames -------------------------------------------------
@@ -403,7 +405,7 @@ TEST_F(LibcameraStreamTest, UnplugReleasesTheCameraAndReportsDisconnectedUntilRe
   EXPECT_FALSE(old_camera->acquired()) << "released";
   EXPECT_EQ(old_camera->allocatedBuffers(), 0);
   EXPECT_EQ(FakeCameraManager::memfdMappings(), 0) << "every buffer unmapped";
-  EXPECT_NE(s->describe().find("(disconnected)"), std::string::npos);
+  EXPECT_THAT(s->describe(), HasSubstr("(disconnected)"));
 
   // The source does not retry on its own: next() answers at once, asking libcamera nothing.
   const std::size_t opens_before = manager_->openAttempts().size();
@@ -411,8 +413,7 @@ TEST_F(LibcameraStreamTest, UnplugReleasesTheCameraAndReportsDisconnectedUntilRe
     r = s->next(out, 1000ms);
     ASSERT_FALSE(r);
     EXPECT_EQ(r.error().code(), ErrorCode::kDisconnected);
-    EXPECT_NE(r.error().message().find("close() and open()"), std::string_view::npos)
-        << r.error().message();
+    EXPECT_THAT(r.error().message(), HasSubstr("close() and open()"));
   }
   EXPECT_EQ(manager_->openAttempts().size(), opens_before) << "no reopen attempt";
 

@@ -2,12 +2,15 @@
 // behaviour with no camera present. Its timestamp conversion (CLOCK_BOOTTIME -> wall clock)
 // is common code, tested in driver_common_test.cpp.
 
+#include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
 #include <filesystem>
 
 #include "libcamera/libcamera_formats.hpp"
 #include "libcamera/libcamera_source.hpp"
+
+using ::testing::HasSubstr;
 
 namespace omnipose {
 namespace {
@@ -97,12 +100,11 @@ TEST(LibcameraFormatTest, NothingConvertibleOrUnknownNameAreErrors) {
   auto c = libcam::chooseFormat("YUYV", std::vector<std::uint32_t>{kXRGB, kRaw10});
   ASSERT_FALSE(c);
   EXPECT_EQ(c.error().code(), ErrorCode::kUnsupportedFormat);
-  EXPECT_NE(c.error().message().find("offers: XR24 pRAA"), std::string_view::npos)
-      << c.error().message();
+  EXPECT_THAT(c.error().message(), HasSubstr("offers: XR24 pRAA"));
   c = libcam::chooseFormat("RGB565", std::vector<std::uint32_t>{kNV12});
   ASSERT_FALSE(c);
   EXPECT_EQ(c.error().code(), ErrorCode::kInvalidArgument);
-  EXPECT_NE(c.error().message().find("RGB565"), std::string_view::npos);
+  EXPECT_THAT(c.error().message(), HasSubstr("RGB565"));
 }
 
 // ---- camera choice ----------------------------------------------------------------------
@@ -134,12 +136,11 @@ TEST(LibcameraCameraTest, MissingCamerasAreClearErrors) {
   i = libcam::selectCamera(libcam::parseCameraSelector("2"), one);
   ASSERT_FALSE(i);
   EXPECT_EQ(i.error().code(), ErrorCode::kNoDevice);
-  EXPECT_NE(i.error().message().find("0: /base/soc/i2c0mux/i2c@1/imx219@10"),
-            std::string_view::npos);
+  EXPECT_THAT(i.error().message(), HasSubstr("0: /base/soc/i2c0mux/i2c@1/imx219@10"));
   i = libcam::selectCamera(libcam::parseCameraSelector("imx477"), one);
   ASSERT_FALSE(i);
   EXPECT_EQ(i.error().code(), ErrorCode::kNotFound);
-  EXPECT_NE(i.error().message().find("'imx477'"), std::string_view::npos);
+  EXPECT_THAT(i.error().message(), HasSubstr("'imx477'"));
 }
 
 // ---- configuration ----------------------------------------------------------------------
@@ -180,9 +181,7 @@ TEST(LibcameraConfigTest, InvalidConfigurationFailsBeforeTouchingLibcamera) {
   auto r = source.open();
   ASSERT_FALSE(r);
   EXPECT_EQ(r.error().code(), ErrorCode::kInvalidArgument);
-  EXPECT_NE(r.error().message().find("libcamera camera 0: source.format: 'XRGB8888'"),
-            std::string_view::npos)
-      << r.error().message();
+  EXPECT_THAT(r.error().message(), HasSubstr("libcamera camera 0: source.format: 'XRGB8888'"));
 }
 
 // ---- no camera here ---------------------------------------------------------------------
@@ -197,12 +196,12 @@ bool anyMediaDevice() {
 TEST(LibcameraSourceTest, NoCameraIsAClearError) {
   if (anyMediaDevice()) GTEST_SKIP() << "a media device exists here; this test needs none";
   LibcameraSource source(libcameraConfig("0", "auto"));
-  EXPECT_NE(source.describe().find("not open"), std::string::npos);
+  EXPECT_THAT(source.describe(), HasSubstr("not open"));
   auto r = source.open();
   ASSERT_FALSE(r);
   EXPECT_EQ(r.error().code(), ErrorCode::kNoDevice);
-  EXPECT_NE(r.error().message().find("no camera"), std::string_view::npos) << r.error().message();
-  EXPECT_NE(r.error().message().find("libcamera camera 0"), std::string_view::npos);
+  EXPECT_THAT(r.error().message(), HasSubstr("no camera"));
+  EXPECT_THAT(r.error().message(), HasSubstr("libcamera camera 0"));
   cv::Mat out(480, 640, CV_8UC1);
   auto n = source.next(out, 10ms);
   ASSERT_FALSE(n);

@@ -1,6 +1,7 @@
 // V4L2 source against a fake device that follows the kernel's protocol (fake_v4l2_device.hpp),
 // plus the real kernel for what needs no camera (a missing node, a node that is not V4L2).
 
+#include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
 #include <cerrno>
@@ -14,6 +15,8 @@
 #include "allocation_counter.hpp"
 #include "fake_v4l2_device.hpp"
 #include "v4l2/v4l2_source.hpp"
+
+using ::testing::HasSubstr;
 
 namespace omnipose {
 namespace {
@@ -229,8 +232,8 @@ TEST_F(V4l2SourceTest, UsesTheSizeTheDriverAdjustedAndHonoursRowPadding) {
   EXPECT_EQ(source_->frameSize(), cv::Size(208, 96)) << "read back after S_FMT";
   EXPECT_EQ(source_->negotiated().bytes_per_line, 256u);
   EXPECT_EQ(fake_->format().pixelformat, V4L2_PIX_FMT_GREY);
-  EXPECT_NE(source_->describe().find("208x96 GREY"), std::string::npos) << source_->describe();
-  EXPECT_NE(source_->describe().find("asked 200x100"), std::string::npos) << source_->describe();
+  EXPECT_THAT(source_->describe(), HasSubstr("208x96 GREY"));
+  EXPECT_THAT(source_->describe(), HasSubstr("asked 200x100"));
   for (int i = 0; i < 5; ++i) {
     auto info = next();
     ASSERT_TRUE(info) << info.error().message();
@@ -272,7 +275,7 @@ TEST_F(V4l2SourceTest, FrameRateNotSettableKeepsTheDeviceRate) {
   make(fc, v4l2Config(320, 240, "YUYV", 15.0));
   openOrDie();
   EXPECT_EQ(source_->negotiated().fps, 0.0);
-  EXPECT_NE(source_->describe().find("not settable"), std::string::npos);
+  EXPECT_THAT(source_->describe(), HasSubstr("not settable"));
   auto info = next();
   ASSERT_TRUE(info) << info.error().message();
 }
@@ -284,9 +287,8 @@ TEST_F(V4l2SourceTest, FormatNotOfferedIsAClearError) {
   auto r = source_->open();
   ASSERT_FALSE(r);
   EXPECT_EQ(r.error().code(), ErrorCode::kUnsupportedFormat);
-  EXPECT_NE(r.error().message().find("/dev/video0"), std::string_view::npos);
-  EXPECT_NE(r.error().message().find("offers: YUYV GREY"), std::string_view::npos)
-      << r.error().message();
+  EXPECT_THAT(r.error().message(), HasSubstr("/dev/video0"));
+  EXPECT_THAT(r.error().message(), HasSubstr("offers: YUYV GREY"));
 }
 
 TEST_F(V4l2SourceTest, DriverRejectingTheFormatIsUnsupportedFormat) {
@@ -316,8 +318,8 @@ TEST_F(V4l2SourceTest, UnknownConfiguredFormatIsInvalidArgument) {
   auto r = source_->open();
   ASSERT_FALSE(r);
   EXPECT_EQ(r.error().code(), ErrorCode::kInvalidArgument);
-  EXPECT_NE(r.error().message().find("RGB3"), std::string_view::npos);
-  EXPECT_NE(r.error().message().find("source.format"), std::string_view::npos);
+  EXPECT_THAT(r.error().message(), HasSubstr("RGB3"));
+  EXPECT_THAT(r.error().message(), HasSubstr("source.format"));
 }
 
 TEST(V4l2OptionsTest, ValidateListsEveryProblemByItsKey) {
@@ -357,9 +359,8 @@ TEST(V4l2OptionsTest, OpenRefusesInvalidOptionsBeforeTouchingTheDevice) {
   auto r = source.open();
   ASSERT_FALSE(r);
   EXPECT_EQ(r.error().code(), ErrorCode::kInvalidArgument);
-  EXPECT_NE(r.error().message().find("v4l2 /dev/video0: buffer_count: must be in [2, 32], is 40"),
-            std::string_view::npos)
-      << r.error().message();
+  EXPECT_THAT(r.error().message(),
+              HasSubstr("v4l2 /dev/video0: buffer_count: must be in [2, 32], is 40"));
   EXPECT_TRUE(fake.openAttempts().empty()) << "the device was not opened";
 }
 
@@ -371,9 +372,7 @@ TEST_F(V4l2SourceTest, MetadataNodeIsNotACaptureDevice) {
   auto r = source_->open();
   ASSERT_FALSE(r);
   EXPECT_EQ(r.error().code(), ErrorCode::kNoDevice);
-  EXPECT_NE(r.error().message().find("/dev/video1: not a video capture node"),
-            std::string_view::npos)
-      << r.error().message();
+  EXPECT_THAT(r.error().message(), HasSubstr("/dev/video1: not a video capture node"));
 }
 
 TEST_F(V4l2SourceTest, MissingDeviceNamesIt) {
@@ -381,7 +380,7 @@ TEST_F(V4l2SourceTest, MissingDeviceNamesIt) {
   auto r = source_->open();
   ASSERT_FALSE(r);
   EXPECT_EQ(r.error().code(), ErrorCode::kNotFound);
-  EXPECT_NE(r.error().message().find("/dev/video5: no such device"), std::string_view::npos);
+  EXPECT_THAT(r.error().message(), HasSubstr("/dev/video5: no such device"));
 }
 
 TEST_F(V4l2SourceTest, BusyDeviceIsBusyAndReleased) {
@@ -501,7 +500,7 @@ TEST_F(V4l2SourceTest, ErrorFlaggedBufferIsDroppedAndCounted) {
   auto r = next();
   ASSERT_FALSE(r) << "frame 3 alone was available and it is flagged";
   EXPECT_EQ(r.error().code(), ErrorCode::kBadFrame);
-  EXPECT_NE(r.error().message().find("V4L2_BUF_FLAG_ERROR"), std::string_view::npos);
+  EXPECT_THAT(r.error().message(), HasSubstr("V4L2_BUF_FLAG_ERROR"));
   auto info = next();
   ASSERT_TRUE(info);
   EXPECT_EQ(info->sequence, 4u);
@@ -649,7 +648,7 @@ TEST_F(V4l2SourceTest, EndOfFrameTimestampsAreDatedBackToTheFirstRowsCapture) {
   o.readout_s = 0.5;
   const auto problems = validate(o);
   ASSERT_EQ(problems.size(), 1u);
-  EXPECT_NE(problems[0].find("readout_s"), std::string::npos) << problems[0];
+  EXPECT_THAT(problems[0], HasSubstr("readout_s"));
 }
 
 TEST_F(V4l2SourceTest, WallClockStepIsFollowedAfterResync) {
@@ -698,9 +697,9 @@ TEST_F(V4l2SourceTest, UnplugReleasesTheDeviceAndReportsDisconnectedUntilReopene
   auto r = next();
   ASSERT_FALSE(r);
   EXPECT_EQ(r.error().code(), ErrorCode::kDisconnected);
-  EXPECT_NE(r.error().message().find("/dev/video0"), std::string_view::npos);
+  EXPECT_THAT(r.error().message(), HasSubstr("/dev/video0"));
   EXPECT_TRUE(source_->disconnected());
-  EXPECT_NE(source_->describe().find("(disconnected)"), std::string::npos);
+  EXPECT_THAT(source_->describe(), HasSubstr("(disconnected)"));
   EXPECT_EQ(fake_->openFdCount(), 0) << "the dead fd is closed";
   EXPECT_EQ(fake_->mappingCount(), 0) << "the buffers are unmapped";
 
@@ -712,8 +711,7 @@ TEST_F(V4l2SourceTest, UnplugReleasesTheDeviceAndReportsDisconnectedUntilReopene
     auto again = next(500ms);
     ASSERT_FALSE(again);
     EXPECT_EQ(again.error().code(), ErrorCode::kDisconnected);
-    EXPECT_NE(again.error().message().find("close() and open()"), std::string_view::npos)
-        << again.error().message();
+    EXPECT_THAT(again.error().message(), HasSubstr("close() and open()"));
   }
   EXPECT_EQ(fake_->openAttempts().size(), attempts_before) << "no reopen attempt";
   EXPECT_EQ(fake_->pollCalls(), polls_before);
@@ -786,7 +784,7 @@ TEST_F(V4l2SourceTest, MisuseIsInvalidArgument) {
   auto r = source_->next(out, 10ms);
   ASSERT_FALSE(r);
   EXPECT_EQ(r.error().code(), ErrorCode::kInvalidArgument);
-  EXPECT_NE(source_->describe().find("not open"), std::string::npos);
+  EXPECT_THAT(source_->describe(), HasSubstr("not open"));
   openOrDie();
   cv::Mat wrong(100, 100, CV_8UC1);
   r = source_->next(wrong, 10ms);
@@ -837,7 +835,7 @@ TEST(V4l2SystemTest, MissingNodeIsNotFound) {
   auto r = source.open();
   ASSERT_FALSE(r);
   EXPECT_EQ(r.error().code(), ErrorCode::kNotFound);
-  EXPECT_NE(r.error().message().find("/dev/video-omnipose-test-missing"), std::string_view::npos);
+  EXPECT_THAT(r.error().message(), HasSubstr("/dev/video-omnipose-test-missing"));
 }
 
 TEST(V4l2SystemTest, NonV4l2NodeIsNoDevice) {
@@ -846,8 +844,7 @@ TEST(V4l2SystemTest, NonV4l2NodeIsNoDevice) {
   auto r = source.open();
   ASSERT_FALSE(r);
   EXPECT_EQ(r.error().code(), ErrorCode::kNoDevice);
-  EXPECT_NE(r.error().message().find("/dev/null: not a V4L2 device"), std::string_view::npos)
-      << r.error().message();
+  EXPECT_THAT(r.error().message(), HasSubstr("/dev/null: not a V4L2 device"));
 }
 
 TEST(V4l2SystemTest, RealCameraDeliversFramesWhenPresent) {

@@ -1,11 +1,14 @@
 #include "omnipose/io/dataset.hpp"
 
+#include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
 #include <sys/stat.h>
 
 #include <fstream>
 #include <opencv2/imgcodecs.hpp>
+
+using ::testing::HasSubstr;
 
 namespace omnipose {
 namespace {
@@ -53,7 +56,7 @@ TEST_F(DatasetTest, TimestampsFileIsUsedAndAMissingEntryIsNamed) {
     Dataset::open(root_);
     FAIL();
   } catch (const std::runtime_error& e) {
-    EXPECT_NE(std::string(e.what()).find("f2.png"), std::string::npos) << e.what();
+    EXPECT_THAT(e.what(), HasSubstr("f2.png"));
   }
 }
 
@@ -66,9 +69,7 @@ TEST_F(DatasetTest, TimestampsBeyondTenBillionSecondsAreRefusedNamingTheLine) {
     Dataset::open(root_);
     ADD_FAILURE() << "1e300 s accepted (pacing converts it to integer microseconds)";
   } catch (const std::runtime_error& e) {
-    EXPECT_NE(std::string(e.what()).find("timestamps.txt:2: timestamp must be a finite number"),
-              std::string::npos)
-        << e.what();
+    EXPECT_THAT(e.what(), HasSubstr("timestamps.txt:2: timestamp must be a finite number"));
   }
 }
 
@@ -79,7 +80,7 @@ TEST_F(DatasetTest, MissingPiecesAreClearErrors) {
     Dataset::open(root_);
     FAIL();
   } catch (const CalibrationError& e) {
-    EXPECT_NE(std::string(e.what()).find("calibration.yaml"), std::string::npos);
+    EXPECT_THAT(e.what(), HasSubstr("calibration.yaml"));
   }
 }
 
@@ -92,7 +93,7 @@ TEST_F(DatasetTest, CorruptAndMissingImagesAreNamed) {
   auto frame = readFrame(bad);
   ASSERT_FALSE(frame.has_value());
   EXPECT_EQ(frame.error().code(), ErrorCode::kBadFrame);
-  EXPECT_NE(frame.error().message().find("f9.png"), std::string_view::npos);
+  EXPECT_THAT(frame.error().message(), HasSubstr("f9.png"));
   auto missing = readFrame(root_ / "frames" / "nothing.png");
   ASSERT_FALSE(missing.has_value());
   EXPECT_EQ(missing.error().code(), ErrorCode::kNotFound);
@@ -117,7 +118,7 @@ TEST(Trajectory, TumRoundTripAndMalformedLine) {
     readTum(path);
     FAIL();
   } catch (const std::runtime_error& e) {
-    EXPECT_NE(std::string(e.what()).find(":4:"), std::string::npos) << e.what();
+    EXPECT_THAT(e.what(), HasSubstr(":4:"));
   }
   fs::remove(path);
 }
@@ -150,7 +151,7 @@ TEST_F(DatasetTest, TimestampsThatAreNotPlainDecimalsOrNameAFrameTwiceAreErrorsN
     SCOPED_TRACE(c.text);
     std::ofstream(root_ / "timestamps.txt") << c.text;
     const std::string what = openError(root_);
-    EXPECT_NE(what.find(c.says), std::string::npos) << what;
+    EXPECT_THAT(what, HasSubstr(c.says));
   }
   std::ofstream(root_ / "timestamps.txt") << "f0.png +1.5\nf1.png 2.\nf2.png .25e1\n";
   const Dataset d = Dataset::open(root_);
@@ -164,12 +165,9 @@ TEST_F(DatasetTest, NegativeAndBackwardsTimesAreWarningsNamingTheLine) {
   std::ofstream(root_ / "timestamps.txt") << "# t\nf0.png -2\nf1.png -1\nf2.png -1.5\n";
   const Dataset d = Dataset::open(root_);
   ASSERT_EQ(d.warnings.size(), 4u);
-  EXPECT_NE(d.warnings[0].find("timestamps.txt:2: f0.png at -2.000000 s: a negative time"), std::string::npos)
-      << d.warnings[0];
-  EXPECT_NE(d.warnings[3].find("timestamps.txt:4: f2.png at -1.500000 s is not after the frame before it "
-                               "(f1.png at -1.000000 s)"),
-            std::string::npos)
-      << d.warnings[3];
+  EXPECT_THAT(d.warnings[0], HasSubstr("timestamps.txt:2: f0.png at -2.000000 s: a negative time"));
+  EXPECT_THAT(d.warnings[3],
+              HasSubstr("timestamps.txt:4: f2.png at -1.500000 s is not after the frame before it " "(f1.png at -1.000000 s)"));
   // All equal: one warning per frame, at most 20 and then a count.
   fs::remove_all(root_ / "frames");
   fs::create_directories(root_ / "frames");
@@ -188,27 +186,26 @@ TEST_F(DatasetTest, NegativeAndBackwardsTimesAreWarningsNamingTheLine) {
 TEST_F(DatasetTest, TextFilesThatAreDevicesOrFifosAreRefusedByNameWithoutReading) {
   fs::create_symlink("/dev/zero", root_ / "timestamps.txt");
   std::string what = openError(root_);
-  EXPECT_NE(what.find("timestamps.txt: not a regular file (a character device)"), std::string::npos) << what;
+  EXPECT_THAT(what, HasSubstr("timestamps.txt: not a regular file (a character device)"));
   fs::remove(root_ / "timestamps.txt");
   ASSERT_EQ(::mkfifo((root_ / "timestamps.txt").c_str(), 0600), 0);
   what = openError(root_);
-  EXPECT_NE(what.find("timestamps.txt: not a regular file (a FIFO)"), std::string::npos) << what;
+  EXPECT_THAT(what, HasSubstr("timestamps.txt: not a regular file (a FIFO)"));
   fs::remove(root_ / "timestamps.txt");
   fs::create_symlink("/dev/zero", root_ / "groundtruth.tum");
   what = openError(root_);
-  EXPECT_NE(what.find("groundtruth.tum: not a regular file (a character device)"), std::string::npos) << what;
+  EXPECT_THAT(what, HasSubstr("groundtruth.tum: not a regular file (a character device)"));
   fs::remove(root_ / "groundtruth.tum");
   fs::remove(root_ / "calibration.yaml");
   fs::create_directory(root_ / "calibration.yaml");
   what = openError(root_);
-  EXPECT_NE(what.find("calibration.yaml: not a regular file (a directory)"), std::string::npos) << what;
+  EXPECT_THAT(what, HasSubstr("calibration.yaml: not a regular file (a directory)"));
 }
 
 TEST_F(DatasetTest, GroundTruthValuesMustBePlainFiniteDecimals) {
   std::ofstream(root_ / "groundtruth.tum") << "0 0 0 0 0 0 0 1\n0.1 0x1 0 0 0 0 0 1\n";
   const std::string what = openError(root_);
-  EXPECT_NE(what.find("groundtruth.tum:2: every value must be a finite decimal number"), std::string::npos)
-      << what;
+  EXPECT_THAT(what, HasSubstr("groundtruth.tum:2: every value must be a finite decimal number"));
 }
 
 }  // namespace

@@ -1,10 +1,13 @@
 #include "omnipose/eval/evaluation.hpp"
 
+#include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
 #include <algorithm>
 #include <cmath>
 #include <numbers>
+
+using ::testing::HasSubstr;
 
 namespace omnipose {
 namespace {
@@ -63,8 +66,8 @@ TEST(Evaluation, MissingPosesAreCountedNotGuessed) {
   EXPECT_EQ(r.pairs_expected, 5);
   EXPECT_EQ(r.pairs_missing, 2);
   EXPECT_EQ(r.pairs.size(), 3u);
-  EXPECT_NE(formatJson(r, "x").find("\"pairs_missing\": 2"), std::string::npos);
-  EXPECT_NE(formatTable(r, "x").find("3 of 5 pairs"), std::string::npos);
+  EXPECT_THAT(formatJson(r, "x"), HasSubstr("\"pairs_missing\": 2"));
+  EXPECT_THAT(formatTable(r, "x"), HasSubstr("3 of 5 pairs"));
 }
 
 /// Rotation about z by `angle` radians as a pose.
@@ -113,12 +116,11 @@ TEST(EvaluationDrift, ConstantYawBiasGrowsLinearlyAndTheStartOffsetIsAlignedAway
   const DriftResult dy = evaluateDrift(gt_yaw, est_yaw);
   EXPECT_NEAR(dy.end_error, (kFrames - 1) * kBias, 1e-12);
   const std::string table = formatDriftTable(dy, pairs, "yaw");
-  EXPECT_NE(table.find("end-point rotation error      0.4584 deg"), std::string::npos) << table;
-  EXPECT_NE(table.find("per-pair eps RMSE             0.2000 mrad (40 pairs, 0 missing)"),
-            std::string::npos) << table;
+  EXPECT_THAT(table, HasSubstr("end-point rotation error      0.4584 deg"));
+  EXPECT_THAT(table, HasSubstr("per-pair eps RMSE             0.2000 mrad (40 pairs, 0 missing)"));
   const std::string json = formatDriftJson(dy, pairs, "yaw");
-  EXPECT_NE(json.find("\"end_error\": 0.008"), std::string::npos) << json;
-  EXPECT_NE(json.find("\"end_is_last\": true"), std::string::npos) << json;
+  EXPECT_THAT(json, HasSubstr("\"end_error\": 0.008"));
+  EXPECT_THAT(json, HasSubstr("\"end_is_last\": true"));
   const std::string csv = formatDriftCsv(dy);
   EXPECT_EQ(std::count(csv.begin(), csv.end(), '\n'), kFrames + 1);
 }
@@ -142,8 +144,7 @@ TEST(EvaluationDrift, AlignsAtTheFirstMatchAndEndsAtTheLastMatch) {
   EXPECT_NEAR(d.end_error, 0.0, 1e-12);
   EXPECT_NEAR(d.max_error, 9e-3, 1e-12);
   EXPECT_DOUBLE_EQ(d.max_timestamp, gt[10].timestamp);
-  EXPECT_NE(formatDriftTable(d, evaluate(gt, est), "x").find("(not the last frame)"),
-            std::string::npos);
+  EXPECT_THAT(formatDriftTable(d, evaluate(gt, est), "x"), HasSubstr("(not the last frame)"));
   // No common timestamp: an error, not a zero.
   std::vector<StampedPose> shifted = est;
   for (auto& p : shifted) p.timestamp += 0.05;

@@ -2,6 +2,7 @@
 // only what is ours, one writer at a time.
 #include "omnipose/file_io.hpp"
 
+#include <gmock/gmock.h>
 #include <gtest/gtest.h>
 #include <sys/socket.h>
 #include <sys/stat.h>
@@ -14,6 +15,8 @@
 #include <string>
 
 #include "test_files.hpp"
+
+using ::testing::HasSubstr;
 
 namespace omnipose {
 namespace {
@@ -85,7 +88,7 @@ TEST_F(FileIoTest, FifosDevicesDirectoriesAndSocketsAreRefusedByNameAtOnce) {
     EXPECT_LT(Clock::now() - start, std::chrono::seconds(1)) << "a FIFO without a writer must not block";
     ASSERT_FALSE(text);
     EXPECT_EQ(messageOf(text.error()).find(c.path.string() + ": "), 0u) << text.error().c_str();
-    EXPECT_NE(messageOf(text.error()).find(c.says), std::string::npos) << text.error().c_str();
+    EXPECT_THAT(messageOf(text.error()), HasSubstr(c.says)) << text.error().c_str();
   }
   ::close(s);
 }
@@ -94,7 +97,7 @@ TEST_F(FileIoTest, AFileLargerThanTheBoundIsRefusedUnread) {
   const fs::path p = write("big.txt", std::string(5000, 'x'));
   const Expected<std::string> text = readTextFile(p, 4096);
   ASSERT_FALSE(text);
-  EXPECT_NE(messageOf(text.error()).find("5000 bytes, more than the 4096 allowed"), std::string::npos)
+  EXPECT_THAT(messageOf(text.error()), HasSubstr("5000 bytes, more than the 4096 allowed"))
       << text.error().c_str();
   EXPECT_EQ(kMaxTextFileBytes, std::uintmax_t{64} << 20);
 }
@@ -123,8 +126,8 @@ TEST_F(FileIoTest, AtomicWriteCreatesAndReplacesItsOwnKindOnly) {
   const fs::path foreign = write("calibration.yaml", calibration);
   const Expected<void> refused = writeFileAtomically(foreign, kWisdomText, kWisdom);
   ASSERT_FALSE(refused);
-  EXPECT_NE(messageOf(refused.error()).find("calibration.yaml: exists and is not an FFTW wisdom file"),
-            std::string::npos)
+  EXPECT_THAT(messageOf(refused.error()),
+              HasSubstr("calibration.yaml: exists and is not an FFTW wisdom file"))
       << refused.error().c_str();
   EXPECT_EQ(testing::readText(foreign), calibration) << "the foreign file is untouched";
 }
@@ -135,7 +138,8 @@ TEST_F(FileIoTest, AtomicWriteNeverGoesThroughASymbolicLinkOrIntoAFifo) {
   fs::create_symlink(own, link);
   const Expected<void> via_link = writeFileAtomically(link, "(fftw-3.3.10 fftwf_wisdom new\n)", kWisdom);
   ASSERT_FALSE(via_link);
-  EXPECT_NE(messageOf(via_link.error()).find("is a symbolic link"), std::string::npos) << via_link.error().c_str();
+  EXPECT_THAT(messageOf(via_link.error()), HasSubstr("is a symbolic link"))
+      << via_link.error().c_str();
   EXPECT_TRUE(fs::is_symlink(link));
   EXPECT_EQ(testing::readText(own), kWisdomText);
 
@@ -145,13 +149,13 @@ TEST_F(FileIoTest, AtomicWriteNeverGoesThroughASymbolicLinkOrIntoAFifo) {
   const Expected<void> into_fifo = writeFileAtomically(fifo, kWisdomText, kWisdom);
   EXPECT_LT(Clock::now() - start, std::chrono::seconds(1));
   ASSERT_FALSE(into_fifo);
-  EXPECT_NE(messageOf(into_fifo.error()).find("not a regular file (a FIFO)"), std::string::npos)
+  EXPECT_THAT(messageOf(into_fifo.error()), HasSubstr("not a regular file (a FIFO)"))
       << into_fifo.error().c_str();
   EXPECT_TRUE(fs::is_fifo(fifo));
 
   const Expected<void> no_dir = writeFileAtomically(root_ / "none/w.txt", kWisdomText, kWisdom);
   ASSERT_FALSE(no_dir);
-  EXPECT_NE(messageOf(no_dir.error()).find("does not exist"), std::string::npos) << no_dir.error().c_str();
+  EXPECT_THAT(messageOf(no_dir.error()), HasSubstr("does not exist")) << no_dir.error().c_str();
 }
 
 TEST_F(FileIoTest, CreateReplacingGivesAFreshFileInsteadOfTruncatingTheOld) {
@@ -181,8 +185,8 @@ TEST_F(FileIoTest, ALockFileRefusesASecondHolderWithThePidAndIsFreedWhenTheHolde
     const Expected<FileLock> second = FileLock::acquire(path);
     ASSERT_FALSE(second);
     EXPECT_EQ(second.error().code(), ErrorCode::kBusy);
-    EXPECT_NE(messageOf(second.error()).find("held by process " + std::to_string(::getpid())),
-              std::string::npos)
+    EXPECT_THAT(messageOf(second.error()),
+                HasSubstr("held by process " + std::to_string(::getpid())))
         << second.error().c_str();
   }
   EXPECT_TRUE(FileLock::acquire(path)) << "released by the destructor";
@@ -204,7 +208,7 @@ TEST_F(FileIoTest, ALockFileRefusesASecondHolderWithThePidAndIsFreedWhenTheHolde
   ASSERT_EQ(c, 'y');
   const Expected<FileLock> while_alive = FileLock::acquire(path);
   ASSERT_FALSE(while_alive);
-  EXPECT_NE(messageOf(while_alive.error()).find("held by process " + std::to_string(child)), std::string::npos)
+  EXPECT_THAT(messageOf(while_alive.error()), HasSubstr("held by process " + std::to_string(child)))
       << while_alive.error().c_str();
   ::kill(child, SIGKILL);
   ::waitpid(child, nullptr, 0);
@@ -220,7 +224,7 @@ TEST_F(FileIoTest, ALockOnAFileItselfNamesTheHolderFromProcLocks) {
   const Expected<FileLock> second = FileLock::acquireOn(device);
   ASSERT_FALSE(second);
   EXPECT_EQ(second.error().code(), ErrorCode::kBusy);
-  EXPECT_NE(messageOf(second.error()).find("held by process " + std::to_string(::getpid())), std::string::npos)
+  EXPECT_THAT(messageOf(second.error()), HasSubstr("held by process " + std::to_string(::getpid())))
       << second.error().c_str();
   EXPECT_EQ(testing::readText(device), "") << "nothing written into the locked file";
   first = FileLock{};
@@ -233,7 +237,7 @@ TEST_F(FileIoTest, ALockFileThatIsASymbolicLinkIsRefused) {
   fs::create_symlink(target, root_ / "x.lock");
   const Expected<FileLock> lock = FileLock::acquire(root_ / "x.lock");
   ASSERT_FALSE(lock);
-  EXPECT_NE(messageOf(lock.error()).find("symbolic link"), std::string::npos) << lock.error().c_str();
+  EXPECT_THAT(messageOf(lock.error()), HasSubstr("symbolic link")) << lock.error().c_str();
   EXPECT_EQ(testing::readText(target), "precious");
 }
 

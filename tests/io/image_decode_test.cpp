@@ -3,6 +3,7 @@
 // beyond its bounds.
 #include "omnipose/image_decode.hpp"
 
+#include <gmock/gmock.h>
 #include <gtest/gtest.h>
 #include <sys/resource.h>
 #include <sys/stat.h>
@@ -15,6 +16,8 @@
 
 #include "bad_images.hpp"
 #include "omnipose/io/dataset.hpp"
+
+using ::testing::HasSubstr;
 
 namespace omnipose {
 namespace {
@@ -84,13 +87,13 @@ TEST(ImageDecode, BombsAreRefusedFromTheirHeaderWithoutDecoding) {
     ASSERT_FALSE(r);
     EXPECT_EQ(r.error().code(), ErrorCode::kBadFrame);
     const std::string message(r.error().message());
-    EXPECT_NE(message.find(c.name), std::string::npos) << message;
-    EXPECT_NE(message.find("expected 720x720"), std::string::npos) << message;
+    EXPECT_THAT(message, HasSubstr(c.name));
+    EXPECT_THAT(message, HasSubstr("expected 720x720"));
     EXPECT_TRUE(out.empty());
     // Without an expected size the pixel bound refuses it just the same.
     r = decodeImage(span(c.bytes), ImageColour::kGrey, ImageLimits{}, c.name, out);
     ASSERT_FALSE(r);
-    EXPECT_NE(std::string(r.error().message()).find("more than the 67108864 allowed"), std::string::npos)
+    EXPECT_THAT(r.error().message(), HasSubstr("more than the 67108864 allowed"))
         << r.error().c_str();
   }
 }
@@ -107,7 +110,7 @@ TEST(ImageDecode, ACompleteThirtyTwoThousandPixelPngCostsNoMemory) {
   rusage after{};
   getrusage(RUSAGE_SELF, &after);
   ASSERT_FALSE(r);
-  EXPECT_NE(std::string(r.error().message()).find("32000x32000, expected 720x720"), std::string::npos);
+  EXPECT_THAT(r.error().message(), HasSubstr("32000x32000, expected 720x720"));
   EXPECT_LT(after.ru_maxrss - before.ru_maxrss, 64 * 1024) << "peak RSS grew by kB";
 }
 
@@ -124,7 +127,7 @@ TEST(ImageDecode, TruncatedAndGarbageFilesOfEveryFormatAreBadFramesNeverExceptio
     if (file.must_reject) {
       ASSERT_FALSE(r);
       EXPECT_EQ(r.error().code(), ErrorCode::kBadFrame);
-      EXPECT_NE(std::string(r.error().message()).find(file.name), std::string::npos);
+      EXPECT_THAT(r.error().message(), HasSubstr(file.name));
     } else if (r) {
       EXPECT_EQ(out.size(), frame.size());  // damaged pixels, but within bounds
     }
@@ -156,7 +159,7 @@ TEST_F(ImageDecodeFiles, FilesThatAreNotRegularOrTooLargeAreRefusedWithoutReadin
   ASSERT_EQ(::mkfifo(fifo.c_str(), 0600), 0);
   Expected<cv::Mat> r = readImage(fifo, ImageColour::kGrey);  // would block if it were read
   ASSERT_FALSE(r);
-  EXPECT_NE(std::string(r.error().message()).find("fifo.png: not a regular file"), std::string::npos);
+  EXPECT_THAT(r.error().message(), HasSubstr("fifo.png: not a regular file"));
 
   fs::create_symlink("/dev/zero", dir_ / "zero.png");
   r = readImage(dir_ / "zero.png", ImageColour::kGrey);
@@ -172,8 +175,7 @@ TEST_F(ImageDecodeFiles, FilesThatAreNotRegularOrTooLargeAreRefusedWithoutReadin
   small.max_file_bytes = 1000;
   r = readImage(dir_ / "big.png", ImageColour::kGrey, small);
   ASSERT_FALSE(r);
-  EXPECT_NE(std::string(r.error().message()).find("4096 bytes, more than the 1000 allowed"),
-            std::string::npos)
+  EXPECT_THAT(r.error().message(), HasSubstr("4096 bytes, more than the 1000 allowed"))
       << r.error().c_str();
 }
 
@@ -185,14 +187,13 @@ TEST_F(ImageDecodeFiles, ReadFrameChecksTheCalibrationSizeBeforeDecoding) {
   EXPECT_EQ(cv::norm(*ok, frame, cv::NORM_INF), 0.0);
   Expected<cv::Mat> wrong = readFrame(dir_ / "f.png", {720, 720});
   ASSERT_FALSE(wrong);
-  EXPECT_NE(std::string(wrong.error().message()).find("f.png: 160x120, expected 720x720"),
-            std::string::npos)
+  EXPECT_THAT(wrong.error().message(), HasSubstr("f.png: 160x120, expected 720x720"))
       << wrong.error().c_str();
   const cv::Mat deep(120, 160, CV_16UC1, cv::Scalar(1000));
   testing::writeBytes(dir_ / "deep.png", testing::encode(deep, ".png"));
   Expected<cv::Mat> sixteen = readFrame(dir_ / "deep.png", frame.size());
   ASSERT_FALSE(sixteen);
-  EXPECT_NE(std::string(sixteen.error().message()).find("16-bit"), std::string::npos);
+  EXPECT_THAT(sixteen.error().message(), HasSubstr("16-bit"));
 }
 
 }  // namespace

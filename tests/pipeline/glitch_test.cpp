@@ -3,6 +3,7 @@
 // noise, foreign, torn and repeated frame mid-sequence is not believed, counted, and the
 // chain after it ends where the clean run's does; the clean run is not touched; a camera at
 // rest may repeat itself; a view that stays unbelievable starts a new segment.
+#include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -16,6 +17,8 @@
 #include "omnipose/so3.hpp"
 #include "omnipose/synth/synth.hpp"
 #include "render_fixture.hpp"
+
+using ::testing::HasSubstr;
 
 namespace omnipose {
 namespace {
@@ -147,7 +150,7 @@ TEST(Glitches, AGlitchedFrameMidSequenceIsNotBelievedAndTheChainEndsWhereTheClea
       frames[kGlitch] = g.make(cleanFrames());
       const OdometryRun run = runOdometry(frames, options);
       ASSERT_EQ(run.rejected, std::vector<int>{kGlitch}) << "the glitch, and only it, is counted";
-      EXPECT_NE(run.messages[0].find(g.says), std::string::npos) << run.messages[0];
+      EXPECT_THAT(run.messages[0], HasSubstr(g.says));
       for (const OdometryResult& r : run.results) {
         EXPECT_EQ(r.segment, 0);
         if (r.sequence == kGlitch + 1) {
@@ -224,8 +227,7 @@ TEST(Glitches, ATurnFasterThanTheRobotCanTurnIsNotBelieved) {
   const OdometryRun run = runOdometry(std::vector<cv::Mat>(clean.begin(), clean.begin() + 3), options);
   ASSERT_FALSE(run.rejected.empty());
   EXPECT_EQ(run.rejected.front(), 1);
-  EXPECT_NE(run.messages.front().find("faster than the 30 deg/s the robot can turn"), std::string::npos)
-      << run.messages.front();
+  EXPECT_THAT(run.messages.front(), HasSubstr("faster than the 30 deg/s the robot can turn"));
 }
 
 TEST(Glitches, BadOptionsAreNamed) {
@@ -239,7 +241,7 @@ TEST(Glitches, BadOptionsAreNamed) {
   for (const auto& p : problems) all += p + "\n";
   for (const char* field : {"plausibility.max_repeated_rows", "plausibility.min_confidence_ratio",
                             "plausibility.max_rotation_rad_s", "plausibility.max_rejected"})
-    EXPECT_NE(all.find(field), std::string::npos) << field << " in\n" << all;
+    EXPECT_THAT(all, HasSubstr(field)) << field << " in\n" << all;
 }
 
 }  // namespace

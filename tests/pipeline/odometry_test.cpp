@@ -3,6 +3,7 @@
 // drift; a frame after a gap (one bad frame, ten, a 2-second outage during a turn) is found
 // again against the keyframe with the heading kept; only an unrelated view starts a new
 // segment; translation and tilt switch the keyframe.
+#include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
 #include <array>
@@ -16,6 +17,8 @@
 #include "omnipose/so3.hpp"
 #include "omnipose/synth/synth.hpp"
 #include "render_fixture.hpp"
+
+using ::testing::HasSubstr;
 
 namespace omnipose {
 namespace {
@@ -302,9 +305,9 @@ TEST(Odometry, BadOptionsAreListedByField) {
   options.pipeline.refine_iterations = 9;
   const auto problems = Odometry::validate(Calibration{}, options);
   ASSERT_EQ(problems.size(), 3u);
-  EXPECT_NE(problems[0].find("pipeline.refine_iterations"), std::string::npos) << problems[0];
-  EXPECT_NE(problems[1].find("keyframes.slots"), std::string::npos) << problems[1];
-  EXPECT_NE(problems[2].find("keyframes.max_tilt_rad"), std::string::npos) << problems[2];
+  EXPECT_THAT(problems[0], HasSubstr("pipeline.refine_iterations"));
+  EXPECT_THAT(problems[1], HasSubstr("keyframes.slots"));
+  EXPECT_THAT(problems[2], HasSubstr("keyframes.max_tilt_rad"));
   EXPECT_THROW(Odometry(Calibration{}, options), std::invalid_argument);
 }
 

@@ -1,6 +1,7 @@
 // Renderer round trip: every sign of DESIGN.md section 3 (roll, pitch, yaw, tx, ty, tz) is
 // recovered in sign and magnitude from rendered frames, for omni and panorama input and
 // for every lens variant (azimuth_direction cw/ccw, outer_edge top/bottom).
+#include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -8,6 +9,8 @@
 
 #include "omnipose/pipeline.hpp"
 #include "render_fixture.hpp"
+
+using ::testing::HasSubstr;
 
 namespace omnipose {
 namespace {
@@ -115,10 +118,10 @@ TEST(Pipeline, BadFramesLeaveTheStateUntouched) {
   auto wrong = pipeline.process(cv::Mat(480, 640, CV_8UC1, cv::Scalar(128)));
   ASSERT_FALSE(wrong.has_value());
   EXPECT_EQ(wrong.error().code(), ErrorCode::kBadFrame);
-  EXPECT_NE(wrong.error().message().find("640x480"), std::string_view::npos);
+  EXPECT_THAT(wrong.error().message(), HasSubstr("640x480"));
   auto black = pipeline.process(good);
   ASSERT_FALSE(black.has_value());
-  EXPECT_NE(black.error().message().find("black"), std::string_view::npos);
+  EXPECT_THAT(black.error().message(), HasSubstr("black"));
   // The next good frame is compared with the last good one: identical, so no motion.
   auto same = pipeline.process(textured);
   ASSERT_TRUE(same.has_value());
@@ -136,9 +139,9 @@ TEST(Pipeline, InvalidOptionsListEveryProblem) {
     FAIL();
   } catch (const std::invalid_argument& e) {
     const std::string what = e.what();
-    EXPECT_NE(what.find("window"), std::string::npos) << what;
-    EXPECT_NE(what.find("huber_delta_px"), std::string::npos) << what;
-    EXPECT_NE(what.find("refine_iterations"), std::string::npos) << what;
+    EXPECT_THAT(what, HasSubstr("window"));
+    EXPECT_THAT(what, HasSubstr("huber_delta_px"));
+    EXPECT_THAT(what, HasSubstr("refine_iterations"));
   }
   // The same list without building anything, each keyed by its field in PipelineOptions.
   const auto problems = Pipeline::validate(Calibration{}, o);

@@ -1,6 +1,7 @@
 // The per-frame result does not depend on PipelineOptions::threads: every window and every
 // de-rotated row is computed by the same code on the same data whichever worker runs it.
 // Compared bit for bit (memcmp of the doubles), not within a tolerance.
+#include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
 #include <fftw3.h>
@@ -11,6 +12,8 @@
 #include "omnipose/pipeline.hpp"
 #include "render_fixture.hpp"
 #include "test_files.hpp"
+
+using ::testing::HasSubstr;
 
 namespace omnipose {
 namespace {
@@ -109,7 +112,7 @@ TEST(PipelineWisdom, WrittenOnFirstStartThenLoaded) {
   }
   ASSERT_TRUE(std::filesystem::exists(path));
   const std::string text = omnipose::testing::readText(path);
-  EXPECT_NE(text.find("fftw"), std::string::npos) << "not an FFTW wisdom file:\n" << text;
+  EXPECT_THAT(text, HasSubstr("fftw")) << "not an FFTW wisdom file:\n" << text;
   {
     Pipeline second(Calibration{}, options);
     EXPECT_TRUE(second.wisdomLoaded());

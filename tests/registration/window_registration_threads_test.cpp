@@ -1,4 +1,5 @@
 // WindowRegistration gives the same bits for any number of worker threads.
+#include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
 #include <cstring>
@@ -8,6 +9,8 @@
 
 #include "omnipose/window_registration.hpp"
 #include "test_images.hpp"
+
+using ::testing::HasSubstr;
 
 namespace omnipose {
 namespace {
@@ -86,10 +89,8 @@ TEST(WindowRegistrationThreads, ThreadCountIsValidated) {
       WindowRegistration reg(cv::Size(1100, 110), o, threads);
       ADD_FAILURE() << threads << " threads accepted";
     } catch (const std::invalid_argument& e) {
-      EXPECT_NE(std::string(e.what()).find("threads: " + std::to_string(threads) +
-                                           " is outside [0, 256] (0 = all online cores)"),
-                std::string::npos)
-          << e.what();
+      EXPECT_THAT(e.what(),
+                  HasSubstr("threads: " + std::to_string(threads) + " is outside [0, 256] (0 = all online cores)"));
     }
   }
   WindowRegistration reg(cv::Size(1100, 110), o, 0);  // every online core

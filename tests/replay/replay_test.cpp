@@ -2,6 +2,7 @@
 // the middle is replayed; both are skipped, named and counted, the trajectory is right.
 #include "replay.hpp"
 
+#include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
 #include <cstdio>
@@ -13,6 +14,8 @@
 #include "bad_images.hpp"
 #include "omnipose/eval/evaluation.hpp"
 #include "omnipose/synth/synth.hpp"
+
+using ::testing::HasSubstr;
 
 namespace omnipose {
 namespace {
@@ -69,9 +72,9 @@ TEST_F(ReplayTest, BadFramesAreSkippedNamedAndCountedAndTheRestIsRight) {
   EXPECT_EQ(s.skipped, 2);
   EXPECT_EQ(s.pairs, 5);  // 6 good frames
   EXPECT_GT(s.median_seconds_per_frame, 0.0);
-  EXPECT_NE(text.find("000003.png: cannot decode"), std::string::npos) << text;
-  EXPECT_NE(text.find("000005.png"), std::string::npos) << text;
-  EXPECT_NE(text.find("200x100, expected 720x720"), std::string::npos) << text;
+  EXPECT_THAT(text, HasSubstr("000003.png: cannot decode"));
+  EXPECT_THAT(text, HasSubstr("000005.png"));
+  EXPECT_THAT(text, HasSubstr("200x100, expected 720x720"));
 
   // Pairs across the skipped frames are missing, the others are accurate.
   const auto result = evaluate(readTum(root_ / "data/groundtruth.tum"), readTum(root_ / "est.tum"));
@@ -109,7 +112,7 @@ TEST_F(ReplayTest, BombsTruncatedAndGarbageFramesAreSkippedNamedAndCounted) {
   EXPECT_EQ(s.skipped, 2 + static_cast<int>(rejected.size()));  // and the two of the fixture
   EXPECT_EQ(s.pairs, 5);
   for (const auto& f : rejected) EXPECT_NE(text.find("000001_" + f.name), std::string::npos) << f.name;
-  EXPECT_NE(text.find("000001_bomb_60000.png: 60000x60000, expected 720x720"), std::string::npos) << text;
+  EXPECT_THAT(text, HasSubstr("000001_bomb_60000.png: 60000x60000, expected 720x720"));
   const auto result = evaluate(readTum(data / "groundtruth.tum"), readTum(root_ / "hostile.tum"));
   EXPECT_LT(result.angle.max, 1e-3);
 }
@@ -122,7 +125,7 @@ TEST_F(ReplayTest, MissingDatasetOrCalibrationIsAClearError) {
     replay::run(o, stderr);
     FAIL();
   } catch (const std::exception& e) {
-    EXPECT_NE(std::string(e.what()).find("nope"), std::string::npos) << e.what();
+    EXPECT_THAT(e.what(), HasSubstr("nope"));
   }
   o.dataset = root_ / "data";
   o.calibration = root_ / "missing.yaml";
@@ -133,7 +136,7 @@ TEST_F(ReplayTest, MissingDatasetOrCalibrationIsAClearError) {
     replay::run(o, stderr);
     FAIL();
   } catch (const std::invalid_argument& e) {
-    EXPECT_NE(std::string(e.what()).find("akazerot"), std::string::npos) << e.what();
+    EXPECT_THAT(e.what(), HasSubstr("akazerot"));
   }
 }
 

@@ -3,6 +3,7 @@
 // a thread-scope counter ignores other threads; ExcludedScope moves allocations apart.
 #include "allocation_counter.hpp"
 
+#include <gmock/gmock.h>
 #include <gtest/gtest.h>
 #include <malloc.h>
 
@@ -10,6 +11,8 @@
 #include <new>
 #include <thread>
 #include <vector>
+
+using ::testing::HasSubstr;
 
 namespace omnipose::testing {
 namespace {
@@ -163,8 +166,8 @@ TEST_F(AllocationCounterTest, RecordsCallers) {
   std::string text;
   while (std::fgets(line, sizeof(line), out)) text += line;
   std::fclose(out);
-  EXPECT_NE(text.find("counted allocations by caller"), std::string::npos) << text;
-  EXPECT_NE(text.find("counted allocation 0:"), std::string::npos) << text;
+  EXPECT_THAT(text, HasSubstr("counted allocations by caller"));
+  EXPECT_THAT(text, HasSubstr("counted allocation 0:"));
 }
 
 }  // namespace

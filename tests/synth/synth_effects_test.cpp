@@ -2,6 +2,7 @@
 // exposure time, people walking around the robot, auto-exposure steps and vignetting. Each
 // is checked against the definition its header states.
 
+#include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -13,6 +14,8 @@
 #include "omnipose/synth/synth.hpp"
 #include "point_unwrap.hpp"
 #include "test_poses.hpp"
+
+using ::testing::HasSubstr;
 
 namespace omnipose::synth {
 namespace {
@@ -203,9 +206,8 @@ TEST(SynthMotionBlur, SampleCountFollowsTheMotion) {
     (void)renderer.render(yaw, FrameTiming{.exposure_s = -0.01, .exposure_samples = 999});
     FAIL() << "expected std::invalid_argument";
   } catch (const std::invalid_argument& e) {
-    EXPECT_NE(std::string(e.what()).find("exposure_s: must be"), std::string::npos) << e.what();
-    EXPECT_NE(std::string(e.what()).find("exposure_samples: must be in [0, 256]"),
-              std::string::npos) << e.what();
+    EXPECT_THAT(e.what(), HasSubstr("exposure_s: must be"));
+    EXPECT_THAT(e.what(), HasSubstr("exposure_samples: must be in [0, 256]"));
   }
 }
 
@@ -443,8 +445,7 @@ TEST(SynthWalkers, InvalidOptionsAreRejectedNamingTheField) {
     (void)Renderer(scene, Calibration{}, {});
     FAIL() << "expected std::invalid_argument";
   } catch (const std::invalid_argument& e) {
-    EXPECT_NE(std::string(e.what()).find("scene.walkers.max_distance_m"), std::string::npos)
-        << e.what();
+    EXPECT_THAT(e.what(), HasSubstr("scene.walkers.max_distance_m"));
   }
   EXPECT_THROW(drawWalkers(bad, -1.0), std::invalid_argument);
   // The command-line form.
@@ -465,9 +466,8 @@ TEST(SynthWalkers, InvalidOptionsAreRejectedNamingTheField) {
     }
     return "";
   };
-  EXPECT_NE(parse_error("3,0").find("walkers.width_m"), std::string::npos) << parse_error("3,0");
-  EXPECT_NE(parse_error("3,0.5,abc").find("'abc' is not a number"), std::string::npos)
-      << parse_error("3,0.5,abc");
+  EXPECT_THAT(parse_error("3,0"), HasSubstr("walkers.width_m"));
+  EXPECT_THAT(parse_error("3,0.5,abc"), HasSubstr("'abc' is not a number"));
 }
 
 TEST(SynthWalkers, MotionScriptsReadThemWithTheirPath) {
@@ -497,15 +497,12 @@ TEST(SynthWalkers, MotionScriptsReadThemWithTheirPath) {
     }
     return "";
   };
-  EXPECT_NE(error("{count: 2, legs: 2}").find("w.yaml: walkers.legs: unknown key"),
-            std::string::npos);
-  EXPECT_NE(error("{count: many}").find("w.yaml: walkers.count: cannot read 'many'"),
-            std::string::npos);
-  EXPECT_NE(error("{count: 2, speed_m_s: -1}").find("w.yaml: walkers.speed_m_s: must be in"),
-            std::string::npos) << error("{count: 2, speed_m_s: -1}");
-  EXPECT_NE(error("{distance_m: [2, 1]}").find("w.yaml: walkers.max_distance_m:"),
-            std::string::npos);
-  EXPECT_NE(error("3").find("w.yaml: walkers: must be a map"), std::string::npos);
+  EXPECT_THAT(error("{count: 2, legs: 2}"), HasSubstr("w.yaml: walkers.legs: unknown key"));
+  EXPECT_THAT(error("{count: many}"), HasSubstr("w.yaml: walkers.count: cannot read 'many'"));
+  EXPECT_THAT(error("{count: 2, speed_m_s: -1}"),
+              HasSubstr("w.yaml: walkers.speed_m_s: must be in"));
+  EXPECT_THAT(error("{distance_m: [2, 1]}"), HasSubstr("w.yaml: walkers.max_distance_m:"));
+  EXPECT_THAT(error("3"), HasSubstr("w.yaml: walkers: must be a map"));
 }
 
 // ---------------------------------------------------------------------- auto-exposure steps

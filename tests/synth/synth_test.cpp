@@ -2,6 +2,7 @@
 // motion-model signs of DESIGN.md section 3, the dataset writer, degradations and motion
 // scripts.
 
+#include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -15,6 +16,8 @@
 #include "omnipose/synth/synth.hpp"
 #include "point_unwrap.hpp"
 #include "test_poses.hpp"
+
+using ::testing::HasSubstr;
 
 namespace omnipose::synth {
 namespace {
@@ -357,7 +360,7 @@ TEST(SynthScene, MissingTextureNamesTheFile) {
     Scene::load("/nonexistent/photo.jpg", SceneKind::kSphere);
     FAIL() << "expected an exception";
   } catch (const std::runtime_error& e) {
-    EXPECT_NE(std::string(e.what()).find("/nonexistent/photo.jpg"), std::string::npos);
+    EXPECT_THAT(e.what(), HasSubstr("/nonexistent/photo.jpg"));
   }
 }
 
@@ -487,8 +490,7 @@ TEST(SynthRollingShutter, ACameraLeavingTheRoomDuringReadoutIsRejectedWithTheRow
     (void)renderer.render(poseAt, 0.03);
     FAIL() << "expected std::invalid_argument";
   } catch (const std::invalid_argument& e) {
-    EXPECT_NE(std::string(e.what()).find("outside the box room at row"), std::string::npos)
-        << e.what();
+    EXPECT_THAT(e.what(), HasSubstr("outside the box room at row"));
   }
 }
 
@@ -573,7 +575,7 @@ TEST(SynthDatasetWriter, UnwritableDirectoryNamesThePath) {
     DatasetWriter("/proc/omnipose_cannot_be_here", Calibration{}, 0);
     FAIL() << "expected an exception";
   } catch (const std::runtime_error& e) {
-    EXPECT_NE(std::string(e.what()).find("/proc/omnipose_cannot_be_here"), std::string::npos);
+    EXPECT_THAT(e.what(), HasSubstr("/proc/omnipose_cannot_be_here"));
   }
 }
 
@@ -739,8 +741,8 @@ TEST(SynthMotionScript, ErrorsNameEveryBadField) {
     FAIL() << "expected MotionError";
   } catch (const MotionError& e) {
     const std::string what = e.what();
-    EXPECT_NE(what.find("m.yaml: segments[0].bogus: unknown key"), std::string::npos) << what;
-    EXPECT_NE(what.find("m.yaml: segments[0].rotation.axis: 'w'"), std::string::npos) << what;
+    EXPECT_THAT(what, HasSubstr("m.yaml: segments[0].bogus: unknown key"));
+    EXPECT_THAT(what, HasSubstr("m.yaml: segments[0].rotation.axis: 'w'"));
   }
   EXPECT_THROW(MotionScript::parse("frame_rate: 0\nsegments: [{frames: 1}]\n"), MotionError);
   EXPECT_THROW(MotionScript::load("/nonexistent/motion.yaml"), MotionError);
@@ -771,11 +773,9 @@ TEST(SynthMotionScript, DuplicateKeysAtEveryLevelNameBothLines) {
       "    frames: -1\n"
       "seed: 1\n"
       "seed: abc\n");
-  EXPECT_NE(what.find("m.yaml: segments[0].rotation.axis: given twice, lines 3 and 3"),
-            std::string::npos) << what;
-  EXPECT_NE(what.find("m.yaml: segments[0].frames: given twice, lines 2 and 4"), std::string::npos)
-      << what;
-  EXPECT_NE(what.find("m.yaml: seed: given twice, lines 5 and 6"), std::string::npos) << what;
+  EXPECT_THAT(what, HasSubstr("m.yaml: segments[0].rotation.axis: given twice, lines 3 and 3"));
+  EXPECT_THAT(what, HasSubstr("m.yaml: segments[0].frames: given twice, lines 2 and 4"));
+  EXPECT_THAT(what, HasSubstr("m.yaml: seed: given twice, lines 5 and 6"));
   EXPECT_EQ(motionError("segments:\n  - {frames: 3, rotation: {axis: z, step_deg: 1}}\n"), "");
 }
 
@@ -783,17 +783,14 @@ TEST(SynthMotionScript, LongAndControlCharacterValuesAreBoundedAndEscaped) {
   const std::string long_axis = motionError(
       "segments:\n  - frames: 3\n    rotation: {axis: " + std::string(10'000, 'a') + "}\n");
   EXPECT_LT(long_axis.size(), 512u) << long_axis.substr(0, 1000);
-  EXPECT_NE(long_axis.find("segments[0].rotation.axis: '" + std::string(60, 'a') +
-                           "... (10000 bytes)' is longer than 4096 bytes"),
-            std::string::npos)
+  EXPECT_THAT(long_axis,
+              HasSubstr("segments[0].rotation.axis: '" + std::string(60, 'a') + "... (10000 bytes)' is longer than 4096 bytes"))
       << long_axis.substr(0, 1000);
   const std::string control = motionError(
       "segments:\n  - frames: 3\n    rotation: {axis: \"z\\0\", \"si\\x02gn\": random}\n");
   EXPECT_EQ(std::string(control.c_str()), control) << "a NUL in what()";
-  EXPECT_NE(control.find("segments[0].rotation.axis: 'z\\0' is not x, y, z or random"),
-            std::string::npos) << control;
-  EXPECT_NE(control.find("segments[0].rotation.si\\x02gn: unknown key"), std::string::npos)
-      << control;
+  EXPECT_THAT(control, HasSubstr("segments[0].rotation.axis: 'z\\0' is not x, y, z or random"));
+  EXPECT_THAT(control, HasSubstr("segments[0].rotation.si\\x02gn: unknown key"));
 }
 
 TEST(SynthMotionScript, AtMostTwentyProblemsAreListed) {
@@ -801,7 +798,7 @@ TEST(SynthMotionScript, AtMostTwentyProblemsAreListed) {
   for (int i = 0; i < 40; ++i) text += "  - {frames: 1, rotation: {axis: w}}\n";
   const std::string what = motionError(text);
   EXPECT_EQ(std::count(what.begin(), what.end(), '\n'), 21) << what;
-  EXPECT_NE(what.find("\n  and 20 more"), std::string::npos) << what;
+  EXPECT_THAT(what, HasSubstr("\n  and 20 more"));
 }
 
 // ---------------------------------------------------------------------- track vibration
@@ -924,31 +921,28 @@ TEST(SynthVibration, BadKeysAreReportedWithTheirPath) {
     return motionError("vibration: " + vibration + "\n" + segments);
   };
   EXPECT_EQ(error("{amplitude_deg: 0.5, max_hz: 9, seed: 1}"), "");
-  EXPECT_NE(error("{amplitude_deg: 0.5, bogus: 1}").find("m.yaml: vibration.bogus: unknown key"),
-            std::string::npos);
-  EXPECT_NE(error("{amplitude_deg: abc}").find("m.yaml: vibration.amplitude_deg: cannot read 'abc'"),
-            std::string::npos) << error("{amplitude_deg: abc}");
-  EXPECT_NE(error("{seed: -1}").find("m.yaml: vibration.seed: cannot read '-1'"), std::string::npos);
-  EXPECT_NE(error("5").find("m.yaml: vibration: must be a map"), std::string::npos) << error("5");
+  EXPECT_THAT(error("{amplitude_deg: 0.5, bogus: 1}"),
+              HasSubstr("m.yaml: vibration.bogus: unknown key"));
+  EXPECT_THAT(error("{amplitude_deg: abc}"),
+              HasSubstr("m.yaml: vibration.amplitude_deg: cannot read 'abc'"));
+  EXPECT_THAT(error("{seed: -1}"), HasSubstr("m.yaml: vibration.seed: cannot read '-1'"));
+  EXPECT_THAT(error("5"), HasSubstr("m.yaml: vibration: must be a map"));
   const std::string ranges = error("{amplitude_deg: -1, min_hz: 0, components: 0}");
-  EXPECT_NE(ranges.find("m.yaml: vibration.amplitude_deg: must be in (0, 10] degrees"),
-            std::string::npos) << ranges;
-  EXPECT_NE(ranges.find("m.yaml: vibration.min_hz: must be > 0"), std::string::npos) << ranges;
-  EXPECT_NE(ranges.find("m.yaml: vibration.components: must be in [1, 16]"), std::string::npos)
-      << ranges;
-  EXPECT_NE(error("{min_hz: 5, max_hz: 2}").find("m.yaml: vibration.max_hz: must be >= min_hz"),
-            std::string::npos);
-  EXPECT_NE(error("{max_hz: 15}").find("m.yaml: vibration.max_hz: must be below half the frame rate"),
-            std::string::npos) << error("{max_hz: 15}");
+  EXPECT_THAT(ranges, HasSubstr("m.yaml: vibration.amplitude_deg: must be in (0, 10] degrees"));
+  EXPECT_THAT(ranges, HasSubstr("m.yaml: vibration.min_hz: must be > 0"));
+  EXPECT_THAT(ranges, HasSubstr("m.yaml: vibration.components: must be in [1, 16]"));
+  EXPECT_THAT(error("{min_hz: 5, max_hz: 2}"),
+              HasSubstr("m.yaml: vibration.max_hz: must be >= min_hz"));
+  EXPECT_THAT(error("{max_hz: 15}"),
+              HasSubstr("m.yaml: vibration.max_hz: must be below half the frame rate"));
   // 301 frames at 30 fps last 10 s: 1.0 .. 1.15 Hz holds two whole-cycle frequencies (10
   // and 11 cycles).
-  EXPECT_NE(error("{min_hz: 1.0, max_hz: 1.15, components: 3}")
-                .find("m.yaml: vibration.components: the band [min_hz, max_hz] holds 2 "),
-            std::string::npos) << error("{min_hz: 1.0, max_hz: 1.15, components: 3}");
+  EXPECT_THAT(error("{min_hz: 1.0, max_hz: 1.15, components: 3}") ,
+              HasSubstr("m.yaml: vibration.components: the band [min_hz, max_hz] holds 2 "))
+      << error("{min_hz: 1.0, max_hz: 1.15, components: 3}");
   EXPECT_EQ(error("{min_hz: 1.0, max_hz: 1.15, components: 2}"), "");
-  EXPECT_NE(motionError("vibration: {}\nsegments: [{frames: 1}]\nframes: 1\n")
-                .find("m.yaml: vibration: needs a sequence of at least 2 frames"),
-            std::string::npos);
+  EXPECT_THAT(motionError("vibration: {}\nsegments: [{frames: 1}]\nframes: 1\n") ,
+              HasSubstr("m.yaml: vibration: needs a sequence of at least 2 frames"));
   EXPECT_THROW(drawVibration(Vibration{}, 1, 30.0), std::invalid_argument);
   EXPECT_THROW(drawVibration(Vibration{.amplitude_deg = 0}, 100, 30.0), std::invalid_argument);
 }
@@ -965,7 +959,7 @@ TEST(SynthMotionScript, AFrameCountGivenWithTheScriptIsWhatItsVibrationIsJudgedF
     MotionScript::parse(text, "m.yaml", 2);
     FAIL() << "2 frames cannot hold the band";
   } catch (const MotionError& e) {
-    EXPECT_NE(std::string(e.what()).find("for 2 frames"), std::string::npos) << e.what();
+    EXPECT_THAT(e.what(), HasSubstr("for 2 frames"));
   }
 }
 

@@ -1,6 +1,7 @@
 // Every program's command line (tools/common/cli.hpp, CLI11), run as a user runs it:
 // --help and --version succeed (exit 0) and print the usage and the project's version;
 // an unknown flag and a malformed value are usage errors (exit 2) that name the flag.
+#include <gmock/gmock.h>
 #include <gtest/gtest.h>
 #include <sys/wait.h>
 #include <unistd.h>
@@ -18,6 +19,8 @@
 
 #include "omnipose_version.hpp"
 #include "test_files.hpp"
+
+using ::testing::HasSubstr;
 
 namespace {
 
@@ -66,8 +69,8 @@ TEST_P(ProgramCli, HelpPrintsTheUsageAndExitsZero) {
     const Outcome r = run(program, {flag});
     EXPECT_EQ(r.exit_code, 0) << r.err;
     EXPECT_EQ(r.out.rfind("usage: " + program, 0), 0u) << "help must start with the usage:\n" << r.out;
-    EXPECT_NE(r.out.find("--version"), std::string::npos) << r.out;
-    EXPECT_NE(r.out.find("--help"), std::string::npos) << r.out;
+    EXPECT_THAT(r.out, HasSubstr("--version"));
+    EXPECT_THAT(r.out, HasSubstr("--help"));
     EXPECT_EQ(r.err, "");
   }
 }
@@ -84,9 +87,9 @@ TEST_P(ProgramCli, UnknownFlagIsAUsageErrorNamingTheFlag) {
   const std::string program = GetParam();
   const Outcome r = run(program, {"--no-such-flag"});
   EXPECT_EQ(r.exit_code, 2) << r.out << r.err;
-  EXPECT_NE(r.err.find("--no-such-flag"), std::string::npos) << r.err;
+  EXPECT_THAT(r.err, HasSubstr("--no-such-flag"));
   EXPECT_EQ(r.err.rfind(program + ": ", 0), 0u) << "the message starts with the program:\n" << r.err;
-  EXPECT_NE(r.err.find("--help"), std::string::npos) << "a hint to --help:\n" << r.err;
+  EXPECT_THAT(r.err, HasSubstr("--help")) << "a hint to --help:\n" << r.err;
   EXPECT_EQ(r.out, "");
 }
 
@@ -119,7 +122,7 @@ TEST_P(ProgramCli, BadValueIsAUsageErrorNamingTheFlag) {
   ASSERT_TRUE(bad.contains(program)) << "add a bad value for " << program;
   const Outcome r = run(program, bad.at(program));
   EXPECT_EQ(r.exit_code, 2) << r.out << r.err;
-  EXPECT_NE(r.err.find(flag.at(program)), std::string::npos) << r.err;
+  EXPECT_THAT(r.err, HasSubstr(flag.at(program)));
   EXPECT_EQ(r.err.rfind(program + ": ", 0), 0u) << r.err;
 }
 
@@ -167,7 +170,7 @@ TEST(ProgramCliChecks, SemanticMistakesExitTwo) {
     SCOPED_TRACE(line);
     const Outcome r = run(c.program, c.args);
     EXPECT_EQ(r.exit_code, 2) << r.out << r.err;
-    EXPECT_NE(r.err.find(c.needle), std::string::npos) << r.err;
+    EXPECT_THAT(r.err, HasSubstr(c.needle));
   }
 }
 
@@ -188,8 +191,8 @@ TEST(EquirectCli, WritesTheTextureOfARealMirrorImage) {
                                                "--calibration", (dir / "mirror.yaml").string(),
                                                "--out", (dir / "office.png").string(), "--width", "512"});
   EXPECT_EQ(ok.exit_code, 0) << ok.out << ok.err;
-  EXPECT_NE(ok.out.find("512 x 256"), std::string::npos) << ok.out;
-  EXPECT_NE(ok.out.find("elevations -40.5..27.1 deg"), std::string::npos) << ok.out;
+  EXPECT_THAT(ok.out, HasSubstr("512 x 256"));
+  EXPECT_THAT(ok.out, HasSubstr("elevations -40.5..27.1 deg"));
   EXPECT_GT(fs::file_size(dir / "office.png"), 10000u);
 
   const fs::path other = fs::path(OMNIPOSE_SOURCE_DIR) / "tests/data/equirect/indoor_1024x512.jpg";
@@ -197,7 +200,7 @@ TEST(EquirectCli, WritesTheTextureOfARealMirrorImage) {
                                                 (dir / "mirror.yaml").string(), "--out",
                                                 (dir / "bad.png").string()});
   EXPECT_EQ(bad.exit_code, 1) << bad.out << bad.err;
-  EXPECT_NE(bad.err.find("indoor_1024x512.jpg"), std::string::npos) << bad.err;
+  EXPECT_THAT(bad.err, HasSubstr("indoor_1024x512.jpg"));
   EXPECT_FALSE(fs::exists(dir / "bad.png"));
   fs::remove_all(dir);
 }
@@ -261,7 +264,7 @@ TEST(PlotUncertaintyCli, PredictedSpreadFollowsTheErrorsOnRenders) {
   const Outcome missing = run("omnipose-plot-uncertainty",
                               {"--texture", (dir / "none.jpg").string(), "--out", (dir / "n.png").string()});
   EXPECT_EQ(missing.exit_code, 1) << missing.out << missing.err;
-  EXPECT_NE(missing.err.find("none.jpg"), std::string::npos) << missing.err;
+  EXPECT_THAT(missing.err, HasSubstr("none.jpg"));
   EXPECT_FALSE(fs::exists(dir / "n.png"));
   fs::remove_all(dir);
 }
