@@ -30,7 +30,8 @@ constexpr double kDeg = std::numbers::pi / 180.0;
 class Renderings {
  public:
   explicit Renderings(synth::SceneKind kind = synth::SceneKind::kSphere)
-      : renderer_(synth::Scene::load(testing::indoorPhoto(), kind), Calibration{}, {}) {}
+      : renderer_(synth::Scene::load(testing::indoorPhoto(), kind), Calibration{},
+                  {synth::OutputKind::kOmni, /*supersample=*/2}) {}
 
   cv::Mat frame(const Eigen::Isometry3d& pose, int seed) {
     std::array<double, 12> key;

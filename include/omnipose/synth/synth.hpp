@@ -19,13 +19,13 @@
 /// the robot in Walkers, track vibration in Vibration, vignetting in Vignetting, sensor
 /// blur, noise, exposure jitter and auto-exposure steps in DegradeOptions.
 ///
-/// Example: a 10-frame yaw sequence of omni images, written as a dataset (compiled and run by
+/// Example: a 5-frame yaw sequence of omni images, written as a dataset (compiled and run by
 /// tests/synth/header_example_test.cpp)
 /// ```
 ///   auto scene = synth::Scene::load("indoor.jpg", synth::SceneKind::kSphere);
 ///   synth::Renderer renderer(scene, Calibration{}, {});
 ///   auto script = synth::MotionScript::preset("yaw");
-///   script.frames = 10;
+///   script.frames = 5;
 ///   auto poses = synth::generateTrajectory(script);
 ///   synth::DatasetWriter writer("out", Calibration{}, 0);
 ///   for (std::size_t k = 0; k < poses.size(); ++k)
