@@ -146,9 +146,8 @@ std::optional<Circle> fitCircleAlgebraic(std::span<const Eigen::Vector2d> points
 std::optional<Circle> fitCircleGeometric(std::span<const Eigen::Vector2d> points,
                                          const Circle& initial, int max_iterations) {
   if (points.size() < 3) return std::nullopt;
-  const auto fit = fitRings<3>({points},
-                               Eigen::Vector3d(initial.center.x(), initial.center.y(), initial.radius),
-                               max_iterations);
+  const Eigen::Vector3d start(initial.center.x(), initial.center.y(), initial.radius);
+  const auto fit = fitRings<3>({points}, start, max_iterations);
   if (!fit) return std::nullopt;
   const Eigen::Vector3d& x = fit->first;
   Circle c;

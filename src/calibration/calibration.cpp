@@ -292,8 +292,11 @@ class OmniSection {
 
   void readModel() {
     r_.get(omni_, "omni", "model", model_, Need::kOptional);
-    if (const auto kind = detail::valueNamed(kLensModels, model_)) c_.omni.model = *kind;
-    else r_.problem("omni.model", "'" + detail::shown(model_) + "' is not " + detail::nameList(kLensModels));
+    if (const auto kind = detail::valueNamed(kLensModels, model_))
+      c_.omni.model = *kind;
+    else
+      r_.problem("omni.model",
+                 "'" + detail::shown(model_) + "' is not " + detail::nameList(kLensModels));
   }
 
   /// The OCamCalib file gives the image size, the centre and (with its ROI line) the ring.
@@ -378,8 +381,11 @@ class OmniSection {
     }
     std::string edge = "top";
     r_.get(omni_, "omni", "outer_edge", edge, Need::kOptional);
-    if (const auto named = detail::valueNamed(kOuterEdges, edge)) c_.omni.outer_edge = *named;
-    else r_.problem("omni.outer_edge", "'" + detail::shown(edge) + "' is not " + detail::nameList(kOuterEdges));
+    if (const auto named = detail::valueNamed(kOuterEdges, edge))
+      c_.omni.outer_edge = *named;
+    else
+      r_.problem("omni.outer_edge",
+                 "'" + detail::shown(edge) + "' is not " + detail::nameList(kOuterEdges));
   }
 
   void readAzimuth() {

@@ -25,8 +25,8 @@ using Reader = YamlReader;
 
 /// Reads `key`, given in degrees, into `radians` (kept when the key is absent); returns the
 /// value in degrees, for messages.
-double getDegrees(Reader& r, const YAML::Node& node, const std::string& path, const std::string& key,
-                  double& radians) {
+double getDegrees(Reader& r, const YAML::Node& node, const std::string& path,
+                  const std::string& key, double& radians) {
   double degrees = radians * 180.0 / std::numbers::pi;
   r.get(node, path, key, degrees);
   radians = degrees * std::numbers::pi / 180.0;
@@ -45,8 +45,11 @@ void parseSource(Reader& r, const YAML::Node& node, const std::filesystem::path&
     return;
   std::string type = "file";
   r.get(node, "source", "type", type);
-  if (const auto named = detail::valueNamed(kSourceTypes, type)) s.type = *named;
-  else r.problem("source.type", "'" + detail::shown(type) + "' is not " + detail::nameList(kSourceTypes));
+  if (const auto named = detail::valueNamed(kSourceTypes, type))
+    s.type = *named;
+  else
+    r.problem("source.type",
+              "'" + detail::shown(type) + "' is not " + detail::nameList(kSourceTypes));
   std::string path;
   r.get(node, "source", "path", path);
   if (!path.empty()) {
@@ -161,7 +164,8 @@ void parsePlausibility(Reader& r, const YAML::Node& node, PlausibilityOptions& p
   r.get(node, "plausibility", "enabled", p.enabled);
   r.get(node, "plausibility", "max_repeated_rows", p.max_repeated_rows);
   r.get(node, "plausibility", "min_confidence_ratio", p.min_confidence_ratio);
-  const double rate_deg = getDegrees(r, node, "plausibility", "max_rotation_deg_s", p.max_rotation_rad_s);
+  const double rate_deg =
+      getDegrees(r, node, "plausibility", "max_rotation_deg_s", p.max_rotation_rad_s);
   r.get(node, "plausibility", "max_rejected", p.max_rejected);
   // The ranges are the odometry's own (PlausibilityOptions::validate()), named by the key the
   // user wrote (max_rotation_deg_s for the field max_rotation_rad_s).

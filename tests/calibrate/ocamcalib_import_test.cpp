@@ -76,7 +76,8 @@ TEST(OcamCalibImport, NoRoiLineNeedsTheRing) {
   s = s.substr(0, s.find("#ROI"));
   std::ofstream(dir / "noroi.txt") << s;
   const std::string what = errorOf(dir / "noroi.txt", {});
-  EXPECT_THAT(what, HasSubstr("noroi.txt: has no ROI line: give the used ring with --radius-inner"));
+  EXPECT_THAT(what,
+              HasSubstr("noroi.txt: has no ROI line: give the used ring with --radius-inner"));
   ModelImportOptions o;
   o.radius_inner = 250;
   o.radius_outer = 560;

@@ -247,7 +247,8 @@ TEST(CalibrationYaml, LongStringsAreProblemsAndEchoedShort) {
   const auto [what, problems] = calibrationError(text);
   EXPECT_LT(what.size(), 1024u) << what.substr(0, 2000);
   EXPECT_THAT(what,
-              HasSubstr("omni.mask: '" + std::string(60, 'm') + "... (5000000 bytes)' is longer than 4096 bytes"))
+              HasSubstr("omni.mask: '" + std::string(60, 'm') +
+                        "... (5000000 bytes)' is longer than 4096 bytes"))
       << what.substr(0, 2000);
   // At the bound: accepted as a string (the mask file itself does not exist).
   std::string at_bound = kValid;

@@ -253,7 +253,8 @@ TEST(OcamCalib, NonMonotonicPolynomialOverTheRingIsRefused) {
   dir.write("turning.txt", text);
   const std::string what = parseError(ocamYaml("turning.txt"), dir.path());
   EXPECT_THAT(what,
-              HasSubstr("turning.txt: line 3: the direct polynomial is not monotonic over the ring"));
+              HasSubstr("turning.txt: line 3: the direct polynomial is not monotonic over the "
+                        "ring"));
 }
 
 TEST(OcamCalib, PanoramaRowsOutsideTheRingAreNamed) {

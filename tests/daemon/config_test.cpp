@@ -119,7 +119,8 @@ TEST(DaemonConfig, PipelineThreads) {
   EXPECT_EQ(many.pipeline.threads, cores);
   ASSERT_EQ(many.warnings.size(), 1u);
   EXPECT_THAT(many.warnings[0],
-              HasSubstr("d.yaml: pipeline.threads: " + std::to_string(cores + 1) + " is more than the " + std::to_string(cores) + " cores"));
+              HasSubstr("d.yaml: pipeline.threads: " + std::to_string(cores + 1) +
+                        " is more than the " + std::to_string(cores) + " cores"));
 }
 
 TEST(DaemonConfig, MovingContentCheck) {
@@ -288,7 +289,8 @@ TEST(DaemonConfig, PipelineSizesAreCheckedAgainstTheCalibrationBeforeAnythingIsA
   const auto p1 = tall.checkAgainst(cal, tall.origin);
   ASSERT_EQ(p1.size(), 1u);
   EXPECT_THAT(p1[0],
-              HasSubstr("/etc/d.yaml: pipeline.window: 200 is larger than the panorama (1100 x 110"));
+              HasSubstr("/etc/d.yaml: pipeline.window: 200 is larger than the "
+                        "panorama (1100 x 110"));
   auto dense = c;
   dense.pipeline.registration.step = 1;
   dense.pipeline.registration.window = 110;
@@ -335,7 +337,8 @@ TEST(DaemonConfig, AMultiMegabyteValueGivesAShortMessage) {
   const std::string what = whatOf("source: {type: file, path: " + big + "}\ncalibration: c.yaml\n");
   EXPECT_LT(what.size(), 1024u) << what.substr(0, 300);
   EXPECT_THAT(what,
-              HasSubstr("source.path: '" + std::string(60, 'p') + "... (8388608 bytes)' is longer than 4096 bytes"))
+              HasSubstr("source.path: '" + std::string(60, 'p') +
+                        "... (8388608 bytes)' is longer than 4096 bytes"))
       << what.substr(0, 300);
   // A long number and a long (explicit) key are echoed short too.
   const std::string mb(1u << 20, 'p');

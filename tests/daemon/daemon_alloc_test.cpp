@@ -6,7 +6,7 @@
 // fastMalloc, FFTW, LCM's C core, glib) are counted as well as C++ ones, in every thread of
 // the process.
 //
-// What runs while counting (all threads of the whole daemon, >= 200 processed frames after
+// What runs while counting (all threads of the whole daemon, >= 120 processed frames after
 // warm-up): the capture thread pulling frames from an in-memory source (preloaded omni
 // frames, copied into the mailbox slot: PNG decoding of the file source is NOT part of the
 // measurement) at 500 Hz, i.e. faster than the pipeline, so stale frames are skipped;
@@ -45,7 +45,7 @@ using daemon::Daemon;
 using testing::AllocationCounter;
 
 constexpr long kWarmUpFrames = 20;
-constexpr long kCountedFrames = 220;
+constexpr long kCountedFrames = 120;
 
 /// Attributes allocations made inside the LCM publish call to LCM.
 class AttributingSink final : public daemon::MessageSink {

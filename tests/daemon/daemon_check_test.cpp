@@ -109,7 +109,8 @@ TEST(DaemonCheck, APanoramaLowerThanTheWindowFails) {
   c.panorama.horizon_row = 39.5;
   EXPECT_EQ(t.run(c), 1);
   EXPECT_THAT(t.err(),
-              HasSubstr("daemon.yaml: pipeline.window: 110 is larger than the panorama (1100 x 80)"));
+              HasSubstr("daemon.yaml: pipeline.window: 110 is larger than the "
+                        "panorama (1100 x 80)"));
 }
 
 TEST(DaemonCheck, EveryProblemIsListedAtOnceByTheKeyTheUserWrote) {
@@ -126,9 +127,11 @@ TEST(DaemonCheck, EveryProblemIsListedAtOnceByTheKeyTheUserWrote) {
   ASSERT_EQ(check.problems.size(), 3u) << lines(check.problems);
   EXPECT_THAT(check.problems[0], HasSubstr("daemon.yaml: source.path: "));
   EXPECT_THAT(check.problems[0], HasSubstr("no_such_dataset is not a directory"));
-  EXPECT_THAT(check.problems[1], HasSubstr("daemon.yaml: scheduling.cpus: CPU 4000 does not exist"));
+  EXPECT_THAT(check.problems[1],
+              HasSubstr("daemon.yaml: scheduling.cpus: CPU 4000 does not exist"));
   EXPECT_THAT(check.problems[2],
-              HasSubstr("daemon.yaml: pipeline.window: 100 is larger than the " "panorama (1100 x 80)"));
+              HasSubstr("daemon.yaml: pipeline.window: 100 is larger than the "
+                        "panorama (1100 x 80)"));
 
   // Fixed: the check builds the pipeline and reports what it found usable.
   fs::create_directories(tmp / "no_such_dataset/frames");
@@ -157,7 +160,8 @@ TEST(DaemonCheck, CameraOptionsAreCheckedWithoutOpeningTheDevice) {
   // A device that does not exist: --check does not open it, so only the options count.
   const auto bad = check("{type: v4l2, device: /dev/no_such_video, format: RGB3}");
   ASSERT_EQ(bad.problems.size(), 1u) << lines(bad.problems);
-  EXPECT_THAT(bad.problems[0], HasSubstr("daemon.yaml: source.format: 'RGB3' is not a V4L2 format"));
+  EXPECT_THAT(bad.problems[0],
+              HasSubstr("daemon.yaml: source.format: 'RGB3' is not a V4L2 format"));
   const auto good = check("{type: v4l2, device: /dev/no_such_video, format: GREY}");
   EXPECT_TRUE(good.problems.empty()) << lines(good.problems);
   ASSERT_FALSE(good.findings.empty());

@@ -893,7 +893,8 @@ TEST(OmniposedFaults, SigtermDuringStartUpEndsTheProcessWithinASecond) {
   EXPECT_EQ(rc, 0) << err;
   EXPECT_LT(took, 1s) << err;
   EXPECT_THAT(err,
-              HasSubstr("omniposed: SIGTERM received during start-up (building the pipeline (FFT plans)): stopping"));
+              HasSubstr("omniposed: SIGTERM received during start-up (building the pipeline "
+                        "(FFT plans)): stopping"));
 }
 
 TEST(OmniposedFaults, ASecondDaemonOnTheSameLogIsRefusedWithTheHoldersPid) {
@@ -909,7 +910,8 @@ TEST(OmniposedFaults, ASecondDaemonOnTheSameLogIsRefusedWithTheHoldersPid) {
   const std::string err = testing::readText(tmp / "err2.txt");
   EXPECT_EQ(rc, 1) << err;
   EXPECT_THAT(err,
-              HasSubstr("the log is in use by another omniposed: " + lcm_log.string() + ".lock: held by process " + std::to_string(first.pid())));
+              HasSubstr("the log is in use by another omniposed: " + lcm_log.string() +
+                        ".lock: held by process " + std::to_string(first.pid())));
   std::this_thread::sleep_for(500ms);
   first.signal(SIGTERM);
   ASSERT_EQ(first.wait(30s), 0) << testing::readText(tmp / "err1.txt");

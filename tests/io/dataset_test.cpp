@@ -167,7 +167,8 @@ TEST_F(DatasetTest, NegativeAndBackwardsTimesAreWarningsNamingTheLine) {
   ASSERT_EQ(d.warnings.size(), 4u);
   EXPECT_THAT(d.warnings[0], HasSubstr("timestamps.txt:2: f0.png at -2.000000 s: a negative time"));
   EXPECT_THAT(d.warnings[3],
-              HasSubstr("timestamps.txt:4: f2.png at -1.500000 s is not after the frame before it " "(f1.png at -1.000000 s)"));
+              HasSubstr("timestamps.txt:4: f2.png at -1.500000 s is not after the frame before "
+                        "it (f1.png at -1.000000 s)"));
   // All equal: one warning per frame, at most 20 and then a count.
   fs::remove_all(root_ / "frames");
   fs::create_directories(root_ / "frames");

@@ -1,6 +1,6 @@
 // The per-frame path allocates nothing: every heap allocation of the process (malloc
 // family and operator new, so FFTW's and OpenCV's count too) is counted while
-// Pipeline::process runs on 200 frames after warm-up, including a rejected frame, a reset
+// Pipeline::process runs on 100 frames after warm-up, including a rejected frame, a reset
 // and a colour frame, which must not allocate either. (The counter itself is tested in
 // tests/support/allocation_counter_test.cpp.)
 #include <gtest/gtest.h>
@@ -43,15 +43,15 @@ TEST_P(PipelineAllocation, ProcessAllocatesNothingAfterWarmUp) {
 
   testing::AllocationCounter counter;  // every thread: the worker pool's too
   int ok = 0;
-  for (int i = 0; i < 200; ++i) {
+  for (int i = 0; i < 100; ++i) {
     if (pipeline.process(frames[i % 4]).has_value()) ++ok;
-    if (i == 50) (void)pipeline.process(wrong_size);  // rejected frame
-    if (i == 100) pipeline.reset();
-    if (i == 150) (void)pipeline.process(colour);
+    if (i == 25) (void)pipeline.process(wrong_size);  // rejected frame
+    if (i == 50) pipeline.reset();
+    if (i == 75) (void)pipeline.process(colour);
   }
   const std::int64_t allocations = counter.stop();
-  EXPECT_EQ(ok, 200);
-  EXPECT_EQ(allocations, 0) << "heap allocations in 200 frames of Pipeline::process, "
+  EXPECT_EQ(ok, 100);
+  EXPECT_EQ(allocations, 0) << "heap allocations in 100 frames of Pipeline::process, "
                             << GetParam() << " threads";
 }
 

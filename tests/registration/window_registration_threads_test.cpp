@@ -90,7 +90,8 @@ TEST(WindowRegistrationThreads, ThreadCountIsValidated) {
       ADD_FAILURE() << threads << " threads accepted";
     } catch (const std::invalid_argument& e) {
       EXPECT_THAT(e.what(),
-                  HasSubstr("threads: " + std::to_string(threads) + " is outside [0, 256] (0 = all online cores)"));
+                  HasSubstr("threads: " + std::to_string(threads) +
+                            " is outside [0, 256] (0 = all online cores)"));
     }
   }
   WindowRegistration reg(cv::Size(1100, 110), o, 0);  // every online core

@@ -784,7 +784,8 @@ TEST(SynthMotionScript, LongAndControlCharacterValuesAreBoundedAndEscaped) {
       "segments:\n  - frames: 3\n    rotation: {axis: " + std::string(10'000, 'a') + "}\n");
   EXPECT_LT(long_axis.size(), 512u) << long_axis.substr(0, 1000);
   EXPECT_THAT(long_axis,
-              HasSubstr("segments[0].rotation.axis: '" + std::string(60, 'a') + "... (10000 bytes)' is longer than 4096 bytes"))
+              HasSubstr("segments[0].rotation.axis: '" + std::string(60, 'a') +
+                        "... (10000 bytes)' is longer than 4096 bytes"))
       << long_axis.substr(0, 1000);
   const std::string control = motionError(
       "segments:\n  - frames: 3\n    rotation: {axis: \"z\\0\", \"si\\x02gn\": random}\n");
