@@ -291,12 +291,7 @@ class OmniSection {
   }
 
   void readModel() {
-    r_.get(omni_, "omni", "model", model_, Need::kOptional);
-    if (const auto kind = detail::valueNamed(kLensModels, model_))
-      c_.omni.model = *kind;
-    else
-      r_.problem("omni.model",
-                 "'" + detail::shown(model_) + "' is not " + detail::nameList(kLensModels));
+    r_.getNamed(omni_, "omni", "model", kLensModels, c_.omni.model, Need::kOptional, &model_);
   }
 
   /// The OCamCalib file gives the image size, the centre and (with its ROI line) the ring.
@@ -379,24 +374,13 @@ class OmniSection {
         }
       }
     }
-    std::string edge = "top";
-    r_.get(omni_, "omni", "outer_edge", edge, Need::kOptional);
-    if (const auto named = detail::valueNamed(kOuterEdges, edge))
-      c_.omni.outer_edge = *named;
-    else
-      r_.problem("omni.outer_edge",
-                 "'" + detail::shown(edge) + "' is not " + detail::nameList(kOuterEdges));
+    r_.getNamed(omni_, "omni", "outer_edge", kOuterEdges, c_.omni.outer_edge);
   }
 
   void readAzimuth() {
     r_.get(omni_, "omni", "azimuth_zero_deg", c_.omni.azimuth_zero_deg, Need::kOptional);
-    std::string direction = "cw";
-    r_.get(omni_, "omni", "azimuth_direction", direction, Need::kOptional);
-    if (const auto named = detail::valueNamed(kAzimuthDirections, direction))
-      c_.omni.azimuth_direction = *named;
-    else
-      r_.problem("omni.azimuth_direction",
-                 "'" + detail::shown(direction) + "' is not " + detail::nameList(kAzimuthDirections));
+    r_.getNamed(omni_, "omni", "azimuth_direction", kAzimuthDirections,
+                c_.omni.azimuth_direction);
   }
 
   void readMask() {

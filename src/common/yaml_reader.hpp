@@ -16,6 +16,7 @@
 #include <type_traits>
 #include <vector>
 
+#include "common/named_values.hpp"
 #include "common/problem_list.hpp"
 
 namespace omnipose::detail {
@@ -70,6 +71,26 @@ class YamlReader {
   /// reports keys that are not plain names or not in `known` ("<path>.<key>: <unknown>").
   bool checkMap(const YAML::Node& node, std::string_view path, const std::vector<std::string>& known,
                 std::string_view unknown = "unknown key");
+
+  /// Reads map[key] as one of the names of `names` into `value` (left as it is when absent,
+  /// "missing" when required). A name not in the table is a problem "'<name>' is not a, b or
+  /// c" and leaves `value` as it is. `name`, when given, receives the text read (known or
+  /// not) for later messages. Returns whether a known name was read.
+  template <typename Value, std::size_t N>
+  bool getNamed(const YAML::Node& map, std::string_view path, const std::string& key,
+                const Named<Value> (&names)[N], Value& value, Need need = Need::kOptional,
+                std::string* name = nullptr) {
+    std::string text = nameOf(names, value, "");
+    const bool given = get(map, path, key, text, need);
+    if (name) *name = text;
+    if (!given) return false;
+    if (const auto named = valueNamed(names, text)) {
+      value = *named;
+      return true;
+    }
+    problem(join(path, key), "'" + shown(text) + "' is not " + nameList(names));
+    return false;
+  }
 
   /// Reads map[key] into `value` (left as it is when absent, "missing" when required):
   /// "cannot read '<value>' as <type>", a string over kMaxStringBytes, a number that is

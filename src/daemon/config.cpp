@@ -43,13 +43,7 @@ void parseSource(Reader& r, const YAML::Node& node, const std::filesystem::path&
   if (!r.checkMap(node, "source", {"type", "path", "realtime", "loop", "device", "camera",
                                    "width", "height", "fps", "format"}))
     return;
-  std::string type = "file";
-  r.get(node, "source", "type", type);
-  if (const auto named = detail::valueNamed(kSourceTypes, type))
-    s.type = *named;
-  else
-    r.problem("source.type",
-              "'" + detail::shown(type) + "' is not " + detail::nameList(kSourceTypes));
+  r.getNamed(node, "source", "type", kSourceTypes, s.type);
   std::string path;
   r.get(node, "source", "path", path);
   if (!path.empty()) {

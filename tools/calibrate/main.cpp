@@ -599,11 +599,9 @@ int runOnFrames(const omnipose::tools::Cli& cli, Args& a) {
 
 int main(int argc, char** argv) {
   omnipose::tools::quietOpenCvWarnings();
-  Args args;
-  omnipose::tools::Cli cli("omnipose-calibrate", kUsage, kDescription);
-  addOptions(cli.app(), args);
-  if (const auto exit_code = cli.parse(argc, argv)) return *exit_code;
-  return omnipose::tools::runProgram(cli, [&] {
-    return args.readout.empty() ? runOnFrames(cli, args) : runReadout(cli, args);
-  });
+  return omnipose::tools::runMain<Args>(
+      argc, argv, {"omnipose-calibrate", kUsage, kDescription}, addOptions,
+      [](omnipose::tools::Cli& cli, Args& args) {
+        return args.readout.empty() ? runOnFrames(cli, args) : runReadout(cli, args);
+      });
 }

@@ -20,6 +20,7 @@
 #include <cstdio>
 #include <exception>
 #include <optional>
+#include <stdexcept>
 #include <string>
 #include <utility>
 #include <vector>
@@ -89,6 +90,7 @@ class Cli {
   Cli& operator=(const Cli&) = delete;
 
   CLI::App& app() { return app_; }
+  const CLI::App& app() const { return app_; }
   const std::string& name() const { return name_; }
 
   /// Parses the command line. nullopt: go on; otherwise the program returns this exit code
@@ -153,10 +155,46 @@ int runProgram(const std::string& prefix, Body&& body) {
   }
 }
 
-/// As above, named by the program's command line.
-template <class Body>
-int runProgram(const Cli& cli, Body&& body) {
-  return runProgram(cli.name(), std::forward<Body>(body));
+/// A usage error found while the program works (a value CLI11 cannot check); runMain prints
+/// it as Cli::usageError does and returns kUsageExitCode. what(): "--flag: what is wrong".
+struct UsageError : std::runtime_error {
+  using std::runtime_error::runtime_error;
+};
+
+/// What a program is called and says about itself in --help.
+struct ProgramInfo {
+  const char* name;         ///< as installed ("omnipose-eval")
+  const char* usage;        ///< the synopsis, "usage: NAME ...", one or more lines
+  const char* description;  ///< what it does and its exit codes
+  /// Prefix of a failure's message; nullptr: the name ("omniposed: start-up failed").
+  const char* failure_prefix = nullptr;
+};
+
+/// The whole main() of a program whose command line fills an `Args`:
+/// `add_options(app, args)` declares the options on a default-constructed Args, the command
+/// line is parsed (--help, --version and usage errors return their exit codes, see
+/// Cli::parse), and `body(cli, args)` returns the exit code under runProgram (an exception is
+/// "PREFIX: MESSAGE", kFailureExitCode). A check CLI11 cannot express returns
+/// `cli.usageError("...")` from the body or throws UsageError.
+///
+///   int main(int argc, char** argv) {
+///     return runMain<Args>(argc, argv, kProgram, addOptions,
+///                          [](Cli& cli, Args& args) { return score(args); });
+///   }
+template <class Args, class AddOptions, class Body>
+int runMain(int argc, const char* const* argv, const ProgramInfo& info, AddOptions&& add_options,
+            Body&& body) {
+  Args args{};
+  Cli cli(info.name, info.usage, info.description);
+  add_options(cli.app(), args);
+  if (const auto exit_code = cli.parse(argc, argv)) return *exit_code;
+  return runProgram(info.failure_prefix ? info.failure_prefix : info.name, [&] {
+    try {
+      return body(cli, args);
+    } catch (const UsageError& e) {
+      return cli.usageError(e.what());
+    }
+  });
 }
 
 /// Validator: a value CLI11 parsed must be one of `names` (error: "--input: must be omni or

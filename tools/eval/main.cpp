@@ -93,12 +93,13 @@ int score(const Args& a) {
 }  // namespace
 
 int main(int argc, char** argv) {
-  Args args;
-  omnipose::tools::Cli cli("omnipose-eval", kUsage, kDescription);
-  addOptions(cli.app(), args);
-  if (const auto exit_code = cli.parse(argc, argv)) return *exit_code;
-  if (args.files.size() < 2) return cli.usageError("FILES: give GT.tum and at least one EST.tum");
-  if (!args.drift_csv_path.empty() && !args.drift) return cli.usageError("--drift-csv needs --drift");
-  if (args.drift && !args.pairs_path.empty()) return cli.usageError("--pairs is not a --drift output");
-  return omnipose::tools::runProgram(cli, [&] { return score(args); });
+  using omnipose::tools::Cli;
+  return omnipose::tools::runMain<Args>(
+      argc, argv, {"omnipose-eval", kUsage, kDescription}, addOptions,
+      [](Cli& cli, const Args& args) {
+        if (args.files.size() < 2) return cli.usageError("FILES: give GT.tum and at least one EST.tum");
+        if (!args.drift_csv_path.empty() && !args.drift) return cli.usageError("--drift-csv needs --drift");
+        if (args.drift && !args.pairs_path.empty()) return cli.usageError("--pairs is not a --drift output");
+        return score(args);
+      });
 }

@@ -207,9 +207,6 @@ constexpr const char* kDescription =
 }  // namespace
 
 int main(int argc, char** argv) {
-  Args args;
-  omnipose::tools::Cli cli("omnipose-listen", kUsage, kDescription);
-  addOptions(cli.app(), args);
-  if (const auto exit_code = cli.parse(argc, argv)) return *exit_code;
-  return omnipose::tools::runProgram(cli, [&] { return listen(args); });
+  return omnipose::tools::runMain<Args>(argc, argv, {"omnipose-listen", kUsage, kDescription},
+                                        addOptions, [](auto&, const Args& args) { return listen(args); });
 }

@@ -27,6 +27,46 @@ constexpr const char* kDescription =
     "keeps running. Exit codes: 0 stopped, 1 start-up failed, 2 bad command line, 3 every\n"
     "message failed to publish.";
 
+/// The command line, as parsed.
+struct Args {
+  std::string config_path;
+  bool check_only = false;
+};
+
+void addOptions(CLI::App& app, Args& a) {
+  app.add_option("--config", a.config_path,
+                 "daemon configuration, YAML (DESIGN.md section 7; example: "
+                 "tools/omniposed/daemon.example.yaml)")
+      ->type_name("FILE")
+      ->required();
+  app.add_flag("--check", a.check_only,
+               "validate the configuration, the calibration and what it names (lens model, "
+               "mask) and the pipeline against it, print the effective values and exit; opens "
+               "no camera");
+}
+
+/// --check: the whole start-up validation that needs no hardware, every problem at once;
+/// writes nothing and starts no daemon.
+int check(const omnipose::DaemonConfig& config) {
+  // A stop signal may simply end it.
+  omnipose::daemon::unblockStopSignals();
+  const auto check = omnipose::daemon::checkStartup(config);
+  for (const auto& f : check.findings) std::fprintf(stderr, "omniposed: %s\n", f.c_str());
+  if (check.problems.empty()) return 0;
+  std::fprintf(stderr, "omniposed: %s\n", check.listing().c_str());
+  std::fprintf(stderr, "omniposed: --check: %zu problem(s)\n", check.problems.size());
+  return 1;
+}
+
+int run(const Args& a) {
+  const auto config = omnipose::DaemonConfig::load(a.config_path);
+  std::fprintf(stderr, "omniposed: configuration %s (effective values):\n%s", a.config_path.c_str(),
+               config.describe().c_str());
+  for (const std::string& w : config.warnings) std::fprintf(stderr, "omniposed: warning: %s\n", w.c_str());
+  std::fflush(stderr);
+  return a.check_only ? check(config) : omnipose::daemon::runService(config, stderr);
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -36,42 +76,9 @@ int main(int argc, char** argv) {
   omnipose::daemon::blockStopSignals();
   // A closed stderr pipe (e.g. the log collector restarted) must not kill the daemon.
   std::signal(SIGPIPE, SIG_IGN);
-
-  std::string config_path;
-  bool check_only = false;
-  omnipose::tools::Cli cli("omniposed", "usage: omniposed --config daemon.yaml [--check]",
-                           kDescription);
-  cli.app()
-      .add_option("--config", config_path,
-                  "daemon configuration, YAML (DESIGN.md section 7; example: "
-                  "tools/omniposed/daemon.example.yaml)")
-      ->type_name("FILE")
-      ->required();
-  cli.app().add_flag("--check", check_only,
-                     "validate the configuration, the calibration and what it names (lens "
-                     "model, mask) and the pipeline against it, print the effective values "
-                     "and exit; opens no camera");
-  if (const auto exit_code = cli.parse(argc, argv)) return *exit_code;
-
-  return omnipose::tools::runProgram("omniposed: start-up failed", [&] {
-    const auto config = omnipose::DaemonConfig::load(config_path);
-    std::fprintf(stderr, "omniposed: configuration %s (effective values):\n%s", config_path.c_str(),
-                 config.describe().c_str());
-    for (const std::string& w : config.warnings) std::fprintf(stderr, "omniposed: warning: %s\n", w.c_str());
-    std::fflush(stderr);
-    if (check_only) {
-      // --check writes nothing and starts no daemon: a stop signal may simply end it.
-      omnipose::daemon::unblockStopSignals();
-      // The whole start-up validation that needs no hardware, every problem at once.
-      const auto check = omnipose::daemon::checkStartup(config);
-      for (const auto& f : check.findings) std::fprintf(stderr, "omniposed: %s\n", f.c_str());
-      if (!check.problems.empty()) {
-        std::fprintf(stderr, "omniposed: %s\n", check.listing().c_str());
-        std::fprintf(stderr, "omniposed: --check: %zu problem(s)\n", check.problems.size());
-        return 1;
-      }
-      return 0;
-    }
-    return omnipose::daemon::runService(config, stderr);
-  });
+  return omnipose::tools::runMain<Args>(
+      argc, argv,
+      {"omniposed", "usage: omniposed --config daemon.yaml [--check]", kDescription,
+       "omniposed: start-up failed"},
+      addOptions, [](auto&, const Args& args) { return run(args); });
 }

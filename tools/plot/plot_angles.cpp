@@ -159,11 +159,7 @@ constexpr const char* kDescription =
     "ground truth and each estimate, RMSE (mrad) in the legend, errors below.\n"
     "Exit codes: 0 drawn, 1 failed, 2 bad command line.";
 
-int run(int argc, char** argv) {
-  Args a;
-  tools::Cli cli("omnipose-plot-angles", kUsage, kDescription);
-  addOptions(cli.app(), a);
-  if (const auto exit_code = cli.parse(argc, argv)) return *exit_code;
+int run(const tools::Cli& cli, Args& a) {
   if (a.files.size() < 2) return cli.usageError("FILES: give GT.tum and at least one EST.tum");
   if (cli.app().count("--labels") > 0) a.labels = split(a.labels_text, ',');
   if (!a.labels.empty() && a.labels.size() != a.files.size() - 1)
@@ -184,5 +180,6 @@ int run(int argc, char** argv) {
 }  // namespace
 
 int main(int argc, char** argv) {
-  return omnipose::tools::runProgram("omnipose-plot-angles", [&] { return run(argc, argv); });
+  return omnipose::tools::runMain<Args>(argc, argv, {"omnipose-plot-angles", kUsage, kDescription}, addOptions,
+                                        run);
 }

@@ -221,11 +221,7 @@ constexpr const char* kDescription =
     "dv (pixels) measured by iFMI per window and the fitted sinusoids (+ ground\n"
     "truth). Exit codes: 0 drawn, 1 failed, 2 bad command line.";
 
-int run(int argc, char** argv) {
-  Args a;
-  tools::Cli cli("omnipose-plot-fit", kUsage, kDescription);
-  addOptions(cli.app(), a);
-  if (const auto exit_code = cli.parse(argc, argv)) return *exit_code;
+int run(const tools::Cli&, Args& a) {
 
   const Dataset d = Dataset::open(a.dataset_dir);
   const int pair = choosePair(d, a.pair_text);
@@ -246,5 +242,6 @@ int run(int argc, char** argv) {
 
 int main(int argc, char** argv) {
   omnipose::tools::quietOpenCvWarnings();
-  return omnipose::tools::runProgram("omnipose-plot-fit", [&] { return run(argc, argv); });
+  return omnipose::tools::runMain<Args>(argc, argv, {"omnipose-plot-fit", kUsage, kDescription}, addOptions,
+                                        run);
 }

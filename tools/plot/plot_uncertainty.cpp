@@ -333,51 +333,54 @@ int run(const Args& a) {
   return 0;
 }
 
+void addOptions(CLI::App& app, Args& a) {
+  app.add_option("--texture", a.textures, "equirectangular photo (2:1), repeatable")->required();
+  app.add_option("--label", a.labels,
+                 "name of each texture in the figure and the table, one per --texture in "
+                 "their order (default: the file names)");
+  app.add_option("--out", a.out, "figure to write (PNG)")->type_name("FIG.png")->required();
+  app.add_option("--table", a.table,
+                 "also write a Markdown table: per texture and axis, every bin's ratios and "
+                 "the noise of the windows' mean shift")
+      ->type_name("TABLE.md");
+  app.add_option("--config", a.config,
+                 "daemon.yaml whose pipeline section is used (window, step, FFTW wisdom, "
+                 "threads); the covariance is always measured")
+      ->type_name("daemon.yaml");
+  app.add_option("--calibration", a.calibration,
+                 "calibration.yaml of the lens (default: the built-in linear lens)");
+  app.add_option("--pairs", a.pairs, "frame pairs per texture")
+      ->check(CLI::Range(1, 1000))
+      ->capture_default_str();
+  app.add_option("--draws", a.draws, "noise draws per pair")
+      ->check(CLI::Range(1, 100))
+      ->capture_default_str();
+  app.add_option("--noise", a.noise, "sensor noise sigma, grey levels")
+      ->check(CLI::Range(0.1, 50.0))
+      ->capture_default_str();
+  app.add_option("--bins", a.bins, "bins per texture and axis")
+      ->check(CLI::Range(2, 50))
+      ->capture_default_str();
+  app.add_option("--supersample", a.supersample, "renderer anti-aliasing: K x K rays per pixel")
+      ->check(CLI::Range(1, 16))
+      ->capture_default_str();
+  app.add_option("--seed", a.seed, "random poses and noise")->capture_default_str();
+  app.add_option("--width", a.width, "figure width, pixels")
+      ->check(CLI::Range(400, 4000))
+      ->capture_default_str();
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
   omnipose::tools::quietOpenCvWarnings();
-  Args args;
-  tools::Cli cli("omnipose-plot-uncertainty", kUsage, kDescription);
-  CLI::App& app = cli.app();
-  app.add_option("--texture", args.textures, "equirectangular photo (2:1), repeatable")->required();
-  app.add_option("--label", args.labels,
-                 "name of each texture in the figure and the table, one per --texture in "
-                 "their order (default: the file names)");
-  app.add_option("--out", args.out, "figure to write (PNG)")->type_name("FIG.png")->required();
-  app.add_option("--table", args.table,
-                 "also write a Markdown table: per texture and axis, every bin's ratios and "
-                 "the noise of the windows' mean shift")
-      ->type_name("TABLE.md");
-  app.add_option("--config", args.config,
-                 "daemon.yaml whose pipeline section is used (window, step, FFTW wisdom, "
-                 "threads); the covariance is always measured")
-      ->type_name("daemon.yaml");
-  app.add_option("--calibration", args.calibration,
-                 "calibration.yaml of the lens (default: the built-in linear lens)");
-  app.add_option("--pairs", args.pairs, "frame pairs per texture")
-      ->check(CLI::Range(1, 1000))
-      ->capture_default_str();
-  app.add_option("--draws", args.draws, "noise draws per pair")
-      ->check(CLI::Range(1, 100))
-      ->capture_default_str();
-  app.add_option("--noise", args.noise, "sensor noise sigma, grey levels")
-      ->check(CLI::Range(0.1, 50.0))
-      ->capture_default_str();
-  app.add_option("--bins", args.bins, "bins per texture and axis")
-      ->check(CLI::Range(2, 50))
-      ->capture_default_str();
-  app.add_option("--supersample", args.supersample, "renderer anti-aliasing: K x K rays per pixel")
-      ->check(CLI::Range(1, 16))
-      ->capture_default_str();
-  app.add_option("--seed", args.seed, "random poses and noise")->capture_default_str();
-  app.add_option("--width", args.width, "figure width, pixels")
-      ->check(CLI::Range(400, 4000))
-      ->capture_default_str();
-  if (const auto exit_code = cli.parse(argc, argv)) return *exit_code;
-  if (!args.labels.empty() && args.labels.size() != args.textures.size()) {
-    return cli.usageError("--label given " + std::to_string(args.labels.size()) + " times for " +
-                          std::to_string(args.textures.size()) + " --texture");
-  }
-  return tools::runProgram(cli, [&] { return run(args); });
+  return tools::runMain<Args>(
+      argc, argv, {"omnipose-plot-uncertainty", kUsage, kDescription}, addOptions,
+      [](tools::Cli& cli, const Args& args) {
+        if (!args.labels.empty() && args.labels.size() != args.textures.size()) {
+          return cli.usageError("--label given " + std::to_string(args.labels.size()) +
+                                " times for " + std::to_string(args.textures.size()) + " --texture");
+        }
+        return run(args);
+      });
 }

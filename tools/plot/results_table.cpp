@@ -310,27 +310,29 @@ constexpr const char* kDescription =
     "translation-direction errors in degrees, time in seconds per frame.\n"
     "Exit codes: 0 written, 1 failed, 2 bad command line.";
 
-int run(int argc, char** argv) {
+/// The command line, as parsed.
+struct Args {
   std::string manifest, out, main_method = "ifmi";
-  tools::Cli cli("omnipose-results", kUsage, kDescription);
-  auto& app = cli.app();
-  app.add_option("MANIFEST.tsv", manifest,
+};
+
+void addOptions(CLI::App& app, Args& a) {
+  app.add_option("MANIFEST.tsv", a.manifest,
                  "one row per run, tab-separated: scene, sequence, method, GT.tum, EST.tum, "
                  "seconds_per_frame; sequence roll|pitch|yaw rows form Table I (per scene), all "
                  "others Table II")
       ->required();
-  app.add_option("--main", main_method,
-                 "the method the notes compare against every other")
+  app.add_option("--main", a.main_method, "the method the notes compare against every other")
       ->type_name("METHOD")
       ->capture_default_str();
-  app.add_option("--out", out, "also write the tables to this Markdown file")
+  app.add_option("--out", a.out, "also write the tables to this Markdown file")
       ->type_name("TABLES.md");
-  if (const auto exit_code = cli.parse(argc, argv)) return *exit_code;
+}
 
-  const std::string md = resultsMarkdown(readManifest(manifest), main_method);
-  if (!out.empty()) {
-    std::ofstream o(out);
-    if (!o) throw std::runtime_error(out + ": cannot write");
+int run(const Args& a) {
+  const std::string md = resultsMarkdown(readManifest(a.manifest), a.main_method);
+  if (!a.out.empty()) {
+    std::ofstream o(a.out);
+    if (!o) throw std::runtime_error(a.out + ": cannot write");
     o << md;
   }
   std::fputs(md.c_str(), stdout);
@@ -340,5 +342,6 @@ int run(int argc, char** argv) {
 }  // namespace
 
 int main(int argc, char** argv) {
-  return omnipose::tools::runProgram("omnipose-results", [&] { return run(argc, argv); });
+  return omnipose::tools::runMain<Args>(argc, argv, {"omnipose-results", kUsage, kDescription},
+                                        addOptions, [](auto&, const Args& a) { return run(a); });
 }

@@ -82,15 +82,13 @@ constexpr const char* kDescription =
 
 int main(int argc, char** argv) {
   omnipose::tools::quietOpenCvWarnings();
-  Args args;
-  omnipose::tools::Cli cli("omnipose-replay", kUsage, kDescription);
-  addOptions(cli.app(), args);
-  if (const auto exit_code = cli.parse(argc, argv)) return *exit_code;
-  const omnipose::replay::ReplayOptions options = replayOptions(cli.app(), args);
-  return omnipose::tools::runProgram(cli, [&] {
-    const auto s = omnipose::replay::run(options, stderr);
-    std::printf("frames=%d pairs=%d skipped=%d implausible=%d lost=%d bridged=%d seconds_per_frame=%.6f\n",
-                s.frames, s.pairs, s.skipped, s.implausible, s.lost, s.bridged, s.median_seconds_per_frame);
-    return s.pairs > 0 || s.frames == 1 ? 0 : 1;
-  });
+  return omnipose::tools::runMain<Args>(
+      argc, argv, {"omnipose-replay", kUsage, kDescription}, addOptions,
+      [](omnipose::tools::Cli& cli, const Args& args) {
+        const auto s = omnipose::replay::run(replayOptions(cli.app(), args), stderr);
+        std::printf("frames=%d pairs=%d skipped=%d implausible=%d lost=%d bridged=%d seconds_per_frame=%.6f\n",
+                    s.frames, s.pairs, s.skipped, s.implausible, s.lost, s.bridged,
+                    s.median_seconds_per_frame);
+        return s.pairs > 0 || s.frames == 1 ? 0 : 1;
+      });
 }

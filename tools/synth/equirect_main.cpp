@@ -33,6 +33,19 @@ struct Args {
   int width = 4096;
 };
 
+void addOptions(CLI::App& app, Args& a) {
+  app.add_option("--omni", a.omni, "the omni image (PNG, JPEG, PNM or BMP), of the "
+                 "calibration's frame size")->required();
+  app.add_option("--calibration", a.calibration, "calibration.yaml of the camera that "
+                 "took it (linear, ocamcalib or mei)")->required();
+  app.add_option("--out", a.out, "the texture to write (8-bit grey; the format from the "
+                 "extension)")->required();
+  app.add_option("--width", a.width, "texture width, texels, even, 16..16384; the height "
+                 "is half of it (default 4096)");
+  app.add_option("--seen", a.seen, "also write a mask of the texels the ring saw (255) "
+                 "and those filled (0)");
+}
+
 int run(const Args& a) {
   const Calibration calibration = Calibration::load(a.calibration);
   ImageLimits limits;
@@ -56,23 +69,12 @@ int run(const Args& a) {
 
 int main(int argc, char** argv) {
   omnipose::tools::quietOpenCvWarnings();
-  Args args;
-  tools::Cli cli("omnipose-equirect", kUsage, kDescription);
-  CLI::App& app = cli.app();
-  app.add_option("--omni", args.omni, "the omni image (PNG, JPEG, PNM or BMP), of the "
-                 "calibration's frame size")->required();
-  app.add_option("--calibration", args.calibration, "calibration.yaml of the camera that "
-                 "took it (linear, ocamcalib or mei)")->required();
-  app.add_option("--out", args.out, "the texture to write (8-bit grey; the format from the "
-                 "extension)")->required();
-  app.add_option("--width", args.width, "texture width, texels, even, 16..16384; the height "
-                 "is half of it (default 4096)");
-  app.add_option("--seen", args.seen, "also write a mask of the texels the ring saw (255) "
-                 "and those filled (0)");
-  if (const auto exit_code = cli.parse(argc, argv)) return *exit_code;
-  if (args.width < 16 || args.width > 16384 || args.width % 2 != 0) {
-    return cli.usageError("--width " + std::to_string(args.width) +
-                          " is not an even number in [16, 16384]");
-  }
-  return tools::runProgram(cli, [&] { return run(args); });
+  return tools::runMain<Args>(argc, argv, {"omnipose-equirect", kUsage, kDescription}, addOptions,
+                              [](tools::Cli& cli, const Args& args) {
+                                if (args.width < 16 || args.width > 16384 || args.width % 2 != 0) {
+                                  return cli.usageError("--width " + std::to_string(args.width) +
+                                                        " is not an even number in [16, 16384]");
+                                }
+                                return run(args);
+                              });
 }

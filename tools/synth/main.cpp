@@ -29,9 +29,7 @@ constexpr const char* kDescription =
     "Exit codes: 0 written, 1 rendering or writing failed, 2 bad command line.";
 
 /// A command-line mistake: reported with a hint to --help, exit code 2.
-struct UsageError : std::runtime_error {
-  using std::runtime_error::runtime_error;
-};
+using tools::UsageError;
 
 struct Args {
   std::string texture, out, motion, preset, print_preset, calibration;
@@ -211,9 +209,15 @@ void addEffectOptions(CLI::App& app, Args& a, Raw& raw) {
   app.add_flag("--quiet", a.quiet, "no progress line (it is shown only on a terminal anyway)");
 }
 
-void addOptions(CLI::App& app, Args& a, Raw& raw) {
-  addSceneOptions(app, a, raw);
-  addEffectOptions(app, a, raw);
+/// What the command line fills: the settings, and the text finish() converts.
+struct CommandLine {
+  Args args;
+  Raw raw;
+};
+
+void addOptions(CLI::App& app, CommandLine& c) {
+  addSceneOptions(app, c.args, c.raw);
+  addEffectOptions(app, c.args, c.raw);
 }
 
 /// Converts what CLI11 left as text and checks what it cannot; throws UsageError.
@@ -495,25 +499,20 @@ int run(const Args& a) {
   return 0;
 }
 
+/// Prints a preset's script, or renders the dataset.
+int generate(const tools::Cli& cli, CommandLine& c) {
+  finish(cli.app(), c.args, c.raw);
+  if (!c.args.print_preset.empty()) {
+    std::cout << synth::MotionScript::presetYaml(c.args.print_preset);
+    return 0;
+  }
+  return run(c.args);
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
   omnipose::tools::quietOpenCvWarnings();
-  Args args;
-  Raw raw;
-  tools::Cli cli("omnipose-synth", kUsage, kDescription);
-  addOptions(cli.app(), args, raw);
-  if (const auto exit_code = cli.parse(argc, argv)) return *exit_code;
-  return tools::runProgram(cli, [&] {
-    try {
-      finish(cli.app(), args, raw);
-      if (!args.print_preset.empty()) {
-        std::cout << synth::MotionScript::presetYaml(args.print_preset);
-        return 0;
-      }
-      return run(args);
-    } catch (const UsageError& e) {
-      return cli.usageError(e.what());
-    }
-  });
+  return tools::runMain<CommandLine>(argc, argv, {"omnipose-synth", kUsage, kDescription},
+                                     addOptions, generate);
 }
