@@ -31,14 +31,9 @@
 # picked plans per replay, and two runs of one build differed by up to 1.5 % in a column):
 # with the same WISDOM, the same build gives the same datasets and estimates, and two builds
 # differ only by their code.
-set -euo pipefail
-cd "$(dirname "$0")/.."
-root=$(pwd)
-
 # shellcheck source=tools/common/benchmark.sh
-source tools/common/benchmark.sh
-bench_args accuracy_benchmark -- "$@"
-out=${out:-$build/accuracy}
+source "$(dirname "$0")/common/benchmark.sh"
+bench_args accuracy_benchmark accuracy -- "$@"
 frames=${FRAMES:-24}
 supersample=${SUPERSAMPLE:-2}
 methods=${METHODS:-"ifmi orb5pt akaze5pt orbrot akazerot"}

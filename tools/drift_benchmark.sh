@@ -40,14 +40,9 @@
 # Nothing is sent on the network: the daemon publishes to an LCM log file. Everything is
 # seeded: the same build gives the same datasets and replays; the daemon runs in real time
 # (30 fps), so a loaded machine may make it skip frames (counted in the table).
-set -euo pipefail
-cd "$(dirname "$0")/.."
-root=$(pwd)
-
 # shellcheck source=tools/common/benchmark.sh
-source tools/common/benchmark.sh
-bench_args drift_benchmark --evo -- "$@"
-out=${out:-$build/drift}
+source "$(dirname "$0")/common/benchmark.sh"
+bench_args drift_benchmark drift --evo -- "$@"
 supersample=${SUPERSAMPLE:-2}
 bin=$build/bin
 bench_command_line tools/drift_benchmark.sh "$@" -- BUILD_DIR SUPERSAMPLE KEYFRAME_SLOTS WISDOM

@@ -48,14 +48,9 @@
 #               true", to measure what a setting is worth (not with --publish: the published
 #               results are those of the defaults)
 # Everything is seeded (seeds below): the same build gives the same datasets and estimates.
-set -euo pipefail
-cd "$(dirname "$0")/.."
-root=$(pwd)
-
 # shellcheck source=tools/common/benchmark.sh
-source tools/common/benchmark.sh
-bench_args real_camera_benchmark -- "$@"
-out=${out:-$build/real_camera}
+source "$(dirname "$0")/common/benchmark.sh"
+bench_args real_camera_benchmark real_camera -- "$@"
 photo=${PHOTO:-$data/park_theta_v_5376x2688.jpg}
 frames=${FRAMES:-60}
 supersample=${SUPERSAMPLE:-2}

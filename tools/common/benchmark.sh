@@ -1,16 +1,21 @@
 # shellcheck shell=bash
 # What the benchmark scripts (tools/accuracy_benchmark.sh, drift_benchmark.sh,
 # real_camera_benchmark.sh) share: their arguments, the command line their reports quote,
-# and the programs they need. Sourced after `set -euo pipefail` and `cd` to the repository.
+# and the programs they need. Sourcing it sets the strict mode (set -euo pipefail) and makes
+# the repository's top directory the working directory and `root`.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+root=$PWD
 
-# bench_args NAME [--FLAG ...] -- ARGS...: parses the script's ARGS: --publish (publish=1),
-# -h/--help (prints the script's header comment and exits 0), one OUTDIR (out), and each
+# bench_args NAME OUTDIR_NAME [--FLAG ...] -- ARGS...: parses the script's ARGS: --publish
+# (publish=1), -h/--help (prints the script's header comment and exits 0), one OUTDIR (out;
+# default $build/OUTDIR_NAME), and each
 # --FLAG listed before `--` (sets the variable FLAG, without the dashes, to 1; it starts at
 # 0). Anything else is a usage error naming NAME (exit 2). Sets build (BUILD_DIR, default
 # build) and data (DATA_DIR, default ../shared/data/equirect beside the repository).
 bench_args() {
-  local name=$1 arg flag
-  shift
+  local name=$1 default_out=$2 arg flag
+  shift 2
   local -a flags=()
   while [ $# -gt 0 ] && [ "$1" != "--" ]; do flags+=("$1"); shift; done
   [ $# -gt 0 ] && shift
@@ -20,7 +25,8 @@ bench_args() {
   for arg in "$@"; do
     case "$arg" in
       --publish) publish=1 ;;
-      -h|--help) sed -n '2,/^set -euo/p' "$0" | grep '^#' | sed 's/^# \{0,1\}//'; exit 0 ;;
+      -h|--help) sed -n '2,/^source /p' "$0" | grep '^#' | grep -v '^# shellcheck' |
+                   sed 's/^# \{0,1\}//'; exit 0 ;;
       -*)
         for flag in "${flags[@]}"; do
           if [ "$arg" = "$flag" ]; then printf -v "${flag#--}" '%s' 1; continue 2; fi
@@ -33,6 +39,7 @@ bench_args() {
   done
   build=${BUILD_DIR:-build}
   data=${DATA_DIR:-$PWD/../shared/data/equirect}
+  out=${out:-$build/$default_out}
 }
 
 # bench_command_line SCRIPT ARGS... -- VAR...: sets command_line to "SCRIPT ARGS", preceded by
