@@ -9,6 +9,7 @@
 
 #include <cerrno>
 #include <cmath>
+#include <limits>
 #include <thread>
 
 #include "fake_libcamera.hpp"
@@ -70,6 +71,8 @@ class LibcameraStreamTest : public ::testing::Test {
   }
 
   std::shared_ptr<FakeCameraManager> manager_ = std::make_shared<FakeCameraManager>();
+  /// What next() fills: a frame of the default size, 640 x 480.
+  cv::Mat out_ = cv::Mat(480, 640, CV_8UC1);
   FakeCameraConfig config_;
   std::shared_ptr<FakeCamera> camera_;
 };
@@ -86,10 +89,9 @@ TEST_F(LibcameraStreamTest, YuyvWithPaddedStrideDeliversLumaPixelForPixel) {
   EXPECT_EQ(camera_->configured().stride, 1536u);
   EXPECT_EQ(s->frameSize(), cv::Size(640, 480));
   produce(1);
-  cv::Mat out(480, 640, CV_8UC1);
-  auto f = s->next(out, 1000ms);
+  auto f = s->next(out_, 1000ms);
   ASSERT_TRUE(f) << f.error().message();
-  EXPECT_EQ(cv::norm(out, FakeCameraManager::expectedGrey(0, {640, 480}), cv::NORM_INF), 0.0);
+  EXPECT_EQ(cv::norm(out_, FakeCameraManager::expectedGrey(0, {640, 480}), cv::NORM_INF), 0.0);
   EXPECT_EQ(f->sequence, 0u);
   EXPECT_EQ(s->stats().delivered, 1u);
 }
@@ -104,10 +106,9 @@ TEST_F(LibcameraStreamTest, Nv12LumaPlaneWithStrideAndChromaInTheSameBuffer) {
   EXPECT_EQ(camera_->configured().stride, 768u);
   EXPECT_EQ(camera_->configured().frame_size, 768u * 480 * 3 / 2);
   produce(1);
-  cv::Mat out(480, 640, CV_8UC1);
-  auto f = s->next(out, 1000ms);
+  auto f = s->next(out_, 1000ms);
   ASSERT_TRUE(f) << f.error().message();
-  EXPECT_EQ(cv::norm(out, FakeCameraManager::expectedGrey(0, {640, 480}), cv::NORM_INF), 0.0);
+  EXPECT_EQ(cv::norm(out_, FakeCameraManager::expectedGrey(0, {640, 480}), cv::NORM_INF), 0.0);
 }
 
 TEST_F(LibcameraStreamTest, GreyR8CopiedRowByRowPastThePadding) {
@@ -132,9 +133,8 @@ TEST_F(LibcameraStreamTest, SizeAdjustedToTheNearestSupportedAndReadBack) {
   EXPECT_EQ(s->frameSize(), cv::Size(640, 480));
   EXPECT_THAT(s->describe(), HasSubstr("asked 700x500"));
   produce(1);
-  cv::Mat out(480, 640, CV_8UC1);
-  ASSERT_TRUE(s->next(out, 1000ms));
-  EXPECT_EQ(cv::norm(out, FakeCameraManager::expectedGrey(0, {640, 480}), cv::NORM_INF), 0.0);
+  ASSERT_TRUE(s->next(out_, 1000ms));
+  EXPECT_EQ(cv::norm(out_, FakeCameraManager::expectedGrey(0, {640, 480}), cv::NORM_INF), 0.0);
 }
 
 TEST_F(LibcameraStreamTest, FormatNotOfferedIsReplacedByTheBestOffered) {
@@ -223,12 +223,11 @@ TEST_F(LibcameraStreamTest, NewestFrameIsDeliveredAndTheStaleOnesRequeued) {
   auto s = source(options());
   ASSERT_TRUE(s->open());
   produce(3);  // 4 requests queued: 3 complete, one still waits
-  cv::Mat out(480, 640, CV_8UC1);
-  auto f = s->next(out, 1000ms);
+  auto f = s->next(out_, 1000ms);
   ASSERT_TRUE(f);
   EXPECT_EQ(f->sequence, 2u);
   EXPECT_EQ(contentOf(f->capture_time_us), 2);
-  EXPECT_EQ(cv::norm(out, FakeCameraManager::expectedGrey(2, {640, 480}), cv::NORM_INF), 0.0);
+  EXPECT_EQ(cv::norm(out_, FakeCameraManager::expectedGrey(2, {640, 480}), cv::NORM_INF), 0.0);
   EXPECT_EQ(s->stats().stale_dropped, 2u);
   EXPECT_EQ(camera_->pendingRequests(), 4) << "every request is back with the camera";
 }
@@ -237,14 +236,13 @@ TEST_F(LibcameraStreamTest, WhenEveryRequestHadCompletedAFreshFrameIsAwaited) {
   auto s = source(options());
   ASSERT_TRUE(s->open());
   produce(6);  // 4 complete, then 2 frames find no request: lost
-  cv::Mat out(480, 640, CV_8UC1);
-  auto f = s->next(out, 30ms);
+  auto f = s->next(out_, 30ms);
   ASSERT_FALSE(f);
   EXPECT_EQ(f.error().code(), ErrorCode::kTimeout);
   EXPECT_EQ(s->stats().stale_dropped, 4u);
   EXPECT_EQ(camera_->pendingRequests(), 4);
   produce(1);
-  f = s->next(out, 1000ms);
+  f = s->next(out_, 1000ms);
   ASSERT_TRUE(f);
   EXPECT_EQ(contentOf(f->capture_time_us), 6);
   EXPECT_EQ(f->sequence, 6u);
@@ -257,8 +255,7 @@ TEST_F(LibcameraStreamTest, WithoutDropStaleTheNewestCompletedFrameIsDelivered) 
   auto s = source(o);
   ASSERT_TRUE(s->open());
   produce(4);
-  cv::Mat out(480, 640, CV_8UC1);
-  auto f = s->next(out, 1000ms);
+  auto f = s->next(out_, 1000ms);
   ASSERT_TRUE(f);
   EXPECT_EQ(f->sequence, 3u);
   EXPECT_EQ(s->stats().stale_dropped, 3u);
@@ -267,14 +264,13 @@ TEST_F(LibcameraStreamTest, WithoutDropStaleTheNewestCompletedFrameIsDelivered) 
 TEST_F(LibcameraStreamTest, SensorDroppedFramesAreSequenceGaps) {
   auto s = source(options());
   ASSERT_TRUE(s->open());
-  cv::Mat out(480, 640, CV_8UC1);
   produce(1);
-  auto f = s->next(out, 1000ms);
+  auto f = s->next(out_, 1000ms);
   ASSERT_TRUE(f);
   EXPECT_EQ(f->sequence, 0u);
   manager_->skipFrames(3);
   produce(1);
-  f = s->next(out, 1000ms);
+  f = s->next(out_, 1000ms);
   ASSERT_TRUE(f);
   EXPECT_EQ(f->sequence, 4u);
   EXPECT_EQ(s->stats().lost_upstream, 3u);
@@ -284,20 +280,19 @@ TEST_F(LibcameraStreamTest, SensorDroppedFramesAreSequenceGaps) {
 TEST_F(LibcameraStreamTest, ErrorFramesAreDroppedAndCounted) {
   auto s = source(options());
   ASSERT_TRUE(s->open());
-  cv::Mat out(480, 640, CV_8UC1);
   manager_->flagError(1);
   produce(2);
-  auto f = s->next(out, 1000ms);
+  auto f = s->next(out_, 1000ms);
   ASSERT_TRUE(f);
   EXPECT_EQ(contentOf(f->capture_time_us), 0) << "the newest good frame";
   EXPECT_EQ(s->stats().error_frames, 1u);
   manager_->flagError(2);
   produce(1);
-  f = s->next(out, 1000ms);
+  f = s->next(out_, 1000ms);
   ASSERT_FALSE(f);
   EXPECT_EQ(f.error().code(), ErrorCode::kBadFrame);
   produce(1);
-  f = s->next(out, 1000ms);
+  f = s->next(out_, 1000ms);
   ASSERT_TRUE(f) << "streaming goes on";
   EXPECT_EQ(contentOf(f->capture_time_us), 3);
   EXPECT_EQ(camera_->pendingRequests(), 4);
@@ -308,10 +303,9 @@ TEST_F(LibcameraStreamTest, ErrorFramesAreDroppedAndCounted) {
 TEST_F(LibcameraStreamTest, SensorTimestampBecomesWallClockMicroseconds) {
   auto s = source(options());
   ASSERT_TRUE(s->open());
-  cv::Mat out(480, 640, CV_8UC1);
   for (int i = 0; i < 3; ++i) {
     produce(1);
-    auto f = s->next(out, 1000ms);
+    auto f = s->next(out_, 1000ms);
     ASSERT_TRUE(f);
     EXPECT_EQ(contentOf(f->capture_time_us), i);
     const std::int64_t error = f->capture_time_us * 1000 - manager_->realtimeOffsetNs() -
@@ -328,43 +322,36 @@ TEST_F(LibcameraStreamTest, BufferTimestampWhenSensorTimestampIsAbsent) {
   auto s = source(options());
   ASSERT_TRUE(s->open());
   produce(1);
-  cv::Mat out(480, 640, CV_8UC1);
-  auto f = s->next(out, 1000ms);
+  auto f = s->next(out_, 1000ms);
   ASSERT_TRUE(f);
   EXPECT_EQ(contentOf(f->capture_time_us), 0);
 }
 
 TEST_F(LibcameraStreamTest, ClockOffsetTakesTheLeastPreemptedOfClockSamples) {
   const std::int64_t delay = 2 * kMs;
+  // The error (ns) of the capture time of frame `frame`, the next one produced, from a source
+  // that opened with `samples` clock samples while every `every`-th realtime read stalled.
+  const auto captureTimeError = [&](int samples, int every, int frame) -> std::int64_t {
+    manager_->delayRealtimeReads(every, delay);
+    LibcameraOptions o = options();
+    o.clock_samples = samples;
+    auto s = source(o);
+    EXPECT_TRUE(s->open());
+    manager_->delayRealtimeReads(0, 0);
+    produce(1);
+    auto f = s->next(out_, 1000ms);
+    if (!f) {
+      ADD_FAILURE() << f.error().message();
+      return std::numeric_limits<std::int64_t>::max();
+    }
+    s->close();
+    return f->capture_time_us * 1000 - manager_->realtimeOffsetNs() - manager_->boottimeOf(frame);
+  };
   // One sample, preempted between its reads: the offset is off by half the stall.
-  manager_->delayRealtimeReads(1, delay);
-  LibcameraOptions o = options();
-  o.clock_samples = 1;
-  auto one = source(o);
-  ASSERT_TRUE(one->open());
-  manager_->delayRealtimeReads(0, 0);
-  produce(1);
-  cv::Mat out(480, 640, CV_8UC1);
-  auto f = one->next(out, 1000ms);
-  ASSERT_TRUE(f);
-  EXPECT_EQ(contentOf(f->capture_time_us), -1) << "a millisecond late: no frame there";
-  const std::int64_t error_one =
-      f->capture_time_us * 1000 - manager_->realtimeOffsetNs() - manager_->boottimeOf(0);
-  EXPECT_NEAR(static_cast<double>(error_one), static_cast<double>(delay / 2), 1000.0);
-  one->close();
-
+  EXPECT_NEAR(static_cast<double>(captureTimeError(1, 1, 0)), static_cast<double>(delay / 2),
+              1000.0);
   // Seven samples, every other one preempted: an unpreempted one wins, the offset is exact.
-  manager_->delayRealtimeReads(2, delay);
-  o.clock_samples = 7;
-  auto seven = source(o);
-  ASSERT_TRUE(seven->open());
-  manager_->delayRealtimeReads(0, 0);
-  produce(1);
-  auto g = seven->next(out, 1000ms);
-  ASSERT_TRUE(g);
-  const std::int64_t error_seven =
-      g->capture_time_us * 1000 - manager_->realtimeOffsetNs() - manager_->boottimeOf(1);
-  EXPECT_LE(std::abs(error_seven), 500) << "only the rounding to microseconds";
+  EXPECT_LE(std::abs(captureTimeError(7, 2, 1)), 500) << "only the rounding to microseconds";
 }
 
 TEST_F(LibcameraStreamTest, WallClockStepIsFollowedAfterTheResync) {
@@ -372,14 +359,13 @@ TEST_F(LibcameraStreamTest, WallClockStepIsFollowedAfterTheResync) {
   o.clock_resync = 1000ms;
   auto s = source(o);
   ASSERT_TRUE(s->open());
-  cv::Mat out(480, 640, CV_8UC1);
   produce(1);
-  auto before = s->next(out, 1000ms);
+  auto before = s->next(out_, 1000ms);
   ASSERT_TRUE(before);
   manager_->stepRealtime(5'000 * kMs);  // NTP steps the wall clock 5 s forward
   manager_->advance(1500 * kMs);        // past clock_resync
   produce(1);
-  auto after = s->next(out, 1000ms);
+  auto after = s->next(out_, 1000ms);
   ASSERT_TRUE(after);
   EXPECT_EQ(contentOf(after->capture_time_us), 1) << "the new offset is used";
   EXPECT_NEAR(static_cast<double>(after->capture_time_us - before->capture_time_us),
@@ -391,14 +377,13 @@ TEST_F(LibcameraStreamTest, WallClockStepIsFollowedAfterTheResync) {
 TEST_F(LibcameraStreamTest, UnplugReleasesTheCameraAndReportsDisconnectedUntilReopened) {
   auto s = source(options());
   ASSERT_TRUE(s->open());
-  cv::Mat out(480, 640, CV_8UC1);
   produce(1);
-  auto first = s->next(out, 1000ms);
+  auto first = s->next(out_, 1000ms);
   ASSERT_TRUE(first);
   const auto old_camera = camera_;
 
   manager_->unplug(config_.id);  // disconnected, then its pending requests cancelled
-  auto r = s->next(out, 1000ms);
+  auto r = s->next(out_, 1000ms);
   ASSERT_FALSE(r);
   EXPECT_EQ(r.error().code(), ErrorCode::kDisconnected);
   EXPECT_EQ(s->stats().disconnects, 1u);
@@ -410,7 +395,7 @@ TEST_F(LibcameraStreamTest, UnplugReleasesTheCameraAndReportsDisconnectedUntilRe
   // The source does not retry on its own: next() answers at once, asking libcamera nothing.
   const std::size_t opens_before = manager_->openAttempts().size();
   for (int i = 0; i < 3; ++i) {
-    r = s->next(out, 1000ms);
+    r = s->next(out_, 1000ms);
     ASSERT_FALSE(r);
     EXPECT_EQ(r.error().code(), ErrorCode::kDisconnected);
     EXPECT_THAT(r.error().message(), HasSubstr("close() and open()"));
@@ -429,9 +414,9 @@ TEST_F(LibcameraStreamTest, UnplugReleasesTheCameraAndReportsDisconnectedUntilRe
   EXPECT_TRUE(camera_->running());
   EXPECT_EQ(camera_->pendingRequests(), 4);
   produce(1);
-  auto resumed = s->next(out, 1000ms);
+  auto resumed = s->next(out_, 1000ms);
   ASSERT_TRUE(resumed) << resumed.error().message();
-  EXPECT_EQ(cv::norm(out, FakeCameraManager::expectedGrey(
+  EXPECT_EQ(cv::norm(out_, FakeCameraManager::expectedGrey(
                               static_cast<std::uint64_t>(contentOf(resumed->capture_time_us)),
                               {640, 480}),
                      cv::NORM_INF),
@@ -446,9 +431,8 @@ TEST_F(LibcameraStreamTest, UnplugReleasesTheCameraAndReportsDisconnectedUntilRe
 TEST_F(LibcameraStreamTest, CallerCloseAndOpenContinuesTheSequence) {
   auto s = source(options());
   ASSERT_TRUE(s->open());
-  cv::Mat out(480, 640, CV_8UC1);
   produce(1);
-  auto a = s->next(out, 1000ms);
+  auto a = s->next(out_, 1000ms);
   ASSERT_TRUE(a);
   s->close();
   EXPECT_FALSE(camera_->acquired());
@@ -456,7 +440,7 @@ TEST_F(LibcameraStreamTest, CallerCloseAndOpenContinuesTheSequence) {
   ASSERT_TRUE(s->open());
   EXPECT_EQ(camera_->startCount(), 2);
   produce(1);
-  auto b = s->next(out, 1000ms);
+  auto b = s->next(out_, 1000ms);
   ASSERT_TRUE(b);
   EXPECT_GT(b->sequence, a->sequence + 25) << "a second away is about 31 frames";
   EXPECT_LT(b->sequence, a->sequence + 35);
@@ -475,21 +459,19 @@ TEST_F(LibcameraStreamTest, CloseWithRequestsInFlightCancelsThemAndFreesEverythi
   EXPECT_EQ(camera_->allocatedBuffers(), 0);
   EXPECT_FALSE(camera_->acquired());
   EXPECT_EQ(FakeCameraManager::memfdMappings(), 0);
-  cv::Mat out(480, 640, CV_8UC1);
-  auto r = s->next(out, 10ms);
+  auto r = s->next(out_, 10ms);
   ASSERT_FALSE(r);
   EXPECT_EQ(r.error().code(), ErrorCode::kInvalidArgument);
 }
 
 TEST_F(LibcameraStreamTest, CloseWhileTheCameraCompletesFromItsThread) {
-  cv::Mat out(480, 640, CV_8UC1);
   int delivered = 0;
   for (int round = 0; round < 20; ++round) {
     auto s = source(options());
     ASSERT_TRUE(s->open());
     manager_->startFreeRunning(config_.id, 200us);
     for (int i = 0; i < 3; ++i)
-      if (s->next(out, 1000ms)) ++delivered;
+      if (s->next(out_, 1000ms)) ++delivered;
     s->close();  // completions keep coming from the camera's thread until stop()
     manager_->stopFreeRunning();
     EXPECT_EQ(camera_->pendingRequests(), 0);
@@ -500,14 +482,13 @@ TEST_F(LibcameraStreamTest, CloseWhileTheCameraCompletesFromItsThread) {
 }
 
 TEST_F(LibcameraStreamTest, UnplugWhileTheCameraCompletesFromItsThread) {
-  cv::Mat out(480, 640, CV_8UC1);
   auto s = source(options());
   ASSERT_TRUE(s->open());
   manager_->startFreeRunning(config_.id, 200us);
-  ASSERT_TRUE(s->next(out, 1000ms));
+  ASSERT_TRUE(s->next(out_, 1000ms));
   manager_->unplug(config_.id);
-  auto r = s->next(out, 1000ms);
-  while (r) r = s->next(out, 1000ms);  // frames completed before the unplug
+  auto r = s->next(out_, 1000ms);
+  while (r) r = s->next(out_, 1000ms);  // frames completed before the unplug
   EXPECT_EQ(r.error().code(), ErrorCode::kDisconnected);
   manager_->stopFreeRunning();
   EXPECT_EQ(FakeCameraManager::memfdMappings(), 0);
@@ -519,12 +500,11 @@ TEST_F(LibcameraStreamTest, UnplugWhileNextWaitsFreesTheBuffersOnlyOnceEveryRequ
   // requests (on its own thread): the source must not free their buffers before they are
   // back (the fake records that as a violation, checked in TearDown).
   manager_->setCancelDelayAfterDisconnect(20ms);
-  cv::Mat out(480, 640, CV_8UC1);
   for (int round = 0; round < 3; ++round) {
     auto s = source(options());
     ASSERT_TRUE(s->open());
     Expected<FrameInfo> r = std::unexpected(Error());
-    std::thread capture([&] { r = s->next(out, 5000ms); });  // waits: nothing is produced
+    std::thread capture([&] { r = s->next(out_, 5000ms); });  // waits: nothing is produced
     std::this_thread::sleep_for(2ms);
     manager_->unplug(config_.id);
     capture.join();
@@ -538,8 +518,7 @@ TEST_F(LibcameraStreamTest, UnplugWhileNextWaitsFreesTheBuffersOnlyOnceEveryRequ
 
 TEST_F(LibcameraStreamTest, MisuseIsInvalidArgument) {
   auto s = source(options());
-  cv::Mat out(480, 640, CV_8UC1);
-  auto r = s->next(out, 10ms);
+  auto r = s->next(out_, 10ms);
   ASSERT_FALSE(r);
   EXPECT_EQ(r.error().code(), ErrorCode::kInvalidArgument);
   ASSERT_TRUE(s->open());

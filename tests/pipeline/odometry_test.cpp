@@ -75,6 +75,26 @@ OdometryResult processOk(Odometry& odometry, const cv::Mat& frame, double t,
   return r ? *r : OdometryResult{};
 }
 
+/// Odometry with the default options after two frames of the test scene: at rest, then
+/// turned 4 degrees (yaw).
+struct TrackedTurn {
+  Renderings scene;
+  Odometry odometry{Calibration{}, {}};
+  const Eigen::Isometry3d turned = attitude(0, 0, 4 * kDeg);
+  OdometryResult before;
+
+  TrackedTurn() {
+    processOk(odometry, scene.frame(Eigen::Isometry3d::Identity(), 0), 0.0);
+    before = processOk(odometry, scene.frame(turned, 1), 1 / 30.0);
+  }
+};
+
+/// An omni frame of the default calibration's size, every pixel `grey`.
+cv::Mat uniformFrame(int grey) {
+  return cv::Mat(Calibration{}.omni.image_height, Calibration{}.omni.image_width, CV_8UC1,
+                 cv::Scalar(grey));
+}
+
 TEST(Odometry, StandingStillKeepsItsFirstKeyframeAndDoesNotDrift) {
   Renderings scene;
   Odometry odometry(Calibration{}, withKeyframes());
@@ -168,9 +188,7 @@ void expectBridgedWithHeadingKept(const GapRun& run, double step_deg, int gap_fr
 
 TEST(Odometry, OneCorruptFrameDuringATurnIsBridgedWithTheHeadingKept) {
   Renderings scene;
-  const cv::Mat black(Calibration{}.omni.image_height, Calibration{}.omni.image_width, CV_8UC1,
-                      cv::Scalar(0));
-  const GapRun run = runTurnWithGap(scene, 2.0, 12, 6, 7, black);
+  const GapRun run = runTurnWithGap(scene, 2.0, 12, 6, 7, uniformFrame(0));
   EXPECT_EQ(run.errors, 1);
   expectBridgedWithHeadingKept(run, 2.0, 6, 7);
 }
@@ -192,15 +210,11 @@ TEST(Odometry, ATwoSecondOutageDuringATurnIsBridgedByTheRingSearch) {
 }
 
 TEST(Odometry, AnUnrelatedViewAfterAGapStartsANewSegmentWithThePoseHeld) {
-  Renderings scene;
-  Odometry odometry(Calibration{}, {});
-  const Eigen::Isometry3d turned = attitude(0, 0, 4 * kDeg);
-  processOk(odometry, scene.frame(Eigen::Isometry3d::Identity(), 0), 0.0);
-  const OdometryResult before = processOk(odometry, scene.frame(turned, 1), 1 / 30.0);
+  TrackedTurn run;
+  auto& [scene, odometry, turned, before] = run;
   ASSERT_EQ(before.state, TrackState::kTracked);
   // A lens cap: a blank view, nothing for the whole-ring search.
-  const cv::Mat cap(Calibration{}.omni.image_height, Calibration{}.omni.image_width, CV_8UC1,
-                    cv::Scalar(60));
+  const cv::Mat cap = uniformFrame(60);
   const OdometryResult lost = processOk(odometry, cap, 2 / 30.0, /*gap_before=*/true);
   EXPECT_EQ(lost.state, TrackState::kLost);
   EXPECT_EQ(lost.segment, 1);
@@ -219,12 +233,9 @@ TEST(Odometry, AnUnrelatedViewAfterAGapStartsANewSegmentWithThePoseHeld) {
 }
 
 TEST(Odometry, NoiseAfterATrackedFrameIsNotBelievedAndTheNextFrameGoesOnFromTheLastBelievedOne) {
-  Renderings scene;
-  Odometry odometry(Calibration{}, {});
-  const Eigen::Isometry3d turned = attitude(0, 0, 4 * kDeg);
-  processOk(odometry, scene.frame(Eigen::Isometry3d::Identity(), 0), 0.0);
-  const OdometryResult before = processOk(odometry, scene.frame(turned, 1), 1 / 30.0);
-  cv::Mat noise(Calibration{}.omni.image_height, Calibration{}.omni.image_width, CV_8UC1);
+  TrackedTurn run;
+  auto& [scene, odometry, turned, before] = run;
+  cv::Mat noise = uniformFrame(0);
   cv::randu(noise, 0, 255);
   const auto glitch = odometry.process(noise, {2 / 30.0});
   ASSERT_FALSE(glitch.has_value());
