@@ -59,6 +59,11 @@ class LibcameraStreamTest : public ::testing::Test {
     return std::make_unique<LibcameraSource>(o, FakeCameraManager::opener(manager_));
   }
   void produce(int frames) { manager_->produce(config_.id, frames); }
+  /// Produces `frames` frames, then asks `source` for the next one (into out_).
+  Expected<FrameInfo> nextAfter(LibcameraSource& source, int frames) {
+    produce(frames);
+    return source.next(out_, 1000ms);
+  }
   std::shared_ptr<FakeCamera> current() const { return manager_->camera(config_.id); }
 
   /// The content index of the frame delivered at `capture_time_us`.
@@ -88,8 +93,7 @@ TEST_F(LibcameraStreamTest, YuyvWithPaddedStrideDeliversLumaPixelForPixel) {
   EXPECT_EQ(camera_->configured().fourcc, kFakeYUYV);
   EXPECT_EQ(camera_->configured().stride, 1536u);
   EXPECT_EQ(s->frameSize(), cv::Size(640, 480));
-  produce(1);
-  auto f = s->next(out_, 1000ms);
+  auto f = nextAfter(*s, 1);
   ASSERT_TRUE(f) << f.error().message();
   EXPECT_EQ(cv::norm(out_, FakeCameraManager::expectedGrey(0, {640, 480}), cv::NORM_INF), 0.0);
   EXPECT_EQ(f->sequence, 0u);
@@ -105,8 +109,7 @@ TEST_F(LibcameraStreamTest, Nv12LumaPlaneWithStrideAndChromaInTheSameBuffer) {
   EXPECT_EQ(camera_->configured().fourcc, kFakeNV12);
   EXPECT_EQ(camera_->configured().stride, 768u);
   EXPECT_EQ(camera_->configured().frame_size, 768u * 480 * 3 / 2);
-  produce(1);
-  auto f = s->next(out_, 1000ms);
+  auto f = nextAfter(*s, 1);
   ASSERT_TRUE(f) << f.error().message();
   EXPECT_EQ(cv::norm(out_, FakeCameraManager::expectedGrey(0, {640, 480}), cv::NORM_INF), 0.0);
 }
@@ -222,8 +225,7 @@ TEST_F(LibcameraStreamTest, FrameRateSetsFrameDurationLimitsWhereSettable) {
 TEST_F(LibcameraStreamTest, NewestFrameIsDeliveredAndTheStaleOnesRequeued) {
   auto s = source(options());
   ASSERT_TRUE(s->open());
-  produce(3);  // 4 requests queued: 3 complete, one still waits
-  auto f = s->next(out_, 1000ms);
+  auto f = nextAfter(*s, 3);  // 4 requests queued: 3 complete, one still waits
   ASSERT_TRUE(f);
   EXPECT_EQ(f->sequence, 2u);
   EXPECT_EQ(contentOf(f->capture_time_us), 2);
@@ -241,8 +243,7 @@ TEST_F(LibcameraStreamTest, WhenEveryRequestHadCompletedAFreshFrameIsAwaited) {
   EXPECT_EQ(f.error().code(), ErrorCode::kTimeout);
   EXPECT_EQ(s->stats().stale_dropped, 4u);
   EXPECT_EQ(camera_->pendingRequests(), 4);
-  produce(1);
-  f = s->next(out_, 1000ms);
+  f = nextAfter(*s, 1);
   ASSERT_TRUE(f);
   EXPECT_EQ(contentOf(f->capture_time_us), 6);
   EXPECT_EQ(f->sequence, 6u);
@@ -254,8 +255,7 @@ TEST_F(LibcameraStreamTest, WithoutDropStaleTheNewestCompletedFrameIsDelivered) 
   o.drop_stale = false;
   auto s = source(o);
   ASSERT_TRUE(s->open());
-  produce(4);
-  auto f = s->next(out_, 1000ms);
+  auto f = nextAfter(*s, 4);
   ASSERT_TRUE(f);
   EXPECT_EQ(f->sequence, 3u);
   EXPECT_EQ(s->stats().stale_dropped, 3u);
@@ -264,13 +264,11 @@ TEST_F(LibcameraStreamTest, WithoutDropStaleTheNewestCompletedFrameIsDelivered) 
 TEST_F(LibcameraStreamTest, SensorDroppedFramesAreSequenceGaps) {
   auto s = source(options());
   ASSERT_TRUE(s->open());
-  produce(1);
-  auto f = s->next(out_, 1000ms);
+  auto f = nextAfter(*s, 1);
   ASSERT_TRUE(f);
   EXPECT_EQ(f->sequence, 0u);
   manager_->skipFrames(3);
-  produce(1);
-  f = s->next(out_, 1000ms);
+  f = nextAfter(*s, 1);
   ASSERT_TRUE(f);
   EXPECT_EQ(f->sequence, 4u);
   EXPECT_EQ(s->stats().lost_upstream, 3u);
@@ -281,18 +279,15 @@ TEST_F(LibcameraStreamTest, ErrorFramesAreDroppedAndCounted) {
   auto s = source(options());
   ASSERT_TRUE(s->open());
   manager_->flagError(1);
-  produce(2);
-  auto f = s->next(out_, 1000ms);
+  auto f = nextAfter(*s, 2);
   ASSERT_TRUE(f);
   EXPECT_EQ(contentOf(f->capture_time_us), 0) << "the newest good frame";
   EXPECT_EQ(s->stats().error_frames, 1u);
   manager_->flagError(2);
-  produce(1);
-  f = s->next(out_, 1000ms);
+  f = nextAfter(*s, 1);
   ASSERT_FALSE(f);
   EXPECT_EQ(f.error().code(), ErrorCode::kBadFrame);
-  produce(1);
-  f = s->next(out_, 1000ms);
+  f = nextAfter(*s, 1);
   ASSERT_TRUE(f) << "streaming goes on";
   EXPECT_EQ(contentOf(f->capture_time_us), 3);
   EXPECT_EQ(camera_->pendingRequests(), 4);
@@ -304,8 +299,7 @@ TEST_F(LibcameraStreamTest, SensorTimestampBecomesWallClockMicroseconds) {
   auto s = source(options());
   ASSERT_TRUE(s->open());
   for (int i = 0; i < 3; ++i) {
-    produce(1);
-    auto f = s->next(out_, 1000ms);
+    auto f = nextAfter(*s, 1);
     ASSERT_TRUE(f);
     EXPECT_EQ(contentOf(f->capture_time_us), i);
     const std::int64_t error = f->capture_time_us * 1000 - manager_->realtimeOffsetNs() -
@@ -321,8 +315,7 @@ TEST_F(LibcameraStreamTest, BufferTimestampWhenSensorTimestampIsAbsent) {
   replugWith(c);
   auto s = source(options());
   ASSERT_TRUE(s->open());
-  produce(1);
-  auto f = s->next(out_, 1000ms);
+  auto f = nextAfter(*s, 1);
   ASSERT_TRUE(f);
   EXPECT_EQ(contentOf(f->capture_time_us), 0);
 }
@@ -338,8 +331,7 @@ TEST_F(LibcameraStreamTest, ClockOffsetTakesTheLeastPreemptedOfClockSamples) {
     auto s = source(o);
     EXPECT_TRUE(s->open());
     manager_->delayRealtimeReads(0, 0);
-    produce(1);
-    auto f = s->next(out_, 1000ms);
+    auto f = nextAfter(*s, 1);
     if (!f) {
       ADD_FAILURE() << f.error().message();
       return std::numeric_limits<std::int64_t>::max();
@@ -359,13 +351,11 @@ TEST_F(LibcameraStreamTest, WallClockStepIsFollowedAfterTheResync) {
   o.clock_resync = 1000ms;
   auto s = source(o);
   ASSERT_TRUE(s->open());
-  produce(1);
-  auto before = s->next(out_, 1000ms);
+  auto before = nextAfter(*s, 1);
   ASSERT_TRUE(before);
   manager_->stepRealtime(5'000 * kMs);  // NTP steps the wall clock 5 s forward
   manager_->advance(1500 * kMs);        // past clock_resync
-  produce(1);
-  auto after = s->next(out_, 1000ms);
+  auto after = nextAfter(*s, 1);
   ASSERT_TRUE(after);
   EXPECT_EQ(contentOf(after->capture_time_us), 1) << "the new offset is used";
   EXPECT_NEAR(static_cast<double>(after->capture_time_us - before->capture_time_us),
@@ -377,8 +367,7 @@ TEST_F(LibcameraStreamTest, WallClockStepIsFollowedAfterTheResync) {
 TEST_F(LibcameraStreamTest, UnplugReleasesTheCameraAndReportsDisconnectedUntilReopened) {
   auto s = source(options());
   ASSERT_TRUE(s->open());
-  produce(1);
-  auto first = s->next(out_, 1000ms);
+  auto first = nextAfter(*s, 1);
   ASSERT_TRUE(first);
   const auto old_camera = camera_;
 
@@ -413,8 +402,7 @@ TEST_F(LibcameraStreamTest, UnplugReleasesTheCameraAndReportsDisconnectedUntilRe
   ASSERT_TRUE(s->open());
   EXPECT_TRUE(camera_->running());
   EXPECT_EQ(camera_->pendingRequests(), 4);
-  produce(1);
-  auto resumed = s->next(out_, 1000ms);
+  auto resumed = nextAfter(*s, 1);
   ASSERT_TRUE(resumed) << resumed.error().message();
   EXPECT_EQ(cv::norm(out_, FakeCameraManager::expectedGrey(
                               static_cast<std::uint64_t>(contentOf(resumed->capture_time_us)),
@@ -431,16 +419,14 @@ TEST_F(LibcameraStreamTest, UnplugReleasesTheCameraAndReportsDisconnectedUntilRe
 TEST_F(LibcameraStreamTest, CallerCloseAndOpenContinuesTheSequence) {
   auto s = source(options());
   ASSERT_TRUE(s->open());
-  produce(1);
-  auto a = s->next(out_, 1000ms);
+  auto a = nextAfter(*s, 1);
   ASSERT_TRUE(a);
   s->close();
   EXPECT_FALSE(camera_->acquired());
   manager_->advance(1000 * kMs);
   ASSERT_TRUE(s->open());
   EXPECT_EQ(camera_->startCount(), 2);
-  produce(1);
-  auto b = s->next(out_, 1000ms);
+  auto b = nextAfter(*s, 1);
   ASSERT_TRUE(b);
   EXPECT_GT(b->sequence, a->sequence + 25) << "a second away is about 31 frames";
   EXPECT_LT(b->sequence, a->sequence + 35);

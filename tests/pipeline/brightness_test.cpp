@@ -39,22 +39,16 @@ Eigen::Matrix3d attitude(int k) {
 double rmsError(const synth::Renderer& renderer, const std::array<double, kFrames>& gain,
                 const synth::Vignetting* vignetting) {
   Pipeline pipeline(Calibration{}, PipelineOptions{});
-  double sum_sq = 0.0;
-  for (int k = 0; k < kFrames; ++k) {
+  const auto frame = [&](int k) {
     Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
     T.linear() = attitude(k);
     cv::Mat image = renderer.render(T);
     if (vignetting != nullptr) vignetting->apply(image, Calibration{}, synth::OutputKind::kOmni);
     cv::Mat frame;
     image.convertTo(frame, CV_8U, gain[static_cast<std::size_t>(k)]);
-    auto m = pipeline.process(frame);
-    EXPECT_TRUE(m.has_value()) << (m ? "" : m.error().c_str());
-    if (!m || k == 0) continue;
-    EXPECT_TRUE(m->has_motion) << k;
-    const Eigen::Matrix3d truth = attitude(k - 1).transpose() * attitude(k);
-    sum_sq += rotationVector(truth.transpose() * m->rotation).squaredNorm();
-  }
-  return std::sqrt(sum_sq / (kFrames - 1));
+    return frame;
+  };
+  return testing::rmsRotationError(pipeline, kFrames, frame, attitude);
 }
 
 TEST(Brightness, ExposureStepsAndVignettingDoNotMoveTheEstimate) {

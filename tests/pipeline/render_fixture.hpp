@@ -3,11 +3,13 @@
 
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <filesystem>
 #include <string>
 
 #include "omnipose/io/trajectory.hpp"
 #include "omnipose/pipeline.hpp"
+#include "omnipose/so3.hpp"
 #include "omnipose/synth/synth.hpp"
 
 namespace omnipose::testing {
@@ -40,6 +42,24 @@ inline FrameMotion estimatePair(const synth::Renderer& renderer, const Calibrati
   if (!m) return {};
   EXPECT_TRUE(m->has_motion);
   return *m;
+}
+
+/// RMS rotation error angle (rad) of `pipeline` over a sequence of `frames` frames:
+/// `frame(k)` gives frame k (8-bit), `attitude(k)` the camera's true attitude then (a
+/// rotation matrix). A failed process() call, and a pair after the first frame without
+/// motion, are test failures.
+template <class FrameOf, class AttitudeOf>
+double rmsRotationError(Pipeline& pipeline, int frames, FrameOf&& frame, AttitudeOf&& attitude) {
+  double sum_sq = 0.0;
+  for (int k = 0; k < frames; ++k) {
+    auto m = pipeline.process(frame(k));
+    EXPECT_TRUE(m.has_value()) << (m ? "" : m.error().c_str());
+    if (!m || k == 0) continue;
+    EXPECT_TRUE(m->has_motion) << k;
+    const Eigen::Matrix3d truth = attitude(k - 1).transpose() * attitude(k);
+    sum_sq += rotationVector(truth.transpose() * m->rotation).squaredNorm();
+  }
+  return std::sqrt(sum_sq / (frames - 1));
 }
 
 }  // namespace omnipose::testing

@@ -35,24 +35,20 @@ double rmsError(const synth::Renderer& renderer, bool moving_content) {
   options.moving_content = moving_content;
   Pipeline pipeline(Calibration{}, options);
   cv::RNG rng(17);
-  double sum_sq = 0.0;
-  for (int k = 0; k < kFrames; ++k) {
+  const auto attitude = [](int k) -> Eigen::Matrix3d {
+    return rotationFromVector(Eigen::Vector3d(0.0, 0.0, yaw(k)));
+  };
+  const auto frame = [&](int k) {
     Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
-    T.linear() = rotationFromVector(Eigen::Vector3d(0.0, 0.0, yaw(k)));
+    T.linear() = attitude(k);
     cv::Mat image = renderer.render(T, k * kFrameInterval);
     cv::Mat noise(image.size(), CV_32FC1);
     rng.fill(noise, cv::RNG::NORMAL, 0.0, 3.0);
     cv::Mat frame;
     cv::Mat(image + noise).convertTo(frame, CV_8U);
-    auto m = pipeline.process(frame);
-    EXPECT_TRUE(m.has_value()) << (m ? "" : m.error().c_str());
-    if (!m || k == 0) continue;
-    EXPECT_TRUE(m->has_motion) << k;
-    const Eigen::Matrix3d truth =
-        rotationFromVector(Eigen::Vector3d(0.0, 0.0, yaw(k) - yaw(k - 1)));
-    sum_sq += rotationVector(truth.transpose() * m->rotation).squaredNorm();
-  }
-  return std::sqrt(sum_sq / (kFrames - 1));
+    return frame;
+  };
+  return testing::rmsRotationError(pipeline, kFrames, frame, attitude);
 }
 
 TEST(Walkers, PeopleWalkingAroundTheCameraDoNotMoveTheEstimate) {
