@@ -62,12 +62,11 @@ TEST(Brightness, ExposureStepsAndVignettingDoNotMoveTheEstimate) {
   flat.fill(0.8);
   const std::array<double, kFrames> steps = {0.8, 1.0, 0.8, 0.64, 0.8, 1.0, 0.8, 0.64, 0.8};
   const synth::Vignetting vignetting{0.3};
-  const double plain = rmsError(renderer, flat, nullptr);
-  const double stepped = rmsError(renderer, steps, nullptr);
-  const double both = rmsError(renderer, steps, &vignetting);
-  testing::recordFigure("plain_rms_rad", plain, 9);
-  testing::recordFigure("exposure_steps_rms_rad", stepped, 9);
-  testing::recordFigure("steps_and_vignetting_rms_rad", both, 9);
+  const double plain = testing::recordFigure("plain_rms_rad", rmsError(renderer, flat, nullptr), 9);
+  const double stepped =
+      testing::recordFigure("exposure_steps_rms_rad", rmsError(renderer, steps, nullptr), 9);
+  const double both = testing::recordFigure("steps_and_vignetting_rms_rad",
+                                            rmsError(renderer, steps, &vignetting), 9);
   ASSERT_GT(plain, 0.0);
   // Phase correlation whitens each window's spectrum: a gain cancels, and a falloff that
   // both frames share is a fixed factor of both windows. What is left is the 8-bit rounding,

@@ -62,12 +62,10 @@ TEST(Walkers, PeopleWalkingAroundTheCameraDoNotMoveTheEstimate) {
   scene.walkers.max_distance_m = 1.6;
   scene.walkers.seed = 5;
   const synth::Renderer with_walkers(scene, Calibration{});
-  const double plain = rmsError(twin, true);
-  const double checked = rmsError(with_walkers, true);
-  const double unchecked = rmsError(with_walkers, false);
-  testing::recordFigure("twin_rms_rad", plain, 9);
-  testing::recordFigure("walkers_rms_rad", checked, 9);
-  testing::recordFigure("walkers_unchecked_rms_rad", unchecked, 9);
+  const double plain = testing::recordFigure("twin_rms_rad", rmsError(twin, true), 9);
+  const double checked = testing::recordFigure("walkers_rms_rad", rmsError(with_walkers, true), 9);
+  const double unchecked =
+      testing::recordFigure("walkers_unchecked_rms_rad", rmsError(with_walkers, false), 9);
   ASSERT_GT(plain, 0.0);
   // Without the check the people's windows turn the robot with them (yaw biased every pair:
   // 5.9 times the twin's error when this was written); with it their windows are left out

@@ -22,9 +22,11 @@ inline std::string fixed(double value, int decimals) {
   return text.str();
 }
 
-/// Records `value` as the current test's property `name` (decimals as in fixed()).
-inline void recordFigure(const std::string& name, double value, int decimals) {
+/// Records `value` as the current test's property `name` (decimals as in fixed()); returns
+/// it, so a figure is measured and recorded in one statement.
+inline double recordFigure(const std::string& name, double value, int decimals) {
   ::testing::Test::RecordProperty(name, fixed(value, decimals));
+  return value;
 }
 
 }  // namespace omnipose::testing

@@ -285,11 +285,10 @@ omnipose::OuterEdge topOrBottom(const std::string& v) {
 }
 
 void addOrientationOptions(CLI::App& app, LensCalibratorOptions& options) {
-  const std::string orientation = "Orientation";
+  app.option_defaults()->group("Orientation");
   app.add_flag("--turn-left", options.turn_left,
                "the FRAMES, in this order, show the robot turning left in place (positive "
-               "yaw): measures azimuth_direction")
-      ->group(orientation);
+               "yaw): measures azimuth_direction");
   app.add_option_function<std::string>(
          "--up-cue",
          [&](const std::string& v) {
@@ -301,40 +300,33 @@ void addOrientationOptions(CLI::App& app, LensCalibratorOptions& options) {
          },
          "vertical cue for outer_edge: the upward-looking side of the ring is brighter (sky, "
          "ceiling, lights; default) or darker")
-      ->type_name("bright|dark|none")
-      ->group(orientation);
+      ->type_name("bright|dark|none");
   app.add_option_function<std::string>(
          "--default-outer-edge",
          [&](const std::string& v) { options.default_outer_edge = topOrBottom(v); },
          "used when the cue is not decisive (default top: the paper's mounting, lens over the "
          "phone's front camera looking up at the mirror, so the outer ring looks up)")
       ->type_name("top|bottom")
-      ->check(omnipose::tools::oneOf({"top", "bottom"}))
-      ->group(orientation);
+      ->check(omnipose::tools::oneOf({"top", "bottom"}));
   addNumber(app, "--forward-angle", options.forward_angle_deg,
             "image angle atan2(y - cy, x - cx) of the robot's +x axis, degrees")
-      ->type_name("DEG")
-      ->group(orientation);
+      ->type_name("DEG");
   addPoint(app, "--forward-point", options.forward_point,
-           "an image point straight ahead of the robot, pixels (instead of --forward-angle)")
-      ->group(orientation);
+           "an image point straight ahead of the robot, pixels (instead of --forward-angle)");
 }
 
 void addByHandOptions(CLI::App& app, LensCalibratorOptions& options) {
-  const std::string by_hand = "Fix any value by hand";
-  addPoint(app, "--center", options.center, "centre of the donut, pixels")->group(by_hand);
+  app.option_defaults()->group("Fix any value by hand");
+  addPoint(app, "--center", options.center, "centre of the donut, pixels");
   addNumber(app, "--radius-inner", options.radius_inner,
             "used inner radius, pixels (no margin applied)")
-      ->type_name("R")
-      ->group(by_hand);
+      ->type_name("R");
   addNumber(app, "--radius-outer", options.radius_outer,
             "used outer radius, pixels (no margin applied)")
-      ->type_name("R")
-      ->group(by_hand);
+      ->type_name("R");
   addNumber(app, "--margin", options.margin,
             "safety margin at both edges, pixels (default: 1 px + 2 x edge blur)")
-      ->type_name("PX")
-      ->group(by_hand);
+      ->type_name("PX");
   app.add_option_function<std::string>(
          "--direction",
          [&](const std::string& v) {
@@ -343,49 +335,38 @@ void addByHandOptions(CLI::App& app, LensCalibratorOptions& options) {
          },
          "azimuth direction in the omni image")
       ->type_name("cw|ccw")
-      ->check(omnipose::tools::oneOf({"cw", "ccw"}))
-      ->group(by_hand);
+      ->check(omnipose::tools::oneOf({"cw", "ccw"}));
   app.add_option_function<std::string>(
          "--outer-edge", [&](const std::string& v) { options.outer_edge = topOrBottom(v); },
          "which panorama edge the outer ring becomes")
       ->type_name("top|bottom")
-      ->check(omnipose::tools::oneOf({"top", "bottom"}))
-      ->group(by_hand);
+      ->check(omnipose::tools::oneOf({"top", "bottom"}));
   addInteger(app, "--width", options.width, "panorama width W, pixels")
-      ->type_name("W")
-      ->group(by_hand);
+      ->type_name("W");
   addInteger(app, "--height", options.height, "panorama height H, pixels")
-      ->type_name("H")
-      ->group(by_hand);
+      ->type_name("H");
   addNumber(app, "--horizon-row", options.horizon_row, "panorama row V of the horizon, pixels")
-      ->type_name("V")
-      ->group(by_hand);
+      ->type_name("V");
   addNumber(app, "--horizon-radius", options.horizon_radius,
             "omni-image radius R of the horizon, pixels")
-      ->type_name("R")
-      ->group(by_hand);
+      ->type_name("R");
   app.add_option_function<double>(
          "--forward-column", [&](const double& v) { options.forward_column = v; },
          "panorama column U of the robot's +x axis, pixels (default 0)")
-      ->type_name("U")
-      ->group(by_hand);
+      ->type_name("U");
   addNumber(app, "--radial-scale", options.radial_scale,
             "image px per radian of elevation at the horizon radius (from a lens model); "
             "default: the donut is taken as isotropic there")
-      ->type_name("S")
-      ->group(by_hand);
+      ->type_name("S");
 }
 
 void addHintOptions(CLI::App& app, LensCalibratorOptions& options) {
-  const std::string hints = "Detection hints";
-  addPoint(app, "--center-guess", options.detector.center_guess, "rough centre of the donut, pixels")
-      ->group(hints);
+  app.option_defaults()->group("Detection hints");
+  addPoint(app, "--center-guess", options.detector.center_guess, "rough centre of the donut, pixels");
   addNumber(app, "--inner-guess", options.detector.inner_guess, "rough inner radius, pixels")
-      ->type_name("R")
-      ->group(hints);
+      ->type_name("R");
   addNumber(app, "--outer-guess", options.detector.outer_guess, "rough outer radius, pixels")
-      ->type_name("R")
-      ->group(hints);
+      ->type_name("R");
 }
 
 /// The lens-model, mask and other options (after the orientation, by-hand and hint groups).
@@ -442,6 +423,7 @@ void addOptions(CLI::App& app, Args& a) {
       ->type_name("FILE");
   app.add_option("--preview", a.preview, "preview PNG (default: FILE of --out with _preview.png)")
       ->type_name("FILE");
+  // The groups of --help: each of these sets the group of the options it adds.
   addOrientationOptions(app, a.options);
   addByHandOptions(app, a.options);
   addHintOptions(app, a.options);
