@@ -20,10 +20,12 @@
 #include <chrono>
 #include <cstdio>
 #include <algorithm>
+#include <array>
 #include <cstdlib>
 #include <filesystem>
 #include <optional>
 #include <opencv2/imgcodecs.hpp>
+#include <stdexcept>
 #include <string>
 
 #include "cli.hpp"
@@ -31,6 +33,7 @@
 #include "omnipose/odometry.hpp"
 #include "omnipose/pipeline.hpp"
 #include "omnipose/synth/synth.hpp"
+#include "quiet_opencv.hpp"
 
 #if __has_include(<valgrind/callgrind.h>)
 #include <valgrind/callgrind.h>
@@ -41,84 +44,97 @@
   } while (false)
 #endif
 
-int main(int argc, char** argv) {
+namespace {
+
+/// The command line, as parsed.
+struct Args {
   int threads = 1, frames = 10, warmup = 2, refine = 1;
   double readout = 0.0;
   bool odometry = false, no_moving_content = false, noise_weighting = false;
   std::string wisdom, save, load;
-  omnipose::tools::Cli cli(
-      "omnipose-bench-instructions",
-      "usage: omnipose-bench-instructions [--threads N] [--frames K] [--warmup W]\n"
-      "                                   [--refine R] [--wisdom FILE] [--save DIR | --load DIR]\n"
-      "                                   [--odometry [--readout S]] [--no-moving-content]",
-      "Per-frame instruction counts of the pipeline, for valgrind --tool=callgrind\n"
-      "--collect-atstart=no (only the measured frames are collected). Prints frames, threads,\n"
-      "refine, ok and ms_per_frame (wall time, milliseconds).");
-  auto& app = cli.app();
-  app.add_option("--threads", threads, "pipeline worker threads")->type_name("N")->capture_default_str();
-  app.add_option("--frames", frames, "measured frames")->type_name("K")->capture_default_str();
-  app.add_option("--warmup", warmup, "frames processed before measuring")
+};
+
+constexpr const char* kUsage =
+    "usage: omnipose-bench-instructions [--threads N] [--frames K] [--warmup W]\n"
+    "                                   [--refine R] [--wisdom FILE] [--save DIR | --load DIR]\n"
+    "                                   [--odometry [--readout S]] [--no-moving-content]";
+
+constexpr const char* kDescription =
+    "Per-frame instruction counts of the pipeline, for valgrind --tool=callgrind\n"
+    "--collect-atstart=no (only the measured frames are collected). Prints frames, threads,\n"
+    "refine, ok and ms_per_frame (wall time, milliseconds).";
+
+void addOptions(CLI::App& app, Args& a) {
+  app.add_option("--threads", a.threads, "pipeline worker threads")->type_name("N")->capture_default_str();
+  app.add_option("--frames", a.frames, "measured frames")->type_name("K")->capture_default_str();
+  app.add_option("--warmup", a.warmup, "frames processed before measuring")
       ->type_name("W")
       ->capture_default_str();
-  app.add_option("--refine", refine, "refinement iterations per frame")
+  app.add_option("--refine", a.refine, "refinement iterations per frame")
       ->type_name("R")
       ->capture_default_str();
-  app.add_option("--wisdom", wisdom, "FFTW wisdom file")->type_name("FILE");
-  auto* save_opt = app.add_option("--save", save, "write the two rendered frames to DIR/a.png, "
-                                                  "DIR/b.png")->type_name("DIR");
-  app.add_option("--load", load, "read the two frames from DIR/a.png, DIR/b.png instead of "
-                                 "rendering them")
+  app.add_option("--wisdom", a.wisdom, "FFTW wisdom file")->type_name("FILE");
+  auto* save_opt = app.add_option("--save", a.save, "write the two rendered frames to DIR/a.png, "
+                                                    "DIR/b.png")->type_name("DIR");
+  app.add_option("--load", a.load, "read the two frames from DIR/a.png, DIR/b.png instead of "
+                                   "rendering them")
       ->type_name("DIR")
       ->excludes(save_opt);
   auto* odometry_opt =
-      app.add_flag("--odometry", odometry, "process with Odometry, frames stamped at 30 fps");
-  app.add_option("--readout", readout, "rolling shutter readout of the calibration, seconds")
+      app.add_flag("--odometry", a.odometry, "process with Odometry, frames stamped at 30 fps");
+  app.add_option("--readout", a.readout, "rolling shutter readout of the calibration, seconds")
       ->type_name("S")
       ->needs(odometry_opt)
       ->check(CLI::Range(-omnipose::SensorTiming::kMaxReadoutS, omnipose::SensorTiming::kMaxReadoutS));
-  app.add_flag("--no-moving-content", no_moving_content,
+  app.add_flag("--no-moving-content", a.no_moving_content,
                "without the refinement pass's moving-content check "
                "(PipelineOptions::moving_content)");
-  app.add_flag("--noise-weighting", noise_weighting,
+  app.add_flag("--noise-weighting", a.noise_weighting,
                "with the registration's signal-to-noise weighting "
                "(WindowRegistration::Options::noise_weighting)");
-  if (const auto exit_code = cli.parse(argc, argv)) return *exit_code;
-  cv::setNumThreads(1);
-  cv::Mat f[2];
-  if (!load.empty()) {
-    f[0] = cv::imread(load + "/a.png", cv::IMREAD_GRAYSCALE);
-    f[1] = cv::imread(load + "/b.png", cv::IMREAD_GRAYSCALE);
-    if (f[0].empty() || f[1].empty()) {
-      std::fprintf(stderr, "cannot read %s/a.png, b.png\n", load.c_str());
-      return 2;
-    }
-  } else {
-    const auto photo =
-        std::filesystem::path(OMNIPOSE_SOURCE_DIR) / "tests/data/equirect/indoor_1024x512.jpg";
-    omnipose::synth::Renderer renderer(
-        omnipose::synth::Scene::load(photo, omnipose::synth::SceneKind::kSphere),
-        omnipose::Calibration{});
-    Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
-    T.linear() = omnipose::rotationFromVector(Eigen::Vector3d(0.03, 0.0, 0.04));
-    renderer.render(Eigen::Isometry3d::Identity()).convertTo(f[0], CV_8U);
-    renderer.render(T).convertTo(f[1], CV_8U);
-  }
-  if (!save.empty() && !(cv::imwrite(save + "/a.png", f[0]) && cv::imwrite(save + "/b.png", f[1]))) {
-    std::fprintf(stderr, "cannot write %s/a.png, b.png\n", save.c_str());
-    return 2;
-  }
+}
 
+/// The benchmark's two frames: read from --load, or rendered (3 degrees of roll + yaw apart)
+/// and, with --save, written. Throws std::runtime_error when they cannot be read or written.
+std::array<cv::Mat, 2> benchmarkFrames(const Args& a) {
+  std::array<cv::Mat, 2> f;
+  if (!a.load.empty()) {
+    f[0] = cv::imread(a.load + "/a.png", cv::IMREAD_GRAYSCALE);
+    f[1] = cv::imread(a.load + "/b.png", cv::IMREAD_GRAYSCALE);
+    if (f[0].empty() || f[1].empty())
+      throw std::runtime_error(a.load + "/a.png, b.png: cannot read");
+    return f;
+  }
+  const auto photo =
+      std::filesystem::path(OMNIPOSE_SOURCE_DIR) / "tests/data/equirect/indoor_1024x512.jpg";
+  omnipose::synth::Renderer renderer(
+      omnipose::synth::Scene::load(photo, omnipose::synth::SceneKind::kSphere),
+      omnipose::Calibration{});
+  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+  T.linear() = omnipose::rotationFromVector(Eigen::Vector3d(0.03, 0.0, 0.04));
+  renderer.render(Eigen::Isometry3d::Identity()).convertTo(f[0], CV_8U);
+  renderer.render(T).convertTo(f[1], CV_8U);
+  if (!a.save.empty() && !(cv::imwrite(a.save + "/a.png", f[0]) && cv::imwrite(a.save + "/b.png", f[1])))
+    throw std::runtime_error(a.save + "/a.png, b.png: cannot write");
+  return f;
+}
+
+/// Processes --warmup frames, then --frames frames counted and timed; prints the figures.
+/// Exit code 0 when every frame was estimated.
+int run(const Args& a) {
+  cv::setNumThreads(1);
+  const std::array<cv::Mat, 2> f = benchmarkFrames(a);
   omnipose::PipelineOptions options;
-  options.threads = threads;
-  options.refine_iterations = refine;
-  options.moving_content = !no_moving_content;
-  options.registration.noise_weighting = noise_weighting;
-  options.fftw_wisdom = wisdom;
+  options.threads = a.threads;
+  options.refine_iterations = a.refine;
+  options.moving_content = !a.no_moving_content;
+  options.registration.noise_weighting = a.noise_weighting;
+  options.fftw_wisdom = a.wisdom;
   omnipose::Calibration calibration;
-  calibration.sensor.readout_s = readout;
+  calibration.sensor.readout_s = a.readout;
   std::optional<omnipose::Pipeline> pipeline;
   std::optional<omnipose::Odometry> odometer;
-  if (odometry) {
+  if (a.odometry) {
     omnipose::OdometryOptions odometry_options;
     odometry_options.pipeline = options;
     odometer.emplace(calibration, odometry_options);
@@ -134,15 +150,24 @@ int main(int argc, char** argv) {
     if (pipeline) return pipeline->process(frame).has_value();
     return odometer->process(frame, stamp).has_value();
   };
-  for (int i = 0; i < warmup; ++i) ok += process();
+  for (int i = 0; i < a.warmup; ++i) ok += process();
   OMNIPOSE_TOGGLE_COLLECT();
   const auto start = std::chrono::steady_clock::now();
-  for (int i = 0; i < frames; ++i) ok += process();
+  for (int i = 0; i < a.frames; ++i) ok += process();
   const double seconds =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   OMNIPOSE_TOGGLE_COLLECT();
   std::printf("frames=%d threads=%d refine=%d odometry=%d readout_s=%g ok=%d ms_per_frame=%.3f\n",
-              frames, pipeline ? pipeline->threads() : threads, refine, odometry ? 1 : 0,
-              readout, ok, 1e3 * seconds / std::max(frames, 1));
-  return ok == warmup + frames ? 0 : 1;
+              a.frames, pipeline ? pipeline->threads() : a.threads, a.refine, a.odometry ? 1 : 0,
+              a.readout, ok, 1e3 * seconds / std::max(a.frames, 1));
+  return ok == a.warmup + a.frames ? 0 : 1;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  omnipose::tools::quietOpenCvWarnings();
+  return omnipose::tools::runMain<Args>(
+      argc, argv, {"omnipose-bench-instructions", kUsage, kDescription}, addOptions,
+      [](auto&, const Args& args) { return run(args); });
 }
