@@ -32,42 +32,54 @@ MeiModel trueLens() {
   return m;
 }
 
-/// A 10 x 7-square board (9 x 6 inner corners, 4 cm squares) at pose (R, t) in omnidir's
-/// camera frame, seen through `lens`: each pixel's ray (unprojected by the model) meets the
+/// The pose of a board in omnidir's camera frame: rotation R (board to camera) and the
+/// position t of its origin (a corner square).
+struct BoardPose {
+  Eigen::Matrix3d R;
+  Eigen::Vector3d t;
+};
+
+/// A 10 x 7-square board (9 x 6 inner corners, 4 cm squares) at each of `poses`, seen
+/// through `lens`: each pixel's ray (unprojected by the model once for every pose) meets the
 /// board plane; 3 x 3 sub-samples per pixel; grey 128 where no board is seen.
-cv::Mat renderBoard(const MeiModel& lens, const Eigen::Matrix3d& R, const Eigen::Vector3d& t) {
+std::vector<cv::Mat> renderBoards(const MeiModel& lens, const std::vector<BoardPose>& poses) {
   constexpr double kSquare = 0.04;
-  cv::Mat img(800, 800, CV_8UC1);
-  const Eigen::Vector3d n = R.col(2);  // board normal in the camera frame
-  for (int y = 0; y < img.rows; ++y)
-    for (int x = 0; x < img.cols; ++x) {
-      double sum = 0;
+  std::vector<cv::Mat> images(poses.size());
+  for (cv::Mat& img : images) img.create(800, 800, CV_8UC1);
+  std::vector<double> sums(poses.size());
+  for (int y = 0; y < 800; ++y)
+    for (int x = 0; x < 800; ++x) {
+      std::fill(sums.begin(), sums.end(), 0.0);
       for (int j = 0; j < 3; ++j)
         for (int i = 0; i < 3; ++i) {
           const auto ray = lens.unproject({x + (i - 1) / 3.0, y + (j - 1) / 3.0});
-          double v = 128;
-          if (ray) {
-            const double denom = n.dot(*ray);
-            const double s = denom != 0 ? n.dot(t) / denom : -1;
-            if (s > 0) {
-              const Eigen::Vector3d local = R.transpose() * (s * *ray - t);  // board coordinates
-              const double u = local.x() / kSquare + 1.0, w = local.y() / kSquare + 1.0;  // squares
-              if (u >= 0 && u < 10 && w >= 0 && w < 7)
-                v = ((static_cast<int>(std::floor(u)) + static_cast<int>(std::floor(w))) % 2) ? 30 : 225;
+          for (std::size_t k = 0; k < poses.size(); ++k) {
+            const auto& [R, t] = poses[k];
+            double v = 128;
+            if (ray) {
+              const Eigen::Vector3d n = R.col(2);  // board normal in the camera frame
+              const double denom = n.dot(*ray);
+              const double s = denom != 0 ? n.dot(t) / denom : -1;
+              if (s > 0) {
+                const Eigen::Vector3d local = R.transpose() * (s * *ray - t);  // board coordinates
+                const double u = local.x() / kSquare + 1.0, w = local.y() / kSquare + 1.0;  // squares
+                if (u >= 0 && u < 10 && w >= 0 && w < 7)
+                  v = ((static_cast<int>(std::floor(u)) + static_cast<int>(std::floor(w))) % 2) ? 30 : 225;
+              }
             }
+            sums[k] += v;
           }
-          sum += v;
         }
-      img.at<uchar>(y, x) = cv::saturate_cast<uchar>(sum / 9);
+      for (std::size_t k = 0; k < poses.size(); ++k)
+        images[k].at<uchar>(y, x) = cv::saturate_cast<uchar>(sums[k] / 9);
     }
-  return img;
+  return images;
 }
 
 /// Eight views around the camera (rendered once per process).
 const std::vector<cv::Mat>& boardViews() {
   static const std::vector<cv::Mat> views = [] {
-  const MeiModel truth = trueLens();
-  std::vector<cv::Mat> views;
+  std::vector<BoardPose> poses;
   // Boards 0.45 m away around the camera, near the horizon (mirror ring), facing it.
   for (int k = 0; k < 8; ++k) {
     const double az = 2 * kPi * k / 8 + 0.2;
@@ -85,9 +97,9 @@ const std::vector<cv::Mat>& boardViews() {
     // Board centre on the viewing direction: t is the board origin (a corner square).
     const Eigen::Vector3d centre = 0.45 * dir;
     const Eigen::Vector3d t = centre - R * Eigen::Vector3d(0.16, 0.10, 0.0);
-    views.push_back(renderBoard(truth, R, t));
+    poses.push_back({R, t});
   }
-  return views;
+  return renderBoards(trueLens(), poses);
   }();
   return views;
 }
