@@ -53,7 +53,8 @@ inline Eigen::Isometry3d yawPose(double yaw_deg) {
   return T;
 }
 
-/// The 8-bit omni image of a sphere scene textured with `texture`, seen at `yaw_deg`.
+/// The 8-bit omni image of a sphere scene textured with `texture`, seen at `yaw_deg`, 2 x 2
+/// rays per pixel (the ring's edges are then found as closely as at 3 x 3: within 0.03 px).
 /// `noise`/`blur`: sensor degradations (grey levels / pixels).
 inline cv::Mat renderOmni(const std::filesystem::path& texture, const Calibration& cal,
                           double yaw_deg, double noise = 0.0, double blur = 0.0) {
@@ -66,7 +67,9 @@ inline cv::Mat renderOmni(const std::filesystem::path& texture, const Calibratio
   if (sit == scenes.end())
     sit = scenes.emplace(texture.string(), synth::Scene::load(texture, synth::SceneKind::kSphere))
               .first;
-  synth::Renderer renderer(sit->second, cal, {});
+  synth::RenderOptions options;
+  options.supersample = 2;
+  synth::Renderer renderer(sit->second, cal, options);
   synth::DegradeOptions d;
   d.noise_sigma = noise;
   d.blur_sigma = blur;
