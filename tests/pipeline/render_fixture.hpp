@@ -27,21 +27,34 @@ inline Eigen::Isometry3d relativePose(const Eigen::Vector3d& omega, const Eigen:
   return T;
 }
 
-/// Renders frames at identity and at `T1` and runs them through a fresh pipeline built
-/// with `options`; the second frame's motion (a failure of either process() call is a test
-/// failure, and then an empty FrameMotion is returned).
-inline FrameMotion estimatePair(const synth::Renderer& renderer, const Calibration& calibration,
-                                const PipelineOptions& options, const Eigen::Isometry3d& T1) {
+/// `renderer`'s frame at `T`, 8-bit.
+inline cv::Mat renderFrame(const synth::Renderer& renderer, const Eigen::Isometry3d& T) {
+  cv::Mat frame;
+  renderer.render(T).convertTo(frame, CV_8U);
+  return frame;
+}
+
+/// Runs `f0` (the frame at identity, renderFrame) and the frame rendered at `T1` through a
+/// fresh pipeline built with `options`; the second frame's motion (a failure of either
+/// process() call is a test failure, and then an empty FrameMotion is returned).
+inline FrameMotion estimatePair(const cv::Mat& f0, const synth::Renderer& renderer,
+                                const Calibration& calibration, const PipelineOptions& options,
+                                const Eigen::Isometry3d& T1) {
   Pipeline pipeline(calibration, options);
-  cv::Mat f0, f1;
-  renderer.render(Eigen::Isometry3d::Identity()).convertTo(f0, CV_8U);
-  renderer.render(T1).convertTo(f1, CV_8U);
+  const cv::Mat f1 = renderFrame(renderer, T1);
   EXPECT_TRUE(pipeline.process(f0).has_value());
   auto m = pipeline.process(f1);
   EXPECT_TRUE(m.has_value()) << (m ? "" : m.error().c_str());
   if (!m) return {};
   EXPECT_TRUE(m->has_motion);
   return *m;
+}
+
+/// As above, the frame at identity rendered too.
+inline FrameMotion estimatePair(const synth::Renderer& renderer, const Calibration& calibration,
+                                const PipelineOptions& options, const Eigen::Isometry3d& T1) {
+  return estimatePair(renderFrame(renderer, Eigen::Isometry3d::Identity()), renderer, calibration,
+                      options, T1);
 }
 
 /// RMS rotation error angle (rad) of `pipeline` over a sequence of `frames` frames:
