@@ -7,12 +7,21 @@
 ///   - a usage error (unknown flag, missing or malformed value, missing required option,
 ///     or a semantic check of the program's own): "NAME: MESSAGE" naming the flag, and a
 ///     hint to --help, on stderr, exit code 2 (kUsageExitCode).
-/// An option given twice keeps its last value (as the hand-written parsers did).
+/// An option given twice keeps its last value (as the hand-written parsers did); a failure
+/// of the program's work is "NAME: MESSAGE" on stderr, exit code 1 (kFailureExitCode).
+/// Every program's main() is runMain (below):
 ///
-///   omnipose::tools::Cli cli("omnipose-eval", "usage: omnipose-eval GT.tum EST.tum ...",
-///                            "Scores estimated trajectories against ground truth.");
-///   cli.app().add_option("--json", json_path, "...");
-///   if (const auto exit_code = cli.parse(argc, argv)) return *exit_code;
+///   struct Args { std::vector<std::string> files; std::string json; };
+///   void addOptions(CLI::App& app, Args& a) {
+///     app.add_option("FILES", a.files, "GT.tum EST.tum ...")->required();
+///     app.add_option("--json", a.json, "results as JSON")->type_name("OUT.json");
+///   }
+///   int main(int argc, char** argv) {
+///     return omnipose::tools::runMain<Args>(
+///         argc, argv, {"omnipose-eval", "usage: omnipose-eval GT.tum EST.tum ...",
+///                      "Scores estimated trajectories against ground truth."},
+///         addOptions, [](omnipose::tools::Cli& cli, const Args& a) { return score(a); });
+///   }
 
 #include <CLI/CLI.hpp>
 
@@ -137,14 +146,10 @@ class Cli {
   CLI::App app_;
 };
 
-/// The main() wrapper of every program: returns `body()` (the exit code); an exception
-/// escaping it is printed as "PREFIX: MESSAGE" on stderr and gives kFailureExitCode.
-/// `prefix`: the program's name, with what failed where that helps ("omniposed: start-up
-/// failed").
-///
-///   int main(int argc, char** argv) {
-///     return omnipose::tools::runProgram("omnipose-eval", [&] { return run(argc, argv); });
-///   }
+/// The failure handler around a program's work (runMain's): returns `body()` (the exit
+/// code); an exception escaping it is printed as "PREFIX: MESSAGE" on stderr and gives
+/// kFailureExitCode. `prefix`: the program's name, with what failed where that helps
+/// ("omniposed: start-up failed").
 template <class Body>
 int runProgram(const std::string& prefix, Body&& body) {
   try {
@@ -175,12 +180,7 @@ struct ProgramInfo {
 /// line is parsed (--help, --version and usage errors return their exit codes, see
 /// Cli::parse), and `body(cli, args)` returns the exit code under runProgram (an exception is
 /// "PREFIX: MESSAGE", kFailureExitCode). A check CLI11 cannot express returns
-/// `cli.usageError("...")` from the body or throws UsageError.
-///
-///   int main(int argc, char** argv) {
-///     return runMain<Args>(argc, argv, kProgram, addOptions,
-///                          [](Cli& cli, Args& args) { return score(args); });
-///   }
+/// `cli.usageError("...")` from the body or throws UsageError. Example: the top of this file.
 template <class Args, class AddOptions, class Body>
 int runMain(int argc, const char* const* argv, const ProgramInfo& info, AddOptions&& add_options,
             Body&& body) {
