@@ -159,6 +159,7 @@ TEST(ProgramCliChecks, SemanticMistakesExitTwo) {
       {"omnipose-calibrate", {"frames", "--out", "no/such/dir/c.yaml"}, "--out"},
       {"omnipose-calibrate", {"--checkerboard", "9x6", "frames", "--out", "c.yaml"}, "--square"},
       {"omnipose-eval", {"gt.tum"}, "EST.tum"},
+      {"omnipose-plot-angles", {"gt.tum", "est.tum", "--labels", "a,b", "--out", "f.png"}, "--labels"},
       {"omnipose-replay", {}, "DATASET"},
       {"omnipose-replay", {"a", "b"}, "b"},
       {"omniposed", {}, "--config"},

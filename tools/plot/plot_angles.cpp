@@ -163,8 +163,8 @@ int run(const tools::Cli& cli, Args& a) {
   if (a.files.size() < 2) return cli.usageError("FILES: give GT.tum and at least one EST.tum");
   if (cli.app().count("--labels") > 0) a.labels = split(a.labels_text, ',');
   if (!a.labels.empty() && a.labels.size() != a.files.size() - 1)
-    throw std::invalid_argument("--labels: " + std::to_string(a.labels.size()) + " labels for " +
-                                std::to_string(a.files.size() - 1) + " estimates");
+    return cli.usageError("--labels: " + std::to_string(a.labels.size()) + " labels for " +
+                          std::to_string(a.files.size() - 1) + " estimates");
 
   const std::vector<StampedPose> gt = readTum(a.files[0]);
   const EvaluationResult truth = evaluate(gt, gt);
