@@ -277,15 +277,9 @@ BENCHMARK(BM_OrbRotFrame)
     ->ReportAggregatesOnly(true)
     ->ComputeStatistics("min", minOf);
 
-}  // namespace
-
-int main(int argc, char** argv) {
-  takeWisdomFlag(argc, argv);
-  benchmark::Initialize(&argc, argv);
-  if (benchmark::ReportUnrecognizedArguments(argc, argv)) return 1;
-  benchmark::RunSpecifiedBenchmarks();
-  benchmark::Shutdown();
-  if (temporary_wisdom) std::filesystem::remove(wisdomFile());
+/// The best repetition of each benchmark, in ms per frame, with its ratio to orbrot (the
+/// microbenchmarks) or to the microbenchmark at its thread count (the Odometry runs).
+void printSummary() {
   const auto orb = best().find("orbrot");
   std::printf("\nBest repetition, ms per frame, and ratio to orbrot measured in this run:\n");
   for (const auto& [key, seconds] : best()) {
@@ -308,5 +302,17 @@ int main(int argc, char** argv) {
     else
       std::printf("  %-36s %7.2f ms\n", key.c_str(), 1e3 * seconds);
   }
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  takeWisdomFlag(argc, argv);
+  benchmark::Initialize(&argc, argv);
+  if (benchmark::ReportUnrecognizedArguments(argc, argv)) return 1;
+  benchmark::RunSpecifiedBenchmarks();
+  benchmark::Shutdown();
+  if (temporary_wisdom) std::filesystem::remove(wisdomFile());
+  printSummary();
   return 0;
 }
