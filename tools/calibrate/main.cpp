@@ -280,12 +280,29 @@ CLI::Option* addPoint(CLI::App& app, const char* flag, std::optional<Eigen::Vect
       ->type_name("X,Y");
 }
 
+/// While it lives, the options added to `app` go to `group` in --help (CLI11's option
+/// defaults); then the defaults' group is restored.
+class HelpGroup {
+ public:
+  HelpGroup(CLI::App& app, const std::string& group)
+      : app_(app), previous_(app.option_defaults()->get_group()) {
+    app.option_defaults()->group(group);
+  }
+  ~HelpGroup() { app_.option_defaults()->group(previous_); }
+  HelpGroup(const HelpGroup&) = delete;
+  HelpGroup& operator=(const HelpGroup&) = delete;
+
+ private:
+  CLI::App& app_;
+  std::string previous_;
+};
+
 omnipose::OuterEdge topOrBottom(const std::string& v) {
   return v == "top" ? omnipose::OuterEdge::kTop : omnipose::OuterEdge::kBottom;
 }
 
 void addOrientationOptions(CLI::App& app, LensCalibratorOptions& options) {
-  app.option_defaults()->group("Orientation");
+  const HelpGroup group(app, "Orientation");
   app.add_flag("--turn-left", options.turn_left,
                "the FRAMES, in this order, show the robot turning left in place (positive "
                "yaw): measures azimuth_direction");
@@ -316,7 +333,7 @@ void addOrientationOptions(CLI::App& app, LensCalibratorOptions& options) {
 }
 
 void addByHandOptions(CLI::App& app, LensCalibratorOptions& options) {
-  app.option_defaults()->group("Fix any value by hand");
+  const HelpGroup group(app, "Fix any value by hand");
   addPoint(app, "--center", options.center, "centre of the donut, pixels");
   addNumber(app, "--radius-inner", options.radius_inner,
             "used inner radius, pixels (no margin applied)")
@@ -361,7 +378,7 @@ void addByHandOptions(CLI::App& app, LensCalibratorOptions& options) {
 }
 
 void addHintOptions(CLI::App& app, LensCalibratorOptions& options) {
-  app.option_defaults()->group("Detection hints");
+  const HelpGroup group(app, "Detection hints");
   addPoint(app, "--center-guess", options.detector.center_guess, "rough centre of the donut, pixels");
   addNumber(app, "--inner-guess", options.detector.inner_guess, "rough inner radius, pixels")
       ->type_name("R");
@@ -423,7 +440,6 @@ void addOptions(CLI::App& app, Args& a) {
       ->type_name("FILE");
   app.add_option("--preview", a.preview, "preview PNG (default: FILE of --out with _preview.png)")
       ->type_name("FILE");
-  // The groups of --help: each of these sets the group of the options it adds.
   addOrientationOptions(app, a.options);
   addByHandOptions(app, a.options);
   addHintOptions(app, a.options);
