@@ -14,29 +14,6 @@
 namespace omnipose {
 namespace {
 
-/// The comma-separated fields of `line`, blanks around each removed.
-std::vector<std::string_view> splitCsv(std::string_view line) {
-  std::vector<std::string_view> fields;
-  const auto trimmed = [](std::string_view f) {
-    while (!f.empty() && (f.front() == ' ' || f.front() == '\t')) f.remove_prefix(1);
-    while (!f.empty() && (f.back() == ' ' || f.back() == '\t' || f.back() == '\r'))
-      f.remove_suffix(1);
-    return f;
-  };
-  while (true) {
-    const std::size_t comma = line.find(',');
-    fields.push_back(trimmed(line.substr(0, comma)));
-    if (comma == std::string_view::npos) return fields;
-    line.remove_prefix(comma + 1);
-  }
-}
-
-/// Whether `line` carries nothing: blank, or a `#` comment.
-bool isSkipped(std::string_view line) {
-  const std::size_t first = line.find_first_not_of(" \t\r");
-  return first == std::string_view::npos || line[first] == '#';
-}
-
 constexpr std::array<std::string_view, 4> kColumns = {"t", "wx", "wy", "wz"};
 
 /// Where t, wx, wy and wz stand in the header's fields; throws naming what is wrong.
@@ -80,37 +57,31 @@ GyroRecording parseGyroCsv(std::string_view text, const std::string& origin) {
   GyroRecording r;
   std::optional<std::array<std::size_t, 4>> columns;
   std::size_t field_count = 0;
-  int line_no = 0;
-  while (!text.empty()) {
-    const std::size_t end = text.find('\n');
-    const std::string_view line = text.substr(0, end);
-    text.remove_prefix(end == std::string_view::npos ? text.size() : end + 1);
-    ++line_no;
-    if (isSkipped(line)) continue;
-    const std::string where = origin + ":" + std::to_string(line_no) + ": ";
-    const std::vector<std::string_view> fields = splitCsv(line);
+  for (const io::TextRecord& record : io::splitCsvRecords(text)) {
+    const auto where = [&] { return origin + ":" + std::to_string(record.line) + ": "; };
+    const std::vector<std::string_view>& fields = record.fields;
     if (!columns) {
-      columns = columnsOf(fields, where);
+      columns = columnsOf(fields, where());
       field_count = fields.size();
       continue;
     }
     if (fields.size() != field_count)
-      throw std::runtime_error(where + std::to_string(fields.size()) + " fields, the header has " +
-                               std::to_string(field_count));
+      throw std::runtime_error(where() + std::to_string(fields.size()) +
+                               " fields, the header has " + std::to_string(field_count));
     std::array<double, 4> v{};
     for (std::size_t c = 0; c < kColumns.size(); ++c) {
       const std::string_view field = fields[(*columns)[c]];
       const std::optional<double> x = io::parseDecimal(field);
       if (!x || !std::isfinite(*x))
-        throw std::runtime_error(where + std::string(kColumns[c]) + ": '" + detail::shown(field) +
-                                 "' is not a finite decimal number");
+        throw std::runtime_error(where() + std::string(kColumns[c]) + ": '" +
+                                 detail::shown(field) + "' is not a finite decimal number");
       v[c] = *x;
     }
     if (!r.samples.empty() && !(v[0] > r.samples.back().t))
-      throw std::runtime_error(where + detail::format("t %.9g s is not after the sample before "
-                                                      "it (%.9g s): samples out of order or "
-                                                      "given twice",
-                                                      v[0], r.samples.back().t));
+      throw std::runtime_error(where() + detail::format("t %.9g s is not after the sample before "
+                                                        "it (%.9g s): samples out of order or "
+                                                        "given twice",
+                                                        v[0], r.samples.back().t));
     r.samples.push_back({v[0], Eigen::Vector3d(v[1], v[2], v[3])});
   }
   if (!columns) throw std::runtime_error(origin + ": no header (t,wx,wy,wz) and no samples");
