@@ -9,10 +9,10 @@ root=$PWD
 
 # bench_args NAME OUTDIR_NAME [--FLAG ...] -- ARGS...: parses the script's ARGS: --publish
 # (publish=1), -h/--help (prints the script's header comment and exits 0), one OUTDIR (out;
-# default $build/OUTDIR_NAME), and each
-# --FLAG listed before `--` (sets the variable FLAG, without the dashes, to 1; it starts at
-# 0). Anything else is a usage error naming NAME (exit 2). Sets build (BUILD_DIR, default
-# build) and data (DATA_DIR, default ../shared/data/equirect beside the repository).
+# default $build/OUTDIR_NAME), and each --FLAG listed before `--` (sets the variable FLAG,
+# without the dashes, to 1; it starts at 0). Anything else is a usage error naming NAME
+# (exit 2). Sets build (BUILD_DIR, default build) and data (DATA_DIR, default
+# ../shared/data/equirect beside the repository).
 bench_args() {
   local name=$1 default_out=$2 arg flag
   shift 2
