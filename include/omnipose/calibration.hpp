@@ -23,6 +23,7 @@
 /// sees of the robot itself (mast, body, cables).
 
 #include <Eigen/Core>
+#include <Eigen/Geometry>
 #include <filesystem>
 #include <opencv2/core.hpp>
 #include <optional>
@@ -114,6 +115,23 @@ struct SensorTiming {
   static constexpr double kMaxReadoutS = 0.1;
 };
 
+/// The camera-gyro calibration (calibration.yaml section `imu`, DESIGN.md sections 2 and 6):
+/// how the robot's gyro is mounted on the camera and how its clock relates to the frames'.
+struct ImuCalibration {
+  /// Camera from IMU: a rate w measured about the IMU's axes is rotation * w about the
+  /// camera's (x forward, y left, z up). YAML `rotation: [w, x, y, z]`, of norm 1 within
+  /// kUnitTolerance (normalised when read).
+  Eigen::Quaterniond rotation = Eigen::Quaterniond::Identity();
+  /// A sample stamped t on the IMU's clock was taken at camera time t + time_offset_s,
+  /// seconds; |time_offset_s| at most kMaxTimeOffsetS.
+  double time_offset_s = 0.0;
+  /// White rate noise, rad/s/sqrt(Hz), > 0; unset when not known.
+  std::optional<double> gyro_noise_density;
+
+  static constexpr double kMaxTimeOffsetS = 1.0;
+  static constexpr double kUnitTolerance = 1e-3;
+};
+
 /// Capture time of image row y (pixel centres at integers; fractional rows interpolate) of
 /// a frame of `rows` rows, seconds after the frame's timestamp: readout_s * y / rows, or,
 /// with a negative readout_s (last row first), |readout_s| * (rows - 1 - y) / rows. 0 for a
@@ -129,12 +147,15 @@ struct Calibration {
   OmniLens omni;
   PanoramaGeometry panorama;
   SensorTiming sensor;  ///< optional section `sensor` (global shutter when absent)
+  std::optional<ImuCalibration> imu;  ///< optional section `imu` (no gyro when absent)
 
   /// Every inconsistency, one message per bad field (empty = valid): every number finite,
   /// sizes in (0, limits.hpp], radii 0 <= r_in < r_out, centre inside the image, horizon
   /// inside the panorama, the lens model's elevation monotonic over the ring, every
   /// panorama row inside the ring's elevations, the mask of the frame size,
-  /// |sensor.readout_s| <= SensorTiming::kMaxReadoutS.
+  /// |sensor.readout_s| <= SensorTiming::kMaxReadoutS; imu.rotation a unit quaternion within
+  /// ImuCalibration::kUnitTolerance, |imu.time_offset_s| <= kMaxTimeOffsetS,
+  /// imu.gyro_noise_density > 0.
   std::vector<std::string> validate() const;
 
   /// Reads a plain-YAML calibration file (DESIGN.md section 6) and the files it names

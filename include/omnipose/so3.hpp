@@ -13,5 +13,10 @@ Eigen::Vector3d rotationVector(const Eigen::Matrix3d& R);
 /// Rotation matrix of a rotation vector: exp([omega]x) (Rodrigues); the identity for
 /// |omega| < 1e-15.
 Eigen::Matrix3d rotationFromVector(const Eigen::Vector3d& omega);
+/// Right Jacobian of the exponential map: for a rotation vector phi(t),
+/// exp([phi]x)^T d/dt exp([phi]x) = [rightJacobian(phi) * dphi/dt]x, so a rotation
+/// R(t) = R0 exp([phi(t)]x) turns at rightJacobian(phi) * dphi/dt rad/s about its own axes.
+/// The identity at phi = 0; exact (a series near 0) for any |phi| < 2 pi.
+Eigen::Matrix3d rightJacobian(const Eigen::Vector3d& phi);
 
 }  // namespace omnipose

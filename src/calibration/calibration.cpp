@@ -119,6 +119,22 @@ void checkFields(const Calibration& c, std::vector<std::string>& p) {
     p.push_back("sensor.readout_s: " + std::to_string(c.sensor.readout_s) +
                 " s is longer than a frame can be read out (|readout_s| <= " +
                 std::to_string(SensorTiming::kMaxReadoutS) + " s; 0 = global shutter)");
+  if (c.imu) {
+    const ImuCalibration& imu = *c.imu;
+    if (!imu.rotation.coeffs().allFinite())
+      p.push_back("imu.rotation: every component must be a finite number");
+    else if (!(std::abs(imu.rotation.norm() - 1.0) <= ImuCalibration::kUnitTolerance))
+      p.push_back("imu.rotation: [w, x, y, z] must be a unit quaternion (norm " +
+                  std::to_string(imu.rotation.norm()) + ")");
+    if (finite(imu.time_offset_s, "imu.time_offset_s") &&
+        !(std::abs(imu.time_offset_s) <= ImuCalibration::kMaxTimeOffsetS))
+      p.push_back("imu.time_offset_s: " + std::to_string(imu.time_offset_s) +
+                  " s is not within +-" + std::to_string(ImuCalibration::kMaxTimeOffsetS) +
+                  " s of the camera's clock");
+    if (imu.gyro_noise_density && finite(*imu.gyro_noise_density, "imu.gyro_noise_density") &&
+        !(*imu.gyro_noise_density > 0.0))
+      p.push_back("imu.gyro_noise_density: must be > 0 rad/s/sqrt(Hz)");
+  }
   const auto& q = c.panorama;
   size(q.width, limits::kMaxPanoramaWidth, "panorama.width");
   size(q.height, limits::kMaxPanoramaHeight, "panorama.height");
@@ -406,6 +422,19 @@ class OmniSection {
   std::string model_ = "linear";
 };
 
+/// Section `imu`: rotation [w, x, y, z] (required, normalised), time_offset_s and
+/// gyro_noise_density (optional).
+void readImuSection(YamlReader& r, const YAML::Node& node, Calibration& c) {
+  if (!r.checkMap(node, "imu", {"rotation", "time_offset_s", "gyro_noise_density"})) return;
+  ImuCalibration imu;
+  if (std::vector<double> q; r.getNumbers(node, "imu", "rotation", 4, q))
+    imu.rotation = Eigen::Quaterniond(q[0], q[1], q[2], q[3]);
+  r.get(node, "imu", "time_offset_s", imu.time_offset_s, Need::kOptional);
+  if (double density = 0.0; r.get(node, "imu", "gyro_noise_density", density, Need::kOptional))
+    imu.gyro_noise_density = density;
+  c.imu = imu;
+}
+
 }  // namespace
 
 Calibration Calibration::parse(const std::string& text, const std::string& origin,
@@ -417,7 +446,7 @@ Calibration Calibration::parse(const std::string& text, const std::string& origi
   if (!root || !root.IsMap()) {
     r.problem("(document)", "expected a map with sections 'omni' and 'panorama'");
   } else {
-    r.checkMap(root, "", {"omni", "panorama", "sensor"}, "unknown section");
+    r.checkMap(root, "", {"omni", "panorama", "sensor", "imu"}, "unknown section");
     const auto section = [&](const std::string& name, const std::vector<std::string>& known) {
       const YAML::Node node = YamlReader::child(root, name);
       if (!node) {
@@ -442,11 +471,13 @@ Calibration Calibration::parse(const std::string& text, const std::string& origi
     if (const YAML::Node sensor = YamlReader::child(root, "sensor");
         sensor && r.checkMap(sensor, "sensor", {"readout_s"}))
       r.get(sensor, "sensor", "readout_s", c.sensor.readout_s, Need::kOptional);
+    if (const YAML::Node imu = YamlReader::child(root, "imu"); imu) readImuSection(r, imu, c);
   }
   // Range checks only make sense on values that were read.
   if (r.problems().empty()) {
     for (const auto& p : c.validate()) r.add(p);
   }
+  if (r.problems().empty() && c.imu) c.imu->rotation.normalize();
   r.throwIfProblems("invalid calibration");
   return c;
 }
@@ -491,6 +522,14 @@ std::string Calibration::toYaml() const {
     << "  horizon_row: " << panorama.horizon_row << "\n"
     << "  forward_column: " << panorama.forward_column << "\n";
   if (sensor.readout_s != 0.0) o << "sensor:\n  readout_s: " << sensor.readout_s << "\n";
+  if (imu) {
+    const Eigen::Quaterniond& q = imu->rotation;
+    o.precision(17);
+    o << "imu:\n  rotation: [" << q.w() << ", " << q.x() << ", " << q.y() << ", " << q.z()
+      << "]  # camera from IMU, [w, x, y, z]\n"
+      << "  time_offset_s: " << imu->time_offset_s << "\n";
+    if (imu->gyro_noise_density) o << "  gyro_noise_density: " << *imu->gyro_noise_density << "\n";
+  }
   return o.str();
 }
 

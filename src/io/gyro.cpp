@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <fstream>
 #include <optional>
 #include <stdexcept>
 
@@ -34,7 +35,7 @@ std::array<std::size_t, 4> columnsOf(const std::vector<std::string_view>& header
   return at;
 }
 
-/// The timing figures of `r.samples` (at least one sample).
+/// The timing figures of `r.samples` (at least one sample, in order).
 void measureTiming(GyroRecording& r) {
   if (r.samples.size() < 2) return;
   std::vector<double> intervals;
@@ -86,8 +87,34 @@ GyroRecording parseGyroCsv(std::string_view text, const std::string& origin) {
   }
   if (!columns) throw std::runtime_error(origin + ": no header (t,wx,wy,wz) and no samples");
   if (r.samples.empty()) throw std::runtime_error(origin + ": no samples");
+  return gyroRecordingOf(std::move(r.samples));
+}
+
+GyroRecording gyroRecordingOf(std::vector<GyroSample> samples) {
+  if (samples.empty()) throw std::invalid_argument("gyroRecordingOf: no samples");
+  for (std::size_t k = 1; k < samples.size(); ++k)
+    if (!(samples[k].t > samples[k - 1].t))
+      throw std::invalid_argument("gyroRecordingOf: sample " + std::to_string(k) +
+                                  " is not after the one before it");
+  GyroRecording r;
+  r.samples = std::move(samples);
   measureTiming(r);
   return r;
+}
+
+std::string formatGyroCsv(std::span<const GyroSample> samples) {
+  std::string text = "t,wx,wy,wz\n";
+  text.reserve(text.size() + samples.size() * 72);
+  for (const GyroSample& s : samples)
+    text += detail::format("%.9f,%.9e,%.9e,%.9e\n", s.t, s.rate.x(), s.rate.y(), s.rate.z());
+  return text;
+}
+
+void writeGyroCsv(const std::filesystem::path& path, std::span<const GyroSample> samples) {
+  std::ofstream out(path);
+  if (!out) throw std::runtime_error(path.string() + ": cannot write the gyro recording");
+  out << formatGyroCsv(samples);
+  if (!out) throw std::runtime_error(path.string() + ": write failed");
 }
 
 GyroRecording readGyroCsv(const std::filesystem::path& path) {

@@ -2,6 +2,7 @@
 #include <fstream>
 #include <opencv2/imgcodecs.hpp>
 
+#include "omnipose/io/gyro.hpp"
 #include "omnipose/synth/dataset_writer.hpp"
 
 namespace omnipose::synth {
@@ -45,6 +46,10 @@ void DatasetWriter::addFrame(const cv::Mat& image, const StampedPose& pose) {
   }
   if (!ok) throw std::runtime_error(path.string() + ": cannot write frame");
   poses_.push_back(pose);
+}
+
+void DatasetWriter::writeGyro(std::span<const GyroSample> samples) {
+  writeGyroCsv(directory_ / "imu.csv", samples);
 }
 
 void DatasetWriter::finish() {

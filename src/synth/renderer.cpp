@@ -219,51 +219,99 @@ Eigen::Isometry3d poseAtTime(std::span<const StampedPose> trajectory, double t) 
   return poseBetween(a.pose, b.pose, (t - a.timestamp) / (b.timestamp - a.timestamp));
 }
 
-Eigen::Isometry3d poseAtTime(std::span<const StampedPose> trajectory, double t,
-                             Interpolation interpolation) {
-  if (interpolation == Interpolation::kConstantVelocity || trajectory.size() < 2)
-    return poseAtTime(trajectory, t);
+namespace {
+
+using Vec6 = Eigen::Matrix<double, 6, 1>;
+
+/// The smooth motion at time t: on the step [a, b] around t, the tangent-space coordinates
+/// x (rotation vector of a^-1 R(t), position) and their time derivative (see
+/// Interpolation::kSmooth). Requires at least two samples.
+struct SmoothState {
+  const StampedPose* a = nullptr;
+  Vec6 x, rate;
+};
+
+SmoothState smoothStateAt(std::span<const StampedPose> trajectory, double t) {
   const std::size_t n = trajectory.size();
   std::size_t k = 0;
   while (k + 2 < n && trajectory[k + 1].timestamp <= t) ++k;
   const StampedPose& a = trajectory[k];
   const StampedPose& b = trajectory[k + 1];
   const double h = b.timestamp - a.timestamp;
-  // Sample j in the tangent space at a: (rotation vector of a^-1 j, position), 6-vector.
-  using Vec6 = Eigen::Matrix<double, 6, 1>;
-  const Eigen::Matrix3d Ra_t = a.pose.linear().transpose();
-  const auto local = [&](std::size_t j) {
+  // Sample j in the tangent space at sample c: (rotation vector of c^-1 j, position).
+  const auto local = [&](std::size_t c, std::size_t j) {
     Vec6 x;
-    x << rotationVector(Ra_t * trajectory[j].pose.linear()), trajectory[j].pose.translation();
+    x << rotationVector(trajectory[c].pose.linear().transpose() * trajectory[j].pose.linear()),
+        trajectory[j].pose.translation();
     return x;
   };
-  const Vec6 p0 = local(k), p1 = local(k + 1);
+  const Vec6 p0 = local(k, k), p1 = local(k, k + 1);
   const Vec6 secant = (p1 - p0) / h;
-  // The velocity at sample j from its neighbours: the derivative of the parabola through
-  // the three (exact for a motion quadratic in time, whatever the spacing).
-  const auto velocity = [&](std::size_t j, const Vec6& before, const Vec6& at, const Vec6& after) {
+  // The velocity at inner sample j, in its own tangent space (so its rotation part is the
+  // body rate there, whichever step it is seen from): the derivative of the parabola through
+  // it and its neighbours (exact for a motion quadratic in time, whatever the spacing).
+  const auto velocity = [&](std::size_t j) {
+    const Vec6 before = local(j, j - 1), at = local(j, j), after = local(j, j + 1);
     const double hm = trajectory[j].timestamp - trajectory[j - 1].timestamp;
     const double hp = trajectory[j + 1].timestamp - trajectory[j].timestamp;
     return Vec6((hm * hm * (after - at) + hp * hp * (at - before)) / (hm * hp * (hm + hp)));
   };
-  // At the trajectory's ends the step's own velocity.
-  const Vec6 v0 = k > 0 ? velocity(k, local(k - 1), p0, p1) : secant;
-  const Vec6 v1 = k + 2 < n ? velocity(k + 1, p0, p1, local(k + 2)) : secant;
-  Vec6 x;
-  if (t < a.timestamp) {
-    x = p0 + (t - a.timestamp) * v0;  // before the first sample
-  } else if (t > b.timestamp) {
-    x = p1 + (t - b.timestamp) * v1;  // after the last
-  } else {
-    // Cubic Hermite basis on s in [0, 1].
-    const double s = (t - a.timestamp) / h, s2 = s * s, s3 = s2 * s;
-    x = (2 * s3 - 3 * s2 + 1) * p0 + (s3 - 2 * s2 + s) * h * v0 + (-2 * s3 + 3 * s2) * p1 +
-        (s3 - s2) * h * v1;
+  // At the trajectory's ends the step's own velocity. At b the body rate w is turned into
+  // the rate of a's coordinates: rightJacobian(x) dx/dt = w.
+  const Vec6 v0 = k > 0 ? velocity(k) : secant;
+  Vec6 v1 = secant;
+  if (k + 2 < n) {
+    v1 = velocity(k + 1);
+    v1.head<3>() = rightJacobian(p1.head<3>()).inverse() * Vec6(v1).head<3>();
   }
+  SmoothState state{.a = &a, .x = Vec6::Zero(), .rate = Vec6::Zero()};
+  if (t < a.timestamp) {  // before the first sample
+    state.x = p0 + (t - a.timestamp) * v0;
+    state.rate = v0;
+  } else if (t > b.timestamp) {  // after the last
+    state.x = p1 + (t - b.timestamp) * v1;
+    state.rate = v1;
+  } else {
+    // Cubic Hermite basis on s in [0, 1] and its derivative (d/dt = d/ds / h).
+    const double s = (t - a.timestamp) / h, s2 = s * s, s3 = s2 * s;
+    state.x = (2 * s3 - 3 * s2 + 1) * p0 + (s3 - 2 * s2 + s) * h * v0 + (-2 * s3 + 3 * s2) * p1 +
+              (s3 - s2) * h * v1;
+    state.rate = ((6 * s2 - 6 * s) * p0 + (3 * s2 - 4 * s + 1) * h * v0 + (6 * s - 6 * s2) * p1 +
+                  (3 * s2 - 2 * s) * h * v1) /
+                 h;
+  }
+  return state;
+}
+
+}  // namespace
+
+Eigen::Isometry3d poseAtTime(std::span<const StampedPose> trajectory, double t,
+                             Interpolation interpolation) {
+  if (interpolation == Interpolation::kConstantVelocity || trajectory.size() < 2)
+    return poseAtTime(trajectory, t);
+  const SmoothState state = smoothStateAt(trajectory, t);
   Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
-  T.linear() = a.pose.linear() * rotationFromVector(x.head<3>());
-  T.translation() = x.tail<3>();
+  T.linear() = state.a->pose.linear() * rotationFromVector(state.x.head<3>());
+  T.translation() = state.x.tail<3>();
   return T;
+}
+
+Eigen::Vector3d angularVelocityAtTime(std::span<const StampedPose> trajectory, double t,
+                                      Interpolation interpolation) {
+  if (trajectory.empty()) throw std::invalid_argument("angularVelocityAtTime: empty trajectory");
+  if (trajectory.size() == 1) return Eigen::Vector3d::Zero();
+  if (interpolation == Interpolation::kSmooth) {
+    const SmoothState state = smoothStateAt(trajectory, t);
+    return rightJacobian(state.x.head<3>()) * state.rate.head<3>();
+  }
+  // Constant velocity: R(t) = R_a exp(s log(R_a^T R_b)), s = (t - t_a) / h, turns at
+  // log(R_a^T R_b) / h about its own axes.
+  std::size_t k = 0;
+  while (k + 2 < trajectory.size() && trajectory[k + 1].timestamp <= t) ++k;
+  const StampedPose& a = trajectory[k];
+  const StampedPose& b = trajectory[k + 1];
+  return rotationVector(a.pose.linear().transpose() * b.pose.linear()) /
+         (b.timestamp - a.timestamp);
 }
 
 struct Renderer::PixelRays {

@@ -32,6 +32,17 @@ panorama:
   forward_column: 0.0
 )";
 
+/// The problems Calibration::parse lists for kValid followed by `sections`, from a file
+/// named cal.yaml (empty when it parses).
+std::string problemsOf(const std::string& sections) {
+  try {
+    Calibration::parse(std::string(kValid) + sections, "cal.yaml");
+  } catch (const CalibrationError& e) {
+    return e.what();
+  }
+  return {};
+}
+
 TEST(Calibration, ParsesTheDesignExample) {
   const Calibration c = Calibration::parse(kValid);
   EXPECT_EQ(c.omni.image_width, 720);
@@ -120,14 +131,6 @@ TEST(CalibrationSensor, ReadoutTimeIsReadValidatedAndSaved) {
   EXPECT_THAT(Calibration::parse(kValid).toYaml(), Not(HasSubstr("sensor")))
       << "a global shutter writes no section: files stay as they were";
 
-  const auto problemsOf = [](const std::string& sensor) {
-    try {
-      Calibration::parse(std::string(kValid) + sensor, "cal.yaml");
-    } catch (const CalibrationError& e) {
-      return std::string(e.what());
-    }
-    return std::string();
-  };
   for (const char* bad : {"sensor:\n  readout_s: 0.15\n", "sensor:\n  readout_s: -0.2\n",
                           "sensor:\n  readout_s: .nan\n", "sensor:\n  readout_s: fast\n"}) {
     const std::string what = problemsOf(bad);
@@ -136,6 +139,48 @@ TEST(CalibrationSensor, ReadoutTimeIsReadValidatedAndSaved) {
   EXPECT_THAT(problemsOf("sensor:\n  exposure_s: 0.01\n"),
               HasSubstr("sensor.exposure_s: unknown key"));
   EXPECT_EQ(problemsOf("sensor:\n  readout_s: 0.1\n"), "") << "the longest readout is allowed";
+}
+
+TEST(CalibrationImu, TheGyrosMountingAndClockAreReadValidatedAndSaved) {
+  EXPECT_FALSE(Calibration::parse(kValid).imu.has_value()) << "no section: no gyro";
+  EXPECT_THAT(Calibration::parse(kValid).toYaml(), Not(HasSubstr("imu:")));
+  // A hand-written quaternion of 4 digits is normalised; the optional keys default.
+  const Calibration c = Calibration::parse(
+      std::string(kValid) + "imu:\n  rotation: [0.7071, 0, 0, 0.7071]\n  time_offset_s: -0.0042\n"
+                            "  gyro_noise_density: 8.7e-5\n");
+  ASSERT_TRUE(c.imu.has_value());
+  EXPECT_NEAR(c.imu->rotation.norm(), 1.0, 1e-15);
+  EXPECT_NEAR(c.imu->rotation.w(), std::sqrt(0.5), 1e-15);
+  EXPECT_NEAR(c.imu->rotation.z(), std::sqrt(0.5), 1e-15);
+  EXPECT_DOUBLE_EQ(c.imu->time_offset_s, -0.0042);
+  EXPECT_DOUBLE_EQ(c.imu->gyro_noise_density.value_or(0.0), 8.7e-5);
+  const Calibration saved = Calibration::parse(c.toYaml());
+  ASSERT_TRUE(saved.imu.has_value());
+  EXPECT_TRUE(saved.imu->rotation.isApprox(c.imu->rotation, 1e-15));
+  EXPECT_EQ(saved.imu->time_offset_s, c.imu->time_offset_s);
+  EXPECT_EQ(saved.imu->gyro_noise_density, c.imu->gyro_noise_density);
+  const Calibration bare = Calibration::parse(std::string(kValid) + "imu:\n  rotation: [1, 0, 0, 0]\n");
+  ASSERT_TRUE(bare.imu.has_value());
+  EXPECT_EQ(bare.imu->time_offset_s, 0.0);
+  EXPECT_FALSE(bare.imu->gyro_noise_density.has_value());
+  EXPECT_FALSE(Calibration::parse(bare.toYaml()).imu->gyro_noise_density.has_value());
+
+  const std::pair<const char*, const char*> cases[] = {
+      {"imu:\n  rotation: [1, 0, 0.1, 0]\n", "cal.yaml: imu.rotation: [w, x, y, z] must be a unit quaternion"},
+      {"imu:\n  rotation: [1, 0, 0]\n", "cal.yaml: imu.rotation"},
+      {"imu:\n  rotation: [1, 0, 0, .nan]\n", "cal.yaml: imu.rotation"},
+      {"imu:\n  time_offset_s: 0.0\n", "cal.yaml: imu.rotation: missing"},
+      {"imu:\n  rotation: [1, 0, 0, 0]\n  time_offset_s: 1.5\n", "cal.yaml: imu.time_offset_s"},
+      {"imu:\n  rotation: [1, 0, 0, 0]\n  gyro_noise_density: 0\n", "cal.yaml: imu.gyro_noise_density"},
+      {"imu:\n  rotation: [1, 0, 0, 0]\n  bias: [0, 0, 0]\n", "imu.bias: unknown key"},
+      {"imu: [1, 0, 0, 0]\n", "cal.yaml: imu"},
+  };
+  for (const auto& [bad, needle] : cases) EXPECT_THAT(problemsOf(bad), HasSubstr(needle)) << bad;
+  // Every problem of the section at once.
+  const std::string all =
+      problemsOf("imu:\n  rotation: [2, 0, 0, 0]\n  time_offset_s: -3\n  gyro_noise_density: -1\n");
+  for (const char* field : {"imu.rotation", "imu.time_offset_s", "imu.gyro_noise_density"})
+    EXPECT_THAT(all, HasSubstr(field)) << all;
 }
 
 TEST(CalibrationSensor, EveryPanoramaPixelIsCapturedWhenItsOmniRowIsRead) {

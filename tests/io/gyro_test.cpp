@@ -7,10 +7,12 @@
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <filesystem>
 #include <fstream>
 #include <stdexcept>
 #include <string>
+#include <vector>
 
 #include <unistd.h>
 
@@ -117,6 +119,42 @@ TEST(GyroCsv, ReadsAFileAndNamesOneItCannotRead) {
     EXPECT_THAT(e.what(), HasSubstr((dir / "bad.csv").string() + ":2: 3 fields"));
   }
   fs::remove_all(dir);
+}
+
+TEST(GyroCsv, WhatIsWrittenReadsBackToTheNanosecondAndTenDigits) {
+  const std::vector<GyroSample> samples = {{1700000000.123456789, Eigen::Vector3d(0.1234567891, -2e-7, 3.5)},
+                                           {1700000000.128456789, Eigen::Vector3d(-1e-12, 0.0, -12.25)}};
+  const GyroRecording r = parseGyroCsv(formatGyroCsv(samples), "written.csv");
+  ASSERT_EQ(r.samples.size(), 2u);
+  for (std::size_t i = 0; i < samples.size(); ++i) {
+    EXPECT_NEAR(r.samples[i].t, samples[i].t, 1e-9);
+    for (int axis = 0; axis < 3; ++axis)
+      EXPECT_NEAR(r.samples[i].rate[axis], samples[i].rate[axis], 1e-9 * std::abs(samples[i].rate[axis]) + 1e-300);
+  }
+  EXPECT_NEAR(r.median_interval_s, 0.005, 1e-6);
+  namespace fs = std::filesystem;
+  const fs::path dir = fs::temp_directory_path() / ("omnipose_gyro_write_" + std::to_string(::getpid()));
+  fs::create_directories(dir);
+  writeGyroCsv(dir / "imu.csv", samples);
+  EXPECT_EQ(readGyroCsv(dir / "imu.csv").samples.size(), 2u);
+  try {
+    writeGyroCsv(dir / "no" / "such" / "imu.csv", samples);
+    ADD_FAILURE() << "wrote into a missing directory";
+  } catch (const std::runtime_error& e) {
+    EXPECT_THAT(e.what(), HasSubstr((dir / "no" / "such" / "imu.csv").string()));
+  }
+  fs::remove_all(dir);
+}
+
+TEST(GyroCsv, ARecordingIsMadeOfSamplesInOrderOnly) {
+  const Eigen::Vector3d still = Eigen::Vector3d::Zero();
+  EXPECT_THROW(gyroRecordingOf({}), std::invalid_argument);
+  EXPECT_THROW(gyroRecordingOf({{1.0, still}, {1.0, still}}), std::invalid_argument);
+  EXPECT_THROW(gyroRecordingOf({{1.0, still}, {0.5, still}}), std::invalid_argument);
+  const GyroRecording r = gyroRecordingOf({{0.0, still}, {0.01, still}, {0.02, still}, {0.2, still}});
+  EXPECT_NEAR(r.median_interval_s, 0.01, 1e-15);
+  EXPECT_EQ(r.gaps, 1);
+  EXPECT_NEAR(r.longest_gap_s, 0.18, 1e-15);
 }
 
 }  // namespace

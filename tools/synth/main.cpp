@@ -1,6 +1,7 @@
 /// omnipose-synth: renders a synthetic dataset (DESIGN.md section 6) from an equirect photo,
 /// with exact ground truth, through the exact renderer of omnipose::synth.
 
+#include <array>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -25,7 +26,8 @@ using namespace omnipose;
 constexpr const char* kUsage = "usage: omnipose-synth --texture PHOTO.jpg --out DIR [options]";
 constexpr const char* kDescription =
     "Renders a synthetic omni-camera dataset (calibration.yaml, frames/, timestamps.txt,\n"
-    "groundtruth.tum) from an equirectangular photo, with exact ground truth.\n"
+    "groundtruth.tum; imu.csv with --gyro-rate) from an equirectangular photo, with exact\n"
+    "ground truth.\n"
     "Exit codes: 0 written, 1 rendering or writing failed, 2 bad command line.";
 
 /// A command-line mistake: reported with a hint to --help, exit code 2.
@@ -57,6 +59,8 @@ struct Args {
   int supersample = synth::RenderOptions{}.supersample;
   int texture_width = 0;  ///< 0: the photo's own resolution
   std::optional<synth::Occluder> occluder;
+  /// The gyro written to imu.csv (its calibration to calibration.yaml); none by default.
+  std::optional<synth::GyroSimulation> gyro;
   bool write_mask = false;
   bool quiet = false;
 };
@@ -64,7 +68,8 @@ struct Args {
 /// The command line's options, bound to `a`; the values CLI11 cannot convert itself (scene,
 /// output, occluder, the optional numbers) land in `raw` and are converted by finish().
 struct Raw {
-  std::string scene, output, occluder, walkers, walker_distance;
+  std::string scene, output, occluder, walkers, walker_distance, gyro_rotation;
+  synth::GyroSimulation gyro;
   int frames = 0;
   std::uint64_t seed = 0, walker_seed = 0;
 };
@@ -209,6 +214,33 @@ void addEffectOptions(CLI::App& app, Args& a, Raw& raw) {
   app.add_flag("--quiet", a.quiet, "no progress line (it is shown only on a terminal anyway)");
 }
 
+/// The gyro written beside the frames.
+void addGyroOptions(CLI::App& app, Raw& raw) {
+  const synth::GyroSimulation d;
+  app.add_option("--gyro-rate", raw.gyro.rate_hz,
+                 "write imu.csv: a gyro on the camera sampled at HZ measuring the rendered "
+                 "motion's exact angular velocity (between frames as --between-frames), and "
+                 "its calibration to calibration.yaml (section imu); default: no gyro")
+      ->type_name("HZ");
+  app.add_option("--gyro-noise", raw.gyro.noise_density,
+                 "white rate noise density, rad/s/sqrt(Hz) (default " +
+                     std::to_string(d.noise_density) + ")")
+      ->type_name("D");
+  app.add_option("--gyro-bias", raw.gyro.bias,
+                 "length of the gyro's bias, rad/s, in a direction drawn from --seed (default " +
+                     std::to_string(d.bias) + ")")
+      ->type_name("B");
+  app.add_option("--gyro-bias-walk", raw.gyro.bias_random_walk,
+                 "bias random walk, rad/s^2/sqrt(Hz) (default 0)")
+      ->type_name("W");
+  app.add_option("--gyro-time-offset", raw.gyro.time_offset_s,
+                 "a sample stamped t is taken at camera time t + S, seconds (default 0)")
+      ->type_name("S");
+  app.add_option("--gyro-rotation", raw.gyro_rotation,
+                 "the IMU's mounting: camera from IMU as a unit quaternion (default 1,0,0,0)")
+      ->type_name("W,X,Y,Z");
+}
+
 /// What the command line fills: the settings, and the text finish() converts.
 struct CommandLine {
   Args args;
@@ -218,6 +250,59 @@ struct CommandLine {
 void addOptions(CLI::App& app, CommandLine& c) {
   addSceneOptions(app, c.args, c.raw);
   addEffectOptions(app, c.args, c.raw);
+  addGyroOptions(app, c.raw);
+}
+
+/// "W,X,Y,Z": a quaternion; throws std::invalid_argument.
+Eigen::Quaterniond parseQuaternion(const std::string& text) {
+  std::array<double, 4> q{};
+  std::size_t at = 0;
+  for (std::size_t i = 0; i < q.size(); ++i) {
+    const std::size_t comma = i + 1 < q.size() ? text.find(',', at) : text.size();
+    std::size_t end = 0;
+    const std::string field = comma == std::string::npos ? "" : text.substr(at, comma - at);
+    try {
+      q[i] = std::stod(field, &end);
+    } catch (const std::exception&) {
+      end = std::string::npos;
+    }
+    if (field.empty() || end != field.size() || !std::isfinite(q[i]))
+      throw std::invalid_argument("'" + text + "' is not four numbers W,X,Y,Z");
+    at = comma + 1;
+  }
+  return Eigen::Quaterniond(q[0], q[1], q[2], q[3]);
+}
+
+/// The gyro of the command line, when --gyro-rate is given; throws UsageError naming the
+/// flag of a bad value or a --gyro-* option without --gyro-rate.
+std::optional<synth::GyroSimulation> gyroOf(const CLI::App& app, const Raw& raw) {
+  static constexpr std::array<const char*, 5> kDetails = {
+      "--gyro-noise", "--gyro-bias", "--gyro-bias-walk", "--gyro-time-offset", "--gyro-rotation"};
+  if (app.count("--gyro-rate") == 0) {
+    for (const char* flag : kDetails)
+      if (app.count(flag) > 0) throw UsageError(std::string(flag) + " needs --gyro-rate");
+    return std::nullopt;
+  }
+  synth::GyroSimulation gyro = raw.gyro;
+  if (app.count("--gyro-rotation") > 0) {
+    try {
+      gyro.rotation = parseQuaternion(raw.gyro_rotation);
+    } catch (const std::invalid_argument& e) {
+      throw UsageError(std::string("--gyro-rotation: ") + e.what());
+    }
+  }
+  // "gyro.rate_hz: ..." names the flag --gyro-rate, and so on.
+  static const std::map<std::string, std::string, std::less<>> kFlags = {
+      {"gyro.rate_hz", "--gyro-rate"},         {"gyro.noise_density", "--gyro-noise"},
+      {"gyro.bias", "--gyro-bias"},            {"gyro.bias_random_walk", "--gyro-bias-walk"},
+      {"gyro.time_offset_s", "--gyro-time-offset"}, {"gyro.rotation", "--gyro-rotation"}};
+  if (const auto problems = gyro.validate(); !problems.empty()) {
+    const std::string& p = problems.front();
+    const std::string field = p.substr(0, p.find(':'));
+    const auto flag = kFlags.find(field);
+    throw UsageError((flag != kFlags.end() ? flag->second : field) + p.substr(field.size()));
+  }
+  return gyro;
 }
 
 /// Converts what CLI11 left as text and checks what it cannot; throws UsageError.
@@ -247,6 +332,7 @@ void finish(const CLI::App& app, Args& a, const Raw& raw) {
     a.walker_distance =
         convert("--walker-distance", [&] { return parseDistance(raw.walker_distance); });
   if (given("--walker-seed")) a.walker_seed = raw.walker_seed;
+  a.gyro = gyroOf(app, raw);
   if (!a.print_preset.empty()) return;
   if (a.texture.empty()) throw UsageError("--texture is required");
   if (a.out.empty()) throw UsageError("--out is required");
@@ -363,6 +449,18 @@ SampleRange renderFrames(const Args& a, const synth::Renderer& renderer,
   return samples;
 }
 
+/// The gyro's samples over every row of every frame, from kGyroMarginS before the first
+/// frame's earliest row to kGyroMarginS after the last frame's latest.
+GyroRecording gyroSamples(synth::GyroSimulation gyro, std::uint64_t seed,
+                          const std::vector<StampedPose>& poses, const Args& a, double readout) {
+  constexpr double kGyroMarginS = 0.1;
+  gyro.seed = seed;
+  const double first = poses.front().timestamp - 0.5 * a.exposure_time - kGyroMarginS;
+  const double last = poses.back().timestamp + std::abs(readout) + 0.5 * a.exposure_time +
+                      kGyroMarginS;
+  return synth::simulateGyro(poses, a.between_frames, gyro, first, last);
+}
+
 /// The summary line's list of what the frames show beyond the motion (", vibration ...").
 std::string effectsText(const Args& a, const synth::MotionScript& script, double readout,
                         const synth::Renderer& renderer, const synth::Scene& scene,
@@ -404,6 +502,11 @@ std::string effectsText(const Args& a, const synth::MotionScript& script, double
   if (a.vignetting > 0.0) {
     char text[64];
     std::snprintf(text, sizeof(text), ", vignetting %.3g", a.vignetting);
+    effects += text;
+  }
+  if (a.gyro) {
+    char text[96];
+    std::snprintf(text, sizeof(text), ", gyro %.4g Hz in imu.csv", a.gyro->rate_hz);
     effects += text;
   }
   return vibration + shutter + effects;
@@ -480,7 +583,15 @@ int run(const Args& a) {
     calibration.omni.mask = a.occluder->mask(calibration);
     calibration.omni.mask_file = "mask.png";
   }
+  if (a.gyro) {
+    calibration.imu = ImuCalibration{.rotation = a.gyro->rotation.normalized(),
+                                     .time_offset_s = a.gyro->time_offset_s,
+                                     .gyro_noise_density = a.gyro->noise_density > 0.0
+                                                               ? std::optional(a.gyro->noise_density)
+                                                               : std::nullopt};
+  }
   synth::DatasetWriter writer(a.out, calibration, a.jpeg);
+  if (a.gyro) writer.writeGyro(gyroSamples(*a.gyro, script.seed, poses, a, readout).samples);
 
   const auto start = std::chrono::steady_clock::now();
   const SampleRange samples =

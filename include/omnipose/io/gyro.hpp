@@ -13,20 +13,15 @@
 /// about the IMU's own x, y, z axes. Fields may carry blanks around them; numbers are plain
 /// decimals (io/text_records.hpp: no hexadecimal, inf or nan).
 
-#include <Eigen/Core>
-
 #include <filesystem>
+#include <span>
 #include <string>
 #include <string_view>
 #include <vector>
 
-namespace omnipose {
+#include "omnipose/gyro.hpp"
 
-/// One gyro sample.
-struct GyroSample {
-  double t = 0.0;                                  ///< seconds, on the IMU's clock
-  Eigen::Vector3d rate = Eigen::Vector3d::Zero();  ///< rad/s, about the IMU's x, y, z axes
-};
+namespace omnipose {
 
 /// An interval between samples longer than this many median intervals is a gap.
 inline constexpr double kGyroGapIntervals = 5.0;
@@ -46,6 +41,18 @@ struct GyroRecording {
 /// field that is not a finite plain decimal number, a time not after the one before it (a
 /// sample out of order or given twice), and "<origin>: no samples" for a file without any.
 GyroRecording parseGyroCsv(std::string_view text, const std::string& origin);
+
+/// A recording of `samples` (t strictly increasing, at least one) with its timing measured.
+/// Throws std::invalid_argument when they are empty or out of order.
+GyroRecording gyroRecordingOf(std::vector<GyroSample> samples);
+
+/// The imu.csv text of `samples`: the header `t,wx,wy,wz`, then t to the nanosecond and each
+/// rate to 10 significant digits, so parseGyroCsv() reads them back.
+std::string formatGyroCsv(std::span<const GyroSample> samples);
+
+/// Writes formatGyroCsv(samples) to `path`; throws std::runtime_error naming the file when it
+/// cannot be written.
+void writeGyroCsv(const std::filesystem::path& path, std::span<const GyroSample> samples);
 
 /// parseGyroCsv() of the file at `path` (a regular file of at most kMaxTextFileBytes);
 /// throws std::runtime_error naming the file when it cannot be read.

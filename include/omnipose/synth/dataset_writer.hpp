@@ -5,10 +5,12 @@
 #include <cstddef>
 #include <filesystem>
 #include <opencv2/core.hpp>
+#include <span>
 #include <string>
 #include <vector>
 
 #include "omnipose/calibration.hpp"
+#include "omnipose/gyro.hpp"
 #include "omnipose/io/trajectory.hpp"
 
 namespace omnipose::synth {
@@ -17,6 +19,7 @@ namespace omnipose::synth {
 /// ```
 ///   DIR/calibration.yaml   DIR/frames/000000.png (or .jpg)   DIR/timestamps.txt
 ///   DIR/groundtruth.tum    (camera poses relative to the first frame, so it is the identity)
+///   DIR/imu.csv            (optional: writeGyro())
 /// ```
 class DatasetWriter {
  public:
@@ -30,6 +33,9 @@ class DatasetWriter {
   /// Writes the next frame (CV_8UC1) with its timestamp and ground-truth pose
   /// T_world_camera. Throws std::runtime_error naming the file when it cannot be written.
   void addFrame(const cv::Mat& image, const StampedPose& pose);
+  /// Writes the gyro's samples as DIR/imu.csv (io/gyro.hpp). Throws std::runtime_error
+  /// naming the file when it cannot be written.
+  void writeGyro(std::span<const GyroSample> samples);
   /// Writes timestamps.txt and groundtruth.tum. Throws std::runtime_error naming the file.
   void finish();
 

@@ -201,10 +201,12 @@ enum class Interpolation {
   /// Velocity continuous through the samples (as a vehicle's, which cannot change speed
   /// in no time): on each step a cubic Hermite curve in the tangent space at its first
   /// sample (rotation vector and position) with, at each sample, the velocity of the
-  /// parabola through it and its two neighbours (at the first and last sample the one
-  /// step's). Passes through every sample; a constant velocity and, for a translation or a
-  /// rotation about a fixed axis, a motion quadratic in time (a constant acceleration) are
-  /// reproduced exactly.
+  /// parabola through it and its two neighbours in the tangent space at that sample (at
+  /// the first and last sample the one step's), so the angular velocity
+  /// (angularVelocityAtTime) is the same on either side of a sample; the acceleration is
+  /// not (it changes at every sample). Passes through every sample; a constant velocity
+  /// and, for a translation or a rotation about a fixed axis, a motion quadratic in time (a
+  /// constant acceleration) are reproduced exactly.
   kSmooth,
 };
 
@@ -213,5 +215,13 @@ enum class Interpolation {
 /// velocity.
 Eigen::Isometry3d poseAtTime(std::span<const StampedPose> trajectory, double t,
                              Interpolation interpolation);
+
+/// The angular velocity at time t (seconds) of poseAtTime(trajectory, t, interpolation), rad/s
+/// about the camera's own axes (x roll, y pitch, z yaw): w with R(t)^T dR/dt = [w]x, what a
+/// gyro fixed to the camera measures. Exact (no finite differences); at a sample the step
+/// that starts there (with kSmooth both steps agree). Zero for a single sample; throws
+/// std::invalid_argument for an empty trajectory.
+Eigen::Vector3d angularVelocityAtTime(std::span<const StampedPose> trajectory, double t,
+                                      Interpolation interpolation);
 
 }  // namespace omnipose::synth

@@ -12,6 +12,7 @@
 ///   vignetting.hpp          the lens' brightness falloff
 ///   degrade.hpp             sensor blur, exposure, noise
 ///   motion.hpp              motion scripts and the trajectories they generate
+///   gyro.hpp                a gyro on the camera, driven by the exact motion
 ///   dataset_writer.hpp      frames, timestamps and ground truth as a dataset directory
 ///
 /// Camera and world effects, each exact against the definition its declaration states:
@@ -36,6 +37,7 @@
 #include "omnipose/synth/dataset_writer.hpp"
 #include "omnipose/synth/degrade.hpp"
 #include "omnipose/synth/equirect_from_omni.hpp"
+#include "omnipose/synth/gyro.hpp"
 #include "omnipose/synth/motion.hpp"
 #include "omnipose/synth/occluder.hpp"
 #include "omnipose/synth/renderer.hpp"

@@ -1,0 +1,40 @@
+#pragma once
+/// \file gyro.hpp
+/// The robot's gyro in the camera's terms: its samples, and the camera's rotation between two
+/// instants integrated from them (DESIGN.md section 2). Where the samples come from (imu.csv,
+/// LCM, IIO) is the business of io/ and the daemon; this header knows no source.
+
+#include <Eigen/Core>
+
+#include <optional>
+#include <span>
+
+namespace omnipose {
+
+struct ImuCalibration;
+
+/// One gyro sample.
+struct GyroSample {
+  double t = 0.0;                                  ///< seconds, on the IMU's clock
+  Eigen::Vector3d rate = Eigen::Vector3d::Zero();  ///< rad/s, about the IMU's x, y, z axes
+};
+
+/// The camera's rotation from camera time t0 to camera time t1 (seconds), R_{c(t0)}^T R_{c(t1)}
+/// in the camera's axes at t0 (DESIGN.md section 2's R for a pair), integrated from `samples`
+/// (t strictly increasing) after removing `bias` (rad/s, IMU axes) and turning the rates into
+/// camera axes with `imu.rotation`; a sample stamped t is taken at camera time
+/// t + imu.time_offset_s. Between two samples the rate is the cubic through the four around
+/// them (fewer at the recording's ends), and each piece is one fourth-order Magnus step (the
+/// rate at two Gauss points, with the coning term of a turning axis): the error falls with
+/// the fourth power of the sampling interval on a smooth motion. t1 < t0 gives the inverse
+/// rotation.
+///
+/// nullopt when the samples do not cover [t0, t1] (the first taken after min(t0, t1) or the
+/// last before max(t0, t1)) or two samples inside it are more than `max_gap_s` apart: the
+/// gyro cannot tell that interval and the caller falls back to the images.
+std::optional<Eigen::Matrix3d> integrateGyro(std::span<const GyroSample> samples,
+                                             const ImuCalibration& imu,
+                                             const Eigen::Vector3d& bias, double t0, double t1,
+                                             double max_gap_s);
+
+}  // namespace omnipose
