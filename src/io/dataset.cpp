@@ -113,6 +113,7 @@ Dataset Dataset::open(const fs::path& root, const std::optional<fs::path>& calib
 
   const fs::path gt_path = root / "groundtruth.tum";
   if (fs::exists(fs::symlink_status(gt_path))) d.groundtruth = readTum(gt_path);
+  if (const fs::path imu = root / "imu.csv"; fs::exists(fs::symlink_status(imu))) d.gyro_file = imu;
   return d;
 }
 

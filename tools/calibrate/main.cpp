@@ -27,8 +27,10 @@
 #include "omnipose/image_decode.hpp"
 #include "omnipose/pipeline.hpp"
 #include "omnipose/calibrate/preview.hpp"
+#include "omnipose/calibrate/imu_estimation.hpp"
 #include "omnipose/calibrate/readout_estimation.hpp"
 #include "omnipose/io/dataset.hpp"
+#include "omnipose/io/gyro.hpp"
 #include "quiet_opencv.hpp"
 
 namespace {
@@ -41,6 +43,7 @@ constexpr const char* kUsage =
     "       omnipose-calibrate --propose-mask FRAMES... --out mask.png [--preview P.png]\n"
     "       omnipose-calibrate --checkerboard 9x6 --square 0.025 IMAGES... --out calibration.yaml\n"
     "       omnipose-calibrate --readout-from DATASET --out calibration.yaml\n"
+    "       omnipose-calibrate --imu-from DATASET --out calibration.yaml\n"
     "       omnipose-calibrate --from-ocamcalib calib_results.txt --out calibration.yaml\n"
     "                          [FRAMES...] [--radius-inner R --radius-outer R] [--direction D]\n"
     "                          [--forward-angle DEG] [--width W --height H --horizon-row V]";
@@ -195,56 +198,107 @@ omnipose::calibrate::ModelImport importOcamCalibFile(const fs::path& file,
   return omnipose::calibrate::importOcamCalib(file, modelImportOptions(given), frames);
 }
 
-/// --readout-from DATASET: the rolling-shutter readout from a recording of the robot turning
-/// in place at varying rates (readout_estimation.hpp); writes DATASET's calibration with
-/// sensor.readout_s to `out_yaml`. Of a long recording, the `max_frames` consecutive frames
-/// in its middle are decoded (the pairs must be consecutive), no others. Exit 0 written, 1
-/// not measurable or unreadable.
-int estimateReadoutOf(const fs::path& dataset_dir, const fs::path& out_yaml, std::size_t max_frames,
-                      bool quiet) {
-  const omnipose::Dataset dataset = omnipose::Dataset::open(dataset_dir);
-  if (!dataset.timestamps_from_file)
-    throw std::runtime_error((dataset_dir / "timestamps.txt").string() +
-                             ": missing; the readout is measured against the frame times");
-  for (const std::string& w : dataset.warnings) std::fprintf(stderr, "omnipose-calibrate: warning: %s\n", w.c_str());
+/// The frames of a recording (--readout-from, --imu-from) with their timestamps.
+struct Recording {
+  omnipose::Dataset dataset;
   std::vector<cv::Mat> frames;
   std::vector<double> times;
+};
+
+/// Opens DATASET, which must have timestamps.txt (`what` is measured against the frame
+/// times), and decodes the `max_frames` consecutive frames in its middle (the pairs must be
+/// consecutive), no others; a frame that cannot be read is skipped and said.
+Recording readRecording(const fs::path& dataset_dir, std::size_t max_frames, bool quiet,
+                        const char* what) {
+  Recording r{omnipose::Dataset::open(dataset_dir), {}, {}};
+  if (!r.dataset.timestamps_from_file)
+    throw std::runtime_error((dataset_dir / "timestamps.txt").string() + ": missing; " + what +
+                             " is measured against the frame times");
+  for (const std::string& w : r.dataset.warnings) std::fprintf(stderr, "omnipose-calibrate: warning: %s\n", w.c_str());
   const omnipose::OdometryOptions defaults;
-  const cv::Size size = omnipose::inputFrameSize(dataset.calibration, defaults.pipeline.unwrap.input);
-  const std::size_t first = omnipose::calibrate::centredRunStart(dataset.frames.size(), max_frames);
-  const std::size_t count = std::min(dataset.frames.size(), max_frames);
-  if (!quiet && count < dataset.frames.size())
+  const cv::Size size = omnipose::inputFrameSize(r.dataset.calibration, defaults.pipeline.unwrap.input);
+  const std::size_t first = omnipose::calibrate::centredRunStart(r.dataset.frames.size(), max_frames);
+  const std::size_t count = std::min(r.dataset.frames.size(), max_frames);
+  if (!quiet && count < r.dataset.frames.size())
     std::printf("omnipose-calibrate: using frames %zu to %zu of %zu (--max-frames %zu consecutive "
                 "ones in the middle)\n",
-                first, first + count - 1, dataset.frames.size(), max_frames);
-  frames.reserve(count);
-  times.reserve(count);
+                first, first + count - 1, r.dataset.frames.size(), max_frames);
+  r.frames.reserve(count);
+  r.times.reserve(count);
   for (std::size_t k = first; k < first + count; ++k) {
-    const omnipose::DatasetFrame& f = dataset.frames[k];
+    const omnipose::DatasetFrame& f = r.dataset.frames[k];
     auto image = omnipose::readFrame(f.path, size);
     if (!image) {
       if (!quiet) std::fprintf(stderr, "omnipose-calibrate: skipped %s\n", image.error().c_str());
       continue;
     }
-    frames.push_back(std::move(*image));
-    times.push_back(f.timestamp);
+    r.frames.push_back(std::move(*image));
+    r.times.push_back(f.timestamp);
   }
+  return r;
+}
+
+/// --readout-from DATASET: the rolling-shutter readout from a recording of the robot turning
+/// in place at varying rates (readout_estimation.hpp); writes DATASET's calibration with
+/// sensor.readout_s to `out_yaml`. Exit 0 written, 1 not measurable or unreadable.
+int estimateReadoutOf(const fs::path& dataset_dir, const fs::path& out_yaml, std::size_t max_frames,
+                      bool quiet) {
+  const Recording r = readRecording(dataset_dir, max_frames, quiet, "the readout");
   if (!quiet)
     std::printf("omnipose-calibrate: %zu frames of %s, readouts tried from -0.05 to 0.05 s\n",
-                frames.size(), dataset_dir.c_str());
+                r.frames.size(), dataset_dir.c_str());
   const omnipose::calibrate::ReadoutEstimate e =
-      omnipose::calibrate::estimateReadout(dataset.calibration, frames, times);
+      omnipose::calibrate::estimateReadout(r.dataset.calibration, r.frames, r.times);
   if (!quiet) {
-    for (const auto& [r, score] : e.curve) std::printf("  readout %+.4f s: score %.4g\n", r, score);
+    for (const auto& [readout, score] : e.curve) std::printf("  readout %+.4f s: score %.4g\n", readout, score);
   }
   if (!e.found) {
     std::fprintf(stderr, "omnipose-calibrate: %s\n", e.summary.c_str());
     return 1;
   }
-  omnipose::Calibration c = dataset.calibration;
+  omnipose::Calibration c = r.dataset.calibration;
   c.sensor.readout_s = e.readout_s;
   c.save(out_yaml);
   if (!quiet) std::printf("omnipose-calibrate: %s; wrote %s\n", e.summary.c_str(), out_yaml.c_str());
+  return 0;
+}
+
+/// --imu-from DATASET: the camera-gyro calibration (imu_estimation.hpp) from a recording of
+/// the robot turning about changing axes with its gyro in DATASET/imu.csv; writes DATASET's
+/// calibration with the imu section (its noise density kept) to `out_yaml` and prints the
+/// gyro's bias. Exit 0 written, 1 not measurable or unreadable.
+int estimateImuOf(const fs::path& dataset_dir, const fs::path& out_yaml, std::size_t max_frames,
+                  bool quiet) {
+  const Recording r = readRecording(dataset_dir, max_frames, quiet, "the gyro");
+  if (!r.dataset.gyro_file)
+    throw std::runtime_error((dataset_dir / "imu.csv").string() + ": missing; the gyro's recording is needed");
+  const omnipose::GyroRecording gyro = omnipose::readGyroCsv(*r.dataset.gyro_file);
+  const omnipose::calibrate::ImuSearchOptions options;
+  if (!quiet)
+    std::printf("omnipose-calibrate: %zu frames and %zu gyro samples (%.4g Hz) of %s, clock "
+                "offsets tried from %+.3f to %+.3f s\n",
+                r.frames.size(), gyro.samples.size(),
+                gyro.median_interval_s > 0.0 ? 1.0 / gyro.median_interval_s : 0.0, dataset_dir.c_str(),
+                -options.max_offset_s, options.max_offset_s);
+  const omnipose::calibrate::ImuEstimate e = omnipose::calibrate::estimateImuCalibration(
+      r.dataset.calibration, r.frames, r.times, gyro.samples, options);
+  if (!e.found) {
+    std::fprintf(stderr, "omnipose-calibrate: %s\n", e.summary.c_str());
+    return 1;
+  }
+  omnipose::Calibration c = r.dataset.calibration;
+  omnipose::ImuCalibration imu = e.imu;
+  if (c.imu) imu.gyro_noise_density = c.imu->gyro_noise_density;
+  c.imu = imu;
+  c.save(out_yaml);
+  if (!quiet) {
+    const Eigen::Quaterniond& q = e.imu.rotation;
+    std::printf("omnipose-calibrate: imu.rotation [%.6f, %.6f, %.6f, %.6f], imu.time_offset_s "
+                "%+.6f, gyro bias (%+.6f, %+.6f, %+.6f) rad/s (not written: the pipeline tracks "
+                "it)\n",
+                q.w(), q.x(), q.y(), q.z(), e.imu.time_offset_s, e.bias.x(), e.bias.y(), e.bias.z());
+    std::printf("omnipose-calibrate: %s; wrote %s\n", e.summary.c_str(), out_yaml.c_str());
+  }
   return 0;
 }
 
@@ -252,7 +306,7 @@ int estimateReadoutOf(const fs::path& dataset_dir, const fs::path& out_yaml, std
 struct Args {
   LensCalibratorOptions options;
   std::vector<std::string> inputs;
-  std::string out, preview, ocamcalib, readout, checkerboard;
+  std::string out, preview, ocamcalib, readout, imu, checkerboard;
   std::optional<double> square;
   bool quiet = false, propose_mask = false, no_replay = false;
   std::size_t max_frames = omnipose::calibrate::kDefaultMaxFrames;
@@ -417,7 +471,8 @@ void addModeOptions(CLI::App& app, Args& a) {
          "--max-frames", [&a](const std::string& v) { a.max_frames = parseMaxFrames(v); },
          "use at most N of the FRAMES (or checkerboard IMAGES), evenly spread over them in "
          "the given order (directories sorted by name), first and last included; with "
-         "--readout-from, the N consecutive frames in the middle of the recording; only those "
+         "--readout-from or --imu-from, the N consecutive frames in the middle of the recording; "
+         "only those "
          "are read (default " +
              std::to_string(omnipose::calibrate::kDefaultMaxFrames) + ", at most " +
              std::to_string(omnipose::calibrate::kMaxFramesLimit) + ")")
@@ -429,6 +484,14 @@ void addModeOptions(CLI::App& app, Args& a) {
                  "DATASET (calibration.yaml, frames/, timestamps.txt) of the robot turning in "
                  "place, speeding up and slowing down: measures the rolling shutter's "
                  "sensor.readout_s and writes that calibration with it to --out")
+      ->type_name("DATASET")
+      ->group(models);
+  app.add_option("--imu-from", a.imu,
+                 "DATASET (calibration.yaml, frames/, timestamps.txt, imu.csv) of the robot "
+                 "turning about changing axes, speeding up and slowing down: measures the "
+                 "gyro's mounting (imu.rotation) and clock offset (imu.time_offset_s), prints "
+                 "the gyro's bias, and writes that calibration with them to --out (the readout "
+                 "is the dataset's: measure it first with --readout-from)")
       ->type_name("DATASET")
       ->group(models);
   app.add_flag("--quiet", a.quiet, "print only errors")->group("Other");
@@ -446,14 +509,19 @@ void addOptions(CLI::App& app, Args& a) {
   addModeOptions(app, a);
 }
 
-/// --readout-from: the usage checks, then estimateReadoutOf().
-int runReadout(const omnipose::tools::Cli& cli, const Args& a) {
+/// --readout-from and --imu-from: the usage checks, then estimateReadoutOf() or
+/// estimateImuOf().
+int runRecording(const omnipose::tools::Cli& cli, const Args& a) {
+  const char* mode = a.readout.empty() ? "--imu-from" : "--readout-from";
+  if (!a.readout.empty() && !a.imu.empty())
+    return cli.usageError("give --readout-from or --imu-from, not both");
   if (a.out.empty()) return cli.usageError("--out FILE is required");
   if (!a.inputs.empty() || !a.ocamcalib.empty() || !a.checkerboard.empty() || a.propose_mask)
-    return cli.usageError("--readout-from takes no FRAMES and no other mode");
+    return cli.usageError(std::string(mode) + " takes no FRAMES and no other mode");
   if (const auto problem = outputProblem("--out", a.out); !problem.empty())
     return cli.usageError(problem);
-  return estimateReadoutOf(a.readout, a.out, a.max_frames, a.quiet);
+  return a.readout.empty() ? estimateImuOf(a.imu, a.out, a.max_frames, a.quiet)
+                           : estimateReadoutOf(a.readout, a.out, a.max_frames, a.quiet);
 }
 
 /// Frames: files as given, directories expanded (sorted by name).
@@ -543,7 +611,7 @@ int writeLensCalibration(const std::vector<cv::Mat>& frames, const LensCalibrato
   return 0;
 }
 
-/// Every mode but --readout-from: the usage checks (every file written is checked before a
+/// Every mode but --readout-from and --imu-from: the usage checks (every file written is checked before a
 /// frame is read), then the frames, then the mode's work.
 int runOnFrames(const omnipose::tools::Cli& cli, Args& a) {
   if (a.no_replay) a.options.replay = false;
@@ -600,6 +668,7 @@ int main(int argc, char** argv) {
   return omnipose::tools::runMain<Args>(
       argc, argv, {"omnipose-calibrate", kUsage, kDescription}, addOptions,
       [](omnipose::tools::Cli& cli, Args& args) {
-        return args.readout.empty() ? runOnFrames(cli, args) : runReadout(cli, args);
+        return args.readout.empty() && args.imu.empty() ? runOnFrames(cli, args)
+                                                        : runRecording(cli, args);
       });
 }

@@ -32,6 +32,8 @@ struct Dataset {
   Calibration calibration;
   std::vector<DatasetFrame> frames;
   std::optional<std::vector<StampedPose>> groundtruth;
+  /// DATASET/imu.csv when there is one (the robot's gyro; read it with readGyroCsv()).
+  std::optional<std::filesystem::path> gyro_file;
   /// false: no timestamps.txt, the frames were stamped i / kDefaultFps.
   bool timestamps_from_file = false;
   /// What timestamps.txt says that a user should know, each naming its line: a negative

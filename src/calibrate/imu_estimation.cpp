@@ -1,0 +1,258 @@
+#include "omnipose/calibrate/imu_estimation.hpp"
+
+#include <Eigen/Eigenvalues>
+#include <Eigen/SVD>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <numbers>
+#include <optional>
+#include <stdexcept>
+
+#include "common/format.hpp"
+#include "omnipose/so3.hpp"
+
+namespace omnipose::calibrate {
+namespace {
+
+constexpr int kMinPairs = 10;
+/// Alternations of mounting and bias per offset.
+constexpr int kAlternations = 4;
+
+/// `v` with `digits` decimals.
+std::string fixed(double v, int digits = 4) { return detail::format("%.*f", digits, v); }
+
+/// A consecutive pair's rotation as the images measured it.
+struct ImagePair {
+  double t0 = 0.0, t1 = 0.0;                       ///< the frames' timestamps, seconds
+  Eigen::Vector3d a = Eigen::Vector3d::Zero();     ///< rotation vector, camera axes
+};
+
+/// Every consecutive tracked pair of `frames`.
+std::vector<ImagePair> imagePairs(const Calibration& calibration, std::span<const cv::Mat> frames,
+                                  std::span<const double> times, const OdometryOptions& options) {
+  Odometry odometry(calibration, options);
+  std::vector<ImagePair> pairs;
+  for (std::size_t k = 0; k < frames.size(); ++k) {
+    const auto r = odometry.process(frames[k], {times[k]});
+    if (!r || r->state != TrackState::kTracked || r->reference_sequence != r->sequence - 1 ||
+        k == 0)
+      continue;
+    pairs.push_back({times[k - 1], times[k], r->relative.estimate.omega});
+  }
+  return pairs;
+}
+
+/// The mounting, bias and score at one clock offset.
+struct Fit {
+  Eigen::Matrix3d X = Eigen::Matrix3d::Identity();  ///< camera from IMU
+  Eigen::Vector3d bias = Eigen::Vector3d::Zero();
+  double score = 0.0;                               ///< mean squared residual, rad^2
+  std::vector<Eigen::Vector3d> g;                   ///< the pairs' gyro rotations (IMU axes)
+};
+
+/// The rotation X minimising sum |a_k - X g_k|^2 (Kabsch).
+Eigen::Matrix3d align(const std::vector<ImagePair>& pairs, const std::vector<Eigen::Vector3d>& g) {
+  Eigen::Matrix3d H = Eigen::Matrix3d::Zero();
+  for (std::size_t k = 0; k < pairs.size(); ++k) H += g[k] * pairs[k].a.transpose();
+  const Eigen::JacobiSVD<Eigen::Matrix3d> svd(H, Eigen::ComputeFullU | Eigen::ComputeFullV);
+  Eigen::Matrix3d D = Eigen::Matrix3d::Identity();
+  D(2, 2) = (svd.matrixV() * svd.matrixU().transpose()).determinant() < 0.0 ? -1.0 : 1.0;
+  return svd.matrixV() * D * svd.matrixU().transpose();
+}
+
+/// The fit at clock offset `offset`; nullopt when the samples do not cover every pair.
+std::optional<Fit> fitAt(const std::vector<ImagePair>& pairs, std::span<const GyroSample> samples,
+                         double offset, double max_gap_s) {
+  Fit fit;
+  ImuCalibration clock;
+  clock.time_offset_s = offset;
+  fit.g.resize(pairs.size());
+  for (int iteration = 0; iteration < kAlternations; ++iteration) {
+    for (std::size_t k = 0; k < pairs.size(); ++k) {
+      const auto R = integrateGyro(samples, clock, fit.bias, pairs[k].t0, pairs[k].t1, max_gap_s);
+      if (!R) return std::nullopt;
+      fit.g[k] = rotationVector(*R);
+    }
+    fit.X = align(pairs, fit.g);
+    // With the bias off by db, g_k is off by -db dt_k: the least-squares correction.
+    Eigen::Vector3d numerator = Eigen::Vector3d::Zero();
+    double denominator = 0.0;
+    for (std::size_t k = 0; k < pairs.size(); ++k) {
+      const double dt = pairs[k].t1 - pairs[k].t0;
+      numerator += dt * (fit.X.transpose() * pairs[k].a - fit.g[k]);
+      denominator += dt * dt;
+    }
+    fit.bias -= numerator / denominator;
+  }
+  for (std::size_t k = 0; k < pairs.size(); ++k) {
+    const auto R = integrateGyro(samples, clock, fit.bias, pairs[k].t0, pairs[k].t1, max_gap_s);
+    if (!R) return std::nullopt;
+    fit.g[k] = rotationVector(*R);
+  }
+  fit.score = 0.0;
+  for (std::size_t k = 0; k < pairs.size(); ++k)
+    fit.score += (pairs[k].a - fit.X * fit.g[k]).squaredNorm();
+  fit.score /= static_cast<double>(pairs.size());
+  return fit;
+}
+
+/// The pairs the samples cover at every offset of the search (with its margin).
+std::vector<ImagePair> coveredPairs(const std::vector<ImagePair>& pairs,
+                                    std::span<const GyroSample> samples, double max_offset) {
+  std::vector<ImagePair> covered;
+  if (samples.empty()) return covered;
+  for (const ImagePair& p : pairs)
+    if (p.t0 - max_offset - 0.01 >= samples.front().t && p.t1 + max_offset + 0.01 <= samples.back().t)
+      covered.push_back(p);
+  return covered;
+}
+
+/// The uncertainties of `fit`, with the score's curvature at its offset (per offset^2, of the
+/// mean) from the fine grid. Returns how much the recording turns about its weakest axis
+/// against its strongest (root of the ratio of the extreme eigenvalues of the information).
+double measureUncertainty(const std::vector<ImagePair>& pairs, const Fit& fit, double curvature,
+                          ImuEstimate& out) {
+  const double n = static_cast<double>(pairs.size());
+  const double sum = fit.score * n;
+  const double sigma2 = sum / std::max(1.0, 3.0 * n - 7.0);
+  Eigen::Matrix3d information = Eigen::Matrix3d::Zero();
+  double dt2 = 0.0;
+  for (std::size_t k = 0; k < pairs.size(); ++k) {
+    Eigen::Matrix3d G;
+    const Eigen::Vector3d& g = fit.g[k];
+    G << 0.0, -g.z(), g.y(), g.z(), 0.0, -g.x(), -g.y(), g.x(), 0.0;
+    information += G.transpose() * G;
+    dt2 += std::pow(pairs[k].t1 - pairs[k].t0, 2);
+  }
+  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eigen(information);
+  const double weakest = std::max(eigen.eigenvalues()(0), 1e-300);
+  out.rotation_sigma_deg = std::sqrt(sigma2 / weakest) * 180.0 / std::numbers::pi;
+  out.bias_sigma = Eigen::Vector3d::Constant(std::sqrt(sigma2 / dt2));
+  // sum(d) ~ sum_min + (n curvature / 2) (d - d_min)^2: var(d) = 2 sigma2 / (n curvature).
+  out.time_offset_sigma_s = curvature > 0.0 ? std::sqrt(2.0 * sigma2 / (n * curvature))
+                                            : std::numeric_limits<double>::infinity();
+  out.residual_rms_rad = std::sqrt(fit.score);
+  return std::sqrt(weakest / std::max(eigen.eigenvalues()(2), 1e-300));
+}
+
+}  // namespace
+
+std::vector<std::string> ImuSearchOptions::validate() const {
+  std::vector<std::string> p;
+  if (!(max_offset_s > 0.0 && max_offset_s <= ImuCalibration::kMaxTimeOffsetS))
+    p.push_back("max_offset_s: must be in (0, " + fixed(ImuCalibration::kMaxTimeOffsetS, 1) + "] s");
+  if (!(coarse_step_s > 0.0 && coarse_step_s <= max_offset_s))
+    p.push_back("coarse_step_s: must be in (0, max_offset_s]");
+  if (!(fine_step_s > 0.0 && fine_step_s <= coarse_step_s))
+    p.push_back("fine_step_s: must be in (0, coarse_step_s]");
+  if (!(max_rotation_sigma_deg > 0.0 && std::isfinite(max_rotation_sigma_deg)))
+    p.push_back("max_rotation_sigma_deg: must be a finite number > 0");
+  if (!(max_offset_sigma_s > 0.0 && std::isfinite(max_offset_sigma_s)))
+    p.push_back("max_offset_sigma_s: must be a finite number > 0");
+  if (!(max_gap_s > 0.0 && std::isfinite(max_gap_s)))
+    p.push_back("max_gap_s: must be a finite number > 0");
+  for (const auto& q : odometry.validate()) p.push_back("odometry." + q);
+  return p;
+}
+
+ImuEstimate estimateImuCalibration(const Calibration& calibration, std::span<const cv::Mat> frames,
+                                   std::span<const double> times_s,
+                                   std::span<const GyroSample> samples,
+                                   const ImuSearchOptions& options) {
+  if (const auto problems = options.validate(); !problems.empty()) {
+    std::string what = "estimateImuCalibration: invalid options:";
+    for (const auto& p : problems) what += "\n  " + p;
+    throw std::invalid_argument(what);
+  }
+  if (frames.size() != times_s.size())
+    throw std::invalid_argument("estimateImuCalibration: " + std::to_string(frames.size()) +
+                                " frames but " + std::to_string(times_s.size()) + " times");
+  ImuEstimate out;
+  const std::vector<ImagePair> tracked = imagePairs(calibration, frames, times_s, options.odometry);
+  const std::vector<ImagePair> pairs = coveredPairs(tracked, samples, options.max_offset_s);
+  out.pairs = static_cast<int>(pairs.size());
+  if (out.pairs < kMinPairs) {
+    out.summary = "cannot: " + std::to_string(tracked.size()) + " consecutive frame pairs tracked, " +
+                  std::to_string(pairs.size()) + " of them inside the gyro's recording (+-" +
+                  fixed(options.max_offset_s, 3) + " s), at least " + std::to_string(kMinPairs) +
+                  " needed";
+    return out;
+  }
+  const auto score = [&](double offset) -> std::optional<Fit> {
+    auto fit = fitAt(pairs, samples, offset, options.max_gap_s);
+    if (fit) out.curve.emplace_back(offset, fit->score);
+    return fit;
+  };
+  const auto best = [&] {
+    return *std::min_element(out.curve.begin(), out.curve.end(),
+                             [](const auto& a, const auto& b) { return a.second < b.second; });
+  };
+  const int half = static_cast<int>(std::floor(options.max_offset_s / options.coarse_step_s + 1e-9));
+  for (int i = -half; i <= half; ++i) score(i * options.coarse_step_s);
+  if (out.curve.size() < 3) {
+    out.summary = "cannot: the gyro's recording has gaps longer than " + fixed(options.max_gap_s, 3) +
+                  " s inside the frames' pairs";
+    return out;
+  }
+  const double coarse_best = best().first;
+  if (std::abs(coarse_best) >= half * options.coarse_step_s - 1e-9) {
+    out.summary = "cannot: the best clock offset is at the end of the range tried (" +
+                  fixed(coarse_best) + " s of +-" + fixed(options.max_offset_s) + " s)";
+    return out;
+  }
+  // The fine grid, then the vertex of the parabola through the best and its neighbours.
+  const int steps = static_cast<int>(std::round(options.coarse_step_s / options.fine_step_s));
+  std::vector<std::pair<double, double>> fine;
+  for (int i = -steps; i <= steps; ++i) {
+    const double d = coarse_best + i * options.fine_step_s;
+    if (const auto fit = score(d)) fine.emplace_back(d, fit->score);
+  }
+  const auto lowest = std::min_element(fine.begin(), fine.end(),
+                                       [](const auto& a, const auto& b) { return a.second < b.second; });
+  double offset = lowest->first, curvature = 0.0;
+  if (lowest != fine.begin() && lowest + 1 != fine.end()) {
+    const double h = options.fine_step_s;
+    const double s0 = (lowest - 1)->second, s1 = lowest->second, s2 = (lowest + 1)->second;
+    curvature = (s0 - 2.0 * s1 + s2) / (h * h);
+    if (curvature > 0.0) offset += 0.5 * h * (s0 - s2) / (s0 - 2.0 * s1 + s2);
+  }
+  const auto fit = fitAt(pairs, samples, offset, options.max_gap_s);
+  if (!fit) {
+    out.summary = "cannot: the gyro's recording does not cover the pairs at offset " + fixed(offset) + " s";
+    return out;
+  }
+  const double axis_ratio = measureUncertainty(pairs, *fit, curvature, out);
+  out.imu.rotation = Eigen::Quaterniond(fit->X).normalized();
+  out.imu.time_offset_s = offset;
+  out.bias = fit->bias;
+  char text[256];
+  std::snprintf(text, sizeof(text),
+                "%d pairs; rotation +-%.3f deg, time offset %+.5f s +-%.5f, bias (%+.5f, %+.5f, "
+                "%+.5f) rad/s +-%.5f; residual %.3g rad per pair",
+                out.pairs, out.rotation_sigma_deg, out.imu.time_offset_s, out.time_offset_sigma_s,
+                out.bias.x(), out.bias.y(), out.bias.z(), out.bias_sigma.x(), out.residual_rms_rad);
+  // Why an estimate is uncertain: too little turn about some axis, or images and gyro that
+  // disagree (a wrong readout or mounting of the frames' timestamps, motion the frames blur).
+  char why[256];
+  std::snprintf(why, sizeof(why),
+                "its weakest axis turns %.3g of its strongest (turn about at least two axes); the "
+                "images and the gyro differ by %.3g rad per pair (a rolling shutter's readout "
+                "wrong, or motion the frames cannot follow)",
+                axis_ratio, out.residual_rms_rad);
+  if (!(out.rotation_sigma_deg <= options.max_rotation_sigma_deg)) {
+    out.summary = std::string("cannot: the mounting is not determined (") + text + "); " + why;
+    return out;
+  }
+  if (!(out.time_offset_sigma_s <= options.max_offset_sigma_s)) {
+    out.summary = std::string("cannot: the clock offset is not determined (") + text +
+                  "): the recording must change its rate of turn; " + why;
+    return out;
+  }
+  out.found = true;
+  out.summary = text;
+  return out;
+}
+
+}  // namespace omnipose::calibrate
