@@ -13,6 +13,10 @@ namespace omnipose {
 
 struct ImuCalibration;
 
+/// A rate larger than this about any axis is not a measurement, rad/s (MEMS gyros measure at
+/// most 2000-4000 deg/s, 35-70 rad/s).
+inline constexpr double kMaxGyroRate = 100.0;
+
 /// One gyro sample.
 struct GyroSample {
   double t = 0.0;                                  ///< seconds, on the IMU's clock

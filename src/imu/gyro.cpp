@@ -10,11 +10,11 @@ namespace omnipose {
 namespace {
 
 /// The rate at IMU time t of the cubic through the samples around piece [a, a + 1] (the
-/// Lagrange polynomial through samples a - 1 .. a + 2; at the recording's ends the quadratic
-/// or the line through those there are).
-Eigen::Vector3d rateAt(std::span<const GyroSample> s, std::size_t a, double t) {
-  const std::size_t first = a > 0 ? a - 1 : a;
-  const std::size_t last = std::min(a + 2, s.size() - 1);
+/// Lagrange polynomial through samples a - 1 .. a + 2; the quadratic or the line where the
+/// recording ends or a neighbour lies beyond a gap longer than max_gap_s).
+Eigen::Vector3d rateAt(std::span<const GyroSample> s, std::size_t a, double t, double max_gap_s) {
+  const std::size_t first = a > 0 && s[a].t - s[a - 1].t <= max_gap_s ? a - 1 : a;
+  const std::size_t last = a + 2 < s.size() && s[a + 2].t - s[a + 1].t <= max_gap_s ? a + 2 : a + 1;
   Eigen::Vector3d rate = Eigen::Vector3d::Zero();
   for (std::size_t i = first; i <= last; ++i) {
     double weight = 1.0;
@@ -56,8 +56,8 @@ std::optional<Eigen::Matrix3d> integrateGyro(std::span<const GyroSample> samples
     if (samples[a + 1].t - samples[a].t > max_gap_s) return std::nullopt;
     const double next = std::min(end, samples[a + 1].t);
     const double h = next - t, middle = 0.5 * (t + next);
-    const Eigen::Vector3d w1 = rateAt(samples, a, middle - gauss * h) - bias;
-    const Eigen::Vector3d w2 = rateAt(samples, a, middle + gauss * h) - bias;
+    const Eigen::Vector3d w1 = rateAt(samples, a, middle - gauss * h, max_gap_s) - bias;
+    const Eigen::Vector3d w2 = rateAt(samples, a, middle + gauss * h, max_gap_s) - bias;
     // Fourth-order Magnus step: the mean rate, and the coning term of a turning axis.
     const Eigen::Vector3d turn = 0.5 * h * (w1 + w2) + (std::sqrt(3.0) / 12.0) * h * h * w1.cross(w2);
     R = R * rotationFromVector(camera_from_imu * turn);

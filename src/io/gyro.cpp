@@ -77,6 +77,10 @@ GyroRecording parseGyroCsv(std::string_view text, const std::string& origin) {
         throw std::runtime_error(where() + std::string(kColumns[c]) + ": '" +
                                  detail::shown(field) + "' is not a finite decimal number");
       v[c] = *x;
+      if (c > 0 && !(std::abs(v[c]) <= kMaxGyroRate))
+        throw std::runtime_error(where() + std::string(kColumns[c]) + ": " +
+                                 detail::format("%.9g", v[c]) + " rad/s is beyond any gyro's range (" +
+                                 detail::format("%g", kMaxGyroRate) + " rad/s)");
     }
     if (!r.samples.empty() && !(v[0] > r.samples.back().t))
       throw std::runtime_error(where() + detail::format("t %.9g s is not after the sample before "

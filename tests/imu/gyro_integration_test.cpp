@@ -123,6 +123,13 @@ TEST(IntegrateGyro, AnIntervalTheSamplesDoNotCoverOrThatHasAGapIsRefused) {
   EXPECT_TRUE(integrateGyro(gappy, imu, zero, 1.0, 1.28, 0.05).has_value());
   EXPECT_TRUE(integrateGyro(gappy, imu, zero, 1.62, 2.0, 0.05).has_value());
   EXPECT_TRUE(integrateGyro(gappy, imu, zero, 1.2, 1.7, 0.5).has_value());  // a longer gap allowed
+  // A sample beyond a gap does not bend the rate before it: up to the gap the camera turns
+  // at the rate of the samples there, however different the one after the gap.
+  std::vector<GyroSample> jump = constantRate(Eigen::Vector3d(0, 0, 1), 0.0, 0.01, 101);  // 0 .. 1 s
+  jump.push_back({2.0, Eigen::Vector3d(50, -50, 50)});
+  const auto R = integrateGyro(jump, imu, zero, 0.5, 1.0, 0.05);
+  ASSERT_TRUE(R.has_value());
+  EXPECT_LT(angleBetween(*R, rotationFromVector(Eigen::Vector3d(0, 0, 0.5))), 1e-12);
 }
 
 }  // namespace

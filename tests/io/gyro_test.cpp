@@ -86,6 +86,9 @@ TEST(GyroCsv, EveryMalformedInputIsRefusedByFileLineAndWhat) {
   EXPECT_THAT(errorOf(header + "1,0,0,1e999\n"), HasSubstr("imu.csv:2: wz: '1e999' is not"));
   EXPECT_THAT(errorOf(header + "0x1p3,0,0,0\n"), HasSubstr("imu.csv:2: t: '0x1p3' is not"));
   EXPECT_THAT(errorOf(header + "1,,0,0\n"), HasSubstr("imu.csv:2: wx: '' is not"));
+  EXPECT_THAT(errorOf(header + "1,0,-250,0\n"),
+              HasSubstr("imu.csv:2: wy: -250 rad/s is beyond any gyro's range (100 rad/s)"));
+  EXPECT_EQ(errorOf(header + "1,100,-100,0\n"), "") << "the range's ends are readings";
   EXPECT_THAT(errorOf(header + "1,0,0,0\n# a comment\n0.5,0,0,0\n"),
               HasSubstr("imu.csv:4: t 0.5 s is not after the sample before it (1 s): samples "
                         "out of order or given twice"));
