@@ -1,8 +1,11 @@
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <limits>
 #include <numbers>
 #include <span>
+#include <stdexcept>
+#include <string>
 
 #include "omnipose/so3.hpp"
 #include "omnipose/synth/renderer.hpp"
@@ -283,12 +286,64 @@ SmoothState smoothStateAt(std::span<const StampedPose> trajectory, double t) {
   return state;
 }
 
+/// The cumulative cubic B-spline of Interpolation::kSpline at time t: its pose and its body
+/// rate. Requires at least two samples at uniform spacing.
+struct SplineState {
+  Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
+  Eigen::Vector3d rate = Eigen::Vector3d::Zero();
+};
+
+SplineState splineStateAt(std::span<const StampedPose> trajectory, double t) {
+  const std::size_t n = trajectory.size();
+  const double h = (trajectory.back().timestamp - trajectory.front().timestamp) / static_cast<double>(n - 1);
+  for (std::size_t k = 1; k < n; ++k)
+    if (std::abs(trajectory[k].timestamp - trajectory[k - 1].timestamp - h) > 1e-9 * (1.0 + h))
+      throw std::invalid_argument("poseAtTime: a spline needs samples at uniform times (sample " +
+                                  std::to_string(k) + " is not)");
+  // Segment i spans [t_i, t_i+1] (the last segment continued beyond the ends), u its fraction.
+  const double x = (t - trajectory.front().timestamp) / h;
+  const auto i = static_cast<std::ptrdiff_t>(std::clamp(std::floor(x), 0.0, static_cast<double>(n - 2)));
+  const double u = x - static_cast<double>(i);
+  // Control pose j (j = -1 and n: the end step continued at constant velocity).
+  const auto control = [&](std::ptrdiff_t j) -> Eigen::Isometry3d {
+    if (j < 0) return poseBetween(trajectory[0].pose, trajectory[1].pose, static_cast<double>(j));
+    if (j >= static_cast<std::ptrdiff_t>(n))
+      return poseBetween(trajectory[n - 2].pose, trajectory[n - 1].pose, static_cast<double>(j - static_cast<std::ptrdiff_t>(n) + 2));
+    return trajectory[static_cast<std::size_t>(j)].pose;
+  };
+  const std::array<Eigen::Isometry3d, 4> c = {control(i - 1), control(i), control(i + 1), control(i + 2)};
+  // Cumulative basis functions of the uniform cubic B-spline and their derivatives (per u).
+  const double u2 = u * u, u3 = u2 * u;
+  const std::array<double, 3> b = {(5 + 3 * u - 3 * u2 + u3) / 6, (1 + 3 * u + 3 * u2 - 2 * u3) / 6, u3 / 6};
+  const std::array<double, 3> db = {(3 - 6 * u + 3 * u2) / 6, (3 + 6 * u - 6 * u2) / 6, 3 * u2 / 6};
+  SplineState state;
+  Eigen::Matrix3d R = c[0].linear();
+  Eigen::Vector3d p = c[0].translation();
+  std::array<Eigen::Matrix3d, 3> A;
+  std::array<Eigen::Vector3d, 3> omega;
+  for (std::size_t j = 0; j < 3; ++j) {
+    omega[j] = rotationVector(c[j].linear().transpose() * c[j + 1].linear());
+    A[j] = rotationFromVector(b[j] * omega[j]);
+    R = R * A[j];
+    p += b[j] * (c[j + 1].translation() - c[j].translation());
+  }
+  state.pose.linear() = R;
+  state.pose.translation() = p;
+  // R = c0 A0 A1 A2, dA_j/dt = A_j [db_j omega_j / h]x: the body rate is each term carried
+  // through the factors after it.
+  state.rate = (A[2].transpose() * (A[1].transpose() * (db[0] * omega[0]) + db[1] * omega[1]) +
+                db[2] * omega[2]) /
+               h;
+  return state;
+}
+
 }  // namespace
 
 Eigen::Isometry3d poseAtTime(std::span<const StampedPose> trajectory, double t,
                              Interpolation interpolation) {
   if (interpolation == Interpolation::kConstantVelocity || trajectory.size() < 2)
     return poseAtTime(trajectory, t);
+  if (interpolation == Interpolation::kSpline) return splineStateAt(trajectory, t).pose;
   const SmoothState state = smoothStateAt(trajectory, t);
   Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
   T.linear() = state.a->pose.linear() * rotationFromVector(state.x.head<3>());
@@ -304,6 +359,7 @@ Eigen::Vector3d angularVelocityAtTime(std::span<const StampedPose> trajectory, d
     const SmoothState state = smoothStateAt(trajectory, t);
     return rightJacobian(state.x.head<3>()) * state.rate.head<3>();
   }
+  if (interpolation == Interpolation::kSpline) return splineStateAt(trajectory, t).rate;
   // Constant velocity: R(t) = R_a exp(s log(R_a^T R_b)), s = (t - t_a) / h, turns at
   // log(R_a^T R_b) / h about its own axes.
   std::size_t k = 0;

@@ -106,6 +106,81 @@ TEST(SynthGyro, IntegratedWithItsCalibrationItGivesBackEveryFramePairsRotation) 
   EXPECT_GT(worst_unrotated, 0.01);
 }
 
+TEST(SynthGyro, TheSplineMovesWithContinuousVelocityAndAcceleration) {
+  const auto trajectory = shakyTrajectory();
+  const auto rate = [&](double t, Interpolation i) { return angularVelocityAtTime(trajectory, t, i); };
+  // Its rate is the derivative of its pose.
+  for (double t = 0.0; t < trajectory.back().timestamp; t += 0.0037) {
+    const Eigen::Vector3d exact = rate(t, Interpolation::kSpline);
+    EXPECT_LT((exact - numericRate(trajectory, t, Interpolation::kSpline)).norm(), 1e-6 * (1.0 + exact.norm()))
+        << "t " << t;
+  }
+  // At every frame the rate and its derivative are the same on either side; the smooth
+  // interpolation's derivative jumps there.
+  const double e = 1e-5;
+  double smooth_jump = 0.0;
+  for (std::size_t k = 1; k + 1 < trajectory.size(); ++k) {
+    const double t = trajectory[k].timestamp;
+    for (const Interpolation i : {Interpolation::kSpline, Interpolation::kSmooth}) {
+      const Eigen::Vector3d before = (rate(t - e, i) - rate(t - 2 * e, i)) / e;
+      const Eigen::Vector3d after = (rate(t + 2 * e, i) - rate(t + e, i)) / e;
+      const Eigen::Vector3d jerk_scale = (rate(t + 2 * e, i) - 2 * rate(t, i) + rate(t - 2 * e, i)) / (e * e);
+      if (i == Interpolation::kSpline) {
+        EXPECT_LT((after - before).norm(), 5 * e * (1.0 + jerk_scale.norm())) << "frame " << k;
+        EXPECT_LT((rate(t + 1e-9, i) - rate(t - 1e-9, i)).norm(), 1e-6 * (1.0 + before.norm())) << "frame " << k;
+      } else {
+        smooth_jump = std::max(smooth_jump, (after - before).norm());
+      }
+    }
+  }
+  EXPECT_GT(smooth_jump, 10.0) << "rad/s^2";
+  // A constant velocity is reproduced exactly; samples at uneven times are refused.
+  std::vector<StampedPose> steady;
+  for (int k = 0; k < 6; ++k) {
+    Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
+    pose.linear() = rotationFromVector(Eigen::Vector3d(0.3, -0.1, 0.5) * k / 30.0);
+    pose.translation() = Eigen::Vector3d(0.02, 0.0, -0.01) * k;
+    steady.push_back({k / 30.0, pose});
+  }
+  for (double t = -0.01; t < 0.18; t += 0.013) {
+    EXPECT_TRUE(poseAtTime(steady, t, Interpolation::kSpline).isApprox(poseAtTime(steady, t), 1e-12)) << t;
+    EXPECT_TRUE(angularVelocityAtTime(steady, t, Interpolation::kSpline).isApprox(Eigen::Vector3d(0.3, -0.1, 0.5), 1e-12));
+  }
+  steady[3].timestamp += 0.001;
+  EXPECT_THROW(poseAtTime(steady, 0.05, Interpolation::kSpline), std::invalid_argument);
+}
+
+// On the spline the integration converges at the third order (its jerk still changes at every
+// frame), against the second on the smooth interpolation (whose acceleration does).
+TEST(SynthGyro, OnTheSplineTheIntegratedGyroConvergesAtTheThirdOrder) {
+  const auto trajectory = shakyTrajectory();
+  std::vector<double> worst;
+  for (const double rate_hz : {250.0, 500.0, 1000.0}) {
+    GyroSimulation gyro;
+    gyro.rate_hz = rate_hz;
+    gyro.noise_density = 0.0;
+    gyro.bias = 0.0;
+    const GyroRecording r =
+        simulateGyro(trajectory, Interpolation::kSpline, gyro, -0.05, trajectory.back().timestamp + 0.05);
+    double w = 0.0;
+    for (std::size_t k = 0; k + 1 < trajectory.size(); ++k) {
+      const double t0 = trajectory[k].timestamp, t1 = trajectory[k + 1].timestamp;
+      const Eigen::Matrix3d truth = poseAtTime(trajectory, t0, Interpolation::kSpline).linear().transpose() *
+                                    poseAtTime(trajectory, t1, Interpolation::kSpline).linear();
+      const auto R = integrateGyro(r.samples, ImuCalibration{}, Eigen::Vector3d::Zero(), t0, t1, 0.01);
+      ASSERT_TRUE(R.has_value());
+      w = std::max(w, rotationVector(truth.transpose() * *R).norm());
+    }
+    worst.push_back(w);
+  }
+  ::testing::Test::RecordProperty("worst_rad_250_500_1000_hz", std::to_string(worst[0]) + " " +
+                                                                   std::to_string(worst[1]) + " " +
+                                                                   std::to_string(worst[2]));
+  EXPECT_LT(worst[0], 1e-4) << "rad per frame pair at 250 Hz";
+  EXPECT_GT(worst[0] / worst[1], 6.0) << worst[0] << " " << worst[1];
+  EXPECT_GT(worst[1] / worst[2], 6.0) << worst[1] << " " << worst[2];
+}
+
 TEST(SynthGyro, NoiseBiasAndBiasWalkHaveTheirStatistics) {
   // Standing still: every sample is bias + noise.
   const std::vector<StampedPose> still = {{0.0, Eigen::Isometry3d::Identity()},

@@ -193,40 +193,42 @@ TEST(ProgramCliChecks, SemanticMistakesExitTwo) {
 // back each frame pair's rotation of groundtruth.tum.
 TEST(SynthCli, WritesTheGyroOfTheRenderedMotionAndItsCalibration) {
   const fs::path dir = fs::temp_directory_path() / ("omnipose-synth-gyro-" + std::to_string(::getpid()));
-  fs::remove_all(dir);
   const fs::path photo = fs::path(OMNIPOSE_SOURCE_DIR) / "tests/data/equirect/indoor_1024x512.jpg";
-  const Outcome r = run("omnipose-synth",
-                        {"--texture", photo.string(), "--out", dir.string(), "--preset", "mixed", "--frames", "6",
-                         "--output", "panorama", "--supersample", "1", "--readout", "0.02", "--gyro-rate", "1000",
-                         "--gyro-noise", "0", "--gyro-bias", "0", "--gyro-time-offset", "-0.003",
-                         "--gyro-rotation", "0,0.6,0,0.8", "--quiet"});
-  ASSERT_EQ(r.exit_code, 0) << r.out << r.err;
-  EXPECT_THAT(r.out, HasSubstr("gyro 1000 Hz in imu.csv"));
-  const omnipose::Calibration calibration = omnipose::Calibration::load(dir / "calibration.yaml");
-  ASSERT_TRUE(calibration.imu.has_value());
-  EXPECT_DOUBLE_EQ(calibration.imu->time_offset_s, -0.003);
-  EXPECT_TRUE(calibration.imu->rotation.isApprox(Eigen::Quaterniond(0, 0.6, 0, 0.8), 1e-15));
-  EXPECT_FALSE(calibration.imu->gyro_noise_density.has_value()) << "no noise: no density";
-  const omnipose::GyroRecording gyro = omnipose::readGyroCsv(dir / "imu.csv");
-  EXPECT_NEAR(gyro.median_interval_s, 0.001, 1e-9);
-  const auto truth = omnipose::readTum(dir / "groundtruth.tum");
-  ASSERT_EQ(truth.size(), 6u);
-  // The samples cover every row of every frame (the last frame's rows end 20 ms after it).
-  EXPECT_LE(gyro.samples.front().t + calibration.imu->time_offset_s, truth.front().timestamp - 0.09);
-  EXPECT_GE(gyro.samples.back().t + calibration.imu->time_offset_s, truth.back().timestamp + 0.02 + 0.09);
-  for (std::size_t k = 0; k + 1 < truth.size(); ++k) {
-    const auto R = omnipose::integrateGyro(gyro.samples, *calibration.imu, Eigen::Vector3d::Zero(),
-                                           truth[k].timestamp, truth[k + 1].timestamp, 0.01);
-    ASSERT_TRUE(R.has_value()) << "pair " << k;
-    const Eigen::Matrix3d pair = truth[k].pose.linear().transpose() * truth[k + 1].pose.linear();
-    EXPECT_LT(omnipose::rotationVector(pair.transpose() * *R).norm(), 2e-5) << "pair " << k;
+  // Between frames: the smooth interpolation through the script's poses, and the spline whose
+  // poses at the frames (groundtruth.tum) are its own.
+  for (const std::string between : {"smooth", "spline"}) {
+    SCOPED_TRACE(between);
+    fs::remove_all(dir);
+    const Outcome r = run("omnipose-synth",
+                          {"--texture", photo.string(), "--out", dir.string(), "--preset", "mixed", "--frames", "6",
+                           "--output", "panorama", "--supersample", "1", "--readout", "0.02", "--gyro-rate", "1000",
+                           "--gyro-noise", "0", "--gyro-bias", "0", "--gyro-time-offset", "-0.003",
+                           "--gyro-rotation", "0,0.6,0,0.8", "--between-frames", between, "--quiet"});
+    ASSERT_EQ(r.exit_code, 0) << r.out << r.err;
+    EXPECT_THAT(r.out, HasSubstr("gyro 1000 Hz in imu.csv"));
+    const omnipose::Calibration calibration = omnipose::Calibration::load(dir / "calibration.yaml");
+    ASSERT_TRUE(calibration.imu.has_value());
+    EXPECT_DOUBLE_EQ(calibration.imu->time_offset_s, -0.003);
+    EXPECT_TRUE(calibration.imu->rotation.isApprox(Eigen::Quaterniond(0, 0.6, 0, 0.8), 1e-15));
+    EXPECT_FALSE(calibration.imu->gyro_noise_density.has_value()) << "no noise: no density";
+    const omnipose::GyroRecording gyro = omnipose::readGyroCsv(dir / "imu.csv");
+    EXPECT_NEAR(gyro.median_interval_s, 0.001, 1e-9);
+    const auto truth = omnipose::readTum(dir / "groundtruth.tum");
+    ASSERT_EQ(truth.size(), 6u);
+    // The samples cover every row of every frame (the last frame's rows end 20 ms after it).
+    EXPECT_LE(gyro.samples.front().t + calibration.imu->time_offset_s, truth.front().timestamp - 0.09);
+    EXPECT_GE(gyro.samples.back().t + calibration.imu->time_offset_s, truth.back().timestamp + 0.02 + 0.09);
+    for (std::size_t k = 0; k + 1 < truth.size(); ++k) {
+      const auto R = omnipose::integrateGyro(gyro.samples, *calibration.imu, Eigen::Vector3d::Zero(),
+                                             truth[k].timestamp, truth[k + 1].timestamp, 0.01);
+      ASSERT_TRUE(R.has_value()) << "pair " << k;
+      const Eigen::Matrix3d pair = truth[k].pose.linear().transpose() * truth[k + 1].pose.linear();
+      EXPECT_LT(omnipose::rotationVector(pair.transpose() * *R).norm(), 2e-5) << "pair " << k;
+    }
   }
   fs::remove_all(dir);
 }
 
-// omnipose-equirect on the real office mirror image with its OCamCalib file: the texture is
-// written, the ring's elevations printed (the file's polynomial: -40.5..27.1 deg); an image
-// of the wrong size is an error naming the file (exit 1), nothing written.
 TEST(EquirectCli, WritesTheTextureOfARealMirrorImage) {
   const fs::path dir = fs::temp_directory_path() / ("omnipose-equirect-test-" + std::to_string(::getpid()));
   fs::create_directories(dir);

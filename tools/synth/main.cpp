@@ -155,16 +155,19 @@ void addEffectOptions(CLI::App& app, Args& a, Raw& raw) {
                  "calibration.yaml records it")
       ->type_name("S");
   app.add_option("--between-frames", a.between_frames,
-                 "the motion between frames that rolling-shutter rows and motion blur see: "
-                 "smooth (velocity continuous through the frames' poses, as a vehicle's; "
-                 "default) or constant (constant velocity from one frame's pose to the next, "
-                 "the velocity jumping at each frame)")
+                 "the motion between frames that rolling-shutter rows, motion blur and the gyro "
+                 "see: smooth (velocity continuous through the frames' poses, as a vehicle's; "
+                 "default), constant (constant velocity from one frame's pose to the next, the "
+                 "velocity jumping at each frame) or spline (velocity and acceleration "
+                 "continuous: a cubic B-spline with the script's poses as its control poses; "
+                 "the frames' poses and groundtruth.tum are the spline's)")
       ->transform(CLI::CheckedTransformer(
           std::map<std::string, synth::Interpolation>{
               {"smooth", synth::Interpolation::kSmooth},
-              {"constant", synth::Interpolation::kConstantVelocity}},
+              {"constant", synth::Interpolation::kConstantVelocity},
+              {"spline", synth::Interpolation::kSpline}},
           CLI::ignore_case))
-      ->type_name("smooth|constant");
+      ->type_name("smooth|constant|spline");
   app.add_option("--exposure-time", a.exposure_time,
                  "motion blur: each row exposed for S seconds centred on its capture time (the "
                  "mean of sub-exposures along the motion between frames, and of the walkers' "
@@ -411,8 +414,10 @@ struct SampleRange {
   int fewest = 0, most = 0;
 };
 
-/// Renders, degrades and writes every frame, with a progress line.
+/// Renders, degrades and writes every frame, with a progress line: frame k at poses[k], its
+/// rows and sub-exposures along the motion through `control` (the script's poses).
 SampleRange renderFrames(const Args& a, const synth::Renderer& renderer,
+                         const std::vector<StampedPose>& control,
                          const std::vector<StampedPose>& poses, double readout,
                          const synth::DegradeOptions& degrade, const cv::Mat& vignette,
                          const Calibration& calibration, synth::DatasetWriter& writer) {
@@ -421,7 +426,7 @@ SampleRange renderFrames(const Args& a, const synth::Renderer& renderer,
   for (std::size_t k = 0; k < poses.size(); ++k) {
     const double stamp = poses[k].timestamp;
     const auto pose_at = [&](double t) {
-      return synth::poseAtTime(poses, stamp + t, a.between_frames);
+      return synth::poseAtTime(control, stamp + t, a.between_frames);
     };
     cv::Mat image;
     if (readout == 0.0 && a.exposure_time == 0.0) {
@@ -449,16 +454,27 @@ SampleRange renderFrames(const Args& a, const synth::Renderer& renderer,
   return samples;
 }
 
-/// The gyro's samples over every row of every frame, from kGyroMarginS before the first
-/// frame's earliest row to kGyroMarginS after the last frame's latest.
+/// The frames' poses of a motion through `control` (the script's poses): those, or with
+/// --between-frames spline the spline's at the frames' times.
+std::vector<StampedPose> framePoses(const std::vector<StampedPose>& control,
+                                    synth::Interpolation between_frames) {
+  std::vector<StampedPose> poses = control;
+  if (between_frames == synth::Interpolation::kSpline)
+    for (StampedPose& p : poses) p.pose = synth::poseAtTime(control, p.timestamp, between_frames);
+  return poses;
+}
+
+/// The gyro's samples over every row of every frame (the motion through `control`, the
+/// script's poses), from kGyroMarginS before the first frame's earliest row to kGyroMarginS
+/// after the last frame's latest.
 GyroRecording gyroSamples(synth::GyroSimulation gyro, std::uint64_t seed,
-                          const std::vector<StampedPose>& poses, const Args& a, double readout) {
+                          const std::vector<StampedPose>& control, const Args& a, double readout) {
   constexpr double kGyroMarginS = 0.1;
   gyro.seed = seed;
-  const double first = poses.front().timestamp - 0.5 * a.exposure_time - kGyroMarginS;
-  const double last = poses.back().timestamp + std::abs(readout) + 0.5 * a.exposure_time +
+  const double first = control.front().timestamp - 0.5 * a.exposure_time - kGyroMarginS;
+  const double last = control.back().timestamp + std::abs(readout) + 0.5 * a.exposure_time +
                       kGyroMarginS;
-  return synth::simulateGyro(poses, a.between_frames, gyro, first, last);
+  return synth::simulateGyro(control, a.between_frames, gyro, first, last);
 }
 
 /// The summary line's list of what the frames show beyond the motion (", vibration ...").
@@ -562,6 +578,7 @@ int run(const Args& a) {
   } catch (const std::invalid_argument& e) {  // e.g. --frames too few for the vibration's band
     throw std::runtime_error(motion_name + ": " + e.what());
   }
+  const std::vector<StampedPose> control = std::exchange(poses, framePoses(poses, a.between_frames));
 
   const synth::Renderer renderer(scene, calibration, {a.output, a.supersample});
   synth::DegradeOptions degrade{.noise_sigma = a.noise,
@@ -591,11 +608,11 @@ int run(const Args& a) {
                                                                : std::nullopt};
   }
   synth::DatasetWriter writer(a.out, calibration, a.jpeg);
-  if (a.gyro) writer.writeGyro(gyroSamples(*a.gyro, script.seed, poses, a, readout).samples);
+  if (a.gyro) writer.writeGyro(gyroSamples(*a.gyro, script.seed, control, a, readout).samples);
 
   const auto start = std::chrono::steady_clock::now();
   const SampleRange samples =
-      renderFrames(a, renderer, poses, readout, degrade, vignette, calibration, writer);
+      renderFrames(a, renderer, control, poses, readout, degrade, vignette, calibration, writer);
   const double seconds =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
 

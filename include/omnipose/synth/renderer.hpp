@@ -208,11 +208,22 @@ enum class Interpolation {
   /// and, for a translation or a rotation about a fixed axis, a motion quadratic in time (a
   /// constant acceleration) are reproduced exactly.
   kSmooth,
+  /// Velocity and acceleration continuous (as a vehicle's, whose forces cannot jump either):
+  /// the cumulative cubic B-spline (Kim, Kim and Shin 1995; the rolling-shutter splines of
+  /// Lovegrove et al. 2013) whose control poses are the samples, which must be uniformly
+  /// spaced in time (std::invalid_argument otherwise): on [t_i, t_i+1], u = (t - t_i) / h,
+  /// R(t) = R_{i-1} exp(b1(u) W1) exp(b2(u) W2) exp(b3(u) W3), W_j = log(R_{i+j-2}^T
+  /// R_{i+j-1}), b1 = (5 + 3u - 3u^2 + u^3) / 6, b2 = (1 + 3u + 3u^2 - 2u^3) / 6, b3 = u^3 / 6,
+  /// the position the same sums of differences; the end steps continue at constant velocity.
+  /// It smooths: at t_i the pose is about 1/6, 4/6, 1/6 of samples i - 1, i, i + 1, so the
+  /// frames' ground truth is the spline's own pose there. A constant velocity is
+  /// reproduced exactly.
+  kSpline,
 };
 
 /// poseAtTime() with the given motion between samples; kConstantVelocity is poseAtTime().
 /// Before the first sample or after the last, kSmooth continues with the end sample's
-/// velocity.
+/// velocity, kSpline with its end segment's cubic.
 Eigen::Isometry3d poseAtTime(std::span<const StampedPose> trajectory, double t,
                              Interpolation interpolation);
 
