@@ -98,13 +98,16 @@ std::optional<Fit> fitAt(const std::vector<ImagePair>& pairs, std::span<const Gy
   return fit;
 }
 
-/// The pairs the samples cover at every offset of the search (with its margin).
+/// The pairs the samples cover without a gap at every offset of the search (with a margin of
+/// 10 ms): a gap in the recording leaves out the pairs near it, not the whole search.
 std::vector<ImagePair> coveredPairs(const std::vector<ImagePair>& pairs,
-                                    std::span<const GyroSample> samples, double max_offset) {
+                                    std::span<const GyroSample> samples, double max_offset,
+                                    double max_gap_s) {
   std::vector<ImagePair> covered;
-  if (samples.empty()) return covered;
+  const double margin = max_offset + 0.01;
   for (const ImagePair& p : pairs)
-    if (p.t0 - max_offset - 0.01 >= samples.front().t && p.t1 + max_offset + 0.01 <= samples.back().t)
+    if (integrateGyro(samples, ImuCalibration{}, Eigen::Vector3d::Zero(), p.t0 - margin, p.t1 + margin,
+                      max_gap_s))
       covered.push_back(p);
   return covered;
 }
@@ -171,11 +174,12 @@ ImuEstimate estimateImuCalibration(const Calibration& calibration, std::span<con
                                 " frames but " + std::to_string(times_s.size()) + " times");
   ImuEstimate out;
   const std::vector<ImagePair> tracked = imagePairs(calibration, frames, times_s, options.odometry);
-  const std::vector<ImagePair> pairs = coveredPairs(tracked, samples, options.max_offset_s);
+  const std::vector<ImagePair> pairs =
+      coveredPairs(tracked, samples, options.max_offset_s, options.max_gap_s);
   out.pairs = static_cast<int>(pairs.size());
   if (out.pairs < kMinPairs) {
     out.summary = "cannot: " + std::to_string(tracked.size()) + " consecutive frame pairs tracked, " +
-                  std::to_string(pairs.size()) + " of them inside the gyro's recording (+-" +
+                  std::to_string(pairs.size()) + " of them inside the gyro's recording without a gap (+-" +
                   fixed(options.max_offset_s, 3) + " s), at least " + std::to_string(kMinPairs) +
                   " needed";
     return out;
@@ -191,11 +195,6 @@ ImuEstimate estimateImuCalibration(const Calibration& calibration, std::span<con
   };
   const int half = static_cast<int>(std::floor(options.max_offset_s / options.coarse_step_s + 1e-9));
   for (int i = -half; i <= half; ++i) score(i * options.coarse_step_s);
-  if (out.curve.size() < 3) {
-    out.summary = "cannot: the gyro's recording has gaps longer than " + fixed(options.max_gap_s, 3) +
-                  " s inside the frames' pairs";
-    return out;
-  }
   const double coarse_best = best().first;
   if (std::abs(coarse_best) >= half * options.coarse_step_s - 1e-9) {
     out.summary = "cannot: the best clock offset is at the end of the range tried (" +

@@ -36,7 +36,8 @@ struct ImuSearchOptions {
   double max_rotation_sigma_deg = 0.5;
   /// Refused when the offset is less certain than this (1 sigma), seconds.
   double max_offset_sigma_s = 0.002;
-  /// Two samples further apart than this leave a pair out (a gap in the recording), seconds.
+  /// Two samples further apart than this are a gap in the recording: the pairs within
+  /// max_offset_s of it are left out, seconds.
   double max_gap_s = 0.05;
   OdometryOptions odometry;  ///< how the frames are registered (the daemon's defaults)
 
@@ -67,7 +68,7 @@ struct ImuEstimate {
 /// captured at `times_s` (seconds on the camera's clock, increasing) through `calibration`
 /// (its readout is used, its imu section ignored), and the gyro's `samples` (io/gyro.hpp).
 /// Not found (with the reason in summary): fewer than 10 consecutive tracked pairs covered by
-/// the samples, a best offset at the end of the range, a mounting or offset less certain than
+/// the samples without a gap, a best offset at the end of the range, a mounting or offset less certain than
 /// the options allow (a recording that turns about one axis, or at a steady rate). Throws
 /// std::invalid_argument on invalid options, a frame count different from the time count, or
 /// an invalid calibration.
