@@ -13,6 +13,8 @@ Eigen::Vector3d rotationVector(const Eigen::Matrix3d& R);
 /// Rotation matrix of a rotation vector: exp([omega]x) (Rodrigues); the identity for
 /// |omega| < 1e-15.
 Eigen::Matrix3d rotationFromVector(const Eigen::Vector3d& omega);
+/// The cross-product matrix [v]x: skew(v) * w = v.cross(w).
+Eigen::Matrix3d skew(const Eigen::Vector3d& v);
 /// Right Jacobian of the exponential map: for a rotation vector phi(t),
 /// exp([phi]x)^T d/dt exp([phi]x) = [rightJacobian(phi) * dphi/dt]x, so a rotation
 /// R(t) = R0 exp([phi(t)]x) turns at rightJacobian(phi) * dphi/dt rad/s about its own axes.

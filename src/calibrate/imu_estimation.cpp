@@ -21,7 +21,7 @@ constexpr int kMinPairs = 10;
 constexpr int kAlternations = 4;
 
 /// `v` with `digits` decimals.
-std::string fixed(double v, int digits = 4) { return detail::format("%.*f", digits, v); }
+std::string fixed(double v, int digits = 4) { return detail::fixed(v, digits); }
 
 /// A consecutive pair's rotation as the images measured it.
 struct ImagePair {
@@ -69,12 +69,17 @@ std::optional<Fit> fitAt(const std::vector<ImagePair>& pairs, std::span<const Gy
   ImuCalibration clock;
   clock.time_offset_s = offset;
   fit.g.resize(pairs.size());
-  for (int iteration = 0; iteration < kAlternations; ++iteration) {
+  // The pairs' gyro rotations with the current bias; false when a pair is not covered.
+  const auto integrate = [&] {
     for (std::size_t k = 0; k < pairs.size(); ++k) {
       const auto R = integrateGyro(samples, clock, fit.bias, pairs[k].t0, pairs[k].t1, max_gap_s);
-      if (!R) return std::nullopt;
+      if (!R) return false;
       fit.g[k] = rotationVector(*R);
     }
+    return true;
+  };
+  for (int iteration = 0; iteration < kAlternations; ++iteration) {
+    if (!integrate()) return std::nullopt;
     fit.X = align(pairs, fit.g);
     // With the bias off by db, g_k is off by -db dt_k: the least-squares correction.
     Eigen::Vector3d numerator = Eigen::Vector3d::Zero();
@@ -86,11 +91,7 @@ std::optional<Fit> fitAt(const std::vector<ImagePair>& pairs, std::span<const Gy
     }
     fit.bias -= numerator / denominator;
   }
-  for (std::size_t k = 0; k < pairs.size(); ++k) {
-    const auto R = integrateGyro(samples, clock, fit.bias, pairs[k].t0, pairs[k].t1, max_gap_s);
-    if (!R) return std::nullopt;
-    fit.g[k] = rotationVector(*R);
-  }
+  if (!integrate()) return std::nullopt;
   fit.score = 0.0;
   for (std::size_t k = 0; k < pairs.size(); ++k)
     fit.score += (pairs[k].a - fit.X * fit.g[k]).squaredNorm();
@@ -123,9 +124,7 @@ double measureUncertainty(const std::vector<ImagePair>& pairs, const Fit& fit, d
   Eigen::Matrix3d information = Eigen::Matrix3d::Zero();
   double dt2 = 0.0;
   for (std::size_t k = 0; k < pairs.size(); ++k) {
-    Eigen::Matrix3d G;
-    const Eigen::Vector3d& g = fit.g[k];
-    G << 0.0, -g.z(), g.y(), g.z(), 0.0, -g.x(), -g.y(), g.x(), 0.0;
+    const Eigen::Matrix3d G = skew(fit.g[k]);
     information += G.transpose() * G;
     dt2 += std::pow(pairs[k].t1 - pairs[k].t0, 2);
   }

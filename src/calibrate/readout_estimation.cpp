@@ -7,17 +7,15 @@
 #include <optional>
 #include <stdexcept>
 
+#include "common/format.hpp"
+
 namespace omnipose::calibrate {
 namespace {
 
 constexpr int kMinFrames = 10;
 constexpr int kMinPairs = 8;
 
-std::string fixed(double v, int digits = 4) {
-  char text[64];
-  std::snprintf(text, sizeof(text), "%.*f", digits, v);
-  return text;
-}
+std::string fixed(double v, int digits = 4) { return detail::fixed(v, digits); }
 
 /// Mean turn per pair below which the frames cannot show the readout, radians (0.1 deg).
 constexpr double kMinMeanTurnRad = 0.1 * std::numbers::pi / 180.0;

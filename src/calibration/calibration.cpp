@@ -10,6 +10,7 @@
 #include <opencv2/imgcodecs.hpp>
 #include <sstream>
 
+#include "common/format.hpp"
 #include "common/named_values.hpp"
 #include "common/problem_list.hpp"
 #include "common/yaml_reader.hpp"
@@ -34,11 +35,7 @@ constexpr detail::Named<OuterEdge> kOuterEdges[] = {{OuterEdge::kTop, "top"},
 using detail::YamlReader;
 using Need = YamlReader::Need;
 
-std::string fixed(double v, int digits = 1) {
-  char buf[64];
-  std::snprintf(buf, sizeof buf, "%.*f", digits, v);
-  return buf;
-}
+std::string fixed(double v, int digits = 1) { return detail::fixed(v, digits); }
 
 double deg(double rad) { return rad / kDegToRad; }
 

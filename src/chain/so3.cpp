@@ -16,6 +16,12 @@ Eigen::Matrix3d rotationFromVector(const Eigen::Vector3d& omega) {
   return Eigen::AngleAxisd(angle, omega / angle).toRotationMatrix();
 }
 
+Eigen::Matrix3d skew(const Eigen::Vector3d& v) {
+  Eigen::Matrix3d K;
+  K << 0.0, -v.z(), v.y(), v.z(), 0.0, -v.x(), -v.y(), v.x(), 0.0;
+  return K;
+}
+
 Eigen::Matrix3d rightJacobian(const Eigen::Vector3d& phi) {
   const double angle = phi.norm();
   const double a2 = angle * angle;
@@ -23,8 +29,7 @@ Eigen::Matrix3d rightJacobian(const Eigen::Vector3d& phi) {
   const bool small = angle < 1e-4;
   const double c1 = small ? 0.5 - a2 / 24.0 : (1.0 - std::cos(angle)) / a2;
   const double c2 = small ? 1.0 / 6.0 - a2 / 120.0 : (angle - std::sin(angle)) / (a2 * angle);
-  Eigen::Matrix3d K;
-  K << 0.0, -phi.z(), phi.y(), phi.z(), 0.0, -phi.x(), -phi.y(), phi.x(), 0.0;
+  const Eigen::Matrix3d K = skew(phi);
   return Eigen::Matrix3d::Identity() - c1 * K + c2 * K * K;
 }
 

@@ -22,4 +22,7 @@ namespace omnipose::detail {
   return out;
 }
 
+/// `v` with `digits` decimals ("%.*f").
+inline std::string fixed(double v, int digits) { return format("%.*f", digits, v); }
+
 }  // namespace omnipose::detail

@@ -211,12 +211,22 @@ Eigen::Isometry3d poseBetween(const Eigen::Isometry3d& a, const Eigen::Isometry3
   return T;
 }
 
+namespace {
+
+/// The step [k, k + 1] of a trajectory (at least two samples) containing t: the first or last
+/// step for a t outside the samples.
+std::size_t stepAt(std::span<const StampedPose> trajectory, double t) {
+  std::size_t k = 0;
+  while (k + 2 < trajectory.size() && trajectory[k + 1].timestamp <= t) ++k;
+  return k;
+}
+
+}  // namespace
+
 Eigen::Isometry3d poseAtTime(std::span<const StampedPose> trajectory, double t) {
   if (trajectory.empty()) throw std::invalid_argument("poseAtTime: empty trajectory");
   if (trajectory.size() == 1) return trajectory.front().pose;
-  // The step [k, k + 1] containing t (the first or last step outside the samples).
-  std::size_t k = 0;
-  while (k + 2 < trajectory.size() && trajectory[k + 1].timestamp <= t) ++k;
+  const std::size_t k = stepAt(trajectory, t);
   const StampedPose& a = trajectory[k];
   const StampedPose& b = trajectory[k + 1];
   return poseBetween(a.pose, b.pose, (t - a.timestamp) / (b.timestamp - a.timestamp));
@@ -236,8 +246,7 @@ struct SmoothState {
 
 SmoothState smoothStateAt(std::span<const StampedPose> trajectory, double t) {
   const std::size_t n = trajectory.size();
-  std::size_t k = 0;
-  while (k + 2 < n && trajectory[k + 1].timestamp <= t) ++k;
+  const std::size_t k = stepAt(trajectory, t);
   const StampedPose& a = trajectory[k];
   const StampedPose& b = trajectory[k + 1];
   const double h = b.timestamp - a.timestamp;
@@ -362,8 +371,7 @@ Eigen::Vector3d angularVelocityAtTime(std::span<const StampedPose> trajectory, d
   if (interpolation == Interpolation::kSpline) return splineStateAt(trajectory, t).rate;
   // Constant velocity: R(t) = R_a exp(s log(R_a^T R_b)), s = (t - t_a) / h, turns at
   // log(R_a^T R_b) / h about its own axes.
-  std::size_t k = 0;
-  while (k + 2 < trajectory.size() && trajectory[k + 1].timestamp <= t) ++k;
+  const std::size_t k = stepAt(trajectory, t);
   const StampedPose& a = trajectory[k];
   const StampedPose& b = trajectory[k + 1];
   return rotationVector(a.pose.linear().transpose() * b.pose.linear()) /

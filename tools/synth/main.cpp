@@ -279,11 +279,14 @@ Eigen::Quaterniond parseQuaternion(const std::string& text) {
 /// The gyro of the command line, when --gyro-rate is given; throws UsageError naming the
 /// flag of a bad value or a --gyro-* option without --gyro-rate.
 std::optional<synth::GyroSimulation> gyroOf(const CLI::App& app, const Raw& raw) {
-  static constexpr std::array<const char*, 5> kDetails = {
-      "--gyro-noise", "--gyro-bias", "--gyro-bias-walk", "--gyro-time-offset", "--gyro-rotation"};
+  // Each field of GyroSimulation::validate()'s messages and its flag.
+  static const std::map<std::string, std::string, std::less<>> kFlags = {
+      {"gyro.rate_hz", "--gyro-rate"},         {"gyro.noise_density", "--gyro-noise"},
+      {"gyro.bias", "--gyro-bias"},            {"gyro.bias_random_walk", "--gyro-bias-walk"},
+      {"gyro.time_offset_s", "--gyro-time-offset"}, {"gyro.rotation", "--gyro-rotation"}};
   if (app.count("--gyro-rate") == 0) {
-    for (const char* flag : kDetails)
-      if (app.count(flag) > 0) throw UsageError(std::string(flag) + " needs --gyro-rate");
+    for (const auto& [field, flag] : kFlags)
+      if (app.count(flag) > 0) throw UsageError(flag + " needs --gyro-rate");
     return std::nullopt;
   }
   synth::GyroSimulation gyro = raw.gyro;
@@ -295,10 +298,6 @@ std::optional<synth::GyroSimulation> gyroOf(const CLI::App& app, const Raw& raw)
     }
   }
   // "gyro.rate_hz: ..." names the flag --gyro-rate, and so on.
-  static const std::map<std::string, std::string, std::less<>> kFlags = {
-      {"gyro.rate_hz", "--gyro-rate"},         {"gyro.noise_density", "--gyro-noise"},
-      {"gyro.bias", "--gyro-bias"},            {"gyro.bias_random_walk", "--gyro-bias-walk"},
-      {"gyro.time_offset_s", "--gyro-time-offset"}, {"gyro.rotation", "--gyro-rotation"}};
   if (const auto problems = gyro.validate(); !problems.empty()) {
     const std::string& p = problems.front();
     const std::string field = p.substr(0, p.find(':'));
