@@ -17,6 +17,10 @@ struct ImuCalibration;
 /// most 2000-4000 deg/s, 35-70 rad/s).
 inline constexpr double kMaxGyroRate = 100.0;
 
+/// An interval between samples longer than this many median intervals is a gap: the gyro
+/// cannot tell the motion across it.
+inline constexpr double kGyroGapIntervals = 5.0;
+
 /// One gyro sample.
 struct GyroSample {
   double t = 0.0;                                  ///< seconds, on the IMU's clock
@@ -40,5 +44,13 @@ std::optional<Eigen::Matrix3d> integrateGyro(std::span<const GyroSample> samples
                                              const ImuCalibration& imu,
                                              const Eigen::Vector3d& bias, double t0, double t1,
                                              double max_gap_s);
+
+/// The camera's angular velocity at camera time t (seconds), rad/s about the camera's axes:
+/// the rate of `samples` there as integrateGyro() interpolates it (the cubic through the
+/// four samples around t), less `bias` (IMU axes), turned into camera axes. nullopt when t
+/// lies outside the samples or between two more than `max_gap_s` apart.
+std::optional<Eigen::Vector3d> gyroRateAt(std::span<const GyroSample> samples,
+                                          const ImuCalibration& imu, const Eigen::Vector3d& bias,
+                                          double t, double max_gap_s);
 
 }  // namespace omnipose

@@ -44,6 +44,7 @@
 
 #include "omnipose/calibration.hpp"
 #include "omnipose/error.hpp"
+#include "omnipose/gyro.hpp"
 #include "omnipose/motion_estimator.hpp"
 #include "omnipose/pipeline.hpp"
 #include "omnipose/window_motion.hpp"
@@ -155,6 +156,23 @@ struct OdometryResult {
   bool tracked() const { return state == TrackState::kTracked || state == TrackState::kBridged; }
 };
 
+/// What became of the gyro samples given to Odometry::addGyro(), and of the frames that could
+/// have used them. Counts since construction.
+struct GyroCounters {
+  std::int64_t accepted = 0;
+  std::int64_t not_finite = 0;    ///< refused: a NaN or infinite time or rate
+  std::int64_t too_fast = 0;      ///< refused: a rate beyond kMaxGyroRate
+  std::int64_t out_of_order = 0;  ///< refused: stamped at or before the sample before it
+  /// The IMU's clock jumped back by more than a second (a restarted driver or board): the
+  /// samples before the jump were dropped and the stream taken up again from there.
+  std::int64_t clock_restarts = 0;
+  /// Frames (rolling shutter, calibration with an imu section) whose rows' rotations came
+  /// from the gyro, and frames the samples did not cover (a gap, a stream that stopped or
+  /// has not caught up): those are registered from the images alone.
+  std::int64_t frames_with_gyro = 0;
+  std::int64_t frames_without_gyro = 0;
+};
+
 class Odometry {
  public:
   /// Every problem that would stop the constructor (Pipeline::validate's, prefixed
@@ -174,6 +192,18 @@ class Odometry {
   /// kImplausible: a glitch, PlausibilityOptions) leaves the state as it was, and the next
   /// frame is treated as after a gap.
   Expected<OdometryResult> process(const cv::Mat& frame, const FrameStamp& stamp);
+  /// Gyro samples (stamped on the IMU's clock, calibration.yaml `imu` joins it to the
+  /// frames'), in the order they arrive; call it before process() with the samples up to the
+  /// frame's last row (later ones do no harm). With a rolling shutter each row's rotation
+  /// within its frame then comes from the gyro, the pair's rotation from the images
+  /// (DESIGN.md section 3, "Rolling shutter with a gyro"); a frame the samples do not cover
+  /// is registered from the images alone (GyroCounters). A bad sample (GyroCounters) is
+  /// refused and counted, never an error. Ignored without an imu section in the calibration,
+  /// for a global shutter, and for a pairwise method. Keeps the last 8192 samples (8 s at
+  /// 1 kHz); allocates nothing.
+  void addGyro(std::span<const GyroSample> samples);
+  GyroCounters gyroCounters() const;
+
   /// Reports a frame that could not be read (decode error): the next frame is bridged.
   void markGap();
   /// Forgets everything: the next frame starts segment 0 again at the identity.

@@ -25,7 +25,28 @@ Eigen::Vector3d rateAt(std::span<const GyroSample> s, std::size_t a, double t, d
   return rate;
 }
 
+/// Index of the first sample after IMU time t (samples.size() when none is).
+std::size_t firstAfter(std::span<const GyroSample> samples, double t) {
+  return static_cast<std::size_t>(
+      std::upper_bound(samples.begin(), samples.end(), t,
+                       [](double v, const GyroSample& s) { return v < s.t; }) -
+      samples.begin());
+}
+
 }  // namespace
+
+std::optional<Eigen::Vector3d> gyroRateAt(std::span<const GyroSample> samples,
+                                          const ImuCalibration& imu, const Eigen::Vector3d& bias,
+                                          double t, double max_gap_s) {
+  const double at = t - imu.time_offset_s;
+  if (samples.size() < 2 || !(samples.front().t <= at && at <= samples.back().t))
+    return std::nullopt;
+  // Piece [a, a + 1] holds `at` (the last piece when `at` is the last sample).
+  const std::size_t a = std::min(firstAfter(samples, at), samples.size() - 1) - 1;
+  if (samples[a + 1].t - samples[a].t > max_gap_s) return std::nullopt;
+  return Eigen::Vector3d(imu.rotation.normalized().toRotationMatrix() *
+                         (rateAt(samples, a, at, max_gap_s) - bias));
+}
 
 std::optional<Eigen::Matrix3d> integrateGyro(std::span<const GyroSample> samples,
                                              const ImuCalibration& imu,
@@ -39,14 +60,8 @@ std::optional<Eigen::Matrix3d> integrateGyro(std::span<const GyroSample> samples
   // The interval on the IMU's clock.
   const double begin = t0 - imu.time_offset_s, end = t1 - imu.time_offset_s;
   if (samples.size() < 2 || samples.front().t > begin || samples.back().t < end) return std::nullopt;
-  const auto after = [&](double t) {
-    return static_cast<std::size_t>(
-        std::upper_bound(samples.begin(), samples.end(), t,
-                         [](double v, const GyroSample& s) { return v < s.t; }) -
-        samples.begin());
-  };
   // Sample a is the last at or before `begin` (a + 1 < size: the last is at or after `end`).
-  std::size_t a = std::min(after(begin), samples.size() - 1) - 1;
+  std::size_t a = std::min(firstAfter(samples, begin), samples.size() - 1) - 1;
   const Eigen::Matrix3d camera_from_imu = imu.rotation.normalized().toRotationMatrix();
   // Two-point Gauss-Legendre nodes at the middle -+ this fraction of a piece.
   const double gauss = 0.5 / std::sqrt(3.0);

@@ -115,6 +115,8 @@ FrameRegistrar::FrameRegistrar(const Calibration& c, const PipelineOptions& o, i
   for (int k = 0; k < registration_.windowCount(); ++k)
     window_azimuth_.push_back(c.panorama.azimuth(registration_.windowCenter(k)));
   if (c.sensor.readout_s != 0.0) measureWindowTimes();
+  current_rows_ = previous_rows_ = FrameRotation(c.sensor.readout_s);
+  keyframe_rows_.assign(static_cast<std::size_t>(keyframe_slots), previous_rows_);
   wisdom_.saveIfPlanned();
 }
 
@@ -174,9 +176,20 @@ Expected<void> FrameRegistrar::unwrap(const cv::Mat& frame) {
   return {};
 }
 
+bool FrameRegistrar::measureRowRotations(std::span<const GyroSample> samples,
+                                         const ImuCalibration& imu, const Eigen::Vector3d& bias,
+                                         double time, double max_gap_s) {
+  if (window_times_.empty()) {
+    current_rows_.forget();
+    return false;
+  }
+  return current_rows_.measure(samples, imu, bias, time, max_gap_s);
+}
+
 void FrameRegistrar::makeCurrentPrevious() {
   registration_.setReference(panorama_);
   keepPrevious();
+  previous_rows_ = current_rows_;
   has_previous_ = true;
 }
 
@@ -190,7 +203,8 @@ std::optional<MotionEstimate> FrameRegistrar::firstPass(double* fit_seconds) {
                                          : std::span<const WindowMotion>()))
     return std::nullopt;
   const auto t_fit = std::chrono::steady_clock::now();
-  MotionEstimate estimate = fitPass(windows_, Eigen::Vector3d::Zero());
+  MotionEstimate estimate = fitPass(windows_, Eigen::Vector3d::Zero(), previous_rows_);
+  start_gyro_ = last_pass_gyro_;
   if (fit_seconds != nullptr)
     *fit_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t_fit).count();
   return estimate;
@@ -204,7 +218,9 @@ std::optional<MotionEstimate> FrameRegistrar::alignedPass(const Eigen::Matrix3d&
                                          : std::span<const WindowMotion>(),
                              {}, slot))
     return std::nullopt;
-  return fitPass(windows_, rotationVector(R));
+  MotionEstimate estimate = fitPass(windows_, rotationVector(R), rowsOf(slot));
+  start_gyro_ = last_pass_gyro_;
+  return estimate;
 }
 
 MotionEstimate FrameRegistrar::fitWindows(std::span<const WindowMotion> windows) {
@@ -213,9 +229,80 @@ MotionEstimate FrameRegistrar::fitWindows(std::span<const WindowMotion> windows)
   return estimate;
 }
 
+void FrameRegistrar::correctRowsWithGyro(std::span<WindowMotion> windows,
+                                         const Eigen::Vector3d& warp_omega,
+                                         const FrameRotation& reference) {
+  // Window k (capture time s_k after the timestamp, its gradient grad s) compares the
+  // reference's pixels shifted by the registered (du, dv), captured at t_ref + s_k + g_r,
+  // g_r = grad s . (du, dv), with the current frame's pixels of the window, captured at
+  // t_cur + s_k + g_c: g_c = 0 in a pass over the current panorama itself, and after a
+  // de-rotation that moved the window's pixels by the shift w, g_c = -grad s . w (they come
+  // from where the de-rotation took them; a de-rotation's shift can be a large part of the
+  // ring, so that time is read at the window's centre moved by w rather than along the
+  // gradient). With A = R(t_ref)^T R(t_ref + s_k + g_r) and
+  // B = R(t_cur)^T R(t_cur + s_k + g_c) from the gyro, the window sees the rotation A^T X B
+  // of the motion X between the timestamps: C_k X with C_k = exp(-a_k) exp(X b_k). After a
+  // de-rotation by R_w (X = E R_w) it sees exp(-a_k) E exp(R_w b_k), C_k E to first order in
+  // the residual E: C_k with R_w for X, in the residual's frame. (c_k = X b_k - a_k, to first
+  // order in the turns within the frames, is not enough: a turn of 3 deg per frame is
+  // 40 mrad within a readout of 0.8 frames, and a_k x b_k / 2 is then 1e-4 rad.) The first pass
+  // uses the gyro's X between the timestamps (bias errors there are second order). The
+  // translation is measured over dt - g_r + g_c, as without the gyro (fitPass()): what is
+  // left after the rotations is stretched to dt.
+  const double dt = shutter_.interval_s, gamma = calibration_.panorama.gamma();
+  const bool warped = !warp_omega.isZero();
+  const Eigen::Matrix3d X = warped ? rotationFromVector(warp_omega)
+                                   : shutter_.gyro_rotation.value_or(Eigen::Matrix3d::Identity());
+  Eigen::Matrix<double, 6, 1> estimate = Eigen::Matrix<double, 6, 1>::Zero();
+  estimate.head<3>() = rotationVector(X);
+  for (std::size_t k = 0; k < windows.size(); ++k) {
+    row_scale_[k] = {1.0, 1.0};
+    WindowMotion& m = windows[k];
+    if (!m.valid) continue;
+    const WindowTime& w = window_times_[k];
+    const double theta = window_azimuth_[k];
+    const ModelMotion rotated = predictMotion(estimate, theta, fit_.kappa());
+    // The whole shift: a de-rotated pass's residual plus the de-rotation.
+    const double w_du = warped ? rotated.du_rad / gamma : 0.0;
+    const double w_dv = warped ? rotated.dv_rad / gamma : 0.0;
+    const double du = m.du + w_du, dv = m.dv + w_dv;
+    const double g_r = w.ds_du * m.du + w.ds_dv * m.dv;
+    double g_c = 0.0;
+    if (warped) {
+      const double u = registration_.windowCenter(static_cast<int>(k));
+      const double v = registration_.windowTop() + 0.5 * (options_.registration.window - 1);
+      g_c = calibration_.captureTime(u - w_du, v - w_dv) - calibration_.captureTime(u, v);
+      if (!std::isfinite(g_c)) g_c = -(w.ds_du * w_du + w.ds_dv * w_dv);
+    }
+    const double g = g_r - g_c;
+    const double stretch = std::abs(g) < 0.5 * dt ? dt / (dt - g) : 1.0;
+    Eigen::Matrix<double, 6, 1> within = Eigen::Matrix<double, 6, 1>::Zero();
+    within.head<3>() =
+        rotationVector(rotationFromVector(-reference.turnAt(w.s + g_r)) *
+                       rotationFromVector(X * current_rows_.turnAt(w.s + g_c)));
+    const ModelMotion c = predictMotion(within, theta, fit_.kappa());
+    // The translation's part: the shift less the rotations.
+    const double du_t = du - c.du_rad / gamma - rotated.du_rad / gamma;
+    const double dv_t = dv - c.dv_rad / gamma - rotated.dv_rad / gamma;
+    m.du = du_t * stretch + (warped ? 0.0 : rotated.du_rad / gamma);
+    m.dv = dv_t * stretch + (warped ? 0.0 : rotated.dv_rad / gamma);
+    m.rotation -= c.rotation;
+  }
+}
+
 MotionEstimate FrameRegistrar::fitPass(std::span<WindowMotion> windows,
-                                       const Eigen::Vector3d& warp_omega) {
+                                       const Eigen::Vector3d& warp_omega,
+                                       const FrameRotation& reference) {
+  last_pass_gyro_ = false;
   if (window_times_.empty() || !(shutter_.interval_s > 0.0)) return fitWindows(windows);
+  if (reference.known() && current_rows_.known()) {
+    correctRowsWithGyro(windows, warp_omega, reference);
+    last_pass_gyro_ = true;
+    const std::span<const MotionFit::RowScale> scale(row_scale_.data(), windows.size());
+    MotionEstimate estimate = fit_.fit(windows, calibration_.panorama.forward_column, scale);
+    estimate.covariance *= window_overlap_;
+    return estimate;
+  }
   // Window k compares the reference's rows captured at t_ref + s(c + d) with the current
   // frame's at t_cur + s(c): it measures the motion over [t_ref + s_k + g_k, t_cur + s_k],
   // g_k = grad s . d (d: its whole shift, the de-rotation's included). With the velocity
@@ -356,6 +443,7 @@ PassResult FrameRegistrar::refine(const MotionEstimate& start, const Eigen::Matr
   FitStatus last_fit = est.status;
   out.windows = windows_;
   out.window_model = start.vector();
+  out.gyro_rows = start_gyro_;
   for (int pass = 0; pass < options_.refine_iterations && est.status != FitStatus::kLost; ++pass) {
     const Eigen::Matrix3d R_warp = wholeColumnYaw(R);
     derotate(R_warp);
@@ -363,7 +451,8 @@ PassResult FrameRegistrar::refine(const MotionEstimate& start, const Eigen::Matr
     if (!registration_.measure(warped_, refine_windows_, false, {}, expected_dv_, against)) break;
     if (options_.moving_content)
       discountMovingContent(refine_windows_, against, R * R_warp.transpose(), tau);
-    const MotionEstimate residual = fitPass(refine_windows_, rotationVector(R_warp));
+    const MotionEstimate residual =
+        fitPass(refine_windows_, rotationVector(R_warp), rowsOf(against));
     if (residual.status == FitStatus::kLost) {
       est.status = FitStatus::kDegraded;  // keep the estimate so far, trust it less
       break;
@@ -380,6 +469,7 @@ PassResult FrameRegistrar::refine(const MotionEstimate& start, const Eigen::Matr
     out.refined = true;
     out.windows = refine_windows_;
     out.window_model = residual.vector();
+    out.gyro_rows = last_pass_gyro_;
   }
   est.omega = rotationVector(R);
   est.tau = tau;
@@ -412,6 +502,7 @@ void FrameRegistrar::discountMovingContent(std::span<WindowMotion> windows, int 
 
 bool FrameRegistrar::storeKeyframe(int slot) {
   if (!has_previous_ || !registration_.storeKeyframe(slot)) return false;
+  keyframe_rows_[static_cast<std::size_t>(slot)] = previous_rows_;
   std::swap(panorama_, keyframe_panoramas_[static_cast<std::size_t>(slot)]);  // headers only
   return true;
 }

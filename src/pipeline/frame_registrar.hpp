@@ -17,10 +17,12 @@
 
 #include "omnipose/calibration.hpp"
 #include "omnipose/error.hpp"
+#include "omnipose/gyro.hpp"
 #include "omnipose/motion_fit.hpp"
 #include "omnipose/pipeline.hpp"
 #include "omnipose/unwrapper.hpp"
 #include "omnipose/window_registration.hpp"
+#include "pipeline/frame_rotation.hpp"
 #include "pipeline/moving_content.hpp"
 #include "pipeline/panorama_warp.hpp"
 #include "pipeline/ring_alignment.hpp"
@@ -39,6 +41,9 @@ struct PassResult {
   /// them (relative to the panorama it registered: a residual after a de-rotation).
   std::span<const WindowMotion> windows;
   Eigen::Matrix<double, 6, 1> window_model = Eigen::Matrix<double, 6, 1>::Zero();
+  /// The windows' rows were moved to the frames' timestamps with the gyro (the rotation of
+  /// every row within its frame known): the motion is between the timestamps, yaw included.
+  bool gyro_rows = false;
 };
 
 /// What a pass needs to read each window's motion, measured between rows captured at
@@ -53,7 +58,12 @@ struct ShutterContext {
   /// previous_interval_s <= 0: unknown (the velocity is taken as constant).
   Eigen::Matrix<double, 6, 1> previous_velocity = Eigen::Matrix<double, 6, 1>::Zero();
   double previous_interval_s = 0.0;
+  /// The gyro's rotation from the reference's timestamp to the current frame's
+  /// (integrateGyro()), when known: the first pass's estimate of the rotation that the rows'
+  /// own rotations (FrameRegistrar::measureRowRotations()) are carried through.
+  std::optional<Eigen::Matrix3d> gyro_rotation;
 };
+
 
 class FrameRegistrar {
  public:
@@ -75,12 +85,24 @@ class FrameRegistrar {
   /// calibration it changes nothing.
   void setShutter(const ShutterContext& shutter) { shutter_ = shutter; }
 
+  /// The camera's rotation within the current frame (timestamp `time`, camera seconds) from
+  /// the gyro's `samples` (FrameRotation): passes against a reference whose rotation is
+  /// known too then take each window's capture times out exactly (DESIGN.md section 3,
+  /// "Rolling shutter with a gyro") instead of from the pair's own motion. False (unknown:
+  /// the images alone) when the samples do not cover the frame's readout, and for a global
+  /// shutter (nothing to take out).
+  bool measureRowRotations(std::span<const GyroSample> samples, const ImuCalibration& imu,
+                           const Eigen::Vector3d& bias, double time, double max_gap_s);
+
   /// Whether a previous frame is set (the first pass can run).
   bool hasPrevious() const { return has_previous_; }
   /// The current panorama becomes the previous frame (its spectra computed anew).
   void makeCurrentPrevious();
   /// Forgets the previous frame.
-  void forgetPrevious() { has_previous_ = false; }
+  void forgetPrevious() {
+    has_previous_ = false;
+    previous_rows_.forget();
+  }
 
   /// Shift-only (when refinement follows) registration of the current panorama against the
   /// previous frame and the robust linear fit. Keeps the current spectra as the candidate
@@ -99,6 +121,7 @@ class FrameRegistrar {
   void advance() {
     registration_.advance();
     keepPrevious();
+    previous_rows_ = current_rows_;  // the same size: no allocation
   }
 
   /// Makes the previous frame (after advance() or makeCurrentPrevious(): the current one)
@@ -170,8 +193,23 @@ class FrameRegistrar {
   /// fitWindows() of the windows of a pass over the current panorama de-rotated by
   /// exp([warp_omega]x) (zero: not de-rotated), their du, dv first corrected in place for
   /// the times their rows were captured when the sensor has a readout time: the fit then
-  /// gives the motion between the frames' timestamps (DESIGN.md section 3).
-  MotionEstimate fitPass(std::span<WindowMotion> windows, const Eigen::Vector3d& warp_omega);
+  /// gives the motion between the frames' timestamps (DESIGN.md section 3). `reference`:
+  /// the rows of the frame registered against; with them and the current frame's known the
+  /// correction is the gyro's (correctRowsWithGyro()).
+  MotionEstimate fitPass(std::span<WindowMotion> windows, const Eigen::Vector3d& warp_omega,
+                         const FrameRotation& reference);
+  /// The windows' du, dv and rotation of a pass (fitPass()) less what the rotation within
+  /// each frame up to the window's capture time made (`reference`'s rows and the current
+  /// frame's), their translation stretched to the whole interval.
+  void correctRowsWithGyro(std::span<WindowMotion> windows, const Eigen::Vector3d& warp_omega,
+                           const FrameRotation& reference);
+  /// The rotation within the frame `against` (WindowRegistration::kPreviousFrame or a
+  /// keyframe slot).
+  const FrameRotation& rowsOf(int against) const {
+    return against == WindowRegistration::kPreviousFrame
+               ? previous_rows_
+               : keyframe_rows_[static_cast<std::size_t>(against)];
+  }
   /// The change b of the roll and pitch rates (rad/s, camera x and y) from the reference's
   /// interval to the current frame's that the dv of `windows` (fitPass(), the whole motion)
   /// show; nullopt when too few windows or an ill-posed regression.
@@ -209,6 +247,12 @@ class FrameRegistrar {
   double mean_window_time_ = 0.0;
   std::vector<MotionFit::RowScale> row_scale_;  ///< per window: the fit's row scale (fitPass())
   ShutterContext shutter_;
+  /// The rotation within the current frame, the previous one and each keyframe
+  /// (measureRowRotations()).
+  FrameRotation current_rows_, previous_rows_;
+  std::vector<FrameRotation> keyframe_rows_;
+  bool last_pass_gyro_ = false;  ///< the last fitPass() was corrected with the gyro
+  bool start_gyro_ = false;      ///< ... and the last firstPass() or alignedPass()
   bool has_previous_ = false;
 };
 

@@ -8,6 +8,7 @@
 #include <stdexcept>
 
 #include "common/problem_list.hpp"
+#include "imu/gyro_buffer.hpp"
 #include "omnipose/so3.hpp"
 #include "pipeline/frame_registrar.hpp"
 #include "pipeline/plausibility.hpp"
@@ -17,6 +18,9 @@ namespace omnipose {
 namespace {
 
 using Clock = std::chrono::steady_clock;
+
+/// Gyro samples Odometry keeps (8 s at 1 kHz).
+constexpr std::size_t kGyroSamplesKept = 8192;
 
 /// Why a frame after a rejected one is rejected too when the ring search cannot place it.
 const Error kNotFoundAgain(ErrorCode::kImplausible,
@@ -133,7 +137,8 @@ struct Odometry::Impl {
   };
 
   Impl(const Calibration& c, const OdometryOptions& o)
-      : keyframe_options(o.keyframes),
+      : gyro_calibration(c.sensor.readout_s != 0.0 ? c.imu : std::nullopt),
+        keyframe_options(o.keyframes),
         plausibility_options(o.plausibility),
         registrar(std::in_place, c, o.pipeline, std::max(o.keyframes.slots, 1)),
         gate(std::in_place, o.plausibility, inputFrameSize(c, o.pipeline.unwrap.input).height,
@@ -188,7 +193,20 @@ struct Odometry::Impl {
       c.previous_velocity = velocity;
       c.previous_interval_s = velocity_interval;
     }
+    if (gyro_calibration)
+      c.gyro_rotation = integrateGyro(gyro.samples(), *gyro_calibration, gyro_bias, reference_time, time,
+                                      gyroMaxGap());
     registrar->setShutter(c);
+  }
+  /// Two samples further apart than this are a gap, seconds.
+  double gyroMaxGap() const { return kGyroGapIntervals * gyro.typicalInterval(); }
+  /// The current frame's rows' rotations from the gyro, counted.
+  void measureRowRotations() {
+    if (!gyro_calibration) return;
+    if (registrar->measureRowRotations(gyro.samples(), *gyro_calibration, gyro_bias, time, gyroMaxGap()))
+      ++gyro_counters.frames_with_gyro;
+    else
+      ++gyro_counters.frames_without_gyro;
   }
   /// The rotation of `pass`, a registration of the current frame against the frame captured
   /// at `reference_time`, with its yaw moved from the windows' mean capture times to the
@@ -206,6 +224,11 @@ struct Odometry::Impl {
     } else {
       velocity_interval = 0.0;
     }
+    if (pass.gyro_rows) {
+      // Already between the timestamps; a pair without the gyro later starts a chain anew.
+      readout_yaw.reset();
+      return pass.rotation;
+    }
     return readout_yaw.betweenTimestamps(pass.rotation, reference_time, time,
                                          key != nullptr ? &key->heading : nullptr);
   }
@@ -213,6 +236,11 @@ struct Odometry::Impl {
   void finish(OdometryResult& out, const Eigen::Isometry3d& T, const pipeline::PassResult& pass,
               TrackState state);
 
+  /// The calibration's imu section when the frames have a rolling shutter (else unused).
+  std::optional<ImuCalibration> gyro_calibration;
+  imu::GyroBuffer gyro{kGyroSamplesKept};
+  Eigen::Vector3d gyro_bias = Eigen::Vector3d::Zero();  ///< rad/s, IMU axes
+  GyroCounters gyro_counters;
   KeyframeOptions keyframe_options;
   PlausibilityOptions plausibility_options;
   std::optional<pipeline::FrameRegistrar> registrar;  ///< the iFMI pipeline
@@ -399,6 +427,7 @@ Expected<OdometryResult> Odometry::Impl::process(const cv::Mat& frame, const Fra
     gap = true;
     return std::unexpected(ok.error());
   }
+  measureRowRotations();
   m.timing.unwrap = secondsSince(t_start);
   const Expected<void> frame_ok = gate->checkFrame(frame);
 
@@ -512,6 +541,26 @@ Odometry::~Odometry() = default;
 Expected<OdometryResult> Odometry::process(const cv::Mat& frame, const FrameStamp& stamp) {
   return impl_->process(frame, stamp);
 }
+
+void Odometry::addGyro(std::span<const GyroSample> samples) {
+  Impl& s = *impl_;
+  if (!s.gyro_calibration) return;
+  GyroCounters& c = s.gyro_counters;
+  for (const GyroSample& sample : samples) {
+    switch (s.gyro.push(sample)) {
+      case imu::GyroIntake::kAccepted: ++c.accepted; break;
+      case imu::GyroIntake::kNotFinite: ++c.not_finite; break;
+      case imu::GyroIntake::kTooFast: ++c.too_fast; break;
+      case imu::GyroIntake::kOutOfOrder: ++c.out_of_order; break;
+      case imu::GyroIntake::kClockRestart:
+        ++c.accepted;
+        ++c.clock_restarts;
+        break;
+    }
+  }
+}
+
+GyroCounters Odometry::gyroCounters() const { return impl_->gyro_counters; }
 
 void Odometry::markGap() {
   impl_->gap = true;

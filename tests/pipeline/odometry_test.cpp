@@ -350,5 +350,56 @@ TEST(Odometry, ProcessAllocatesNothingAfterWarmUpThroughKeyframesAndGaps) {
   EXPECT_EQ(allocations, 0) << "heap allocations in 120 frames of Odometry::process";
 }
 
+TEST(Odometry, TheGyroPathAllocatesNothingThroughBadSamplesAndAFullBuffer) {
+  if (!testing::AllocationCounter::available())
+    GTEST_SKIP() << "sanitizer build: the sanitizer owns malloc, allocations are not counted";
+  cv::setNumThreads(1);
+  Renderings scene;
+  std::vector<cv::Mat> frames;
+  for (int k = 0; k < 6; ++k) frames.push_back(scene.frame(attitude(0.0, 0.0, 0.01 * k), k));
+  Calibration calibration;
+  calibration.sensor.readout_s = 0.02;
+  calibration.imu = ImuCalibration{};
+  OdometryOptions options = withKeyframes();
+  Odometry odometry(calibration, options);
+  // 3 kHz: 12000 samples in the 4 s below, more than the 8192 kept.
+  constexpr double kRate = 3000.0;
+  std::vector<GyroSample> batch(100);
+  double t_gyro = -0.1;
+  const auto fill = [&](double until) {
+    std::size_t n = 0;
+    while (t_gyro <= until && n < batch.size()) {
+      batch[n++] = {t_gyro, Eigen::Vector3d(0.0, 0.0, 0.3)};
+      t_gyro += 1.0 / kRate;
+    }
+    return std::span<const GyroSample>(batch.data(), n);
+  };
+  for (int k = 0; k < 6; ++k) {
+    while (t_gyro <= k / 30.0 + 0.03) odometry.addGyro(fill(k / 30.0 + 0.03));
+    ASSERT_TRUE(odometry.process(frames[k], {k / 30.0}).has_value());
+  }
+  const GyroSample bad[] = {{0.0, Eigen::Vector3d(NAN, 0.0, 0.0)},
+                            {0.0, Eigen::Vector3d(200.0, 0.0, 0.0)},
+                            {0.0, Eigen::Vector3d::Zero()}};  // long before the last sample
+
+  testing::AllocationCounter counter;
+  int ok = 0;
+  for (int i = 6; i < 126; ++i) {
+    const double t = i / 30.0;
+    while (t_gyro <= t + 0.03) odometry.addGyro(fill(t + 0.03));
+    if (i % 40 == 0) odometry.addGyro(bad);
+    if (odometry.process(frames[static_cast<std::size_t>(i % 6)], {t}).has_value()) ++ok;
+  }
+  const std::int64_t allocations = counter.stop();
+  EXPECT_EQ(ok, 120);
+  EXPECT_EQ(allocations, 0) << "heap allocations in 120 frames with the gyro";
+  const GyroCounters c = odometry.gyroCounters();
+  EXPECT_GT(c.frames_with_gyro, 100);
+  EXPECT_EQ(c.not_finite, 3);
+  EXPECT_EQ(c.too_fast, 3);
+  EXPECT_EQ(c.out_of_order, 0);
+  EXPECT_EQ(c.clock_restarts, 3);  // a stamp a second or more back: the clock started over
+}
+
 }  // namespace
 }  // namespace omnipose

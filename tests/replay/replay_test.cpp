@@ -7,12 +7,14 @@
 
 #include <cstdio>
 #include <fstream>
+#include <optional>
 #include <opencv2/imgcodecs.hpp>
 #include <string>
 #include <unistd.h>
 
 #include "bad_images.hpp"
 #include "omnipose/eval/evaluation.hpp"
+#include "omnipose/synth/gyro.hpp"
 #include "omnipose/synth/synth.hpp"
 
 using ::testing::HasSubstr;
@@ -138,6 +140,93 @@ TEST_F(ReplayTest, MissingDatasetOrCalibrationIsAClearError) {
   } catch (const std::invalid_argument& e) {
     EXPECT_THAT(e.what(), HasSubstr("akazerot"));
   }
+}
+
+/// A rolling-shutter dataset of a turn on a shaking base with the robot's gyro (imu.csv and the
+/// calibration's imu section), rendered once for the suite.
+class ReplayGyroTest : public ::testing::Test {
+ protected:
+  static constexpr int kFrames = 13;  // the start and 12 steps
+  static void SetUpTestSuite() {
+    if (!fs::exists(kPhoto)) return;
+    root_ = fs::temp_directory_path() / ("omnipose_replay_gyro_" + std::to_string(::getpid()));
+    fs::remove_all(root_);
+    const auto control = synth::generateTrajectory(synth::MotionScript::parse(
+        "frame_rate: 30\n"
+        "vibration: {amplitude_deg: 0.5, min_hz: 1, max_hz: 9, components: 3, seed: 5}\n"
+        "segments:\n"
+        "  - frames: 12\n    rotation: {axis: z, step_deg: 3, sign: positive}\n",
+        "turn"));
+    constexpr auto kSpline = synth::Interpolation::kSpline;
+    Calibration calibration;
+    calibration.sensor.readout_s = 0.0267;
+    synth::GyroSimulation gyro;
+    gyro.time_offset_s = 0.008;
+    gyro.rotation = Eigen::Quaterniond(Eigen::AngleAxisd(0.3, Eigen::Vector3d::UnitY()));
+    calibration.imu = ImuCalibration{.rotation = gyro.rotation, .time_offset_s = gyro.time_offset_s};
+    synth::RenderOptions ro;
+    ro.supersample = 2;
+    const synth::Renderer renderer(synth::Scene::load(kPhoto, synth::SceneKind::kSphere),
+                                   calibration, ro);
+    synth::DatasetWriter writer(root_ / "data", calibration, 0);
+    for (const auto& p : control) {
+      const double t0 = p.timestamp;
+      const cv::Mat image = renderer.render(
+          [&](double t) { return synth::poseAtTime(control, t0 + t, kSpline); },
+          calibration.sensor.readout_s);
+      writer.addFrame(synth::degrade(image, {}, 0), {t0, synth::poseAtTime(control, t0, kSpline)});
+    }
+    writer.writeGyro(synth::simulateGyro(control, kSpline, gyro, control.front().timestamp - 0.1,
+                                         control.back().timestamp + 0.1)
+                         .samples);
+    writer.finish();
+    calibration.imu.reset();
+    calibration.save(root_ / "without_imu.yaml");
+  }
+  void SetUp() override {
+    if (!fs::exists(kPhoto)) GTEST_SKIP() << "missing " << kPhoto;
+  }
+  static void TearDownTestSuite() {
+    if (!root_.empty()) fs::remove_all(root_);
+  }
+  /// Replays the dataset (with `calibration` when given): the summary, the log, and the
+  /// rotation error of the pairs (RMSE, radians).
+  static replay::ReplaySummary replay(const std::optional<fs::path>& calibration,
+                                      std::string& text, double& rmse) {
+    replay::ReplayOptions o;
+    o.dataset = root_ / "data";
+    o.out_tum = root_ / "est.tum";
+    o.calibration = calibration;
+    o.progress = false;
+    std::FILE* log = std::tmpfile();
+    const replay::ReplaySummary s = replay::run(o, log);
+    std::rewind(log);
+    text.assign(4096, '\0');
+    text.resize(std::fread(text.data(), 1, text.size(), log));
+    std::fclose(log);
+    rmse = evaluate(readTum(root_ / "data/groundtruth.tum"), readTum(root_ / "est.tum")).angle.rmse;
+    return s;
+  }
+  static fs::path root_;
+};
+fs::path ReplayGyroTest::root_;
+
+TEST_F(ReplayGyroTest, TheDatasetsGyroTakesTheRollingShutterOut) {
+  std::string with_text, without_text;
+  double with_gyro = 0.0, without_gyro = 0.0;
+  const replay::ReplaySummary with = replay(std::nullopt, with_text, with_gyro);
+  const replay::ReplaySummary without = replay(root_ / "without_imu.yaml", without_text, without_gyro);
+  ::testing::Test::RecordProperty("rotation_rmse_with_gyro", std::to_string(with_gyro));
+  ::testing::Test::RecordProperty("rotation_rmse_images_alone", std::to_string(without_gyro));
+
+  EXPECT_EQ(with.pairs, kFrames - 1);
+  EXPECT_EQ(with.gyro_frames, kFrames);
+  EXPECT_THAT(with_text, HasSubstr("rows' rotations from the gyro in 13 frames"));
+  EXPECT_EQ(without.pairs, kFrames - 1);
+  EXPECT_EQ(without.gyro_frames, 0);
+  // The calibration without an imu section cannot join the gyro's clock to the frames'.
+  EXPECT_THAT(without_text, HasSubstr("imu.csv is not used: the calibration has no imu section"));
+  EXPECT_LT(with_gyro, 0.5 * without_gyro);
 }
 
 }  // namespace

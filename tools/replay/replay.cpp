@@ -1,11 +1,14 @@
 #include "replay.hpp"
 
 #include <algorithm>
+#include <cmath>
+#include <span>
 #include <chrono>
 #include <fstream>
 #include <stdexcept>
 
 #include "omnipose/baselines/feature_motion_estimator.hpp"
+#include "omnipose/io/gyro.hpp"
 #include "omnipose/io/trajectory.hpp"
 #include "omnipose/odometry.hpp"
 #include "omnipose/pipeline.hpp"
@@ -58,6 +61,37 @@ void writeCsvRow(std::ofstream& csv, int frame, const DatasetFrame& f, const Odo
   csv << buf;
 }
 
+/// The dataset's gyro recording (imu.csv) for the odometry, when the calibration joins it to
+/// the frames (its imu section) and the frames have a rolling shutter; empty otherwise (with a
+/// warning on `log` for an imu.csv the calibration cannot use).
+std::vector<GyroSample> gyroSamples(const Dataset& dataset, const std::string& method,
+                                    std::FILE* log) {
+  if (!dataset.gyro_file) return {};
+  const Calibration& c = dataset.calibration;
+  if (!c.imu) {
+    std::fprintf(log,
+                 "warning: %s is not used: the calibration has no imu section (measure it with "
+                 "omnipose-calibrate --imu-from)\n",
+                 dataset.gyro_file->c_str());
+    return {};
+  }
+  if (c.sensor.readout_s == 0.0 || method != "ifmi") return {};
+  return readGyroCsv(*dataset.gyro_file).samples;
+}
+
+/// Gives `odometry` the samples of `gyro` from `next` on that arrive by the time the frame
+/// stamped `time` has been read out (10 ms after its last row), as a live stream would.
+void feedGyro(Odometry& odometry, std::span<const GyroSample> gyro, std::size_t& next,
+              const Calibration& calibration, double time) {
+  if (gyro.empty()) return;
+  const double until = time + std::abs(calibration.sensor.readout_s) + 0.01 -
+                       calibration.imu->time_offset_s;
+  std::size_t end = next;
+  while (end < gyro.size() && gyro[end].t <= until) ++end;
+  odometry.addGyro(gyro.subspan(next, end - next));
+  next = end;
+}
+
 }  // namespace
 
 std::unique_ptr<Odometry> makeOdometry(const std::string& method, const Calibration& calibration,
@@ -79,6 +113,8 @@ ReplaySummary run(const ReplayOptions& options, std::FILE* log) {
     std::fprintf(log, "warning: %s\n", assumed.c_str());
   for (const std::string& w : dataset.warnings) std::fprintf(log, "warning: %s\n", w.c_str());
   auto odometry = makeOdometry(options.method, dataset.calibration, odometry_options);
+  const std::vector<GyroSample> gyro = gyroSamples(dataset, options.method, log);
+  std::size_t gyro_next = 0;
 
   std::ofstream csv;
   if (options.relative_csv) {
@@ -105,6 +141,7 @@ ReplaySummary run(const ReplayOptions& options, std::FILE* log) {
       std::fprintf(log, "skipped %s: %s\n", f.path.c_str(), image.error().c_str());
       continue;
     }
+    feedGyro(*odometry, gyro, gyro_next, dataset.calibration, f.timestamp);
     Expected<OdometryResult> result = odometry->process(*image, {f.timestamp, i});
     if (!result) {
       ++summary.skipped;
@@ -133,6 +170,16 @@ ReplaySummary run(const ReplayOptions& options, std::FILE* log) {
     progress.update(i + 1);
   }
   progress.finish();
+  if (!gyro.empty()) {
+    const GyroCounters g = odometry->gyroCounters();
+    summary.gyro_frames = static_cast<int>(g.frames_with_gyro);
+    std::fprintf(log,
+                 "gyro: %s, %lld samples taken; rows' rotations from the gyro in %lld frames, "
+                 "from the images alone in %lld (not covered)\n",
+                 dataset.gyro_file->c_str(), static_cast<long long>(g.accepted),
+                 static_cast<long long>(g.frames_with_gyro),
+                 static_cast<long long>(g.frames_without_gyro));
+  }
   if (options.out_tum) writeTum(*options.out_tum, trajectory);
   if (!seconds.empty()) {
     std::nth_element(seconds.begin(), seconds.begin() + seconds.size() / 2, seconds.end());

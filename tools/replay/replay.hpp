@@ -34,6 +34,8 @@ struct ReplaySummary {
   int implausible = 0;  ///< of the skipped: decoded but not believed (PlausibilityOptions)
   int lost = 0;     ///< frames whose fit failed and could not be bridged (new segment)
   int bridged = 0;  ///< pairs found again across a gap or a lost fit (in pairs)
+  /// frames whose rows' rotations within the frame came from the dataset's gyro (imu.csv)
+  int gyro_frames = 0;
   double median_seconds_per_frame = 0.0;
 };
 

@@ -23,9 +23,6 @@
 
 namespace omnipose {
 
-/// An interval between samples longer than this many median intervals is a gap.
-inline constexpr double kGyroGapIntervals = 5.0;
-
 /// A gyro recording as read, with what its timing says.
 struct GyroRecording {
   std::vector<GyroSample> samples;  ///< in file order, t strictly increasing

@@ -1,0 +1,69 @@
+// The camera's rotation within a frame from the gyro (src/pipeline/frame_rotation.hpp),
+// against integrateGyro() at any capture time, and its refusals.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <vector>
+
+#include "omnipose/calibration.hpp"
+#include "omnipose/so3.hpp"
+#include "pipeline/frame_rotation.hpp"
+
+namespace omnipose::pipeline {
+namespace {
+
+/// A 400 Hz gyro on a camera whose rate turns smoothly (a shaking roll and a changing yaw),
+/// in the IMU's axes (mounted 30 degrees off about x), on the IMU's clock.
+struct Recording {
+  ImuCalibration imu;
+  std::vector<GyroSample> samples;
+};
+
+Eigen::Vector3d cameraRate(double t) {
+  return {0.4 * std::sin(2.0 * 3.14159 * 7.0 * t), 0.1 * std::cos(3.0 * t), 1.2 + 0.8 * t};
+}
+
+Recording recording(double from, double to) {
+  Recording r;
+  r.imu.rotation = Eigen::Quaterniond(Eigen::AngleAxisd(0.5236, Eigen::Vector3d::UnitX()));
+  r.imu.time_offset_s = 0.004;
+  const Eigen::Matrix3d imu_from_camera = r.imu.rotation.toRotationMatrix().transpose();
+  for (double t = from; t <= to; t += 0.0025)
+    r.samples.push_back({t, imu_from_camera * cameraRate(t + r.imu.time_offset_s)});
+  return r;
+}
+
+TEST(FrameRotation, FollowsTheGyroAtEveryCaptureTime) {
+  const Recording r = recording(0.0, 0.2);
+  const double readout = 0.0267, time = 0.1, gap = 0.02;
+  FrameRotation rotation(readout);
+  ASSERT_TRUE(rotation.measure(r.samples, r.imu, Eigen::Vector3d::Zero(), time, gap));
+  ASSERT_TRUE(rotation.known());
+  for (double s = 0.0; s <= readout; s += 0.0013) {
+    const auto exact = integrateGyro(r.samples, r.imu, Eigen::Vector3d::Zero(), time, time + s, gap);
+    ASSERT_TRUE(exact.has_value());
+    EXPECT_LT((rotation.turnAt(s) - rotationVector(*exact)).norm(), 2e-7) << "s = " << s;
+  }
+  // Beyond the span: on along the end's rate.
+  const Eigen::Vector3d end = rotation.turnAt(readout);
+  EXPECT_LT((rotation.turnAt(readout + 0.001) - end).norm(), 0.0016);
+  EXPECT_EQ(rotation.turnAt(0.0), Eigen::Vector3d::Zero());
+}
+
+TEST(FrameRotation, IsUnknownWhereTheSamplesDoNotReach) {
+  const Recording r = recording(0.0, 0.1);
+  FrameRotation rotation(0.03);
+  // The samples end 10 ms into the readout (camera time 0.104).
+  EXPECT_FALSE(rotation.measure(r.samples, r.imu, Eigen::Vector3d::Zero(), 0.094, 0.02));
+  EXPECT_FALSE(rotation.known());
+  ASSERT_TRUE(rotation.measure(r.samples, r.imu, Eigen::Vector3d::Zero(), 0.05, 0.02));
+  // A gap longer than the largest interval allowed.
+  std::vector<GyroSample> holed;
+  for (const GyroSample& s : r.samples)
+    if (s.t < 0.055 || s.t > 0.07) holed.push_back(s);
+  EXPECT_FALSE(rotation.measure(holed, r.imu, Eigen::Vector3d::Zero(), 0.05, 0.01));
+  EXPECT_FALSE(rotation.known());
+}
+
+}  // namespace
+}  // namespace omnipose::pipeline
