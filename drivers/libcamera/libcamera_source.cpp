@@ -402,6 +402,10 @@ LibcameraSource::Impl::Step LibcameraSource::Impl::take(cv::Mat& out, FrameInfo&
   info = FrameInfo{};
   info.capture_time_us = drivers::captureTimeUs(ts_ns, clock_offset,
                                                 [this] { return clockNs(CLOCK_REALTIME); });
+  // CLOCK_BOOTTIME runs ahead of CLOCK_MONOTONIC by the time the system was suspended.
+  const std::int64_t monotonic_now = clockNs(CLOCK_MONOTONIC);
+  info.steady_time_us =
+      (ts_ns > 0 ? ts_ns - (clockNs(CLOCK_BOOTTIME) - monotonic_now) : monotonic_now) / 1000;
   info.sequence = sequence.delivered(request.sequence, info.capture_time_us, fps);
   ++stats.delivered;
   if (!requeued) disconnect("queueing a request failed");

@@ -625,6 +625,7 @@ V4l2Source::Step V4l2Source::drain(cv::Mat& out, FrameInfo& info, Error& error) 
                                                 [this] { return nowNs(CLOCK_REALTIME); });
   // Sequence: the driver's 32-bit counter, extended to 64 bits; across a close() and
   // open() (the counter restarts) it continues with the gap the frame rate implies.
+  info.steady_time_us = (d.timestamp_ns > 0 ? d.timestamp_ns : nowNs(CLOCK_MONOTONIC)) / 1000;
   info.sequence = sequence_.delivered(d.sequence, info.capture_time_us, negotiated_.fps);
   ++stats_.delivered;
 

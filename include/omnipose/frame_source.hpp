@@ -23,6 +23,10 @@ namespace omnipose {
 /// Metadata of one delivered frame.
 struct FrameInfo {
   std::int64_t capture_time_us = 0;  ///< capture time, wall clock (CLOCK_REALTIME), microseconds
+  /// The same on CLOCK_MONOTONIC, a clock that does not jump: what the odometry times frames
+  /// by and the gyro's samples are joined to (DESIGN.md section 6). 0: the source has none
+  /// (file sources: their recorded timestamps are used).
+  std::int64_t steady_time_us = 0;
   std::uint64_t sequence = 0;        ///< source's frame counter (gaps = frames lost upstream)
   double source_timestamp = 0.0;     ///< file sources: the recorded timestamp, seconds
   int index = -1;                    ///< file sources: frame index in the dataset

@@ -184,6 +184,20 @@ void parseLcm(Reader& r, const YAML::Node& node, LcmConfig& l) {
   r.range(l.status_hz, "lcm.status_hz", 0.0, 100.0, " Hz", true);
 }
 
+constexpr detail::Named<ImuConfig::Source> kImuSources[] = {
+    {ImuConfig::Source::kNone, "none"}, {ImuConfig::Source::kLcm, "lcm"}};
+
+void parseImu(Reader& r, const YAML::Node& node, const LcmConfig& lcm, ImuConfig& i) {
+  if (!r.checkMap(node, "imu", {"source", "channel", "url"})) return;
+  r.getNamed(node, "imu", "source", kImuSources, i.source);
+  r.get(node, "imu", "channel", i.channel);
+  r.get(node, "imu", "url", i.url);
+  if (i.source != ImuConfig::Source::kLcm) return;
+  if (i.channel.empty()) r.problem("imu.channel", "must not be empty");
+  if (i.url.empty() && lcm.url.find("mode=w") != std::string::npos)
+    r.problem("imu.url", "needed: lcm.url \"" + lcm.url + "\" is a log the daemon writes");
+}
+
 void parseScheduling(Reader& r, const YAML::Node& node, SchedulingConfig& s) {
   if (!r.checkMap(node, "scheduling", {"fifo_priority", "cpus"})) return;
   r.get(node, "scheduling", "fifo_priority", s.fifo_priority);
@@ -201,6 +215,10 @@ const char* toString(SourceConfig::Type type) {
   return detail::nameOf(kSourceTypes, type, "unknown");
 }
 
+const char* toString(ImuConfig::Source source) {
+  return detail::nameOf(kImuSources, source, "unknown");
+}
+
 DaemonConfig DaemonConfig::parse(const std::string& text, const std::string& origin,
                                  const std::filesystem::path& base_dir, Use use) {
   Reader r(origin);
@@ -210,7 +228,7 @@ DaemonConfig DaemonConfig::parse(const std::string& text, const std::string& ori
   r.checkDuplicateKeys(root);
   if (!root || root.IsNull()) root = YAML::Node(YAML::NodeType::Map);
   if (r.checkMap(root, "", {"source", "calibration", "input", "pipeline", "keyframes",
-                            "plausibility", "lcm", "scheduling"})) {
+                            "plausibility", "lcm", "scheduling", "imu"})) {
     if (root["source"]) parseSource(r, root["source"], base_dir, c.source);
     else if (use == Use::kDaemon) r.problem("source", "missing section");
 
@@ -235,6 +253,7 @@ DaemonConfig DaemonConfig::parse(const std::string& text, const std::string& ori
     if (root["plausibility"]) parsePlausibility(r, root["plausibility"], c.plausibility);
     if (root["lcm"]) parseLcm(r, root["lcm"], c.lcm);
     if (root["scheduling"]) parseScheduling(r, root["scheduling"], c.scheduling);
+    if (root["imu"]) parseImu(r, root["imu"], c.lcm, c.imu);
     for (const auto& p : c.pipeline.validate()) r.add(yamlProblem(p));
   }
   r.throwIfProblems("invalid configuration");
@@ -313,7 +332,8 @@ std::string DaemonConfig::describe() const {
     << "scheduling:\n  fifo_priority: " << scheduling.fifo_priority << "\n  cpus: [";
   for (std::size_t i = 0; i < scheduling.cpus.size(); ++i)
     o << (i > 0 ? ", " : "") << scheduling.cpus[i];
-  o << "]\n";
+  o << "]\nimu:\n  source: " << toString(imu.source) << "\n  channel: " << imu.channel
+    << "\n  url: \"" << imu.url << "\"\n";
   return o.str();
 }
 

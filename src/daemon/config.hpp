@@ -18,6 +18,7 @@
 /// lcm: {url: "", pose_channel: OMNI_POSE, status_channel: OMNI_STATUS, fit_channel: "",
 ///       status_hz: 1.0}
 /// scheduling: {fifo_priority: 0, cpus: []}
+/// imu: {source: none, channel: OMNI_IMU, url: ""}
 /// ```
 
 #include <filesystem>
@@ -56,6 +57,18 @@ struct LcmConfig {
   double status_hz = 1.0;
 };
 
+/// The robot's gyro (DESIGN.md sections 3 and 6). Its samples are used when the calibration
+/// has an imu section and a rolling shutter.
+struct ImuConfig {
+  enum class Source { kNone, kLcm };
+  Source source = Source::kNone;
+  std::string channel = "OMNI_IMU";  ///< lcm: the channel of the omnipose.imu_t messages
+  /// lcm: the LCM URL to receive on; "" = lcm.url's (which must then not be a log the daemon
+  /// writes: file://...?mode=w).
+  std::string url;
+};
+const char* toString(ImuConfig::Source source);
+
 /// How the daemon's threads are scheduled (src/daemon/scheduling.hpp applies it at start-up,
 /// before any thread starts). The default changes nothing: normal time-sharing on every CPU.
 struct SchedulingConfig {
@@ -90,6 +103,7 @@ struct DaemonConfig {
   PlausibilityOptions plausibility;
   LcmConfig lcm;
   SchedulingConfig scheduling;
+  ImuConfig imu;
   /// What parse() changed or assumed that the user should know, each naming the file and
   /// the key: pipeline.threads above the cores this process may use is clamped to them.
   std::vector<std::string> warnings;

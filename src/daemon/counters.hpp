@@ -37,7 +37,20 @@
     "times the source failed and was closed to be re-opened (one per outage)")               \
   X(publish_failures, "publish failures", "messages that could not be encoded or published")  \
   X(frames_implausible, "implausible",                                                       \
-    "of the bad frames, those that decoded but were not believed (a glitching camera)")
+    "of the bad frames, those that decoded but were not believed (a glitching camera)")       \
+  X(imu_samples, "gyro samples", "gyro samples the odometry took (daemon.yaml imu)")          \
+  X(imu_samples_refused, "gyro samples refused",                                             \
+    "gyro samples not finite, beyond 100 rad/s, or stamped at or before the one before")     \
+  X(imu_messages_bad, "bad imu messages",                                                     \
+    "messages on the imu channel that are not an omnipose.imu_t with a reading")             \
+  X(imu_samples_dropped, "gyro samples dropped",                                             \
+    "gyro samples that arrived while the queue to the processing thread was full")           \
+  X(imu_clock_restarts, "gyro clock restarts",                                               \
+    "times the gyro's clock jumped back by more than a second (its samples before dropped)") \
+  X(frames_with_gyro, "frames with gyro",                                                     \
+    "rolling-shutter frames whose rows' rotations came from the gyro")                       \
+  X(frames_without_gyro, "frames without gyro",                                               \
+    "rolling-shutter frames (calibration with an imu section) the gyro did not cover")
 
 namespace omnipose::daemon {
 

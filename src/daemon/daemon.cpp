@@ -33,6 +33,20 @@ Daemon::Daemon(const DaemonConfig& config, std::FILE* log, std::unique_ptr<Frame
                                                      calibration.sensor.readout_s});
   phase("opening the LCM output");
   sink_ = sink ? std::move(sink) : makeLcmSink(config_.lcm.url);
+  if (config_.imu.source == ImuConfig::Source::kLcm) {
+    if (!calibration.imu) {
+      const std::string problem = (config_.origin.empty() ? "daemon.yaml" : config_.origin) +
+                                  ": imu.source: lcm needs the calibration's imu section (" +
+                                  config_.calibration.string() +
+                                  "; measure it with omnipose-calibrate --imu-from)";
+      throw ConfigError(problem, {problem});
+    }
+    phase("subscribing to the gyro");
+    gyro_queue_ = std::make_unique<GyroQueue>();
+    imu_ = std::make_unique<ImuSubscriber>(
+        config_.imu.url.empty() ? config_.lcm.url : config_.imu.url, config_.imu.channel,
+        *gyro_queue_, board_);
+  }
 
   const bool lossless = options_.force_lossless ||
                         (config_.source.type == SourceConfig::Type::kFile && !config_.source.realtime);
@@ -56,7 +70,7 @@ Daemon::Daemon(const DaemonConfig& config, std::FILE* log, std::unique_ptr<Frame
   source_warnings_ = source_->warnings();
   phase("building the pipeline (FFT plans)");
   processor_ = std::make_unique<Processor>(calibration, config_.odometry(), config_.lcm, *sink_,
-                                           board_, source_description_);
+                                           board_, source_description_, gyro_queue_.get());
   capture_ = std::make_unique<CaptureLoop>(*source_, *mailbox_, board_, options_.capture);
 }
 
@@ -68,6 +82,7 @@ Daemon::~Daemon() {
 void Daemon::start() {
   if (started_) return;
   started_ = true;
+  if (imu_) imu_->start();
   capture_thread_ = std::thread([this] { capture_->run(); });
   process_thread_ = std::thread([this] { processLoop(); });
 }
@@ -93,6 +108,7 @@ void Daemon::join() {
   // The processor ends only after the capture thread closed the mailbox or on stop.
   mailbox_->requestStop();
   if (capture_thread_.joinable()) capture_thread_.join();
+  if (imu_) imu_->stop();
   processor_->publishStatus(true);
 }
 

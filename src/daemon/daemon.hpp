@@ -30,6 +30,8 @@
 
 #include "daemon/capture_loop.hpp"
 #include "daemon/frame_mailbox.hpp"
+#include "daemon/gyro_queue.hpp"
+#include "daemon/imu_subscriber.hpp"
 #include "daemon/message_sink.hpp"
 #include "daemon/processor.hpp"
 #include "daemon/status_board.hpp"
@@ -88,6 +90,8 @@ class Daemon {
   /// What the source noticed when it was opened (FrameSource::warnings()).
   const std::vector<std::string>& sourceWarnings() const { return source_warnings_; }
   std::string sinkDescription() const { return sink_->describe(); }
+  /// One line on the gyro's stream ("" without one: daemon.yaml imu.source none).
+  std::string imuDescription() const { return imu_ ? imu_->describe() : std::string(); }
 
  private:
   void processLoop();
@@ -99,6 +103,8 @@ class Daemon {
   std::unique_ptr<FrameSource> source_;
   std::unique_ptr<MessageSink> sink_;
   std::unique_ptr<FrameMailbox> mailbox_;
+  std::unique_ptr<GyroQueue> gyro_queue_;
+  std::unique_ptr<ImuSubscriber> imu_;
   std::unique_ptr<Processor> processor_;
   std::unique_ptr<CaptureLoop> capture_;
   std::string source_description_;

@@ -41,12 +41,13 @@ std::int64_t cpuTimeNs(clockid_t clock) {
 
 Processor::Processor(const Calibration& calibration, const OdometryOptions& odometry,
                      const LcmConfig& lcm, MessageSink& sink, StatusBoard& board,
-                     const std::string& source_description)
+                     const std::string& source_description, GyroQueue* gyro)
     : odometry_(calibration, odometry),
       lcm_(lcm),
       sink_(sink),
       board_(board),
       diagnostics_(!lcm.fit_channel.empty()),
+      gyro_(gyro),
       pose_(std::make_unique<pose_t>()),
       status_(std::make_unique<status_t>()),
       diagnostics_msg_(std::make_unique<fit_diagnostics_t>()),
@@ -96,18 +97,35 @@ bool Processor::publish(const std::string& channel, std::vector<std::uint8_t>& b
   return true;
 }
 
+void Processor::takeGyro() {
+  if (gyro_ != nullptr) {
+    for (std::size_t n; (n = gyro_->pop(gyro_batch_)) > 0;)
+      odometry_.addGyro(std::span<const GyroSample>(gyro_batch_.data(), n));
+  }
+  const GyroCounters c = odometry_.gyroCounters();
+  board_.imu_samples.store(c.accepted);
+  board_.imu_samples_refused.store(c.not_finite + c.too_fast + c.out_of_order);
+  board_.imu_clock_restarts.store(c.clock_restarts);
+  board_.frames_with_gyro.store(c.frames_with_gyro);
+  board_.frames_without_gyro.store(c.frames_without_gyro);
+}
+
 void Processor::handleFrame(const MailboxFrame& frame) {
   const auto t_start = SteadyClock::now();
   const FrameInfo& info = frame.info;
   // The recording's own timestamps when there are some (a hole in a recording replayed as
-  // fast as possible is still a hole), else the capture time.
-  const double t = info.index >= 0 ? info.source_timestamp
-                                   : static_cast<double>(info.capture_time_us) * 1e-6;
+  // fast as possible is still a hole), else the capture time on the clock that does not
+  // jump (the gyro's samples are joined to it), else the wall clock's.
+  const double t = info.index >= 0            ? info.source_timestamp
+                   : info.steady_time_us > 0 ? static_cast<double>(info.steady_time_us) * 1e-6
+                                             : static_cast<double>(info.capture_time_us) * 1e-6;
+  takeGyro();
 
   const std::int64_t cpu_start = cpuTimeNs(CLOCK_THREAD_CPUTIME_ID);
   Expected<OdometryResult> result =
       odometry_.process(*frame.image, {t, static_cast<std::int64_t>(info.sequence), frame.gap_before});
   load_.processing_cpu_ns += cpuTimeNs(CLOCK_THREAD_CPUTIME_ID) - cpu_start;
+  takeGyro();  // the frame's counts
   load_.processing_wall_ns +=
       std::chrono::duration_cast<std::chrono::nanoseconds>(SteadyClock::now() - t_start).count();
   ++load_.frames;

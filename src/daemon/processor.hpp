@@ -19,12 +19,14 @@
 /// nothing in this code (what the sink's transport does is its own business, see
 /// message_sink.hpp) and never throw. One instance, used by one thread at a time.
 
+#include <array>
 #include <cstdint>
 #include <memory>
 #include <string>
 #include <vector>
 
 #include "daemon/frame_mailbox.hpp"
+#include "daemon/gyro_queue.hpp"
 #include "daemon/message_sink.hpp"
 #include "daemon/sample_ring.hpp"
 #include "daemon/status_board.hpp"
@@ -47,10 +49,11 @@ class Processor {
 
   /// Builds the pipeline (throws std::invalid_argument listing bad options) and sizes
   /// every message. `sink` and `board` are borrowed and must outlive this.
-  /// `source_description` goes into status_t.source.
+  /// `source_description` goes into status_t.source. `gyro` (borrowed, may be null): the
+  /// robot's gyro samples, given to the odometry before each frame.
   Processor(const Calibration& calibration, const OdometryOptions& odometry,
             const LcmConfig& lcm, MessageSink& sink, StatusBoard& board,
-            const std::string& source_description);
+            const std::string& source_description, GyroQueue* gyro = nullptr);
   ~Processor();
   Processor(const Processor&) = delete;
   Processor& operator=(const Processor&) = delete;
@@ -65,12 +68,17 @@ class Processor {
   /// The load fields of a status over `wall_s` seconds: since the last status, or the run.
   void fillLoad(status_t& s, bool final, double wall_s);
   void fillDiagnostics(const FrameInfo& info, const OdometryResult& result, std::int8_t status);
+  /// Gives the odometry the gyro samples queued since the last frame, and the board its
+  /// gyro counters.
+  void takeGyro();
 
   Odometry odometry_;
   LcmConfig lcm_;
   MessageSink& sink_;
   StatusBoard& board_;
   bool diagnostics_ = false;
+  GyroQueue* gyro_ = nullptr;
+  std::array<GyroSample, 256> gyro_batch_;  ///< takeGyro()'s scratch
 
   std::unique_ptr<pose_t> pose_;
   std::unique_ptr<status_t> status_;

@@ -128,6 +128,8 @@ int runService(const DaemonConfig& config, std::FILE* log, const DaemonOptions& 
                !SystemdNotifier::compiledIn() ? "not built in"
                : notifier.enabled()           ? (notifier.watchdogInterval() ? "on, watchdog on" : "on")
                                               : "built in, not under systemd");
+  if (const std::string imu = daemon.imuDescription(); !imu.empty())
+    std::fprintf(log, "omniposed: %s\n", imu.c_str());
   std::fflush(log);
 
   daemon.start();

@@ -183,6 +183,26 @@ TEST(DaemonConfig, SchedulingSection) {
                        "scheduling.fifo_priority"));
 }
 
+TEST(DaemonConfig, ImuSection) {
+  const DaemonConfig defaults = parseWith("");
+  EXPECT_EQ(defaults.imu.source, ImuConfig::Source::kNone) << "no gyro by default";
+  EXPECT_THAT(defaults.describe(), HasSubstr("imu:\n  source: none\n  channel: OMNI_IMU\n  url: \"\""));
+  const DaemonConfig c = parseWith("imu: {source: lcm, channel: ROBOT_IMU, url: \"udpm://239.255.76.67:7667\"}\n");
+  EXPECT_EQ(c.imu.source, ImuConfig::Source::kLcm);
+  EXPECT_EQ(c.imu.channel, "ROBOT_IMU");
+  EXPECT_EQ(c.imu.url, "udpm://239.255.76.67:7667");
+  EXPECT_THAT(c.describe(), HasSubstr("imu:\n  source: lcm\n  channel: ROBOT_IMU"));
+  const auto problems = problemsOf(kFileSource + "imu: {source: iio, rate: 200}\n");
+  EXPECT_TRUE(mentions(problems, "imu.source")) << problems.size();
+  EXPECT_TRUE(mentions(problems, "imu.rate"));
+  EXPECT_TRUE(mentions(problemsOf(kFileSource + "imu: {source: lcm, channel: \"\"}\n"),
+                       "imu.channel: must not be empty"));
+  // Received on lcm.url unless told otherwise, which cannot be a log the daemon writes.
+  EXPECT_TRUE(mentions(
+      problemsOf(kFileSource + "lcm: {url: \"file:///tmp/x.lcm?mode=w\"}\nimu: {source: lcm}\n"),
+      "imu.url: needed: lcm.url \"file:///tmp/x.lcm?mode=w\" is a log the daemon writes"));
+}
+
 TEST(DaemonConfig, ReplayUseNeedsNoSource) {
   const DaemonConfig c = DaemonConfig::parse("input: panorama\npipeline: {refine_iterations: 2}\n",
                                              "r.yaml", "/tmp", DaemonConfig::Use::kReplay);

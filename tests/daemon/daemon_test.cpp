@@ -24,6 +24,8 @@
 
 #include "bad_images.hpp"
 #include "daemon_test_support.hpp"
+#include "gyro_dataset.hpp"
+#include "omnipose/io/gyro.hpp"
 #include "daemon/config.hpp"
 #include "replay.hpp"
 
@@ -915,6 +917,81 @@ TEST(Daemon, StaleFramesAreSkippedAndLatencyStaysBounded) {
       EXPECT_LE(b.frames_skipped, b.sequence - a.sequence - 1);
       EXPECT_EQ(b.reference_sequence, a.sequence);
     }
+  }
+}
+
+/// RMS over the tracked poses of the error of their relative rotation against the ground
+/// truth of `dataset`, radians.
+double relativeRotationRms(const std::vector<pose_t>& poses, const fs::path& dataset) {
+  const auto gt = readTum(dataset / "groundtruth.tum");
+  std::map<std::int64_t, double> stamp;  // sequence -> recorded timestamp
+  for (const pose_t& p : poses) stamp[p.sequence] = p.source_timestamp;
+  const auto at = [&](double t) {
+    for (std::size_t k = 0; k < gt.size(); ++k)
+      if (std::abs(gt[k].timestamp - t) < 1e-6) return static_cast<int>(k);
+    return -1;
+  };
+  double sum = 0.0;
+  int n = 0;
+  for (const pose_t& p : poses) {
+    if (p.status == pose_t::STATUS_LOST) continue;
+    const int i = at(stamp.at(p.reference_sequence)), j = at(p.source_timestamp);
+    if (i < 0 || j < 0) continue;
+    const double e = testing::rotationError(testing::relativeRotation(p), gtRelative(gt, i, j));
+    sum += e * e;
+    ++n;
+  }
+  return n > 0 ? std::sqrt(sum / n) : std::numeric_limits<double>::infinity();
+}
+
+TEST(Daemon, TheRobotsGyroOverLcmTakesTheRollingShutterOut) {
+  // The gyro's clock runs 0.5 s ahead of the recording's, so that every utime is positive.
+  const fs::path dataset = testing::cachedDataset("gyro", [](const fs::path& dir) {
+    testing::writeGyroDataset(dir, testing::indoorPhoto(), 13, 0.5);
+  });
+  TempDir tmp("gyro");
+  std::vector<testing::LcmEvent> events;
+  for (const GyroSample& s : readGyroCsv(dataset / "imu.csv").samples)
+    events.push_back(testing::imuEvent(s));
+  testing::writeLcmLog(tmp / "imu.lcm", events);
+  const auto run = [&](const std::string& imu, status_t& last) {
+    Bus bus;
+    const auto config = parseConfig(testing::fileSourceConfig(dataset, "memq://", true) + imu);
+    Daemon d(config, stderr, nullptr, bus.sink(), lossless());
+    EXPECT_EQ(d.imuDescription().empty(), imu.empty());
+    bus.run(d, 120s);
+    EXPECT_FALSE(bus.statuses.empty());
+    if (!bus.statuses.empty()) last = bus.statuses.back();
+    return relativeRotationRms(bus.poses, dataset);
+  };
+  status_t with{}, without{};
+  const double with_gyro = run(
+      "imu: {source: lcm, url: \"file://" + (tmp / "imu.lcm").string() + "?speed=0\"}\n", with);
+  const double images_alone = run("", without);
+  ::testing::Test::RecordProperty("rotation_rms_with_gyro", std::to_string(with_gyro));
+  ::testing::Test::RecordProperty("rotation_rms_images_alone", std::to_string(images_alone));
+
+  EXPECT_EQ(with.imu_samples, static_cast<std::int64_t>(events.size()));
+  EXPECT_EQ(with.imu_samples_refused + with.imu_messages_bad + with.imu_samples_dropped, 0);
+  // The log is read in milliseconds and the frames come at 30 fps: the first frame may still
+  // find the gyro's queue empty.
+  EXPECT_GE(with.frames_with_gyro, 12);
+  EXPECT_EQ(with.frames_with_gyro + with.frames_without_gyro, 13);
+  EXPECT_EQ(without.imu_samples, 0);
+  EXPECT_EQ(without.frames_with_gyro, 0);
+  EXPECT_EQ(without.frames_without_gyro, 13);  // the calibration's imu section, no stream
+  EXPECT_LT(with_gyro, 0.5 * images_alone);
+}
+
+TEST(Daemon, AGyroWithoutItsCalibrationIsAStartUpError) {
+  auto config = parseConfig(testing::fileSourceConfig(yawDataset(), "memq://", false) +
+                            "imu: {source: lcm, url: \"memq://\"}\n");
+  Bus bus;
+  try {
+    Daemon d(config, stderr, nullptr, bus.sink());
+    FAIL() << "no error";
+  } catch (const ConfigError& e) {
+    EXPECT_THAT(e.what(), ::testing::HasSubstr("imu.source: lcm needs the calibration's imu section"));
   }
 }
 

@@ -29,6 +29,8 @@
 #include "daemon/message_sink.hpp"
 #include "omnipose/calibration.hpp"
 #include "omnipose/fit_diagnostics_t.hpp"
+#include "omnipose/gyro.hpp"
+#include "omnipose/imu_t.hpp"
 #include "omnipose/frame_source.hpp"
 #include "omnipose/io/trajectory.hpp"
 #include "omnipose/pose_t.hpp"
@@ -232,6 +234,41 @@ inline DecodedLog readLcmLog(const fs::path& path, const std::string& pose_chann
     }
   }
   return log;
+}
+
+/// One message of an LCM log: its channel and encoded bytes.
+struct LcmEvent {
+  std::string channel;
+  std::vector<std::uint8_t> bytes;
+};
+
+/// An omnipose.imu_t message of `sample` (utime = t in microseconds; accel zero).
+inline LcmEvent imuEvent(const GyroSample& sample, const std::string& channel = "OMNI_IMU") {
+  imu_t m;
+  m.utime = static_cast<std::int64_t>(std::llround(sample.t * 1e6));
+  for (int i = 0; i < 3; ++i) {
+    m.gyro[i] = sample.rate[i];
+    m.accel[i] = 0.0;
+  }
+  LcmEvent e{channel, std::vector<std::uint8_t>(static_cast<std::size_t>(m.getEncodedSize()))};
+  m.encode(e.bytes.data(), 0, static_cast<int>(e.bytes.size()));
+  return e;
+}
+
+/// Writes `events` as an LCM log at `path`, 1 ms apart (throws when it cannot).
+inline void writeLcmLog(const fs::path& path, const std::vector<LcmEvent>& events) {
+  lcm::LogFile file(path.string(), "w");
+  if (!file.good()) throw std::runtime_error("cannot write LCM log " + path.string());
+  lcm::LogEvent event{};
+  event.timestamp = 1'000'000;
+  for (const LcmEvent& e : events) {
+    event.eventnum = 0;
+    event.timestamp += 1000;
+    event.channel = e.channel;
+    event.datalen = static_cast<std::int32_t>(e.bytes.size());
+    event.data = const_cast<std::uint8_t*>(e.bytes.data());
+    if (file.writeEvent(&event) != 0) throw std::runtime_error("cannot write " + path.string());
+  }
 }
 
 /// A daemon config (YAML text) for a file source.

@@ -13,8 +13,8 @@
 #include <unistd.h>
 
 #include "bad_images.hpp"
+#include "gyro_dataset.hpp"
 #include "omnipose/eval/evaluation.hpp"
-#include "omnipose/synth/gyro.hpp"
 #include "omnipose/synth/synth.hpp"
 
 using ::testing::HasSubstr;
@@ -151,35 +151,7 @@ class ReplayGyroTest : public ::testing::Test {
     if (!fs::exists(kPhoto)) return;
     root_ = fs::temp_directory_path() / ("omnipose_replay_gyro_" + std::to_string(::getpid()));
     fs::remove_all(root_);
-    const auto control = synth::generateTrajectory(synth::MotionScript::parse(
-        "frame_rate: 30\n"
-        "vibration: {amplitude_deg: 0.5, min_hz: 1, max_hz: 9, components: 3, seed: 5}\n"
-        "segments:\n"
-        "  - frames: 12\n    rotation: {axis: z, step_deg: 3, sign: positive}\n",
-        "turn"));
-    constexpr auto kSpline = synth::Interpolation::kSpline;
-    Calibration calibration;
-    calibration.sensor.readout_s = 0.0267;
-    synth::GyroSimulation gyro;
-    gyro.time_offset_s = 0.008;
-    gyro.rotation = Eigen::Quaterniond(Eigen::AngleAxisd(0.3, Eigen::Vector3d::UnitY()));
-    calibration.imu = ImuCalibration{.rotation = gyro.rotation, .time_offset_s = gyro.time_offset_s};
-    synth::RenderOptions ro;
-    ro.supersample = 2;
-    const synth::Renderer renderer(synth::Scene::load(kPhoto, synth::SceneKind::kSphere),
-                                   calibration, ro);
-    synth::DatasetWriter writer(root_ / "data", calibration, 0);
-    for (const auto& p : control) {
-      const double t0 = p.timestamp;
-      const cv::Mat image = renderer.render(
-          [&](double t) { return synth::poseAtTime(control, t0 + t, kSpline); },
-          calibration.sensor.readout_s);
-      writer.addFrame(synth::degrade(image, {}, 0), {t0, synth::poseAtTime(control, t0, kSpline)});
-    }
-    writer.writeGyro(synth::simulateGyro(control, kSpline, gyro, control.front().timestamp - 0.1,
-                                         control.back().timestamp + 0.1)
-                         .samples);
-    writer.finish();
+    Calibration calibration = testing::writeGyroDataset(root_ / "data", kPhoto, kFrames).calibration;
     calibration.imu.reset();
     calibration.save(root_ / "without_imu.yaml");
   }
