@@ -7,11 +7,12 @@
 //   -> "Collected" instructions / 10 = instructions per frame.
 // Usage: omnipose-bench-instructions [--threads N] [--frames K] [--warmup W]
 //                                    [--refine R] [--wisdom FILE] [--save DIR | --load DIR]
-//                                    [--odometry [--readout S]] [--no-moving-content]
-//                                    [--noise-weighting]
+//                                    [--odometry [--readout S [--gyro HZ]]]
+//                                    [--no-moving-content] [--noise-weighting]
 // --odometry processes the frames with Odometry (what omniposed and omnipose-replay run),
 // stamped at 30 fps, instead of Pipeline; --readout S gives the calibration a rolling
-// shutter of S seconds (the rows' capture times corrected in every pass).
+// shutter of S seconds (the rows' capture times corrected in every pass), --gyro HZ gives it
+// a gyro sampled at HZ (the calibration's imu section; the rows' rotations from the gyro).
 // --no-moving-content turns the refinement pass's check for content moving on its own off
 // (PipelineOptions::moving_content), to count what it costs; --noise-weighting turns the
 // registration's signal-to-noise weighting on (WindowRegistration::Options::noise_weighting).
@@ -27,6 +28,8 @@
 #include <opencv2/imgcodecs.hpp>
 #include <stdexcept>
 #include <string>
+#include <vector>
+#include <cmath>
 
 #include "cli.hpp"
 #include "omnipose/io/trajectory.hpp"
@@ -49,7 +52,7 @@ namespace {
 /// The command line, as parsed.
 struct Args {
   int threads = 1, frames = 10, warmup = 2, refine = 1;
-  double readout = 0.0;
+  double readout = 0.0, gyro_hz = 0.0;
   bool odometry = false, no_moving_content = false, noise_weighting = false;
   std::string wisdom, save, load;
 };
@@ -57,7 +60,8 @@ struct Args {
 constexpr const char* kUsage =
     "usage: omnipose-bench-instructions [--threads N] [--frames K] [--warmup W]\n"
     "                                   [--refine R] [--wisdom FILE] [--save DIR | --load DIR]\n"
-    "                                   [--odometry [--readout S]] [--no-moving-content]";
+    "                                   [--odometry [--readout S [--gyro HZ]]]\n"
+    "                                   [--no-moving-content] [--noise-weighting]";
 
 constexpr const char* kDescription =
     "Per-frame instruction counts of the pipeline, for valgrind --tool=callgrind\n"
@@ -82,10 +86,16 @@ void addOptions(CLI::App& app, Args& a) {
       ->excludes(save_opt);
   auto* odometry_opt =
       app.add_flag("--odometry", a.odometry, "process with Odometry, frames stamped at 30 fps");
-  app.add_option("--readout", a.readout, "rolling shutter readout of the calibration, seconds")
-      ->type_name("S")
-      ->needs(odometry_opt)
-      ->check(CLI::Range(-omnipose::SensorTiming::kMaxReadoutS, omnipose::SensorTiming::kMaxReadoutS));
+  auto* readout_opt =
+      app.add_option("--readout", a.readout, "rolling shutter readout of the calibration, seconds")
+          ->type_name("S")
+          ->needs(odometry_opt)
+          ->check(CLI::Range(-omnipose::SensorTiming::kMaxReadoutS,
+                             omnipose::SensorTiming::kMaxReadoutS));
+  app.add_option("--gyro", a.gyro_hz, "a gyro sampled at HZ (the rows' rotations from it)")
+      ->type_name("HZ")
+      ->needs(readout_opt)
+      ->check(CLI::Range(10.0, 10000.0));
   app.add_flag("--no-moving-content", a.no_moving_content,
                "without the refinement pass's moving-content check "
                "(PipelineOptions::moving_content)");
@@ -132,6 +142,7 @@ int run(const Args& a) {
   options.fftw_wisdom = a.wisdom;
   omnipose::Calibration calibration;
   calibration.sensor.readout_s = a.readout;
+  if (a.gyro_hz > 0.0) calibration.imu = omnipose::ImuCalibration{};
   std::optional<omnipose::Pipeline> pipeline;
   std::optional<omnipose::Odometry> odometer;
   if (a.odometry) {
@@ -142,12 +153,22 @@ int run(const Args& a) {
     pipeline.emplace(calibration, options);
   }
   int n = 0, ok = 0;
+  // The gyro's samples up to each frame's last row (a constant turn: its values change no
+  // instruction count), given before the frame.
+  std::vector<omnipose::GyroSample> samples;
+  double t_gyro = -0.05;
   // One frame (the frames alternate); true when it was estimated.
   const auto process = [&] {
     const cv::Mat& frame = f[n % 2];
     const omnipose::FrameStamp stamp{.time_s = n / 30.0, .sequence = n};
     ++n;
     if (pipeline) return pipeline->process(frame).has_value();
+    if (a.gyro_hz > 0.0) {
+      samples.clear();
+      for (; t_gyro <= stamp.time_s + std::abs(a.readout) + 0.01; t_gyro += 1.0 / a.gyro_hz)
+        samples.push_back({t_gyro, Eigen::Vector3d(0.0, 0.0, 1.2)});
+      odometer->addGyro(samples);
+    }
     return odometer->process(frame, stamp).has_value();
   };
   for (int i = 0; i < a.warmup; ++i) ok += process();
@@ -157,9 +178,14 @@ int run(const Args& a) {
   const double seconds =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   OMNIPOSE_TOGGLE_COLLECT();
-  std::printf("frames=%d threads=%d refine=%d odometry=%d readout_s=%g ok=%d ms_per_frame=%.3f\n",
+  std::printf("frames=%d threads=%d refine=%d odometry=%d readout_s=%g gyro_hz=%g ok=%d "
+              "ms_per_frame=%.3f\n",
               a.frames, pipeline ? pipeline->threads() : a.threads, a.refine, a.odometry ? 1 : 0,
-              a.readout, ok, 1e3 * seconds / std::max(a.frames, 1));
+              a.readout, a.gyro_hz, ok, 1e3 * seconds / std::max(a.frames, 1));
+  if (odometer && a.gyro_hz > 0.0 && odometer->gyroCounters().frames_with_gyro == 0) {
+    std::fprintf(stderr, "no frame used the gyro\n");
+    return 1;
+  }
   return ok == a.warmup + a.frames ? 0 : 1;
 }
 
