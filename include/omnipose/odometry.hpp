@@ -21,9 +21,11 @@
 /// KeyframeOptions::gap_after_s after the last good one, or a frame whose fit is lost, the
 /// motion since the last good frame is unknown: the next frame is registered against the
 /// keyframe, its yaw first found by a search over the whole ring (a circular correlation of
-/// the panoramas), roll and pitch by the fit. The chain goes on with the heading kept.
+/// the panoramas), roll and pitch by the fit; with the robot's gyro (addGyro()) it starts
+/// from the gyro's rotation across the gap instead. The chain goes on with the heading kept.
 /// Only when that fails too does a new segment start (status kLost, segment + 1, the pose
-/// held): the link across the gap is then unknown. A frame that decodes but cannot be
+/// held): the link across the gap is then unknown; where the gyro covers the gap, it bridges
+/// it instead (kGyroBridged). A frame that decodes but cannot be
 /// believed (PlausibilityOptions) is dropped and the next one registered against the last
 /// believed frame; after max_rejected such frames in a row a new segment starts.
 ///
@@ -128,6 +130,10 @@ enum class TrackState : std::int8_t {
   kTracked = 1,       ///< registered against the previous frame's prediction
   kBridged = 2,       ///< after a gap or a lost fit: found again against the keyframe
   kLost = 3,          ///< the fit failed and the gap could not be bridged: new segment
+  /// The images could not bridge the gap, the robot's gyro did (Odometry::addGyro()): the
+  /// motion's rotation is the gyro's, its translation unknown (zero, covariance infinite),
+  /// status kDegraded; the frame becomes a keyframe and the chain goes on.
+  kGyroBridged = 4,
 };
 const char* toString(TrackState state);
 
@@ -152,8 +158,11 @@ struct OdometryResult {
   bool windows_refined = false;  ///< the windows are the refinement pass's (de-rotated)
   Eigen::Matrix<double, 6, 1> window_model = Eigen::Matrix<double, 6, 1>::Zero();
 
-  /// A pose with motion (kTracked or kBridged).
-  bool tracked() const { return state == TrackState::kTracked || state == TrackState::kBridged; }
+  /// A pose with motion (kTracked, kBridged or kGyroBridged).
+  bool tracked() const {
+    return state == TrackState::kTracked || state == TrackState::kBridged ||
+           state == TrackState::kGyroBridged;
+  }
 };
 
 /// What became of the gyro samples given to Odometry::addGyro(), and of the frames that could
@@ -171,6 +180,14 @@ struct GyroCounters {
   /// has not caught up): those are registered from the images alone.
   std::int64_t frames_with_gyro = 0;
   std::int64_t frames_without_gyro = 0;
+  /// Gaps the images could not bridge and the gyro did (TrackState::kGyroBridged).
+  std::int64_t frames_gyro_bridged = 0;
+  /// Frame pairs whose images' rotation updated the gyro's bias estimate.
+  std::int64_t bias_readings = 0;
+  /// The gyro's bias as estimated from the images, rad/s about the IMU's axes (zero before
+  /// any reading), and one standard deviation of it (infinite before two readings).
+  Eigen::Vector3d bias = Eigen::Vector3d::Zero();
+  double bias_sigma = 0.0;
 };
 
 class Odometry {
@@ -197,10 +214,12 @@ class Odometry {
   /// frame's last row (later ones do no harm). With a rolling shutter each row's rotation
   /// within its frame then comes from the gyro, the pair's rotation from the images
   /// (DESIGN.md section 3, "Rolling shutter with a gyro"); a frame the samples do not cover
-  /// is registered from the images alone (GyroCounters). A bad sample (GyroCounters) is
-  /// refused and counted, never an error. Ignored without an imu section in the calibration,
-  /// for a global shutter, and for a pairwise method. Keeps the last 8192 samples (8 s at
-  /// 1 kHz); allocates nothing.
+  /// is registered from the images alone (GyroCounters). With any shutter the images track
+  /// the gyro's bias, a gap is searched for from the gyro's rotation across it, and a gap
+  /// the images cannot bridge is bridged by the gyro (TrackState::kGyroBridged; DESIGN.md
+  /// section 3, "The gyro's bias and bridging"). A bad sample (GyroCounters) is refused and
+  /// counted, never an error. Ignored without an imu section in the calibration and for a
+  /// pairwise method. Keeps the last 8192 samples (8 s at 1 kHz); allocates nothing.
   void addGyro(std::span<const GyroSample> samples);
   GyroCounters gyroCounters() const;
 

@@ -50,7 +50,9 @@
   X(frames_with_gyro, "frames with gyro",                                                     \
     "rolling-shutter frames whose rows' rotations came from the gyro")                       \
   X(frames_without_gyro, "frames without gyro",                                               \
-    "rolling-shutter frames (calibration with an imu section) the gyro did not cover")
+    "rolling-shutter frames (calibration with an imu section) the gyro did not cover")       \
+  X(frames_gyro_bridged, "gyro-bridged",                                                      \
+    "gaps the images could not bridge and the gyro did (pose_t TRACK_GYRO)")
 
 namespace omnipose::daemon {
 

@@ -108,6 +108,7 @@ void Processor::takeGyro() {
   board_.imu_clock_restarts.store(c.clock_restarts);
   board_.frames_with_gyro.store(c.frames_with_gyro);
   board_.frames_without_gyro.store(c.frames_without_gyro);
+  board_.frames_gyro_bridged.store(c.frames_gyro_bridged);
 }
 
 void Processor::handleFrame(const MailboxFrame& frame) {
@@ -256,6 +257,9 @@ void Processor::fillLoad(status_t& s, bool final, double wall_s) {
                            static_cast<double>(load_.frames - since.frames));
   s.threads = static_cast<std::int16_t>(odometry_.threads());
   s.threads_active = static_cast<std::int16_t>(odometry_.activeThreads());
+  const GyroCounters gyro = odometry_.gyroCounters();
+  for (int i = 0; i < 3; ++i) s.gyro_bias[i] = static_cast<float>(gyro.bias[i]);
+  s.gyro_bias_sigma = static_cast<float>(gyro.bias_sigma);
   load_at_status_ = load_;
 }
 

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <limits>
 #include <numbers>
 #include <optional>
 #include <stdexcept>
@@ -11,6 +12,7 @@
 #include "imu/gyro_buffer.hpp"
 #include "omnipose/so3.hpp"
 #include "pipeline/frame_registrar.hpp"
+#include "pipeline/gyro_bias.hpp"
 #include "pipeline/plausibility.hpp"
 #include "pipeline/readout_yaw.hpp"
 
@@ -69,6 +71,7 @@ const char* toString(TrackState state) {
     case TrackState::kTracked: return "tracked";
     case TrackState::kBridged: return "bridged";
     case TrackState::kLost: return "lost";
+    case TrackState::kGyroBridged: return "gyro";
   }
   return "?";
 }
@@ -137,7 +140,8 @@ struct Odometry::Impl {
   };
 
   Impl(const Calibration& c, const OdometryOptions& o)
-      : gyro_calibration(c.sensor.readout_s != 0.0 ? c.imu : std::nullopt),
+      : gyro_calibration(c.imu),
+        rolling_shutter(c.sensor.readout_s != 0.0),
         keyframe_options(o.keyframes),
         plausibility_options(o.plausibility),
         registrar(std::in_place, c, o.pipeline, std::max(o.keyframes.slots, 1)),
@@ -193,17 +197,34 @@ struct Odometry::Impl {
       c.previous_velocity = velocity;
       c.previous_interval_s = velocity_interval;
     }
-    if (gyro_calibration)
-      c.gyro_rotation = integrateGyro(gyro.samples(), *gyro_calibration, gyro_bias, reference_time, time,
-                                      gyroMaxGap());
+    if (gyro_calibration && rolling_shutter) c.gyro_rotation = gyroRotation(reference_time);
     registrar->setShutter(c);
   }
+  /// The camera's rotation from `reference_time` to the current frame's from the gyro (its
+  /// bias as estimated removed); nullopt without a gyro or where its samples do not tell.
+  std::optional<Eigen::Matrix3d> gyroRotation(double reference_time) const {
+    if (!gyro_calibration) return std::nullopt;
+    return integrateGyro(gyro.samples(), *gyro_calibration, gyro_bias.bias(), reference_time,
+                         time, gyroMaxGap());
+  }
+  /// The images' rotation `images` from the last good frame to the current one, a reading
+  /// of the gyro's bias.
+  void updateGyroBias(const Eigen::Matrix3d& images) {
+    const std::optional<Eigen::Matrix3d> G = gyroRotation(last_time);
+    if (G && gyro_bias.update(images, *G, time - last_time,
+                              gyro_calibration->rotation.normalized().toRotationMatrix()))
+      ++gyro_counters.bias_readings;
+  }
+  /// The current frame after a gap the images could not bridge, with the gyro's rotation
+  /// since the last good frame: kGyroBridged, the frame a keyframe. False without one.
+  bool gyroBridge(OdometryResult& out);
   /// Two samples further apart than this are a gap, seconds.
   double gyroMaxGap() const { return kGyroGapIntervals * gyro.typicalInterval(); }
   /// The current frame's rows' rotations from the gyro, counted.
   void measureRowRotations() {
-    if (!gyro_calibration) return;
-    if (registrar->measureRowRotations(gyro.samples(), *gyro_calibration, gyro_bias, time, gyroMaxGap()))
+    if (!gyro_calibration || !rolling_shutter) return;
+    if (registrar->measureRowRotations(gyro.samples(), *gyro_calibration, gyro_bias.bias(),
+                                       time, gyroMaxGap()))
       ++gyro_counters.frames_with_gyro;
     else
       ++gyro_counters.frames_without_gyro;
@@ -236,10 +257,10 @@ struct Odometry::Impl {
   void finish(OdometryResult& out, const Eigen::Isometry3d& T, const pipeline::PassResult& pass,
               TrackState state);
 
-  /// The calibration's imu section when the frames have a rolling shutter (else unused).
-  std::optional<ImuCalibration> gyro_calibration;
+  std::optional<ImuCalibration> gyro_calibration;  ///< the calibration's imu section
+  bool rolling_shutter = false;                    ///< sensor.readout_s is not 0
   imu::GyroBuffer gyro{kGyroSamplesKept};
-  Eigen::Vector3d gyro_bias = Eigen::Vector3d::Zero();  ///< rad/s, IMU axes
+  pipeline::GyroBias gyro_bias;
   GyroCounters gyro_counters;
   KeyframeOptions keyframe_options;
   PlausibilityOptions plausibility_options;
@@ -325,6 +346,8 @@ void Odometry::Impl::addKeyframe(const Eigen::Isometry3d& at) {
 void Odometry::Impl::finish(OdometryResult& out, const Eigen::Isometry3d& T_estimated,
                             const pipeline::PassResult& pass, TrackState state) {
   const Eigen::Isometry3d T = orthonormalized(T_estimated);
+  if (gyro_calibration && state == TrackState::kTracked && pass.estimate.status == FitStatus::kOk)
+    updateGyroBias(pose.linear().transpose() * T.linear());
   out.state = state;
   const FrameMotion keep_timing = out.relative;
   out.relative.estimate = pass.estimate;
@@ -343,11 +366,21 @@ void Odometry::Impl::finish(OdometryResult& out, const Eigen::Isometry3d& T_esti
 Expected<bool> Odometry::Impl::bridge(OdometryResult& out) {
   if (active < 0) return false;
   const Keyframe& key = keyframes[static_cast<std::size_t>(active)];
-  const std::optional<double> yaw = registrar->ringYaw(active, keyframe_options.min_ring_peak);
-  if (!yaw) return false;
-  const Eigen::Matrix3d R0 = rotationFromVector(Eigen::Vector3d(0.0, 0.0, *yaw));
   setShutter(key.time_s, false);
-  const std::optional<MotionEstimate> aligned = registrar->alignedPass(R0, active);
+  // The rotation from the keyframe: the gyro's across the gap when it has one (the last good
+  // frame's pose from the keyframe's, then the gyro), else the yaw of the whole-ring search.
+  std::optional<MotionEstimate> aligned;
+  Eigen::Matrix3d R0 = Eigen::Matrix3d::Identity();
+  if (const std::optional<Eigen::Matrix3d> G = gyroRotation(last_time)) {
+    R0 = key.pose.linear().transpose() * pose.linear() * *G;
+    aligned = registrar->alignedPass(R0, active);
+  }
+  if (!aligned || aligned->status == FitStatus::kLost) {
+    const std::optional<double> yaw = registrar->ringYaw(active, keyframe_options.min_ring_peak);
+    if (!yaw) return false;
+    R0 = rotationFromVector(Eigen::Vector3d(0.0, 0.0, *yaw));
+    aligned = registrar->alignedPass(R0, active);
+  }
   if (!aligned || aligned->status == FitStatus::kLost) return false;
   const pipeline::PassResult pass = registrar->refine(
       *aligned, rotationFromVector(aligned->omega) * R0, aligned->tau, active);
@@ -371,9 +404,41 @@ Expected<bool> Odometry::Impl::bridge(OdometryResult& out) {
   return true;
 }
 
+bool Odometry::Impl::gyroBridge(OdometryResult& out) {
+  const std::optional<Eigen::Matrix3d> G = gyroRotation(last_time);
+  if (!G) return false;
+  // The rotation's variance: the gyro's white noise and the bias's uncertainty over the gap
+  // (a phone-class gyro's noise when the calibration does not give it).
+  const double dt = time - last_time;
+  const double density = gyro_calibration->gyro_noise_density.value_or(8.7e-5);
+  const double bias_sigma = std::min(gyro_bias.sigma(), 0.02);
+  pipeline::PassResult pass;
+  pass.rotation = *G;
+  pass.estimate.omega = rotationVector(*G);
+  pass.estimate.tau.setZero();
+  pass.estimate.status = FitStatus::kDegraded;
+  pass.estimate.covariance.setZero();
+  pass.estimate.covariance.topLeftCorner<3, 3>().diagonal().setConstant(
+      density * density * std::abs(dt) + bias_sigma * bias_sigma * dt * dt);
+  pass.estimate.covariance.bottomRightCorner<3, 3>().diagonal().setConstant(
+      std::numeric_limits<double>::infinity());
+  registrar->makeCurrentPrevious();
+  finish(out, pose * isometry(*G, Eigen::Vector3d::Zero()), pass, TrackState::kGyroBridged);
+  out.keyframe_sequence = sequence;
+  addKeyframe(pose);
+  readout_yaw.reset();
+  velocity_interval = 0.0;
+  gap = false;
+  ++gyro_counters.frames_gyro_bridged;
+  gate->restart();  // a view of its own: the confidences before it say nothing of it
+  gate->believe(false);
+  return true;
+}
+
 Expected<OdometryResult> Odometry::Impl::rejectFrame(OdometryResult& out, const Error& why) {
   if (gate->rejectedInARow() >= plausibility_options.max_rejected) {
-    startSegment(out, TrackState::kLost);  // the view changed for good: start again from here
+    // The view changed for good: the gyro's rotation across, or start again from here.
+    if (!gyroBridge(out)) startSegment(out, TrackState::kLost);
     finishTiming(out);
     return out;
   }
@@ -393,7 +458,7 @@ Expected<OdometryResult> Odometry::Impl::bridgeOrRestart(OdometryResult& out) {
     // of the glitch (until max_rejected); after an outage or a source that started over it
     // is a view of its own: a new segment.
     if (gate->rejectedInARow() > 0) return rejectFrame(out, kNotFoundAgain);
-    startSegment(out, TrackState::kLost);
+    if (!gyroBridge(out)) startSegment(out, TrackState::kLost);
   }
   out.relative.timing.refine = secondsSince(t_bridge);
   finishTiming(out);
@@ -560,7 +625,12 @@ void Odometry::addGyro(std::span<const GyroSample> samples) {
   }
 }
 
-GyroCounters Odometry::gyroCounters() const { return impl_->gyro_counters; }
+GyroCounters Odometry::gyroCounters() const {
+  GyroCounters c = impl_->gyro_counters;
+  c.bias = impl_->gyro_bias.bias();
+  c.bias_sigma = impl_->gyro_bias.sigma();
+  return c;
+}
 
 void Odometry::markGap() {
   impl_->gap = true;

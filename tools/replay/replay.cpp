@@ -61,9 +61,9 @@ void writeCsvRow(std::ofstream& csv, int frame, const DatasetFrame& f, const Odo
   csv << buf;
 }
 
-/// The dataset's gyro recording (imu.csv) for the odometry, when the calibration joins it to
-/// the frames (its imu section) and the frames have a rolling shutter; empty otherwise (with a
-/// warning on `log` for an imu.csv the calibration cannot use).
+/// The dataset's gyro recording (imu.csv) for the iFMI odometry, when the calibration joins
+/// it to the frames (its imu section); empty otherwise (with a warning on `log` for an imu.csv
+/// the calibration cannot use).
 std::vector<GyroSample> gyroSamples(const Dataset& dataset, const std::string& method,
                                     std::FILE* log) {
   if (!dataset.gyro_file) return {};
@@ -75,7 +75,7 @@ std::vector<GyroSample> gyroSamples(const Dataset& dataset, const std::string& m
                  dataset.gyro_file->c_str());
     return {};
   }
-  if (c.sensor.readout_s == 0.0 || method != "ifmi") return {};
+  if (method != "ifmi") return {};
   return readGyroCsv(*dataset.gyro_file).samples;
 }
 
@@ -158,6 +158,7 @@ ReplaySummary run(const ReplayOptions& options, std::FILE* log) {
         ++summary.lost;
         std::fprintf(log, "lost %s: fit failed, starting a new chain segment\n", f.path.c_str());
         break;  // no pose written: the link across the gap is unknown
+      case TrackState::kGyroBridged:
       case TrackState::kBridged:
         ++summary.bridged;
         [[fallthrough]];
@@ -175,10 +176,13 @@ ReplaySummary run(const ReplayOptions& options, std::FILE* log) {
     summary.gyro_frames = static_cast<int>(g.frames_with_gyro);
     std::fprintf(log,
                  "gyro: %s, %lld samples taken; rows' rotations from the gyro in %lld frames, "
-                 "from the images alone in %lld (not covered)\n",
+                 "from the images alone in %lld (not covered); %lld gaps bridged by the gyro; "
+                 "bias %.5f %.5f %.5f rad/s (sigma %.5f, %lld readings)\n",
                  dataset.gyro_file->c_str(), static_cast<long long>(g.accepted),
                  static_cast<long long>(g.frames_with_gyro),
-                 static_cast<long long>(g.frames_without_gyro));
+                 static_cast<long long>(g.frames_without_gyro),
+                 static_cast<long long>(g.frames_gyro_bridged), g.bias.x(), g.bias.y(), g.bias.z(),
+                 g.bias_sigma, static_cast<long long>(g.bias_readings));
   }
   if (options.out_tum) writeTum(*options.out_tum, trajectory);
   if (!seconds.empty()) {
