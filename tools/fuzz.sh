@@ -6,6 +6,7 @@
 #   fuzz_timestamps_tum     DATASET/timestamps.txt and groundtruth.tum (Dataset::open, readTum)
 #   fuzz_gyro_csv           DATASET/imu.csv, the recorded gyro (parseGyroCsv)
 #   fuzz_imu_lcm            omnipose.imu_t messages, the gyro over LCM (decodeImuMessage)
+#   fuzz_gyro_stream        a live gyro stream: GyroBuffer, FrameRotation, integrateGyro
 #   fuzz_ocamcalib          OCamCalib calib_results.txt (OcamCalibModel::parse + the lens model)
 #   fuzz_lens_mask          Calibration::load with the files it names (OCamCalib model, Mei
 #                           cv::omnidir FileStorage, mask image)
@@ -31,7 +32,7 @@ cd "$(dirname "$0")/.."
 seconds=${1:-600}
 shift || true
 all_targets=(fuzz_calibration_yaml fuzz_daemon_yaml fuzz_frame_pipeline fuzz_timestamps_tum
-             fuzz_gyro_csv fuzz_imu_lcm fuzz_ocamcalib fuzz_lens_mask fuzz_calibrate_frames)
+             fuzz_gyro_csv fuzz_imu_lcm fuzz_gyro_stream fuzz_ocamcalib fuzz_lens_mask fuzz_calibrate_frames)
 targets=("$@")
 [ ${#targets[@]} -eq 0 ] && targets=("${all_targets[@]}")
 nice_level=${NICE:-15}

@@ -39,7 +39,8 @@ struct GyroSample {
 ///
 /// nullopt when the samples do not cover [t0, t1] (the first taken after min(t0, t1) or the
 /// last before max(t0, t1)) or two samples inside it are more than `max_gap_s` apart: the
-/// gyro cannot tell that interval and the caller falls back to the images.
+/// gyro cannot tell that interval and the caller falls back to the images; also when the
+/// result is not finite (times too far apart for doubles: never a rotation with a NaN).
 std::optional<Eigen::Matrix3d> integrateGyro(std::span<const GyroSample> samples,
                                              const ImuCalibration& imu,
                                              const Eigen::Vector3d& bias, double t0, double t1,

@@ -38,6 +38,7 @@
 
 #include <Eigen/Geometry>
 #include <cstdint>
+#include <limits>
 #include <memory>
 #include <opencv2/core.hpp>
 #include <span>
@@ -188,6 +189,8 @@ struct GyroCounters {
   /// any reading), and one standard deviation of it (infinite before two readings).
   Eigen::Vector3d bias = Eigen::Vector3d::Zero();
   double bias_sigma = 0.0;
+  /// The newest sample kept, seconds on the IMU's clock; NaN before any.
+  double last_sample_t = std::numeric_limits<double>::quiet_NaN();
 };
 
 class Odometry {

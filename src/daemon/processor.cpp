@@ -111,6 +111,16 @@ void Processor::takeGyro() {
   board_.frames_gyro_bridged.store(c.frames_gyro_bridged);
 }
 
+void Processor::reportGyroFallback(std::uint64_t sequence, double t) {
+  const GyroCounters c = odometry_.gyroCounters();
+  if (gyro_ == nullptr || c.frames_without_gyro == frames_without_gyro_) return;
+  frames_without_gyro_ = c.frames_without_gyro;
+  board_.reportError("frame %llu: the gyro's samples do not cover its readout (the newest at "
+                     "%.6f s on the IMU's clock, the frame at %.6f s): registered from the "
+                     "images alone",
+                     static_cast<unsigned long long>(sequence), c.last_sample_t, t);
+}
+
 void Processor::handleFrame(const MailboxFrame& frame) {
   const auto t_start = SteadyClock::now();
   const FrameInfo& info = frame.info;
@@ -127,6 +137,7 @@ void Processor::handleFrame(const MailboxFrame& frame) {
       odometry_.process(*frame.image, {t, static_cast<std::int64_t>(info.sequence), frame.gap_before});
   load_.processing_cpu_ns += cpuTimeNs(CLOCK_THREAD_CPUTIME_ID) - cpu_start;
   takeGyro();  // the frame's counts
+  reportGyroFallback(info.sequence, t);
   load_.processing_wall_ns +=
       std::chrono::duration_cast<std::chrono::nanoseconds>(SteadyClock::now() - t_start).count();
   ++load_.frames;

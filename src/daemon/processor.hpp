@@ -71,6 +71,9 @@ class Processor {
   /// Gives the odometry the gyro samples queued since the last frame, and the board its
   /// gyro counters.
   void takeGyro();
+  /// Reports the frame (`sequence`, timestamp `t` on the odometry's clock) when the gyro's
+  /// samples did not cover it (with a gyro stream configured).
+  void reportGyroFallback(std::uint64_t sequence, double t);
 
   Odometry odometry_;
   LcmConfig lcm_;
@@ -78,6 +81,7 @@ class Processor {
   StatusBoard& board_;
   bool diagnostics_ = false;
   GyroQueue* gyro_ = nullptr;
+  std::int64_t frames_without_gyro_ = 0;  ///< GyroCounters' at the last frame
   std::array<GyroSample, 256> gyro_batch_;  ///< takeGyro()'s scratch
 
   std::unique_ptr<pose_t> pose_;

@@ -44,8 +44,10 @@ std::optional<Eigen::Vector3d> gyroRateAt(std::span<const GyroSample> samples,
   // Piece [a, a + 1] holds `at` (the last piece when `at` is the last sample).
   const std::size_t a = std::min(firstAfter(samples, at), samples.size() - 1) - 1;
   if (samples[a + 1].t - samples[a].t > max_gap_s) return std::nullopt;
-  return Eigen::Vector3d(imu.rotation.normalized().toRotationMatrix() *
-                         (rateAt(samples, a, at, max_gap_s) - bias));
+  const Eigen::Vector3d rate =
+      imu.rotation.normalized().toRotationMatrix() * (rateAt(samples, a, at, max_gap_s) - bias);
+  if (!rate.allFinite()) return std::nullopt;  // times too far apart for doubles
+  return rate;
 }
 
 std::optional<Eigen::Matrix3d> integrateGyro(std::span<const GyroSample> samples,
@@ -79,6 +81,7 @@ std::optional<Eigen::Matrix3d> integrateGyro(std::span<const GyroSample> samples
     t = next;
     if (t < end) ++a;
   }
+  if (!R.allFinite()) return std::nullopt;  // times too far apart for doubles
   return R;
 }
 

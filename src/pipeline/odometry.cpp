@@ -629,6 +629,7 @@ GyroCounters Odometry::gyroCounters() const {
   GyroCounters c = impl_->gyro_counters;
   c.bias = impl_->gyro_bias.bias();
   c.bias_sigma = impl_->gyro_bias.sigma();
+  if (!impl_->gyro.samples().empty()) c.last_sample_t = impl_->gyro.samples().back().t;
   return c;
 }
 

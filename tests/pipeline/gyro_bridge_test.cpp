@@ -155,7 +155,7 @@ TEST(GyroBridge, AGapTheImagesCannotBridgeIsBridgedByTheGyro) {
     EXPECT_EQ(c.frames_gyro_bridged, gyro ? 1 : 0);
     if (!gyro) continue;
     // The chain went on across the gap: the last frame's attitude from the first frame's.
-    const auto at = [&](std::size_t k) {
+    const auto at = [&](std::size_t k) -> Eigen::Matrix3d {
       return synth::poseAtTime(control, control[k].timestamp, kSpline).linear();
     };
     const double error =
