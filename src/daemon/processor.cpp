@@ -209,7 +209,7 @@ void Processor::handleFrame(const MailboxFrame& frame) {
   ++board_.frames_processed;
   latency_ms_.add(static_cast<float>(wallClockMicros() - info.capture_time_us) * 1e-3f);
 
-  if (diagnostics_ && r.tracked()) {
+  if (diagnostics_ && r.tracked() && !r.windows.empty()) {  // a gyro bridge measured none
     fillDiagnostics(info, r, p.status);
     const int n = diagnostics_msg_->encode(diagnostics_buffer_.data(), 0,
                                            static_cast<int>(diagnostics_buffer_.size()));

@@ -298,10 +298,7 @@ MotionEstimate FrameRegistrar::fitPass(std::span<WindowMotion> windows,
   if (reference.known() && current_rows_.known()) {
     correctRowsWithGyro(windows, warp_omega, reference);
     last_pass_gyro_ = true;
-    const std::span<const MotionFit::RowScale> scale(row_scale_.data(), windows.size());
-    MotionEstimate estimate = fit_.fit(windows, calibration_.panorama.forward_column, scale);
-    estimate.covariance *= window_overlap_;
-    return estimate;
+    return fitScaled(windows);
   }
   // Window k compares the reference's rows captured at t_ref + s(c + d) with the current
   // frame's at t_cur + s(c): it measures the motion over [t_ref + s_k + g_k, t_cur + s_k],
@@ -357,6 +354,10 @@ MotionEstimate FrameRegistrar::fitPass(std::span<WindowMotion> windows,
       windows[k].rotation -= m.rotation;
     }
   }
+  return fitScaled(windows);
+}
+
+MotionEstimate FrameRegistrar::fitScaled(std::span<const WindowMotion> windows) {
   const std::span<const MotionFit::RowScale> scale(row_scale_.data(), windows.size());
   MotionEstimate estimate = fit_.fit(windows, calibration_.panorama.forward_column, scale);
   estimate.covariance *= window_overlap_;

@@ -190,6 +190,8 @@ class FrameRegistrar {
                              const Eigen::Matrix3d& R_residual, const Eigen::Vector3d& tau);
   /// The motion fit of `windows`, its covariance multiplied by window_overlap_.
   MotionEstimate fitWindows(std::span<const WindowMotion> windows);
+  /// The same with each window's rows scaled by row_scale_ (fitPass()).
+  MotionEstimate fitScaled(std::span<const WindowMotion> windows);
   /// fitWindows() of the windows of a pass over the current panorama de-rotated by
   /// exp([warp_omega]x) (zero: not de-rotated), their du, dv first corrected in place for
   /// the times their rows were captured when the sensor has a readout time: the fit then

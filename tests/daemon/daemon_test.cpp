@@ -954,10 +954,10 @@ TEST(Daemon, TheRobotsGyroOverLcmTakesTheRollingShutterOut) {
   for (const GyroSample& s : readGyroCsv(dataset / "imu.csv").samples)
     events.push_back(testing::imuEvent(s));
   testing::writeLcmLog(tmp / "imu.lcm", events);
-  const auto run = [&](const std::string& imu, status_t& last) {
+  const auto run = [&](const std::string& imu, status_t& last, std::FILE* log = stderr) {
     Bus bus;
     const auto config = parseConfig(testing::fileSourceConfig(dataset, "memq://", true) + imu);
-    Daemon d(config, stderr, nullptr, bus.sink(), lossless());
+    Daemon d(config, log, nullptr, bus.sink(), lossless());
     EXPECT_EQ(d.imuDescription().empty(), imu.empty());
     bus.run(d, 120s);
     EXPECT_FALSE(bus.statuses.empty());
@@ -983,19 +983,27 @@ TEST(Daemon, TheRobotsGyroOverLcmTakesTheRollingShutterOut) {
   // The calibration's imu section, no stream.
   EXPECT_EQ(without.frames_without_gyro, without.frames_processed);
   EXPECT_LT(with_gyro, 0.5 * images_alone);
-  EXPECT_EQ(without.last_error, "") << "no stream configured: nothing to report";
+  EXPECT_THAT(without.last_error, ::testing::Not(::testing::HasSubstr("gyro")))
+      << "no stream configured: nothing to report";
 
   // A stream that stops 0.1 s into the recording (its first 40 samples, from 0.1 s before the
   // first frame): the frames after are registered from the images alone, counted, reported.
   events.resize(40);
   testing::writeLcmLog(tmp / "short.lcm", events);
   status_t stopped{};
+  std::FILE* log = std::tmpfile();
   run("imu: {source: lcm, url: \"file://" + (tmp / "short.lcm").string() + "?speed=0\"}\n",
-      stopped);
+      stopped, log);
   EXPECT_GE(stopped.frames_without_gyro, stopped.frames_processed - 3);
   EXPECT_EQ(stopped.frames_with_gyro + stopped.frames_without_gyro, stopped.frames_processed);
-  EXPECT_THAT(stopped.last_error,
-              ::testing::HasSubstr("the gyro's samples do not cover its readout"));
+  // The faults' lines (the stream's end and the frames after it, in the order the two
+  // threads got to them).
+  std::rewind(log);
+  std::string text(1 << 16, '\0');
+  text.resize(std::fread(text.data(), 1, text.size(), log));
+  std::fclose(log);
+  EXPECT_THAT(text, ::testing::HasSubstr("the gyro's samples do not cover its readout"));
+  EXPECT_THAT(text, ::testing::HasSubstr("imu: the stream on channel OMNI_IMU"));
 }
 
 TEST(Daemon, AGyroWithoutItsCalibrationIsAStartUpError) {
