@@ -169,7 +169,7 @@ struct OdometryResult {
 /// What became of the gyro samples given to Odometry::addGyro(), and of the frames that could
 /// have used them. Counts since construction.
 struct GyroCounters {
-  std::int64_t accepted = 0;
+  std::int64_t accepted = 0;      ///< samples kept (a clock restart's first included)
   std::int64_t not_finite = 0;    ///< refused: a NaN or infinite time or rate
   std::int64_t too_fast = 0;      ///< refused: a rate beyond kMaxGyroRate
   std::int64_t out_of_order = 0;  ///< refused: stamped at or before the sample before it
