@@ -306,6 +306,11 @@ TEST_F(LibcameraStreamTest, SensorTimestampBecomesWallClockMicroseconds) {
                                manager_->boottimeOf(static_cast<std::uint64_t>(i));
     EXPECT_LE(std::abs(error), 500)
         << "capture time = SensorTimestamp (boottime) + the measured offset, to the microsecond";
+    // On CLOCK_MONOTONIC: boottime less the time the system was suspended (120 s here).
+    const std::int64_t steady_error =
+        f->steady_time_us * 1000 -
+        (manager_->boottimeOf(static_cast<std::uint64_t>(i)) - manager_->boottimeOffsetNs());
+    EXPECT_LE(std::abs(steady_error), 1000);
   }
 }
 

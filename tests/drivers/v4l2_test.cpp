@@ -628,6 +628,8 @@ TEST_F(V4l2SourceTest, MonotonicTimestampsBecomeWallClockMicroseconds) {
     ASSERT_TRUE(info);
     EXPECT_EQ(info->capture_time_us,
               expectedWallUs(fake_->frameTimestampNs(info->sequence), fake_->realtimeOffset()));
+    // And the buffer's own CLOCK_MONOTONIC time, which the odometry times frames by.
+    EXPECT_EQ(info->steady_time_us, fake_->frameTimestampNs(info->sequence) / 1000);
   }
 }
 
@@ -644,6 +646,7 @@ TEST_F(V4l2SourceTest, EndOfFrameTimestampsAreDatedBackToTheFirstRowsCapture) {
     EXPECT_EQ(info->capture_time_us,
               expectedWallUs(fake_->frameTimestampNs(info->sequence) - 25'000'000,
                              fake_->realtimeOffset()));
+    EXPECT_EQ(info->steady_time_us, (fake_->frameTimestampNs(info->sequence) - 25'000'000) / 1000);
   }
   o.readout_s = 0.5;
   const auto problems = validate(o);
