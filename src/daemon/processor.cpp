@@ -98,10 +98,12 @@ bool Processor::publish(const std::string& channel, std::vector<std::uint8_t>& b
 }
 
 void Processor::takeGyro() {
-  if (gyro_ != nullptr) {
-    for (std::size_t n; (n = gyro_->pop(gyro_batch_)) > 0;)
-      odometry_.addGyro(std::span<const GyroSample>(gyro_batch_.data(), n));
-  }
+  if (gyro_ == nullptr) return;
+  for (std::size_t n; (n = gyro_->pop(gyro_batch_)) > 0;)
+    odometry_.addGyro(std::span<const GyroSample>(gyro_batch_.data(), n));
+}
+
+void Processor::countGyro(std::uint64_t sequence, double t) {
   const GyroCounters c = odometry_.gyroCounters();
   board_.imu_samples.store(c.accepted);
   board_.imu_samples_refused.store(c.not_finite + c.too_fast + c.out_of_order);
@@ -109,10 +111,7 @@ void Processor::takeGyro() {
   board_.frames_with_gyro.store(c.frames_with_gyro);
   board_.frames_without_gyro.store(c.frames_without_gyro);
   board_.frames_gyro_bridged.store(c.frames_gyro_bridged);
-}
-
-void Processor::reportGyroFallback(std::uint64_t sequence, double t) {
-  const GyroCounters c = odometry_.gyroCounters();
+  // The frame when the gyro's samples did not cover it (with a stream configured).
   if (gyro_ == nullptr || c.frames_without_gyro == frames_without_gyro_) return;
   frames_without_gyro_ = c.frames_without_gyro;
   board_.reportError("frame %llu: the gyro's samples do not cover its readout (the newest at "
@@ -136,8 +135,7 @@ void Processor::handleFrame(const MailboxFrame& frame) {
   Expected<OdometryResult> result =
       odometry_.process(*frame.image, {t, static_cast<std::int64_t>(info.sequence), frame.gap_before});
   load_.processing_cpu_ns += cpuTimeNs(CLOCK_THREAD_CPUTIME_ID) - cpu_start;
-  takeGyro();  // the frame's counts
-  reportGyroFallback(info.sequence, t);
+  countGyro(info.sequence, t);
   load_.processing_wall_ns +=
       std::chrono::duration_cast<std::chrono::nanoseconds>(SteadyClock::now() - t_start).count();
   ++load_.frames;

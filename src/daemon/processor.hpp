@@ -68,12 +68,12 @@ class Processor {
   /// The load fields of a status over `wall_s` seconds: since the last status, or the run.
   void fillLoad(status_t& s, bool final, double wall_s);
   void fillDiagnostics(const FrameInfo& info, const OdometryResult& result, std::int8_t status);
-  /// Gives the odometry the gyro samples queued since the last frame, and the board its
-  /// gyro counters.
+  /// Gives the odometry the gyro samples queued since the last frame.
   void takeGyro();
-  /// Reports the frame (`sequence`, timestamp `t` on the odometry's clock) when the gyro's
-  /// samples did not cover it (with a gyro stream configured).
-  void reportGyroFallback(std::uint64_t sequence, double t);
+  /// After the frame (`sequence`, timestamp `t` on the odometry's clock): the odometry's gyro
+  /// counters to the board, and a report of the frame when the gyro's samples did not cover
+  /// it (with a gyro stream configured).
+  void countGyro(std::uint64_t sequence, double t);
 
   Odometry odometry_;
   LcmConfig lcm_;
