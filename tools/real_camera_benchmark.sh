@@ -15,7 +15,9 @@
 #                    can only change the estimate through the brightness itself)
 #   all at once      all of the above plus motion blur (exposure 0.01 s) on `ramps_vib`
 #                                                                 | `ramps_vib`, none of them
-# (the rolling shutter's and all-at-once's twin is one sequence). Motions (OUTDIR/motions):
+# (the rolling shutter's and all-at-once's twin is one sequence). Both with the robot's gyro
+# at 200 Hz and at 1 kHz (imu.csv; the frames bit-identical to those without) | the same twin.
+# Motions (OUTDIR/motions):
 #   ramps      yaw turns of 2..4 deg/frame reached in 6-frame ramps, held 4 frames, then
 #              ramped to the next peak of the opposite sign
 #   ramps_vib  the same with track vibration (roll and pitch, 0.5 deg peak, 1..9 Hz)
@@ -133,6 +135,11 @@ readout=0.0267
 walkers="--walkers 3,0.5,1.8,1.2 --walker-distance 1.2,1.6 --walker-seed 5"
 exposure="--exposure-step 0.25 --exposure-step-every 10 --vignetting 0.3"
 blur="--exposure-time 0.01"
+# The robot's gyro (--gyro-rate HZ adds it to a sequence: imu.csv and the calibration's imu
+# section; the frames stay bit-identical, checked below): white noise 0.005 deg/s/sqrt(Hz),
+# bias 0.5 deg/s, its clock 12.3 ms behind the camera's, mounted 40 deg off the camera's axes.
+gyro_rotation=0.939692621,0.228013429,-0.228013429,0.114006714
+gyro="--gyro-noise 8.7e-5 --gyro-bias 0.0087 --gyro-time-offset 0.0123 --gyro-rotation $gyro_rotation"
 # name | motion | seed (motion draws and degradations) | supersample | sensor (noisy: $common,
 # clean: no noise, lossless frames) | effect flags
 sequences=(
@@ -147,6 +154,13 @@ sequences=(
   "auto_exposure_clean|ramps|201|$supersample|clean|--readout 0 $exposure"
   "all_at_once|ramps_vib|101|$blur_supersample|noisy|--readout $readout --between-frames smooth $walkers $exposure $blur"
 )
+# The same two with the gyro at 200 Hz and at 1 kHz: NAME_gyroHZ, the frames of NAME.
+for hz in 200 1000; do
+  sequences+=(
+    "rolling_shutter_gyro$hz|ramps_vib|101|$supersample|noisy|--readout $readout --between-frames smooth --gyro-rate $hz $gyro"
+    "all_at_once_gyro$hz|ramps_vib|101|$blur_supersample|noisy|--readout $readout --between-frames smooth $walkers $exposure $blur --gyro-rate $hz $gyro"
+  )
+done
 all_twin=ramps_vib_twin
 if [ "$blur_supersample" != "$supersample" ]; then
   all_twin=all_at_once_twin
@@ -160,6 +174,10 @@ rows=(
   "auto-exposure steps + vignetting|auto_exposure|ramps_twin|1.1|0"
   "the same, noise-free|auto_exposure_clean|ramps_twin_clean||0"
   "all at once|all_at_once|$all_twin|2.5|1"
+  "rolling shutter 0.8 frame (with vibration), 200 Hz gyro|rolling_shutter_gyro200|ramps_vib_twin|2|1"
+  "rolling shutter 0.8 frame (with vibration), 1 kHz gyro|rolling_shutter_gyro1000|ramps_vib_twin|2|1"
+  "all at once, 200 Hz gyro|all_at_once_gyro200|$all_twin|2.5|1"
+  "all at once, 1 kHz gyro|all_at_once_gyro1000|$all_twin|2.5|1"
 )
 rolling_sequences=" rolling_shutter rolling_shutter_constant all_at_once "
 
@@ -185,7 +203,14 @@ for entry in "${sequences[@]}"; do
     "$render_s" "$motion" "$seed" "$ss" "$ss" "$sensor" "$flags"
 
   estimators=(ifmi akazerot)
-  if [[ "$rolling_sequences" == *" $name "* ]]; then
+  if [[ "$name" == *_gyro* ]]; then
+    # The gyro only changes what ifmi does; its frames must be those of the sequence without.
+    diff -rq "$out/${name%_gyro*}/dataset/frames" "$dir/dataset/frames" > /dev/null ||
+      { echo "   $name: its frames differ from ${name%_gyro*}'s: the gyro changed the render" >&2; exit 1; }
+    grep -q '^imu:' "$dir/dataset/calibration.yaml" ||
+      { echo "   $name: the dataset's calibration.yaml has no imu section" >&2; exit 1; }
+    estimators=(ifmi)
+  elif [[ "$rolling_sequences" == *" $name "* ]]; then
     estimators=(ifmi ifmi_readout_unknown akazerot)
     sed '/^sensor:/,/^[^[:space:]]/{/^sensor:/d;/^[[:space:]]/d}' "$dir/dataset/calibration.yaml" \
       > "$dir/calibration_readout_unknown.yaml"
@@ -382,6 +407,12 @@ fi
   echo "- all at once: readout $readout s, the vibration, the three walkers, the exposure steps, the"
   echo "  vignetting and motion blur \`$blur\` on \`ramps_vib\`; twin: \`ramps_vib\`, global shutter,"
   echo "  none of them (the rolling shutter's twin)."
+  echo "- the gyro: the rolling shutter and all at once again, the same frames (checked bit for bit),"
+  echo "  with the robot's gyro written beside them (\`--gyro-rate 200\` or \`1000 $gyro\`: white"
+  echo "  noise 0.005 deg/s/sqrt(Hz), bias 0.5 deg/s, its clock 12.3 ms behind the camera's, mounted"
+  echo "  40 deg off the camera's axes) and its exact calibration in calibration.yaml (section \`imu\`);"
+  echo "  \`omnipose-replay DATASET\` reads imu.csv and takes each row's rotation within its frame from"
+  echo "  the gyro. Same twin (global shutter, no gyro)."
   echo
   echo "Estimators: \`ifmi\` = \`omnipose-replay DATASET\` (the dataset's calibration.yaml records"
   echo "\`sensor: readout_s\` when rendered with a rolling shutter, so the camera model knows the"
