@@ -6,6 +6,7 @@
 
 #include <Eigen/Core>
 
+#include <cstddef>
 #include <optional>
 #include <span>
 
@@ -53,5 +54,13 @@ std::optional<Eigen::Matrix3d> integrateGyro(std::span<const GyroSample> samples
 std::optional<Eigen::Vector3d> gyroRateAt(std::span<const GyroSample> samples,
                                           const ImuCalibration& imu, const Eigen::Vector3d& bias,
                                           double t, double max_gap_s);
+
+/// How many of `samples` (on the IMU's clock, in the order received) a live stream has
+/// delivered by the time the frame captured at camera time `frame_time` (seconds) has been
+/// read out: the count before the first sample stamped after frame_time + |readout_s| + 10 ms
+/// on the camera's clock (`imu`'s offset). For giving a recording to Odometry::addGyro() as it
+/// would have arrived (call it with the samples not yet given).
+std::size_t gyroSamplesArrivedBy(std::span<const GyroSample> samples, const ImuCalibration& imu,
+                                 double readout_s, double frame_time);
 
 }  // namespace omnipose

@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <limits>
 #include <numbers>
 #include <optional>
 #include <stdexcept>
@@ -29,12 +30,22 @@ struct ImagePair {
   Eigen::Vector3d a = Eigen::Vector3d::Zero();     ///< rotation vector, camera axes
 };
 
-/// Every consecutive tracked pair of `frames`.
+/// Every consecutive tracked pair of `frames`; with `gyro` (and calibration.imu) registered
+/// with each row's rotation within its frame from the gyro.
 std::vector<ImagePair> imagePairs(const Calibration& calibration, std::span<const cv::Mat> frames,
-                                  std::span<const double> times, const OdometryOptions& options) {
+                                  std::span<const double> times, const OdometryOptions& options,
+                                  std::span<const GyroSample> gyro = {}) {
   Odometry odometry(calibration, options);
   std::vector<ImagePair> pairs;
+  std::size_t next = 0;
   for (std::size_t k = 0; k < frames.size(); ++k) {
+    if (!gyro.empty()) {
+      const std::span<const GyroSample> rest = gyro.subspan(next);
+      const std::size_t n =
+          gyroSamplesArrivedBy(rest, *calibration.imu, calibration.sensor.readout_s, times[k]);
+      odometry.addGyro(rest.first(n));
+      next += n;
+    }
     const auto r = odometry.process(frames[k], {times[k]});
     if (!r || r->state != TrackState::kTracked || r->reference_sequence != r->sequence - 1 ||
         k == 0)
@@ -139,6 +150,145 @@ double measureUncertainty(const std::vector<ImagePair>& pairs, const Fit& fit, d
   return std::sqrt(weakest / std::max(eigen.eigenvalues()(2), 1e-300));
 }
 
+/// The lowest point of a score on a grid, refined.
+struct Minimum {
+  double at = 0.0;         ///< where
+  double lowest = 0.0;     ///< the lowest grid point
+  double curvature = 0.0;  ///< the score's second derivative there (0: not known)
+};
+
+/// The lowest of `points` (position, score; in order, spaced by h) moved to the vertex of the
+/// parabola through it and its neighbours when it has both and the parabola opens upwards.
+Minimum vertex(const std::vector<std::pair<double, double>>& points, double h) {
+  const auto lowest = std::min_element(points.begin(), points.end(),
+                                       [](const auto& a, const auto& b) { return a.second < b.second; });
+  Minimum m{lowest->first, lowest->first, 0.0};
+  if (lowest == points.begin() || lowest + 1 == points.end()) return m;
+  const double s0 = (lowest - 1)->second, s1 = lowest->second, s2 = (lowest + 1)->second;
+  m.curvature = (s0 - 2.0 * s1 + s2) / (h * h);
+  if (m.curvature > 0.0) m.at += 0.5 * h * (s0 - s2) / (s0 - 2.0 * s1 + s2);
+  return m;
+}
+
+/// The clock offset of the best fit on a grid of `step` within +-`half_width` of `center`,
+/// refined (vertex()); every offset tried goes to `curve`. Nullopt when the samples cover the
+/// pairs at none of them.
+std::optional<Minimum> searchOffset(const std::vector<ImagePair>& pairs,
+                                    std::span<const GyroSample> samples, double center,
+                                    double half_width, double step, double max_gap_s,
+                                    std::vector<std::pair<double, double>>& curve) {
+  const int steps = static_cast<int>(std::round(half_width / step));
+  std::vector<std::pair<double, double>> grid;
+  for (int i = -steps; i <= steps; ++i) {
+    const double d = center + i * step;
+    if (const auto fit = fitAt(pairs, samples, d, max_gap_s)) grid.emplace_back(d, fit->score);
+  }
+  curve.insert(curve.end(), grid.begin(), grid.end());
+  if (grid.empty()) return std::nullopt;
+  return vertex(grid, step);
+}
+
+/// A refusal: out.summary says why; false.
+bool cannot(ImuEstimate& out, const std::string& what) {
+  out.summary = "cannot: " + what;
+  return false;
+}
+
+/// A clock's estimate: its offset and the fit there.
+struct Clock {
+  Minimum offset;
+  Fit fit;
+};
+
+/// The clock offset, mounting and bias from `pairs`: the offset on the coarse grid over
+/// +-max_offset_s, on the fine grid around the best, the fit at the vertex. Nullopt (with
+/// out.summary) when the best offset is at the end of the range or the samples do not cover
+/// the pairs; every offset tried goes to out.curve.
+std::optional<Clock> searchClock(const std::vector<ImagePair>& pairs, std::span<const GyroSample> samples,
+                                 const ImuSearchOptions& options, ImuEstimate& out) {
+  const auto coarse = searchOffset(pairs, samples, 0.0, options.max_offset_s, options.coarse_step_s,
+                                   options.max_gap_s, out.curve);
+  if (!coarse) {
+    cannot(out, "the gyro's recording does not cover the frame pairs at any clock offset tried");
+    return std::nullopt;
+  }
+  const int half = static_cast<int>(std::floor(options.max_offset_s / options.coarse_step_s + 1e-9));
+  if (std::abs(coarse->lowest) >= half * options.coarse_step_s - 1e-9) {
+    cannot(out, "the best clock offset is at the end of the range tried (" + fixed(coarse->lowest) +
+                    " s of +-" + fixed(options.max_offset_s) + " s)");
+    return std::nullopt;
+  }
+  const auto offset = searchOffset(pairs, samples, coarse->lowest, options.coarse_step_s,
+                                   options.fine_step_s, options.max_gap_s, out.curve);
+  const auto fit = offset ? fitAt(pairs, samples, offset->at, options.max_gap_s) : std::nullopt;
+  if (!fit) {
+    cannot(out, "the gyro's recording does not cover the pairs at offset " +
+                    fixed(offset ? offset->at : coarse->lowest) + " s");
+    return std::nullopt;
+  }
+  return Clock{*offset, *fit};
+}
+
+/// With a rolling shutter, after the first estimate from the images alone: the frame pairs
+/// registered again with each row's rotation within its frame from the gyro at the current
+/// estimate (the images alone cannot register a rolling-shutter frame as well: the rotation
+/// rate changes within it), and the clock from them, kRounds times. Updates `pairs` and
+/// `clock`; false (out.summary says why) when it cannot.
+bool reclockRollingShutter(const Calibration& calibration, std::span<const cv::Mat> frames,
+                           std::span<const double> times, std::span<const GyroSample> samples,
+                           const ImuSearchOptions& options, std::vector<ImagePair>& pairs,
+                           Clock& clock, ImuEstimate& out) {
+  constexpr int kRounds = 4;
+  Calibration c = calibration;
+  for (int round = 0; round < kRounds; ++round) {
+    ImuCalibration imu;
+    imu.rotation = Eigen::Quaterniond(clock.fit.X).normalized();
+    imu.time_offset_s = clock.offset.at;
+    c.imu = imu;
+    pairs = coveredPairs(imagePairs(c, frames, times, options.odometry, samples), samples,
+                         options.max_offset_s, options.max_gap_s);
+    if (static_cast<int>(pairs.size()) < kMinPairs)
+      return cannot(out, std::to_string(pairs.size()) + " frame pairs tracked with the gyro's rows, at "
+                         "least " + std::to_string(kMinPairs) + " needed");
+    const auto next = searchClock(pairs, samples, options, out);
+    if (!next) return false;
+    clock = *next;
+  }
+  return true;
+}
+
+/// `out` (its estimate and uncertainties measured) found, or refused with the reason when an
+/// uncertainty exceeds what `options` allow; `axis_ratio` from measureUncertainty().
+ImuEstimate judge(ImuEstimate out, double axis_ratio, const ImuSearchOptions& options) {
+  char text[320];
+  std::snprintf(text, sizeof(text),
+                "%d pairs; rotation +-%.3f deg, time offset %+.5f s +-%.5f, bias (%+.5f, %+.5f, "
+                "%+.5f) rad/s +-%.5f; residual %.3g rad per pair",
+                out.pairs, out.rotation_sigma_deg, out.imu.time_offset_s, out.time_offset_sigma_s,
+                out.bias.x(), out.bias.y(), out.bias.z(), out.bias_sigma.x(), out.residual_rms_rad);
+  const std::string measured = text;
+  // Why an estimate is uncertain: too little turn about some axis, or images and gyro that
+  // disagree (a wrong readout or mounting of the frames' timestamps, motion the frames blur).
+  std::snprintf(text, sizeof(text),
+                "its weakest axis turns %.3g of its strongest (turn about at least two axes); the "
+                "images and the gyro differ by %.3g rad per pair (a rolling shutter's readout "
+                "wrong, or motion the frames cannot follow)",
+                axis_ratio, out.residual_rms_rad);
+  const std::string why = text;
+  if (!(out.rotation_sigma_deg <= options.max_rotation_sigma_deg)) {
+    cannot(out, "the mounting is not determined (" + measured + "); " + why);
+    return out;
+  }
+  if (!(out.time_offset_sigma_s <= options.max_offset_sigma_s)) {
+    cannot(out, "the clock offset is not determined (" + measured +
+                    "): the recording must change its rate of turn; " + why);
+    return out;
+  }
+  out.found = true;
+  out.summary = measured;
+  return out;
+}
+
 }  // namespace
 
 std::vector<std::string> ImuSearchOptions::validate() const {
@@ -173,84 +323,26 @@ ImuEstimate estimateImuCalibration(const Calibration& calibration, std::span<con
                                 " frames but " + std::to_string(times_s.size()) + " times");
   ImuEstimate out;
   const std::vector<ImagePair> tracked = imagePairs(calibration, frames, times_s, options.odometry);
-  const std::vector<ImagePair> pairs =
-      coveredPairs(tracked, samples, options.max_offset_s, options.max_gap_s);
+  std::vector<ImagePair> pairs = coveredPairs(tracked, samples, options.max_offset_s, options.max_gap_s);
   out.pairs = static_cast<int>(pairs.size());
   if (out.pairs < kMinPairs) {
-    out.summary = "cannot: " + std::to_string(tracked.size()) + " consecutive frame pairs tracked, " +
-                  std::to_string(pairs.size()) + " of them inside the gyro's recording without a gap (+-" +
-                  fixed(options.max_offset_s, 3) + " s), at least " + std::to_string(kMinPairs) +
-                  " needed";
+    cannot(out, std::to_string(tracked.size()) + " consecutive frame pairs tracked, " +
+                    std::to_string(pairs.size()) + " of them inside the gyro's recording without a gap (+-" +
+                    fixed(options.max_offset_s, 3) + " s), at least " + std::to_string(kMinPairs) +
+                    " needed");
     return out;
   }
-  const auto score = [&](double offset) -> std::optional<Fit> {
-    auto fit = fitAt(pairs, samples, offset, options.max_gap_s);
-    if (fit) out.curve.emplace_back(offset, fit->score);
-    return fit;
-  };
-  const auto best = [&] {
-    return *std::min_element(out.curve.begin(), out.curve.end(),
-                             [](const auto& a, const auto& b) { return a.second < b.second; });
-  };
-  const int half = static_cast<int>(std::floor(options.max_offset_s / options.coarse_step_s + 1e-9));
-  for (int i = -half; i <= half; ++i) score(i * options.coarse_step_s);
-  const double coarse_best = best().first;
-  if (std::abs(coarse_best) >= half * options.coarse_step_s - 1e-9) {
-    out.summary = "cannot: the best clock offset is at the end of the range tried (" +
-                  fixed(coarse_best) + " s of +-" + fixed(options.max_offset_s) + " s)";
+  auto clock = searchClock(pairs, samples, options, out);
+  if (!clock) return out;
+  if (calibration.sensor.readout_s != 0.0 &&
+      !reclockRollingShutter(calibration, frames, times_s, samples, options, pairs, *clock, out))
     return out;
-  }
-  // The fine grid, then the vertex of the parabola through the best and its neighbours.
-  const int steps = static_cast<int>(std::round(options.coarse_step_s / options.fine_step_s));
-  std::vector<std::pair<double, double>> fine;
-  for (int i = -steps; i <= steps; ++i) {
-    const double d = coarse_best + i * options.fine_step_s;
-    if (const auto fit = score(d)) fine.emplace_back(d, fit->score);
-  }
-  const auto lowest = std::min_element(fine.begin(), fine.end(),
-                                       [](const auto& a, const auto& b) { return a.second < b.second; });
-  double offset = lowest->first, curvature = 0.0;
-  if (lowest != fine.begin() && lowest + 1 != fine.end()) {
-    const double h = options.fine_step_s;
-    const double s0 = (lowest - 1)->second, s1 = lowest->second, s2 = (lowest + 1)->second;
-    curvature = (s0 - 2.0 * s1 + s2) / (h * h);
-    if (curvature > 0.0) offset += 0.5 * h * (s0 - s2) / (s0 - 2.0 * s1 + s2);
-  }
-  const auto fit = fitAt(pairs, samples, offset, options.max_gap_s);
-  if (!fit) {
-    out.summary = "cannot: the gyro's recording does not cover the pairs at offset " + fixed(offset) + " s";
-    return out;
-  }
-  const double axis_ratio = measureUncertainty(pairs, *fit, curvature, out);
-  out.imu.rotation = Eigen::Quaterniond(fit->X).normalized();
-  out.imu.time_offset_s = offset;
-  out.bias = fit->bias;
-  char text[256];
-  std::snprintf(text, sizeof(text),
-                "%d pairs; rotation +-%.3f deg, time offset %+.5f s +-%.5f, bias (%+.5f, %+.5f, "
-                "%+.5f) rad/s +-%.5f; residual %.3g rad per pair",
-                out.pairs, out.rotation_sigma_deg, out.imu.time_offset_s, out.time_offset_sigma_s,
-                out.bias.x(), out.bias.y(), out.bias.z(), out.bias_sigma.x(), out.residual_rms_rad);
-  // Why an estimate is uncertain: too little turn about some axis, or images and gyro that
-  // disagree (a wrong readout or mounting of the frames' timestamps, motion the frames blur).
-  char why[256];
-  std::snprintf(why, sizeof(why),
-                "its weakest axis turns %.3g of its strongest (turn about at least two axes); the "
-                "images and the gyro differ by %.3g rad per pair (a rolling shutter's readout "
-                "wrong, or motion the frames cannot follow)",
-                axis_ratio, out.residual_rms_rad);
-  if (!(out.rotation_sigma_deg <= options.max_rotation_sigma_deg)) {
-    out.summary = std::string("cannot: the mounting is not determined (") + text + "); " + why;
-    return out;
-  }
-  if (!(out.time_offset_sigma_s <= options.max_offset_sigma_s)) {
-    out.summary = std::string("cannot: the clock offset is not determined (") + text +
-                  "): the recording must change its rate of turn; " + why;
-    return out;
-  }
-  out.found = true;
-  out.summary = text;
-  return out;
+  out.pairs = static_cast<int>(pairs.size());
+  const double axis_ratio = measureUncertainty(pairs, clock->fit, clock->offset.curvature, out);
+  out.imu.rotation = Eigen::Quaterniond(clock->fit.X).normalized();
+  out.imu.time_offset_s = clock->offset.at;
+  out.bias = clock->fit.bias;
+  return judge(out, axis_ratio, options);
 }
 
 }  // namespace omnipose::calibrate

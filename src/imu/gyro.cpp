@@ -86,3 +86,16 @@ std::optional<Eigen::Matrix3d> integrateGyro(std::span<const GyroSample> samples
 }
 
 }  // namespace omnipose
+
+namespace omnipose {
+
+std::size_t gyroSamplesArrivedBy(std::span<const GyroSample> samples, const ImuCalibration& imu,
+                                 double readout_s, double frame_time) {
+  constexpr double kDeliveryS = 0.01;  // the stream's lag after the last row
+  const double until = frame_time + std::abs(readout_s) + kDeliveryS - imu.time_offset_s;
+  std::size_t n = 0;
+  while (n < samples.size() && samples[n].t <= until) ++n;
+  return n;
+}
+
+}  // namespace omnipose

@@ -132,5 +132,23 @@ TEST(IntegrateGyro, AnIntervalTheSamplesDoNotCoverOrThatHasAGapIsRefused) {
   EXPECT_LT(angleBetween(*R, rotationFromVector(Eigen::Vector3d(0, 0, 0.5))), 1e-12);
 }
 
+// A recording given as it would have arrived: the samples stamped up to 10 ms after the
+// frame's last row, on the camera's clock (a sample stamped t is taken at t + offset).
+TEST(GyroSamplesArrivedBy, CountsTheSamplesStreamedByTheEndOfTheFramesReadout) {
+  const auto samples = constantRate(Eigen::Vector3d(0, 0, 1), 0.0, 0.01, 101);  // 0 .. 1 s
+  ImuCalibration imu;
+  EXPECT_EQ(gyroSamplesArrivedBy(samples, imu, 0.0, 0.505), 52u);    // up to 0.515 s
+  EXPECT_EQ(gyroSamplesArrivedBy(samples, imu, 0.03, 0.505), 55u);   // up to 0.545 s
+  EXPECT_EQ(gyroSamplesArrivedBy(samples, imu, -0.03, 0.505), 55u);  // last row first: the same
+  imu.time_offset_s = 0.1;  // the IMU's clock 0.1 s behind: camera time 0.515 s is stamp 0.415 s
+  EXPECT_EQ(gyroSamplesArrivedBy(samples, imu, 0.0, 0.505), 42u);
+  EXPECT_EQ(gyroSamplesArrivedBy(samples, imu, 0.0, -1.0), 0u);
+  EXPECT_EQ(gyroSamplesArrivedBy(samples, imu, 0.0, 5.0), 101u);
+  EXPECT_EQ(gyroSamplesArrivedBy({}, imu, 0.0, 0.5), 0u);
+  // In the order received: counting stops at the first sample stamped too late.
+  std::vector<GyroSample> unordered = {{0.1, {}}, {0.9, {}}, {0.2, {}}};
+  EXPECT_EQ(gyroSamplesArrivedBy(unordered, ImuCalibration{}, 0.0, 0.5), 1u);
+}
+
 }  // namespace
 }  // namespace omnipose

@@ -80,16 +80,15 @@ std::vector<GyroSample> gyroSamples(const Dataset& dataset, const std::string& m
 }
 
 /// Gives `odometry` the samples of `gyro` from `next` on that arrive by the time the frame
-/// stamped `time` has been read out (10 ms after its last row), as a live stream would.
+/// stamped `time` has been read out, as a live stream would.
 void feedGyro(Odometry& odometry, std::span<const GyroSample> gyro, std::size_t& next,
               const Calibration& calibration, double time) {
   if (gyro.empty()) return;
-  const double until = time + std::abs(calibration.sensor.readout_s) + 0.01 -
-                       calibration.imu->time_offset_s;
-  std::size_t end = next;
-  while (end < gyro.size() && gyro[end].t <= until) ++end;
-  odometry.addGyro(gyro.subspan(next, end - next));
-  next = end;
+  const std::span<const GyroSample> rest = gyro.subspan(next);
+  const std::size_t n =
+      gyroSamplesArrivedBy(rest, *calibration.imu, calibration.sensor.readout_s, time);
+  odometry.addGyro(rest.first(n));
+  next += n;
 }
 
 }  // namespace

@@ -14,6 +14,15 @@
 /// around the best, then the vertex of the parabola through the best and its neighbours.
 /// A wrong offset shifts every g_k by the change of rate over a pair times the error, so the
 /// recording must change its rates (turn, speed up, slow down, shake) about at least two axes.
+///
+/// A rolling shutter (the calibration's sensor.readout_s not 0): the images alone measure a
+/// pair's rotation poorly when the rate changes within a frame (DESIGN.md section 3), so the
+/// first estimate is refined: the frames are registered again with each row's rotation within
+/// its frame from the gyro at that estimate, and the clock, mounting and bias found again from
+/// those pairs, four times. The readout is the calibration's (a datasheet's, or --readout-from's):
+/// a pair's rotation depends on the clock offset plus the mean row's capture time, so a
+/// readout off by dr comes out as an offset off by about dr / 2, which keeps the pairs'
+/// rotations right with that readout.
 
 #include <Eigen/Core>
 #include <opencv2/core.hpp>
@@ -68,10 +77,10 @@ struct ImuEstimate {
 /// captured at `times_s` (seconds on the camera's clock, increasing) through `calibration`
 /// (its readout is used, its imu section ignored), and the gyro's `samples` (io/gyro.hpp).
 /// Not found (with the reason in summary): fewer than 10 consecutive tracked pairs covered by
-/// the samples without a gap, a best offset at the end of the range, a mounting or offset less certain than
-/// the options allow (a recording that turns about one axis, or at a steady rate). Throws
-/// std::invalid_argument on invalid options, a frame count different from the time count, or
-/// an invalid calibration.
+/// the samples without a gap, a best offset at the end of the range, a mounting or offset
+/// less certain than the options allow (a recording that turns about one axis, or at a steady
+/// rate). Throws std::invalid_argument on invalid options, a frame count different from the
+/// time count, or an invalid calibration.
 ImuEstimate estimateImuCalibration(const Calibration& calibration, std::span<const cv::Mat> frames,
                                    std::span<const double> times_s,
                                    std::span<const GyroSample> samples,
