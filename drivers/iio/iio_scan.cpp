@@ -50,6 +50,7 @@ const char* checkType(const ScanType& t) {
   if (t.bits < 1 || t.bits > t.storage_bits - t.shift)
     return "the bits must be 1 to the storage bits less the shift";
   if (t.repeat < 1) return "a repeat must be at least 1";
+  if (!t.is_signed && t.bits == 64) return "an unsigned 64-bit value is not supported";
   return nullptr;
 }
 
@@ -97,7 +98,7 @@ std::int64_t ScanType::minRaw() const {
 }
 
 std::int64_t ScanType::maxRaw() const {
-  if (bits >= 64) return INT64_MAX;  // an unsigned 64-bit value is read as its bit pattern
+  if (bits >= 64) return INT64_MAX;  // signed: parseScanType() refuses an unsigned one
   return is_signed ? (std::int64_t{1} << (bits - 1)) - 1 : (std::int64_t{1} << bits) - 1;
 }
 

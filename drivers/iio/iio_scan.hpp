@@ -43,7 +43,8 @@ struct ScanType {
 
 /// Parses a `_type` value (a trailing newline is allowed). Errors (kInvalidArgument) name the
 /// text and what is wrong: an unknown endianness or sign, storage bits other than
-/// 8/16/32/64, bits of 0 or beyond the storage less the shift, a repeat of 0.
+/// 8/16/32/64, bits of 0 or beyond the storage less the shift, a repeat of 0, an unsigned
+/// 64-bit value (its raw value would not fit the signed 64 bits decoding works in).
 Expected<ScanType> parseScanType(std::string_view text);
 
 /// What an enabled channel is to the gyro.
