@@ -54,12 +54,12 @@ IioGyro::IioGyro(IioGyroOptions options, IioIo& io)
 
 IioGyro::~IioGyro() { close(); }
 
-Expected<std::string> IioGyro::readAttr(const std::string& relative, int* err) const {
-  const std::string path = dir_ + "/" + relative;
+Expected<std::string> IioGyro::readFile(const std::string& path, int* err) const {
   const int fd = io_.open(path.c_str(), O_RDONLY);
   if (fd < 0) {
     if (err) *err = errno;
-    return attrError(ErrorCode::kIoError, relative, errno, "cannot open");
+    return fail(ErrorCode::kIoError, "%s: cannot open %s: %s", label_.c_str(), path.c_str(),
+                std::strerror(errno));
   }
   char text[256];
   const ssize_t n = io_.read(fd, text, sizeof text - 1);
@@ -67,12 +67,17 @@ Expected<std::string> IioGyro::readAttr(const std::string& relative, int* err) c
   io_.close(fd);
   if (n < 0) {
     if (err) *err = read_errno;
-    return attrError(ErrorCode::kIoError, relative, read_errno, "cannot read");
+    return fail(ErrorCode::kIoError, "%s: cannot read %s: %s", label_.c_str(), path.c_str(),
+                std::strerror(read_errno));
   }
   std::string value(text, static_cast<std::size_t>(n));
   while (!value.empty() && (value.back() == '\n' || value.back() == ' ')) value.pop_back();
   if (err) *err = 0;
   return value;
+}
+
+Expected<std::string> IioGyro::readAttr(const std::string& relative, int* err) const {
+  return readFile(dir_ + "/" + relative, err);
 }
 
 int IioGyro::writeAttr(const std::string& relative, const std::string& value) const {
@@ -86,10 +91,7 @@ int IioGyro::writeAttr(const std::string& relative, const std::string& value) co
   return write_errno;
 }
 
-bool IioGyro::hasAttr(const std::string& relative) const {
-  int err = 0;
-  return readAttr(relative, &err).has_value();
-}
+bool IioGyro::hasAttr(const std::string& relative) const { return readAttr(relative).has_value(); }
 
 std::unexpected<Error> IioGyro::attrError(ErrorCode code, const std::string& relative, int err,
                                           const char* doing) const {
@@ -109,8 +111,8 @@ Expected<void> IioGyro::resolveDevice() {
     std::sort(entries.begin(), entries.end());
     for (const std::string& e : entries) {
       if (!isDeviceId(e)) continue;
-      dir_ = options_.sysfs_root + "/" + e;
-      if (const auto name = readAttr("name"); name && *name == want) matches.push_back(e);
+      const auto name = readFile(options_.sysfs_root + "/" + e + "/name");
+      if (name && *name == want) matches.push_back(e);
     }
     if (matches.empty())
       return fail(ErrorCode::kNotFound, "iio device \"%s\": no device of that name under %s",
@@ -195,11 +197,13 @@ Expected<void> IioGyro::configureChannels() {
     if (role != iio::ChannelRole::kOther && role != iio::ChannelRole::kTimestamp) ++rate_axes;
     const auto now = readAttr("scan_elements/" + file);
     if (!now) return std::unexpected(now.error());
-    if (*now != want) {
-      if (const int err = writeAttr("scan_elements/" + file, want); err != 0)
-        return attrError(err == EBUSY ? ErrorCode::kBusy : ErrorCode::kIoError, "scan_elements/" + file,
-                         err, want == "1" ? "cannot enable" : "cannot disable");
-    }
+    const int err = *now == want ? 0 : writeAttr("scan_elements/" + file, want);
+    if (err != 0 && want == "1")
+      return attrError(err == EBUSY ? ErrorCode::kBusy : ErrorCode::kIoError,
+                       "scan_elements/" + file, err, "cannot enable");
+    // A channel that will not be disabled stays in the scan: the layout takes what is enabled.
+    if (err != 0) warnings_.push_back(label_ + ": cannot disable scan_elements/" + file + " (" +
+                                      std::strerror(err) + "); read along and ignored");
     const auto after = readAttr("scan_elements/" + file);
     if (!after) return std::unexpected(after.error());
     if (*after == "1") {
@@ -294,10 +298,7 @@ void IioGyro::setOwnTrigger() {
   if (io_.listDirectory(options_.sysfs_root.c_str(), entries) < 0) return;
   for (const std::string& e : entries) {
     if (!e.starts_with("trigger")) continue;
-    const std::string saved = dir_;
-    dir_ = options_.sysfs_root + "/" + e;
-    const auto name = readAttr("name");
-    dir_ = saved;
+    const auto name = readFile(options_.sysfs_root + "/" + e + "/name");
     if (name && *name == own && writeAttr("trigger/current_trigger", own) == 0) {
       trigger_ = own;
       return;

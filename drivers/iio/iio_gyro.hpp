@@ -11,7 +11,8 @@
 ///     (EBUSY: "in use by another reader"); holding it, a buffer found enabled was left so
 ///     by a reader that is gone, and is disabled (a warning);
 ///  3. scan_elements: in_anglvel_{x,y,z}_en and in_timestamp_en set, every other `*_en`
-///     cleared; the layout computed from the channels that read back enabled (iio_scan.hpp);
+///     cleared (one the driver will not clear stays, with a warning); the layout computed
+///     from the channels that read back enabled (iio_scan.hpp);
 ///  4. the scale to rad/s: in_anglvel_{x,y,z}_scale or in_anglvel_scale, and _offset if any;
 ///  5. current_timestamp_clock set to `monotonic` (CLOCK_MONOTONIC, the frames' clock): a
 ///     device whose clock cannot be made monotonic (no such attribute before Linux 4.10, whose
@@ -100,7 +101,8 @@ class IioGyro {
   /// "iio:device0 (bmi160), anglvel x,y,z le:s16/16>>0 x 0.000266 rad/s, 16-byte scans,
   /// clock monotonic, 200 Hz" (after open()); the configured device before.
   std::string describe() const;
-  /// What open() changed or found that the user should know (a buffer left enabled).
+  /// What open() changed or found that the user should know (a buffer left enabled, a
+  /// channel that would not be disabled).
   const std::vector<std::string>& warnings() const { return warnings_; }
   /// "iio:device0 (bmi160)": the device as messages name it (the configured one before
   /// open()).
@@ -121,8 +123,10 @@ class IioGyro {
   Expected<void> openSteps();
   void decodeInto(std::size_t bytes, std::span<GyroSample> out, ReadResult& result);
 
-  /// The attribute `relative` (to the device's directory) without its trailing newline;
-  /// errno (ENOENT: no such attribute) in the error's message.
+  /// The sysfs file `path` without its trailing newline; `err` (when given) gets the errno
+  /// (ENOENT: no such attribute), 0 on success.
+  Expected<std::string> readFile(const std::string& path, int* err = nullptr) const;
+  /// readFile() of the attribute `relative` to the device's directory.
   Expected<std::string> readAttr(const std::string& relative, int* err = nullptr) const;
   /// 0, or the errno of open/write.
   int writeAttr(const std::string& relative, const std::string& value) const;

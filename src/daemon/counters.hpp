@@ -56,7 +56,8 @@
   X(frames_gyro_bridged, "gyro-bridged",                                                      \
     "gaps the images could not bridge and the gyro did (pose_t TRACK_GYRO)")                 \
   X(imu_device_lost, "gyro device lost",                                                      \
-    "times the iio gyro went away (unplugged, driver unbound) and was re-opened or retried")
+    "times the iio gyro went away or failed (unplugged, driver unbound, a read error) and "  \
+    "was closed to be looked for again every 0.5 s")
 
 namespace omnipose::daemon {
 

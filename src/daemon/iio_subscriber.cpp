@@ -59,6 +59,7 @@ void IioSubscriber::reopen(const Error& why) {
   while (sleepFor(kRetryInterval)) {
     const auto opened = gyro_.open();
     if (opened) {
+      for (const std::string& w : gyro_.warnings()) board_.logInfo("imu: warning: %s", w.c_str());
       board_.logInfo("imu: %s is back", gyro_.describe().c_str());
       return;
     }

@@ -7,7 +7,8 @@
 ///
 /// Faults are counted on the StatusBoard and reported (rate-limited), never fatal after
 /// start-up: scans the reader skipped (imu_messages_bad), a sample that finds the queue full
-/// (imu_samples_dropped), and the device going away (imu_device_lost, once per outage): it is
+/// (imu_samples_dropped), and the device going away or failing (imu_device_lost, once per
+/// outage): it is
 /// then closed and opened again every kRetryInterval, looked up by name again (its index may
 /// have changed), until it is back or the daemon stops; meanwhile the pipeline goes on from
 /// the images alone.

@@ -327,6 +327,9 @@ int FakeIioDevice::writeAttribute(const std::string& r, std::string value) {
     if (!value.empty() && value != config_.name + "-dev" + std::to_string(index_)) return EINVAL;
   } else if (value != "0" && value != "1") {  // *_en
     return EINVAL;
+  } else if (std::any_of(config_.locked_channels.begin(), config_.locked_channels.end(),
+                         [&](const std::string& c) { return r == "scan_elements/" + c + "_en"; })) {
+    return attrs_[r] == value ? 0 : EINVAL;
   }
   attrs_[r] = value;
   return 0;

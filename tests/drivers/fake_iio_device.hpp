@@ -74,6 +74,9 @@ struct FakeIioConfig {
   /// A triggered buffer: enabling needs trigger/current_trigger; the device's own trigger
   /// "NAME-devN" exists as ROOT/triggerK.
   bool needs_trigger = true;
+  /// Channels (prefixes) whose `_en` cannot be changed (EINVAL): a scan the reader must take
+  /// as it is.
+  std::vector<std::string> locked_channels;
   int max_real_wait_ms = 1;
 };
 

@@ -278,6 +278,23 @@ TEST(IioGyro, KeepsWhateverChannelsTheDeviceKeepsAndAPerAxisScale) {
   EXPECT_EQ(dev.violations(), std::vector<std::string>{});
 }
 
+TEST(IioGyro, AChannelTheDriverKeepsEnabledIsReadAlongWithAWarning) {
+  FakeIioDevice::Config c;
+  c.locked_channels = {"in_accel_y"};
+  FakeIioDevice dev(c);
+  IioGyro gyro(optionsFor(c), dev);
+  ASSERT_TRUE(gyro.open().has_value());
+  ASSERT_EQ(gyro.warnings().size(), 1u);
+  EXPECT_THAT(gyro.warnings()[0], HasSubstr("cannot disable scan_elements/in_accel_y_en"));
+  EXPECT_EQ(dev.scanBytes(), 16u);  // x, y, z, accel y at 6, the timestamp at 8
+  dev.pushScan(kT0, rawAt(0), {1, -32768, 3});  // the accel at its rail: not the gyro's business
+  const auto s = readSamples(gyro, 1);
+  ASSERT_EQ(s.size(), 1u);
+  EXPECT_DOUBLE_EQ(s[0].rate.z(), static_cast<double>(rawAt(0)[2]) * kBmi160Scale);
+  gyro.close();
+  EXPECT_EQ(dev.violations(), std::vector<std::string>{});
+}
+
 TEST(IioGyro, ARateTheDeviceDoesNotOfferIsRefusedWithTheOnesItDoes) {
   FakeIioDevice dev;
   IioGyroOptions o = optionsFor(FakeIioDevice::Config{});
@@ -437,8 +454,9 @@ TEST(IioGyro, OptionsNameTheBadField) {
 TEST(IioGyro, TheKernelsSeamFindsADeviceByNameInARealDirectoryTree) {
   // sysfs as plain files in a temporary directory; no character device: open() finds the
   // device by its name through SystemIioIo and then reports the missing node.
-  char pattern[] = "/tmp/omnipose-iio-XXXXXX";
-  ASSERT_NE(mkdtemp(pattern), nullptr);
+  const char* base = std::getenv("TMPDIR");
+  std::string pattern = std::string(base && *base ? base : "/tmp") + "/omnipose-iio-XXXXXX";
+  ASSERT_NE(mkdtemp(pattern.data()), nullptr);
   const std::filesystem::path root(pattern);
   std::filesystem::create_directories(root / "sys" / "iio:device2");
   std::filesystem::create_directories(root / "sys" / "iio:device0");
