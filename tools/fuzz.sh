@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# libFuzzer runs under ASan + UBSan, one target at a time (tests/fuzz), nine targets:
+# libFuzzer runs under ASan + UBSan, one target at a time (tests/fuzz), eleven targets:
 #   fuzz_calibration_yaml   calibration.yaml (Calibration::parse)
 #   fuzz_daemon_yaml        daemon.yaml (DaemonConfig::parse)
 #   fuzz_frame_pipeline     frame decode (readFrame) + Pipeline::process on arbitrary bytes
@@ -7,6 +7,7 @@
 #   fuzz_gyro_csv           DATASET/imu.csv, the recorded gyro (parseGyroCsv)
 #   fuzz_imu_lcm            omnipose.imu_t messages, the gyro over LCM (decodeImuMessage)
 #   fuzz_gyro_stream        a live gyro stream: GyroBuffer, FrameRotation, integrateGyro
+#   fuzz_iio_scan           an IIO device's scan type and scans (drivers/iio/iio_scan.hpp)
 #   fuzz_ocamcalib          OCamCalib calib_results.txt (OcamCalibModel::parse + the lens model)
 #   fuzz_lens_mask          Calibration::load with the files it names (OCamCalib model, Mei
 #                           cv::omnidir FileStorage, mask image)
@@ -32,7 +33,7 @@ cd "$(dirname "$0")/.."
 seconds=${1:-600}
 shift || true
 all_targets=(fuzz_calibration_yaml fuzz_daemon_yaml fuzz_frame_pipeline fuzz_timestamps_tum
-             fuzz_gyro_csv fuzz_imu_lcm fuzz_gyro_stream fuzz_ocamcalib fuzz_lens_mask fuzz_calibrate_frames)
+             fuzz_gyro_csv fuzz_imu_lcm fuzz_gyro_stream fuzz_iio_scan fuzz_ocamcalib fuzz_lens_mask fuzz_calibrate_frames)
 targets=("$@")
 [ ${#targets[@]} -eq 0 ] && targets=("${all_targets[@]}")
 nice_level=${NICE:-15}

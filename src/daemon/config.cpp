@@ -185,13 +185,27 @@ void parseLcm(Reader& r, const YAML::Node& node, LcmConfig& l) {
 }
 
 constexpr detail::Named<ImuConfig::Source> kImuSources[] = {
-    {ImuConfig::Source::kNone, "none"}, {ImuConfig::Source::kLcm, "lcm"}};
+    {ImuConfig::Source::kNone, "none"}, {ImuConfig::Source::kLcm, "lcm"},
+    {ImuConfig::Source::kIio, "iio"}};
+
+/// imu.device and imu.sampling_hz of an iio gyro (the driver's own checks, named by key).
+void checkIio(Reader& r, const ImuConfig& i) {
+  if (i.device.empty())
+    r.problem("imu.device", "needed with source iio: iio:deviceN or the device's name (e.g. bmi160)");
+  else if (i.device.find('/') != std::string::npos)
+    r.problem("imu.device", "\"" + detail::shown(i.device) +
+                                "\" is a path: give iio:deviceN or the device's name");
+  r.range(i.sampling_hz, "imu.sampling_hz", 0.0, 100000.0, " Hz");
+}
 
 void parseImu(Reader& r, const YAML::Node& node, const LcmConfig& lcm, ImuConfig& i) {
-  if (!r.checkMap(node, "imu", {"source", "channel", "url"})) return;
+  if (!r.checkMap(node, "imu", {"source", "channel", "url", "device", "sampling_hz"})) return;
   r.getNamed(node, "imu", "source", kImuSources, i.source);
   r.get(node, "imu", "channel", i.channel);
   r.get(node, "imu", "url", i.url);
+  r.get(node, "imu", "device", i.device);
+  r.get(node, "imu", "sampling_hz", i.sampling_hz);
+  if (i.source == ImuConfig::Source::kIio) checkIio(r, i);
   if (i.source != ImuConfig::Source::kLcm) return;
   if (i.channel.empty()) r.problem("imu.channel", "must not be empty");
   if (i.url.empty() && lcm.url.find("mode=w") != std::string::npos)
@@ -333,7 +347,8 @@ std::string DaemonConfig::describe() const {
   for (std::size_t i = 0; i < scheduling.cpus.size(); ++i)
     o << (i > 0 ? ", " : "") << scheduling.cpus[i];
   o << "]\nimu:\n  source: " << toString(imu.source) << "\n  channel: " << imu.channel
-    << "\n  url: \"" << imu.url << "\"\n";
+    << "\n  url: \"" << imu.url << "\"\n  device: \"" << imu.device
+    << "\"\n  sampling_hz: " << imu.sampling_hz << "\n";
   return o.str();
 }
 

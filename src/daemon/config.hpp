@@ -18,7 +18,7 @@
 /// lcm: {url: "", pose_channel: OMNI_POSE, status_channel: OMNI_STATUS, fit_channel: "",
 ///       status_hz: 1.0}
 /// scheduling: {fifo_priority: 0, cpus: []}
-/// imu: {source: none, channel: OMNI_IMU, url: ""}
+/// imu: {source: none, channel: OMNI_IMU, url: "", device: "", sampling_hz: 0}
 /// ```
 
 #include <filesystem>
@@ -60,12 +60,19 @@ struct LcmConfig {
 /// The robot's gyro (DESIGN.md sections 3 and 6). Its samples are used when the calibration
 /// has an imu section and a rolling shutter.
 struct ImuConfig {
-  enum class Source { kNone, kLcm };
+  /// none; lcm: omnipose.imu_t messages; iio: a Linux IIO gyro read through its buffered
+  /// interface (drivers/iio/iio_gyro.hpp).
+  enum class Source { kNone, kLcm, kIio };
   Source source = Source::kNone;
   std::string channel = "OMNI_IMU";  ///< lcm: the channel of the omnipose.imu_t messages
   /// lcm: the LCM URL to receive on; "" = lcm.url's (which must then not be a log the daemon
   /// writes: file://...?mode=w).
   std::string url;
+  /// iio: `iio:deviceN`, or the device's `name` attribute (e.g. bmi160, lsm6dsx), which is
+  /// looked up again when the device comes back (its index may change). Required for iio.
+  std::string device;
+  /// iio: the sampling frequency to set, Hz; 0 = leave the device's.
+  double sampling_hz = 0.0;
 };
 const char* toString(ImuConfig::Source source);
 

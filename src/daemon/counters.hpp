@@ -42,7 +42,9 @@
   X(imu_samples_refused, "gyro samples refused",                                             \
     "gyro samples not finite, beyond 100 rad/s, or stamped at or before the one before")     \
   X(imu_messages_bad, "bad imu messages",                                                     \
-    "messages on the imu channel that are not an omnipose.imu_t with a reading")             \
+    "messages on the imu channel that are not an omnipose.imu_t with a reading; with an "    \
+    "iio gyro, its scans skipped (partial, timestamp zero or not after the one before, a "  \
+    "rate at the sensor's rail)")                                                           \
   X(imu_samples_dropped, "gyro samples dropped",                                             \
     "gyro samples that arrived while the queue to the processing thread was full")           \
   X(imu_clock_restarts, "gyro clock restarts",                                               \
@@ -52,7 +54,10 @@
   X(frames_without_gyro, "frames without gyro",                                               \
     "rolling-shutter frames (calibration with an imu section) the gyro did not cover")       \
   X(frames_gyro_bridged, "gyro-bridged",                                                      \
-    "gaps the images could not bridge and the gyro did (pose_t TRACK_GYRO)")
+    "gaps the images could not bridge and the gyro did (pose_t TRACK_GYRO)")                 \
+  X(imu_device_lost, "gyro device lost",                                                      \
+    "times the iio gyro went away or failed (unplugged, driver unbound, a read error) and "  \
+    "was closed to be looked for again every 0.5 s")
 
 namespace omnipose::daemon {
 

@@ -3,6 +3,8 @@
 #include <opencv2/core/utility.hpp>
 #include <stdexcept>
 
+#include "daemon/iio_subscriber.hpp"
+#include "daemon/imu_subscriber.hpp"
 #include "daemon/instance_lock.hpp"
 #include "daemon/source_factory.hpp"
 
@@ -33,20 +35,8 @@ Daemon::Daemon(const DaemonConfig& config, std::FILE* log, std::unique_ptr<Frame
                                                      calibration.sensor.readout_s});
   phase("opening the LCM output");
   sink_ = sink ? std::move(sink) : makeLcmSink(config_.lcm.url);
-  if (config_.imu.source == ImuConfig::Source::kLcm) {
-    if (!calibration.imu) {
-      const std::string problem = (config_.origin.empty() ? "daemon.yaml" : config_.origin) +
-                                  ": imu.source: lcm needs the calibration's imu section (" +
-                                  config_.calibration.string() +
-                                  "; measure it with omnipose-calibrate --imu-from)";
-      throw ConfigError(problem, {problem});
-    }
-    phase("subscribing to the gyro");
-    gyro_queue_ = std::make_unique<GyroQueue>();
-    imu_ = std::make_unique<ImuSubscriber>(
-        config_.imu.url.empty() ? config_.lcm.url : config_.imu.url, config_.imu.channel,
-        *gyro_queue_, board_);
-  }
+  phase("opening the gyro");
+  imu_ = makeGyroStream(calibration);
 
   const bool lossless = options_.force_lossless ||
                         (config_.source.type == SourceConfig::Type::kFile && !config_.source.realtime);
@@ -72,6 +62,31 @@ Daemon::Daemon(const DaemonConfig& config, std::FILE* log, std::unique_ptr<Frame
   processor_ = std::make_unique<Processor>(calibration, config_.odometry(), config_.lcm, *sink_,
                                            board_, source_description_, gyro_queue_.get());
   capture_ = std::make_unique<CaptureLoop>(*source_, *mailbox_, board_, options_.capture);
+}
+
+std::unique_ptr<GyroStream> Daemon::makeGyroStream(const Calibration& calibration) {
+  if (config_.imu.source == ImuConfig::Source::kNone) return nullptr;
+  if (!calibration.imu) {
+    const std::string problem = (config_.origin.empty() ? "daemon.yaml" : config_.origin) +
+                                ": imu.source: " + toString(config_.imu.source) +
+                                " needs the calibration's imu section (" +
+                                config_.calibration.string() +
+                                "; measure it with omnipose-calibrate --imu-from)";
+    throw ConfigError(problem, {problem});
+  }
+  gyro_queue_ = std::make_unique<GyroQueue>();
+  if (config_.imu.source == ImuConfig::Source::kLcm) {
+    return std::make_unique<ImuSubscriber>(
+        config_.imu.url.empty() ? config_.lcm.url : config_.imu.url, config_.imu.channel,
+        *gyro_queue_, board_);
+  }
+  IioGyroOptions o;
+  o.device = config_.imu.device;
+  o.sampling_hz = config_.imu.sampling_hz;
+  if (!options_.iio_sysfs_root.empty()) o.sysfs_root = options_.iio_sysfs_root;
+  if (!options_.iio_dev_root.empty()) o.dev_root = options_.iio_dev_root;
+  IioIo& io = options_.iio_io != nullptr ? *options_.iio_io : SystemIioIo::instance();
+  return std::make_unique<IioSubscriber>(o, io, *gyro_queue_, board_);
 }
 
 Daemon::~Daemon() {

@@ -31,13 +31,17 @@
 #include "daemon/capture_loop.hpp"
 #include "daemon/frame_mailbox.hpp"
 #include "daemon/gyro_queue.hpp"
-#include "daemon/imu_subscriber.hpp"
+#include "daemon/gyro_stream.hpp"
 #include "daemon/message_sink.hpp"
 #include "daemon/processor.hpp"
 #include "daemon/status_board.hpp"
 #include "daemon/config.hpp"
 #include "omnipose/file_io.hpp"
 #include "omnipose/frame_source.hpp"
+
+namespace omnipose {
+class IioIo;  // drivers/iio/iio_io.hpp
+}  // namespace omnipose
 
 namespace omnipose::daemon {
 
@@ -52,6 +56,11 @@ struct DaemonOptions {
   bool force_lossless = false;
   /// Updated with what start-up is doing ("loading the calibration", ...); may be null.
   StartupPhase* phase = nullptr;
+  /// imu.source iio: the kernel calls (nullptr = the kernel's own, SystemIioIo; borrowed,
+  /// must outlive the daemon) and where the devices are ("" = /sys/bus/iio/devices, /dev).
+  IioIo* iio_io = nullptr;
+  std::string iio_sysfs_root;
+  std::string iio_dev_root;
 };
 
 class Daemon {
@@ -95,6 +104,8 @@ class Daemon {
 
  private:
   void processLoop();
+  /// The gyro's stream of daemon.yaml `imu` (none: nullptr); throws on a start-up problem.
+  std::unique_ptr<GyroStream> makeGyroStream(const Calibration& calibration);
 
   DaemonConfig config_;
   Options options_;
@@ -104,7 +115,7 @@ class Daemon {
   std::unique_ptr<MessageSink> sink_;
   std::unique_ptr<FrameMailbox> mailbox_;
   std::unique_ptr<GyroQueue> gyro_queue_;
-  std::unique_ptr<ImuSubscriber> imu_;
+  std::unique_ptr<GyroStream> imu_;
   std::unique_ptr<Processor> processor_;
   std::unique_ptr<CaptureLoop> capture_;
   std::string source_description_;

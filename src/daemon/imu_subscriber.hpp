@@ -19,6 +19,7 @@
 #include <thread>
 
 #include "daemon/gyro_queue.hpp"
+#include "daemon/gyro_stream.hpp"
 #include "daemon/status_board.hpp"
 
 typedef struct _lcm_t lcm_t;
@@ -27,7 +28,7 @@ typedef struct _lcm_recv_buf_t lcm_recv_buf_t;
 
 namespace omnipose::daemon {
 
-class ImuSubscriber {
+class ImuSubscriber final : public GyroStream {
  public:
   /// Opens LCM at `url` ("" = LCM's default, udpm multicast; "file://PATH" reads a log) and
   /// subscribes to `channel`. Throws std::runtime_error naming the URL when LCM cannot be
@@ -35,18 +36,18 @@ class ImuSubscriber {
   ImuSubscriber(const std::string& url, const std::string& channel, GyroQueue& queue,
                 StatusBoard& board);
   /// Stops and joins the thread.
-  ~ImuSubscriber();
+  ~ImuSubscriber() override;
   ImuSubscriber(const ImuSubscriber&) = delete;
   ImuSubscriber& operator=(const ImuSubscriber&) = delete;
 
   /// Starts receiving (once).
-  void start();
+  void start() override;
   /// Stops receiving and joins the thread (idempotent; within about 50 ms).
-  void stop();
+  void stop() override;
   /// Whether the stream ended by itself (an LCM log read to its end, a transport error).
   bool ended() const { return ended_.load(); }
   /// One line for the start-up log.
-  std::string describe() const;
+  std::string describe() const override;
 
  private:
   void run();

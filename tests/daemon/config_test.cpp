@@ -192,7 +192,7 @@ TEST(DaemonConfig, ImuSection) {
   EXPECT_EQ(c.imu.channel, "ROBOT_IMU");
   EXPECT_EQ(c.imu.url, "udpm://239.255.76.67:7667");
   EXPECT_THAT(c.describe(), HasSubstr("imu:\n  source: lcm\n  channel: ROBOT_IMU"));
-  const auto problems = problemsOf(kFileSource + "imu: {source: iio, rate: 200}\n");
+  const auto problems = problemsOf(kFileSource + "imu: {source: spi, rate: 200}\n");
   EXPECT_TRUE(mentions(problems, "imu.source")) << problems.size();
   EXPECT_TRUE(mentions(problems, "imu.rate"));
   EXPECT_TRUE(mentions(problemsOf(kFileSource + "imu: {source: lcm, channel: \"\"}\n"),
@@ -201,6 +201,27 @@ TEST(DaemonConfig, ImuSection) {
   EXPECT_TRUE(mentions(
       problemsOf(kFileSource + "lcm: {url: \"file:///tmp/x.lcm?mode=w\"}\nimu: {source: lcm}\n"),
       "imu.url: needed: lcm.url \"file:///tmp/x.lcm?mode=w\" is a log the daemon writes"));
+}
+
+TEST(DaemonConfig, ImuSectionWithAnIioGyro) {
+  const DaemonConfig c = parseWith("imu: {source: iio, device: bmi160, sampling_hz: 400}\n");
+  EXPECT_EQ(c.imu.source, ImuConfig::Source::kIio);
+  EXPECT_EQ(c.imu.device, "bmi160");
+  EXPECT_DOUBLE_EQ(c.imu.sampling_hz, 400.0);
+  EXPECT_THAT(c.describe(), HasSubstr("imu:\n  source: iio\n  channel: OMNI_IMU\n  url: \"\"\n"
+                                      "  device: \"bmi160\"\n  sampling_hz: 400\n"));
+  EXPECT_EQ(parseWith("imu: {source: iio, device: \"iio:device2\"}\n").imu.sampling_hz, 0.0)
+      << "the device's rate is left alone by default";
+  // Every problem at once, each named by its key.
+  const auto problems = problemsOf(kFileSource + "imu: {source: iio, sampling_hz: -5}\n");
+  EXPECT_TRUE(mentions(problems, "imu.device: needed with source iio"));
+  EXPECT_TRUE(mentions(problems, "imu.sampling_hz"));
+  EXPECT_TRUE(mentions(problemsOf(kFileSource + "imu: {source: iio, device: /dev/iio:device0}\n"),
+                       "imu.device: \"/dev/iio:device0\" is a path"));
+  EXPECT_TRUE(mentions(problemsOf(kFileSource + "imu: {source: iio, device: bmi160, sampling_hz: 1e6}\n"),
+                       "imu.sampling_hz"));
+  EXPECT_TRUE(mentions(problemsOf(kFileSource + "imu: {source: iio, device: bmi160, rate: 1}\n"),
+                       "imu.rate"));
 }
 
 TEST(DaemonConfig, ReplayUseNeedsNoSource) {
