@@ -15,5 +15,6 @@ read_final_status() {
   fi
 }
 
-# status_count NAME: the number after the word NAME in FINAL_STATUS ("received 180" -> 180).
-status_count() { sed -n "s/.* $1 \([0-9]*\).*/\1/p" <<<"$FINAL_STATUS"; }
+# status_count NAME: the number after the words NAME in FINAL_STATUS ("received 180" -> 180;
+# the last such, and only where a number follows: "bad 11", not "bad imu messages 0").
+status_count() { sed -n "s/.* $1 \([0-9][0-9]*\).*/\1/p" <<<"$FINAL_STATUS"; }
