@@ -12,6 +12,8 @@
 #   swing + faults   the swing's frames damaged by tools/drift/damage_frames.py: one corrupt
 #                    frame mid-turn, ten corrupt in a row, a 2 s outage (60 frames missing),
 #                    each alone and all three together
+#   swing + gyro     the swing with the robot's gyro (imu.csv, 200 Hz) beside the same frames,
+#                    and its outage: replayed only (omniposed takes a gyro over LCM or IIO)
 # Every sequence ends with the attitude it began with. Each is replayed by omnipose-replay
 # (its TUM output) and by omniposed (file source, realtime, LCM to a file:// log decoded by
 # omnipose-listen --tum), and scored by `omnipose-eval --drift` (omnipose::evaluateDrift):
@@ -42,6 +44,8 @@
 # (30 fps), so a loaded machine may make it skip frames (counted in the table).
 # shellcheck source=tools/common/benchmark.sh
 source "$(dirname "$0")/common/benchmark.sh"
+# shellcheck source=tools/common/final_status.sh
+source "$(dirname "$0")/common/final_status.sh"
 bench_args drift_benchmark drift --evo -- "$@"
 supersample=${SUPERSAMPLE:-2}
 bin=$build/bin
@@ -105,36 +109,18 @@ suite=(
   "swing_corrupt10|swing, 10 corrupt frames in a row (110-119)|copy:swing|--corrupt 110-119"
   "swing_outage|swing, 2 s outage (frames 150-209 missing)|copy:swing|--remove 150-209"
   "swing_faults|swing, all three faults|copy:swing|--corrupt 37 --corrupt 110-119 --remove 150-209"
+  "swing_gyro|swing, 200 Hz gyro (replay)|render:swing:sphere:gyro|"
+  "swing_outage_gyro|swing, 2 s outage, 200 Hz gyro (replay)|copy:swing_gyro|--remove 150-209"
 )
-echo "== drift benchmark: ${#suite[@]} sequences, output $out"
-
-for entry in "${suite[@]}"; do
-  IFS='|' read -r name label source damage <<< "$entry"
-  dir=$out/$name
-  mkdir -p "$dir"
-  t0=$(date +%s)
-  case "$source" in
-    render:*)
-      IFS=':' read -r _ motion scene <<< "$source"
-      # shellcheck disable=SC2086  # sensor holds whitespace-separated options
-      "$bin/omnipose-synth" --texture "$photo" --out "$dir/dataset" --motion "tools/drift/$motion.yaml" \
-        --scene "$scene" --calibration "$out/calibration.yaml" --supersample "$supersample" \
-        $sensor --quiet > "$dir/synth.log"
-      ;;
-    copy:*)
-      # Hard links: damage_frames.py replaces the files it damages, so the original stays.
-      cp -al "$out/${source#copy:}/dataset" "$dir/dataset"
-      # shellcheck disable=SC2086  # damage holds whitespace-separated options
-      python3 tools/drift/damage_frames.py "$dir/dataset" $damage > "$dir/damage.log"
-      ;;
-  esac
-  frames=$(find "$dir/dataset/frames" -type f | wc -l)
-  gt_frames=$(grep -vc '^#' "$dir/dataset/groundtruth.tum")
-
-  replay_line=$("$bin/omnipose-replay" "$dir/dataset" --config "$out/replay.yaml" --quiet \
-                  --out "$dir/replay.tum" --relative "$dir/replay.csv" 2> "$dir/replay.log" | tail -n 1) || {
-    echo "   $name: omnipose-replay failed, see $dir/replay.log" >&2; tail -5 "$dir/replay.log" >&2; exit 1; }
-
+# The robot's gyro (render:...:gyro): imu.csv at 200 Hz beside the same frames, white noise
+# 0.005 deg/s/sqrt(Hz), bias 0.5 deg/s, its clock 12.3 ms behind the camera's, mounted 40 deg
+# off the camera's axes, its exact calibration in calibration.yaml; the replay reads it (the
+# daemon takes a gyro over LCM or IIO only, so these rows have no daemon run).
+gyro="--gyro-rate 200 --gyro-noise 8.7e-5 --gyro-bias 0.0087 --gyro-time-offset 0.0123"
+gyro+=" --gyro-rotation 0.939692621,0.228013429,-0.228013429,0.114006714"
+# omniposed on $dir/dataset (file source, realtime), its poses decoded from its LCM log, its
+# counts, and both runs scored.
+run_daemon() {
   cat > "$dir/daemon.yaml" <<YAML
 source: {type: file, path: "$dir/dataset", realtime: true}
 calibration: "$dir/dataset/calibration.yaml"
@@ -150,28 +136,72 @@ YAML
     echo "   $name: omnipose-listen failed, see $dir/daemon.listen.err" >&2; exit 1; }
   final=$(grep '^status (final):' "$dir/daemon.listen" | tail -1)
   [ -n "$final" ] || { echo "   $name: no final status in $dir/daemon.lcm" >&2; exit 1; }
-  count() { sed -n "s/.* $1 \([0-9]*\).*/\1/p" <<< "$final"; }
+  FINAL_STATUS=$final
   segments=$(grep '^pose ' "$dir/daemon.listen" | awk '{print $7}' | sort -un | wc -l)
-  printf '%s\t%s\t%s\t%s\t%s\t%s\n' "$(count processed)" "$(count 'skipped (stale)')" "$(count bad)" \
-    "$(count poses)" "$segments" "$(count received)" > "$dir/daemon.counts"
+  printf '%s\t%s\t%s\t%s\t%s\t%s\n' "$(status_count processed)" "$(status_count 'skipped (stale)')" \
+    "$(status_count bad)" "$(status_count poses)" "$segments" "$(status_count received)" > "$dir/daemon.counts"
 
   "$bin/omnipose-eval" --drift "$dir/dataset/groundtruth.tum" "$dir/replay.tum" "$dir/daemon.tum" \
     --json "$dir/drift.json" > "$dir/drift.txt"
+}
+
+echo "== drift benchmark: ${#suite[@]} sequences, output $out"
+
+for entry in "${suite[@]}"; do
+  IFS='|' read -r name label source damage <<< "$entry"
+  dir=$out/$name
+  mkdir -p "$dir"
+  t0=$(date +%s)
+  case "$source" in
+    render:*)
+      IFS=':' read -r _ motion scene with <<< "$source"
+      extra=""
+      [ "$with" = gyro ] && extra=$gyro
+      # shellcheck disable=SC2086  # sensor and extra hold whitespace-separated options
+      "$bin/omnipose-synth" --texture "$photo" --out "$dir/dataset" --motion "tools/drift/$motion.yaml" \
+        --scene "$scene" --calibration "$out/calibration.yaml" --supersample "$supersample" \
+        $sensor $extra --quiet > "$dir/synth.log"
+      ;;
+    copy:*)
+      # Hard links: damage_frames.py replaces the files it damages, so the original stays.
+      cp -al "$out/${source#copy:}/dataset" "$dir/dataset"
+      # shellcheck disable=SC2086  # damage holds whitespace-separated options
+      python3 tools/drift/damage_frames.py "$dir/dataset" $damage > "$dir/damage.log"
+      ;;
+  esac
+  frames=$(find "$dir/dataset/frames" -type f | wc -l)
+  gt_frames=$(grep -vc '^#' "$dir/dataset/groundtruth.tum")
+
+  replay_line=$("$bin/omnipose-replay" "$dir/dataset" --config "$out/replay.yaml" --quiet \
+                  --out "$dir/replay.tum" --relative "$dir/replay.csv" 2> "$dir/replay.log" | tail -n 1) || {
+    echo "   $name: omnipose-replay failed, see $dir/replay.log" >&2; tail -5 "$dir/replay.log" >&2; exit 1; }
+
+  if [ -f "$dir/dataset/imu.csv" ]; then
+    [ "$name" = swing_gyro ] && { diff -rq "$out/swing/dataset/frames" "$dir/dataset/frames" > /dev/null ||
+      { echo "   $name: its frames differ from the swing's: the gyro changed the render" >&2; exit 1; }; }
+    "$bin/omnipose-eval" --drift "$dir/dataset/groundtruth.tum" "$dir/replay.tum" \
+      --json "$dir/drift.json" > "$dir/drift.txt"
+  else
+    run_daemon
+  fi
 
   evo_rmse="-	-"
+  [ -f "$dir/daemon.tum" ] || evo_rmse="-	–"
   if [ -n "$evo_ape" ]; then
     evo_of() {
       "$evo_ape" tum "$dir/dataset/groundtruth.tum" "$1" --pose_relation angle_deg --align_origin \
         > "$2" 2>&1 || { echo "   $name: evo_ape failed, see $2" >&2; cat "$2" >&2; exit 1; }
       awk '$1 == "rmse" { print $2 }' "$2"
     }
-    evo_rmse="$(evo_of "$dir/replay.tum" "$dir/evo_replay.txt")	$(evo_of "$dir/daemon.tum" "$dir/evo_daemon.txt")"
+    evo_daemon="–"
+    [ -f "$dir/daemon.tum" ] && evo_daemon=$(evo_of "$dir/daemon.tum" "$dir/evo_daemon.txt")
+    evo_rmse="$(evo_of "$dir/replay.tum" "$dir/evo_replay.txt")	$evo_daemon"
   fi
   printf '%s\t%s\t%s\t%s\t%s\n' "$label" "$frames" "$gt_frames" "$replay_line" "$evo_rmse" > "$dir/row.tsv"
 
   printf '== %-16s %3ds  %s\n' "$name" $(( $(date +%s) - t0 )) "$replay_line"
   sed 's/^/   /' "$dir/drift.txt" | grep -E 'end-point|ATE|eps' | sed "s|$dir/||"
-  printf '   daemon: %s\n' "$(sed 's/^status (final): //; s/ | source.*//' <<< "$final")"
+  [ -f "$dir/daemon.tum" ] && printf '   daemon: %s\n' "$(sed 's/^status (final): //; s/ | source.*//' <<< "$final")"
 done
 
 # ---------------------------------------------------------------------------- table
@@ -196,19 +226,26 @@ print("|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---|")
 for name in names:
     label, frames, gt_frames, replay_line, evo_replay, evo_daemon = \
         open("%s/%s/row.tsv" % (out, name)).read().rstrip("\n").split("\t")
-    replay, daemon = json.load(open("%s/%s/drift.json" % (out, name)))
-    processed, skipped, bad, lost, segments, received = \
-        open("%s/%s/daemon.counts" % (out, name)).read().split()
+    runs = json.load(open("%s/%s/drift.json" % (out, name)))
+    replay, daemon = runs[0], (runs[1] if len(runs) > 1 else None)
     def end(d):
         s = f(d["end_error"] * deg)
         return s if d["end_is_last"] else s + " (at %.2f s)" % d["end_timestamp"]
     frames_cell = frames if frames == gt_frames else "%s of %s" % (frames, gt_frames)
     evo_cell = "%s / %s" % (evo_replay, evo_daemon) if evo else "–"
-    print("| %s | %s | %s | %s | %s | %s | %s | %s | %s / %s | %s | %d | %s / %s / %s / %s, %s |" % (
-        label, frames_cell, end(replay), f(replay["ate_rmse"] * deg), f(replay["max_error"] * deg),
-        end(daemon), f(daemon["ate_rmse"] * deg), f(daemon["max_error"] * deg),
-        f(replay["eps"]["rmse"] * 1e3), f(daemon["eps"]["rmse"] * 1e3), evo_cell,
-        replay["pairs_missing"], processed, bad, skipped, lost, segments))
+    if daemon:
+        processed, skipped, bad, lost, segments, received = \
+            open("%s/%s/daemon.counts" % (out, name)).read().split()
+        daemon_cells = (end(daemon), f(daemon["ate_rmse"] * deg), f(daemon["max_error"] * deg))
+        eps_cell = "%s / %s" % (f(replay["eps"]["rmse"] * 1e3), f(daemon["eps"]["rmse"] * 1e3))
+        counts_cell = "%s / %s / %s / %s, %s" % (processed, bad, skipped, lost, segments)
+    else:
+        daemon_cells = ("–", "–", "–")
+        eps_cell = "%s / –" % f(replay["eps"]["rmse"] * 1e3)
+        counts_cell = "no daemon run (gyro)"
+    print("| %s | %s | %s | %s | %s | %s | %s | %s | %s | %s | %d | %s |" % (
+        (label, frames_cell, end(replay), f(replay["ate_rmse"] * deg), f(replay["max_error"] * deg))
+        + daemon_cells + (eps_cell, evo_cell, replay["pairs_missing"], counts_cell)))
 PY
 
 {
@@ -232,6 +269,10 @@ PY
   echo "timestamps are gone. Frame 37 is mid-turn (the camera turns 3.2 deg from frame 36 to 38);"
   echo "around frames 110-119 it turns 17.6 deg from the last good frame to the next; the outage"
   echo "is mid-turn (the yaw is +1.6 deg before it and -96 deg after it: 97.6 deg turned unseen)."
+  echo "The gyro rows: the swing rendered again with the robot's gyro in imu.csv beside the same"
+  echo "frames (checked bit for bit; 200 Hz, white noise 0.005 deg/s/sqrt(Hz), bias 0.5 deg/s, its"
+  echo "clock 12.3 ms behind the camera's, mounted 40 deg off, the exact calibration in"
+  echo "calibration.yaml), and its outage; replayed only (omniposed takes a gyro over LCM or IIO)."
   echo
   echo "Runs: \`omnipose-replay\` (its TUM output) and \`omniposed\` (file source, \`realtime: true\`,"
   echo "publishing to an LCM \`file://\` log, decoded with \`omnipose-listen --tum\`) on the same"
