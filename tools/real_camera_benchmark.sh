@@ -128,6 +128,31 @@ segments:
   - frames: $((frames - 1))
     rotation: {axis: z, step_deg: [0.3, 0.6], sign: positive}
 YAML
+# The camera-gyro calibration's own recording (not one of the sequences scored): 3 s of
+# turning in place at other rates, with 1 deg of vibration of another seed.
+calib_frames=90
+{
+  echo "# The robot turning in place, speeding up and slowing down, and shaking: the recording"
+  echo "# omnipose-calibrate --readout-from and --imu-from measure (tools/real_camera_benchmark.sh)."
+  echo "seed: 0"
+  echo "frame_rate: 30"
+  echo "frames: $calib_frames"
+  echo "vibration: {amplitude_deg: 1.0, min_hz: 1, max_hz: 9, components: 3, seed: 11}"
+  echo "segments:"
+  awk -v n=$((calib_frames - 1)) 'BEGIN {
+    split("-2.5 3.5 -4 2 -3 4", peak, " "); np = 6; v = 0; k = 0; p = 0
+    while (k < n) {
+      target = peak[p % np + 1]; p++; from = v
+      for (i = 1; i <= 9 && k < n; i++) {
+        v = (i <= 5) ? from + (target - from) * i / 5 : target
+        sign = v < 0 ? "negative" : "positive"; a = v < 0 ? -v : v
+        if (a < 0.01) a = 0.01
+        printf "  - frames: 1\n    rotation: {axis: z, step_deg: %.4f, sign: %s}\n", a, sign
+        k++
+      }
+    }
+  }'
+} > "$out/motions/calib_turns.yaml"
 
 # ---------------------------------------------------------------------------- sequences
 common="--noise 3 --jpeg 90"
@@ -182,6 +207,51 @@ rows=(
 rolling_sequences=" rolling_shutter rolling_shutter_constant all_at_once "
 
 echo "== real-camera benchmark: ${#sequences[@]} sequences x $frames frames from $(basename "$photo")"
+# The camera-gyro calibration as a user measures it: the readout from the images
+# (--readout-from), then the gyro's mounting and clock (--imu-from) with that readout, from
+# their own recording. A refusal is reported, not fatal: the estimator then fails in the table.
+calib=$out/calib
+mkdir -p "$calib/measured"
+# shellcheck disable=SC2086  # common and gyro hold whitespace-separated options
+"$bin/omnipose-synth" --texture "$photo" --out "$calib/dataset" --scene sphere \
+  --motion "$out/motions/calib_turns.yaml" --frames "$calib_frames" --seed 202 \
+  --supersample "$supersample" $common --readout "$readout" --between-frames smooth \
+  --gyro-rate 200 $gyro --quiet > "$calib/synth.log" 2>&1 || {
+  echo "   calibration recording: omnipose-synth failed, see $calib/synth.log" >&2; cat "$calib/synth.log" >&2; exit 1; }
+for f in frames timestamps.txt imu.csv; do ln -s "../dataset/$f" "$calib/measured/$f"; done
+if "$bin/omnipose-calibrate" --readout-from "$calib/dataset" --out "$calib/measured/calibration.yaml" \
+     > "$calib/readout.log" 2>&1 &&
+   "$bin/omnipose-calibrate" --imu-from "$calib/measured" --out "$calib/estimated.yaml" \
+     > "$calib/imu.log" 2>&1; then
+  calib_summary=$(python3 - "$calib/estimated.yaml" "$calib/dataset/calibration.yaml" <<'PY'
+import math, sys
+def section(path, name):
+    out, inside = {}, False
+    for line in open(path):
+        if not line.startswith(" "):
+            inside = line.startswith(name + ":")
+        elif inside:
+            key, _, value = line.strip().partition(":")
+            out[key] = value.split("#")[0].strip()
+    return out
+est, true = [(section(p, "sensor"), section(p, "imu")) for p in sys.argv[1:3]]
+def quat(text):
+    return [float(x) for x in text.strip("[] ").split(",")]
+def angle_deg(a, b):
+    dot = abs(sum(x * y for x, y in zip(a, b)))
+    return 2 * math.degrees(math.acos(min(1.0, dot)))
+r_est, r_true = float(est[0]["readout_s"]), float(true[0]["readout_s"])
+d_est, d_true = float(est[1]["time_offset_s"]), float(true[1]["time_offset_s"])
+print("readout %.5f s (%+.2f %%), clock offset %.5f s (%+.3f ms), mounting %.3f deg off"
+      % (r_est, 100 * (r_est / r_true - 1), d_est, 1e3 * (d_est - d_true),
+         angle_deg(quat(est[1]["rotation"]), quat(true[1]["rotation"]))))
+PY
+)
+else
+  calib_summary="refused: $(tail -n 1 "$calib/imu.log" "$calib/readout.log" 2>/dev/null | grep -m1 cannot || echo "see $calib")"
+  rm -f "$calib/estimated.yaml"
+fi
+echo "== calibration from its own recording: $calib_summary"
 echo "   output: $out"
 timings=$out/timings.tsv
 : > "$timings"
@@ -210,6 +280,7 @@ for entry in "${sequences[@]}"; do
     grep -q '^imu:' "$dir/dataset/calibration.yaml" ||
       { echo "   $name: the dataset's calibration.yaml has no imu section" >&2; exit 1; }
     estimators=(ifmi)
+    [[ "$name" == *_gyro200 ]] && estimators=(ifmi ifmi_imu_from)
   elif [[ "$rolling_sequences" == *" $name "* ]]; then
     estimators=(ifmi ifmi_readout_unknown akazerot)
     sed '/^sensor:/,/^[^[:space:]]/{/^sensor:/d;/^[[:space:]]/d}' "$dir/dataset/calibration.yaml" \
@@ -225,6 +296,7 @@ for entry in "${sequences[@]}"; do
     case "$est" in
       ifmi) args=(--config "$out/replay.yaml") ;;
       ifmi_readout_unknown) args=(--config "$out/replay.yaml" --calibration "$dir/calibration_readout_unknown.yaml") ;;
+      ifmi_imu_from) args=(--config "$out/replay.yaml" --calibration "$calib/estimated.yaml") ;;
       akazerot) args=(--method akazerot) ;;
     esac
     t0=$(date +%s)
@@ -282,6 +354,7 @@ settings = {
     "supersample": $supersample, "blur_supersample": $blur_supersample,
     "output": "omni 720x720, default lens", "noise_sigma": 3, "jpeg_quality": 90,
     "readout_s": $readout, "walkers": "$walkers", "exposure": "$exposure", "blur": "$blur",
+    "calibration_from_recording": """$calib_summary""",
     "wall_time_s": $elapsed, "load_start": "$load_start", "load_end": "$load_end",
     "machine": """$cpu""", "cores": $(nproc),
 }
@@ -308,7 +381,7 @@ for line in open(rows_file):
     label, effect, twin, target, rolling = line.rstrip("\n").split("|")
     for est in sequences[effect]["estimators"]:
         # The twin has no rolling shutter: "readout unknown" there is plain ifmi.
-        twin_est = "ifmi" if est == "ifmi_readout_unknown" else est
+        twin_est = "ifmi" if est in ("ifmi_readout_unknown", "ifmi_imu_from") else est
         e = sequences[effect]["estimators"][est]
         t = sequences[twin]["estimators"][twin_est]
         ratio = None
@@ -319,14 +392,16 @@ for line in open(rows_file):
                "effect_eval": e["eval"], "twin_eval": t["eval"], "effect_drift": e["drift"],
                "twin_drift": t["drift"]}
         if est.startswith("ifmi") and target:
-            row["target_ratio"] = float(target)
+            # The issue's targets with the calibration from --imu-from: 2.5x throughout.
+            row["target_ratio"] = max(float(target), 2.5) if est == "ifmi_imu_from" else float(target)
             row["met"] = ratio is not None and ratio <= float(target)
         rows.append(row)
 json.dump({"settings": settings, "sequences": sequences, "rows": rows},
           open(out + "/report/real_camera.json", "w"), indent=1)
 
 deg = 57.29577951308232
-names = {"ifmi": "ifmi", "ifmi_readout_unknown": "ifmi, readout unknown", "akazerot": "akazerot"}
+names = {"ifmi": "ifmi", "ifmi_readout_unknown": "ifmi, readout unknown",
+         "ifmi_imu_from": "ifmi, calibration from --readout-from and --imu-from", "akazerot": "akazerot"}
 def mrad(x):
     return "%.3f" % (1e3 * x)
 lines = ["| effect | estimator | eps RMSE [mrad] with effect | eps RMSE [mrad] twin | ratio "
@@ -412,7 +487,13 @@ fi
   echo "  noise 0.005 deg/s/sqrt(Hz), bias 0.5 deg/s, its clock 12.3 ms behind the camera's, mounted"
   echo "  40 deg off the camera's axes) and its exact calibration in calibration.yaml (section \`imu\`);"
   echo "  \`omnipose-replay DATASET\` reads imu.csv and takes each row's rotation within its frame from"
-  echo "  the gyro. Same twin (global shutter, no gyro)."
+  echo "  the gyro. Same twin (global shutter, no gyro). With the 200 Hz gyro also"
+  echo "  \`ifmi, calibration from --readout-from and --imu-from\`: the same replay with \`--calibration\`"
+  echo "  pointing to the calibration a user would measure from a recording of its own (90 frames,"
+  echo "  seed 202: the robot turning in place at other rates with 1 deg of vibration, motion"
+  echo "  \`calib_turns\`, the same camera and gyro): \`omnipose-calibrate --readout-from\` for the readout,"
+  echo "  then \`omnipose-calibrate --imu-from\` with it for the gyro's mounting and clock. Measured:"
+  echo "  $calib_summary."
   echo
   echo "Estimators: \`ifmi\` = \`omnipose-replay DATASET\` (the dataset's calibration.yaml records"
   echo "\`sensor: readout_s\` when rendered with a rolling shutter, so the camera model knows the"
@@ -428,7 +509,8 @@ fi
   echo "with the effect / eps of the twin with the same estimator. Targets (issue): for ifmi, the ratio"
   echo "at most 2 (rolling shutter with vibration), 1.5 (three walkers), 1.1 (auto-exposure) and 2.5"
   echo "(all at once); they are judged on every ifmi row, the \`readout unknown\` one included, for"
-  echo "comparison. Pairs missing: pairs an estimator did not estimate (eps is over the others)."
+  echo "comparison; with the calibration from --imu-from the target is 2.5 on every row. Pairs"
+  echo "missing: pairs an estimator did not estimate (eps is over the others)."
   echo
   cat "$out/table.md"
   echo
