@@ -10,6 +10,7 @@ PACKAGES=(
   liblcm-dev liblcm-bin libglib2.0-dev liblcm-java default-jdk-headless
   libcamera-dev libopengv-dev libsystemd-dev
   zlib1g-dev valgrind iproute2 util-linux python3
+  python3-dev python3-venv   # the Python package (tools/python_test.sh)
 )
 
 missing=()

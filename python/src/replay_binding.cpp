@@ -1,0 +1,193 @@
+#include <nanobind/eigen/dense.h>
+#include <nanobind/ndarray.h>
+#include <nanobind/stl/filesystem.h>
+#include <nanobind/stl/optional.h>
+#include <nanobind/stl/string.h>
+#include <nanobind/stl/vector.h>
+
+#include <algorithm>
+#include <cstring>
+#include <span>
+
+#include "bindings.hpp"
+#include "omnipose/io/dataset.hpp"
+#include "omnipose/io/gyro.hpp"
+#include "omnipose/unwrapper.hpp"
+
+namespace nb = nanobind;
+
+namespace omnipose::python {
+namespace {
+
+/// An array owned by Python, filled from `values` (row-major).
+template <std::size_t N>
+nb::ndarray<nb::numpy, double> ownedArray(std::vector<double> values,
+                                          const std::size_t (&shape)[N]) {
+  auto* data = new std::vector<double>(std::move(values));
+  nb::capsule owner(data, [](void* p) noexcept { delete static_cast<std::vector<double>*>(p); });
+  return nb::ndarray<nb::numpy, double>(data->data(), N, shape, owner);
+}
+
+/// Poses as (N, 4, 4) row-major and their timestamps as (N,).
+void addPoses(nb::dict& d, const char* times_key, const char* poses_key,
+              const std::vector<StampedPose>& poses) {
+  std::vector<double> t, m;
+  m.reserve(poses.size() * 16);
+  for (const StampedPose& p : poses) {
+    t.push_back(p.timestamp);
+    const Eigen::Matrix4d a = p.pose.matrix();
+    for (int r = 0; r < 4; ++r)
+      for (int c = 0; c < 4; ++c) m.push_back(a(r, c));
+  }
+  d[times_key] = ownedArray(std::move(t), {poses.size()});
+  d[poses_key] = ownedArray(std::move(m), {poses.size(), 4, 4});
+}
+
+struct ReplayRun {
+  std::vector<StampedPose> trajectory;
+  std::vector<std::string> states;  ///< per trajectory entry
+  std::vector<double> sequences;    ///< frame index per trajectory entry
+  std::vector<std::string> log;     ///< skipped / lost frames and warnings, as omnipose-replay logs
+  int pairs = 0, skipped = 0, implausible = 0, lost = 0, bridged = 0, gyro_frames = 0;
+  std::vector<double> seconds;
+};
+
+/// The dataset's gyro samples when its calibration can join them to the frames (as
+/// omnipose-replay reads them).
+std::vector<GyroSample> datasetGyro(const Dataset& dataset, std::vector<std::string>& log) {
+  if (!dataset.gyro_file) return {};
+  if (!dataset.calibration.imu) {
+    log.push_back("warning: " + dataset.gyro_file->string() +
+                  " is not used: the calibration has no imu section");
+    return {};
+  }
+  return readGyroCsv(*dataset.gyro_file).samples;
+}
+
+/// One frame's outcome into the run, as omnipose-replay counts and writes it.
+void record(ReplayRun& run, const DatasetFrame& f, int i, const OdometryResult& r) {
+  run.seconds.push_back(r.relative.timing.total);
+  if (r.state == TrackState::kLost) {
+    ++run.lost;
+    run.log.push_back("lost " + f.path.string() + ": fit failed, starting a new chain segment");
+    return;  // no pose: the link across the gap is unknown
+  }
+  if (r.state == TrackState::kBridged || r.state == TrackState::kGyroBridged) ++run.bridged;
+  if (r.state != TrackState::kSegmentStart) ++run.pairs;
+  run.trajectory.push_back({f.timestamp, r.pose});
+  run.states.emplace_back(toString(r.state));
+  run.sequences.push_back(i);
+}
+
+/// omnipose-replay's loop (tools/replay/replay.cpp) for the iFMI odometry. No Python object
+/// is touched: it runs without the GIL.
+void runReplay(const Dataset& dataset, const OdometryOptions& options, ReplayRun& run) {
+  Odometry odometry(dataset.calibration, options);
+  const std::vector<GyroSample> gyro = datasetGyro(dataset, run.log);
+  std::size_t gyro_next = 0;
+  const cv::Size frame_size = inputFrameSize(dataset.calibration, options.pipeline.unwrap.input);
+  std::vector<std::uint8_t> buffer;
+  cv::Mat image;
+  for (std::size_t i = 0; i < dataset.frames.size(); ++i) {
+    const DatasetFrame& f = dataset.frames[i];
+    if (auto read = readFrame(f.path, frame_size, buffer, image); !read) {
+      odometry.markGap();
+      ++run.skipped;
+      run.log.push_back("skipped " + f.path.string() + ": " + read.error().c_str());
+      continue;
+    }
+    if (!gyro.empty()) {
+      const std::span<const GyroSample> rest = std::span(gyro).subspan(gyro_next);
+      const std::size_t n = gyroSamplesArrivedBy(rest, *dataset.calibration.imu,
+                                                 dataset.calibration.sensor.readout_s, f.timestamp);
+      odometry.addGyro(rest.first(n));
+      gyro_next += n;
+    }
+    const Expected<OdometryResult> result =
+        odometry.process(image, {f.timestamp, static_cast<std::int64_t>(i)});
+    if (!result) {
+      ++run.skipped;
+      if (result.error().code() == ErrorCode::kImplausible) ++run.implausible;
+      run.log.push_back("skipped " + f.path.string() + ": " + result.error().c_str());
+      continue;
+    }
+    record(run, f, static_cast<int>(i), *result);
+  }
+  run.gyro_frames = static_cast<int>(odometry.gyroCounters().frames_with_gyro);
+}
+
+nb::dict replay(const std::filesystem::path& dataset_dir, const std::string& options_yaml,
+                const std::string& origin, const std::optional<std::filesystem::path>& calibration) {
+  const Dataset dataset = Dataset::open(dataset_dir, calibration);
+  std::vector<std::string> warnings;
+  const OdometryOptions options =
+      parseOdometryOptions(options_yaml, origin, dataset.calibration, warnings);
+  if (const std::string assumed = dataset.assumptions(); !assumed.empty())
+    warnings.push_back(assumed);
+  warnings.insert(warnings.end(), dataset.warnings.begin(), dataset.warnings.end());
+  ReplayRun run;
+  {
+    nb::gil_scoped_release release;
+    runReplay(dataset, options, run);
+  }
+  nb::dict d;
+  addPoses(d, "timestamps", "poses", run.trajectory);
+  d["sequences"] = ownedArray(std::move(run.sequences), {run.trajectory.size()});
+  d["states"] = run.states;
+  d["frames"] = static_cast<int>(dataset.frames.size());
+  d["pairs"] = run.pairs;
+  d["skipped"] = run.skipped;
+  d["implausible"] = run.implausible;
+  d["lost"] = run.lost;
+  d["bridged"] = run.bridged;
+  d["gyro_frames"] = run.gyro_frames;
+  double median = 0.0;
+  if (!run.seconds.empty()) {
+    std::nth_element(run.seconds.begin(), run.seconds.begin() + run.seconds.size() / 2,
+                     run.seconds.end());
+    median = run.seconds[run.seconds.size() / 2];
+  }
+  d["median_seconds_per_frame"] = median;
+  d["log"] = run.log;
+  d["warnings"] = warnings;
+  return d;
+}
+
+nb::dict openDataset(const std::filesystem::path& dataset_dir,
+                     const std::optional<std::filesystem::path>& calibration) {
+  const Dataset dataset = Dataset::open(dataset_dir, calibration);
+  nb::dict d;
+  d["root"] = dataset.root;
+  d["calibration"] = dataset.calibration;
+  std::vector<std::filesystem::path> paths;
+  std::vector<double> times;
+  for (const DatasetFrame& f : dataset.frames) {
+    paths.push_back(f.path);
+    times.push_back(f.timestamp);
+  }
+  d["frames"] = paths;
+  d["timestamps"] = ownedArray(std::move(times), {dataset.frames.size()});
+  d["timestamps_from_file"] = dataset.timestamps_from_file;
+  d["gyro_file"] = dataset.gyro_file;
+  d["warnings"] = dataset.warnings;
+  if (dataset.groundtruth) {
+    nb::dict gt;
+    addPoses(gt, "timestamps", "poses", *dataset.groundtruth);
+    d["groundtruth"] = gt;
+  } else {
+    d["groundtruth"] = nb::none();
+  }
+  return d;
+}
+
+}  // namespace
+
+void bindReplay(nb::module_& m) {
+  m.def("_replay", &replay, nb::arg("dataset_dir"), nb::arg("options_yaml"), nb::arg("origin"),
+        nb::arg("calibration") = nb::none(),
+        "omnipose-replay's loop over a dataset directory (omnipose.replay() wraps it).");
+  m.def("_open_dataset", &openDataset, nb::arg("dataset_dir"), nb::arg("calibration") = nb::none(),
+        "A dataset directory as the library reads it (omnipose.open_dataset() wraps it).");
+}
+
+}  // namespace omnipose::python

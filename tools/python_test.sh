@@ -1,0 +1,37 @@
+#!/usr/bin/env bash
+# The Python package (pyproject.toml, python/): installs the Debian packages, builds the
+# programs (a no-op after tools/test.sh), renders a 24-frame rotating sequence with exact
+# ground truth and replays it with omnipose-replay (writing FFTW wisdom; the tests compare the package with both),
+# installs the package with `pip install .` into a venv under build-python/ and runs its
+# pytest suite (tests/python).
+# Usage: tools/python_test.sh [pytest arguments]
+set -euo pipefail
+cd "$(dirname "$0")/.."
+bash tools/install_deps.sh
+bash tools/build.sh omnipose-synth omnipose-replay
+
+data=build-python/data
+rm -rf "$data"
+mkdir -p "$data"
+build/bin/omnipose-synth --texture tests/data/equirect/indoor_1024x512.jpg --out "$data/mixed" \
+  --preset mixed --frames 24 --seed 1 --noise 3 >/dev/null
+# FFTW wisdom shared by the C++ replay and the tests: the same FFT algorithms, so the same
+# last bits (FFTW_MEASURE alone may pick other algorithms in another process).
+echo "pipeline: {fftw_wisdom: fftw_wisdom.txt}" > "$data/replay.yaml"
+build/bin/omnipose-replay "$data/mixed" --config "$data/replay.yaml" \
+  --out "$data/mixed_replay.tum" >/dev/null
+
+venv=build-python/venv
+if [ ! -x "$venv/bin/python" ]; then python3 -m venv "$venv"; fi
+"$venv/bin/python" -m pip install -q --upgrade pip
+# The build requirements in the venv and no build isolation: build-python/<wheel tag> is
+# reused, so a second run only rebuilds what changed.
+"$venv/bin/python" -m pip install -q "scikit-build-core>=0.10" "nanobind>=2.0" numpy pytest
+"$venv/bin/python" -m pip install -q --no-build-isolation .
+
+export OMNIPOSE_TEST_DATASET="$PWD/$data/mixed"
+export OMNIPOSE_TEST_REPLAY_TUM="$PWD/$data/mixed_replay.tum"
+export OMNIPOSE_TEST_WISDOM="$PWD/$data/fftw_wisdom.txt"
+# From outside the source tree, so `import omnipose` is the installed package.
+cd build-python
+"$PWD/venv/bin/python" -m pytest -q -p no:cacheprovider ../tests/python "$@"
