@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# The Python package (pyproject.toml, python/): installs the Debian packages, builds the
+# The Python package (pyproject.toml, src/python/): installs the Debian packages, builds the
 # programs (a no-op after tools/test.sh), renders a 24-frame rotating sequence with exact
 # ground truth and replays it with omnipose-replay (writing FFTW wisdom; the tests compare the package with both),
 # installs the package with `pip install .` into a venv under build-python/ and runs its
@@ -8,7 +8,7 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 bash tools/install_deps.sh
-bash tools/build.sh omnipose-synth omnipose-replay
+bash tools/build.sh --target omnipose-synth omnipose-replay
 
 data=build-python/data
 rm -rf "$data"

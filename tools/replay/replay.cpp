@@ -8,7 +8,7 @@
 #include <stdexcept>
 
 #include "omnipose/baselines/feature_motion_estimator.hpp"
-#include "omnipose/io/gyro.hpp"
+#include "omnipose/io/replay.hpp"
 #include "omnipose/io/trajectory.hpp"
 #include "omnipose/odometry.hpp"
 #include "omnipose/pipeline.hpp"
@@ -61,36 +61,6 @@ void writeCsvRow(std::ofstream& csv, int frame, const DatasetFrame& f, const Odo
   csv << buf;
 }
 
-/// The dataset's gyro recording (imu.csv) for the iFMI odometry, when the calibration joins
-/// it to the frames (its imu section); empty otherwise (with a warning on `log` for an imu.csv
-/// the calibration cannot use).
-std::vector<GyroSample> gyroSamples(const Dataset& dataset, const std::string& method,
-                                    std::FILE* log) {
-  if (!dataset.gyro_file) return {};
-  const Calibration& c = dataset.calibration;
-  if (!c.imu) {
-    std::fprintf(log,
-                 "warning: %s is not used: the calibration has no imu section (measure it with "
-                 "omnipose-calibrate --imu-from)\n",
-                 dataset.gyro_file->c_str());
-    return {};
-  }
-  if (method != "ifmi") return {};
-  return readGyroCsv(*dataset.gyro_file).samples;
-}
-
-/// Gives `odometry` the samples of `gyro` from `next` on that arrive by the time the frame
-/// stamped `time` has been read out, as a live stream would.
-void feedGyro(Odometry& odometry, std::span<const GyroSample> gyro, std::size_t& next,
-              const Calibration& calibration, double time) {
-  if (gyro.empty()) return;
-  const std::span<const GyroSample> rest = gyro.subspan(next);
-  const std::size_t n =
-      gyroSamplesArrivedBy(rest, *calibration.imu, calibration.sensor.readout_s, time);
-  odometry.addGyro(rest.first(n));
-  next += n;
-}
-
 }  // namespace
 
 std::unique_ptr<Odometry> makeOdometry(const std::string& method, const Calibration& calibration,
@@ -112,8 +82,10 @@ ReplaySummary run(const ReplayOptions& options, std::FILE* log) {
     std::fprintf(log, "warning: %s\n", assumed.c_str());
   for (const std::string& w : dataset.warnings) std::fprintf(log, "warning: %s\n", w.c_str());
   auto odometry = makeOdometry(options.method, dataset.calibration, odometry_options);
-  const std::vector<GyroSample> gyro = gyroSamples(dataset, options.method, log);
-  std::size_t gyro_next = 0;
+  std::string gyro_warning;
+  std::vector<GyroSample> gyro = datasetGyroSamples(dataset, gyro_warning);
+  if (!gyro_warning.empty()) std::fprintf(log, "warning: %s\n", gyro_warning.c_str());
+  if (options.method != "ifmi") gyro.clear();
 
   std::ofstream csv;
   if (options.relative_csv) {
@@ -122,54 +94,22 @@ ReplaySummary run(const ReplayOptions& options, std::FILE* log) {
     writeCsvHeader(csv);
   }
 
-  const cv::Size frame_size =
-      inputFrameSize(dataset.calibration, odometry_options.pipeline.unwrap.input);
-  ReplaySummary summary;
-  summary.frames = static_cast<int>(dataset.frames.size());
   std::vector<StampedPose> trajectory;
   std::vector<double> seconds;
   seconds.reserve(dataset.frames.size());
-  tools::ProgressLine progress(log, summary.frames, "frames", options.progress);
-
-  for (int i = 0; i < summary.frames; ++i) {
-    const DatasetFrame& f = dataset.frames[i];
-    auto image = readFrame(f.path, frame_size);
-    if (!image) {
-      odometry->markGap();
-      ++summary.skipped;
-      std::fprintf(log, "skipped %s: %s\n", f.path.c_str(), image.error().c_str());
-      continue;
-    }
-    feedGyro(*odometry, gyro, gyro_next, dataset.calibration, f.timestamp);
-    Expected<OdometryResult> result = odometry->process(*image, {f.timestamp, i});
-    if (!result) {
-      ++summary.skipped;
-      if (result.error().code() == ErrorCode::kImplausible) ++summary.implausible;
-      std::fprintf(log, "skipped %s: %s\n", f.path.c_str(), result.error().c_str());
-      continue;
-    }
-    seconds.push_back(result->relative.timing.total);
-    switch (result->state) {
-      case TrackState::kSegmentStart:
-        trajectory.push_back({f.timestamp, result->pose});
-        break;
-      case TrackState::kLost:
-        ++summary.lost;
-        std::fprintf(log, "lost %s: fit failed, starting a new chain segment\n", f.path.c_str());
-        break;  // no pose written: the link across the gap is unknown
-      case TrackState::kGyroBridged:
-      case TrackState::kBridged:
-        ++summary.bridged;
-        [[fallthrough]];
-      case TrackState::kTracked:
-        ++summary.pairs;
-        trajectory.push_back({f.timestamp, result->pose});
-        break;
-    }
-    if (csv.is_open() && result->relative.has_motion) writeCsvRow(csv, i, f, *result);
-    progress.update(i + 1);
-  }
+  tools::ProgressLine progress(log, static_cast<int>(dataset.frames.size()), "frames",
+                               options.progress);
+  const ReplayCounts counts = replayDataset(
+      dataset, *odometry, gyro, odometry_options.pipeline.unwrap.input, trajectory,
+      [&](int i, const DatasetFrame& f, const OdometryResult& result) {
+        seconds.push_back(result.relative.timing.total);
+        if (csv.is_open() && result.relative.has_motion) writeCsvRow(csv, i, f, result);
+        progress.update(i + 1);
+      },
+      [&](const std::string& line) { std::fprintf(log, "%s\n", line.c_str()); });
   progress.finish();
+  ReplaySummary summary;
+  static_cast<ReplayCounts&>(summary) = counts;
   if (!gyro.empty()) {
     const GyroCounters g = odometry->gyroCounters();
     summary.gyro_frames = static_cast<int>(g.frames_with_gyro);

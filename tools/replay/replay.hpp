@@ -11,6 +11,7 @@
 
 #include "daemon/config.hpp"
 #include "omnipose/io/dataset.hpp"
+#include "omnipose/io/replay.hpp"
 #include "omnipose/motion_estimator.hpp"
 #include "omnipose/odometry.hpp"
 
@@ -27,13 +28,7 @@ struct ReplayOptions {
   bool progress = true;
 };
 
-struct ReplaySummary {
-  int frames = 0;   ///< frames in the dataset
-  int pairs = 0;    ///< relative poses estimated (fit not lost)
-  int skipped = 0;  ///< unreadable / wrong-size / black frames, and the implausible ones
-  int implausible = 0;  ///< of the skipped: decoded but not believed (PlausibilityOptions)
-  int lost = 0;     ///< frames whose fit failed and could not be bridged (new segment)
-  int bridged = 0;  ///< pairs found again across a gap or a lost fit (in pairs)
+struct ReplaySummary : ReplayCounts {
   /// frames whose rows' rotations within the frame came from the dataset's gyro (imu.csv)
   int gyro_frames = 0;
   double median_seconds_per_frame = 0.0;

@@ -22,7 +22,7 @@ void bindOdometry(nanobind::module_& m);
 void bindReplay(nanobind::module_& m);
 
 /// The odometry options that daemon.yaml text `options_yaml` (its pipeline, keyframes,
-/// plausibility and input keys; python/omnipose/__init__.py writes it from keyword arguments)
+/// plausibility and input keys; src/python/omnipose/__init__.py writes it from keyword arguments)
 /// gives, read by the daemon's own parser (DaemonConfig::parse, then checkAgainst the
 /// calibration) so names, ranges and messages are the daemon's; relative paths are relative
 /// to the current directory. Throws ConfigError listing every problem, each starting with

@@ -1,5 +1,5 @@
 /// The module omnipose._omnipose: the C++ library's odometry, calibration and dataset reader
-/// for Python (python/omnipose/__init__.py is the public face; DESIGN.md section on the
+/// for Python (src/python/omnipose/__init__.py is the public face; DESIGN.md section on the
 /// binding).
 #include <nanobind/nanobind.h>
 #include <nanobind/ndarray.h>

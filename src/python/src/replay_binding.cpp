@@ -11,7 +11,7 @@
 
 #include "bindings.hpp"
 #include "omnipose/io/dataset.hpp"
-#include "omnipose/io/gyro.hpp"
+#include "omnipose/io/replay.hpp"
 #include "omnipose/unwrapper.hpp"
 
 namespace nb = nanobind;
@@ -43,76 +43,31 @@ void addPoses(nb::dict& d, const char* times_key, const char* poses_key,
   d[poses_key] = ownedArray(std::move(m), {poses.size(), 4, 4});
 }
 
+/// A replay's outcome (replayDataset()) with what Python gets of each pose.
 struct ReplayRun {
   std::vector<StampedPose> trajectory;
   std::vector<std::string> states;  ///< per trajectory entry
   std::vector<double> sequences;    ///< frame index per trajectory entry
-  std::vector<std::string> log;     ///< skipped / lost frames and warnings, as omnipose-replay logs
-  int pairs = 0, skipped = 0, implausible = 0, lost = 0, bridged = 0, gyro_frames = 0;
+  std::vector<std::string> log;     ///< skipped / lost frames, as omnipose-replay logs them
+  ReplayCounts counts;
+  int gyro_frames = 0;
   std::vector<double> seconds;
 };
 
-/// The dataset's gyro samples when its calibration can join them to the frames (as
-/// omnipose-replay reads them).
-std::vector<GyroSample> datasetGyro(const Dataset& dataset, std::vector<std::string>& log) {
-  if (!dataset.gyro_file) return {};
-  if (!dataset.calibration.imu) {
-    log.push_back("warning: " + dataset.gyro_file->string() +
-                  " is not used: the calibration has no imu section");
-    return {};
-  }
-  return readGyroCsv(*dataset.gyro_file).samples;
-}
-
-/// One frame's outcome into the run, as omnipose-replay counts and writes it.
-void record(ReplayRun& run, const DatasetFrame& f, int i, const OdometryResult& r) {
-  run.seconds.push_back(r.relative.timing.total);
-  if (r.state == TrackState::kLost) {
-    ++run.lost;
-    run.log.push_back("lost " + f.path.string() + ": fit failed, starting a new chain segment");
-    return;  // no pose: the link across the gap is unknown
-  }
-  if (r.state == TrackState::kBridged || r.state == TrackState::kGyroBridged) ++run.bridged;
-  if (r.state != TrackState::kSegmentStart) ++run.pairs;
-  run.trajectory.push_back({f.timestamp, r.pose});
-  run.states.emplace_back(toString(r.state));
-  run.sequences.push_back(i);
-}
-
-/// omnipose-replay's loop (tools/replay/replay.cpp) for the iFMI odometry. No Python object
+/// omnipose-replay's loop (omnipose/io/replay.hpp) with the iFMI odometry. No Python object
 /// is touched: it runs without the GIL.
-void runReplay(const Dataset& dataset, const OdometryOptions& options, ReplayRun& run) {
+void runReplay(const Dataset& dataset, const OdometryOptions& options,
+               std::span<const GyroSample> gyro, ReplayRun& run) {
   Odometry odometry(dataset.calibration, options);
-  const std::vector<GyroSample> gyro = datasetGyro(dataset, run.log);
-  std::size_t gyro_next = 0;
-  const cv::Size frame_size = inputFrameSize(dataset.calibration, options.pipeline.unwrap.input);
-  std::vector<std::uint8_t> buffer;
-  cv::Mat image;
-  for (std::size_t i = 0; i < dataset.frames.size(); ++i) {
-    const DatasetFrame& f = dataset.frames[i];
-    if (auto read = readFrame(f.path, frame_size, buffer, image); !read) {
-      odometry.markGap();
-      ++run.skipped;
-      run.log.push_back("skipped " + f.path.string() + ": " + read.error().c_str());
-      continue;
-    }
-    if (!gyro.empty()) {
-      const std::span<const GyroSample> rest = std::span(gyro).subspan(gyro_next);
-      const std::size_t n = gyroSamplesArrivedBy(rest, *dataset.calibration.imu,
-                                                 dataset.calibration.sensor.readout_s, f.timestamp);
-      odometry.addGyro(rest.first(n));
-      gyro_next += n;
-    }
-    const Expected<OdometryResult> result =
-        odometry.process(image, {f.timestamp, static_cast<std::int64_t>(i)});
-    if (!result) {
-      ++run.skipped;
-      if (result.error().code() == ErrorCode::kImplausible) ++run.implausible;
-      run.log.push_back("skipped " + f.path.string() + ": " + result.error().c_str());
-      continue;
-    }
-    record(run, f, static_cast<int>(i), *result);
-  }
+  run.counts = replayDataset(
+      dataset, odometry, gyro, options.pipeline.unwrap.input, run.trajectory,
+      [&](int i, const DatasetFrame&, const OdometryResult& r) {
+        run.seconds.push_back(r.relative.timing.total);
+        if (r.state == TrackState::kLost) return;  // no pose in the trajectory
+        run.states.emplace_back(toString(r.state));
+        run.sequences.push_back(i);
+      },
+      [&](const std::string& line) { run.log.push_back(line); });
   run.gyro_frames = static_cast<int>(odometry.gyroCounters().frames_with_gyro);
 }
 
@@ -125,21 +80,24 @@ nb::dict replay(const std::filesystem::path& dataset_dir, const std::string& opt
   if (const std::string assumed = dataset.assumptions(); !assumed.empty())
     warnings.push_back(assumed);
   warnings.insert(warnings.end(), dataset.warnings.begin(), dataset.warnings.end());
+  std::string gyro_warning;
+  const std::vector<GyroSample> gyro = datasetGyroSamples(dataset, gyro_warning);
+  if (!gyro_warning.empty()) warnings.push_back(gyro_warning);
   ReplayRun run;
   {
     nb::gil_scoped_release release;
-    runReplay(dataset, options, run);
+    runReplay(dataset, options, gyro, run);
   }
   nb::dict d;
   addPoses(d, "timestamps", "poses", run.trajectory);
   d["sequences"] = ownedArray(std::move(run.sequences), {run.trajectory.size()});
   d["states"] = run.states;
   d["frames"] = static_cast<int>(dataset.frames.size());
-  d["pairs"] = run.pairs;
-  d["skipped"] = run.skipped;
-  d["implausible"] = run.implausible;
-  d["lost"] = run.lost;
-  d["bridged"] = run.bridged;
+  d["pairs"] = run.counts.pairs;
+  d["skipped"] = run.counts.skipped;
+  d["implausible"] = run.counts.implausible;
+  d["lost"] = run.counts.lost;
+  d["bridged"] = run.counts.bridged;
   d["gyro_frames"] = run.gyro_frames;
   double median = 0.0;
   if (!run.seconds.empty()) {
