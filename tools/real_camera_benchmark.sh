@@ -83,16 +83,16 @@ printf 'pipeline:\n  fftw_wisdom: "%s"\n%s' "$wisdom" "$ifmi_pipeline_yaml" > "$
 # ---------------------------------------------------------------------------- motions
 # `frames:` in the scripts as well as --frames: omnipose-synth checks a script's vibration
 # against the script's own frame count, before --frames applies.
-# ramps: increments 1..frames-1, per frame-to-frame yaw step v (deg, signed): from the last
-# value to the next peak in 6 equal steps, then 4 frames at the peak; the peaks cycle through
-# +3, -4, +2, -3.5, +4, -2.5. The steps never cross 0 exactly (|v| < 0.01 is written as 0.01).
+# ramps_segments N "PEAKS" RAMP: N increments, per frame-to-frame yaw step v (deg, signed):
+# from the last value to the next peak in RAMP equal steps, then 4 frames at the peak; the
+# peaks cycle through PEAKS. The steps never cross 0 exactly (|v| < 0.01 is written as 0.01).
 ramps_segments() {
-  awk -v n=$((frames - 1)) 'BEGIN {
-    split("3 -4 2 -3.5 4 -2.5", peak, " "); np = 6; v = 0; k = 0; p = 0
+  awk -v n="$1" -v peaks="$2" -v ramp="$3" 'BEGIN {
+    np = split(peaks, peak, " "); v = 0; k = 0; p = 0
     while (k < n) {
       target = peak[p % np + 1]; p++; from = v
-      for (i = 1; i <= 10 && k < n; i++) {
-        v = (i <= 6) ? from + (target - from) * i / 6 : target
+      for (i = 1; i <= ramp + 4 && k < n; i++) {
+        v = (i <= ramp) ? from + (target - from) * i / ramp : target
         sign = v < 0 ? "negative" : "positive"; a = v < 0 ? -v : v
         if (a < 0.01) a = 0.01
         printf "  - frames: 1\n    rotation: {axis: z, step_deg: %.4f, sign: %s}\n", a, sign
@@ -101,6 +101,8 @@ ramps_segments() {
     }
   }'
 }
+# ramps: peaks +3, -4, +2, -3.5, +4, -2.5 reached in 6 steps.
+ramps="3 -4 2 -3.5 4 -2.5"
 {
   echo "# Yaw turns of 2..4 deg/frame reached in 6-frame ramps, held 4 frames, then ramped to"
   echo "# the next peak of the opposite sign (tools/real_camera_benchmark.sh)."
@@ -108,7 +110,7 @@ ramps_segments() {
   echo "frame_rate: 30"
   echo "frames: $frames"
   echo "segments:"
-  ramps_segments
+  ramps_segments $((frames - 1)) "$ramps" 6
 } > "$out/motions/ramps.yaml"
 {
   echo "# ramps.yaml with track vibration: roll and pitch, 0.5 deg peak, three sinusoids of 1..9 Hz."
@@ -117,7 +119,7 @@ ramps_segments() {
   echo "frames: $frames"
   echo "vibration: {amplitude_deg: 0.5, min_hz: 1, max_hz: 9, components: 3, seed: 7}"
   echo "segments:"
-  ramps_segments
+  ramps_segments $((frames - 1)) "$ramps" 6
 } > "$out/motions/ramps_vib.yaml"
 cat > "$out/motions/slow_turn.yaml" <<YAML
 # The robot turning slowly: yaw 0.3..0.6 deg/frame, positive, drawn per frame.
@@ -129,7 +131,8 @@ segments:
     rotation: {axis: z, step_deg: [0.3, 0.6], sign: positive}
 YAML
 # The camera-gyro calibration's own recording (not one of the sequences scored): 3 s of
-# turning in place at other rates, with 1 deg of vibration of another seed.
+# turning in place at other rates (peaks -2.5, +3.5, -4, +2, -3, +4 reached in 5 steps),
+# with 1 deg of vibration of another seed.
 calib_frames=90
 {
   echo "# The robot turning in place, speeding up and slowing down, and shaking: the recording"
@@ -139,19 +142,7 @@ calib_frames=90
   echo "frames: $calib_frames"
   echo "vibration: {amplitude_deg: 1.0, min_hz: 1, max_hz: 9, components: 3, seed: 11}"
   echo "segments:"
-  awk -v n=$((calib_frames - 1)) 'BEGIN {
-    split("-2.5 3.5 -4 2 -3 4", peak, " "); np = 6; v = 0; k = 0; p = 0
-    while (k < n) {
-      target = peak[p % np + 1]; p++; from = v
-      for (i = 1; i <= 9 && k < n; i++) {
-        v = (i <= 5) ? from + (target - from) * i / 5 : target
-        sign = v < 0 ? "negative" : "positive"; a = v < 0 ? -v : v
-        if (a < 0.01) a = 0.01
-        printf "  - frames: 1\n    rotation: {axis: z, step_deg: %.4f, sign: %s}\n", a, sign
-        k++
-      }
-    }
-  }'
+  ramps_segments $((calib_frames - 1)) "-2.5 3.5 -4 2 -3 4" 5
 } > "$out/motions/calib_turns.yaml"
 
 # ---------------------------------------------------------------------------- sequences
