@@ -334,6 +334,11 @@ Expected<void> IioGyro::openSteps() {
   return enableBuffer();
 }
 
+Expected<std::string> IioGyro::find() {
+  if (auto ok = resolveDevice(); !ok) return std::unexpected(ok.error());
+  return label_;
+}
+
 Expected<void> IioGyro::open() {
   close();
   warnings_.clear();

@@ -88,6 +88,10 @@ class IioGyro {
   /// scan layout not supported), kIoError (an attribute that cannot be read or written).
   /// On failure nothing stays open and a buffer it enabled is disabled again.
   Expected<void> open();
+  /// Step 1 of open() alone (`omniposed --check`): the device found under the sysfs root, its
+  /// label ("iio:device0 (bmi160)") returned; nothing is opened or written. Errors as open()'s
+  /// kNotFound and kInvalidArgument (two devices of that name).
+  Expected<std::string> find();
   /// Disables the buffer it enabled and closes the device (idempotent; never fails: a device
   /// that is gone has nothing left to disable).
   void close();

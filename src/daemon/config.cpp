@@ -295,6 +295,10 @@ std::vector<std::string> DaemonConfig::checkAgainst(const Calibration& cal,
       text += " (" + calibration.string() + ")";  // name the file the panorama comes from
     problems.push_back(origin + ": " + text);
   }
+  if (imu.source != ImuConfig::Source::kNone && !cal.imu)
+    problems.push_back(origin + ": imu.source: " + toString(imu.source) +
+                       " needs the calibration's imu section (" + calibration.string() +
+                       "; measure it with omnipose-calibrate --imu-from)");
   return problems;
 }
 

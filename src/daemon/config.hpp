@@ -133,8 +133,9 @@ struct DaemonConfig {
                             const std::filesystem::path& base_dir, Use use = Use::kDaemon);
   /// Problems of the pipeline section together with the calibration's panorama (window
   /// taller than the panorama, more window samples than WindowRegistration::
-  /// kMaxWindowSamples), each naming `origin` (this file) and the daemon.yaml key; empty when
-  /// it fits. Checked before anything is sized.
+  /// kMaxWindowSamples), and a gyro (imu.source lcm or iio) without the calibration's imu
+  /// section, each naming `origin` (this file) and the daemon.yaml key; empty when it fits.
+  /// Checked before anything is sized.
   std::vector<std::string> checkAgainst(const Calibration& cal, const std::string& origin) const;
   /// The effective configuration as YAML, for the start-up log.
   std::string describe() const;

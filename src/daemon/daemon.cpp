@@ -36,7 +36,7 @@ Daemon::Daemon(const DaemonConfig& config, std::FILE* log, std::unique_ptr<Frame
   phase("opening the LCM output");
   sink_ = sink ? std::move(sink) : makeLcmSink(config_.lcm.url);
   phase("opening the gyro");
-  imu_ = makeGyroStream(calibration);
+  imu_ = makeGyroStream();
 
   const bool lossless = options_.force_lossless ||
                         (config_.source.type == SourceConfig::Type::kFile && !config_.source.realtime);
@@ -64,16 +64,9 @@ Daemon::Daemon(const DaemonConfig& config, std::FILE* log, std::unique_ptr<Frame
   capture_ = std::make_unique<CaptureLoop>(*source_, *mailbox_, board_, options_.capture);
 }
 
-std::unique_ptr<GyroStream> Daemon::makeGyroStream(const Calibration& calibration) {
+std::unique_ptr<GyroStream> Daemon::makeGyroStream() {
   if (config_.imu.source == ImuConfig::Source::kNone) return nullptr;
-  if (!calibration.imu) {
-    const std::string problem = (config_.origin.empty() ? "daemon.yaml" : config_.origin) +
-                                ": imu.source: " + toString(config_.imu.source) +
-                                " needs the calibration's imu section (" +
-                                config_.calibration.string() +
-                                "; measure it with omnipose-calibrate --imu-from)";
-    throw ConfigError(problem, {problem});
-  }
+  // The calibration's imu section is there: checkAgainst() refused start-up without it.
   gyro_queue_ = std::make_unique<GyroQueue>();
   if (config_.imu.source == ImuConfig::Source::kLcm) {
     return std::make_unique<ImuSubscriber>(

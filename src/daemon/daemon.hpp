@@ -105,7 +105,7 @@ class Daemon {
  private:
   void processLoop();
   /// The gyro's stream of daemon.yaml `imu` (none: nullptr); throws on a start-up problem.
-  std::unique_ptr<GyroStream> makeGyroStream(const Calibration& calibration);
+  std::unique_ptr<GyroStream> makeGyroStream();
 
   DaemonConfig config_;
   Options options_;

@@ -10,6 +10,7 @@
 #include "common/problem_list.hpp"
 #include "daemon/message_sink.hpp"
 #include "daemon/source_factory.hpp"
+#include "iio/iio_gyro.hpp"
 #include "omnipose/io/dataset.hpp"
 #include "omnipose/calibration.hpp"
 #include "omnipose/pipeline.hpp"
@@ -78,12 +79,27 @@ void checkWisdom(const DaemonConfig& config, StartupCheck& out) {
   }
 }
 
+/// imu.source iio: the device found under /sys/bus/iio/devices (by index or name), nothing
+/// opened or written; the calibration's imu section is checkAgainst()'s.
+void checkImu(const DaemonConfig& config, StartupCheck& out) {
+  if (config.imu.source != ImuConfig::Source::kIio) return;
+  const std::string origin = config.origin.empty() ? "daemon.yaml" : config.origin;
+  IioGyroOptions options;
+  options.device = config.imu.device;
+  IioGyro gyro(options);
+  if (const Expected<std::string> found = gyro.find(); found)
+    out.findings.push_back("imu: iio gyro " + *found + ": found (opened at start-up)");
+  else
+    out.problems.push_back(origin + ": imu.device: " + found.error().c_str());
+}
+
 }  // namespace
 
 StartupCheck checkStartup(const DaemonConfig& config) {
   StartupCheck out;
   const std::string origin = config.origin.empty() ? "daemon.yaml" : config.origin;
   checkSource(config, out);
+  checkImu(config, out);
   if (const std::optional<std::string> problem = logProblem(config.lcm.url))
     out.problems.push_back(origin + ": " + *problem);
   for (const std::string& problem : checkScheduling(config.scheduling))

@@ -28,7 +28,8 @@ struct StartupCheck {
 /// what it names (lens model files, mask); the pipeline against its panorama (and builds the
 /// pipeline when that fits, so FFT plans and tables are proven too); the source's options as
 /// its driver will read them (checkSourceOptions(), source_factory.hpp), without opening a
-/// device (a file source: that the dataset directory exists); the FFTW wisdom file and an
+/// device (a file source: that the dataset directory exists); an IIO gyro found by index or
+/// name (IioGyro::find(), nothing opened) and a gyro's need of the calibration's imu section; the FFTW wisdom file and an
 /// LCM log (`file://PATH?mode=w`) as things the daemon may replace (file_io.hpp). Writes
 /// nothing: the pipeline is built without its wisdom file, no log or lock file is created.
 /// Never throws for a problem of the configuration; std::bad_alloc and the like propagate.

@@ -169,5 +169,33 @@ TEST(DaemonCheck, CameraOptionsAreCheckedWithoutOpeningTheDevice) {
               HasSubstr("source: v4l2 /dev/no_such_video, 1280x720 GREY: options valid"));
 }
 
+// A gyro: the calibration's imu section is needed (lcm and iio alike), and an IIO device
+// that is not there is named, without anything being opened.
+TEST(DaemonCheck, AGyroNeedsTheCalibrationsImuSectionAndAnIioDeviceThatIsThere) {
+  TempDir tmp("check_imu");
+  fs::create_directories(tmp / "data/frames");
+  testing::writeText(tmp / "data/frames/000000.png", "");
+  Calibration c;
+  c.save(tmp / "calibration.yaml");
+  auto check = [&](const std::string& imu) {
+    return daemon::checkStartup(DaemonConfig::parse(
+        "source: {type: file, path: data}\ncalibration: calibration.yaml\nimu: " + imu + "\n",
+        (tmp / "daemon.yaml").string(), tmp.path()));
+  };
+  const auto lcm = check("{source: lcm, url: \"memq://\"}");
+  ASSERT_EQ(lcm.problems.size(), 1u) << lines(lcm.problems);
+  EXPECT_THAT(lcm.problems[0], HasSubstr("daemon.yaml: imu.source: lcm needs the calibration's imu "
+                                         "section (" + (tmp / "calibration.yaml").string()));
+  const auto iio = check("{source: iio, device: no_such_gyro}");
+  ASSERT_EQ(iio.problems.size(), 2u) << lines(iio.problems);
+  EXPECT_THAT(iio.problems[0], HasSubstr("daemon.yaml: imu.device: iio device \"no_such_gyro\""));
+  EXPECT_THAT(iio.problems[1], HasSubstr("imu.source: iio needs the calibration's imu section"));
+
+  c.imu = ImuCalibration{};
+  c.save(tmp / "calibration.yaml");
+  const auto fixed = check("{source: lcm, url: \"memq://\"}");
+  EXPECT_TRUE(fixed.problems.empty()) << lines(fixed.problems);
+}
+
 }  // namespace
 }  // namespace omnipose

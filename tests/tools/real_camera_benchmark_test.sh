@@ -3,7 +3,9 @@
 # the script parses, prints its usage, rejects bad options, names a missing binary or photo,
 # refuses to clear a dangerous OUTDIR, and a 12-frame run at 1 x 1 rays per pixel on the small
 # test photo writes the report and the JSON, with every effect rendered on exactly its twin's
-# poses and the rolling-shutter calibration stripped of its readout for "readout unknown".
+# poses and the rolling-shutter calibration stripped of its readout for "readout unknown";
+# the gyro rows on the rolling shutter's own frames, with the exact calibration and with the
+# one omnipose-calibrate measures from a recording of its own.
 # Usage: real_camera_benchmark_test.sh SOURCE_DIR BUILD_DIR   (BUILD_DIR/bin holds the binaries)
 set -euo pipefail
 src=$1 build=$2 script=$1/tools/real_camera_benchmark.sh
@@ -46,12 +48,28 @@ for label in 'rolling shutter 0.8 frame' 'the same, velocity constant between fr
 done
 [ "$(grep -c '^| .* | ifmi, readout unknown (twin: ifmi) | ' "$md")" = 3 ] || fail "readout-unknown rows: $(cat "$md")"
 [ "$(grep -c '^| .* | akazerot | ' "$md")" = 6 ] || fail "akazerot rows: $(cat "$md")"
+for label in 'rolling shutter 0.8 frame (with vibration), 200 Hz gyro' \
+             'rolling shutter 0.8 frame (with vibration), 1 kHz gyro' 'all at once, 200 Hz gyro' \
+             'all at once, 1 kHz gyro'; do
+  grep -qF "| $label | ifmi | " "$md" || fail "no ifmi row for '$label' in $md"
+done
+[ "$(grep -c '^| .* | ifmi, calibration from --readout-from and --imu-from (twin: ifmi) | ' "$md")" = 2 ] ||
+  fail "rows with the measured calibration: $(cat "$md")"
+grep -q 'Measured:' "$md" || fail "no calibration summary in $md"
+for hz in 200 1000; do
+  for name in rolling_shutter all_at_once; do
+    diff -rq "$out/$name/dataset/frames" "$out/${name}_gyro$hz/dataset/frames" > /dev/null ||
+      fail "${name}_gyro$hz: its frames differ from $name's"
+    [ -s "$out/${name}_gyro$hz/dataset/imu.csv" ] || fail "${name}_gyro$hz: no imu.csv"
+  done
+done
 grep -q 'failed' "$out/table.md" && fail "a replay failed: $(cat "$out/table.md")"
 python3 - "$out/report/real_camera.json" <<'PY' || fail "real_camera.json: see above"
 import json, sys
 d = json.load(open(sys.argv[1]))
 assert d["settings"]["frames"] == 12, d["settings"]
-assert len(d["rows"]) == 15, len(d["rows"])
+assert len(d["rows"]) == 21, len(d["rows"])
+assert d["settings"]["calibration_from_recording"].startswith("readout "), d["settings"]
 for r in d["rows"]:
     assert r["effect_eval"] and r["twin_eval"] and r["effect_drift"], r["estimator"]
     assert r["effect_eval"]["pairs"] + r["effect_eval"]["pairs_missing"] == 11, r["effect_eval"]
@@ -61,7 +79,12 @@ for r in d["rows"]:
     assert r["effect_drift"]["ate_rmse"] >= 0 and r["effect_drift"]["end_is_last"] in (True, False)
 targets = {r["effect_sequence"]: r.get("target_ratio") for r in d["rows"] if r["estimator"] == "ifmi"}
 assert targets == {"rolling_shutter": 2, "rolling_shutter_constant": 2, "walkers": 1.5,
-                   "auto_exposure": 1.1, "auto_exposure_clean": None, "all_at_once": 2.5}, targets
+                   "auto_exposure": 1.1, "auto_exposure_clean": None, "all_at_once": 2.5,
+                   "rolling_shutter_gyro200": 2, "rolling_shutter_gyro1000": 2,
+                   "all_at_once_gyro200": 2.5, "all_at_once_gyro1000": 2.5}, targets
+measured = {r["effect_sequence"]: r["target_ratio"] for r in d["rows"]
+            if r["estimator"] == "ifmi_imu_from"}
+assert measured == {"rolling_shutter_gyro200": 2.5, "all_at_once_gyro200": 2.5}, measured
 PY
 # The motions: 11 single-frame yaw increments, all > 0 deg, the first ramp 0.5 .. 3 deg.
 [ "$(grep -c 'frames: 1$' "$out/motions/ramps.yaml")" = 11 ] || fail "ramps.yaml: $(cat "$out/motions/ramps.yaml")"
