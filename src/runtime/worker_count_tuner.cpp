@@ -6,68 +6,88 @@
 namespace omnipose::runtime {
 namespace {
 
-/// Weight of the newest frame in the averages, once a count has run this many frames (before,
-/// the plain mean of the frames so far).
-constexpr double kAlpha = 0.2;
-/// Frames a count runs before its average is trusted enough to probe from it.
-constexpr int kWarmUpFrames = 5;
+template <std::size_t N>
+double median(std::array<double, N> values) {
+  const auto middle = values.begin() + values.size() / 2;
+  std::nth_element(values.begin(), middle, values.end());
+  return *middle;
+}
 
 }  // namespace
 
 WorkerCountTuner::WorkerCountTuner(int workers)
-    : workers_(std::max(workers, 1)),
-      active_(workers_),
-      average_(static_cast<std::size_t>(workers_), 0.0),
-      frames_(static_cast<std::size_t>(workers_), 0) {}
+    : workers_(std::max(workers, 1)), current_(workers_), active_(workers_) {}
 
-int WorkerCountTuner::frameEnded(double seconds, double waited_seconds) {
+int WorkerCountTuner::frameEnded(double seconds) {
   if (workers_ == 1 || !std::isfinite(seconds) || seconds <= 0.0) return active_;
-  const double waited = std::isfinite(waited_seconds)
-                            ? std::clamp(waited_seconds / seconds, 0.0, 1.0)
-                            : 0.0;
-  if (probe_from_ != 0) {
-    judgeProbe(seconds, waited);
+  if (candidate_ != 0) {
+    probeFrame(seconds);
     return active_;
   }
-  const auto i = static_cast<std::size_t>(active_ - 1);
-  const double weight = std::max(kAlpha, 1.0 / (frames_[i] + 1));
-  average_[i] += weight * (seconds - average_[i]);
-  wait_share_ += weight * (waited - wait_share_);
-  ++frames_[i];
+  recent_[static_cast<std::size_t>(frames_ % kRecentFrames)] = seconds;
+  ++frames_;
   fewer_.hold = std::max(fewer_.hold - 1, 0);
   more_.hold = std::max(more_.hold - 1, 0);
-  if (frames_[i] < kWarmUpFrames) return active_;
-  if (active_ > 1 && fewer_.hold == 0 && wait_share_ > kWaitShare)
-    probe(active_ - 1);
-  else if (active_ < workers_ && more_.hold == 0)
-    probe(active_ + 1);
+  if (frames_ < kRecentFrames) return active_;
+  const double level = median(recent_);
+  if (reference_ == 0.0) {
+    reference_ = level;
+  } else if (std::abs(level - reference_) > kShift * reference_) {
+    // The load (or the scene) changed since the last decision: what lost may win now.
+    fewer_ = Direction{};
+    more_ = Direction{};
+    reference_ = level;
+  }
+  if (current_ > 1 && fewer_.hold == 0)
+    startProbe(current_ - 1);
+  else if (current_ < workers_ && more_.hold == 0)
+    startProbe(current_ + 1);
   return active_;
 }
 
-void WorkerCountTuner::probe(int count) {
-  probe_from_ = active_;
-  active_ = count;
+void WorkerCountTuner::startProbe(int count) {
+  candidate_ = count;
+  probe_frame_ = 0;
+  active_ = count;  // the probe's frames alternate, the candidate's first
 }
 
-void WorkerCountTuner::judgeProbe(double seconds, double waited) {
-  const int from = probe_from_;
-  probe_from_ = 0;
-  Direction& tried = active_ < from ? fewer_ : more_;
-  Direction& other = active_ < from ? more_ : fewer_;
-  if (seconds < (1.0 - kGain) * average_[static_cast<std::size_t>(from - 1)]) {
-    // Kept: the new count's average starts from this frame; the way back waits its turn.
-    const auto i = static_cast<std::size_t>(active_ - 1);
-    average_[i] = seconds;
-    frames_[i] = 1;
-    wait_share_ = waited;
+void WorkerCountTuner::probeFrame(double seconds) {
+  const int pair = probe_frame_ / 2;
+  if (probe_frame_ % 2 == 0)
+    candidate_times_[static_cast<std::size_t>(pair)] = seconds;
+  else
+    current_times_[static_cast<std::size_t>(pair)] = seconds;
+  ++probe_frame_;
+  if (probe_frame_ == 2 * kProbeFrames) {
+    judgeProbe();
+    return;
+  }
+  active_ = probe_frame_ % 2 == 0 ? candidate_ : current_;
+}
+
+void WorkerCountTuner::judgeProbe() {
+  const int candidate = candidate_;
+  candidate_ = 0;
+  Direction& tried = candidate < current_ ? fewer_ : more_;
+  Direction& other = candidate < current_ ? more_ : fewer_;
+  if (median(candidate_times_) < (1.0 - kGain) * median(current_times_)) {
+    // Kept: the same way may be tried again at once; the way back waits its turn.
+    current_ = candidate;
+    restartRecent();
     tried.backoff = kMinHoldFrames;
     tried.hold = 0;
     other.hold = std::max(other.hold, other.backoff);
-    return;
+  } else {
+    tried.hold = tried.backoff;
+    tried.backoff = std::min(2 * tried.backoff, kMaxHoldFrames);
+    if (frames_ >= kRecentFrames) reference_ = median(recent_);
   }
-  active_ = from;
-  tried.hold = tried.backoff;
-  tried.backoff = std::min(2 * tried.backoff, kMaxHoldFrames);
+  active_ = current_;
+}
+
+void WorkerCountTuner::restartRecent() {
+  frames_ = 0;
+  reference_ = 0.0;
 }
 
 }  // namespace omnipose::runtime

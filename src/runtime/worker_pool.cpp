@@ -117,7 +117,6 @@ int WorkerPool::drain(int worker, std::uint64_t ticket) {
 void WorkerPool::beginBurst() {
   if (threads_.empty()) return;
   burst_start_ = std::chrono::steady_clock::now();
-  burst_wait_ns_ = wait_ns_.load(std::memory_order_relaxed);
   if (active_.load(std::memory_order_relaxed) == 1) return;  // nobody to keep awake
   bursts_.fetch_add(1);
   burst_.store(true);
@@ -129,9 +128,7 @@ void WorkerPool::endBurst() {
   burst_.store(false, std::memory_order_relaxed);
   const double seconds =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - burst_start_).count();
-  const double waited = 1e-9 * static_cast<double>(wait_ns_.load(std::memory_order_relaxed) -
-                                                   burst_wait_ns_);
-  const int next = tuner_.frameEnded(seconds, waited);
+  const int next = tuner_.frameEnded(seconds);
   if (next != active_.load(std::memory_order_relaxed)) setActive(next);
 }
 

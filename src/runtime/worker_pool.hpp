@@ -25,9 +25,9 @@
 /// job after the others had claimed every index while it spun: its core was taken, spinning
 /// only costs the others CPU time, and it spins within the limit until the burst ends. Threads
 /// under a real-time policy (SCHED_FIFO, SCHED_RR) always spin within the limit.
-/// How many workers take part is chosen frame by frame (WorkerCountTuner, from each burst's
-/// wall time and the caller's waits): on a machine whose other processes keep a worker from
-/// running, the frame may run on fewer workers, the others parked (asleep, not woken by jobs).
+/// How many workers take part is chosen frame by frame (WorkerCountTuner, from the bursts' wall
+/// times): on a machine whose other processes take cores away, the frame may run on fewer
+/// workers, the others parked (asleep, not woken by jobs).
 /// Outside bursts the count stays as the last burst left it.
 /// One caller at a time (the pipeline's processing thread).
 
@@ -140,7 +140,6 @@ class WorkerPool {
   alignas(4) std::uint32_t park_ = 0;
   WorkerCountTuner tuner_;  ///< the caller's
   std::chrono::steady_clock::time_point burst_start_;
-  std::int64_t burst_wait_ns_ = 0;  ///< wait_ns_ when the burst began
   std::atomic<long> sleeps_{0}, waits_{0}, late_{0};
   std::atomic<std::int64_t> wait_ns_{0};
 };

@@ -157,8 +157,9 @@ TEST(WorkerPool, AWorkerThatDoesNotRunHoldsNoJobUp) {
 
 TEST(WorkerPool, AWorkerThatHoldsFramesUpIsLeftOut) {
   // Worker 1 stands for a worker whose core another process takes: every index it claims
-  // keeps it 3 ms, while the caller runs an index in 20 us. Within a few frames (bursts) the
-  // frames run on the caller alone, and do every index once.
+  // keeps it 3 ms, while the caller runs an index in 20 us. Within a few frames (bursts: the
+  // tuner's first frames and one probe) the frames run on the caller alone, and every frame
+  // does every index once.
   WorkerPool pool(2);
   ASSERT_EQ(pool.activeWorkers(), 2);
   std::vector<int> out(64), calls(64);
@@ -176,12 +177,12 @@ TEST(WorkerPool, AWorkerThatHoldsFramesUpIsLeftOut) {
     out[index] = index;
     ++calls[index];
   };
-  int frames = 0;
-  for (; frames < 40 && pool.activeWorkers() == 2; ++frames) {
+  const int frames = WorkerCountTuner::kRecentFrames + 2 * WorkerCountTuner::kProbeFrames;
+  for (int frame = 0; frame < frames; ++frame) {
     WorkerPool::Burst burst(pool);
     std::fill(calls.begin(), calls.end(), 0);
     pool.run(64, task);
-    for (int i = 0; i < 64; ++i) ASSERT_EQ(calls[i], 1) << "frame " << frames << " index " << i;
+    for (int i = 0; i < 64; ++i) ASSERT_EQ(calls[i], 1) << "frame " << frame << " index " << i;
   }
   EXPECT_EQ(pool.activeWorkers(), 1) << "after " << frames << " frames";
   EXPECT_GT(on_worker_1.load(), 0) << "the worker took part at first";
