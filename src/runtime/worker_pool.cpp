@@ -49,7 +49,12 @@ bool WorkerPool::spinWhile(Waiting waiting, Unbounded unbounded) const {
       if (!waiting()) return true;
       cpuRelax();
     }
-    if (!unbounded() && std::chrono::steady_clock::now() > deadline) return !waiting();
+    if (std::chrono::steady_clock::now() > deadline) {
+      if (!unbounded()) return !waiting();
+      // Spinning through a burst: any other thread that wants this core gets it first (the
+      // pipeline's caller, the capture thread, another process); alone, the call returns at once.
+      sched_yield();
+    }
   }
 }
 
@@ -117,7 +122,8 @@ int WorkerPool::drain(int worker, std::uint64_t ticket) {
 void WorkerPool::beginBurst() {
   if (threads_.empty()) return;
   burst_start_ = std::chrono::steady_clock::now();
-  if (active_.load(std::memory_order_relaxed) == 1) return;  // nobody to keep awake
+  // Nobody to keep awake, or the frames were faster with the workers asleep between jobs.
+  if (active_.load(std::memory_order_relaxed) == 1 || !spin_through_) return;
   bursts_.fetch_add(1);
   burst_.store(true);
   wakeWorkers();
@@ -128,8 +134,9 @@ void WorkerPool::endBurst() {
   burst_.store(false, std::memory_order_relaxed);
   const double seconds =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - burst_start_).count();
-  const int next = tuner_.frameEnded(seconds);
-  if (next != active_.load(std::memory_order_relaxed)) setActive(next);
+  const PoolSetting next = tuner_.frameEnded(seconds);
+  spin_through_ = next.spin;
+  if (next.workers != active_.load(std::memory_order_relaxed)) setActive(next.workers);
 }
 
 void WorkerPool::runRaw(int count, Function function, void* context) {

@@ -20,14 +20,16 @@
 /// in the destructor. A worker waiting for the next job, and run() waiting for a claimed index,
 /// spin for up to 50 microseconds before they sleep (worker_pool.cpp): a frame's jobs come
 /// back to back, and a futex wake-up per job cost ~5 % of the 2-thread frame.
-/// While a Burst is open (one frame's processing) a worker spins between jobs without that
-/// limit, so the workers wake once per frame instead of once per job, unless it arrived at a
-/// job after the others had claimed every index while it spun: its core was taken, spinning
-/// only costs the others CPU time, and it spins within the limit until the burst ends. Threads
-/// under a real-time policy (SCHED_FIFO, SCHED_RR) always spin within the limit.
-/// How many workers take part is chosen frame by frame (WorkerCountTuner, from the bursts' wall
-/// times): on a machine whose other processes take cores away, the frame may run on fewer
-/// workers, the others parked (asleep, not woken by jobs).
+/// While a Burst is open (one frame's processing) a worker may spin between jobs without that
+/// limit, so the workers wake once per frame instead of once per job; past the limit it yields
+/// its core at every look (sched_yield), so any other thread that wants the core runs first.
+/// It spins within the limit until the burst ends when it arrived at a job after the others had
+/// claimed every index while it spun (its core was taken). Threads under a real-time policy
+/// (SCHED_FIFO, SCHED_RR) always spin within the limit.
+/// How the next frame runs is chosen frame by frame (WorkerCountTuner, from the bursts' wall
+/// times): how many workers take part, the others parked (asleep, not woken by jobs), and
+/// whether the burst keeps them spinning or they sleep between jobs; on a machine whose other
+/// processes take cores away, fewer workers or sleeping ones can make the frame faster.
 /// Outside bursts the count stays as the last burst left it.
 /// One caller at a time (the pipeline's processing thread).
 
@@ -63,8 +65,9 @@ class WorkerPool {
     }, &task);
   }
 
-  /// Keeps the workers spinning, instead of sleeping, between the jobs of one frame: opened
-  /// at the start of a frame (waking the workers), closed at its end. No allocation.
+  /// Keeps the workers spinning, instead of sleeping, between the jobs of one frame (when the
+  /// tuner chose spinning for it): opened at the start of a frame (waking the workers), closed
+  /// at its end. No allocation.
   class Burst {
    public:
     explicit Burst(WorkerPool& pool) : pool_(pool) { pool_.beginBurst(); }
@@ -139,6 +142,7 @@ class WorkerPool {
   std::atomic<int> active_{1};
   alignas(4) std::uint32_t park_ = 0;
   WorkerCountTuner tuner_;  ///< the caller's
+  bool spin_through_ = true;  ///< the caller's: bursts keep the workers spinning
   std::chrono::steady_clock::time_point burst_start_;
   std::atomic<long> sleeps_{0}, waits_{0}, late_{0};
   std::atomic<std::int64_t> wait_ns_{0};
