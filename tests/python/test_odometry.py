@@ -242,6 +242,32 @@ def test_a_second_caller_is_refused_while_one_processes(calibration, frames):
     assert all("another thread is using this Odometry" in e for e in errors)
 
 
+def test_counters_are_not_read_while_another_thread_processes(calibration, frames):
+    # gyro_counters() reads what process() writes: while a frame is processed it is refused
+    # like a second process(), never a torn read.
+    odometry = omnipose.Odometry(calibration, threads=1)
+    odometry.process(frames[0], 0.0)
+    errors = []
+
+    def read_counters(stop):
+        while not stop.is_set():
+            try:
+                odometry.gyro_counters()
+            except RuntimeError as e:
+                errors.append(str(e))
+
+    stop = threading.Event()
+    reader = threading.Thread(target=read_counters, args=(stop,))
+    reader.start()
+    for k in range(1, 8):
+        odometry.process(frames[k], k / 30)
+    stop.set()
+    reader.join()
+    assert errors, "the reader never overlapped a process() call"
+    assert all("Odometry.gyro_counters: another thread is using this Odometry" in e for e in errors)
+    assert odometry.gyro_counters()["accepted"] == 0  # free again once no frame is processed
+
+
 def test_type_stubs_are_installed():
     package = pathlib.Path(omnipose.__file__).parent
     assert (package / "py.typed").exists()

@@ -73,8 +73,11 @@ class PyOdometry {
     odometry_->addGyro(samples);
   }
 
-  nb::dict gyroCounters() const {
-    const GyroCounters g = odometry_->gyroCounters();
+  nb::dict gyroCounters() {
+    const GyroCounters g = [&] {
+      std::unique_lock<std::mutex> lock = claim("gyro_counters");  // process() writes them
+      return odometry_->gyroCounters();
+    }();
     nb::dict d;
     d["accepted"] = g.accepted;
     d["not_finite"] = g.not_finite;
