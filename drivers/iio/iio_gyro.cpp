@@ -29,25 +29,7 @@ iio::ChannelRole roleOf(const std::string& prefix) {
   return iio::ChannelRole::kOther;
 }
 
-std::string formatHz(double hz) {
-  char text[32];
-  std::snprintf(text, sizeof text, "%.6g", hz);
-  return text;
-}
-
 }  // namespace
-
-std::vector<std::string> IioGyroOptions::validate() const {
-  std::vector<std::string> problems;
-  if (device.empty()) problems.push_back("device: must name iio:deviceN or a device name");
-  if (device.find('/') != std::string::npos)
-    problems.push_back("device: \"" + device + "\" is a name or iio:deviceN, not a path");
-  if (!(sampling_hz >= 0.0 && sampling_hz <= 100000.0))
-    problems.push_back("sampling_hz: " + formatHz(sampling_hz) + " is outside [0, 100000] Hz");
-  if (buffer_length < 2 || buffer_length > 1 << 20)
-    problems.push_back("buffer_length: " + std::to_string(buffer_length) + " is outside [2, 1048576]");
-  return problems;
-}
 
 IioGyro::IioGyro(IioGyroOptions options, IioIo& io)
     : options_(std::move(options)), io_(io), label_(options_.device) {}
@@ -273,10 +255,10 @@ Expected<void> IioGyro::setSamplingFrequency() {
   const std::string attr = hasAttr("in_anglvel_sampling_frequency") ? "in_anglvel_sampling_frequency"
                                                                      : "sampling_frequency";
   if (options_.sampling_hz > 0.0) {
-    if (const int err = writeAttr(attr, formatHz(options_.sampling_hz)); err != 0) {
+    if (const int err = writeAttr(attr, iio::formatHz(options_.sampling_hz)); err != 0) {
       const auto available = readAttr(attr + "_available");
       return fail(ErrorCode::kUnsupportedFormat, "%s: %s %s Hz refused (%s); available: %s",
-                  label_.c_str(), attr.c_str(), formatHz(options_.sampling_hz).c_str(),
+                  label_.c_str(), attr.c_str(), iio::formatHz(options_.sampling_hz).c_str(),
                   std::strerror(err), available ? available->c_str() : "not listed");
     }
   }
@@ -343,6 +325,11 @@ Expected<void> IioGyro::open() {
   close();
   warnings_.clear();
   previous_ns_ = 0;
+  if (const std::vector<std::string> problems = options_.validate(); !problems.empty()) {
+    std::string all;
+    for (const std::string& p : problems) all += (all.empty() ? "" : "; ") + p;
+    return fail(ErrorCode::kInvalidArgument, "%s: %s", label_.c_str(), all.c_str());
+  }
   if (auto ok = openSteps(); !ok) {
     close();
     return ok;
@@ -409,7 +396,7 @@ std::string IioGyro::describe() const {
   o << label_ << ", anglvel x,y,z " << (t.big_endian ? "be:" : "le:") << (t.is_signed ? 's' : 'u')
     << t.bits << '/' << t.storage_bits << ">>" << t.shift << " x " << scale_.scale[0]
     << " rad/s, " << layout_.scan_bytes << "-byte scans, clock " << clock_;
-  if (sampling_hz_ > 0.0) o << ", " << formatHz(sampling_hz_) << " Hz";
+  if (sampling_hz_ > 0.0) o << ", " << iio::formatHz(sampling_hz_) << " Hz";
   if (!trigger_.empty()) o << ", trigger " << trigger_;
   return o.str();
 }

@@ -40,27 +40,13 @@
 #include <string>
 #include <vector>
 
+#include "iio/iio_gyro_options.hpp"
 #include "iio/iio_io.hpp"
 #include "iio/iio_scan.hpp"
 #include "omnipose/error.hpp"
 #include "omnipose/gyro.hpp"
 
 namespace omnipose {
-
-struct IioGyroOptions {
-  /// `iio:deviceN`, or the device's `name` attribute (e.g. `bmi160`, `lsm6dsx`).
-  std::string device;
-  /// Where the devices' sysfs directories and character devices are (tests inject others).
-  std::string sysfs_root = "/sys/bus/iio/devices";
-  std::string dev_root = "/dev";
-  /// Hz; 0 = leave the device's rate as it is.
-  double sampling_hz = 0.0;
-  /// Scans the kernel's buffer holds (buffer/length): 1024 are 1 s at 1 kHz.
-  int buffer_length = 1024;
-
-  /// Every problem, each naming the field ("device: ..."); empty when valid.
-  std::vector<std::string> validate() const;
-};
 
 class IioGyro {
  public:

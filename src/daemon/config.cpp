@@ -15,6 +15,7 @@
 #include "common/problem_list.hpp"
 #include "runtime/worker_pool.hpp"
 #include "common/yaml_reader.hpp"
+#include "iio/iio_gyro_options.hpp"
 #include "omnipose/limits.hpp"
 
 namespace omnipose {
@@ -189,13 +190,15 @@ constexpr detail::Named<ImuConfig::Source> kImuSources[] = {
     {ImuConfig::Source::kIio, "iio"}};
 
 /// imu.device and imu.sampling_hz of an iio gyro (the driver's own checks, named by key).
+/// The IIO driver's own checks (IioGyroOptions::validate), named by daemon.yaml's keys.
 void checkIio(Reader& r, const ImuConfig& i) {
-  if (i.device.empty())
-    r.problem("imu.device", "needed with source iio: iio:deviceN or the device's name (e.g. bmi160)");
-  else if (i.device.find('/') != std::string::npos)
-    r.problem("imu.device", "\"" + detail::shown(i.device) +
-                                "\" is a path: give iio:deviceN or the device's name");
-  r.range(i.sampling_hz, "imu.sampling_hz", 0.0, 100000.0, " Hz");
+  IioGyroOptions options;
+  options.device = i.device;
+  options.sampling_hz = i.sampling_hz;
+  for (const std::string& problem : options.validate()) {
+    const std::size_t colon = problem.find(": ");
+    r.problem("imu." + problem.substr(0, colon), problem.substr(colon + 2));
+  }
 }
 
 void parseImu(Reader& r, const YAML::Node& node, const LcmConfig& lcm, ImuConfig& i) {

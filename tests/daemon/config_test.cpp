@@ -214,7 +214,7 @@ TEST(DaemonConfig, ImuSectionWithAnIioGyro) {
       << "the device's rate is left alone by default";
   // Every problem at once, each named by its key.
   const auto problems = problemsOf(kFileSource + "imu: {source: iio, sampling_hz: -5}\n");
-  EXPECT_TRUE(mentions(problems, "imu.device: needed with source iio"));
+  EXPECT_TRUE(mentions(problems, "imu.device: needed: iio:deviceN"));
   EXPECT_TRUE(mentions(problems, "imu.sampling_hz"));
   EXPECT_TRUE(mentions(problemsOf(kFileSource + "imu: {source: iio, device: /dev/iio:device0}\n"),
                        "imu.device: \"/dev/iio:device0\" is a path"));

@@ -445,10 +445,25 @@ TEST(IioGyro, OptionsNameTheBadField) {
   o.buffer_length = 1;
   const auto p = o.validate();
   ASSERT_EQ(p.size(), 3u);
-  EXPECT_THAT(p[0], HasSubstr("device: \"/dev/iio:device0\" is a name or iio:deviceN"));
+  EXPECT_THAT(p[0], HasSubstr("device: \"/dev/iio:device0\" is a path"));
   EXPECT_THAT(p[1], HasSubstr("sampling_hz"));
   EXPECT_THAT(p[2], HasSubstr("buffer_length"));
-  EXPECT_THAT(IioGyroOptions{}.validate().at(0), HasSubstr("device: must name"));
+  EXPECT_THAT(IioGyroOptions{}.validate().at(0), HasSubstr("device: needed"));
+}
+
+TEST(IioGyro, OptionsThatAreNotValidAreRefusedBeforeTheDeviceIsTouched) {
+  FakeIioDevice dev;
+  IioGyroOptions o = optionsFor(FakeIioDevice::Config{});
+  o.sampling_hz = -1;
+  o.buffer_length = 1;
+  IioGyro gyro(o, dev);
+  const auto r = gyro.open();
+  ASSERT_FALSE(r.has_value());
+  EXPECT_EQ(r.error().code(), ErrorCode::kInvalidArgument);
+  EXPECT_THAT(std::string(r.error().c_str()), HasSubstr("sampling_hz: -1 is outside"));
+  EXPECT_THAT(std::string(r.error().c_str()), HasSubstr("; buffer_length: 1 is outside"));
+  EXPECT_EQ(dev.openFdCount(), 0);
+  EXPECT_FALSE(dev.bufferEnabled());
 }
 
 TEST(IioGyro, TheKernelsSeamFindsADeviceByNameInARealDirectoryTree) {
