@@ -21,17 +21,8 @@ IioSubscriber::~IioSubscriber() {
   gyro_.close();
 }
 
-void IioSubscriber::start() {
-  if (!thread_.joinable() && !stop_.load()) thread_ = std::thread([this] { run(); });
-}
-
-void IioSubscriber::stop() {
-  stop_.store(true);
-  if (thread_.joinable()) thread_.join();
-}
-
 void IioSubscriber::run() {
-  while (!stop_.load()) readOnce();
+  while (!stopRequested()) readOnce();
 }
 
 void IioSubscriber::readOnce() {
@@ -68,10 +59,10 @@ void IioSubscriber::reopen(const Error& why) {
 
 bool IioSubscriber::sleepFor(std::chrono::milliseconds duration) {
   for (auto left = duration; left.count() > 0; left -= std::chrono::milliseconds(kPollMs)) {
-    if (stop_.load()) return false;
+    if (stopRequested()) return false;
     io_.poll(nullptr, 0, static_cast<int>(std::min<long long>(left.count(), kPollMs)));
   }
-  return !stop_.load();
+  return !stopRequested();
 }
 
 }  // namespace omnipose::daemon

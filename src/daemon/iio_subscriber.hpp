@@ -16,11 +16,9 @@
 /// Realtime: the constructor and re-opening allocate; reading allocates nothing.
 
 #include <array>
-#include <atomic>
 #include <chrono>
 #include <memory>
 #include <string>
-#include <thread>
 
 #include "daemon/gyro_queue.hpp"
 #include "daemon/gyro_stream.hpp"
@@ -41,16 +39,12 @@ class IioSubscriber final : public GyroStream {
   IioSubscriber(const IioGyroOptions& options, IioIo& io, GyroQueue& queue, StatusBoard& board);
   /// Stops and joins the thread; disables the device's buffer and closes it.
   ~IioSubscriber() override;
-  IioSubscriber(const IioSubscriber&) = delete;
-  IioSubscriber& operator=(const IioSubscriber&) = delete;
 
-  void start() override;
-  void stop() override;
   /// "imu: iio:device0 (bmi160), anglvel x,y,z le:s16/16>>0 x 0.000266 rad/s, ..."
   std::string describe() const override { return description_; }
 
  private:
-  void run();
+  void run() override;
   void readOnce();
   void reopen(const Error& why);
   /// Sleeps `duration` in pieces short enough to notice stop(); false when stopped.
@@ -62,8 +56,6 @@ class IioSubscriber final : public GyroStream {
   IioGyro gyro_;
   std::string description_;
   std::array<GyroSample, IioGyro::kMaxScansPerRead> samples_{};
-  std::thread thread_;
-  std::atomic<bool> stop_{false};
 };
 
 }  // namespace omnipose::daemon

@@ -32,15 +32,6 @@ ImuSubscriber::~ImuSubscriber() {
   lcm_destroy(lcm_);
 }
 
-void ImuSubscriber::start() {
-  if (!thread_.joinable() && !stop_.load()) thread_ = std::thread([this] { run(); });
-}
-
-void ImuSubscriber::stop() {
-  stop_.store(true);
-  if (thread_.joinable()) thread_.join();
-}
-
 std::string ImuSubscriber::describe() const {
   return "imu: omnipose.imu_t on channel " + channel_ + " of lcm " +
          (url_.empty() ? std::string("(default udpm)") : url_);
@@ -48,7 +39,7 @@ std::string ImuSubscriber::describe() const {
 
 void ImuSubscriber::run() {
   constexpr int kTimeoutMs = 50;  // how soon stop() is noticed
-  while (!stop_.load()) {
+  while (!stopRequested()) {
     if (lcm_handle_timeout(lcm_, kTimeoutMs) < 0) {
       ended_.store(true);
       board_.reportError("imu: the stream on channel %s of %s ended; going on from the images "

@@ -16,7 +16,6 @@
 
 #include <atomic>
 #include <string>
-#include <thread>
 
 #include "daemon/gyro_queue.hpp"
 #include "daemon/gyro_stream.hpp"
@@ -37,20 +36,14 @@ class ImuSubscriber final : public GyroStream {
                 StatusBoard& board);
   /// Stops and joins the thread.
   ~ImuSubscriber() override;
-  ImuSubscriber(const ImuSubscriber&) = delete;
-  ImuSubscriber& operator=(const ImuSubscriber&) = delete;
 
-  /// Starts receiving (once).
-  void start() override;
-  /// Stops receiving and joins the thread (idempotent; within about 50 ms).
-  void stop() override;
   /// Whether the stream ended by itself (an LCM log read to its end, a transport error).
   bool ended() const { return ended_.load(); }
   /// One line for the start-up log.
   std::string describe() const override;
 
  private:
-  void run();
+  void run() override;
   void receive(const void* data, int size);
   static void onMessage(const lcm_recv_buf_t* buffer, const char* channel, void* self);
 
@@ -59,8 +52,6 @@ class ImuSubscriber final : public GyroStream {
   StatusBoard& board_;
   lcm_t* lcm_ = nullptr;
   lcm_subscription_t* subscription_ = nullptr;
-  std::thread thread_;
-  std::atomic<bool> stop_{false};
   std::atomic<bool> ended_{false};
 };
 
