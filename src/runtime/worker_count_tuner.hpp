@@ -14,13 +14,13 @@
 /// least kGain faster, and so was its frame in all but one of the probe's pairs of neighbouring
 /// frames. Alternating frames see the same load and nearly the same content, and one odd frame
 /// on either side does not decide; keeping a slower setting by chance costs frames until the
-/// next probe, so keeping asks for more than the median. A probe that loses is not repeated for a
-/// while, twice as long after each loss (from kMinHoldFrames up to kMaxHoldFrames), so a steady
-/// load costs at most a few slower frames in kMaxHoldFrames. When the current setting's frames
-/// (the mean of the middle half of the last kRecentFrames) stay kShift slower or faster than
-/// they were at the last decision for kShiftFrames frames (the load changed, or the scene), the
-/// waits are cleared and every neighbour is probed again at once. Frames are compared by wall time, the whole frame's work (a burst of
-/// WorkerPool).
+/// next probe, so keeping asks for more than the median. A probe that loses is not repeated
+/// for a while, twice as long after each loss (from kMinHoldFrames up to kMaxHoldFrames), so a
+/// steady load costs at most a few slower frames in kMaxHoldFrames. When the current setting's
+/// frames (the mean of the middle half of the last kRecentFrames) stay kShift slower or faster
+/// than they were at the last decision for kShiftFrames frames (the load changed, or the
+/// scene), the waits are cleared and every neighbour is probed again at once. Frames are
+/// compared by wall time, the whole frame's work (a burst of WorkerPool).
 ///
 /// Pure bookkeeping: no clock, no allocation; one thread (the pool's caller).
 

@@ -19,7 +19,8 @@
 /// Realtime: run() allocates nothing; the threads are created in the constructor and joined
 /// in the destructor. A worker waiting for the next job, and run() waiting for a claimed index,
 /// spin for up to 50 microseconds before they sleep (worker_pool.cpp): a frame's jobs come
-/// back to back, and a futex wake-up per job cost ~5 % of the 2-thread frame.
+/// back to back, and a futex wake-up per job cost 5-35 % of the 2-thread frame
+/// (docs/PERFORMANCE.md, section 6).
 /// While a Burst is open (one frame's processing) a worker may spin between jobs without that
 /// limit, so the workers wake once per frame instead of once per job; past the limit it yields
 /// its core at every look (sched_yield), so any other thread that wants the core runs first.

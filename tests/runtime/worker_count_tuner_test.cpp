@@ -75,7 +75,8 @@ TEST(WorkerCountTuner, AWorkerThatSlowsTheFrameIsLeftOutAndStaysOut) {
   const Machine shared = byCount([](int count) { return count == 2 ? 0.030 : 0.020; });
   const Tally start = runFrames(tuner, 20, shared);
   EXPECT_EQ(tuner.current().workers, 1);
-  EXPECT_LE(start.frames_at[2], WorkerCountTuner::kRecentFrames + WorkerCountTuner::kProbeFrames) << "left out at once";
+  EXPECT_LE(start.frames_at[2], WorkerCountTuner::kRecentFrames + WorkerCountTuner::kProbeFrames)
+      << "left out at once";
   const Tally steady = runFrames(tuner, 3000, shared);
   EXPECT_EQ(steady.last, 1);
   EXPECT_LE(steady.frames_at[2], probeBudget(3000));
@@ -100,7 +101,8 @@ TEST(WorkerCountTuner, ALoadThatAppearsIsMetWithinAFewFrames) {
   const Machine loaded = byCount([](int count) { return count == 2 ? 0.013 : 0.0074; });
   const Tally met = runFrames(tuner, 20, loaded);
   EXPECT_EQ(tuner.current().workers, 1);
-  EXPECT_LE(met.frames_at[2], 2 * WorkerCountTuner::kRecentFrames + 2 * WorkerCountTuner::kProbeFrames);
+  EXPECT_LE(met.frames_at[2],
+            2 * WorkerCountTuner::kRecentFrames + 2 * WorkerCountTuner::kProbeFrames);
 }
 
 TEST(WorkerCountTuner, AllWorkersReturnWhenTheLoadIsGone) {
