@@ -1,7 +1,9 @@
 """omnipose: how an omnidirectional camera moved between frames.
 
 The C++ library (iFMI registration of a cylindrical panorama's windows and a robust fit of
-two sinusoids, Kuang et al., IROS 2019) for Python::
+two sinusoids, Kuang et al., IROS 2019) for Python, and the daemon's LCM messages
+(``omnipose.pose_t``, ``status_t``, ``fit_diagnostics_t``, ``imu_t``: ``decode(bytes)``,
+``encode()``)::
 
     import numpy as np, omnipose
     cal = omnipose.Calibration.load("run/calibration.yaml")
@@ -32,6 +34,10 @@ import numpy as np
 
 from . import _omnipose
 from ._omnipose import Calibration, ConfigError, FrameResult, read_frame
+from . import _lcm_types
+# The daemon's LCM messages (pose_t, status_t, fit_diagnostics_t, imu_t): encode() and
+# decode(), as in the .deb's Python package of the same name.
+from ._lcm_types import *  # noqa: F401,F403
 
 __version__: str = _omnipose.__version__
 __all__ = [
@@ -44,7 +50,7 @@ __all__ = [
     "open_dataset",
     "read_frame",
     "replay",
-]
+] + sorted(name for name in vars(_lcm_types) if name.endswith("_t"))
 
 PathLike = Union[str, "os.PathLike[str]"]
 
