@@ -239,6 +239,9 @@ class Odometry {
   /// of its own. Small on a machine with cores to spare; it grows when other processes take
   /// the workers' cores (0 with one thread and for a pairwise method).
   double workerWaitSeconds() const;
+  /// Frames, since construction, in which the calling thread waited for a worker at least once
+  /// (how often, where workerWaitSeconds() says how long; 0 with one thread).
+  std::int64_t framesWaitedForWorkers() const;
   /// Threads (the calling one included) that take part in the next frame: threads(), or fewer
   /// while other processes' load on the machine made frames on fewer of them faster (measured
   /// frame by frame; 1 for a pairwise method).

@@ -253,6 +253,7 @@ void Processor::fillDiagnostics(const FrameInfo& info, const OdometryResult& r,
 void Processor::fillLoad(status_t& s, bool final, double wall_s) {
   load_.process_cpu_ns = cpuTimeNs(CLOCK_PROCESS_CPUTIME_ID);
   load_.worker_wait_s = odometry_.workerWaitSeconds();
+  load_.frames_waited = odometry_.framesWaitedForWorkers();
   const LoadTotals& since = final ? load_at_start_ : load_at_status_;
   const auto ratio = [](double part, double whole) {
     return whole > 0 ? static_cast<float>(part / whole) : 0.0f;
@@ -264,6 +265,8 @@ void Processor::fillLoad(status_t& s, bool final, double wall_s) {
             static_cast<double>(load_.processing_wall_ns - since.processing_wall_ns));
   s.worker_wait_ms = ratio(1e3 * (load_.worker_wait_s - since.worker_wait_s),
                            static_cast<double>(load_.frames - since.frames));
+  s.frames_waited_share = ratio(static_cast<double>(load_.frames_waited - since.frames_waited),
+                                static_cast<double>(load_.frames - since.frames));
   s.threads = static_cast<std::int16_t>(odometry_.threads());
   s.threads_active = static_cast<std::int16_t>(odometry_.activeThreads());
   const GyroCounters gyro = odometry_.gyroCounters();

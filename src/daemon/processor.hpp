@@ -98,13 +98,15 @@ class Processor {
   SteadyClock::time_point last_status_time_;
   std::int64_t last_status_received_ = 0;
   std::int64_t last_status_processed_ = 0;
-  /// Load accounting (status_t.cpu_cores, processing_cpu_share, worker_wait_ms): totals
+  /// Load accounting (status_t.cpu_cores, processing_cpu_share, worker_wait_ms,
+  /// frames_waited_share): totals
   /// since start-up, and their values at the last status. Nanoseconds, seconds for the wait.
   struct LoadTotals {
     std::int64_t process_cpu_ns = 0;     ///< CLOCK_PROCESS_CPUTIME_ID
     std::int64_t processing_wall_ns = 0;  ///< in Odometry::process()
     std::int64_t processing_cpu_ns = 0;   ///< of it, this thread's CLOCK_THREAD_CPUTIME_ID
     double worker_wait_s = 0;             ///< Odometry::workerWaitSeconds()
+    std::int64_t frames_waited = 0;       ///< Odometry::framesWaitedForWorkers()
     std::int64_t frames = 0;              ///< frames given to Odometry::process()
   };
   LoadTotals load_;

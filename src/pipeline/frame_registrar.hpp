@@ -144,6 +144,7 @@ class FrameRegistrar {
   int activeThreads() const { return pool_.activeWorkers(); }
   /// Time the calling thread has waited for indices running on pool threads, seconds in all.
   double workerWaitSeconds() const { return pool_.waitSeconds(); }
+  long framesWaitedForWorkers() const { return pool_.waitedBursts(); }
   bool wisdomLoaded() const { return wisdom_.loaded; }
   /// The windows' mean capture time after the frame's timestamp, seconds (the mean of their
   /// taper-weighted capture times, Calibration::captureTime()); 0 for a global shutter.

@@ -663,6 +663,10 @@ int Odometry::activeThreads() const {
 double Odometry::workerWaitSeconds() const {
   return impl_->registrar ? impl_->registrar->workerWaitSeconds() : 0.0;
 }
+
+std::int64_t Odometry::framesWaitedForWorkers() const {
+  return impl_->registrar ? impl_->registrar->framesWaitedForWorkers() : 0;
+}
 bool Odometry::wisdomLoaded() const {
   return impl_->registrar && impl_->registrar->wisdomLoaded();
 }

@@ -122,6 +122,7 @@ int WorkerPool::drain(int worker, std::uint64_t ticket) {
 void WorkerPool::beginBurst() {
   if (threads_.empty()) return;
   burst_start_ = std::chrono::steady_clock::now();
+  burst_waits_ = waits_.load(std::memory_order_relaxed);
   // Nobody to keep awake, or the frames were faster with the workers asleep between jobs.
   if (active_.load(std::memory_order_relaxed) == 1 || !spin_through_) return;
   bursts_.fetch_add(1);
@@ -134,6 +135,7 @@ void WorkerPool::endBurst() {
   burst_.store(false, std::memory_order_relaxed);
   const double seconds =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - burst_start_).count();
+  if (waits_.load(std::memory_order_relaxed) != burst_waits_) ++waited_bursts_;
   const PoolSetting next = tuner_.frameEnded(seconds);
   spin_through_ = next.spin;
   if (next.workers != active_.load(std::memory_order_relaxed)) setActive(next.workers);

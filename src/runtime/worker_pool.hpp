@@ -88,6 +88,8 @@ class WorkerPool {
   double waitSeconds() const { return 1e-9 * wait_ns_.load(std::memory_order_relaxed); }
   /// How many times a worker arrived at a job every index of which was already claimed.
   long lateArrivals() const { return late_.load(std::memory_order_relaxed); }
+  /// Bursts (frames) in which the caller waited for a worker at least once (the caller's).
+  long waitedBursts() const { return waited_bursts_; }
 
   /// The online cores this process may run on (its CPU affinity: taskset, a cgroup cpuset;
   /// sysconf(_SC_NPROCESSORS_ONLN) without one), at least 1.
@@ -144,6 +146,8 @@ class WorkerPool {
   alignas(4) std::uint32_t park_ = 0;
   WorkerCountTuner tuner_;  ///< the caller's
   bool spin_through_ = true;  ///< the caller's: bursts keep the workers spinning
+  long burst_waits_ = 0;      ///< the caller's: waits_ when the burst began
+  long waited_bursts_ = 0;    ///< the caller's
   std::chrono::steady_clock::time_point burst_start_;
   std::atomic<long> sleeps_{0}, waits_{0}, late_{0};
   std::atomic<std::int64_t> wait_ns_{0};

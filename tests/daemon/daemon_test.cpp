@@ -689,6 +689,10 @@ TEST(Daemon, PublishesOnePosePerFrameStatusAtItsRateAndAFinalStatus) {
     EXPECT_GE(s.cpu_cores, 0.0f);
     EXPECT_GE(s.processing_cpu_share, 0.0f);
     EXPECT_GE(s.worker_wait_ms, 0.0f);
+    // How often the frames waited for a worker: a share, and none without any time waited.
+    EXPECT_GE(s.frames_waited_share, 0.0f);
+    EXPECT_LE(s.frames_waited_share, 1.0f);
+    if (s.frames_waited_share > 0.0f) EXPECT_GT(s.worker_wait_ms, 0.0f);
     // pipeline.threads 0: every core this process may use, of which 1 or more take part.
     EXPECT_EQ(s.threads, omnipose::runtime::WorkerPool::onlineCores());
     EXPECT_GE(s.threads_active, 1);

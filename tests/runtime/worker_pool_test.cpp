@@ -188,6 +188,9 @@ TEST(WorkerPool, AWorkerThatHoldsFramesUpIsLeftOut) {
   }
   EXPECT_EQ(alone_in_a_row, 3) << "after " << frames << " frames";
   EXPECT_EQ(pool.activeWorkers(), 1);
+  // The caller waited for the slow worker in the frames it took part in, and only in those.
+  EXPECT_GT(pool.waitedBursts(), 0);
+  EXPECT_LE(pool.waitedBursts(), frames - 3);
   EXPECT_GT(on_worker_1.load(), 0) << "the worker took part at first";
   // Left out: of the next frames (fewer than a lost probe's hold), at most one probe's run on
   // both workers (a loaded test machine may move the frame time enough to probe at once).
@@ -200,6 +203,17 @@ TEST(WorkerPool, AWorkerThatHoldsFramesUpIsLeftOut) {
     for (int i = 0; i < 64; ++i) ASSERT_EQ(calls[i], 1) << "frame " << frame << " index " << i;
   }
   EXPECT_LE(with_both, WorkerCountTuner::kProbeFrames);
+}
+
+TEST(WorkerPool, ACallerAloneNeverWaits) {
+  WorkerPool pool(1);
+  std::vector<int> out(64), calls(64);
+  for (int frame = 0; frame < 5; ++frame) {
+    WorkerPool::Burst burst(pool);
+    runAndCheck(pool, frame, 64, out, calls);
+  }
+  EXPECT_EQ(pool.waits(), 0);
+  EXPECT_EQ(pool.waitedBursts(), 0);
 }
 
 TEST(WorkerPool, EmptyAndSingleJobsRunOnTheCaller) {

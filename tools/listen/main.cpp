@@ -94,10 +94,11 @@ struct Printer {
     });
     std::printf(" | %.1f / %.1f Hz | processing p50 %.1f p99 %.1f ms | latency p50 %.1f p99 "
                 "%.1f ms | cpu %.2f cores, pipeline on cpu %.0f %%, worker wait %.2f ms/frame"
-                ", threads %d of %d | source %s (%s)%s%s\n",
+                " in %.0f %% of frames, threads %d of %d | source %s (%s)%s%s\n",
                 s->receive_rate_hz, s->process_rate_hz, s->processing_ms_p50,
                 s->processing_ms_p99, s->latency_ms_p50, s->latency_ms_p99, s->cpu_cores,
-                100.0 * s->processing_cpu_share, s->worker_wait_ms, s->threads_active, s->threads,
+                100.0 * s->processing_cpu_share, s->worker_wait_ms,
+                100.0 * s->frames_waited_share, s->threads_active, s->threads,
                 sourceStateName(s->source_state), s->source.c_str(),
                 s->last_error.empty() ? "" : " | last error: ", s->last_error.c_str());
     std::fflush(stdout);
