@@ -32,13 +32,20 @@ struct IioGyroOptions {
   int buffer_length = 1024;
 
   /// Every problem, each naming the field ("device: ..."); empty when valid. IioGyro::open()
-  /// refuses options with problems before it touches a device.
+  /// refuses options with problems before it touches a device. A long value is echoed cut
+  /// short (its length given).
   std::vector<std::string> validate() const {
+    const auto shown = [](const std::string& text) {
+      constexpr std::size_t kEchoed = 80;
+      return text.size() <= kEchoed
+                 ? text
+                 : text.substr(0, kEchoed) + "... (" + std::to_string(text.size()) + " bytes)";
+    };
     std::vector<std::string> problems;
     if (device.empty())
       problems.push_back("device: needed: iio:deviceN or the device's name (e.g. bmi160)");
     else if (device.find('/') != std::string::npos)
-      problems.push_back("device: \"" + device +
+      problems.push_back("device: \"" + shown(device) +
                          "\" is a path: give iio:deviceN or the device's name");
     if (!(sampling_hz >= 0.0 && sampling_hz <= 100000.0))
       problems.push_back("sampling_hz: " + iio::formatHz(sampling_hz) +

@@ -449,6 +449,10 @@ TEST(IioGyro, OptionsNameTheBadField) {
   EXPECT_THAT(p[1], HasSubstr("sampling_hz"));
   EXPECT_THAT(p[2], HasSubstr("buffer_length"));
   EXPECT_THAT(IioGyroOptions{}.validate().at(0), HasSubstr("device: needed"));
+  IioGyroOptions long_path;
+  long_path.device = "/" + std::string(5000, 'a');
+  EXPECT_THAT(long_path.validate().at(0), HasSubstr("... (5001 bytes)\" is a path"));
+  EXPECT_LT(long_path.validate().at(0).size(), 200u);
 }
 
 TEST(IioGyro, OptionsThatAreNotValidAreRefusedBeforeTheDeviceIsTouched) {
