@@ -14,8 +14,8 @@ double median(std::array<double, N> values) {
 }
 
 /// The mean of the middle half: robust to an odd frame or two, and steady when the frame times
-/// take two values (a frame that shares its cores with the capture thread, and one that does
-/// not), where a median jumps between them.
+/// take two values (a frame one of whose cores another process took for a while, and one whose
+/// cores it did not take), where a median jumps between them.
 template <std::size_t N>
 double middleMean(std::array<double, N> values) {
   std::sort(values.begin(), values.end());
