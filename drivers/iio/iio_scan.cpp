@@ -98,8 +98,10 @@ std::int64_t ScanType::minRaw() const {
 }
 
 std::int64_t ScanType::maxRaw() const {
-  if (bits >= 64) return INT64_MAX;  // signed: parseScanType() refuses an unsigned one
-  return is_signed ? (std::int64_t{1} << (bits - 1)) - 1 : (std::int64_t{1} << bits) - 1;
+  // Unsigned: 2^bits - 1, at most 2^63 - 1 (parseScanType() refuses an unsigned 64-bit type).
+  const int magnitude_bits = is_signed ? bits - 1 : bits;
+  if (magnitude_bits >= 63) return INT64_MAX;
+  return static_cast<std::int64_t>((std::uint64_t{1} << magnitude_bits) - 1);
 }
 
 Expected<ScanType> parseScanType(std::string_view text) {

@@ -52,6 +52,12 @@ TEST(IioScanType, ParsesTheKernelsFormat) {
   EXPECT_EQ(b.shift, 4);
   EXPECT_EQ(b.minRaw(), 0);
   EXPECT_EQ(b.maxRaw(), 4095);
+  // The widest of each sign (fuzz_iio_scan: an unsigned 63-bit maximum overflowed).
+  EXPECT_EQ(type("le:u63/64>>0").maxRaw(), INT64_MAX);
+  EXPECT_EQ(type("le:u63/64>>1").minRaw(), 0);
+  EXPECT_EQ(type("le:s64/64>>0").maxRaw(), INT64_MAX);
+  EXPECT_EQ(type("le:s64/64>>0").minRaw(), INT64_MIN);
+  EXPECT_EQ(type("le:s63/64>>0").maxRaw(), (std::int64_t{1} << 62) - 1);
   EXPECT_EQ(type("le:s16/16X3>>0").repeat, 3);
   EXPECT_EQ(type("le:s64/64>>0").storageBytes(), 8);
   EXPECT_EQ(type("be:s24/32>>8").bits, 24);
