@@ -1,14 +1,15 @@
 #!/usr/bin/env bash
 # The Python package (pyproject.toml, src/python/): installs the Debian packages, builds the
 # programs (a no-op after tools/test.sh), renders a 24-frame rotating sequence with exact
-# ground truth and replays it with omnipose-replay (writing FFTW wisdom; the tests compare the package with both),
+# ground truth, replays it with omnipose-replay (writing FFTW wisdom) and runs the daemon on it
+# into an LCM log (the tests compare the package with all three),
 # installs the package with `pip install .` into a venv under build-python/ and runs its
 # pytest suite (tests/python).
 # Usage: tools/python_test.sh [pytest arguments]
 set -euo pipefail
 cd "$(dirname "$0")/.."
 bash tools/install_deps.sh
-bash tools/build.sh --target omnipose-synth omnipose-replay
+bash tools/build.sh --target omnipose-synth omnipose-replay omniposed
 
 data=build-python/data
 rm -rf "$data"
@@ -20,6 +21,15 @@ build/bin/omnipose-synth --texture tests/data/equirect/indoor_1024x512.jpg --out
 echo "pipeline: {fftw_wisdom: fftw_wisdom.txt}" > "$data/replay.yaml"
 build/bin/omnipose-replay "$data/mixed" --config "$data/replay.yaml" \
   --out "$data/mixed_replay.tum" >/dev/null
+# The daemon on the same frames, every frame (realtime: false), recording its LCM messages
+# (poses, window diagnostics, status) in a log: omnipose-mcap's other source.
+cat > "$data/daemon.yaml" <<YAML
+source: {type: file, path: mixed, realtime: false}
+calibration: mixed/calibration.yaml
+pipeline: {fftw_wisdom: fftw_wisdom.txt}
+lcm: {url: "file://$PWD/$data/daemon.lcm?mode=w", fit_channel: OMNI_FIT, status_hz: 10}
+YAML
+build/bin/omniposed --config "$data/daemon.yaml" >/dev/null 2>"$data/daemon.log"
 
 venv=build-python/venv
 if [ ! -x "$venv/bin/python" ]; then python3 -m venv "$venv"; fi
@@ -27,11 +37,12 @@ if [ ! -x "$venv/bin/python" ]; then python3 -m venv "$venv"; fi
 # The build requirements in the venv and no build isolation: build-python/<wheel tag> is
 # reused, so a second run only rebuilds what changed.
 "$venv/bin/python" -m pip install -q "scikit-build-core>=0.10" "nanobind>=2.0" numpy pytest
-"$venv/bin/python" -m pip install -q --no-build-isolation .
+"$venv/bin/python" -m pip install -q --no-build-isolation ".[foxglove,test]"
 
 export OMNIPOSE_TEST_DATASET="$PWD/$data/mixed"
 export OMNIPOSE_TEST_REPLAY_TUM="$PWD/$data/mixed_replay.tum"
 export OMNIPOSE_TEST_WISDOM="$PWD/$data/fftw_wisdom.txt"
+export OMNIPOSE_TEST_DAEMON_LOG="$PWD/$data/daemon.lcm"
 # From outside the source tree, so `import omnipose` is the installed package.
 cd build-python
 "$PWD/venv/bin/python" -m pytest -q -p no:cacheprovider ../tests/python "$@"

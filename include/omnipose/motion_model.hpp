@@ -46,4 +46,11 @@ ModelRows modelRows(double theta, double kappa = 1.0);
 /// Predicted motion of the window at azimuth theta for x = (omega, tau).
 ModelMotion predictMotion(const Eigen::Matrix<double, 6, 1>& x, double theta, double kappa = 1.0);
 
+/// The shift (du, dv), in panorama pixels, that x = (omega, tau) predicts for the window centred
+/// on column `center_u` of a panorama of `gamma` radians per column with +x at column
+/// `forward_column`: predictMotion() at theta = gamma * (center_u - forward_column), over gamma.
+/// A measured window's du - shift.x() is its residual against the fit (fit_diagnostics_t).
+Eigen::Vector2d predictWindowShiftPx(const Eigen::Matrix<double, 6, 1>& x, double center_u,
+                                     double forward_column, double gamma, double kappa = 1.0);
+
 }  // namespace omnipose

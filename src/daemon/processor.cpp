@@ -242,11 +242,10 @@ void Processor::fillDiagnostics(const FrameInfo& info, const OdometryResult& r,
     d.confidence[k] = static_cast<float>(w.confidence);
     d.valid[k] = w.valid ? 1 : 0;
     d.masked[k] = w.masked ? 1 : 0;
-    // Eq. 3, linear form, at the window's azimuth, converted to pixels.
-    const ModelMotion m = predictMotion(r.window_model, (w.center_u - d.forward_column) * d.gamma,
-                                        odometry_.windowAttenuation());
-    d.model_du[k] = static_cast<float>(m.du_rad / d.gamma);
-    d.model_dv[k] = static_cast<float>(m.dv_rad / d.gamma);
+    const Eigen::Vector2d model = predictWindowShiftPx(
+        r.window_model, w.center_u, d.forward_column, d.gamma, odometry_.windowAttenuation());
+    d.model_du[k] = static_cast<float>(model.x());
+    d.model_dv[k] = static_cast<float>(model.y());
   }
 }
 

@@ -36,4 +36,10 @@ ModelMotion predictMotion(const Eigen::Matrix<double, 6, 1>& x, double theta, do
   return {r.du.dot(x), r.dv.dot(x), r.rotation.dot(x), r.log_scale.dot(x)};
 }
 
+Eigen::Vector2d predictWindowShiftPx(const Eigen::Matrix<double, 6, 1>& x, double center_u,
+                                     double forward_column, double gamma, double kappa) {
+  const ModelMotion m = predictMotion(x, gamma * (center_u - forward_column), kappa);
+  return Eigen::Vector2d(m.du_rad, m.dv_rad) / gamma;
+}
+
 }  // namespace omnipose

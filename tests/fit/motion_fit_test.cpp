@@ -494,4 +494,21 @@ TEST(MotionModel, WindowAttenuationIsBelowOneForWideWindows) {
 }
 
 }  // namespace
+TEST(MotionModel, WindowShiftInPixelsIsTheModelAtTheWindowsAzimuth) {
+  // Pure yaw: every window moves by omega_z / gamma columns; pure forward motion (tau_x):
+  // du = -tau_x sin(theta) / gamma, zero ahead, -tau_x / gamma at +90 deg (left).
+  const double gamma = 2.0 * std::numbers::pi / 720.0, forward = 180.0;
+  Eigen::Matrix<double, 6, 1> yaw, forward_motion;
+  yaw << 0, 0, 0.01, 0, 0, 0;
+  forward_motion << 0, 0, 0, 0.02, 0, 0;
+  EXPECT_NEAR(predictWindowShiftPx(yaw, 17.0, forward, gamma).x(), 0.01 / gamma, 1e-9);
+  EXPECT_NEAR(predictWindowShiftPx(yaw, 17.0, forward, gamma).y(), 0.0, 1e-12);
+  EXPECT_NEAR(predictWindowShiftPx(forward_motion, forward, forward, gamma).x(), 0.0, 1e-12);
+  EXPECT_NEAR(predictWindowShiftPx(forward_motion, forward + 180.0, forward, gamma).x(),
+              -0.02 / gamma, 1e-9);
+  // The attenuation scales the sinusoidal terms only.
+  EXPECT_NEAR(predictWindowShiftPx(forward_motion, forward + 180.0, forward, gamma, 0.5).x(),
+              -0.01 / gamma, 1e-9);
+}
+
 }  // namespace omnipose

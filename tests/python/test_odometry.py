@@ -274,3 +274,52 @@ def test_type_stubs_are_installed():
     stub = (package / "_omnipose.pyi").read_text()
     assert "class Odometry" in stub and "def process(" in stub
     assert "class FrameResult" in stub and "covariance" in stub
+
+
+def test_the_windows_and_their_fitted_shifts_are_in_the_result(calibration, frames):
+    odometry = omnipose.Odometry(calibration)
+    first = odometry.process(frames[0], 0.0)
+    assert len(first.windows) == 0  # a segment start has no estimate
+    r = odometry.process(frames[1], 1 / 30)
+    w = r.windows
+    assert len(w) == r.windows_total == odometry.window_count
+    assert w.valid.dtype == bool and w.du.shape == (len(w),)
+    assert int(np.count_nonzero(w.valid)) >= r.windows_used
+    # The fitted motion's shift at each window is the measured one up to the residual.
+    residual = (w.du - w.model_du)[w.valid]
+    assert np.sqrt(np.mean(residual ** 2)) < 3 * max(r.residual_rms_px, 0.05)
+    # Around the ring one step (pipeline.step, 20 columns) apart, wrapping at the panorama's width.
+    width = calibration.panorama_shape[1]
+    assert np.all(np.mod(np.diff(w.center_u), width) == 20)
+
+
+def test_on_frame_sees_every_frame_and_its_exception_is_raised(dataset_dir, dataset):
+    seen = []
+    omnipose.replay(dataset_dir, on_frame=lambda i, path, r: seen.append((i, path, r.state)))
+    assert [i for i, _, _ in seen] == list(range(24))
+    assert seen[0][2] == "start" and all(s == "tracked" for _, _, s in seen[1:])
+    assert [path for _, path, _ in seen] == dataset.frames
+    calls = []
+
+    def fail(i, path, r):
+        calls.append(i)
+        raise KeyError("stop here")
+
+    with pytest.raises(KeyError, match="stop here"):
+        omnipose.replay(dataset_dir, on_frame=fail)
+    assert calls == [0]  # no call after the first exception
+
+
+def test_panorama_and_jpeg(calibration, frames):
+    pano = omnipose.Panorama(calibration)
+    image = pano.unwrap(frames[0])
+    assert image.shape == pano.shape == tuple(calibration.panorama_shape)
+    assert image.dtype == np.float32 and 20 < image.mean() < 235
+    jpeg = omnipose.encode_jpeg(np.clip(image, 0, 255).astype(np.uint8), 80)
+    assert jpeg[:2] == b"\xff\xd8" and len(jpeg) > 1000
+    with pytest.raises(ValueError, match="quality"):
+        omnipose.encode_jpeg(np.zeros((4, 4), np.uint8), 0)
+    with pytest.raises(ValueError, match="input"):
+        omnipose.Panorama(calibration, "donut")
+    with pytest.raises(ValueError, match="frame"):
+        pano.unwrap(np.zeros((3, 3), np.uint8))

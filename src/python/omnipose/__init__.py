@@ -28,12 +28,13 @@ import numbers
 import os
 import warnings as _warnings
 from dataclasses import dataclass
-from typing import Any, List, Mapping, Optional, Union
+from typing import Any, Callable, List, Mapping, Optional, Union
 
 import numpy as np
 
 from . import _omnipose
-from ._omnipose import Calibration, ConfigError, FrameResult, read_frame
+from ._omnipose import (Calibration, ConfigError, FrameResult, Panorama, Windows, encode_jpeg,
+                        read_frame)
 from . import _lcm_types
 # The daemon's LCM messages (pose_t, status_t, fit_diagnostics_t, imu_t): encode() and
 # decode(), as in the .deb's Python package of the same name.
@@ -46,10 +47,14 @@ __all__ = [
     "Dataset",
     "FrameResult",
     "Odometry",
+    "Panorama",
     "Replay",
+    "Windows",
+    "encode_jpeg",
     "open_dataset",
     "read_frame",
     "replay",
+    "replay_with_config",
 ] + sorted(name for name in vars(_lcm_types) if name.endswith("_t"))
 
 PathLike = Union[str, "os.PathLike[str]"]
@@ -160,19 +165,47 @@ class Replay:
     log: List[str]
 
 
+FrameCallback = Callable[[int, str, FrameResult], None]
+
+
 def replay(dataset_dir: PathLike, *, calibration: Optional[PathLike] = None,
            input: Optional[str] = None, keyframes: Optional[Mapping[str, Any]] = None,
-           plausibility: Optional[Mapping[str, Any]] = None, **pipeline: Any) -> Replay:
+           plausibility: Optional[Mapping[str, Any]] = None,
+           on_frame: Optional[FrameCallback] = None, **pipeline: Any) -> Replay:
     """Replays a dataset directory (calibration.yaml, frames/, timestamps.txt, imu.csv when its
     calibration has an imu section) through the odometry with Odometry's options, as
     ``omnipose-replay DATASET`` does (the same frames skipped, the same poses). ``calibration``
-    replaces the dataset's calibration.yaml. The GIL is released while it runs. Raises
-    RuntimeError naming the path for a dataset that cannot be opened, ConfigError for bad
-    options or a bad calibration."""
-    result = _omnipose._replay(os.fspath(dataset_dir),
-                               options_yaml(pipeline, keyframes, plausibility, input),
-                               _OPTIONS_ORIGIN,
-                               None if calibration is None else os.fspath(calibration))
+    replaces the dataset's calibration.yaml. ``on_frame(index, path, result)`` is called with
+    every frame the odometry processed (a FrameResult, its windows included; unreadable frames
+    are skipped as omnipose-replay skips them); an exception it raises ends the replay's
+    callbacks and is raised by replay() at the end. The GIL is released while it runs (but
+    for the callbacks). Raises RuntimeError naming the path for a dataset that cannot be
+    opened, ConfigError for bad options or a bad calibration."""
+    return _replay(dataset_dir, options_yaml(pipeline, keyframes, plausibility, input),
+                   _OPTIONS_ORIGIN, calibration, on_frame)
+
+
+def replay_with_config(dataset_dir: PathLike, config: PathLike, *,
+                       calibration: Optional[PathLike] = None,
+                       on_frame: Optional[FrameCallback] = None) -> Replay:
+    """replay() with the options of a daemon.yaml file (``omnipose-replay DATASET --config
+    FILE``): its pipeline, keyframes, plausibility and input sections; relative paths in it
+    (fftw_wisdom) are relative to the file. ConfigError names the file and every bad key."""
+    path = os.fspath(config)
+    try:
+        with open(path, encoding="utf-8") as f:
+            text = f.read()
+    except OSError as e:
+        raise ConfigError(f"{path}: cannot read: {e.strerror}") from None
+    return _replay(dataset_dir, text, path, calibration, on_frame,
+                   os.path.dirname(os.path.abspath(path)))
+
+
+def _replay(dataset_dir: PathLike, text: str, origin: str, calibration: Optional[PathLike],
+            on_frame: Optional[FrameCallback], base_dir: Optional[str] = None) -> Replay:
+    result = _omnipose._replay(os.fspath(dataset_dir), text, origin,
+                               None if calibration is None else os.fspath(calibration),
+                               on_frame, base_dir)
     _warn(result.pop("warnings"))
     return Replay(**result)
 

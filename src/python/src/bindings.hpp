@@ -4,6 +4,7 @@
 
 #include <nanobind/nanobind.h>
 
+#include <filesystem>
 #include <string>
 #include <vector>
 
@@ -20,15 +21,19 @@ void bindResult(nanobind::module_& m);
 void bindOdometry(nanobind::module_& m);
 /// replay(), open_dataset().
 void bindReplay(nanobind::module_& m);
+/// Panorama, encode_jpeg().
+void bindPanorama(nanobind::module_& m);
 
 /// The odometry options that daemon.yaml text `options_yaml` (its pipeline, keyframes,
 /// plausibility and input keys; src/python/omnipose/__init__.py writes it from keyword arguments)
 /// gives, read by the daemon's own parser (DaemonConfig::parse, then checkAgainst the
 /// calibration) so names, ranges and messages are the daemon's; relative paths are relative
-/// to the current directory. Throws ConfigError listing every problem, each starting with
-/// `origin` and the key; `warnings` receives the parser's warnings (threads clamped).
+/// to `base_dir` (empty: the current directory). Throws ConfigError listing every problem,
+/// each starting with `origin` and the key; `warnings` receives the parser's warnings
+/// (threads clamped).
 OdometryOptions parseOdometryOptions(const std::string& options_yaml, const std::string& origin,
                                      const Calibration& calibration,
-                                     std::vector<std::string>& warnings);
+                                     std::vector<std::string>& warnings,
+                                     const std::filesystem::path& base_dir = {});
 
 }  // namespace omnipose::python

@@ -83,4 +83,5 @@ NB_MODULE(_omnipose, m) {
   omnipose::python::bindResult(m);
   omnipose::python::bindOdometry(m);
   omnipose::python::bindReplay(m);
+  omnipose::python::bindPanorama(m);
 }

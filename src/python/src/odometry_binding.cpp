@@ -22,10 +22,12 @@ namespace omnipose::python {
 
 OdometryOptions parseOdometryOptions(const std::string& options_yaml, const std::string& origin,
                                      const Calibration& calibration,
-                                     std::vector<std::string>& warnings) {
-  const DaemonConfig config = DaemonConfig::parse(options_yaml, origin,
-                                                  std::filesystem::current_path(),
-                                                  DaemonConfig::Use::kReplay);
+                                     std::vector<std::string>& warnings,
+                                     const std::filesystem::path& base_dir) {
+  const DaemonConfig config =
+      DaemonConfig::parse(options_yaml, origin,
+                          base_dir.empty() ? std::filesystem::current_path() : base_dir,
+                          DaemonConfig::Use::kReplay);
   std::vector<std::string> problems = config.checkAgainst(calibration, origin);
   if (!problems.empty())
     throw ConfigError::listing(origin + ": invalid configuration", std::move(problems));
@@ -43,7 +45,8 @@ class PyOdometry {
              const std::string& origin)
       : options_(parseOdometryOptions(options_yaml, origin, calibration, warnings_)),
         frame_size_(inputFrameSize(calibration, options_.pipeline.unwrap.input)),
-        odometry_(std::make_unique<Odometry>(calibration, options_)) {}
+        odometry_(std::make_unique<Odometry>(calibration, options_)),
+        geometry_(windowGeometry(calibration, *odometry_)) {}
 
   FrameResult process(nb::handle frame, double time_s, std::int64_t sequence, bool gap_before) {
     AnyArray array;  // holds the frame's array for the call
@@ -54,7 +57,7 @@ class PyOdometry {
       nb::gil_scoped_release release;
       result = odometry_->process(view, {time_s, sequence, gap_before});
     }
-    return toFrameResult(result, time_s);
+    return toFrameResult(result, time_s, geometry_);
   }
 
   /// Gyro samples: times (N,) seconds on the IMU's clock, rates (N, 3) rad/s about its axes.
@@ -133,6 +136,7 @@ class PyOdometry {
   OdometryOptions options_;
   cv::Size frame_size_;
   std::unique_ptr<Odometry> odometry_;
+  WindowGeometry geometry_;
   std::mutex busy_;
 };
 

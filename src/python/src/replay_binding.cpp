@@ -10,6 +10,7 @@
 #include <span>
 
 #include "bindings.hpp"
+#include "result_convert.hpp"
 #include "omnipose/io/dataset.hpp"
 #include "omnipose/io/replay.hpp"
 #include "omnipose/unwrapper.hpp"
@@ -54,15 +55,51 @@ struct ReplayRun {
   std::vector<double> seconds;
 };
 
+/// Calls a Python function with each processed frame (the GIL taken for the call only). The
+/// first exception it raises is kept, and no call is made after it; rethrow() raises it once
+/// the replay is over.
+class FrameCallback {
+ public:
+  explicit FrameCallback(nb::object function) : function_(std::move(function)) {}
+  bool active() const { return function_.is_valid() && !function_.is_none(); }
+
+  void operator()(int index, const DatasetFrame& frame, const OdometryResult& r,
+                  const WindowGeometry& geometry) {
+    if (!active() || failure_) return;
+    FrameResult result = toFrameResult(r, frame.timestamp, geometry);
+    nb::gil_scoped_acquire gil;
+    try {
+      function_(index, frame.path.string(), std::move(result));
+    } catch (nb::python_error& e) {
+      failure_.emplace(std::move(e));
+    }
+  }
+
+  /// Raises what the function raised (call with the GIL held).
+  void rethrow() {
+    if (failure_) {
+      nb::python_error e = std::move(*failure_);
+      failure_.reset();
+      throw e;
+    }
+  }
+
+ private:
+  nb::object function_;
+  std::optional<nb::python_error> failure_;
+};
+
 /// omnipose-replay's loop (omnipose/io/replay.hpp) with the iFMI odometry. No Python object
-/// is touched: it runs without the GIL.
+/// is touched but by `on_frame`, which takes the GIL: it runs without it.
 void runReplay(const Dataset& dataset, const OdometryOptions& options,
-               std::span<const GyroSample> gyro, ReplayRun& run) {
+               std::span<const GyroSample> gyro, ReplayRun& run, FrameCallback& on_frame) {
   Odometry odometry(dataset.calibration, options);
+  const WindowGeometry geometry = windowGeometry(dataset.calibration, odometry);
   run.counts = replayDataset(
       dataset, odometry, gyro, options.pipeline.unwrap.input, run.trajectory,
-      [&](int i, const DatasetFrame&, const OdometryResult& r) {
+      [&](int i, const DatasetFrame& frame, const OdometryResult& r) {
         run.seconds.push_back(r.relative.timing.total);
+        on_frame(i, frame, r, geometry);
         if (r.state == TrackState::kLost) return;  // no pose in the trajectory
         run.states.emplace_back(toString(r.state));
         run.sequences.push_back(i);
@@ -72,11 +109,12 @@ void runReplay(const Dataset& dataset, const OdometryOptions& options,
 }
 
 nb::dict replay(const std::filesystem::path& dataset_dir, const std::string& options_yaml,
-                const std::string& origin, const std::optional<std::filesystem::path>& calibration) {
+                const std::string& origin, const std::optional<std::filesystem::path>& calibration,
+                nb::object on_frame, const std::optional<std::filesystem::path>& base_dir) {
   const Dataset dataset = Dataset::open(dataset_dir, calibration);
   std::vector<std::string> warnings;
-  const OdometryOptions options =
-      parseOdometryOptions(options_yaml, origin, dataset.calibration, warnings);
+  const OdometryOptions options = parseOdometryOptions(
+      options_yaml, origin, dataset.calibration, warnings, base_dir.value_or(""));
   if (const std::string assumed = dataset.assumptions(); !assumed.empty())
     warnings.push_back(assumed);
   warnings.insert(warnings.end(), dataset.warnings.begin(), dataset.warnings.end());
@@ -84,10 +122,12 @@ nb::dict replay(const std::filesystem::path& dataset_dir, const std::string& opt
   const std::vector<GyroSample> gyro = datasetGyroSamples(dataset, gyro_warning);
   if (!gyro_warning.empty()) warnings.push_back(gyro_warning);
   ReplayRun run;
+  FrameCallback callback(std::move(on_frame));
   {
     nb::gil_scoped_release release;
-    runReplay(dataset, options, gyro, run);
+    runReplay(dataset, options, gyro, run, callback);
   }
+  callback.rethrow();
   nb::dict d;
   addPoses(d, "timestamps", "poses", run.trajectory);
   d["sequences"] = ownedArray(std::move(run.sequences), {run.trajectory.size()});
@@ -142,8 +182,10 @@ nb::dict openDataset(const std::filesystem::path& dataset_dir,
 
 void bindReplay(nb::module_& m) {
   m.def("_replay", &replay, nb::arg("dataset_dir"), nb::arg("options_yaml"), nb::arg("origin"),
-        nb::arg("calibration") = nb::none(),
-        "omnipose-replay's loop over a dataset directory (omnipose.replay() wraps it).");
+        nb::arg("calibration") = nb::none(), nb::arg("on_frame") = nb::none(),
+        nb::arg("base_dir") = nb::none(),
+        "omnipose-replay's loop over a dataset directory (omnipose.replay() wraps it); "
+        "on_frame(index, path, FrameResult) is called with every processed frame.");
   m.def("_open_dataset", &openDataset, nb::arg("dataset_dir"), nb::arg("calibration") = nb::none(),
         "A dataset directory as the library reads it (omnipose.open_dataset() wraps it).");
 }

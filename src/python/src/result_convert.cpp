@@ -7,12 +7,50 @@
 #include <cstdio>
 
 #include "bindings.hpp"
+#include "omnipose/motion_model.hpp"
 
 namespace nb = nanobind;
 
 namespace omnipose::python {
 
-FrameResult toFrameResult(const Expected<OdometryResult>& result, double time_s) {
+namespace {
+
+WindowArrays windowArrays(const OdometryResult& r, const WindowGeometry& g) {
+  const auto n = static_cast<Eigen::Index>(r.windows.size());
+  WindowArrays a;
+  for (Eigen::VectorXd* v : {&a.center_u, &a.du, &a.dv, &a.rotation, &a.scale, &a.confidence,
+                             &a.model_du, &a.model_dv})
+    v->resize(n);
+  a.valid.resize(n);
+  a.masked.resize(n);
+  a.refined = r.windows_refined;
+  for (Eigen::Index k = 0; k < n; ++k) {
+    const WindowMotion& w = r.windows[static_cast<std::size_t>(k)];
+    a.center_u[k] = w.center_u;
+    a.du[k] = w.du;
+    a.dv[k] = w.dv;
+    a.rotation[k] = w.rotation;
+    a.scale[k] = w.scale;
+    a.confidence[k] = w.confidence;
+    a.valid[k] = w.valid;
+    a.masked[k] = w.masked;
+    const Eigen::Vector2d model =
+        predictWindowShiftPx(r.window_model, w.center_u, g.forward_column, g.gamma, g.kappa);
+    a.model_du[k] = model.x();
+    a.model_dv[k] = model.y();
+  }
+  return a;
+}
+
+}  // namespace
+
+WindowGeometry windowGeometry(const Calibration& calibration, const Odometry& odometry) {
+  return {calibration.panorama.gamma(), calibration.panorama.forward_column,
+          odometry.windowAttenuation()};
+}
+
+FrameResult toFrameResult(const Expected<OdometryResult>& result, double time_s,
+                          const WindowGeometry& geometry) {
   FrameResult f;
   f.time_s = time_s;
   if (!result) {
@@ -41,6 +79,7 @@ FrameResult toFrameResult(const Expected<OdometryResult>& result, double time_s)
   f.keyframe_sequence = r.keyframe_sequence;
   f.frames_since_keyframe = r.frames_since_keyframe;
   f.timing = r.relative.timing;
+  f.windows = windowArrays(r, geometry);
   return f;
 }
 
@@ -64,6 +103,28 @@ std::string describe(const FrameResult& f) {
 }  // namespace
 
 void bindResult(nb::module_& m) {
+  using W = WindowArrays;
+  nb::class_<W>(m, "Windows",
+                "The windows of the pass that made a frame's estimate, one entry per window (empty "
+                "without an estimate): what the daemon's fit_diagnostics_t carries. Shifts in "
+                "panorama pixels (content at u of the current window appears at u + du in the "
+                "reference), rotation in radians, scale as a factor; model_du/model_dv: the shift "
+                "the fitted motion predicts at the window (du - model_du is its residual). "
+                "Read-only arrays.")
+      .def_ro("center_u", &W::center_u, "Window centre column, (n,).")
+      .def_ro("du", &W::du, "Measured shift along u, pixels, (n,).")
+      .def_ro("dv", &W::dv, "Measured shift along v, pixels, (n,).")
+      .def_ro("rotation", &W::rotation, "Measured in-window rotation, radians, (n,).")
+      .def_ro("scale", &W::scale, "Measured in-window scale factor, (n,).")
+      .def_ro("confidence", &W::confidence, "Translation peak quality 0..1, (n,).")
+      .def_ro("valid", &W::valid, "Usable window, bool (n,).")
+      .def_ro("masked", &W::masked, "Mostly covered by the lens mask, not measured, bool (n,).")
+      .def_ro("model_du", &W::model_du, "Fitted motion's du at the window, pixels, (n,).")
+      .def_ro("model_dv", &W::model_dv, "Fitted motion's dv at the window, pixels, (n,).")
+      .def_ro("refined", &W::refined,
+              "The refinement pass's windows (the current panorama de-rotated by the estimate "
+              "before it), else the first pass's.")
+      .def("__len__", [](const W& w) { return w.du.size(); });
   using R = FrameResult;
   nb::class_<R>(m, "FrameResult",
                 "One frame's outcome of Odometry.process(). Camera frame: x forward, y left, z "
@@ -105,6 +166,7 @@ void bindResult(nb::module_& m) {
       .def_ro("keyframe_sequence", &R::keyframe_sequence,
               "The keyframe the estimate was refined against.")
       .def_ro("frames_since_keyframe", &R::frames_since_keyframe, "Frames since that keyframe.")
+      .def_ro("windows", &R::windows, "The windows of the pass that made the estimate (Windows).")
       .def_prop_ro("seconds", [](const R& r) { return r.timing.total; },
                    "Wall time of the pipeline for this frame, seconds.")
       .def_prop_ro(

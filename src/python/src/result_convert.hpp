@@ -13,6 +13,23 @@
 
 namespace omnipose::python {
 
+/// The windows of the pass that made a frame's estimate (OdometryResult::windows), one entry
+/// per window, and the shift that pass's fitted motion predicts at each
+/// (predictWindowShiftPx): what fit_diagnostics_t carries. Empty for a frame without one.
+struct WindowArrays {
+  Eigen::VectorXd center_u, du, dv, rotation, scale, confidence, model_du, model_dv;
+  Eigen::Matrix<bool, Eigen::Dynamic, 1> valid, masked;
+  bool refined = false;
+};
+
+/// How a panorama's columns map to azimuth and the fit's window attenuation: what turns a
+/// fitted motion into each window's predicted shift in pixels.
+struct WindowGeometry {
+  double gamma = 0.0;           ///< radians per column
+  double forward_column = 0.0;  ///< column of +x
+  double kappa = 1.0;           ///< Odometry::windowAttenuation()
+};
+
 struct FrameResult {
   double time_s = 0.0;                     ///< the frame's capture time given, seconds
   std::optional<std::string> error;        ///< error code name (bad_frame, implausible); none when ok
@@ -36,10 +53,15 @@ struct FrameResult {
   std::int64_t keyframe_sequence = -1;
   int frames_since_keyframe = 0;
   StageTiming timing;
+  WindowArrays windows;
 };
 
 /// The result of process() for a frame stamped `time_s`: an error's code and message, or the
-/// motion, pose and status.
-FrameResult toFrameResult(const Expected<OdometryResult>& result, double time_s);
+/// motion, pose, status and windows (`geometry` gives their fitted shifts).
+FrameResult toFrameResult(const Expected<OdometryResult>& result, double time_s,
+                          const WindowGeometry& geometry);
+
+/// The geometry of `odometry`'s windows over `calibration`'s panorama.
+WindowGeometry windowGeometry(const Calibration& calibration, const Odometry& odometry);
 
 }  // namespace omnipose::python
