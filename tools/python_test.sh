@@ -22,12 +22,14 @@ echo "pipeline: {fftw_wisdom: fftw_wisdom.txt}" > "$data/replay.yaml"
 build/bin/omnipose-replay "$data/mixed" --config "$data/replay.yaml" \
   --out "$data/mixed_replay.tum" >/dev/null
 # The daemon on the same frames, every frame (realtime: false), recording its LCM messages
-# (poses, window diagnostics, status) in a log: omnipose-mcap's other source.
+# (poses, window diagnostics, status, panorama pictures) in a log: omnipose-mcap's other
+# source, and what omnipose-view plays.
 cat > "$data/daemon.yaml" <<YAML
 source: {type: file, path: mixed, realtime: false}
 calibration: mixed/calibration.yaml
 pipeline: {fftw_wisdom: fftw_wisdom.txt}
-lcm: {url: "file://$PWD/$data/daemon.lcm?mode=w", fit_channel: OMNI_FIT, status_hz: 10}
+lcm: {url: "file://$PWD/$data/daemon.lcm?mode=w", fit_channel: OMNI_FIT, status_hz: 10,
+      panorama_channel: OMNI_PANORAMA, panorama_hz: 10}
 YAML
 build/bin/omniposed --config "$data/daemon.yaml" >/dev/null 2>"$data/daemon.log"
 

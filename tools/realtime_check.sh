@@ -13,7 +13,8 @@
 #   --fifo P   daemon.yaml asks for SCHED_FIFO at priority P (scheduling.fifo_priority, 1-99:
 #              needs root or CAP_SYS_NICE; omniposed refuses to start without)
 # Environment: BUILD_DIR (default build; built with tools/build.sh when a program is missing),
-# THREADS (pipeline.threads, default 0 = all online cores), KEEP=1 keeps the working directory.
+# THREADS (pipeline.threads, default 0 = all online cores), PICTURES=HZ (the daemon also makes
+# panorama pictures for a viewer at HZ: lcm.panorama_channel), KEEP=1 keeps the working directory.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 # shellcheck source=tools/common/final_status.sh
@@ -43,6 +44,13 @@ if ! [[ "$fps" =~ ^[0-9]+$ && "$frames" =~ ^[0-9]+$ && "$load" =~ ^[0-9]+$ &&
 fi
 bin=${BUILD_DIR:-build}/bin
 threads=${THREADS:-0}
+pictures=${PICTURES:-0}
+if ! [[ "$pictures" =~ ^[0-9]+([.][0-9]+)?$ ]]; then
+  echo "realtime_check: PICTURES=$pictures: expected a rate in Hz (0: none)" >&2
+  exit 2
+fi
+lcm_pictures=""
+if [ "$pictures" != 0 ]; then lcm_pictures=", panorama_channel: OMNI_PANORAMA, panorama_hz: $pictures"; fi
 if [ ! -x "$bin/omniposed" ] || [ ! -x "$bin/omnipose-synth" ] || [ ! -x "$bin/omnipose-listen" ]; then
   bash tools/build.sh
 fi
@@ -70,14 +78,14 @@ source: {type: file, path: data, realtime: true, loop: false}
 calibration: data/calibration.yaml
 pipeline: {threads: $threads}
 scheduling: {fifo_priority: $fifo}
-lcm: {url: "file://$work/run.lcm?mode=w", status_hz: 1}
+lcm: {url: "file://$work/run.lcm?mode=w", status_hz: 1$lcm_pictures}
 YAML
 
 for ((i = 0; i < load; ++i)); do
   bash -c 'while :; do :; done' &
   busy+=($!)
 done
-echo "realtime_check: $frames frames at $fps fps, pipeline.threads $threads, $load busy processes," \
+echo "realtime_check: $frames frames at $fps fps, pipeline.threads $threads, pictures $pictures Hz, $load busy processes," \
   "niceness $nice_level, SCHED_FIFO priority $fifo (0: not), load average" \
   "$(cut -d' ' -f1-3 /proc/loadavg)"
 rc=0

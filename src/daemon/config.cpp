@@ -173,7 +173,8 @@ void parsePlausibility(Reader& r, const YAML::Node& node, PlausibilityOptions& p
 
 void parseLcm(Reader& r, const YAML::Node& node, LcmConfig& l) {
   if (!r.checkMap(node, "lcm", {"url", "pose_channel", "status_channel", "fit_channel",
-                                "status_hz"}))
+                                "status_hz", "panorama_channel", "panorama_hz",
+                                "panorama_width"}))
     return;
   r.get(node, "lcm", "url", l.url);
   r.get(node, "lcm", "pose_channel", l.pose_channel);
@@ -183,6 +184,11 @@ void parseLcm(Reader& r, const YAML::Node& node, LcmConfig& l) {
   if (l.pose_channel.empty()) r.problem("lcm.pose_channel", "must not be empty");
   if (l.status_channel.empty()) r.problem("lcm.status_channel", "must not be empty");
   r.range(l.status_hz, "lcm.status_hz", 0.0, 100.0, " Hz", true);
+  r.get(node, "lcm", "panorama_channel", l.panorama_channel);
+  r.get(node, "lcm", "panorama_hz", l.panorama_hz);
+  r.get(node, "lcm", "panorama_width", l.panorama_width);
+  r.range(l.panorama_hz, "lcm.panorama_hz", 0.0, 30.0, " Hz", true);
+  r.range(l.panorama_width, "lcm.panorama_width", 64, 4096, " pixels");
 }
 
 constexpr detail::Named<ImuConfig::Source> kImuSources[] = {
@@ -349,7 +355,9 @@ std::string DaemonConfig::describe() const {
     << "\n  max_rejected: " << plausibility.max_rejected << "\n"
     << "lcm:\n  url: \"" << lcm.url << "\"\n  pose_channel: " << lcm.pose_channel
     << "\n  status_channel: " << lcm.status_channel << "\n  fit_channel: \"" << lcm.fit_channel
-    << "\"\n  status_hz: " << lcm.status_hz << "\n"
+    << "\"\n  status_hz: " << lcm.status_hz << "\n  panorama_channel: \"" << lcm.panorama_channel
+    << "\"\n  panorama_hz: " << lcm.panorama_hz << "\n  panorama_width: " << lcm.panorama_width
+    << "\n"
     << "scheduling:\n  fifo_priority: " << scheduling.fifo_priority << "\n  cpus: [";
   for (std::size_t i = 0; i < scheduling.cpus.size(); ++i)
     o << (i > 0 ? ", " : "") << scheduling.cpus[i];

@@ -16,7 +16,7 @@
 /// keyframes: {slots: 0, max_translation: 0.02, max_tilt_deg: 5.16, min_ring_peak: 0.03,
 ///             gap_after_s: 0.15}
 /// lcm: {url: "", pose_channel: OMNI_POSE, status_channel: OMNI_STATUS, fit_channel: "",
-///       status_hz: 1.0}
+///       status_hz: 1.0, panorama_channel: "", panorama_hz: 2.0, panorama_width: 640}
 /// scheduling: {fifo_priority: 0, cpus: []}
 /// imu: {source: none, channel: OMNI_IMU, url: "", device: "", sampling_hz: 0}
 /// ```
@@ -55,6 +55,10 @@ struct LcmConfig {
   std::string status_channel = "OMNI_STATUS";
   std::string fit_channel;          ///< "" = diagnostics off
   double status_hz = 1.0;
+  /// Panorama pictures for a viewer (omnipose.panorama_image_t): "" = off.
+  std::string panorama_channel;
+  double panorama_hz = 2.0;         ///< at most this many per second of capture time
+  int panorama_width = 640;         ///< the picture's width at most, pixels
 };
 
 /// The robot's gyro (DESIGN.md sections 3 and 6). Its samples are used when the calibration

@@ -51,6 +51,11 @@ Processor::Processor(const Calibration& calibration, const OdometryOptions& odom
       pose_(std::make_unique<pose_t>()),
       status_(std::make_unique<status_t>()),
       diagnostics_msg_(std::make_unique<fit_diagnostics_t>()),
+      pictures_(lcm.panorama_channel.empty()
+                    ? nullptr
+                    : std::make_unique<PanoramaPictures>(calibration,
+                                                         odometry.pipeline.unwrap.input,
+                                                         lcm.panorama_hz, lcm.panorama_width)),
       error_text_(kMaxText + 1, '\0'),
       started_(SteadyClock::now()),
       last_status_time_(started_) {
@@ -84,17 +89,35 @@ Processor::Processor(const Calibration& calibration, const OdometryOptions& odom
 
 Processor::~Processor() = default;
 
-bool Processor::publish(const std::string& channel, std::vector<std::uint8_t>& buffer,
-                        int size) {
-  if (size < 0 || !sink_.publish(channel, buffer.data(), static_cast<std::size_t>(size))) {
+bool Processor::publish(const std::string& channel, std::span<const std::uint8_t> message) {
+  if (!sink_.publish(channel, message.data(), message.size())) {
     ++board_.publish_failures;
-    const char* why = size < 0 ? "" : sink_.lastError();
-    board_.reportError("cannot %s a message on channel %s%s%s", size < 0 ? "encode" : "publish",
-                       channel.c_str(), *why ? ": " : "", why);
+    const char* why = sink_.lastError();
+    board_.reportError("cannot publish a message on channel %s%s%s", channel.c_str(),
+                       *why ? ": " : "", why);
     return false;
   }
   ++board_.messages_published;
   return true;
+}
+
+void Processor::pictures(const MailboxFrame& frame) {
+  if (const std::span<const std::uint8_t> picture = pictures_->ready(); !picture.empty()) {
+    publish(lcm_.panorama_channel, picture);
+    pictures_->done();
+  }
+  pictures_->offer(*frame.image, frame.info.capture_time_us,
+                   static_cast<std::int64_t>(frame.info.sequence));
+}
+
+bool Processor::publish(const std::string& channel, std::vector<std::uint8_t>& buffer,
+                        int size) {
+  if (size < 0) {
+    ++board_.publish_failures;
+    board_.reportError("cannot encode a message on channel %s", channel.c_str());
+    return false;
+  }
+  return publish(channel, std::span<const std::uint8_t>(buffer.data(), static_cast<std::size_t>(size)));
 }
 
 void Processor::takeGyro() {
@@ -213,6 +236,7 @@ void Processor::handleFrame(const MailboxFrame& frame) {
                                            static_cast<int>(diagnostics_buffer_.size()));
     publish(lcm_.fit_channel, diagnostics_buffer_, n);
   }
+  if (pictures_) pictures(frame);
   processing_ms_.add(static_cast<float>(millisSince(t_start)));
 }
 

@@ -3,7 +3,8 @@
 /// The processing thread's work: for each frame taken from the mailbox, run the odometry
 /// (omnipose/odometry.hpp: the same frame-to-pose policy as omnipose-replay), encode an omnipose::pose_t (and, when enabled, a fit_diagnostics_t)
 /// into preallocated structs and buffers, and publish them; at the status rate, encode and
-/// publish an omnipose::status_t.
+/// publish an omnipose::status_t. With lcm.panorama_channel, a panorama picture now and then
+/// (panorama_pictures.hpp: made on a thread of its own, published here at a later frame).
 ///
 /// Pose semantics (see lcm_types/pose_t.lcm and odometry.hpp): a gap (mailbox gap flag:
 /// a bad frame, a source reconnect, a looped recording) or a frame the pipeline rejects
@@ -22,12 +23,14 @@
 #include <array>
 #include <cstdint>
 #include <memory>
+#include <span>
 #include <string>
 #include <vector>
 
 #include "daemon/frame_mailbox.hpp"
 #include "daemon/gyro_queue.hpp"
 #include "daemon/message_sink.hpp"
+#include "daemon/panorama_pictures.hpp"
 #include "daemon/sample_ring.hpp"
 #include "daemon/status_board.hpp"
 #include "daemon/wall_clock.hpp"
@@ -65,6 +68,9 @@ class Processor {
 
  private:
   bool publish(const std::string& channel, std::vector<std::uint8_t>& buffer, int size);
+  bool publish(const std::string& channel, std::span<const std::uint8_t> message);
+  /// Publishes the panorama picture made since the last frame, and offers this one.
+  void pictures(const MailboxFrame& frame);
   /// The load fields of a status over `wall_s` seconds: since the last status, or the run.
   void fillLoad(status_t& s, bool final, double wall_s);
   void fillDiagnostics(const FrameInfo& info, const OdometryResult& result, std::int8_t status);
@@ -87,6 +93,7 @@ class Processor {
   std::unique_ptr<pose_t> pose_;
   std::unique_ptr<status_t> status_;
   std::unique_ptr<fit_diagnostics_t> diagnostics_msg_;
+  std::unique_ptr<PanoramaPictures> pictures_;  ///< lcm.panorama_channel set
   std::vector<std::uint8_t> pose_buffer_;
   std::vector<std::uint8_t> status_buffer_;
   std::vector<std::uint8_t> diagnostics_buffer_;

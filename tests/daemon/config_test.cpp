@@ -141,6 +141,21 @@ TEST(DaemonConfig, PlaneDepthPrior) {
       [](const DaemonConfig& c) { return c.pipeline.fit.plane_depth_prior; }, "walls");
 }
 
+TEST(DaemonConfig, PanoramaPicturesAreOffUnlessAChannelIsNamed) {
+  const DaemonConfig defaults = parseWith("");
+  EXPECT_EQ(defaults.lcm.panorama_channel, "");
+  EXPECT_DOUBLE_EQ(defaults.lcm.panorama_hz, 2.0);
+  EXPECT_EQ(defaults.lcm.panorama_width, 640);
+  const DaemonConfig set =
+      parseWith("lcm: {panorama_channel: OMNI_PANORAMA, panorama_hz: 5, panorama_width: 320}\n");
+  EXPECT_EQ(set.lcm.panorama_channel, "OMNI_PANORAMA");
+  EXPECT_DOUBLE_EQ(set.lcm.panorama_hz, 5.0);
+  EXPECT_EQ(set.lcm.panorama_width, 320);
+  EXPECT_THAT(set.describe(), HasSubstr("panorama_channel: \"OMNI_PANORAMA\""));
+  EXPECT_TRUE(mentions(problemsOf(kFileSource + "lcm: {panorama_width: wide}\n"),
+                       "lcm.panorama_width"));
+}
+
 TEST(DaemonConfig, KeyframesSection) {
   const DaemonConfig defaults = parseWith("");
   EXPECT_EQ(defaults.keyframes.slots, 0) << "off by default";
@@ -278,6 +293,9 @@ TEST(DaemonConfig, EveryNumberMustBeFiniteAndInItsRangeNamingFileAndField) {
       {head + "pipeline: {inlier_sigmas: -.inf}\n", "daemon.yaml: pipeline.inlier_sigmas",
        "finite"},
       {head + "lcm: {status_hz: .nan}\n", "daemon.yaml: lcm.status_hz", "finite"},
+      {head + "lcm: {panorama_hz: 0}\n", "daemon.yaml: lcm.panorama_hz", "(0, 30]"},
+      {head + "lcm: {panorama_hz: .inf}\n", "daemon.yaml: lcm.panorama_hz", "finite"},
+      {head + "lcm: {panorama_width: 32}\n", "daemon.yaml: lcm.panorama_width", "[64, 4096]"},
       {head + "lcm: {status_hz: 1000}\n", "daemon.yaml: lcm.status_hz", "(0, 100]"},
       {head + "pipeline: {window: 3000000000}\n", "daemon.yaml: pipeline.window", "an integer"},
       {head + "pipeline: {step: 2.5}\n", "daemon.yaml: pipeline.step", "an integer"},

@@ -9,12 +9,14 @@
 #include <functional>
 #include <numbers>
 #include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
 
 #include "daemon/capture_loop.hpp"
 #include "daemon/counters.hpp"
 #include "daemon/daemon.hpp"
 #include "file/file_frame_source.hpp"
 #include "daemon/frame_mailbox.hpp"
+#include "daemon/panorama_pictures.hpp"
 #include "daemon/sample_ring.hpp"
 #include "daemon/source_factory.hpp"
 #include "daemon/status_board.hpp"
@@ -538,11 +540,16 @@ struct Bus {
   std::vector<std::int64_t> pose_received_us;
   std::vector<status_t> statuses;
   std::vector<fit_diagnostics_t> diagnostics;
+  std::vector<panorama_image_t> pictures;
 
   Bus() {
     lcm.subscribe("OMNI_POSE", &Bus::onPose, this)->setQueueCapacity(1 << 20);
     lcm.subscribe("OMNI_STATUS", &Bus::onStatus, this)->setQueueCapacity(1 << 20);
     lcm.subscribe("OMNI_FIT", &Bus::onFit, this)->setQueueCapacity(1 << 20);
+    lcm.subscribe("OMNI_PANORAMA", &Bus::onPicture, this)->setQueueCapacity(1 << 20);
+  }
+  void onPicture(const lcm::ReceiveBuffer*, const std::string&, const panorama_image_t* m) {
+    pictures.push_back(*m);
   }
   void onPose(const lcm::ReceiveBuffer* rb, const std::string&, const pose_t* p) {
     poses.push_back(*p);
@@ -1056,6 +1063,102 @@ TEST(Daemon, FitDiagnosticsArePublishedWhenEnabledAndMatchTheModel) {
       EXPECT_NEAR(diag.dv[k], diag.model_dv[k], 0.3) << "window " << k;
     }
     EXPECT_GT(valid, 40);
+  }
+}
+
+/// The picture PanoramaPictures should make of `frame`: its panorama shrunk to `size`.
+cv::Mat expectedPicture(const Calibration& calibration, const cv::Mat& frame, cv::Size size) {
+  Unwrapper unwrapper(calibration, {});
+  cv::Mat panorama = unwrapper.makePanorama(), small, grey;
+  EXPECT_TRUE(unwrapper.unwrap(frame, panorama).has_value());
+  cv::resize(panorama, small, size, 0, 0, cv::INTER_AREA);
+  small.convertTo(grey, CV_8U);
+  return grey;
+}
+
+/// Mean absolute grey-level difference of a JPEG picture from `expected`.
+double pictureError(const std::vector<std::uint8_t>& jpeg, const cv::Mat& expected) {
+  const cv::Mat decoded = cv::imdecode(jpeg, cv::IMREAD_GRAYSCALE);
+  EXPECT_EQ(decoded.size(), expected.size());
+  if (decoded.size() != expected.size()) return 1e9;
+  return cv::norm(decoded, expected, cv::NORM_L1) / static_cast<double>(expected.total());
+}
+
+TEST(PanoramaPictures, APictureIsTheFramesPanoramaShrunkAtMostAtItsRate) {
+  const Calibration calibration = Calibration::load(yawDataset() / "calibration.yaml");
+  const auto frames = testing::renderFrames("yaw", 3);
+  daemon::PanoramaPictures pictures(calibration, InputKind::kOmni, /*hz=*/4.0, /*width=*/320);
+  const cv::Size size = daemon::PanoramaPictures::pictureSize(
+      calibration.panorama.size(), 320);
+  EXPECT_EQ(size.width, 320);
+  const auto waitReady = [&] {
+    for (int i = 0; i < 500 && pictures.ready().empty(); ++i) std::this_thread::sleep_for(10ms);
+    return pictures.ready();
+  };
+  const std::int64_t t0 = 1'700'000'000'000'000;
+  ASSERT_TRUE(pictures.offer(frames[0], t0, 7));
+  EXPECT_FALSE(pictures.offer(frames[1], t0 + 300'000, 8)) << "one picture at a time";
+  const auto first = waitReady();
+  ASSERT_FALSE(first.empty());
+  panorama_image_t m;
+  ASSERT_EQ(m.decode(first.data(), 0, static_cast<int>(first.size())),
+            static_cast<int>(first.size()));
+  EXPECT_EQ(m.utime, t0);
+  EXPECT_EQ(m.sequence, 7);
+  EXPECT_EQ(m.format, "jpeg");
+  EXPECT_EQ(m.width, size.width);
+  EXPECT_EQ(m.height, size.height);
+  EXPECT_LT(pictureError(m.data, expectedPicture(calibration, frames[0], size)), 3.0);
+  EXPECT_FALSE(pictures.offer(frames[1], t0 + 300'000, 8)) << "not published yet";
+  pictures.done();
+  EXPECT_TRUE(pictures.ready().empty());
+  EXPECT_FALSE(pictures.offer(frames[1], t0 + 200'000, 8)) << "within 1/hz of the last";
+  EXPECT_TRUE(pictures.offer(frames[1], t0 + 250'000, 9));
+  ASSERT_FALSE(waitReady().empty());
+  pictures.done();
+  EXPECT_TRUE(pictures.offer(frames[2], t0 - 1'000'000, 10)) << "the clock went back";
+  ASSERT_FALSE(waitReady().empty());
+  EXPECT_EQ(pictures.made(), 3);
+  EXPECT_EQ(pictures.failed(), 0);
+  EXPECT_FALSE(pictures.offer(cv::Mat(5, 5, CV_8UC1), t0 + 10'000'000, 11)) << "wrong size";
+}
+
+TEST(Daemon, PanoramaPicturesArePublishedWhenAskedAtTheirRate) {
+  Bus bus;
+  const auto frames = testing::renderFrames("yaw", 4);
+  const double hz = 30.0;
+  auto config = parseConfig("source: {type: file, path: /x}\ncalibration: " +
+                            (yawDataset() / "calibration.yaml").string() +
+                            "\nlcm: {panorama_channel: OMNI_PANORAMA, panorama_hz: 30, "
+                            "panorama_width: 256}\n");
+  testing::MemorySource::Script script;
+  script.total = 16;
+  script.period = 20ms;
+  Daemon d(config, stderr, std::make_unique<testing::MemorySource>(frames, script), bus.sink(),
+           lossless());
+  bus.run(d, 60s);
+  ASSERT_EQ(bus.poses.size(), 16u);
+  // 16 frames 20 ms apart at 30 per second at most: a picture every other frame at best; the
+  // last one taken may be unpublished when the source ends.
+  ASSERT_GE(bus.pictures.size(), 2u);
+  EXPECT_LE(bus.pictures.size(), 8u);
+  const Calibration calibration = Calibration::load(yawDataset() / "calibration.yaml");
+  const cv::Size size = daemon::PanoramaPictures::pictureSize(
+      calibration.panorama.size(), 256);
+  for (std::size_t i = 0; i < bus.pictures.size(); ++i) {
+    const panorama_image_t& m = bus.pictures[i];
+    const auto pose = std::find_if(bus.poses.begin(), bus.poses.end(),
+                                   [&](const pose_t& p) { return p.sequence == m.sequence; });
+    ASSERT_NE(pose, bus.poses.end()) << "picture of a frame without a pose";
+    EXPECT_EQ(m.utime, pose->utime);
+    if (i > 0) EXPECT_GE(m.utime - bus.pictures[i - 1].utime, std::llround(1e6 / hz));
+    // MemorySource's ping-pong order: 0 1 2 3 2 1 0 1 ...
+    const std::int64_t cycle = 2 * static_cast<std::int64_t>(frames.size()) - 2;
+    std::int64_t k = m.sequence % cycle;
+    if (k >= static_cast<std::int64_t>(frames.size())) k = cycle - k;
+    const cv::Mat& frame = frames[static_cast<std::size_t>(k)];
+    EXPECT_LT(pictureError(m.data, expectedPicture(calibration, frame, size)), 3.0)
+        << "picture " << i;
   }
 }
 

@@ -31,6 +31,7 @@
 #include "omnipose/fit_diagnostics_t.hpp"
 #include "omnipose/gyro.hpp"
 #include "omnipose/imu_t.hpp"
+#include "omnipose/panorama_image_t.hpp"
 #include "omnipose/frame_source.hpp"
 #include "omnipose/io/trajectory.hpp"
 #include "omnipose/pose_t.hpp"

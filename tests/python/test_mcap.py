@@ -143,6 +143,12 @@ def test_the_daemon_s_log_gives_the_same_poses(tmp_path, daemon_log, replay_tum)
         assert np.allclose(pose_matrix(msg)[:3, 3], pi, atol=1e-8)
     assert len(topics[ft.TOPIC_WINDOWS]) == 23
     assert topics[ft.TOPIC_STATUS][-1][2]["final"] is True
+    # lcm.panorama_hz 10: the daemon's pictures, passed through as they were published.
+    pictures = topics[ft.TOPIC_PANORAMA]
+    assert len(pictures) >= 1
+    for _, schema, msg in pictures:
+        assert schema == "foxglove.CompressedImage" and msg.format == "jpeg"
+        assert msg.data[:2] == b"\xff\xd8"
 
 
 def test_errors_name_the_file_and_leave_nothing(tmp_path, dataset_dir, capsys):

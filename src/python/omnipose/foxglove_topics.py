@@ -12,8 +12,9 @@ One frame's outcome, from the library (a FrameResult) or from the daemon's LCM m
 - ``/omnipose/windows``   JSON: each window's centre column, du, dv, confidence, validity and
   the fitted sinusoids at the same windows (model_du, model_dv), pixels
 - ``/omnipose/status``    JSON: the daemon's status_t fields, or a replay's counts
-- ``/omnipose/panorama``  foxglove.CompressedImage (JPEG): a small panorama with the windows'
-  measured shifts (dots) and the fitted sinusoid (line) drawn in a strip below it
+- ``/omnipose/panorama``  foxglove.CompressedImage (JPEG): a small panorama; from a dataset
+  with the windows' measured shifts (dots) and the fitted sinusoid (line) drawn in a strip
+  below it, from the daemon its panorama_image_t as published (lcm.panorama_channel)
 
 Positions are in scene distances (the translation is known up to scale); every segment starts
 again at the identity in ``omnipose_origin``. Camera frame: x forward, y left, z up.
@@ -22,6 +23,7 @@ again at the identity in ``omnipose_origin``. Camera frame: x forward, y left, z
 from __future__ import annotations
 
 import math
+import struct
 from dataclasses import dataclass
 from typing import Any, Dict, Mapping, Optional
 
@@ -191,6 +193,61 @@ def status_from_lcm(msg: Any) -> Dict[str, Any]:
             value = None  # JSON has no infinity
         out[name] = value
     return out
+
+
+class LcmDispatcher:
+    """Writes the daemon's LCM messages to a RunTopics: pose_t, fit_diagnostics_t, status_t and
+    panorama_image_t, recognised by their LCM fingerprint on whatever channel they come.
+    counts: messages of each kind written, "other" (another type, skipped) and "bad" (the
+    fingerprint of one of them but not decodable; last_error says why)."""
+
+    def __init__(self, topics: "RunTopics") -> None:
+        import omnipose
+
+        self.topics = topics
+        self.counts = {"pose": 0, "fit": 0, "status": 0, "panorama": 0, "other": 0, "bad": 0}
+        self.last_error = ""
+        self._kinds = {
+            omnipose.pose_t._get_packed_fingerprint(): ("pose", omnipose.pose_t, self._pose),
+            omnipose.fit_diagnostics_t._get_packed_fingerprint():
+                ("fit", omnipose.fit_diagnostics_t, self._fit),
+            omnipose.status_t._get_packed_fingerprint(): ("status", omnipose.status_t, self._status),
+            omnipose.panorama_image_t._get_packed_fingerprint():
+                ("panorama", omnipose.panorama_image_t, self._panorama),
+        }
+
+    def handle(self, channel: str, data: bytes) -> str:
+        """Writes one message; returns its kind ("pose", ..., "other" or "bad")."""
+        entry = self._kinds.get(bytes(data[:8]))
+        if entry is None:
+            self.counts["other"] += 1
+            return "other"
+        kind, message_type, write = entry
+        try:
+            msg = message_type.decode(data)
+        except (ValueError, IndexError, struct.error, UnicodeDecodeError) as e:
+            self.counts["bad"] += 1
+            self.last_error = f"a message on {channel} has {kind}'s fingerprint but does not " \
+                              f"decode: {e}"
+            return "bad"
+        write(msg)
+        self.counts[kind] += 1
+        return kind
+
+    def _pose(self, msg: Any) -> None:
+        self.topics.frame(record_from_lcm_pose(msg))
+
+    def _fit(self, msg: Any) -> None:
+        windows = windows_from_lcm(msg)
+        if windows is not None:
+            self.topics.windows(windows)
+
+    def _status(self, msg: Any) -> None:
+        self.topics.status(int(msg.utime) * 1000, status_from_lcm(msg))
+
+    def _panorama(self, msg: Any) -> None:
+        if msg.format == "jpeg":
+            self.topics.panorama(int(msg.utime) * 1000, bytes(msg.data))
 
 
 def _timestamp(time_ns: int) -> fm.Timestamp:

@@ -3,16 +3,16 @@ reader (the topics of omnipose.foxglove_topics).
 
 SOURCE is a dataset directory, replayed through the library as omnipose-replay replays it
 (same options, same poses), or an LCM log the daemon wrote (lcm-logger, or the daemon's own
-``lcm.url: file://...?mode=w``): its pose_t, fit_diagnostics_t and status_t messages, found
-by their type whatever the channel. A dataset's panorama pictures are rate limited
-(--panorama-hz); an LCM log has none (the daemon does not publish its panorama).
+``lcm.url: file://...?mode=w``): its pose_t, fit_diagnostics_t, status_t and
+panorama_image_t messages, found by their type whatever the channel. A dataset's panorama
+pictures are rate limited (--panorama-hz); a log has those the daemon published
+(lcm.panorama_channel).
 """
 
 from __future__ import annotations
 
 import argparse
 import os
-import struct
 import sys
 import time
 from typing import List, Optional
@@ -109,43 +109,24 @@ def _export_lcm_log(args: argparse.Namespace, topics) -> str:
     except ImportError:
         raise SystemExit("omnipose-mcap: reading an LCM log needs the lcm package "
                          "(pip install 'omnipose[foxglove]')")
-    import omnipose
-    from . import foxglove_topics as ft
+    from .foxglove_topics import LcmDispatcher
 
-    kinds = {omnipose.pose_t._get_packed_fingerprint(): "pose",
-             omnipose.fit_diagnostics_t._get_packed_fingerprint(): "fit",
-             omnipose.status_t._get_packed_fingerprint(): "status"}
-    counts = {"pose": 0, "fit": 0, "status": 0, "other": 0, "bad": 0}
+    dispatcher = LcmDispatcher(topics)
     try:
         log = lcm.EventLog(args.source, "r")
     except (IOError, OSError, ValueError) as e:
         raise SystemExit(f"omnipose-mcap: {args.source}: not an LCM log: {e}")
     for event in log:
-        kind = kinds.get(bytes(event.data[:8]))
-        if kind is None:
-            counts["other"] += 1
-            continue
-        try:
-            if kind == "pose":
-                topics.frame(ft.record_from_lcm_pose(omnipose.pose_t.decode(event.data)))
-            elif kind == "fit":
-                windows = ft.windows_from_lcm(omnipose.fit_diagnostics_t.decode(event.data))
-                if windows is not None:
-                    topics.windows(windows)
-            else:
-                msg = omnipose.status_t.decode(event.data)
-                topics.status(int(msg.utime) * 1000, ft.status_from_lcm(msg))
-        except (ValueError, IndexError, struct.error) as e:
-            counts["bad"] += 1
-            print(f"omnipose-mcap: {args.source}: event {event.eventnum} on {event.channel}: "
-                  f"cannot decode it as {kind}: {e}", file=sys.stderr)
-            continue
-        counts[kind] += 1
+        if dispatcher.handle(event.channel, event.data) == "bad":
+            print(f"omnipose-mcap: {args.source}: event {event.eventnum}: "
+                  f"{dispatcher.last_error}", file=sys.stderr)
     log.close()
-    if counts["pose"] == 0:
+    c = dispatcher.counts
+    if c["pose"] == 0:
         print(f"omnipose-mcap: {args.source}: no pose_t message in the log", file=sys.stderr)
-    return (f"{counts['pose']} poses, {counts['fit']} window sets, {counts['status']} statuses "
-            f"({counts['other']} other messages, {counts['bad']} undecodable)")
+    return (f"{c['pose']} poses, {c['fit']} window sets, {c['status']} statuses, "
+            f"{c['panorama']} panorama pictures ({c['other']} other messages, "
+            f"{c['bad']} undecodable)")
 
 
 def main(argv: Optional[List[str]] = None) -> int:
