@@ -33,13 +33,9 @@ lcm: {url: "file://$PWD/$data/daemon.lcm?mode=w", fit_channel: OMNI_FIT, status_
 YAML
 build/bin/omniposed --config "$data/daemon.yaml" >/dev/null 2>"$data/daemon.log"
 
-venv=build-python/venv
-if [ ! -x "$venv/bin/python" ]; then python3 -m venv "$venv"; fi
-"$venv/bin/python" -m pip install -q --upgrade pip
-# The build requirements in the venv and no build isolation: build-python/<wheel tag> is
-# reused, so a second run only rebuilds what changed.
-"$venv/bin/python" -m pip install -q "scikit-build-core>=0.10" "nanobind>=2.0" numpy pytest
-"$venv/bin/python" -m pip install -q --no-build-isolation ".[foxglove,test]"
+# shellcheck source=tools/common/python_venv.sh
+source tools/common/python_venv.sh
+python_venv foxglove,figure,test
 
 export OMNIPOSE_TEST_DATASET="$PWD/$data/mixed"
 export OMNIPOSE_TEST_REPLAY_TUM="$PWD/$data/mixed_replay.tum"
@@ -47,4 +43,4 @@ export OMNIPOSE_TEST_WISDOM="$PWD/$data/fftw_wisdom.txt"
 export OMNIPOSE_TEST_DAEMON_LOG="$PWD/$data/daemon.lcm"
 # From outside the source tree, so `import omnipose` is the installed package.
 cd build-python
-"$PWD/venv/bin/python" -m pytest -q -p no:cacheprovider ../tests/python "$@"
+"$VENV_PYTHON" -m pytest -q -p no:cacheprovider ../tests/python "$@"

@@ -10,33 +10,15 @@ import pytest
 
 import omnipose
 from omnipose import foxglove_topics as ft
-from omnipose.mcap_export import main
+from omnipose.mcap_export import main, read_run
 
-mcap_reader = pytest.importorskip("mcap.reader")
-mcap_protobuf = pytest.importorskip("mcap_protobuf.decoder")
-import json  # noqa: E402
+pytest.importorskip("mcap.reader")
+pytest.importorskip("mcap_protobuf.decoder")
 
 
 def read_tum(path):
     rows = np.loadtxt(path, comments="#")
     return rows[:, 0], rows[:, 1:4], rows[:, 4:8]  # t, position, quaternion x y z w
-
-
-def read_mcap(path):
-    """{topic: [(log_time_ns, schema name, decoded message)]}: protobuf messages decoded from
-    the file's own schemas, JSON ones as dicts."""
-    topics = {}
-    with open(path, "rb") as f:
-        reader = mcap_reader.make_reader(f, decoder_factories=[mcap_protobuf.DecoderFactory()])
-        for schema, channel, message in reader.iter_messages():
-            if channel.message_encoding == "json":
-                decoded = json.loads(message.data)
-            else:
-                decoded = mcap_protobuf.DecoderFactory().decoder_for(
-                    channel.message_encoding, schema)(message.data)
-            topics.setdefault(channel.topic, []).append(
-                (message.log_time, schema.name if schema else "", decoded))
-    return topics
 
 
 def pose_matrix(msg):
@@ -71,7 +53,7 @@ def dataset_mcap(tmp_path_factory, dataset_dir, wisdom):
     (out_dir / "replay.yaml").write_text("pipeline: {fftw_wisdom: wisdom.txt}\n")
     out = out_dir / "run.mcap"
     assert main([str(dataset_dir), str(out), "--config", str(out_dir / "replay.yaml")]) == 0
-    return read_mcap(out)
+    return read_run(out)
 
 
 def test_a_dataset_s_poses_are_omnipose_replay_s(dataset_mcap, replay_tum):
@@ -134,7 +116,7 @@ def daemon_log():
 def test_the_daemon_s_log_gives_the_same_poses(tmp_path, daemon_log, replay_tum):
     out = tmp_path / "daemon.mcap"
     assert main([str(daemon_log), str(out)]) == 0
-    topics = read_mcap(out)
+    topics = read_run(out)
     poses = topics[ft.TOPIC_POSE]
     # The daemon stamps its messages with the wall clock: compare the poses in order.
     t, position, quaternion = read_tum(replay_tum)

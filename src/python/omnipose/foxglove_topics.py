@@ -10,7 +10,8 @@ One frame's outcome, from the library (a FrameResult) or from the daemon's LCM m
 - ``/omnipose/motion``    JSON: state, status, roll/pitch/yaw of the pair and the chained
   heading (degrees), omega, tau, residual, windows used
 - ``/omnipose/windows``   JSON: each window's centre column, du, dv, confidence, validity and
-  the fitted sinusoids at the same windows (model_du, model_dv), pixels
+  the fitted sinusoids at the same windows (model_du, model_dv), pixels; gamma and
+  forward_column give each window's azimuth, gamma * (center_u - forward_column)
 - ``/omnipose/status``    JSON: the daemon's status_t fields, or a replay's counts
 - ``/omnipose/panorama``  foxglove.CompressedImage (JPEG): a small panorama; from a dataset
   with the windows' measured shifts (dots) and the fitted sinusoid (line) drawn in a strip
@@ -77,12 +78,15 @@ class FrameRecord:
 
 @dataclass
 class WindowRecord:
-    """The windows of the pass that made a frame's estimate (fit_diagnostics_t's arrays)."""
+    """The windows of the pass that made a frame's estimate (fit_diagnostics_t's arrays); a
+    window's azimuth is gamma * (center_u - forward_column), radians."""
 
     time_ns: int
     sequence: int
     refined: bool
     arrays: Dict[str, np.ndarray]
+    gamma: float
+    forward_column: float
 
 
 def record_from_result(result: Any, sequence: int) -> FrameRecord:
@@ -104,7 +108,8 @@ def windows_from_result(result: Any, sequence: int) -> Optional[WindowRecord]:
         return None
     arrays = {name: np.array(getattr(w, name), dtype=float) for name in WINDOW_FIELDS}
     arrays.update({name: np.array(getattr(w, name), dtype=bool) for name in WINDOW_FLAGS})
-    return WindowRecord(int(round(result.time_s * 1e9)), int(sequence), bool(w.refined), arrays)
+    return WindowRecord(int(round(result.time_s * 1e9)), int(sequence), bool(w.refined), arrays,
+                        float(w.gamma), float(w.forward_column))
 
 
 def quaternion_matrix(w: float, x: float, y: float, z: float) -> np.ndarray:
@@ -179,7 +184,8 @@ def windows_from_lcm(msg: Any) -> Optional[WindowRecord]:
         return None
     arrays = {name: np.array(getattr(msg, name), dtype=float) for name in WINDOW_FIELDS}
     arrays.update({name: np.array(getattr(msg, name), dtype=bool) for name in WINDOW_FLAGS})
-    return WindowRecord(int(msg.utime) * 1000, int(msg.sequence), bool(msg.refined), arrays)
+    return WindowRecord(int(msg.utime) * 1000, int(msg.sequence), bool(msg.refined), arrays,
+                        float(msg.gamma), float(msg.forward_column))
 
 
 def status_from_lcm(msg: Any) -> Dict[str, Any]:
@@ -284,7 +290,8 @@ _WINDOWS_SCHEMA = {
     "type": "object",
     "title": "omnipose.Windows",
     "properties": dict(
-        {"sequence": {"type": "integer"}, "refined": {"type": "boolean"}},
+        {"sequence": {"type": "integer"}, "refined": {"type": "boolean"},
+         "gamma": {"type": "number"}, "forward_column": {"type": "number"}},
         **{name: _array_schema("number") for name in WINDOW_FIELDS},
         **{name: _array_schema("boolean") for name in WINDOW_FLAGS}),
 }
@@ -333,7 +340,8 @@ class RunTopics:
             "processing_ms": rec.seconds * 1e3}, log_time=t)
 
     def windows(self, rec: WindowRecord) -> None:
-        out: Dict[str, Any] = {"sequence": rec.sequence, "refined": rec.refined}
+        out: Dict[str, Any] = {"sequence": rec.sequence, "refined": rec.refined,
+                               "gamma": rec.gamma, "forward_column": rec.forward_column}
         for name, values in rec.arrays.items():
             out[name] = [bool(v) for v in values] if values.dtype == bool else \
                 [float(v) for v in values]

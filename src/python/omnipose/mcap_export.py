@@ -12,10 +12,11 @@ pictures are rate limited (--panorama-hz); a log has those the daemon published
 from __future__ import annotations
 
 import argparse
+import json
 import os
 import sys
 import time
-from typing import List, Optional
+from typing import Any, Dict, List, Optional, Tuple
 
 EXIT_OK, EXIT_USAGE, EXIT_FAILED = 0, 2, 1
 
@@ -37,6 +38,29 @@ def _parser() -> argparse.ArgumentParser:
                    help="dataset: the pictures' width at most, pixels (default 640)")
     p.add_argument("--overwrite", action="store_true", help="replace OUT if it exists")
     return p
+
+
+def read_run(path: str) -> Dict[str, List[Tuple[int, str, Any]]]:
+    """{topic: [(log_time_ns, schema name, message)]} of an MCAP file omnipose-mcap wrote,
+    read with the mcap library: Foxglove's protobuf messages decoded with the schemas in the
+    file, JSON ones as dicts. Needs mcap and mcap-protobuf-support."""
+    from mcap.reader import make_reader
+    from mcap_protobuf.decoder import DecoderFactory
+
+    factory = DecoderFactory()
+    decoders: Dict[int, Any] = {}
+    topics: Dict[str, List[Tuple[int, str, Any]]] = {}
+    with open(path, "rb") as f:
+        for schema, channel, message in make_reader(f).iter_messages():
+            if channel.message_encoding == "json":
+                decoded = json.loads(message.data)
+            else:
+                if channel.id not in decoders:
+                    decoders[channel.id] = factory.decoder_for(channel.message_encoding, schema)
+                decoded = decoders[channel.id](message.data)
+            topics.setdefault(channel.topic, []).append(
+                (message.log_time, schema.name if schema else "", decoded))
+    return topics
 
 
 class _Limiter:

@@ -24,6 +24,8 @@ WindowArrays windowArrays(const OdometryResult& r, const WindowGeometry& g) {
   a.valid.resize(n);
   a.masked.resize(n);
   a.refined = r.windows_refined;
+  a.gamma = g.gamma;
+  a.forward_column = g.forward_column;
   for (Eigen::Index k = 0; k < n; ++k) {
     const WindowMotion& w = r.windows[static_cast<std::size_t>(k)];
     a.center_u[k] = w.center_u;
@@ -124,6 +126,9 @@ void bindResult(nb::module_& m) {
       .def_ro("refined", &W::refined,
               "The refinement pass's windows (the current panorama de-rotated by the estimate "
               "before it), else the first pass's.")
+      .def_ro("gamma", &W::gamma, "Radians per panorama column.")
+      .def_ro("forward_column", &W::forward_column,
+              "The column of +x: a window's azimuth is gamma * (center_u - forward_column).")
       .def("__len__", [](const W& w) { return w.du.size(); });
   using R = FrameResult;
   nb::class_<R>(m, "FrameResult",

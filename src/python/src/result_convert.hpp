@@ -20,6 +20,8 @@ struct WindowArrays {
   Eigen::VectorXd center_u, du, dv, rotation, scale, confidence, model_du, model_dv;
   Eigen::Matrix<bool, Eigen::Dynamic, 1> valid, masked;
   bool refined = false;
+  double gamma = 0.0;           ///< radians per panorama column
+  double forward_column = 0.0;  ///< column of +x: a window's azimuth is gamma (u - this)
 };
 
 /// How a panorama's columns map to azimuth and the fit's window attenuation: what turns a
