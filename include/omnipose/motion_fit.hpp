@@ -170,6 +170,12 @@ class MotionFit {
   /// depths were not fitted (per_window_depth off, or a fit that stopped before its depth
   /// step) and before any fit. Requires 0 <= k < maxWindows().
   double inverseDepth(int k) const;
+  /// How much window k weighed in the last fit()'s final pass: its du and dv rows' weights
+  /// (confidence, noise) summed, over the heaviest window's, in [0, 1]; 0 for a window the
+  /// final pass left out (beyond the inlier threshold, invalid, masked), for every window when
+  /// the fit stopped before its final pass, and before any fit. Requires
+  /// 0 <= k < maxWindows().
+  double finalWeight(int k) const;
   /// Most windows one fit() accepts.
   int maxWindows() const;
 

@@ -156,6 +156,10 @@ struct OdometryResult {
   /// the motion that pass fitted to them (relative to the panorama it registered, which is
   /// de-rotated after a refinement: Eq. 3's model gives each window's fitted du/dv).
   std::span<const WindowMotion> windows;
+  /// How much each of `windows` weighed in that pass's fit, relative to the heaviest (1);
+  /// 0 for a window left out (beyond the inlier threshold, invalid, masked). Valid until the
+  /// next process(); empty when `windows` is.
+  std::span<const double> window_weights;
   bool windows_refined = false;  ///< the windows are the refinement pass's (de-rotated)
   Eigen::Matrix<double, 6, 1> window_model = Eigen::Matrix<double, 6, 1>::Zero();
 

@@ -77,7 +77,7 @@ Processor::Processor(const Calibration& calibration, const OdometryOptions& odom
   const int windows = odometry_.windowCount();
   d.num_windows = static_cast<std::int16_t>(windows);
   for (auto* v : {&d.center_u, &d.du, &d.dv, &d.rotation, &d.scale, &d.confidence,
-                  &d.model_du, &d.model_dv}) {
+                  &d.model_du, &d.model_dv, &d.weight, &d.moving_fraction}) {
     v->assign(static_cast<std::size_t>(windows), 0.0f);
   }
   d.valid.assign(static_cast<std::size_t>(windows), 0);
@@ -266,6 +266,8 @@ void Processor::fillDiagnostics(const FrameInfo& info, const OdometryResult& r,
     d.confidence[k] = static_cast<float>(w.confidence);
     d.valid[k] = w.valid ? 1 : 0;
     d.masked[k] = w.masked ? 1 : 0;
+    d.weight[k] = k < r.window_weights.size() ? static_cast<float>(r.window_weights[k]) : 0.0f;
+    d.moving_fraction[k] = static_cast<float>(w.moving_fraction);
     const Eigen::Vector2d model = predictWindowShiftPx(
         r.window_model, w.center_u, d.forward_column, d.gamma, odometry_.windowAttenuation());
     d.model_du[k] = static_cast<float>(model.x());

@@ -84,6 +84,20 @@ struct MotionFit::Impl {
     double sd = 1.0;  ///< relative standard deviation (Options::window_covariance)
   };
 
+  /// final_weight from the final pass's du and dv rows: each window's sum, over the largest.
+  void keepFinalWeights(int n_rows) {
+    double largest = 0.0;
+    for (int i = 0; i < n_rows; ++i) {
+      const Row& row = rows[i];
+      if (row.kind != kDu && row.kind != kDv) continue;
+      double& w = final_weight[static_cast<std::size_t>(row.window)];
+      w += row.weight;
+      largest = std::max(largest, w);
+    }
+    if (largest > 0)
+      for (double& w : final_weight) w /= largest;
+  }
+
   /// Allocates the workspace for `max_windows` windows (arguments already validated).
   Impl(const Options& o, double gamma_per_column, double attenuation, int max_windows);
 
@@ -162,6 +176,7 @@ struct MotionFit::Impl {
   std::vector<double> scratch;
   std::vector<unsigned char> keep;
   std::vector<double> depth;  ///< relative inverse depth per window (mean 1)
+  std::vector<double> final_weight;  ///< per window, MotionFit::finalWeight()
   std::vector<Eigen::Matrix<double, 6, 1>> depth_xl;  ///< N_x,lambda_k columns (covariance)
   double depth_prior_weight = 0.0;  ///< weight of the lambda_k = 1 prior (0: depth not fitted)
   double depth_plane_weight = 0.0;  ///< weight of the neighbours' plane prior (0: off)
@@ -197,6 +212,7 @@ MotionFit::Impl::Impl(const Options& o, double gamma_per_column, double attenuat
       scratch(rows.size()),
       keep(static_cast<std::size_t>(max_windows)),
       depth(static_cast<std::size_t>(max_windows), 1.0),
+      final_weight(static_cast<std::size_t>(max_windows), 0.0),
       depth_xl(static_cast<std::size_t>(max_windows)) {}
 
 MotionFit::MotionFit(const Options& options, double gamma, int window_px, int max_windows) {
@@ -242,6 +258,8 @@ double MotionFit::gamma() const { return impl_->gamma; }
 double MotionFit::kappa() const { return impl_->kappa; }
 
 double MotionFit::inverseDepth(int k) const { return impl_->depth[k]; }
+
+double MotionFit::finalWeight(int k) const { return impl_->final_weight[k]; }
 
 int MotionFit::maxWindows() const { return static_cast<int>(impl_->keep.size()); }
 
@@ -739,6 +757,7 @@ MotionEstimate MotionFit::Impl::fit(std::span<const WindowMotion> windows,
   depth_prior_weight = 0.0;
   depth_plane_weight = 0.0;
   std::fill(depth.begin(), depth.end(), 1.0);  // inverseDepth() when depth is not fitted
+  std::fill(final_weight.begin(), final_weight.end(), 0.0);  // until the final pass
   int n_rows = buildTranslationRows(windows, forward_column, row_scale);
   if (n_rows < 2 * kMinWindows) return est;  // du and dv rows of too few windows: nothing to fit
 
@@ -778,6 +797,7 @@ MotionEstimate MotionFit::Impl::fit(std::span<const WindowMotion> windows,
   const Eigen::LDLT<Mat6> ldlt(N);
   x = ldlt.solve(g);
   if (!x.allFinite()) return est;
+  keepFinalWeights(n_rows);
 
   // Residual statistics and covariance sigma^2 N^-1 (model units).
   double wrr = 0.0, shift_rr = 0.0;

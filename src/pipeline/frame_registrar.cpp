@@ -108,6 +108,8 @@ FrameRegistrar::FrameRegistrar(const Calibration& c, const PipelineOptions& o, i
   const auto windows = static_cast<std::size_t>(registration_.windowCount());
   windows_.resize(windows);
   refine_windows_.resize(windows);
+  weights_.resize(windows);
+  refine_weights_.resize(windows);
   shifts_only_.resize(windows);  // rs_confidence 0: no rotation/scale
   expected_dv_.resize(windows);
   moving_fraction_.resize(windows);
@@ -204,6 +206,7 @@ std::optional<MotionEstimate> FrameRegistrar::firstPass(double* fit_seconds) {
     return std::nullopt;
   const auto t_fit = std::chrono::steady_clock::now();
   MotionEstimate estimate = fitPass(windows_, Eigen::Vector3d::Zero(), previous_rows_);
+  keepWeights(weights_);
   start_gyro_ = last_pass_gyro_;
   if (fit_seconds != nullptr)
     *fit_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t_fit).count();
@@ -219,8 +222,13 @@ std::optional<MotionEstimate> FrameRegistrar::alignedPass(const Eigen::Matrix3d&
                              {}, slot))
     return std::nullopt;
   MotionEstimate estimate = fitPass(windows_, rotationVector(R), rowsOf(slot));
+  keepWeights(weights_);
   start_gyro_ = last_pass_gyro_;
   return estimate;
+}
+
+void FrameRegistrar::keepWeights(std::vector<double>& weights) const {
+  for (std::size_t k = 0; k < weights.size(); ++k) weights[k] = fit_.finalWeight(static_cast<int>(k));
 }
 
 MotionEstimate FrameRegistrar::fitWindows(std::span<const WindowMotion> windows) {
@@ -443,6 +451,7 @@ PassResult FrameRegistrar::refine(const MotionEstimate& start, const Eigen::Matr
   Eigen::Vector3d tau = tau0;
   FitStatus last_fit = est.status;
   out.windows = windows_;
+  out.window_weights = weights_;
   out.window_model = start.vector();
   out.gyro_rows = start_gyro_;
   for (int pass = 0; pass < options_.refine_iterations && est.status != FitStatus::kLost; ++pass) {
@@ -468,7 +477,9 @@ PassResult FrameRegistrar::refine(const MotionEstimate& start, const Eigen::Matr
     est.iterations += residual.iterations;
     if (residual.status == FitStatus::kDegraded) est.status = FitStatus::kDegraded;
     out.refined = true;
+    keepWeights(refine_weights_);
     out.windows = refine_windows_;
+    out.window_weights = refine_weights_;
     out.window_model = residual.vector();
     out.gyro_rows = last_pass_gyro_;
   }

@@ -40,6 +40,8 @@ struct PassResult {
   /// The windows of the pass that made the estimate and the motion that pass fitted to
   /// them (relative to the panorama it registered: a residual after a de-rotation).
   std::span<const WindowMotion> windows;
+  /// How much each of `windows` weighed in that pass's fit (MotionFit::finalWeight()).
+  std::span<const double> window_weights;
   Eigen::Matrix<double, 6, 1> window_model = Eigen::Matrix<double, 6, 1>::Zero();
   /// The windows' rows were moved to the frames' timestamps with the gyro (the rotation of
   /// every row within its frame known): the motion is between the timestamps, yaw included.
@@ -191,6 +193,8 @@ class FrameRegistrar {
                              const Eigen::Matrix3d& R_residual, const Eigen::Vector3d& tau);
   /// The motion fit of `windows`, its covariance multiplied by window_overlap_.
   MotionEstimate fitWindows(std::span<const WindowMotion> windows);
+  /// The last fit's MotionFit::finalWeight() of every window into `weights`.
+  void keepWeights(std::vector<double>& weights) const;
   /// The same with each window's rows scaled by row_scale_ (fitPass()).
   MotionEstimate fitScaled(std::span<const WindowMotion> windows);
   /// fitWindows() of the windows of a pass over the current panorama de-rotated by
@@ -238,6 +242,9 @@ class FrameRegistrar {
   std::vector<Eigen::Vector2d> expected_motion_;  ///< per window, discountMovingContent()
   std::vector<cv::Mat> keyframe_panoramas_;  ///< per keyframe slot
   std::vector<WindowMotion> windows_, refine_windows_;
+  /// How much each window of windows_ / refine_windows_ weighed in the fit of its pass
+  /// (MotionFit::finalWeight()), kept after that pass's fit.
+  std::vector<double> weights_, refine_weights_;
   std::vector<WindowMotion> shifts_only_;  ///< "known" rotation/scale for a shift-only pass
   std::vector<double> expected_dv_;        ///< refinement pass: dv per window, or NaN
   std::vector<double> window_azimuth_;     ///< per window: azimuth of its centre, radians

@@ -355,6 +355,7 @@ void Odometry::Impl::finish(OdometryResult& out, const Eigen::Isometry3d& T_esti
   out.relative.timing = keep_timing.timing;
   out.reference_sequence = last_sequence;
   out.windows = pass.windows;
+  out.window_weights = pass.window_weights;
   out.windows_refined = pass.refined;
   out.window_model = pass.window_model;
   pose = T;

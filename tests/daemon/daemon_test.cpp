@@ -1055,14 +1055,28 @@ TEST(Daemon, FitDiagnosticsArePublishedWhenEnabledAndMatchTheModel) {
     ASSERT_EQ(diag.num_windows, 55);
     ASSERT_EQ(diag.du.size(), 55u);
     int valid = 0;
+    ASSERT_EQ(diag.weight.size(), 55u);
+    ASSERT_EQ(diag.moving_fraction.size(), 55u);
+    float heaviest = 0.0f;
     for (int k = 0; k < diag.num_windows; ++k) {
-      if (!diag.valid[k]) continue;
+      // How much each window weighed (1 = the heaviest, 0 = left out), and what the
+      // moving-content check judged of it (nothing moves in this scene).
+      EXPECT_GE(diag.weight[k], 0.0f);
+      EXPECT_LE(diag.weight[k], 1.0f);
+      heaviest = std::max(heaviest, diag.weight[k]);
+      EXPECT_GE(diag.moving_fraction[k], 0.0f);
+      EXPECT_LT(diag.moving_fraction[k], 0.06f) << "window " << k;
+      if (!diag.valid[k]) {
+        EXPECT_EQ(diag.weight[k], 0.0f) << "an invalid window weighs nothing";
+        continue;
+      }
       ++valid;
       EXPECT_LT(std::abs(diag.du[k]), 1.0) << "window " << k << ": not the refinement pass";
       EXPECT_NEAR(diag.du[k], diag.model_du[k], 0.3) << "window " << k;
       EXPECT_NEAR(diag.dv[k], diag.model_dv[k], 0.3) << "window " << k;
     }
     EXPECT_GT(valid, 40);
+    EXPECT_EQ(heaviest, 1.0f);
   }
 }
 

@@ -137,6 +137,44 @@ TEST_P(MotionFitModes, RobustToNoiseAndTwentyPercentGrossOutliers) {
   EXPECT_LT(worst, GetParam() ? 1.8e-3 : 6e-4) << "worst parameter error " << worst;
 }
 
+TEST_P(MotionFitModes, FinalWeightsLeaveTheGrossOutliersOutAndWeighTheRest) {
+  std::mt19937 rng(7);
+  MotionFit fit = makeFit(true, GetParam());
+  for (int k = 0; k < kWindows; ++k) EXPECT_EQ(fit.finalWeight(k), 0.0) << "before any fit";
+  Vec6 x;
+  x << 0.02, -0.01, 0.05, 0.03, -0.02, 0.0;
+  auto windows = synthesize(x, 0.05, 0.0, rng);
+  // Five windows 20 pixels off, one invalid, one with half the confidence of the others.
+  for (int k : {3, 11, 19, 30, 44}) windows[static_cast<std::size_t>(k)].du += 20.0;
+  windows[25].valid = false;
+  windows[25].confidence = 0.0;
+  windows[40].confidence = 0.25;
+  const MotionEstimate e = fit.fit(windows, 0.0);
+  ASSERT_NE(e.status, FitStatus::kLost);
+  double largest = 0.0;
+  int used = 0;
+  for (int k = 0; k < kWindows; ++k) {
+    const double w = fit.finalWeight(k);
+    EXPECT_GE(w, 0.0);
+    EXPECT_LE(w, 1.0);
+    largest = std::max(largest, w);
+    if (w > 0) ++used;
+  }
+  EXPECT_DOUBLE_EQ(largest, 1.0);
+  for (int k : {3, 11, 19, 30, 44, 25}) EXPECT_EQ(fit.finalWeight(k), 0.0) << "window " << k;
+  // A window counts in windows_used from one of its two rows kept; its weight is then half.
+  EXPECT_GE(used, e.windows_used);
+  EXPECT_LE(used, kWindows - 6);
+  int full = 0;
+  for (int k = 0; k < kWindows; ++k) full += fit.finalWeight(k) == 1.0 ? 1 : 0;
+  EXPECT_GT(full, 35) << "most windows: both rows kept at the common confidence";
+  EXPECT_DOUBLE_EQ(fit.finalWeight(40), 0.5) << "half the confidence, both rows kept";
+  // A fit that is lost leaves no weight behind.
+  const std::vector<WindowMotion> too_few(windows.begin(), windows.begin() + 3);
+  ASSERT_EQ(fit.fit(too_few, 0.0).status, FitStatus::kLost);
+  for (int k = 0; k < kWindows; ++k) EXPECT_EQ(fit.finalWeight(k), 0.0);
+}
+
 TEST_P(MotionFitModes, CovarianceMatchesTheActualScatter) {
   std::mt19937 rng(7);
   MotionFit fit = makeFit(false, GetParam());

@@ -7,6 +7,7 @@
 #include <cmath>
 #include <numbers>
 
+#include "omnipose/odometry.hpp"
 #include "omnipose/pipeline.hpp"
 #include "omnipose/so3.hpp"
 #include "omnipose/synth/synth.hpp"
@@ -49,6 +50,70 @@ double rmsError(const synth::Renderer& renderer, bool moving_content) {
     return frame;
   };
   return testing::rmsRotationError(pipeline, kFrames, frame, attitude);
+}
+
+/// Frame k of `renderer` along the slow turn, with sensor noise.
+cv::Mat noisyFrame(const synth::Renderer& renderer, int k, cv::RNG& rng) {
+  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+  T.linear() = rotationFromVector(Eigen::Vector3d(0.0, 0.0, yaw(k)));
+  cv::Mat image = renderer.render(T, k * kFrameInterval);
+  cv::Mat noise(image.size(), CV_32FC1);
+  rng.fill(noise, cv::RNG::NORMAL, 0.0, 3.0);
+  cv::Mat frame;
+  cv::Mat(image + noise).convertTo(frame, CV_8U);
+  return frame;
+}
+
+/// Over frames 1..3 of the turn: the mean fit weight (OdometryResult::window_weights) of the
+/// windows judged moving (moving_fraction from 0.06 on, MovingContentCheck::kDropFraction:
+/// left out of the fit), of those judged still (below 0.01, kKeepFraction: whole
+/// confidence), and how many were judged moving.
+struct MovingWeights {
+  double moving = 0.0, still = 0.0;
+  int moving_windows = 0;
+};
+MovingWeights movingWeights(const synth::Renderer& renderer) {
+  Odometry odometry(Calibration{}, OdometryOptions{});
+  cv::RNG rng(23);
+  MovingWeights m;
+  int still_windows = 0;
+  for (int k = 0; k < 4; ++k) {
+    const auto r = odometry.process(noisyFrame(renderer, k, rng), {k * kFrameInterval, k, false});
+    EXPECT_TRUE(r.has_value());
+    if (!r || k == 0) continue;
+    EXPECT_EQ(r->window_weights.size(), r->windows.size());
+    for (std::size_t i = 0; i < r->windows.size() && i < r->window_weights.size(); ++i) {
+      const double f = r->windows[i].moving_fraction, w = r->window_weights[i];
+      EXPECT_GE(w, 0.0);
+      EXPECT_LE(w, 1.0);
+      if (f >= 0.06) {
+        m.moving += w;
+        ++m.moving_windows;
+      } else if (f < 0.01) {
+        m.still += w;
+        ++still_windows;
+      }
+    }
+  }
+  if (m.moving_windows > 0) m.moving /= m.moving_windows;
+  if (still_windows > 0) m.still /= still_windows;
+  return m;
+}
+
+TEST(Walkers, TheWindowsJudgedMovingWeighLessAndTheResultSaysWhich) {
+  if (!std::filesystem::exists(testing::indoorPhoto())) GTEST_SKIP() << "missing photo";
+  synth::Scene scene = synth::Scene::load(testing::indoorPhoto(), synth::SceneKind::kSphere);
+  const MovingWeights twin = movingWeights(synth::Renderer(scene, Calibration{}));
+  scene.walkers = synth::parseWalkers("3,0.5,1.8,1.2");
+  scene.walkers.min_distance_m = 1.2;
+  scene.walkers.max_distance_m = 1.6;
+  scene.walkers.seed = 5;
+  const MovingWeights people = movingWeights(synth::Renderer(scene, Calibration{}));
+  // Three people of 18 to 24 deg each cover some of the 55 windows of every frame.
+  EXPECT_GE(people.moving_windows, 6);
+  EXPECT_EQ(people.moving, 0.0) << "a window judged moving is left out of the fit";
+  EXPECT_GT(people.still, 0.5);
+  EXPECT_LE(twin.moving_windows, 1) << "nothing moves in the twin";
 }
 
 TEST(Walkers, PeopleWalkingAroundTheCameraDoNotMoveTheEstimate) {

@@ -285,6 +285,10 @@ def test_the_windows_and_their_fitted_shifts_are_in_the_result(calibration, fram
     assert len(w) == r.windows_total == odometry.window_count
     assert w.valid.dtype == bool and w.du.shape == (len(w),)
     assert int(np.count_nonzero(w.valid)) >= r.windows_used
+    # How much each window weighed: the heaviest 1, a window left out 0.
+    assert w.weight.max() == 1.0 and np.all(w.weight[~w.valid] == 0)
+    assert int(np.count_nonzero(w.weight)) >= r.windows_used
+    assert np.all((w.moving_fraction >= 0) & (w.moving_fraction <= 1))
     # The fitted motion's shift at each window is the measured one up to the residual.
     residual = (w.du - w.model_du)[w.valid]
     assert np.sqrt(np.mean(residual ** 2)) < 3 * max(r.residual_rms_px, 0.05)

@@ -9,8 +9,9 @@ One frame's outcome, from the library (a FrameResult) or from the daemon's LCM m
   ``omnipose_reference`` (the frame it was registered against): rotation R, position tau = t/rho
 - ``/omnipose/motion``    JSON: state, status, roll/pitch/yaw of the pair and the chained
   heading (degrees), omega, tau, residual, windows used
-- ``/omnipose/windows``   JSON: each window's centre column, du, dv, confidence, validity and
-  the fitted sinusoids at the same windows (model_du, model_dv), pixels; gamma and
+- ``/omnipose/windows``   JSON: each window's centre column, du, dv, confidence, validity, its
+  weight in the fit and the share of it judged moving on its own (a person), and the fitted
+  sinusoids at the same windows (model_du, model_dv), pixels; gamma and
   forward_column give each window's azimuth, gamma * (center_u - forward_column)
 - ``/omnipose/status``    JSON: the daemon's status_t fields, or a replay's counts
 - ``/omnipose/panorama``  foxglove.CompressedImage (JPEG): a small panorama; from a dataset
@@ -46,7 +47,7 @@ TOPIC_STATUS = "/omnipose/status"
 TOPIC_PANORAMA = "/omnipose/panorama"
 
 WINDOW_FIELDS = ("center_u", "du", "dv", "rotation", "scale", "confidence", "model_du",
-                 "model_dv")
+                 "model_dv", "weight", "moving_fraction")
 WINDOW_FLAGS = ("valid", "masked")
 
 _STATUS_NAMES = {0: "ok", 1: "degraded", 2: "lost"}
@@ -359,7 +360,8 @@ def panorama_picture(panorama: np.ndarray, windows: Optional[WindowRecord],
                      width: int = 640, strip: int = 64) -> np.ndarray:
     """A BGR uint8 picture of a panorama (float grey levels, (H, W)), shrunk to at most `width`
     columns, with a strip of `strip` rows below it: each window's measured du (a dot at its
-    column: green valid, red not, grey masked) and the fitted sinusoid model_du (a white line)
+    column, BGR: green used by the fit, orange judged moving on its own (a person), red left out
+    otherwise, grey masked) and the fitted sinusoid model_du (a white line)
     on one scale (the sinusoid's amplitude or the 90th percentile of the valid shifts, whichever
     is larger), zero in the middle row."""
     h, w = panorama.shape
@@ -391,8 +393,11 @@ def panorama_picture(panorama: np.ndarray, windows: Optional[WindowRecord],
         for s in np.linspace(0.0, 1.0, n + 1):
             out[int(round(model_rows[i] + s * (model_rows[j] - model_rows[i]))),
                 int(round(x[i] + s * (x[j] - x[i])))] = (255, 255, 255)
+    used = a["weight"] > 0
+    moving = a["moving_fraction"] >= 0.06  # MovingContentCheck::kDropFraction: left out
     colours = np.where(a["masked"][:, None], (128, 128, 128),
-                       np.where(a["valid"][:, None], (0, 200, 0), (0, 0, 230)))
+                       np.where(moving[:, None], (0, 140, 255),
+                                np.where(used[:, None], (0, 200, 0), (0, 0, 230))))
     for k, (c, r) in enumerate(zip(x, row(a["du"]))):
         out[max(r - 1, rows):r + 2, max(c - 1, 0):c + 2] = colours[k]
         out[0:4, c] = colours[k]  # the window's centre, marked on the panorama's top edge

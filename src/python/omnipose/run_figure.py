@@ -2,7 +2,8 @@
 
 Three panels: a panorama picture of the run (/omnipose/panorama) at a frame; that frame's
 windows, the shifts each measured (du and dv, pixels, dots; invalid windows hollow) against
-their azimuth with the sinusoids the fit found (model_du, model_dv, lines); and the chained
+their azimuth with the sinusoids the fit found (model_du, model_dv, lines; hollow dots: windows
+the fit left out); and the chained
 heading over the run (/omnipose/motion), with the ground truth's when --groundtruth gives a
 TUM file. The frame is --sequence, or by default the pictured frame whose fitted du varies
 most around the ring (the clearest sinusoid). Needs matplotlib and mcap
@@ -81,7 +82,7 @@ def make_figure(run: Dict[str, List[Any]], sequence: Optional[int] = None,
                           fontsize=9)
     if shown is not None:
         u = np.array(shown["center_u"])
-        valid = np.array(shown["valid"], dtype=bool)
+        valid = np.array(shown["weight"]) > 0  # the windows the fit used
         azimuth = np.degrees(shown["gamma"] * (u - shown["forward_column"])) % 360.0
         order = np.argsort(azimuth)
         for name, colour in (("du", "tab:blue"), ("dv", "tab:orange")):

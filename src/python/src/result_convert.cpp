@@ -19,7 +19,7 @@ WindowArrays windowArrays(const OdometryResult& r, const WindowGeometry& g) {
   const auto n = static_cast<Eigen::Index>(r.windows.size());
   WindowArrays a;
   for (Eigen::VectorXd* v : {&a.center_u, &a.du, &a.dv, &a.rotation, &a.scale, &a.confidence,
-                             &a.model_du, &a.model_dv})
+                             &a.model_du, &a.model_dv, &a.weight, &a.moving_fraction})
     v->resize(n);
   a.valid.resize(n);
   a.masked.resize(n);
@@ -36,6 +36,10 @@ WindowArrays windowArrays(const OdometryResult& r, const WindowGeometry& g) {
     a.confidence[k] = w.confidence;
     a.valid[k] = w.valid;
     a.masked[k] = w.masked;
+    a.weight[k] = static_cast<std::size_t>(k) < r.window_weights.size()
+                      ? r.window_weights[static_cast<std::size_t>(k)]
+                      : 0.0;
+    a.moving_fraction[k] = w.moving_fraction;
     const Eigen::Vector2d model =
         predictWindowShiftPx(r.window_model, w.center_u, g.forward_column, g.gamma, g.kappa);
     a.model_du[k] = model.x();
@@ -123,6 +127,12 @@ void bindResult(nb::module_& m) {
       .def_ro("masked", &W::masked, "Mostly covered by the lens mask, not measured, bool (n,).")
       .def_ro("model_du", &W::model_du, "Fitted motion's du at the window, pixels, (n,).")
       .def_ro("model_dv", &W::model_dv, "Fitted motion's dv at the window, pixels, (n,).")
+      .def_ro("weight", &W::weight,
+              "How much the window weighed in the fit, relative to the heaviest (1); 0 = left "
+              "out (beyond the inlier threshold, invalid, masked), (n,).")
+      .def_ro("moving_fraction", &W::moving_fraction,
+              "Share of the window's pixels its own motion does not explain (a person walking "
+              "by), 0..1; refinement pass only (moving_content), else 0, (n,).")
       .def_ro("refined", &W::refined,
               "The refinement pass's windows (the current panorama de-rotated by the estimate "
               "before it), else the first pass's.")

@@ -17,7 +17,8 @@ namespace omnipose::python {
 /// per window, and the shift that pass's fitted motion predicts at each
 /// (predictWindowShiftPx): what fit_diagnostics_t carries. Empty for a frame without one.
 struct WindowArrays {
-  Eigen::VectorXd center_u, du, dv, rotation, scale, confidence, model_du, model_dv;
+  Eigen::VectorXd center_u, du, dv, rotation, scale, confidence, model_du, model_dv, weight,
+      moving_fraction;
   Eigen::Matrix<bool, Eigen::Dynamic, 1> valid, masked;
   bool refined = false;
   double gamma = 0.0;           ///< radians per panorama column
