@@ -2,14 +2,19 @@
 
 The C++ library (iFMI registration of a cylindrical panorama's windows and a robust fit of
 two sinusoids, Kuang et al., IROS 2019) for Python, and the daemon's LCM messages
-(``omnipose.pose_t``, ``status_t``, ``fit_diagnostics_t``, ``imu_t``: ``decode(bytes)``,
-``encode()``)::
+(``omnipose.pose_t``, ``status_t``, ``fit_diagnostics_t``, ``imu_t``, ``panorama_image_t``:
+``decode(bytes)``, ``encode()``)::
 
     import numpy as np, omnipose
     cal = omnipose.Calibration.load("run/calibration.yaml")
     odo = omnipose.Odometry(cal, window=110, keyframes={"slots": 4})
     r = odo.process(frame, t)          # frame: uint8 (H, W) grey, (H, W, 3) BGR; t: seconds
     r.rotation, r.translation_direction, r.covariance, r.pose, r.state, r.status
+    r.windows.du, r.windows.model_du   # each window's measured shift and the fitted sinusoid
+    run = omnipose.replay("run", on_frame=lambda index, path, result: ...)
+
+With the extras: ``omnipose-mcap`` (a run as MCAP for Foxglove), ``omnipose-view`` (the
+daemon live over the Foxglove WebSocket protocol), ``omnipose-figure`` (a picture of a run).
 
 Camera frame: x forward, y left, z up. A frame's relative motion is (R, t) with
 P_ref = R P + t, t up to scale; the chained pose maps the camera to its segment's origin
