@@ -29,29 +29,6 @@ double yaw(int k) {
   return angle;
 }
 
-/// RMS rotation error angle (rad) of the pipeline over the sequence rendered by `renderer`
-/// (frame k at time k / 30 s on the walkers' clock, sensor noise of 3 grey levels).
-double rmsError(const synth::Renderer& renderer, bool moving_content) {
-  PipelineOptions options;
-  options.moving_content = moving_content;
-  Pipeline pipeline(Calibration{}, options);
-  cv::RNG rng(17);
-  const auto attitude = [](int k) -> Eigen::Matrix3d {
-    return rotationFromVector(Eigen::Vector3d(0.0, 0.0, yaw(k)));
-  };
-  const auto frame = [&](int k) {
-    Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
-    T.linear() = attitude(k);
-    cv::Mat image = renderer.render(T, k * kFrameInterval);
-    cv::Mat noise(image.size(), CV_32FC1);
-    rng.fill(noise, cv::RNG::NORMAL, 0.0, 3.0);
-    cv::Mat frame;
-    cv::Mat(image + noise).convertTo(frame, CV_8U);
-    return frame;
-  };
-  return testing::rmsRotationError(pipeline, kFrames, frame, attitude);
-}
-
 /// Frame k of `renderer` along the slow turn, with sensor noise.
 cv::Mat noisyFrame(const synth::Renderer& renderer, int k, cv::RNG& rng) {
   Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
@@ -62,6 +39,20 @@ cv::Mat noisyFrame(const synth::Renderer& renderer, int k, cv::RNG& rng) {
   cv::Mat frame;
   cv::Mat(image + noise).convertTo(frame, CV_8U);
   return frame;
+}
+
+/// RMS rotation error angle (rad) of the pipeline over the sequence rendered by `renderer`
+/// (frame k at time k / 30 s on the walkers' clock, sensor noise of 3 grey levels).
+double rmsError(const synth::Renderer& renderer, bool moving_content) {
+  PipelineOptions options;
+  options.moving_content = moving_content;
+  Pipeline pipeline(Calibration{}, options);
+  cv::RNG rng(17);
+  const auto attitude = [](int k) -> Eigen::Matrix3d {
+    return rotationFromVector(Eigen::Vector3d(0.0, 0.0, yaw(k)));
+  };
+  const auto frame = [&](int k) { return noisyFrame(renderer, k, rng); };
+  return testing::rmsRotationError(pipeline, kFrames, frame, attitude);
 }
 
 /// Over frames 1..3 of the turn: the mean fit weight (OdometryResult::window_weights) of the
