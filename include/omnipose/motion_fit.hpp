@@ -84,7 +84,7 @@ class MotionFit {
     /// rotation. Solved jointly with (omega, tau) by Gauss-Newton (Schur complement).
     bool per_window_depth = true;
     double depth_prior_sigma = 0.5;  ///< prior spread of the relative inverse depth around 1
-    /// A prior for rooms (daemon.yaml `pipeline.plane_depth_prior`; off by default). Each
+    /// A prior for rooms (daemon.yaml `pipeline.plane_depth_prior`; on by default). Each
     /// window's relative inverse depth is expected on the vertical plane through its nearest
     /// kept neighbours' (within two windows on each side; a wall's inverse depth along the
     /// ring is A cos(theta) + B sin(theta), so any wall satisfies it exactly, corners and
@@ -94,10 +94,11 @@ class MotionFit {
     /// window's log-polar scale mixes its horizontal and vertical expansion in a proportion
     /// its texture sets, an error its scatter does not show). The depths of the windows near
     /// the direction of travel, whose du hardly depends on them, then come from their
-    /// neighbours instead of from the scale and the pull. It lowers the chained drift in
-    /// rooms and leaves the frame-pair rotation as it is; the pose covariance is then about
-    /// twice too large (docs/results/ANALYSIS.md has the figures).
-    bool plane_depth_prior = false;
+    /// neighbours instead of from the scale and the pull: without it (false, the fit before
+    /// 2026-11-30) the heading of a robot driving in a room turned one way or the other with
+    /// the walls' texture (docs/results/DRIFT_POOL.md). The covariance counts the prior with
+    /// its coupling of neighbouring depths.
+    bool plane_depth_prior = true;
     /// With per_window_depth: how much of the horizontal expansion that a change of depth
     /// across a window adds the measured in-window scale carries. A window on a wall seen
     /// at an angle expands vertically by -lambda (tau_x cos + tau_y sin), as the model's
@@ -107,7 +108,8 @@ class MotionFit {
     /// scale_depth_gradient * dlambda/dtheta * D from ln s, dlambda/dtheta taken from the
     /// neighbouring windows' depths. 0.5 (default): the isotropic mix, a texture without a
     /// preferred direction; 0: the model without the term, which reads the expansion as
-    /// depth and lets a robot driving along a wall turn (docs/results/ANALYSIS.md). [0, 1].
+    /// depth and lets a robot driving along a wall turn (docs/results/ANALYSIS.md). With
+    /// plane_depth_prior the scale weighs 0.01 and the term matters little. [0, 1].
     double scale_depth_gradient = 0.5;
     /// With use_rotation_scale: the in-window rotation equations' error under translation,
     /// per unit of |tau| (the expansion a translation gives a window at the mean depth),

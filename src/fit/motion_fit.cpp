@@ -196,11 +196,33 @@ struct MotionFit::Impl {
     }
     return -1;
   }
+  /// Window k's plane through its nearest kept neighbours (Options::plane_depth_prior):
+  /// planeDepth() = w_lo lambda_lo + w_hi lambda_hi.
+  struct PlaneNeighbours {
+    int lo = -1, hi = -1;  ///< the neighbours (-1: none; a single one is lo)
+    double w_lo = 0.0, w_hi = 0.0;
+  };
+  std::vector<PlaneNeighbours> plane;  ///< per window, planeNeighbours()
+  /// The depths' information matrix (max_windows square, so that its factorisation never
+  /// reallocates), its factorisation, and the right-hand sides [N_lambda,x | gauge]
+  /// (depthMarginalInformation()).
+  Eigen::MatrixXd depth_m, depth_rhs;
+  Eigen::LLT<Eigen::MatrixXd> depth_llt;
+  /// Adds the plane prior's information about the kept windows' depths to depth_m: each
+  /// window's residual against its neighbours' plane couples the three depths.
+  void planeInformation(std::span<const WindowMotion> windows);
+  /// Sets `plane` from the kept windows and their azimuths (depthGaussNewton(), whose
+  /// steps and costs keep them: they depend on neither x nor the depths).
+  void planeNeighbours(std::span<const WindowMotion> windows);
   /// The inverse depth at window k of the vertical plane through its nearest kept
   /// neighbours' current depths (within two windows on each side): a wall's inverse depth
   /// is A cos(theta) + B sin(theta), fixed by two windows. With one neighbour its depth;
   /// with none depth[k] itself (no pull).
-  double planeDepth(std::span<const WindowMotion> windows, int k) const;
+  double planeDepth(int k) const {
+    const PlaneNeighbours& p = plane[k];
+    if (p.lo < 0) return depth[k];
+    return p.w_lo * depth[p.lo] + (p.hi < 0 ? 0.0 : p.w_hi * depth[p.hi]);
+  }
 };
 
 MotionFit::Impl::Impl(const Options& o, double gamma_per_column, double attenuation,
@@ -213,7 +235,11 @@ MotionFit::Impl::Impl(const Options& o, double gamma_per_column, double attenuat
       keep(static_cast<std::size_t>(max_windows)),
       depth(static_cast<std::size_t>(max_windows), 1.0),
       final_weight(static_cast<std::size_t>(max_windows), 0.0),
-      depth_xl(static_cast<std::size_t>(max_windows)) {}
+      depth_xl(static_cast<std::size_t>(max_windows)),
+      plane(static_cast<std::size_t>(max_windows)),
+      depth_m(max_windows, max_windows),
+      depth_rhs(max_windows, 7),
+      depth_llt(max_windows) {}
 
 MotionFit::MotionFit(const Options& options, double gamma, int window_px, int max_windows) {
   std::vector<std::string> problems = options.validate();
@@ -420,18 +446,31 @@ Eigen::Matrix<double, 6, 1> MotionFit::Impl::fitDepth(std::span<const WindowMoti
   return x;
 }
 
-double MotionFit::Impl::planeDepth(std::span<const WindowMotion> windows, int k) const {
+void MotionFit::Impl::planeNeighbours(std::span<const WindowMotion> windows) {
   const int n = static_cast<int>(windows.size());
-  const int lo = keptNeighbour(k, -1, n), hi = keptNeighbour(k, +1, n);
-  if (lo < 0 && hi < 0) return depth[k];
-  if (lo < 0 || hi == lo) return depth[hi];
-  if (hi < 0) return depth[lo];
   constexpr double kTwoPi = 2.0 * std::numbers::pi;
-  const double a = std::remainder(gamma * (windows[k].center_u - windows[lo].center_u), kTwoPi);
-  const double b = std::remainder(gamma * (windows[hi].center_u - windows[k].center_u), kTwoPi);
-  const double span = std::sin(a + b);
-  if (!(std::abs(span) > 1e-6)) return 0.5 * (depth[lo] + depth[hi]);
-  return (depth[lo] * std::sin(b) + depth[hi] * std::sin(a)) / span;
+  for (int k = 0; k < n; ++k) {
+    PlaneNeighbours& p = plane[k];
+    p = PlaneNeighbours{};
+    const int lo = keptNeighbour(k, -1, n), hi = keptNeighbour(k, +1, n);
+    if (lo < 0 && hi < 0) continue;
+    if (lo < 0 || hi < 0 || hi == lo) {  // one neighbour: its depth
+      p.lo = lo < 0 ? hi : lo;
+      p.w_lo = 1.0;
+      continue;
+    }
+    p.lo = lo;
+    p.hi = hi;
+    const double a = std::remainder(gamma * (windows[k].center_u - windows[lo].center_u), kTwoPi);
+    const double b = std::remainder(gamma * (windows[hi].center_u - windows[k].center_u), kTwoPi);
+    const double span = std::sin(a + b);
+    if (!(std::abs(span) > 1e-6)) {
+      p.w_lo = p.w_hi = 0.5;
+    } else {
+      p.w_lo = std::sin(b) / span;
+      p.w_hi = std::sin(a) / span;
+    }
+  }
 }
 
 double MotionFit::Impl::depthCost(std::span<const WindowMotion> windows, int n_rows,
@@ -458,7 +497,7 @@ double MotionFit::Impl::depthCost(std::span<const WindowMotion> windows, int n_r
     const double d = depth[k] - 1.0;
     cost += 0.5 * depth_prior_weight * windows[k].confidence * d * d;
     if (depth_plane_weight <= 0) continue;
-    const double e = depth[k] - planeDepth(windows, k);
+    const double e = depth[k] - planeDepth(k);
     cost += 0.5 * depth_plane_weight * windows[k].confidence * e * e;
   }
   return cost;
@@ -479,7 +518,7 @@ void MotionFit::Impl::depthNormals(std::span<const WindowMotion> windows, int n_
     // The plane prior's mean is taken at the neighbours' depths this step starts from.
     if (depth_plane_weight > 0)
       g_lambda[k] += depth_plane_weight * windows[k].confidence *
-                     (planeDepth(windows, k) - depth[k]);
+                     (planeDepth(k) - depth[k]);
   }
   for (int i = 0; i < n_rows; ++i) {
     const Row& row = rows[i];
@@ -533,6 +572,7 @@ Eigen::Matrix<double, 6, 1> MotionFit::Impl::depthGaussNewton(
   double* const g_lambda = h + n;
   double* const depth_before = h + 2 * n;
   double* const depth_step = h + 3 * n;
+  planeNeighbours(windows);
 
   // Gauss-Newton on the bilinear model b = a_rot omega + lambda_k a_tr tau, jointly in
   // (x, lambda) with the pseudo-Huber weights of the current point, eliminating the lambda
@@ -724,22 +764,57 @@ Eigen::Matrix<double, 6, 6> MotionFit::Impl::depthMarginalInformation(
     depth_xl[row.window].noalias() += row.weight * J * row.a.transpose();
     scratch[row.window] += row.weight * J * J;
   }
-  double total = 0.0, q = 0.0;
+  double total = 0.0;
   for (int k = 0; k < n; ++k) total += keep[k] ? windows[k].confidence : 0.0;
-  Vec6 v = Vec6::Zero();
+  // The depths' information M: from the rows and the pull towards 1 on the diagonal, and
+  // with the plane prior its coupling of each window's depth to its neighbours'
+  // (planeInformation()). Eliminated with the gauge constraint (weights c):
+  // N - B M^-1 B^T + v v^T / q, v = B M^-1 c, q = c^T M^-1 c. Windows not kept have none.
+  const int m = static_cast<int>(depth_m.rows());
+  depth_m.setZero();
+  depth_rhs.setZero();
   for (int k = 0; k < n; ++k) {
     if (!keep[k]) continue;
-    // The plane prior's mean is itself uncertain (the neighbours' depths): only the
-    // pull towards 1 counts as prior information here.
-    const double h = scratch[k], prior = depth_prior_weight * windows[k].confidence;
-    information.noalias() -= depth_xl[k] * depth_xl[k].transpose() / (h + prior);
-    depth_dof += h / (h + prior);
-    const double c = windows[k].confidence / total;
-    v.noalias() += depth_xl[k] * (c / (h + prior));
-    q += c * c / (h + prior);
+    depth_m(k, k) = scratch[k] + depth_prior_weight * windows[k].confidence;
+    depth_rhs.row(k).head<6>() = depth_xl[k].transpose();
+    depth_rhs(k, 6) = total > 0 ? windows[k].confidence / total : 0.0;
+  }
+  planeInformation(windows);
+  for (int k = 0; k < m; ++k) {
+    if (k < n && keep[k] && depth_m(k, k) > 0) depth_dof += scratch[k] / depth_m(k, k);
+    if (!(depth_m(k, k) > 0)) depth_m(k, k) = 1.0;  // no information (nothing couples it)
+  }
+  depth_llt.compute(depth_m);
+  if (depth_llt.info() != Eigen::Success) return information;
+  depth_llt.solveInPlace(depth_rhs);
+  Vec6 v = Vec6::Zero();
+  double q = 0.0;
+  for (int k = 0; k < n; ++k) {
+    if (!keep[k]) continue;
+    information.noalias() -= depth_xl[k] * depth_rhs.row(k).head<6>();
+    v.noalias() += depth_xl[k] * depth_rhs(k, 6);
+    q += depth_rhs(k, 6) * (total > 0 ? windows[k].confidence / total : 0.0);
   }
   if (q > 0) information.noalias() += v * v.transpose() / q;  // the gauge constraint
   return information;
+}
+
+void MotionFit::Impl::planeInformation(std::span<const WindowMotion> windows) {
+  if (depth_plane_weight <= 0) return;
+  const int n = static_cast<int>(windows.size());
+  planeNeighbours(windows);
+  // 1/2 p_k e_k^2 with e_k = lambda_k - w_lo lambda_lo - w_hi lambda_hi: p_k g g^T, g = (1,
+  // -w_lo, -w_hi) at (k, lo, hi).
+  for (int k = 0; k < n; ++k) {
+    const PlaneNeighbours& pn = plane[k];
+    const double p = depth_plane_weight * windows[k].confidence;
+    if (!keep[k] || pn.lo < 0 || !(p > 0)) continue;
+    const std::array<int, 3> idx{k, pn.lo, pn.hi};
+    const std::array<double, 3> g{1.0, -pn.w_lo, -pn.w_hi};
+    for (int i = 0; i < 3; ++i)
+      for (int j = 0; j < 3; ++j)
+        if (idx[i] >= 0 && idx[j] >= 0) depth_m(idx[i], idx[j]) += p * g[i] * g[j];
+  }
 }
 
 MotionEstimate MotionFit::Impl::fit(std::span<const WindowMotion> windows,

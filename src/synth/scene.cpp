@@ -1,7 +1,12 @@
-#include <limits>
-#include "omnipose/image_decode.hpp"
-
 #include "omnipose/synth/scene.hpp"
+
+#include <cmath>
+#include <limits>
+#include <opencv2/core.hpp>
+#include <stdexcept>
+#include <string>
+
+#include "omnipose/image_decode.hpp"
 
 namespace omnipose::synth {
 namespace {
@@ -64,6 +69,21 @@ Scene Scene::load(const std::filesystem::path& photo, SceneKind kind, const Box&
   scene.kind = kind;
   scene.box = box;
   return scene;
+}
+
+void turnTexture(Scene& scene, double turn_deg, bool mirrored) {
+  if (!std::isfinite(turn_deg))
+    throw std::invalid_argument("texture turn: " + std::to_string(turn_deg) + " is not finite");
+  if (scene.texture.empty()) throw std::invalid_argument("texture turn: the texture is empty");
+  if (mirrored) cv::flip(scene.texture, scene.texture, 1);
+  const int cols = scene.texture.cols;
+  const double turns = turn_deg / 360.0 - std::floor(turn_deg / 360.0);  // [0, 1)
+  const int shift = static_cast<int>(std::lround(turns * cols)) % cols;
+  if (shift == 0) return;
+  cv::Mat turned;
+  cv::hconcat(scene.texture.colRange(cols - shift, cols), scene.texture.colRange(0, cols - shift),
+              turned);
+  scene.texture = turned;
 }
 
 Eigen::Vector3d Scene::textureDirection(const Eigen::Vector3d& origin,

@@ -137,7 +137,7 @@ TEST(DaemonConfig, NoiseWeighting) {
 
 TEST(DaemonConfig, PlaneDepthPrior) {
   expectBooleanPipelineKey(
-      "plane_depth_prior", false,
+      "plane_depth_prior", true,
       [](const DaemonConfig& c) { return c.pipeline.fit.plane_depth_prior; }, "walls");
 }
 

@@ -133,8 +133,10 @@ TEST_P(MotionFitModes, RobustToNoiseAndTwentyPercentGrossOutliers) {
   }
   // 0.1 px noise = 5.7e-4 rad per window; 55 windows: about 1e-4 rad per parameter, the
   // worst of 300 parameters about 4 sigma. Per-window depth spends one unknown per window
-  // and loses about a factor 2 to 3 in the translation-coupled parameters.
-  EXPECT_LT(worst, GetParam() ? 1.8e-3 : 6e-4) << "worst parameter error " << worst;
+  // and loses about a factor 2 to 3 in the translation-coupled parameters, and a little
+  // more with the plane depth prior, which weighs the in-window scale (ideal here, biased
+  // by the texture on real windows) at 0.01: 2.04e-3 (1.8e-3 without the prior).
+  EXPECT_LT(worst, GetParam() ? 2.2e-3 : 6e-4) << "worst parameter error " << worst;
 }
 
 TEST_P(MotionFitModes, FinalWeightsLeaveTheGrossOutliersOutAndWeighTheRest) {
@@ -259,43 +261,44 @@ TEST(MotionFit, AWindowWithoutConfidenceLeavesTheOthersTheirDepths) {
 // Driving 1 m from a wall, each window's log-polar scale mixes its horizontal and vertical
 // expansion in its own texture's proportion (measured on an indoor photo: -0.1 to 1.5, median
 // about 0.6; docs/results/ANALYSIS.md), not in the model's halves. Read as depth at full
-// weight, under a narrow pull towards the mean depth (the default), that error turns the
-// robot; with the plane depth prior (the scale weighted down, each depth expected on the
-// plane through its neighbours') the yaw stays nearer the truth.
+// weight, under a narrow pull towards the mean depth (plane_depth_prior off), that error
+// turns the robot; with the plane depth prior (the default: the scale weighted down, each
+// depth expected on the plane through its neighbours') the yaw stays nearer the truth.
 TEST(MotionFit, ThePlaneDepthPriorTakesAWallsDepthFromItsNeighboursNotFromTheScale) {
   std::mt19937 rng(23);
   const auto lambda = boxRoomInverseDepth(0.5, -1.5);
   Vec6 x;
   x << 0.0, 0.0, 0.002, 0.02, 0.0, 0.0;  // forward along the wall, turning slightly
-  MotionFit::Options plane;
-  plane.plane_depth_prior = true;
-  MotionFit fit_default({}, kGamma, kWindow, kWindows);
-  MotionFit fit_plane(plane, kGamma, kWindow, kWindows);
+  MotionFit::Options scale_depths;
+  scale_depths.plane_depth_prior = false;
+  MotionFit fit_scale(scale_depths, kGamma, kWindow, kWindows);
+  MotionFit fit_plane({}, kGamma, kWindow, kWindows);
+  ASSERT_TRUE(fit_plane.options().plane_depth_prior);
   // The log-polar scale as measured on an indoor photo's windows: about 0.69 of the
   // horizontal expansion and 0.22 of the vertical one (0.9 times a 0.77 share), each window
   // its own share.
   std::uniform_real_distribution<double> mix(0.47, 1.07);
   const int trials = 40;
-  double bias_default = 0.0, bias_plane = 0.0, err_default = 0.0, err_plane = 0.0;
+  double bias_scale = 0.0, bias_plane = 0.0, err_scale = 0.0, err_plane = 0.0;
   for (int t = 0; t < trials; ++t) {
     std::vector<double> scale_mix(kWindows);
     for (double& m : scale_mix) m = mix(rng);
     auto windows = synthesize(x, 0.05, 0.0, rng, 0.0, lambda, scale_mix);
     for (WindowMotion& w : windows) w.scale = std::pow(w.scale, 0.9);
-    const MotionEstimate b = fit_default.fit(windows, 0.0), n = fit_plane.fit(windows, 0.0);
+    const MotionEstimate b = fit_scale.fit(windows, 0.0), n = fit_plane.fit(windows, 0.0);
     ASSERT_NE(b.status, FitStatus::kLost);
     ASSERT_NE(n.status, FitStatus::kLost);
-    bias_default += (b.omega.z() - x[2]) / trials;
+    bias_scale += (b.omega.z() - x[2]) / trials;
     bias_plane += (n.omega.z() - x[2]) / trials;
-    err_default += (b.omega - x.head<3>()).squaredNorm() / trials;
+    err_scale += (b.omega - x.head<3>()).squaredNorm() / trials;
     err_plane += (n.omega - x.head<3>()).squaredNorm() / trials;
   }
-  testing::recordFigure("yaw_bias_rad_default", bias_default, 7);
+  testing::recordFigure("yaw_bias_rad_scale_depths", bias_scale, 7);
   testing::recordFigure("yaw_bias_rad_plane", bias_plane, 7);
-  testing::recordFigure("rotation_rmse_rad_default", std::sqrt(err_default), 7);
+  testing::recordFigure("rotation_rmse_rad_scale_depths", std::sqrt(err_scale), 7);
   testing::recordFigure("rotation_rmse_rad_plane", std::sqrt(err_plane), 7);
-  EXPECT_LT(std::abs(bias_plane), 0.6 * std::abs(bias_default));  // 0.47 (2026-11-28)
-  EXPECT_LT(err_plane, err_default);
+  EXPECT_LT(std::abs(bias_plane), 0.6 * std::abs(bias_scale));  // 0.39 (2026-11-30)
+  EXPECT_LT(err_plane, err_scale);
 }
 
 // Translation deforms a window otherwise than a rotation and a scale (a wall seen at an angle
@@ -356,26 +359,38 @@ TEST(MotionFit, TheInWindowRotationsErrorUnderTranslationDoesNotTiltTheRobot) {
 // rotation as accurate as the uniform-depth fit.
 TEST(MotionFit, PerWindowDepthConvergesQuicklyOnAPureRotation) {
   std::mt19937 rng(5);
+  MotionFit::Options scale_depths;  // without the plane depth prior
+  scale_depths.plane_depth_prior = false;
   MotionFit uniform = makeFit(true, false), per_window = makeFit(true, true);
+  MotionFit per_window_scale(scale_depths, kGamma, kWindow, kWindows);
   const int trials = 40;
-  double extra_iterations = 0.0, err_u = 0.0, err_p = 0.0;
+  double extra_iterations = 0.0, extra_scale = 0.0, err_u = 0.0, err_p = 0.0;
   for (int t = 0; t < trials; ++t) {
     std::uniform_real_distribution<double> rot(-0.05, 0.05);
     Vec6 x = Vec6::Zero();
     x.head<3>() << rot(rng), rot(rng), rot(rng);
     const auto windows = synthesize(x, 0.1, 0.0, rng);
     const MotionEstimate u = uniform.fit(windows, 0.0), p = per_window.fit(windows, 0.0);
+    const MotionEstimate s = per_window_scale.fit(windows, 0.0);
     ASSERT_EQ(p.status, FitStatus::kOk);
+    ASSERT_EQ(s.status, FitStatus::kOk);
     extra_iterations += p.iterations - u.iterations;  // the two Gauss-Newton rounds
+    extra_scale += s.iterations - u.iterations;
     err_u += (u.omega - x.head<3>()).squaredNorm();
     err_p += (p.omega - x.head<3>()).squaredNorm();
   }
   extra_iterations /= trials;
+  extra_scale /= trials;
   const double rmse_u = std::sqrt(err_u / trials), rmse_p = std::sqrt(err_p / trials);
   testing::recordFigure("depth_gauss_newton_iterations_per_fit", extra_iterations, 1);
+  testing::recordFigure("depth_gauss_newton_iterations_per_fit_without_plane", extra_scale, 1);
   testing::recordFigure("rotation_rmse_uniform_rad", rmse_u, 7);
   testing::recordFigure("rotation_rmse_per_window_depth_rad", rmse_p, 7);
-  EXPECT_LT(extra_iterations, 20.0) << "Gauss-Newton iterations per fit (cap 2 x 20)";
+  // The plane prior's step holds each window's neighbours at their depths, so a change
+  // spreads a window per iteration: 20.5 iterations here against 11.8 without it (cap 2 x 20;
+  // on the drift benchmark's driving the fit costs 2 % more of a frame's instructions).
+  EXPECT_LT(extra_scale, 15.0) << "Gauss-Newton iterations per fit without the plane prior";
+  EXPECT_LT(extra_iterations, 24.0) << "Gauss-Newton iterations per fit (cap 2 x 20)";
   EXPECT_LT(err_p, 1.5 * 1.5 * err_u) << "rotation RMSE: uniform " << rmse_u
                                       << " rad, per-window depth " << rmse_p << " rad";
 }

@@ -124,12 +124,13 @@ TEST(Walkers, PeopleWalkingAroundTheCameraDoNotMoveTheEstimate) {
       testing::recordFigure("walkers_unchecked_rms_rad", rmsError(with_walkers, false), 9);
   ASSERT_GT(plain, 0.0);
   // Without the check the people's windows turn the robot with them (yaw biased every pair:
-  // 5.9 times the twin's error when this was written); with it their windows are left out
-  // (1.7 times the twin: what is left is mostly the tilt that a third fewer windows on one
-  // side of the ring determine less well, on this photo's faint walls; 1.1 times on the
-  // real-camera benchmark's park photo, docs/results/REAL_CAMERA.md).
+  // 5.9 times the twin's error when this was written, 3.5 times since the plane depth prior
+  // is the default); with it their windows are left out (1.8 times the twin: what is left is
+  // mostly the tilt that a third fewer windows on one side of the ring determine less well,
+  // on this photo's faint walls; 1.1 times on the real-camera benchmark's park photo,
+  // docs/results/REAL_CAMERA.md).
   EXPECT_LT(checked, 2.0 * plain) << "twin " << plain << " rad, walkers " << checked;
-  EXPECT_GT(unchecked, 2.5 * checked) << "checked " << checked << " rad, unchecked " << unchecked;
+  EXPECT_GT(unchecked, 1.5 * checked) << "checked " << checked << " rad, unchecked " << unchecked;
   // A sequence without anything moving is the same with and without the check, to the
   // noise: no window of the twin is discounted enough to matter.
   const double plain_unchecked = rmsError(twin, false);

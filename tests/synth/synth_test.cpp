@@ -174,6 +174,24 @@ ModelPrediction model(const Eigen::Vector3d& omega, const Eigen::Vector3d& t, do
 
 // ---------------------------------------------------------------------- (a), (d) geometry
 
+TEST(SynthScene, TurnTextureRollsTheColumnsAndMirrorsFirst) {
+  Scene scene;
+  scene.texture = cv::Mat(4, 8, CV_32FC1);
+  for (int c = 0; c < 8; ++c) scene.texture.col(c).setTo(static_cast<float>(c));
+  const cv::Mat original = scene.texture.clone();
+  turnTexture(scene, 90.0, false);  // a quarter of 8 columns: 2 to the right
+  for (int c = 0; c < 8; ++c) EXPECT_EQ(scene.texture.at<float>(1, (c + 2) % 8), c) << c;
+  turnTexture(scene, -90.0 + 720.0, false);  // modulo 360: back where it was
+  EXPECT_EQ(cv::norm(scene.texture, original, cv::NORM_INF), 0.0);
+  turnTexture(scene, 0.0, true);
+  for (int c = 0; c < 8; ++c) EXPECT_EQ(scene.texture.at<float>(0, 7 - c), c) << c;
+  turnTexture(scene, 45.0, true);  // mirrored back, then one column to the right
+  for (int c = 0; c < 8; ++c) EXPECT_EQ(scene.texture.at<float>(3, (c + 1) % 8), c) << c;
+  EXPECT_THROW(turnTexture(scene, std::nan(""), false), std::invalid_argument);
+  Scene empty;
+  EXPECT_THROW(turnTexture(empty, 10.0, false), std::invalid_argument);
+}
+
 TEST(SynthRenderer, OmniUnwrappedMatchesPanorama) {
   const Calibration cal;
   const Renderer omni(indoorScene(), cal, {OutputKind::kOmni, 3});

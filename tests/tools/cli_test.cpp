@@ -154,6 +154,7 @@ TEST(ProgramCliChecks, SemanticMistakesExitTwo) {
       {"omnipose-synth", {"--texture", "t.jpg", "--out", "o", "--scene", "cube"}, "--scene"},
       {"omnipose-synth", {"--texture", "t.jpg", "--out", "o", "--readout", "0.05"}, "--readout"},
       {"omnipose-synth", {"--texture", "t.jpg", "--out", "o", "--texture-width", "1023"}, "--texture-width"},
+      {"omnipose-synth", {"--texture", "t.jpg", "--out", "o", "--texture-turn", "nan"}, "--texture-turn"},
       {"omnipose-synth", {"--texture", "t.jpg", "--out", "o", "--gyro-noise", "1e-4"}, "--gyro-noise needs --gyro-rate"},
       {"omnipose-synth", {"--texture", "t.jpg", "--out", "o", "--gyro-rate", "0"}, "--gyro-rate:"},
       {"omnipose-synth", {"--texture", "t.jpg", "--out", "o", "--gyro-rate", "200", "--gyro-bias", "-1"}, "--gyro-bias:"},

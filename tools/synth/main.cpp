@@ -58,6 +58,8 @@ struct Args {
   int jpeg = 0;
   int supersample = synth::RenderOptions{}.supersample;
   int texture_width = 0;  ///< 0: the photo's own resolution
+  double texture_turn_deg = 0.0;  ///< synth::turnTexture()
+  bool texture_mirror = false;
   std::optional<synth::Occluder> occluder;
   /// The gyro written to imu.csv (its calibration to calibration.yaml); none by default.
   std::optional<synth::GyroSimulation> gyro;
@@ -104,6 +106,12 @@ void addSceneOptions(CLI::App& app, Args& a, Raw& raw) {
                  "resample the photo to W x W/2 first (area averaging when it shrinks): the "
                  "same scene at another resolution (default: as the photo is)")
       ->type_name("W");
+  app.add_option("--texture-turn", a.texture_turn_deg,
+                 "turn the photo about the vertical by DEG degrees (its columns rolled): "
+                 "another room from the same photo (default 0)")
+      ->type_name("DEG");
+  app.add_flag("--texture-mirror", a.texture_mirror,
+               "mirror the photo left to right (before --texture-turn): another room");
   app.add_option("--out", a.out, "dataset directory; DIR/frames must be empty or new (required)")
       ->type_name("DIR");
   app.add_option("--scene", raw.scene,
@@ -343,6 +351,7 @@ void finish(const CLI::App& app, Args& a, const Raw& raw) {
   }
   if (given("--texture-width") && (a.texture_width < 16 || a.texture_width > 16384 || a.texture_width % 2 != 0))
     throw UsageError("--texture-width: must be an even number in [16, 16384]");
+  if (!std::isfinite(a.texture_turn_deg)) throw UsageError("--texture-turn: must be finite");
   if (a.frames && *a.frames < 1) throw UsageError("--frames: must be >= 1");
   if (a.jpeg < 0 || a.jpeg > 100) throw UsageError("--jpeg: must be in [0, 100]");
   if (a.write_mask && !a.occluder) throw UsageError("--write-mask needs --occluder");
@@ -566,6 +575,7 @@ int run(const Args& a) {
                a.texture_width < scene.texture.cols ? cv::INTER_AREA : cv::INTER_LINEAR);
     scene.texture = resampled;
   }
+  synth::turnTexture(scene, a.texture_turn_deg, a.texture_mirror);
   if (const auto walkers = walkersOf(a, script, motion_name, kind, scene.box)) {
     scene.walkers = *walkers;
   }

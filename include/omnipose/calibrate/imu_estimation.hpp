@@ -31,6 +31,7 @@
 #include <utility>
 #include <vector>
 
+#include "omnipose/calibrate/readout_estimation.hpp"
 #include "omnipose/calibration.hpp"
 #include "omnipose/gyro.hpp"
 #include "omnipose/odometry.hpp"
@@ -48,7 +49,7 @@ struct ImuSearchOptions {
   /// Two samples further apart than this are a gap in the recording: the pairs within
   /// max_offset_s of it are left out, seconds.
   double max_gap_s = 0.05;
-  OdometryOptions odometry;  ///< how the frames are registered (the daemon's defaults)
+  OdometryOptions odometry = calibrationOdometry();  ///< how the frames are registered
 
   /// One message per bad field (empty = valid).
   std::vector<std::string> validate() const;

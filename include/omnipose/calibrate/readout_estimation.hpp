@@ -27,6 +27,20 @@
 
 namespace omnipose::calibrate {
 
+/// How the camera's calibration searches register their recordings (estimateReadout() and
+/// estimateImuCalibration()): the daemon's defaults, except that each window's depth comes
+/// from its own in-window scale at the scale's full weight (MotionFit::Options::
+/// plane_depth_prior false). A calibration recording turns in place, where the scale sees
+/// no wall's depth gradient, and the searches read what a wrong readout or clock offset
+/// leaves in the fit: with the scale weighed 0.01, as the plane prior weighs it,
+/// --readout-from read the real-camera benchmark's readout 3.8 % short instead of 1.0 %,
+/// and --imu-from the clock 0.36 ms off (docs/results/ANALYSIS.md).
+inline OdometryOptions calibrationOdometry() {
+  OdometryOptions o;
+  o.pipeline.fit.plane_depth_prior = false;
+  return o;
+}
+
 struct ReadoutSearchOptions {
   double max_s = 0.05;         ///< largest |readout_s| tried, seconds, (0, 0.1]
   double coarse_step_s = 0.005;  ///< first grid, seconds
@@ -35,7 +49,7 @@ struct ReadoutSearchOptions {
   /// a flatter curve says the frames do not show the readout (no change of turn rate, or
   /// too much other motion).
   double min_contrast = 1.0;
-  OdometryOptions odometry;  ///< how the frames are registered (the daemon's defaults)
+  OdometryOptions odometry = calibrationOdometry();  ///< how the frames are registered
 
   /// One message per bad field (empty = valid).
   std::vector<std::string> validate() const;

@@ -156,6 +156,12 @@ struct Scene {
                                    const Eigen::Vector3d& direction) const;
 };
 
+/// Another room from the same photo: the texture mirrored left to right when `mirrored`,
+/// then turned about the vertical by `turn_deg` degrees (its columns rolled right by
+/// turn_deg / 360 of its width, to the nearest column; any finite angle, taken modulo
+/// 360). Throws std::invalid_argument for a non-finite angle or an empty texture.
+void turnTexture(Scene& scene, double turn_deg, bool mirrored);
+
 /// "sphere" | "box"; throws std::invalid_argument naming the value otherwise.
 SceneKind parseSceneKind(const std::string& name);
 const char* toString(SceneKind kind);
