@@ -94,11 +94,7 @@ for i in "${!variant_list[@]}"; do
   config_names+=("$name")
   {
     printf 'pipeline:\n  fftw_wisdom: "%s"\n' "$wisdom"
-    IFS=';' read -ra entries <<< "${variant_list[$i]}"
-    for entry in "${entries[@]}"; do
-      entry=$(sed 's/^[[:space:]]*//; s/[[:space:]]*$//' <<< "$entry")
-      [ -n "$entry" ] && printf '  %s\n' "$entry"
-    done
+    bench_pipeline_lines "${variant_list[$i]}"
   } > "$out/$name.yaml"
 done
 

@@ -64,8 +64,7 @@ bench_command_line() {
 # When set, command_line (bench_command_line) is prefixed with it, and --publish is a usage
 # error naming NAME (exit 2): the published results are those of the defaults.
 bench_ifmi_pipeline() {
-  local name=$1 entry
-  local -a entries=()
+  local name=$1
   ifmi_pipeline_yaml=""
   [ -n "${IFMI_PIPELINE:-}" ] || return 0
   command_line="IFMI_PIPELINE=\"$IFMI_PIPELINE\" $command_line"
@@ -73,10 +72,21 @@ bench_ifmi_pipeline() {
     echo "$name: --publish publishes the defaults; unset IFMI_PIPELINE" >&2
     exit 2
   fi
-  IFS=';' read -ra entries <<< "$IFMI_PIPELINE"
+  ifmi_pipeline_yaml=$(bench_pipeline_lines "$IFMI_PIPELINE")
+  [ -n "$ifmi_pipeline_yaml" ] && ifmi_pipeline_yaml+=$'\n'
+  return 0
+}
+
+# bench_pipeline_lines ENTRIES: "key: value" entries of daemon.yaml's `pipeline:` section
+# separated by ';' printed as YAML lines of that section (two spaces of indent), blank
+# entries skipped.
+bench_pipeline_lines() {
+  local entry
+  local -a entries=()
+  IFS=';' read -ra entries <<< "$1"
   for entry in "${entries[@]}"; do
     entry=$(sed 's/^[[:space:]]*//; s/[[:space:]]*$//' <<< "$entry")
-    [ -n "$entry" ] && ifmi_pipeline_yaml+="  $entry"$'\n'
+    [ -n "$entry" ] && printf '  %s\n' "$entry"
   done
   return 0
 }
