@@ -23,15 +23,15 @@
 # plus the datasets, trajectories, logs and omnipose-eval outputs of every sequence.
 #
 # Usage: tools/drift_benchmark.sh [--publish] [--evo] [OUTDIR]    (default OUTDIR build/drift)
-#   --publish   also copy OUTDIR/DRIFT.md to docs/results/DRIFT.md (with KEYFRAME_SLOTS set:
-#               to docs/results/DRIFT_KEYFRAMES.md, the keyframe policy's table beside the
-#               defaults' one)
+#   --publish   also copy OUTDIR/DRIFT.md to docs/results/DRIFT.md (with KEYFRAME_SLOTS=0:
+#               to docs/results/DRIFT_FRAME_TO_FRAME.md, the frame-to-frame chain's table
+#               beside the defaults' one; another KEYFRAME_SLOTS is not published)
 #   --evo       cross-check every ATE with evo_ape (PyPI package `evo`, installed on first use
 #               into a venv BUILD_DIR/evo-venv; needs the package index)
 # Environment (defaults in brackets):
 #   BUILD_DIR   [build]  binaries in BUILD_DIR/bin; built first when missing
 #   SUPERSAMPLE [2]      renderer anti-aliasing: K x K rays per pixel
-#   KEYFRAME_SLOTS [the default, 0]  keyframes.slots of the replay's and the daemon's
+#   KEYFRAME_SLOTS [the default, 4]  keyframes.slots of the replay's and the daemon's
 #               configuration (omnipose/odometry.hpp), to measure the keyframe policy
 #   WISDOM      [BUILD_DIR/drift.wisdom]  FFTW wisdom shared by every replay and daemon run
 #               (made by the first run that lacks a plan, reused afterwards)
@@ -51,6 +51,10 @@ supersample=${SUPERSAMPLE:-2}
 bin=$build/bin
 bench_command_line tools/drift_benchmark.sh "$@" -- BUILD_DIR SUPERSAMPLE KEYFRAME_SLOTS WISDOM
 bench_ifmi_pipeline drift_benchmark
+if [ "$publish" = 1 ] && [ -n "${KEYFRAME_SLOTS:-}" ] && [ "$KEYFRAME_SLOTS" != 0 ]; then
+  echo "drift_benchmark: --publish publishes the defaults or KEYFRAME_SLOTS=0 (frame to frame)" >&2
+  exit 2
+fi
 
 bench_tools "$build" omnipose-synth omnipose-replay omnipose-eval omniposed omnipose-listen
 
@@ -87,7 +91,7 @@ YAML
 keyframes_yaml="" keyframes_title=""
 if [ -n "${KEYFRAME_SLOTS:-}" ]; then
   keyframes_yaml="keyframes: {slots: $KEYFRAME_SLOTS}"
-  keyframes_title=", with keyframes (\`$keyframes_yaml\`)"
+  keyframes_title=", \`$keyframes_yaml\`"
 fi
 printf 'pipeline:\n  fftw_wisdom: "%s"\n%s%s\n' "$wisdom" "$ifmi_pipeline_yaml" "$keyframes_yaml" \
   > "$out/replay.yaml"
@@ -298,7 +302,7 @@ echo
 echo "== done in $((elapsed / 60)) min $((elapsed % 60)) s: $out/DRIFT.md"
 if [ "$publish" = 1 ]; then
   published=docs/results/DRIFT.md
-  [ -n "$keyframes_yaml" ] && published=docs/results/DRIFT_KEYFRAMES.md
+  [ -n "$keyframes_yaml" ] && published=docs/results/DRIFT_FRAME_TO_FRAME.md
   mkdir -p docs/results
   cp "$out/DRIFT.md" "$published"
   echo "== published to $published"

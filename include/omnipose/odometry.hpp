@@ -5,16 +5,17 @@
 /// omnipose-replay writes it to files, so what the accuracy benchmark measures is what the
 /// daemon runs.
 ///
-/// Keyframes (KeyframeOptions::slots > 0). Every frame is first registered against the previous frame (a shift-only
-/// pass and a linear fit). The refinement pass then registers it against a keyframe, at
-/// the pose predicted by chaining that estimate to the keyframe's, so a robot that stands
-/// still or turns in place compares every frame with the same keyframe: the chained
-/// error does not grow with the number of frames while the keyframe holds. A frame that the
-/// prediction puts too far from every kept keyframe (KeyframeOptions: translation, tilt) is
-/// refined against the previous frame instead and becomes the new keyframe; so does a frame
-/// whose keyframe refinement is not kOk. A few recent keyframes are kept (the least
-/// recently used one is replaced): when the robot turns or drives back, the oldest one in
-/// reach is used again.
+/// Keyframes (KeyframeOptions::slots > 0, the default). Every frame is registered against
+/// the previous frame (a shift-only pass and a linear fit, then the refinement pass): that
+/// is the pair's motion. While a keyframe other than the previous frame is in reach of the
+/// pose it gives (KeyframeOptions: translation, tilt), the frame is registered against that
+/// keyframe too, at that pose, and the pose is pulled towards the keyframe's estimate of it
+/// (KeyframeOptions::anchor_gain): a robot that stands still or turns in place compares
+/// every frame with the same keyframe, and the chain's error does not grow while the
+/// keyframe holds. A frame with no keyframe in reach, or whose keyframe registration fails
+/// or disagrees with the chain, becomes the new keyframe. A few recent keyframes are kept
+/// (the least recently used one is replaced): when the robot turns or drives back, the
+/// oldest one in reach is used again.
 ///
 /// Gaps. After a bad frame (process() returned an error), a gap the caller reports
 /// (FrameStamp::gap_before: lost frames, a reconnect), a frame captured more than
@@ -56,12 +57,9 @@ namespace omnipose {
 
 struct KeyframeOptions {
   /// Keyframes kept, the current one included (1..16; each holds a panorama's spectra,
-  /// about 5 MB at the default window settings). 0 = no keyframes: every frame is refined
-  /// against the previous one (frame-to-frame chaining; a gap is still bridged against the
-  /// last good frame). Off by default: with keyframes the chain does not drift, but each
-  /// frame pair's motion (the difference of two keyframe-relative estimates) is less
-  /// accurate (docs/results/DRIFT_KEYFRAMES.md against docs/results/DRIFT.md).
-  int slots = 0;
+  /// about 5 MB at the default window settings). 0 = no keyframes: the pose is the chain of
+  /// the pairs' motions (a gap is still bridged against the last good frame).
+  int slots = 4;
   /// A frame is refined against a keyframe only while the predicted translation from it is
   /// at most this, in scene distances (|t| / rho, the unit of MotionEstimate::tau): beyond
   /// it, parallax changes the view.
@@ -69,6 +67,15 @@ struct KeyframeOptions {
   /// ... and while the predicted tilt from it (the angle between the two cameras' z axes:
   /// roll and pitch, not yaw) is at most this, radians: beyond it, rows leave the panorama.
   double max_tilt_rad = 0.09;
+  /// How far each frame's pose is pulled from the frame-to-frame chain towards the pose its
+  /// keyframe registration gives, [0, 1]. Every frame is refined against the previous frame
+  /// (the pair's motion as exact as without keyframes) and, while a keyframe other than the
+  /// previous frame is in reach, against that keyframe too; the chained pose is then moved
+  /// this fraction of the way to the keyframe's estimate, so a drift of the chain from its
+  /// keyframe decays by (1 - anchor_gain) per frame instead of adding up. 1 = the pose is
+  /// the keyframe-relative estimate (each pair's motion then the difference of two such
+  /// estimates, less exact); 0 = keyframes only for gaps.
+  double anchor_gain = 0.1;
   /// Whole-ring yaw search after a gap: the correlation peak below which the search has
   /// failed (a peak of ~0.01 is what unrelated panoramas give).
   double min_ring_peak = 0.03;

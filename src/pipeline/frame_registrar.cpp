@@ -108,8 +108,10 @@ FrameRegistrar::FrameRegistrar(const Calibration& c, const PipelineOptions& o, i
   const auto windows = static_cast<std::size_t>(registration_.windowCount());
   windows_.resize(windows);
   refine_windows_.resize(windows);
+  second_windows_.resize(windows);
   weights_.resize(windows);
   refine_weights_.resize(windows);
+  second_weights_.resize(windows);
   shifts_only_.resize(windows);  // rs_confidence 0: no rotation/scale
   expected_dv_.resize(windows);
   moving_fraction_.resize(windows);
@@ -439,8 +441,10 @@ std::optional<Eigen::Vector2d> FrameRegistrar::tiltRateChange(
   return b * (1.0 - kTiltRateSignificance / d2);
 }
 
-PassResult FrameRegistrar::refine(const MotionEstimate& start, const Eigen::Matrix3d& R0,
-                                  const Eigen::Vector3d& tau0, int against) {
+PassResult FrameRegistrar::refineInto(const MotionEstimate& start, const Eigen::Matrix3d& R0,
+                                      const Eigen::Vector3d& tau0, int against,
+                                      std::vector<WindowMotion>& windows,
+                                      std::vector<double>& weights) {
   // De-rotate the current panorama by the estimate (exact cylinder projection), fit what is
   // left (residual rotation + translation), compose the rotation. The windows' rotation and
   // scale are searched again on the de-rotated panorama, their translation within a band
@@ -458,11 +462,10 @@ PassResult FrameRegistrar::refine(const MotionEstimate& start, const Eigen::Matr
     const Eigen::Matrix3d R_warp = wholeColumnYaw(R);
     derotate(R_warp);
     predictRefinementShifts(tau, last_fit);
-    if (!registration_.measure(warped_, refine_windows_, false, {}, expected_dv_, against)) break;
+    if (!registration_.measure(warped_, windows, false, {}, expected_dv_, against)) break;
     if (options_.moving_content)
-      discountMovingContent(refine_windows_, against, R * R_warp.transpose(), tau);
-    const MotionEstimate residual =
-        fitPass(refine_windows_, rotationVector(R_warp), rowsOf(against));
+      discountMovingContent(windows, against, R * R_warp.transpose(), tau);
+    const MotionEstimate residual = fitPass(windows, rotationVector(R_warp), rowsOf(against));
     if (residual.status == FitStatus::kLost) {
       est.status = FitStatus::kDegraded;  // keep the estimate so far, trust it less
       break;
@@ -477,9 +480,9 @@ PassResult FrameRegistrar::refine(const MotionEstimate& start, const Eigen::Matr
     est.iterations += residual.iterations;
     if (residual.status == FitStatus::kDegraded) est.status = FitStatus::kDegraded;
     out.refined = true;
-    keepWeights(refine_weights_);
-    out.windows = refine_windows_;
-    out.window_weights = refine_weights_;
+    keepWeights(weights);
+    out.windows = windows;
+    out.window_weights = weights;
     out.window_model = residual.vector();
     out.gyro_rows = last_pass_gyro_;
   }

@@ -118,7 +118,16 @@ class FrameRegistrar {
   /// estimate whose windows() are the first pass's) at rotation `R` and translation `tau`,
   /// against `against` (WindowRegistration::kPreviousFrame or a keyframe slot).
   PassResult refine(const MotionEstimate& start, const Eigen::Matrix3d& R,
-                    const Eigen::Vector3d& tau, int against);
+                    const Eigen::Vector3d& tau, int against) {
+    return refineInto(start, R, tau, against, refine_windows_, refine_weights_);
+  }
+  /// The same into windows of its own: the windows of the last refine() stay those of its
+  /// PassResult (a second registration of the current frame, against a keyframe, after the
+  /// one whose windows are published).
+  PassResult secondRefine(const MotionEstimate& start, const Eigen::Matrix3d& R,
+                          const Eigen::Vector3d& tau, int against) {
+    return refineInto(start, R, tau, against, second_windows_, second_weights_);
+  }
   /// The candidate next reference (firstPass()) becomes the previous frame.
   void advance() {
     registration_.advance();
@@ -169,6 +178,10 @@ class FrameRegistrar {
   };
 
   static int bandStart(int b, int bands, int rows) { return b * rows / bands; }
+  /// refine() with its passes' windows and weights in `windows` and `weights`.
+  PassResult refineInto(const MotionEstimate& start, const Eigen::Matrix3d& R,
+                        const Eigen::Vector3d& tau, int against,
+                        std::vector<WindowMotion>& windows, std::vector<double>& weights);
   /// Fills window_times_ from the calibration's capture times (start-up).
   void measureWindowTimes();
   void predictRefinementShifts(const Eigen::Vector3d& tau, FitStatus last_fit);
@@ -241,10 +254,10 @@ class FrameRegistrar {
   std::vector<double> moving_fraction_;  ///< per window, discountMovingContent()
   std::vector<Eigen::Vector2d> expected_motion_;  ///< per window, discountMovingContent()
   std::vector<cv::Mat> keyframe_panoramas_;  ///< per keyframe slot
-  std::vector<WindowMotion> windows_, refine_windows_;
-  /// How much each window of windows_ / refine_windows_ weighed in the fit of its pass
-  /// (MotionFit::finalWeight()), kept after that pass's fit.
-  std::vector<double> weights_, refine_weights_;
+  std::vector<WindowMotion> windows_, refine_windows_, second_windows_;
+  /// How much each window of windows_ / refine_windows_ / second_windows_ weighed in the fit
+  /// of its pass (MotionFit::finalWeight()), kept after that pass's fit.
+  std::vector<double> weights_, refine_weights_, second_weights_;
   std::vector<WindowMotion> shifts_only_;  ///< "known" rotation/scale for a shift-only pass
   std::vector<double> expected_dv_;        ///< refinement pass: dv per window, or NaN
   std::vector<double> window_azimuth_;     ///< per window: azimuth of its centre, radians

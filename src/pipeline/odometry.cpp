@@ -24,6 +24,12 @@ using Clock = std::chrono::steady_clock;
 /// Gyro samples Odometry keeps (8 s at 1 kHz).
 constexpr std::size_t kGyroSamplesKept = 8192;
 
+/// Largest rotation between the chained pose and a keyframe's estimate of it that anchors the
+/// pose, radians (1.1 deg): a chain drifts from its keyframe by a small fraction of that
+/// while the keyframe is in reach, so more is a registration gone wrong (an aliased texture,
+/// a person in front of the camera).
+constexpr double kMaxAnchorCorrection = 0.02;
+
 /// Why a frame after a rejected one is rejected too when the ring search cannot place it.
 const Error kNotFoundAgain(ErrorCode::kImplausible,
                            "implausible frame: after a frame that was not believed, nothing of the "
@@ -87,6 +93,8 @@ std::vector<std::string> KeyframeOptions::validate() const {
     problems.push_back("max_tilt_rad: " + std::to_string(max_tilt_rad) + " rad (" +
                        std::to_string(max_tilt_rad * 180.0 / std::numbers::pi) +
                        " deg) is outside [0, 0.5] radians ([0, 28.6] degrees)");
+  if (!(anchor_gain >= 0.0 && anchor_gain <= 1.0))
+    problems.push_back("anchor_gain: " + std::to_string(anchor_gain) + " is outside [0, 1]");
   if (!(min_ring_peak > 0.0 && min_ring_peak < 1.0))
     problems.push_back("min_ring_peak: " + std::to_string(min_ring_peak) + " is outside (0, 1)");
   if (!(gap_after_s >= 0.0 && gap_after_s <= 3600.0))
@@ -180,6 +188,13 @@ struct Odometry::Impl {
   /// frame: the last one used while it is in reach, else the oldest in reach; -1 for none.
   int chooseKeyframe(const Eigen::Isometry3d& predicted) const;
   bool inReach(const Keyframe& k, const Eigen::Isometry3d& predicted) const;
+  /// Registers the current frame against keyframe `slot` as well (from the pose `T` that
+  /// the pair's refinement `pair` gave, `first` the first pass) and moves `T`
+  /// KeyframeOptions::anchor_gain of the way to the keyframe's estimate. False, `T`
+  /// unchanged, when that registration fails, is not kOk, or disagrees with `T` by more
+  /// than kMaxAnchorCorrection (the keyframe is no longer a view to trust).
+  bool anchorToKeyframe(int slot, const MotionEstimate& first, const pipeline::PassResult& pair,
+                        Eigen::Isometry3d& T);
   /// Makes the previous frame (the current one after advance()) a keyframe, in the least
   /// recently used slot.
   void addKeyframe(const Eigen::Isometry3d& pose);
@@ -526,49 +541,55 @@ Expected<OdometryResult> Odometry::Impl::process(const cv::Mat& frame, const Fra
   if (Expected<void> ok = gate->checkRotation(first->omega.norm(), time - last_time); !ok)
     return notBelieved(ok.error());
 
-  // Refinement against a keyframe at the predicted pose, or against the previous frame.
+  // The pair's motion: the refinement against the previous frame.
   const Eigen::Matrix3d R1 = rotationFromVector(first->omega);
-  const Eigen::Isometry3d predicted = pose * isometry(R1, first->tau);
-  const int slot = chooseKeyframe(predicted);
-  if (slot >= 0) {
-    const Keyframe& key = keyframes[static_cast<std::size_t>(slot)];
-    const Eigen::Isometry3d from_key = key.pose.inverse() * predicted;
-    setShutter(key.time_s, key.sequence == last_sequence);
-    const pipeline::PassResult pass =
-        r.refine(*first, from_key.linear(), from_key.translation(), slot);
-    const bool worse = !pass.refined || pass.estimate.status == FitStatus::kLost ||
-                       (pass.estimate.status != FitStatus::kOk && first->status == FitStatus::kOk);
-    // The refined windows' confidence (the first pass's falls with fast roll and pitch,
-    // which the refinement takes out); a keyframe pass below it tries the previous frame.
-    if (!worse && gate->checkConfidence(pass.windows, pass.estimate.status)) {
-      out.keyframe_sequence = key.sequence;
-      const Eigen::Isometry3d T =
-          key.pose * isometry(atTimestamps(pass, key.time_s, &key), pass.estimate.tau);
-      useKeyframe(slot);
-      r.advance();
-      finish(out, T, pass, TrackState::kTracked);
-      believe(out);
-      m.timing.refine = secondsSince(t_refine);
-      finishTiming(out);
-      return out;
-    }
-  }
-  // Frame-to-frame refinement; the frame becomes the keyframe.
   setShutter(last_time, true);
   const pipeline::PassResult pass =
       r.refine(*first, R1, first->tau, WindowRegistration::kPreviousFrame);
   if (Expected<void> ok = gate->checkConfidence(pass.windows, pass.estimate.status); !ok)
     return notBelieved(ok.error());
-  out.keyframe_sequence = last_sequence;
-  const Eigen::Isometry3d T =
-      pose * isometry(atTimestamps(pass, last_time), pass.estimate.tau);
+  Eigen::Isometry3d T = pose * isometry(atTimestamps(pass, last_time), pass.estimate.tau);
+  // The pose, anchored to the keyframe in reach; with none (or one that no longer registers)
+  // the frame becomes a keyframe.
+  const int slot = chooseKeyframe(T);
+  const bool keep_keyframe =
+      slot >= 0 && (keyframes[static_cast<std::size_t>(slot)].sequence == last_sequence ||
+                    anchorToKeyframe(slot, *first, pass, T));
+  out.keyframe_sequence = keep_keyframe ? keyframes[static_cast<std::size_t>(slot)].sequence
+                                        : last_sequence;
+  if (keep_keyframe) useKeyframe(slot);
   r.advance();
   finish(out, T, pass, TrackState::kTracked);
   believe(out);
-  addKeyframe(pose);  // without keyframes (slots 0) its one slot follows the previous frame
+  // Without keyframes (slots 0) the one slot follows the previous frame.
+  if (!keep_keyframe) addKeyframe(pose);
   m.timing.refine = secondsSince(t_refine);
   finishTiming(out);
   return out;
+}
+
+bool Odometry::Impl::anchorToKeyframe(int slot, const MotionEstimate& first,
+                                      const pipeline::PassResult& pair, Eigen::Isometry3d& T) {
+  if (keyframe_options.anchor_gain == 0.0) return true;  // kept for gaps only
+  const Keyframe& key = keyframes[static_cast<std::size_t>(slot)];
+  const Eigen::Isometry3d from_key = key.pose.inverse() * T;
+  setShutter(key.time_s, false);
+  const pipeline::PassResult pass =
+      registrar->secondRefine(first, from_key.linear(), from_key.translation(), slot);
+  if (!pass.refined || pass.estimate.status != FitStatus::kOk) return false;
+  // Its rotation between the timestamps: the gyro's rows, or the yaw chain's offsets at the
+  // keyframe and at this frame (set by the pair's registration).
+  std::optional<Eigen::Matrix3d> R;
+  if (pass.gyro_rows == pair.gyro_rows)
+    R = pass.gyro_rows ? std::optional(pass.rotation)
+                       : readout_yaw.againstAnchor(pass.rotation, key.heading);
+  if (!R) return false;
+  const Eigen::Isometry3d d = T.inverse() * (key.pose * isometry(*R, pass.estimate.tau));
+  const Eigen::Vector3d correction = rotationVector(d.linear());
+  if (correction.norm() > kMaxAnchorCorrection) return false;
+  const double gain = keyframe_options.anchor_gain;
+  T = T * isometry(rotationFromVector(gain * correction), gain * d.translation());
+  return true;
 }
 
 Expected<OdometryResult> Odometry::Impl::processPairwise(const cv::Mat& frame,

@@ -69,6 +69,16 @@ Eigen::Matrix3d ReadoutYaw::betweenTimestamps(const Eigen::Matrix3d& R, double t
   return rotationFromVector(omega);
 }
 
+std::optional<Eigen::Matrix3d> ReadoutYaw::againstAnchor(const Eigen::Matrix3d& R,
+                                                         const Anchor& reference) const {
+  if (offset_ == 0.0) return R;
+  if (samples_ < 2 || reference.chain != chain_ || !(reference.time < time_[2])) return std::nullopt;
+  const double reference_offset = std::isnan(reference.offset) ? origin_offset_ : reference.offset;
+  Eigen::Vector3d omega = rotationVector(R);
+  omega.z() += offset_heading_ - reference_offset;
+  return rotationFromVector(omega);
+}
+
 ReadoutYaw::Anchor ReadoutYaw::anchor() const {
   if (samples_ == 0) return {};
   return {chain_, time_[2], heading_[2],

@@ -19,6 +19,7 @@
 /// Realtime: no allocation, never throws.
 
 #include <Eigen/Core>
+#include <optional>
 
 namespace omnipose::pipeline {
 
@@ -53,6 +54,14 @@ class ReadoutYaw {
   /// is forgotten.
   Eigen::Matrix3d betweenTimestamps(const Eigen::Matrix3d& R, double t_ref, double t_cur,
                                     const Anchor* reference = nullptr);
+
+  /// `R`: a second registration of the chain's last frame (the last betweenTimestamps()'s
+  /// t_cur, after a pair) against `reference`, an anchor() of this chain; R with its yaw
+  /// moved to between the two timestamps as betweenTimestamps() would, the chain unchanged.
+  /// R as is without an offset; nullopt when `reference` is not of this chain, is the last
+  /// frame itself, or no pair has set the last frame's offset.
+  std::optional<Eigen::Matrix3d> againstAnchor(const Eigen::Matrix3d& R,
+                                               const Anchor& reference) const;
 
   /// The chain's last frame's anchor (chain -1 when no chain has begun or after reset()).
   Anchor anchor() const;

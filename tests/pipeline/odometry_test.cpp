@@ -133,6 +133,57 @@ TEST(Odometry, AYawSwingAndBackStaysOnOneKeyframeAndEndsWhereItBegan) {
   EXPECT_LT(worst, 5e-4);
 }
 
+/// Per-pair rotation error RMS and end-point error of a run of `options` over the swing
+/// +-30 deg with a slight wobble (roll and pitch up to 0.6 deg), ending where it began.
+struct SwingRun {
+  double pair_rms = 0.0, pose_rms = 0.0, worst = 0.0;
+  int anchored = 0;  ///< frames whose keyframe was not the previous frame
+};
+SwingRun runSwing(Renderings& scene, const OdometryOptions& options) {
+  std::vector<Eigen::Isometry3d> truth;
+  for (int k = 0; k <= 60; ++k) {
+    const double phase = 2.0 * std::numbers::pi * k / 60.0;
+    truth.push_back(attitude(0.6 * kDeg * std::sin(3 * phase), 0.4 * kDeg * std::sin(5 * phase),
+                             30.0 * kDeg * std::sin(phase)));
+  }
+  Odometry odometry(Calibration{}, options);
+  SwingRun run;
+  double sum = 0.0, pose_sum = 0.0;
+  for (std::size_t k = 0; k < truth.size(); ++k) {
+    const OdometryResult r =
+        processOk(odometry, scene.frame(truth[k], static_cast<int>(k)), static_cast<double>(k) / 30.0);
+    if (k > 0) {
+      const Eigen::Matrix3d pair = truth[k - 1].linear().transpose() * truth[k].linear();
+      sum += rotationVector(r.relative.rotation.transpose() * pair).squaredNorm();
+      if (r.keyframe_sequence != r.reference_sequence) ++run.anchored;
+    }
+    const double error = rotationError(r.pose, truth[k]);
+    run.worst = std::max(run.worst, error);
+    pose_sum += error * error;
+  }
+  run.pair_rms = std::sqrt(sum / static_cast<double>(truth.size() - 1));
+  run.pose_rms = std::sqrt(pose_sum / static_cast<double>(truth.size()));
+  return run;
+}
+
+TEST(Odometry, KeyframesAnchorThePoseWithoutCostingThePairs) {
+  Renderings scene;
+  OdometryOptions frame_to_frame;
+  frame_to_frame.keyframes.slots = 0;
+  const SwingRun chained = runSwing(scene, frame_to_frame);
+  const SwingRun anchored = runSwing(scene, {});  // the default: keyframes, anchor_gain 0.1
+  for (const auto& [name, run] : {std::pair{"frame_to_frame", chained}, {"default", anchored}}) {
+    ::testing::Test::RecordProperty(std::string(name) + "_pair_rms_rad", std::to_string(run.pair_rms));
+    ::testing::Test::RecordProperty(std::string(name) + "_pose_rms_rad", std::to_string(run.pose_rms));
+    ::testing::Test::RecordProperty(std::string(name) + "_worst_rad", std::to_string(run.worst));
+  }
+  EXPECT_EQ(chained.anchored, 0);
+  EXPECT_GT(anchored.anchored, 50) << "a swing stays in reach of its first keyframe";
+  EXPECT_LT(anchored.pair_rms, 1.05 * chained.pair_rms) << "each pair as exact as frame to frame";
+  EXPECT_LT(anchored.pose_rms, chained.pose_rms) << "the chain held by its keyframe";
+  EXPECT_LT(anchored.worst, chained.worst);
+}
+
 /// A yaw turn of `step_deg` per frame for `frames` frames, with frames [gap_from, gap_to)
 /// replaced by `bad` (an error) or left out (`bad` empty: an outage the caller reports).
 struct GapRun {
@@ -301,7 +352,9 @@ TEST(Odometry, ChainedRotationsStayOrthonormalThroughManyKeyframeSwitches) {
 
 TEST(Odometry, WithoutKeyframesEveryFrameIsRefinedAgainstThePreviousOne) {
   Renderings scene;
-  Odometry odometry(Calibration{}, {});  // the default: slots 0
+  OdometryOptions options;
+  options.keyframes.slots = 0;
+  Odometry odometry(Calibration{}, options);
   for (int k = 0; k < 5; ++k) {
     const OdometryResult r = processOk(odometry, scene.frame(Eigen::Isometry3d::Identity(), k), k / 30.0);
     if (k > 0) {

@@ -6,6 +6,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <optional>
 #include <vector>
 
 #include "omnipose/so3.hpp"
@@ -129,6 +130,40 @@ TEST(ReadoutYaw, RegistrationsAgainstAKeyframeContinueTheChainFromItsAnchor) {
   const Eigen::Matrix3d stale = registered(constantAcceleration, t[3], t[9]);
   EXPECT_NEAR(rotationVector(yaw.betweenTimestamps(stale, t[3], t[9], &key)).z(),
               rotationVector(stale).z(), 1e-12);
+}
+
+TEST(ReadoutYaw, ASecondRegistrationAgainstAnAnchorIsMovedAsTheChainWouldWithoutChangingIt) {
+  // Frames chained frame to frame; each from frame 4 on is registered against keyframe 2 as
+  // well (Odometry's anchoring): that yaw between the timestamps is exact, and the chain
+  // goes on as if the second registration had not been made.
+  const std::vector<double> t = timestamps(10);
+  pipeline::ReadoutYaw yaw(kOffset), alone(kOffset);
+  pipeline::ReadoutYaw::Anchor key;
+  for (std::size_t k = 1; k < t.size(); ++k) {
+    const Eigen::Matrix3d pair = registered(constantAcceleration, t[k - 1], t[k]);
+    const double chained = rotationVector(yaw.betweenTimestamps(pair, t[k - 1], t[k])).z();
+    EXPECT_EQ(chained, rotationVector(alone.betweenTimestamps(pair, t[k - 1], t[k])).z());
+    if (k == 2) {
+      key = yaw.anchor();
+      EXPECT_FALSE(yaw.againstAnchor(pair, key).has_value()) << "the last frame itself";
+    }
+    if (k >= 4) {
+      const std::optional<Eigen::Matrix3d> R =
+          yaw.againstAnchor(registered(constantAcceleration, t[2], t[k]), key);
+      ASSERT_TRUE(R.has_value()) << "frame " << k;
+      EXPECT_NEAR(rotationVector(*R).z(), constantAcceleration(t[k]) - constantAcceleration(t[2]),
+                  1e-12)
+          << "frame " << k << " against the keyframe";
+    }
+  }
+  // An anchor of another chain, or a chain without a pair yet: no answer.
+  yaw.reset();
+  yaw.begin(t[9]);
+  EXPECT_FALSE(yaw.againstAnchor(Eigen::Matrix3d::Identity(), key).has_value());
+  // A global shutter: the rotation as registered.
+  const pipeline::ReadoutYaw global(0.0);
+  const Eigen::Matrix3d R = registered(constantAcceleration, t[2], t[5]);
+  EXPECT_TRUE(global.againstAnchor(R, key)->isApprox(R));
 }
 
 TEST(ReadoutYaw, ASegmentsFirstFrameServesAsKeyframeFromTheStart) {

@@ -7,7 +7,8 @@
 # the rotation bridged across the outage with the truth. Prints one line per outage and a
 # summary: how many were bridged, the median and worst error, how many started a new segment.
 # Usage: tools/drift/bridge_sweep.sh OUT_DIR [LENGTHS (default "5 20")] [STEP (default 25)]
-# Environment: BUILD_DIR (default build), KEYFRAME_SLOTS (keyframes.slots of the replay).
+# Environment: BUILD_DIR (default build), KEYFRAME_SLOTS (keyframes.slots of the replay;
+# default: the default's).
 set -euo pipefail
 cd "$(dirname "$0")/../.."
 out=${1:?usage: tools/drift/bridge_sweep.sh OUT_DIR [LENGTHS] [STEP]}
@@ -31,7 +32,11 @@ omni:
   azimuth_direction: ccw
 panorama: {width: 1100, height: 110, horizon_row: 54.5, forward_column: 0.0}
 YAML
-printf 'keyframes: {slots: %s}\n' "${KEYFRAME_SLOTS:-0}" > "$out/replay.yaml"
+if [ -n "${KEYFRAME_SLOTS:-}" ]; then
+  printf 'keyframes: {slots: %s}\n' "$KEYFRAME_SLOTS" > "$out/replay.yaml"
+else
+  : > "$out/replay.yaml"
+fi
 "$bin/omnipose-synth" --texture tests/data/equirect/indoor_1024x512.jpg --out "$out/rect" \
   --motion tools/drift/rectangle.yaml --scene box --calibration "$out/calibration.yaml" \
   --supersample 1 --noise 3 --exposure-jitter 0.05 --exposure-offset 3 --quiet

@@ -30,14 +30,18 @@ namespace omnipose::calibrate {
 /// How the camera's calibration searches register their recordings (estimateReadout() and
 /// estimateImuCalibration()): the daemon's defaults, except that each window's depth comes
 /// from its own in-window scale at the scale's full weight (MotionFit::Options::
-/// plane_depth_prior false). A calibration recording turns in place, where the scale sees
-/// no wall's depth gradient, and the searches read what a wrong readout or clock offset
-/// leaves in the fit: with the scale weighed 0.01, as the plane prior weighs it,
-/// --readout-from read the real-camera benchmark's readout 3.8 % short instead of 1.0 %,
-/// and --imu-from the clock 0.36 ms off (docs/results/ANALYSIS.md).
+/// plane_depth_prior false), and that each pair's motion is its own registration, not pulled
+/// towards a keyframe (KeyframeOptions::slots 0; gaps are bridged against the last good
+/// frame). A calibration recording turns in place, where the scale sees no wall's depth
+/// gradient, and the searches read what a wrong readout or clock offset leaves in each
+/// pair's fit over that pair's interval: with the scale weighed 0.01, as the plane prior
+/// weighs it, --readout-from read the real-camera benchmark's readout 3.8 % short instead of
+/// 1.0 %, and --imu-from the clock 0.36 ms off (docs/results/ANALYSIS.md); a pose pulled
+/// towards a keyframe mixes in registrations over other intervals.
 inline OdometryOptions calibrationOdometry() {
   OdometryOptions o;
   o.pipeline.fit.plane_depth_prior = false;
+  o.keyframes.slots = 0;
   return o;
 }
 
