@@ -25,15 +25,16 @@
 #   SUPERSAMPLE [1]      renderer anti-aliasing: K x K rays per pixel
 #   FRAMES      [the lap's 461]  render only the first FRAMES frames (a quick check of the
 #               script; a part of the lap does not end where it began)
-#   VARIANTS    ["plane_depth_prior: false"]  the settings to compare with the defaults, '|'
-#               between variants, each "key: value" entries of daemon.yaml's `pipeline:`
-#               section separated by ';', e.g. "plane_depth_prior: false|noise_weighting: true"
+#   VARIANTS    ["keyframes.slots: 0|plane_depth_prior: false"]  the settings to compare with
+#               the defaults, '|' between variants, each "key: value" entries separated by ';'
+#               of daemon.yaml's `pipeline:` section, or of its `keyframes:` section as
+#               "keyframes.key: value", e.g. "plane_depth_prior: false|keyframes.anchor_gain: 0.3"
 # Nothing is sent on the network; everything is seeded (the same build gives the same table).
 # shellcheck source=tools/common/benchmark.sh
 source "$(dirname "$0")/common/benchmark.sh"
 bench_args drift_pool drift_pool -- "$@"
 supersample=${SUPERSAMPLE:-1}
-variants=${VARIANTS-"plane_depth_prior: false"}
+variants=${VARIANTS-"keyframes.slots: 0|plane_depth_prior: false"}
 bin=$build/bin
 frames_option=()
 [ -n "${FRAMES:-}" ] && frames_option=(--frames "$FRAMES")
@@ -85,17 +86,33 @@ rooms=(
 # offset N(0, 3) grey levels; PNG frames.
 sensor="--noise 3 --exposure-jitter 0.05 --exposure-offset 3"
 
+# replay_yaml ENTRIES: a replay configuration, the defaults but for ENTRIES (VARIANTS' form).
+replay_yaml() {
+  local entry pipeline_entries="" keyframe_entries=""
+  local -a entries=()
+  IFS=';' read -ra entries <<< "$1"
+  for entry in "${entries[@]}"; do
+    case "$(sed 's/^[[:space:]]*//' <<< "$entry")" in
+      keyframes.*) keyframe_entries+="$(sed 's/^[[:space:]]*keyframes\.//' <<< "$entry");" ;;
+      *) pipeline_entries+="$entry;" ;;
+    esac
+  done
+  printf 'pipeline:\n  fftw_wisdom: "%s"\n' "$wisdom"
+  bench_pipeline_lines "$pipeline_entries"
+  if [ -n "$keyframe_entries" ]; then
+    printf 'keyframes:\n'
+    bench_pipeline_lines "$keyframe_entries"
+  fi
+}
+
 # Replay configurations: the defaults, then one per variant.
 config_names=(default)
-printf 'pipeline:\n  fftw_wisdom: "%s"\n' "$wisdom" > "$out/default.yaml"
+replay_yaml "" > "$out/default.yaml"
 IFS='|' read -ra variant_list <<< "$variants"
 for i in "${!variant_list[@]}"; do
   name=variant$((i + 1))
   config_names+=("$name")
-  {
-    printf 'pipeline:\n  fftw_wisdom: "%s"\n' "$wisdom"
-    bench_pipeline_lines "${variant_list[$i]}"
-  } > "$out/$name.yaml"
+  replay_yaml "${variant_list[$i]}" > "$out/$name.yaml"
 done
 
 echo "== drift pool: ${#rooms[@]} rooms x ${#config_names[@]} settings, output $out"
