@@ -385,7 +385,7 @@ for line in open(rows_file):
         if est.startswith("ifmi") and target:
             # The targets with the calibration from --imu-from: 2.5x throughout.
             row["target_ratio"] = max(float(target), 2.5) if est == "ifmi_imu_from" else float(target)
-            row["met"] = ratio is not None and ratio <= float(target)
+            row["met"] = ratio is not None and ratio <= row["target_ratio"]
         rows.append(row)
 json.dump({"settings": settings, "sequences": sequences, "rows": rows},
           open(out + "/report/real_camera.json", "w"), indent=1)

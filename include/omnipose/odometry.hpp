@@ -76,6 +76,13 @@ struct KeyframeOptions {
   /// the keyframe-relative estimate (each pair's motion then the difference of two such
   /// estimates, less exact); 0 = keyframes only for gaps.
   double anchor_gain = 0.1;
+  /// The keyframe registration is made on one frame in this many while a keyframe is in
+  /// reach, [1, 100]; the pose is pulled on those frames only. Each is a refinement pass,
+  /// about half a frame's work (+46 % wall time per frame at rest or turning in place with
+  /// 1, docs/PERFORMANCE.md), so a board short of CPU may trade: 3 with anchor_gain 0.3
+  /// costs a third of that, its pairs 1-3 % less exact than with 1 on the rooms of
+  /// docs/results/ANALYSIS.md ("Keyframes by default").
+  int anchor_interval = 1;
   /// Whole-ring yaw search after a gap: the correlation peak below which the search has
   /// failed (a peak of ~0.01 is what unrelated panoramas give).
   double min_ring_peak = 0.03;
@@ -147,18 +154,25 @@ const char* toString(TrackState state);
 
 struct OdometryResult {
   TrackState state = TrackState::kSegmentStart;
-  /// Frame's motion relative to the frame `reference_sequence` (the last good one):
-  /// rotation, translation direction and |tau|, with the status, covariance (of the
-  /// estimate as fitted, in the keyframe's frame: 6 x 6 over (omega, tau)), residual and
-  /// windows used of the pass that made it. has_motion false at a segment start.
+  /// Frame's motion relative to the frame `reference_sequence` (the last good one): the
+  /// difference of the two frames' poses (rotation, translation direction and |tau|), with
+  /// the status, covariance (6 x 6 over (omega, tau)), residual and windows used of the
+  /// registration that measured it (against the previous frame; after a gap against the
+  /// keyframe). has_motion false at a segment start.
   FrameMotion relative;
   /// Chained pose of the frame (camera to segment origin; positions in scene distances).
   Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
   int segment = 0;                        ///< 0 for the first, +1 at every new segment
   std::int64_t sequence = -1;             ///< this frame's
   std::int64_t reference_sequence = -1;   ///< the frame the motion is relative to; -1 at a start
-  std::int64_t keyframe_sequence = -1;    ///< the keyframe the estimate was refined against
+  /// The keyframe the pose was anchored to (KeyframeOptions::anchor_gain), or bridged from
+  /// after a gap; reference_sequence when the frame had no other keyframe in reach (it then
+  /// becomes one).
+  std::int64_t keyframe_sequence = -1;
   int frames_since_keyframe = 0;          ///< frames from that keyframe to this one
+  /// The frame `windows` were registered against: reference_sequence, or after a gap the
+  /// keyframe; -1 without windows.
+  std::int64_t windows_reference_sequence = -1;
   /// The windows of the pass that made the estimate (valid until the next process()), and
   /// the motion that pass fitted to them (relative to the panorama it registered, which is
   /// de-rotated after a refinement: Eq. 3's model gives each window's fitted du/dv).

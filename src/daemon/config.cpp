@@ -136,13 +136,14 @@ void parsePipeline(Reader& r, const YAML::Node& node, const std::filesystem::pat
 
 void parseKeyframes(Reader& r, const YAML::Node& node, KeyframeOptions& k) {
   if (!r.checkMap(node, "keyframes",
-                  {"slots", "max_translation", "max_tilt_deg", "anchor_gain", "min_ring_peak",
-                   "gap_after_s"}))
+                  {"slots", "max_translation", "max_tilt_deg", "anchor_gain", "anchor_interval",
+                   "min_ring_peak", "gap_after_s"}))
     return;
   r.get(node, "keyframes", "slots", k.slots);
   r.get(node, "keyframes", "max_translation", k.max_translation);
   getDegrees(r, node, "keyframes", "max_tilt_deg", k.max_tilt_rad);
   r.get(node, "keyframes", "anchor_gain", k.anchor_gain);
+  r.get(node, "keyframes", "anchor_interval", k.anchor_interval);
   r.get(node, "keyframes", "min_ring_peak", k.min_ring_peak);
   r.get(node, "keyframes", "gap_after_s", k.gap_after_s);
   // The ranges are the odometry's own (KeyframeOptions::validate(), checked by parse()),
@@ -349,6 +350,7 @@ std::string DaemonConfig::describe() const {
     << "\n  max_translation: " << keyframes.max_translation
     << "\n  max_tilt_deg: " << keyframes.max_tilt_rad * 180.0 / std::numbers::pi
     << "\n  anchor_gain: " << keyframes.anchor_gain
+    << "\n  anchor_interval: " << keyframes.anchor_interval
     << "\n  min_ring_peak: " << keyframes.min_ring_peak
     << "\n  gap_after_s: " << keyframes.gap_after_s << "\n"
     << "plausibility:\n  enabled: " << plausibility.enabled

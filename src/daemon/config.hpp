@@ -14,7 +14,7 @@
 /// pipeline: {window: 110, step: 20, huber_delta_px: 2.0, median: 5,
 ///            refine_iterations: 1, use_rotation_scale: true}
 /// keyframes: {slots: 4, max_translation: 0.02, max_tilt_deg: 5.16, anchor_gain: 0.1,
-///             min_ring_peak: 0.03, gap_after_s: 0.15}
+///             anchor_interval: 1, min_ring_peak: 0.03, gap_after_s: 0.15}
 /// lcm: {url: "", pose_channel: OMNI_POSE, status_channel: OMNI_STATUS, fit_channel: "",
 ///       status_hz: 1.0, panorama_channel: "", panorama_hz: 2.0, panorama_width: 640}
 /// scheduling: {fifo_priority: 0, cpus: []}

@@ -254,7 +254,7 @@ void Processor::fillDiagnostics(const FrameInfo& info, const OdometryResult& r,
   d.residual_px = static_cast<float>(est.residual_rms_px);
   d.windows_masked = static_cast<std::int16_t>(est.windows_masked);
   d.refined = r.windows_refined;
-  d.reference_sequence = r.keyframe_sequence;
+  d.reference_sequence = r.windows_reference_sequence;
   const std::size_t n = std::min(r.windows.size(), d.du.size());
   for (std::size_t k = 0; k < n; ++k) {
     const WindowMotion& w = r.windows[k];

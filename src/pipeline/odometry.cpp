@@ -95,6 +95,7 @@ std::vector<std::string> KeyframeOptions::validate() const {
                        " deg) is outside [0, 0.5] radians ([0, 28.6] degrees)");
   if (!(anchor_gain >= 0.0 && anchor_gain <= 1.0))
     problems.push_back("anchor_gain: " + std::to_string(anchor_gain) + " is outside [0, 1]");
+  detail::checkRange(problems, "anchor_interval", anchor_interval, 1, 100, " frames");
   if (!(min_ring_peak > 0.0 && min_ring_peak < 1.0))
     problems.push_back("min_ring_peak: " + std::to_string(min_ring_peak) + " is outside (0, 1)");
   if (!(gap_after_s >= 0.0 && gap_after_s <= 3600.0))
@@ -285,6 +286,9 @@ struct Odometry::Impl {
   std::vector<Keyframe> keyframes;
   pipeline::ReadoutYaw readout_yaw;  ///< chains the pairs' yaws (rolling shutter)
   int active = -1;  ///< slot of the keyframe the last frame used
+  /// Frames with another keyframe in reach since the last keyframe registration
+  /// (KeyframeOptions::anchor_interval).
+  int frames_since_anchor = 0;
   long use_clock = 0;
 
   bool started = false;  ///< a frame of the current segment has been processed
@@ -309,6 +313,7 @@ void Odometry::Impl::startSegment(OdometryResult& out, TrackState state) {
   started = true;
   gap = false;
   for (auto& k : keyframes) k.valid = false;
+  frames_since_anchor = 0;
   out.state = state;
   out.relative = FrameMotion{};
   readout_yaw.begin(time);
@@ -369,6 +374,7 @@ void Odometry::Impl::finish(OdometryResult& out, const Eigen::Isometry3d& T_esti
   setMotion(out.relative, pose.inverse() * T);
   out.relative.timing = keep_timing.timing;
   out.reference_sequence = last_sequence;
+  out.windows_reference_sequence = pass.windows.empty() ? -1 : last_sequence;
   out.windows = pass.windows;
   out.window_weights = pass.window_weights;
   out.windows_refined = pass.refined;
@@ -412,6 +418,7 @@ Expected<bool> Odometry::Impl::bridge(OdometryResult& out) {
   useKeyframe(active);
   registrar->makeCurrentPrevious();
   finish(out, T, pass, TrackState::kBridged);
+  out.windows_reference_sequence = key.sequence;
   velocity_interval = 0.0;  // a motion across a gap says little about the next pair's
   // Without keyframes the one slot follows the last good frame: this one.
   if (keyframe_options.slots == 0) addKeyframe(pose);
@@ -552,9 +559,16 @@ Expected<OdometryResult> Odometry::Impl::process(const cv::Mat& frame, const Fra
   // The pose, anchored to the keyframe in reach; with none (or one that no longer registers)
   // the frame becomes a keyframe.
   const int slot = chooseKeyframe(T);
-  const bool keep_keyframe =
-      slot >= 0 && (keyframes[static_cast<std::size_t>(slot)].sequence == last_sequence ||
-                    anchorToKeyframe(slot, *first, pass, T));
+  bool keep_keyframe = false;
+  if (slot >= 0) {
+    if (keyframes[static_cast<std::size_t>(slot)].sequence == last_sequence ||
+        ++frames_since_anchor < keyframe_options.anchor_interval) {
+      keep_keyframe = true;
+    } else {
+      frames_since_anchor = 0;
+      keep_keyframe = anchorToKeyframe(slot, *first, pass, T);
+    }
+  }
   out.keyframe_sequence = keep_keyframe ? keyframes[static_cast<std::size_t>(slot)].sequence
                                         : last_sequence;
   if (keep_keyframe) useKeyframe(slot);

@@ -7,10 +7,12 @@
 //   -> "Collected" instructions / 10 = instructions per frame.
 // Usage: omnipose-bench-instructions [--threads N] [--frames K] [--warmup W]
 //                                    [--refine R] [--wisdom FILE] [--save DIR | --load DIR]
-//                                    [--odometry [--readout S [--gyro HZ]]]
+//                                    [--odometry [--readout S [--gyro HZ]] [--keyframe-slots N]]
 //                                    [--no-moving-content] [--noise-weighting]
 // --odometry processes the frames with Odometry (what omniposed and omnipose-replay run),
-// stamped at 30 fps, instead of Pipeline; --readout S gives the calibration a rolling
+// stamped at 30 fps, instead of Pipeline (its default keyframes: the first frame stays in
+// reach, so every frame is registered against it as well; --keyframe-slots 0 counts
+// frame-to-frame chaining); --readout S gives the calibration a rolling
 // shutter of S seconds (the rows' capture times corrected in every pass), --gyro HZ gives it
 // a gyro sampled at HZ (the calibration's imu section; the rows' rotations from the gyro).
 // --no-moving-content turns the refinement pass's check for content moving on its own off
@@ -52,6 +54,7 @@ namespace {
 /// The command line, as parsed.
 struct Args {
   int threads = 1, frames = 10, warmup = 2, refine = 1;
+  int keyframe_slots = omnipose::KeyframeOptions{}.slots;
   double readout = 0.0, gyro_hz = 0.0;
   bool odometry = false, no_moving_content = false, noise_weighting = false;
   std::string wisdom, save, load;
@@ -60,7 +63,7 @@ struct Args {
 constexpr const char* kUsage =
     "usage: omnipose-bench-instructions [--threads N] [--frames K] [--warmup W]\n"
     "                                   [--refine R] [--wisdom FILE] [--save DIR | --load DIR]\n"
-    "                                   [--odometry [--readout S [--gyro HZ]]]\n"
+    "                                   [--odometry [--readout S [--gyro HZ]] [--keyframe-slots N]]\n"
     "                                   [--no-moving-content] [--noise-weighting]";
 
 constexpr const char* kDescription =
@@ -96,6 +99,12 @@ void addOptions(CLI::App& app, Args& a) {
       ->type_name("HZ")
       ->needs(readout_opt)
       ->check(CLI::Range(10.0, 10000.0));
+  app.add_option("--keyframe-slots", a.keyframe_slots,
+                 "Odometry's keyframes.slots (0: frame-to-frame chaining)")
+      ->type_name("N")
+      ->needs(odometry_opt)
+      ->check(CLI::Range(0, omnipose::WindowRegistration::kMaxKeyframeSlots))
+      ->capture_default_str();
   app.add_flag("--no-moving-content", a.no_moving_content,
                "without the refinement pass's moving-content check "
                "(PipelineOptions::moving_content)");
@@ -148,6 +157,7 @@ int run(const Args& a) {
   if (a.odometry) {
     omnipose::OdometryOptions odometry_options;
     odometry_options.pipeline = options;
+    odometry_options.keyframes.slots = a.keyframe_slots;
     odometer.emplace(calibration, odometry_options);
   } else {
     pipeline.emplace(calibration, options);

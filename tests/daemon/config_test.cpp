@@ -163,19 +163,22 @@ TEST(DaemonConfig, KeyframesSection) {
   EXPECT_DOUBLE_EQ(defaults.keyframes.anchor_gain, 0.1);
   const DaemonConfig c = parseWith(
       "keyframes: {slots: 0, max_translation: 0.05, max_tilt_deg: 3, min_ring_peak: 0.1, "
-      "anchor_gain: 0.5}\n");
+      "anchor_gain: 0.5, anchor_interval: 3}\n");
   EXPECT_EQ(c.keyframes.slots, 0);
   EXPECT_DOUBLE_EQ(c.keyframes.anchor_gain, 0.5);
+  EXPECT_EQ(c.keyframes.anchor_interval, 3);
   EXPECT_DOUBLE_EQ(c.keyframes.max_translation, 0.05);
   EXPECT_NEAR(c.keyframes.max_tilt_rad, 3 * std::numbers::pi / 180.0, 1e-12);
   EXPECT_DOUBLE_EQ(c.keyframes.min_ring_peak, 0.1);
   EXPECT_THAT(c.describe(), HasSubstr("slots: 0"));
   EXPECT_THAT(c.describe(), HasSubstr("anchor_gain: 0.5"));
   const auto problems = problemsOf(
-      kFileSource + "keyframes: {slots: 17, max_tilt_deg: 40, anchor_gain: 1.5, cadence: 3}\n");
+      kFileSource +
+      "keyframes: {slots: 17, max_tilt_deg: 40, anchor_gain: 1.5, anchor_interval: 0, cadence: 3}\n");
   EXPECT_TRUE(mentions(problems, "keyframes.slots"));
   EXPECT_TRUE(mentions(problems, "keyframes.max_tilt_deg"));
   EXPECT_TRUE(mentions(problems, "keyframes.anchor_gain"));
+  EXPECT_TRUE(mentions(problems, "keyframes.anchor_interval"));
   EXPECT_TRUE(mentions(problems, "cadence"));
 }
 

@@ -1055,7 +1055,8 @@ TEST(Daemon, FitDiagnosticsArePublishedWhenEnabledAndMatchTheModel) {
     // de-rotated by the first estimate, so what is left of the 1..6 degree yaw is a
     // fraction of a pixel, and the model is that pass's fit.
     EXPECT_TRUE(diag.refined);
-    EXPECT_EQ(diag.reference_sequence, pose.keyframe_sequence);
+    EXPECT_EQ(diag.reference_sequence, pose.reference_sequence)
+        << "the windows are the pair's registration, whatever keyframe the pose is anchored to";
     for (int a = 0; a < 3; ++a) EXPECT_EQ(diag.omega[a], pose.rotation_vector[a]);
     ASSERT_EQ(diag.num_windows, 55);
     ASSERT_EQ(diag.du.size(), 55u);

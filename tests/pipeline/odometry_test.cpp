@@ -184,6 +184,25 @@ TEST(Odometry, KeyframesAnchorThePoseWithoutCostingThePairs) {
   EXPECT_LT(anchored.worst, chained.worst);
 }
 
+TEST(Odometry, TheKeyframeRegistrationIsMadeOnOneFrameInAnchorInterval) {
+  Renderings scene;
+  OdometryOptions frame_to_frame;
+  frame_to_frame.keyframes.slots = 0;
+  const SwingRun chained = runSwing(scene, frame_to_frame);
+  OdometryOptions never;  // not within the swing's 60 frames
+  never.keyframes.anchor_interval = 100;
+  EXPECT_DOUBLE_EQ(runSwing(scene, never).pose_rms, chained.pose_rms)
+      << "no keyframe registration: the poses are the pairs' chain";
+  OdometryOptions third;
+  third.keyframes.anchor_interval = 3;
+  third.keyframes.anchor_gain = 0.3;
+  const SwingRun sparse = runSwing(scene, third);
+  ::testing::Test::RecordProperty("interval_3_pair_rms_rad", std::to_string(sparse.pair_rms));
+  ::testing::Test::RecordProperty("interval_3_pose_rms_rad", std::to_string(sparse.pose_rms));
+  EXPECT_LT(sparse.pair_rms, 1.05 * chained.pair_rms);
+  EXPECT_LT(sparse.pose_rms, chained.pose_rms) << "the chain held by its keyframe";
+}
+
 /// A yaw turn of `step_deg` per frame for `frames` frames, with frames [gap_from, gap_to)
 /// replaced by `bad` (an error) or left out (`bad` empty: an outage the caller reports).
 struct GapRun {
@@ -224,8 +243,10 @@ void expectBridgedWithHeadingKept(const GapRun& run, double step_deg, int gap_fr
     if (r.sequence == gap_to) {
       EXPECT_EQ(r.state, TrackState::kBridged);
       EXPECT_EQ(r.reference_sequence, gap_from - 1);
+      EXPECT_EQ(r.windows_reference_sequence, r.keyframe_sequence) << "found against the keyframe";
     } else if (r.sequence > 0) {
       EXPECT_EQ(r.state, TrackState::kTracked);
+      EXPECT_EQ(r.windows_reference_sequence, r.reference_sequence) << "the pair's registration";
     }
     const Eigen::Isometry3d truth = attitude(0, 0, step_deg * static_cast<double>(r.sequence) * kDeg);
     EXPECT_LT(rotationError(r.pose, truth), 1e-3);

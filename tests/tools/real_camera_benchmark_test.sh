@@ -76,6 +76,8 @@ for r in d["rows"]:
     assert r["ratio"] > 0, r
     judged = r["estimator"].startswith("ifmi") and r["effect_sequence"] != "auto_exposure_clean"
     assert ("met" in r) == judged, r
+    if judged:
+        assert r["met"] == (r["ratio"] <= r["target_ratio"]), ("met judged against its own target", r)
     assert r["effect_drift"]["ate_rmse"] >= 0 and r["effect_drift"]["end_is_last"] in (True, False)
 targets = {r["effect_sequence"]: r.get("target_ratio") for r in d["rows"] if r["estimator"] == "ifmi"}
 assert targets == {"rolling_shutter": 2, "rolling_shutter_constant": 2, "walkers": 1.5,

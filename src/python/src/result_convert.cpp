@@ -179,7 +179,7 @@ void bindResult(nb::module_& m) {
       .def_ro("reference_sequence", &R::reference_sequence,
               "The frame the motion is relative to; -1 at a segment start.")
       .def_ro("keyframe_sequence", &R::keyframe_sequence,
-              "The keyframe the estimate was refined against.")
+              "The keyframe the pose was anchored to (reference_sequence when none was).")
       .def_ro("frames_since_keyframe", &R::frames_since_keyframe, "Frames since that keyframe.")
       .def_ro("windows", &R::windows, "The windows of the pass that made the estimate (Windows).")
       .def_prop_ro("seconds", [](const R& r) { return r.timing.total; },
