@@ -165,14 +165,7 @@ done
 # with. Table III compares their eps with the linear-lens sequence of the same scene.
 mkdir -p "$out/lenses"
 for lens in steep_mirror_800 mirror_office; do
-  cat > "$out/lenses/$lens.yaml" <<YAML
-omni:
-  model: ocamcalib
-  ocamcalib_file: $catadioptric/${lens}_ocamcalib.txt
-  azimuth_zero_deg: 0.0
-  azimuth_direction: ccw
-panorama: {width: 1100, height: 110, horizon_row: 54.5, forward_column: 0.0}
-YAML
+  bench_ocamcalib_calibration "$out/lenses/$lens.yaml" "$catadioptric/${lens}_ocamcalib.txt"
 done
 # ifmi_sequence NAME PHOTO MOTION SEED FLAGS CALIBRATION: renders a sequence into $out/NAME
 # (MOTION as in the suite: preset:NAME or file:PATH; CALIBRATION "" = the default linear

@@ -80,14 +80,7 @@ bench_fresh_out drift_benchmark
 out=$(realpath "$out")
 wisdom=$(realpath -m "${WISDOM:-$build/drift.wisdom}")
 
-cat > "$out/calibration.yaml" <<YAML
-omni:
-  model: ocamcalib
-  ocamcalib_file: $lens
-  azimuth_zero_deg: 0.0
-  azimuth_direction: ccw
-panorama: {width: 1100, height: 110, horizon_row: 54.5, forward_column: 0.0}
-YAML
+bench_ocamcalib_calibration "$out/calibration.yaml" "$lens"
 keyframes_yaml="" keyframes_title=""
 if [ -n "${KEYFRAME_SLOTS:-}" ]; then
   keyframes_yaml="keyframes: {slots: $KEYFRAME_SLOTS}"

@@ -53,18 +53,8 @@ bench_fresh_out drift_pool lenses
 out=$(realpath "$out")
 wisdom=$out/pool.wisdom
 
-calibration() {  # calibration FILE OCAMCALIB_FILE
-  cat > "$1" <<YAML
-omni:
-  model: ocamcalib
-  ocamcalib_file: $2
-  azimuth_zero_deg: 0.0
-  azimuth_direction: ccw
-panorama: {width: 1100, height: 110, horizon_row: 54.5, forward_column: 0.0}
-YAML
-}
-calibration "$out/calibration.yaml" "$lens"
-calibration "$out/lenses/mirror_office.yaml" "$catadioptric/mirror_office_ocamcalib.txt"
+bench_ocamcalib_calibration "$out/calibration.yaml" "$lens"
+bench_ocamcalib_calibration "$out/lenses/mirror_office.yaml" "$catadioptric/mirror_office_ocamcalib.txt"
 office=$out/lenses/office_texture.png
 "$bin/omnipose-equirect" --omni "$catadioptric/mirror_office_1920x1080.jpg" \
   --calibration "$out/lenses/mirror_office.yaml" --out "$office" --width 2048 \

@@ -1,7 +1,7 @@
 # shellcheck shell=bash
-# What the benchmark scripts (tools/accuracy_benchmark.sh, drift_benchmark.sh,
+# What the benchmark scripts (tools/accuracy_benchmark.sh, drift_benchmark.sh, drift_pool.sh,
 # real_camera_benchmark.sh) share: their arguments, the command line their reports quote,
-# and the programs they need. Sourcing it sets the strict mode (set -euo pipefail) and makes
+# the programs they need and the lens calibrations they write. Sourcing it sets the strict mode (set -euo pipefail) and makes
 # the repository's top directory the working directory and `root`.
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -89,6 +89,20 @@ bench_pipeline_lines() {
     [ -n "$entry" ] && printf '  %s\n' "$entry"
   done
   return 0
+}
+
+# bench_ocamcalib_calibration FILE OCAMCALIB_FILE: writes FILE, a calibration.yaml for the
+# OCamCalib lens of OCAMCALIB_FILE (an absolute path) with the paper's panorama (1100 x 110,
+# horizon row 54.5), as every benchmark renders and replays it.
+bench_ocamcalib_calibration() {
+  cat > "$1" <<YAML
+omni:
+  model: ocamcalib
+  ocamcalib_file: $2
+  azimuth_zero_deg: 0.0
+  azimuth_direction: ccw
+panorama: {width: 1100, height: 110, horizon_row: 54.5, forward_column: 0.0}
+YAML
 }
 
 # bench_tools [--require NAME] BUILD_DIR PROGRAM...: builds the programs missing from
