@@ -36,7 +36,7 @@ Eigen::Matrix3d ReadoutYaw::betweenTimestamps(const Eigen::Matrix3d& R, double t
   double reference_sample = heading_[2], reference_offset = offset_heading_;
   if (anchored) {
     reference_sample = reference->sample;
-    reference_offset = std::isnan(reference->offset) ? origin_offset_ : reference->offset;
+    reference_offset = offsetOf(*reference);
   } else if (samples_ == 1) {
     // The chain's first pair: the first frame's offset at constant velocity, kept for
     // later pairs against it.
@@ -73,9 +73,8 @@ std::optional<Eigen::Matrix3d> ReadoutYaw::againstAnchor(const Eigen::Matrix3d& 
                                                          const Anchor& reference) const {
   if (offset_ == 0.0) return R;
   if (samples_ < 2 || reference.chain != chain_ || !(reference.time < time_[2])) return std::nullopt;
-  const double reference_offset = std::isnan(reference.offset) ? origin_offset_ : reference.offset;
   Eigen::Vector3d omega = rotationVector(R);
-  omega.z() += offset_heading_ - reference_offset;
+  omega.z() += offset_heading_ - offsetOf(reference);
   return rotationFromVector(omega);
 }
 

@@ -19,6 +19,7 @@
 /// Realtime: no allocation, never throws.
 
 #include <Eigen/Core>
+#include <cmath>
 #include <optional>
 
 namespace omnipose::pipeline {
@@ -67,6 +68,10 @@ class ReadoutYaw {
   Anchor anchor() const;
 
  private:
+  /// The published heading minus the sample at the frame of `a`, an anchor of this chain (the
+  /// chain's first frame's, set by its first pair, when the anchor was taken before it).
+  double offsetOf(const Anchor& a) const { return std::isnan(a.offset) ? origin_offset_ : a.offset; }
+
   double offset_;
   long chain_ = -1;  ///< counts the chains begun
   /// The last samples of the chained heading, at times time_[i] + offset_, the newest last;
