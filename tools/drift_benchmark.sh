@@ -15,8 +15,10 @@
 #   swing + gyro     the swing with the robot's gyro (imu.csv, 200 Hz) beside the same frames,
 #                    and its outage: replayed only (omniposed takes a gyro over LCM or IIO)
 # Every sequence ends with the attitude it began with. Each is replayed by omnipose-replay
-# (its TUM output) and by omniposed (file source, realtime, LCM to a file:// log decoded by
-# omnipose-listen --tum), and scored by `omnipose-eval --drift` (omnipose::evaluateDrift):
+# (its TUM output of the odometry's pose, --out-odometry: what the controller integrates,
+# never corrected by a loop closure; tools/loop_benchmark.sh measures the map pose) and by
+# omniposed (file source, realtime, LCM to a file:// log decoded by omnipose-listen --tum,
+# the pose_t odometry pose), and scored by `omnipose-eval --drift` (omnipose::evaluateDrift):
 # end-point rotation error, ATE rotation RMSE (first pose aligned, no scale), the maximum on
 # the way, and the per-pair eps. Writes
 #   OUTDIR/DRIFT.md          Markdown: command, date, version, machine, the table
@@ -170,7 +172,7 @@ for entry in "${suite[@]}"; do
   gt_frames=$(grep -vc '^#' "$dir/dataset/groundtruth.tum")
 
   replay_line=$("$bin/omnipose-replay" "$dir/dataset" --config "$out/replay.yaml" --quiet \
-                  --out "$dir/replay.tum" --relative "$dir/replay.csv" 2> "$dir/replay.log" | tail -n 1) || {
+                  --out-odometry "$dir/replay.tum" --relative "$dir/replay.csv" 2> "$dir/replay.log" | tail -n 1) || {
     echo "   $name: omnipose-replay failed, see $dir/replay.log" >&2; tail -5 "$dir/replay.log" >&2; exit 1; }
 
   if [ -f "$dir/dataset/imu.csv" ]; then

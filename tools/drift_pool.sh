@@ -5,15 +5,11 @@
 # whose walls carry different photos, through the drift benchmark's steep OCamCalib mirror,
 # with its sensor noise and exposure flicker, then replayed by omnipose-replay with the default
 # pipeline and with each variant, and scored by `omnipose-eval --drift` (end-point and ATE of
-# the chained attitude, per-pair eps). The rooms are photos turned about the vertical and
-# mirrored (omnipose-synth --texture-turn, --texture-mirror):
-#   tuning rooms       indoor photo as it is, turned 90, mirrored and turned 200; the park photo
-#                      (at 2048 x 1024) as it is and turned 120; the office texture (the real
-#                      mirror image of tests/data/catadioptric resampled by omnipose-equirect)
-#                      as it is and mirrored and turned 180
-#   report-only rooms  indoor turned 270; park mirrored and turned 240. Reported, never used to
-#                      choose a setting: a change is judged on the tuning rooms and these tell
-#                      whether it holds on rooms it was not chosen on.
+# the chained attitude: the odometry's pose, --out-odometry, which a loop closure never
+# corrects; per-pair eps). The rooms are photos turned about the vertical and
+# mirrored (omnipose-synth --texture-turn, --texture-mirror; tools/common/pool_rooms.sh): seven
+# tuning rooms and two report-only rooms, never used to choose a setting: a change is judged
+# on the tuning rooms and these tell whether it holds on rooms it was not chosen on.
 # Writes OUTDIR/DRIFT_POOL.md (command, date, version, the table with each group's median and
 # worst) and every room's dataset, trajectories and scores.
 #
@@ -32,6 +28,8 @@
 # Nothing is sent on the network; everything is seeded (the same build gives the same table).
 # shellcheck source=tools/common/benchmark.sh
 source "$(dirname "$0")/common/benchmark.sh"
+# shellcheck source=tools/common/pool_rooms.sh
+source "$(dirname "$0")/common/pool_rooms.sh"
 bench_args drift_pool drift_pool -- "$@"
 supersample=${SUPERSAMPLE:-1}
 variants=${VARIANTS-"keyframes.slots: 0|plane_depth_prior: false"}
@@ -41,11 +39,8 @@ frames_option=()
 bench_command_line tools/drift_pool.sh "$@" -- BUILD_DIR DATA_DIR SUPERSAMPLE FRAMES VARIANTS
 bench_tools "$build" omnipose-synth omnipose-replay omnipose-eval omnipose-equirect
 
-indoor=$root/tests/data/equirect/indoor_1024x512.jpg
-park=$data/park_theta_v_5376x2688.jpg
-catadioptric=$root/tests/data/catadioptric
-lens=$catadioptric/steep_mirror_800_ocamcalib.txt
-for f in "$indoor" "$park" "$lens" "$catadioptric/mirror_office_1920x1080.jpg" tools/drift/rectangle.yaml; do
+lens=$root/tests/data/catadioptric/steep_mirror_800_ocamcalib.txt
+for f in "$lens" tools/drift/rectangle.yaml; do
   [ -f "$f" ] || { echo "drift_pool: missing $f" >&2; exit 1; }
 done
 
@@ -54,24 +49,7 @@ out=$(realpath "$out")
 wisdom=$out/pool.wisdom
 
 bench_ocamcalib_calibration "$out/calibration.yaml" "$lens"
-bench_ocamcalib_calibration "$out/lenses/mirror_office.yaml" "$catadioptric/mirror_office_ocamcalib.txt"
-office=$out/lenses/office_texture.png
-"$bin/omnipose-equirect" --omni "$catadioptric/mirror_office_1920x1080.jpg" \
-  --calibration "$out/lenses/mirror_office.yaml" --out "$office" --width 2048 \
-  > "$out/lenses/office_texture.log"
-
-# name | group | photo | omnipose-synth texture options
-rooms=(
-  "indoor|tuning|$indoor|"
-  "indoor_t90|tuning|$indoor|--texture-turn 90"
-  "indoor_m200|tuning|$indoor|--texture-mirror --texture-turn 200"
-  "park|tuning|$park|--texture-width 2048"
-  "park_t120|tuning|$park|--texture-width 2048 --texture-turn 120"
-  "office|tuning|$office|"
-  "office_m180|tuning|$office|--texture-mirror --texture-turn 180"
-  "indoor_t270|report-only|$indoor|--texture-turn 270"
-  "park_m240|report-only|$park|--texture-width 2048 --texture-mirror --texture-turn 240"
-)
+pool_rooms "$out"
 # The drift benchmark's sensor: noise sigma 3 grey levels, per-frame gain 1 + N(0, 0.05) and
 # offset N(0, 3) grey levels; PNG frames.
 sensor="--noise 3 --exposure-jitter 0.05 --exposure-offset 3"
@@ -118,7 +96,7 @@ for entry in "${rooms[@]}"; do
     echo "   $name: omnipose-synth failed, see $dir/synth.log" >&2; exit 1; }
   for config in "${config_names[@]}"; do
     "$bin/omnipose-replay" "$dir/dataset" --config "$out/$config.yaml" --quiet \
-      --out "$dir/$config.tum" > /dev/null 2> "$dir/$config.log" || {
+      --out-odometry "$dir/$config.tum" > /dev/null 2> "$dir/$config.log" || {
       echo "   $name: omnipose-replay ($config) failed, see $dir/$config.log" >&2; exit 1; }
     "$bin/omnipose-eval" --drift "$dir/dataset/groundtruth.tum" "$dir/$config.tum" \
       --json "$dir/$config.json" > "$dir/$config.txt"

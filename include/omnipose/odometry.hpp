@@ -17,6 +17,14 @@
 /// (the least recently used one is replaced): when the robot turns or drives back, the
 /// oldest one in reach is used again.
 ///
+/// The map (LoopClosureOptions, on by default). Frames far from every place become places
+/// (their panorama and a signature that does not change with the heading); when the robot
+/// comes back, a frame near a place is registered against it and, verified and confirmed,
+/// closes a loop: an edge of a pose graph over the places, solved again. `pose` is the
+/// odometry's (REP-105 "odom": continuous, never corrected, what a controller integrates),
+/// `map_pose` the corrected one ("map": it jumps when a loop closes). The map never changes
+/// `pose`: it is the same with loop closure on or off.
+///
 /// Gaps. After a bad frame (process() returned an error), a gap the caller reports
 /// (FrameStamp::gap_before: lost frames, a reconnect), a frame captured more than
 /// KeyframeOptions::gap_after_s after the last good one, or a frame whose fit is lost, the
@@ -95,6 +103,45 @@ struct KeyframeOptions {
   std::vector<std::string> validate() const;
 };
 
+/// The place memory and its loop closures (DESIGN.md section 5, "Places and the map"). The
+/// odometry's pose drifts; places seen before do not. Every place_spacing of travel a frame
+/// becomes a place (its panorama and a signature that does not change with the heading);
+/// when the robot comes back, a frame is compared with the places near its map pose
+/// (signature first, then the whole-ring search and a full registration), and a match,
+/// verified and confirmed, closes a loop: an edge of the pose graph over the places, which is
+/// solved again. OdometryResult::pose stays the odometry's (continuous);
+/// OdometryResult::map_pose is the corrected one, which jumps when a loop closes.
+struct LoopClosureOptions {
+  bool enabled = true;
+  /// Places kept (each holds the panorama at 8 bits: 121 kB at the default 1100 x 110);
+  /// when full, the least recently matched place is forgotten. [2, 1024].
+  int max_places = 128;
+  /// A frame becomes a place when no place lies within this of its map position, scene
+  /// distances (|t| / rho), (0, 1].
+  double place_spacing = 0.1;
+  /// Places farther than this from the frame's map position are not compared with it, scene
+  /// distances: the odometry's drift between two visits must stay within it, and a room
+  /// that looks like one seen elsewhere is not taken for it. [place_spacing, 10].
+  double search_radius = 0.3;
+  /// Least signature similarity (cosine, [0, 1)) of a place worth a registration.
+  double min_similarity = 0.9;
+  /// Largest correction of the map pose's rotation a match may make, radians (0, 0.5]: the
+  /// odometry's drift between two visits stays below it, a wrong match need not.
+  double max_correction_rad = 0.1;
+  /// A comparison with the places is made on one frame in this many, [1, 100] (each costs
+  /// about a frame's work, and only when a place is in reach).
+  int check_interval = 6;
+  /// Matches in a row (on check frames, agreeing on the correction) that close a loop,
+  /// [1, 10].
+  int confirmations = 2;
+  /// Frames turning faster than this neither become places nor are compared, rad/s: a
+  /// rolling shutter and motion blur bend a turning frame's view.
+  double max_turn_rate_rad_s = 0.5;
+
+  /// One message per bad field, each starting with its name; empty when valid.
+  std::vector<std::string> validate() const;
+};
+
 /// Frames that decode but cannot be believed: a glitching camera's torn, repeated,
 /// flipped, rotated or foreign frame, or noise (DESIGN.md section 4, "Glitches"). Such a
 /// frame is not chained: process() returns kImplausible (the daemon counts it as bad, the
@@ -127,6 +174,7 @@ struct OdometryOptions {
   PipelineOptions pipeline;
   KeyframeOptions keyframes;
   PlausibilityOptions plausibility;
+  LoopClosureOptions loop_closure;
   /// Every problem of the options, each starting with the field's path
   /// ("pipeline.registration.window: ...", "keyframes.slots: ..."); empty when valid.
   std::vector<std::string> validate() const;
@@ -183,6 +231,18 @@ struct OdometryResult {
   std::span<const double> window_weights;
   bool windows_refined = false;  ///< the windows are the refinement pass's (de-rotated)
   Eigen::Matrix<double, 6, 1> window_model = Eigen::Matrix<double, 6, 1>::Zero();
+
+  /// The pose in the map frame (REP-105's "map"; `pose` is its "odom"): map_correction *
+  /// pose, the odometry's pose corrected by the loop closures so far (LoopClosureOptions).
+  /// It jumps on a frame that closes a loop (loop_closed) and moves with `pose` otherwise;
+  /// equal to `pose` until the first closure and without loop closure.
+  Eigen::Isometry3d map_pose = Eigen::Isometry3d::Identity();
+  Eigen::Isometry3d map_correction = Eigen::Isometry3d::Identity();  ///< map from odom
+  bool loop_closed = false;  ///< this frame closed a loop: map_pose jumped
+  /// The place this frame was matched with when it closed a loop (its frame's sequence),
+  /// else -1.
+  std::int64_t loop_place_sequence = -1;
+  int places = 0;  ///< places in the memory
 
   /// A pose with motion (kTracked, kBridged or kGyroBridged).
   bool tracked() const {

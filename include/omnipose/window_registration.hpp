@@ -180,6 +180,11 @@ class WindowRegistration {
   /// the spectra move into the slot when the reference is replaced (advance(),
   /// setReference()). False, and nothing stored, without a reference or for an unknown slot.
   bool storeKeyframe(int slot);
+  /// Makes `panorama` (CV_32FC1, W x H: a view kept from earlier, a place to recognise)
+  /// keyframe `slot`, transforming its windows as setReference() does, without touching
+  /// the reference (its noise, measured on the reference, whitens it). Allocates nothing.
+  /// False, and nothing stored, for an unknown slot or a panorama of the wrong size/type.
+  bool setKeyframe(int slot, const cv::Mat& panorama);
   /// Whether keyframe slot `slot` holds spectra (storeKeyframe() since the last
   /// reserveKeyframes()/setValidity()).
   bool hasKeyframe(int slot) const;

@@ -154,6 +154,35 @@ void parseKeyframes(Reader& r, const YAML::Node& node, KeyframeOptions& k) {
   }
 }
 
+void parseLoopClosure(Reader& r, const YAML::Node& node, LoopClosureOptions& l) {
+  if (!r.checkMap(node, "loop_closure",
+                  {"enabled", "max_places", "place_spacing", "search_radius", "min_similarity",
+                   "max_correction_deg", "check_interval", "confirmations",
+                   "max_turn_rate_deg_s"}))
+    return;
+  r.get(node, "loop_closure", "enabled", l.enabled);
+  r.get(node, "loop_closure", "max_places", l.max_places);
+  r.get(node, "loop_closure", "place_spacing", l.place_spacing);
+  r.get(node, "loop_closure", "search_radius", l.search_radius);
+  r.get(node, "loop_closure", "min_similarity", l.min_similarity);
+  const double correction_deg =
+      getDegrees(r, node, "loop_closure", "max_correction_deg", l.max_correction_rad);
+  r.get(node, "loop_closure", "check_interval", l.check_interval);
+  r.get(node, "loop_closure", "confirmations", l.confirmations);
+  const double turn_deg =
+      getDegrees(r, node, "loop_closure", "max_turn_rate_deg_s", l.max_turn_rate_rad_s);
+  // The ranges are the odometry's own (LoopClosureOptions::validate()), named by the key the
+  // user wrote (degrees where the field is in radians).
+  for (std::string problem : l.validate()) {
+    if (problem.starts_with("max_correction_rad:"))
+      problem = "max_correction_deg: " + std::to_string(correction_deg) +
+                " deg is outside (0, 28.6]";
+    if (problem.starts_with("max_turn_rate_rad_s:"))
+      problem = "max_turn_rate_deg_s: " + std::to_string(turn_deg) + " deg/s is outside (0, 5730]";
+    r.add("loop_closure." + problem);
+  }
+}
+
 void parsePlausibility(Reader& r, const YAML::Node& node, PlausibilityOptions& p) {
   if (!r.checkMap(node, "plausibility",
                   {"enabled", "max_repeated_rows", "min_confidence_ratio", "max_rotation_deg_s",
@@ -254,7 +283,7 @@ DaemonConfig DaemonConfig::parse(const std::string& text, const std::string& ori
   r.checkDuplicateKeys(root);
   if (!root || root.IsNull()) root = YAML::Node(YAML::NodeType::Map);
   if (r.checkMap(root, "", {"source", "calibration", "input", "pipeline", "keyframes",
-                            "plausibility", "lcm", "scheduling", "imu"})) {
+                            "plausibility", "loop_closure", "lcm", "scheduling", "imu"})) {
     if (root["source"]) parseSource(r, root["source"], base_dir, c.source);
     else if (use == Use::kDaemon) r.problem("source", "missing section");
 
@@ -277,6 +306,7 @@ DaemonConfig DaemonConfig::parse(const std::string& text, const std::string& ori
     if (root["pipeline"]) parsePipeline(r, root["pipeline"], base_dir, c.pipeline);
     if (root["keyframes"]) parseKeyframes(r, root["keyframes"], c.keyframes);
     if (root["plausibility"]) parsePlausibility(r, root["plausibility"], c.plausibility);
+    if (root["loop_closure"]) parseLoopClosure(r, root["loop_closure"], c.loop_closure);
     if (root["lcm"]) parseLcm(r, root["lcm"], c.lcm);
     if (root["scheduling"]) parseScheduling(r, root["scheduling"], c.scheduling);
     if (root["imu"]) parseImu(r, root["imu"], c.lcm, c.imu);
@@ -358,6 +388,16 @@ std::string DaemonConfig::describe() const {
     << "\n  min_confidence_ratio: " << plausibility.min_confidence_ratio
     << "\n  max_rotation_deg_s: " << plausibility.max_rotation_rad_s * 180.0 / std::numbers::pi
     << "\n  max_rejected: " << plausibility.max_rejected << "\n"
+    << "loop_closure:\n  enabled: " << loop_closure.enabled
+    << "\n  max_places: " << loop_closure.max_places
+    << "\n  place_spacing: " << loop_closure.place_spacing
+    << "\n  search_radius: " << loop_closure.search_radius
+    << "\n  min_similarity: " << loop_closure.min_similarity
+    << "\n  max_correction_deg: " << loop_closure.max_correction_rad * 180.0 / std::numbers::pi
+    << "\n  check_interval: " << loop_closure.check_interval
+    << "\n  confirmations: " << loop_closure.confirmations
+    << "\n  max_turn_rate_deg_s: " << loop_closure.max_turn_rate_rad_s * 180.0 / std::numbers::pi
+    << "\n"
     << "lcm:\n  url: \"" << lcm.url << "\"\n  pose_channel: " << lcm.pose_channel
     << "\n  status_channel: " << lcm.status_channel << "\n  fit_channel: \"" << lcm.fit_channel
     << "\"\n  status_hz: " << lcm.status_hz << "\n  panorama_channel: \"" << lcm.panorama_channel

@@ -15,6 +15,9 @@
 ///            refine_iterations: 1, use_rotation_scale: true}
 /// keyframes: {slots: 4, max_translation: 0.02, max_tilt_deg: 5.16, anchor_gain: 0.1,
 ///             anchor_interval: 1, min_ring_peak: 0.03, gap_after_s: 0.15}
+/// loop_closure: {enabled: true, max_places: 128, place_spacing: 0.1, search_radius: 0.3,
+///                min_similarity: 0.9, max_correction_deg: 5.73, check_interval: 6,
+///                confirmations: 2, max_turn_rate_deg_s: 28.6}
 /// lcm: {url: "", pose_channel: OMNI_POSE, status_channel: OMNI_STATUS, fit_channel: "",
 ///       status_hz: 1.0, panorama_channel: "", panorama_hz: 2.0, panorama_width: 640}
 /// scheduling: {fifo_priority: 0, cpus: []}
@@ -112,6 +115,8 @@ struct DaemonConfig {
   KeyframeOptions keyframes;          ///< keyframes section (max_tilt_deg in degrees there)
   /// plausibility section (max_rotation_deg_s in degrees per second there).
   PlausibilityOptions plausibility;
+  /// loop_closure section (max_correction_deg and max_turn_rate_deg_s in degrees there).
+  LoopClosureOptions loop_closure;
   LcmConfig lcm;
   SchedulingConfig scheduling;
   ImuConfig imu;
@@ -127,7 +132,7 @@ struct DaemonConfig {
   }
 
   /// The pipeline and keyframe settings as the Odometry takes them.
-  OdometryOptions odometry() const { return {pipeline, keyframes, plausibility}; }
+  OdometryOptions odometry() const { return {pipeline, keyframes, plausibility, loop_closure}; }
 
   /// Reads and validates `path`. Throws ConfigError listing every problem, each prefixed
   /// with the path and the key (e.g. "daemon.yaml: pipeline.step: must be > 0").

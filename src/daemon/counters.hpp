@@ -57,7 +57,9 @@
     "gaps the images could not bridge and the gyro did (pose_t TRACK_GYRO)")                 \
   X(imu_device_lost, "gyro device lost",                                                      \
     "times the iio gyro went away or failed (unplugged, driver unbound, a read error) and "  \
-    "was closed to be looked for again every 0.5 s")
+    "was closed to be looked for again every 0.5 s")                                        \
+  X(loops_closed, "loops closed",                                                            \
+    "frames that closed a loop with a place seen before (pose_t loop_closed)")
 
 namespace omnipose::daemon {
 

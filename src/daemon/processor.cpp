@@ -13,6 +13,16 @@
 namespace omnipose::daemon {
 namespace {
 
+/// `T` as a pose_t quaternion (w, x, y, z) and position.
+void writePose(const Eigen::Isometry3d& T, double (&orientation)[4], double (&position)[3]) {
+  const Eigen::Quaterniond q(T.rotation());
+  orientation[0] = q.w();
+  orientation[1] = q.x();
+  orientation[2] = q.y();
+  orientation[3] = q.z();
+  for (int i = 0; i < 3; ++i) position[i] = T.translation()[i];
+}
+
 /// Longest last_error / source text carried by status_t (longer text is truncated).
 constexpr std::size_t kMaxText = 512;
 
@@ -216,17 +226,19 @@ void Processor::handleFrame(const MailboxFrame& frame) {
     p.windows_used = static_cast<std::int16_t>(est.windows_used);
   }
   p.segment = r.segment;
-  const Eigen::Quaterniond q(r.pose.rotation());
-  p.orientation[0] = q.w();
-  p.orientation[1] = q.x();
-  p.orientation[2] = q.y();
-  p.orientation[3] = q.z();
-  for (int i = 0; i < 3; ++i) p.position[i] = r.pose.translation()[i];
+  writePose(r.pose, p.orientation, p.position);
+  writePose(r.map_pose, p.map_orientation, p.map_position);
+  writePose(r.map_correction, p.map_correction_orientation, p.map_correction_position);
+  p.loop_closed = r.loop_closed;
+  p.loop_place_sequence = r.loop_place_sequence;
+  p.places = r.places;
+  if (r.loop_closed) ++board_.loops_closed;
   p.processing_time_s = static_cast<float>(motion.timing.total);
 
   const int size = p.encode(pose_buffer_.data(), 0, static_cast<int>(pose_buffer_.size()));
   publish(lcm_.pose_channel, pose_buffer_, size);
   board_.segment.store(p.segment);
+  board_.places.store(p.places);
   ++board_.frames_processed;
   latency_ms_.add(static_cast<float>(wallClockMicros() - info.capture_time_us) * 1e-3f);
 

@@ -84,6 +84,7 @@ DaemonStats StatusBoard::snapshot() const {
   DaemonStats s;
   copyCounters(*this, s);
   s.segment = segment.load();
+  s.places = places.load();
   s.source_state = sourceState();
   s.messages_published = messages_published.load();
   return s;

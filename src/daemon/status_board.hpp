@@ -39,18 +39,20 @@ struct DaemonStats {
   OMNIPOSE_DAEMON_COUNTERS(OMNIPOSE_STATS_FIELD)
 #undef OMNIPOSE_STATS_FIELD
   int segment = -1;                   ///< current chain segment (-1 before the first frame)
+  int places = 0;                     ///< places in the odometry's memory
   SourceState source_state = SourceState::kStarting;
   /// Messages (pose, status, diagnostics) published without an error: with
   /// publish_failures, tells a run whose every message failed (not part of status_t).
   std::int64_t messages_published = 0;
 };
 
-/// Fills the counters, segment and source state of a status message (status_t) from a
+/// Fills the counters, segment, places and source state of a status message (status_t) from a
 /// snapshot. Allocation-free.
 template <typename Status>
 void fillStatus(const DaemonStats& stats, Status& status) {
   copyCounters(stats, status);
   status.segment = stats.segment;
+  status.places = stats.places;
   status.source_state = static_cast<std::int8_t>(stats.source_state);
 }
 
@@ -67,6 +69,7 @@ class StatusBoard {
   OMNIPOSE_DAEMON_COUNTERS(OMNIPOSE_BOARD_COUNTER)
 #undef OMNIPOSE_BOARD_COUNTER
   std::atomic<int> segment{-1};
+  std::atomic<int> places{0};
   std::atomic<std::int64_t> messages_published{0};  ///< DaemonStats::messages_published
 
   void setSourceState(SourceState state) { source_state_.store(state); }

@@ -63,7 +63,7 @@ ReplayCounts replayDataset(const Dataset& dataset, Odometry& odometry,
         ++counts.pairs;
         [[fallthrough]];
       case TrackState::kSegmentStart:
-        trajectory.push_back({f.timestamp, result->pose});
+        trajectory.push_back({f.timestamp, result->map_pose});
         break;
     }
     if (observe) observe(i, f, *result);

@@ -522,6 +522,17 @@ bool FrameRegistrar::storeKeyframe(int slot) {
   return true;
 }
 
+bool FrameRegistrar::loadKeyframe(int slot, const cv::Mat& panorama) {
+  if (slot < 0 || slot >= static_cast<int>(keyframe_panoramas_.size()) ||
+      panorama.size() != panorama_.size() ||
+      (panorama.type() != CV_8UC1 && panorama.type() != CV_32FC1))
+    return false;
+  cv::Mat& kept = keyframe_panoramas_[static_cast<std::size_t>(slot)];
+  panorama.convertTo(kept, CV_32F);  // the same size and type: no allocation
+  keyframe_rows_[static_cast<std::size_t>(slot)].forget();
+  return registration_.setKeyframe(slot, kept);
+}
+
 std::optional<double> FrameRegistrar::ringYaw(int slot, double min_peak) {
   if (!ring_ || !registration_.hasKeyframe(slot)) return std::nullopt;
   const RingAlignment::Shift shift =

@@ -139,6 +139,10 @@ class FrameRegistrar {
   /// keyframe `slot`, with the current panorama for the ring search. The panorama moves
   /// into the slot: panorama() is stale until the next unwrap(). Requires a previous frame.
   bool storeKeyframe(int slot);
+  /// Makes `panorama` (CV_8UC1 or CV_32FC1 of the panorama's size: a place kept from
+  /// earlier) keyframe `slot`: its spectra, its panorama for the ring search, its rows'
+  /// rotation unknown. False for an unknown slot or a panorama of the wrong size.
+  bool loadKeyframe(int slot, const cv::Mat& panorama);
   /// Yaw of the current panorama relative to keyframe `slot` from the whole-ring search,
   /// radians, about the camera's z axis; nullopt when the correlation peak is below
   /// `min_peak` or the slot is empty.

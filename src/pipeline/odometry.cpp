@@ -13,6 +13,7 @@
 #include "omnipose/so3.hpp"
 #include "pipeline/frame_registrar.hpp"
 #include "pipeline/gyro_bias.hpp"
+#include "pipeline/loop_closure.hpp"
 #include "pipeline/plausibility.hpp"
 #include "pipeline/readout_yaw.hpp"
 
@@ -104,6 +105,28 @@ std::vector<std::string> KeyframeOptions::validate() const {
   return problems;
 }
 
+std::vector<std::string> LoopClosureOptions::validate() const {
+  std::vector<std::string> problems;
+  detail::checkRange(problems, "max_places", max_places, 2, 1024, " places");
+  if (!(place_spacing > 0.0 && place_spacing <= 1.0))
+    problems.push_back("place_spacing: " + std::to_string(place_spacing) +
+                       " is outside (0, 1] scene distances");
+  if (!(search_radius >= place_spacing && search_radius <= 10.0))
+    problems.push_back("search_radius: " + std::to_string(search_radius) +
+                       " is outside [place_spacing, 10] scene distances");
+  if (!(min_similarity >= 0.0 && min_similarity < 1.0))
+    problems.push_back("min_similarity: " + std::to_string(min_similarity) + " is outside [0, 1)");
+  if (!(max_correction_rad > 0.0 && max_correction_rad <= 0.5))
+    problems.push_back("max_correction_rad: " + std::to_string(max_correction_rad) +
+                       " is outside (0, 0.5] radians");
+  detail::checkRange(problems, "check_interval", check_interval, 1, 100, " frames");
+  detail::checkRange(problems, "confirmations", confirmations, 1, 10, "");
+  if (!(max_turn_rate_rad_s > 0.0 && max_turn_rate_rad_s <= 100.0))
+    problems.push_back("max_turn_rate_rad_s: " + std::to_string(max_turn_rate_rad_s) +
+                       " is outside (0, 100] rad/s");
+  return problems;
+}
+
 std::vector<std::string> PlausibilityOptions::validate() const {
   std::vector<std::string> problems;
   if (!(max_repeated_rows >= 0.0 && max_repeated_rows <= 1.0))
@@ -124,6 +147,7 @@ std::vector<std::string> OdometryOptions::validate() const {
   for (const auto& p : pipeline.validate()) problems.push_back("pipeline." + p);
   for (const auto& p : keyframes.validate()) problems.push_back("keyframes." + p);
   for (const auto& p : plausibility.validate()) problems.push_back("plausibility." + p);
+  for (const auto& p : loop_closure.validate()) problems.push_back("loop_closure." + p);
   return problems;
 }
 
@@ -134,6 +158,7 @@ std::vector<std::string> Odometry::validate(const Calibration& calibration,
     problems.push_back(p.starts_with("calibration") ? p : "pipeline." + p);
   for (const auto& p : options.keyframes.validate()) problems.push_back("keyframes." + p);
   for (const auto& p : options.plausibility.validate()) problems.push_back("plausibility." + p);
+  for (const auto& p : options.loop_closure.validate()) problems.push_back("loop_closure." + p);
   return problems;
 }
 
@@ -153,11 +178,17 @@ struct Odometry::Impl {
         rolling_shutter(c.sensor.readout_s != 0.0),
         keyframe_options(o.keyframes),
         plausibility_options(o.plausibility),
-        registrar(std::in_place, c, o.pipeline, std::max(o.keyframes.slots, 1)),
+        registrar(std::in_place, c, o.pipeline,
+                  std::max(o.keyframes.slots, 1) + (o.loop_closure.enabled ? 1 : 0)),
         gate(std::in_place, o.plausibility, inputFrameSize(c, o.pipeline.unwrap.input).height,
              registrar->windowCount()),
         keyframes(static_cast<std::size_t>(std::max(o.keyframes.slots, 1))),
-        readout_yaw(registrar->meanWindowTime()) {}
+        readout_yaw(registrar->meanWindowTime()) {
+    // The slot after the keyframes' is the loop closure's, for the places it compares.
+    if (o.loop_closure.enabled)
+      loop.emplace(o.loop_closure, *registrar, static_cast<int>(keyframes.size()),
+                   o.keyframes.min_ring_peak);
+  }
   explicit Impl(std::unique_ptr<MotionEstimator> method)
       : keyframe_options{.slots = 0}, pairwise(std::move(method)) {}
 
@@ -175,8 +206,13 @@ struct Odometry::Impl {
   Expected<OdometryResult> rejectFrame(OdometryResult& out, const Error& why);
   /// bridge(); when it fails, a new segment, or a rejection right after a rejected frame.
   Expected<OdometryResult> bridgeOrRestart(OdometryResult& out);
-  /// The total time, segment and keyframe distance of `out`.
-  void finishTiming(OdometryResult& out) const;
+  /// The total time, segment and keyframe distance of `out`, and its map pose when
+  /// placeOnMap() has not given it yet.
+  void finishTiming(OdometryResult& out);
+  /// The map pose of the current frame at odometry pose out.pose (LoopClosure): `measured`,
+  /// a frame tracked with its refined windows (its panorama still the registrar's current
+  /// one), is placed and compared with the places; any other is held.
+  void placeOnMap(OdometryResult& out, bool measured);
   /// The current frame was believed with the motion in `out`.
   void believe(const OdometryResult& out) {
     if (!gate) return;
@@ -284,6 +320,8 @@ struct Odometry::Impl {
   std::optional<pipeline::PlausibilityGate> gate;     ///< with the iFMI pipeline
   std::unique_ptr<MotionEstimator> pairwise;          ///< or another per-pair method
   std::vector<Keyframe> keyframes;
+  std::optional<pipeline::LoopClosure> loop;  ///< the map (LoopClosureOptions::enabled)
+  bool frame_mapped = false;                  ///< placeOnMap() ran for the current frame
   pipeline::ReadoutYaw readout_yaw;  ///< chains the pairs' yaws (rolling shutter)
   int active = -1;  ///< slot of the keyframe the last frame used
   /// Frames with another keyframe in reach since the last keyframe registration
@@ -488,7 +526,33 @@ Expected<OdometryResult> Odometry::Impl::bridgeOrRestart(OdometryResult& out) {
   return out;
 }
 
-void Odometry::Impl::finishTiming(OdometryResult& out) const {
+void Odometry::Impl::placeOnMap(OdometryResult& out, bool measured) {
+  frame_mapped = true;
+  if (!loop) {
+    out.map_pose = out.pose;
+    return;
+  }
+  pipeline::LoopClosure::Update u;
+  if (measured) {
+    pipeline::LoopClosure::Frame f;
+    f.sequence = sequence;
+    f.time_s = time;
+    f.odometry = out.pose;
+    f.turn_rate = velocity.head<3>().norm();
+    f.yaw_rate = velocity(2);
+    u = loop->update(f);
+  } else {
+    u = loop->hold(out.pose, out.state != TrackState::kBridged);
+  }
+  out.map_pose = u.map_pose;
+  out.map_correction = u.correction;
+  out.loop_closed = u.loop_closed;
+  out.loop_place_sequence = u.place_sequence;
+  out.places = loop->places();
+}
+
+void Odometry::Impl::finishTiming(OdometryResult& out) {
+  if (!frame_mapped) placeOnMap(out, false);
   out.relative.timing.total = secondsSince(t_start);
   out.segment = segment;
   if (out.keyframe_sequence >= 0)
@@ -497,6 +561,7 @@ void Odometry::Impl::finishTiming(OdometryResult& out) const {
 
 Expected<OdometryResult> Odometry::Impl::process(const cv::Mat& frame, const FrameStamp& stamp) {
   t_start = Clock::now();
+  frame_mapped = false;
   sequence = stamp.sequence >= 0 ? stamp.sequence : auto_sequence;
   auto_sequence = sequence + 1;
   time = stamp.time_s;
@@ -575,6 +640,8 @@ Expected<OdometryResult> Odometry::Impl::process(const cv::Mat& frame, const Fra
   r.advance();
   finish(out, T, pass, TrackState::kTracked);
   believe(out);
+  // Before addKeyframe(), which takes the current panorama.
+  placeOnMap(out, pass.refined && velocity_interval > 0.0);
   // Without keyframes (slots 0) the one slot follows the previous frame.
   if (!keep_keyframe) addKeyframe(pose);
   m.timing.refine = secondsSince(t_refine);
@@ -624,6 +691,7 @@ Expected<OdometryResult> Odometry::Impl::processPairwise(const cv::Mat& frame,
   }
   out.relative.timing = timing;
   out.segment = segment;
+  out.map_pose = out.pose;  // no map: the pairwise methods' poses are their odometry
   return out;
 }
 
@@ -684,6 +752,7 @@ void Odometry::reset() {
   s.auto_sequence = 0;
   s.active = -1;
   for (auto& k : s.keyframes) k.valid = false;
+  if (s.loop) s.loop->clear();
   if (s.registrar) s.registrar->forgetPrevious();
   if (s.gate) s.gate->restart();
   if (s.pairwise) s.pairwise->reset();

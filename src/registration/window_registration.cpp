@@ -378,6 +378,9 @@ struct WindowRegistration::Impl {
   }
   /// The column stage of `panorama` on the pool (when some window uses it).
   void transformColumns(const cv::Mat& panorama);
+  /// The whitened translation bands and log-polar bands of every window of `panorama` into
+  /// `ref` (the noise measured last whitens them).
+  void transformInto(const cv::Mat& panorama, WindowSpectra& ref);
   void setValidity(const cv::Mat& validity);
   bool acceptsImage(const cv::Mat& panorama) const;
   TaperedWindow loadWindow(Worker& w, const cv::Mat& panorama, int k) const;
@@ -765,26 +768,29 @@ int WindowRegistration::windowCount() const { return impl_->windows; }
 double WindowRegistration::windowCenter(int k) const { return impl_->windowCenter(k); }
 int WindowRegistration::windowTop() const { return impl_->top; }
 
-void WindowRegistration::setReference(const cv::Mat& panorama) {
-  Impl& s = *impl_;
-  if (!s.acceptsImage(panorama)) return;
-  s.keepPendingKeyframe();
-  WindowSpectra& ref = *s.reference;
-  s.measureNoise(panorama);
-  s.transformColumns(panorama);
+void WindowRegistration::Impl::transformInto(const cv::Mat& panorama, WindowSpectra& ref) {
+  transformColumns(panorama);
   auto task = [&](int worker, int k) {
-    Worker& w = *s.workers[worker];
+    Worker& w = *workers[worker];
     const auto i = static_cast<std::size_t>(k);
     const TaperedWindow tw =
-        s.transformWindow(w, panorama, k, ref.log_polar.data() + k * s.log_polar_band);
+        transformWindow(w, panorama, k, ref.log_polar.data() + k * log_polar_band);
     ref.textured[k] = tw.textured;
     if (tw.textured)
       ref.translation_noise[i] =
           w.translation.whiten(w.spectrum.data(), tw.energy,
-                               ref.translation.data() + k * s.translation_band,
-                               s.options.shift_covariance, s.noisePower(k));
+                               ref.translation.data() + k * translation_band,
+                               options.shift_covariance, noisePower(k));
   };
-  s.pool->run(s.windows, task);
+  pool->run(windows, task);
+}
+
+void WindowRegistration::setReference(const cv::Mat& panorama) {
+  Impl& s = *impl_;
+  if (!s.acceptsImage(panorama)) return;
+  s.keepPendingKeyframe();
+  s.measureNoise(panorama);
+  s.transformInto(panorama, *s.reference);
   s.has_reference = true;
   s.next_ready = false;
 }
@@ -899,6 +905,17 @@ bool WindowRegistration::storeKeyframe(int slot) {
   }
   // The reference is the keyframe until it is replaced: it moves into the slot then.
   s.pending_keyframe = slot;
+  s.keyframe_stored[static_cast<std::size_t>(slot)] = 1;
+  return true;
+}
+
+bool WindowRegistration::setKeyframe(int slot, const cv::Mat& panorama) {
+  Impl& s = *impl_;
+  if (slot < 0 || slot >= keyframeSlots() || !s.acceptsImage(panorama)) return false;
+  // A slot still shared with the reference (storeKeyframe()) is given up by it: the
+  // reference stays the reference, the slot gets spectra of its own.
+  if (s.pending_keyframe == slot) s.pending_keyframe = -1;
+  s.transformInto(panorama, *s.keyframes[static_cast<std::size_t>(slot)]);
   s.keyframe_stored[static_cast<std::size_t>(slot)] = 1;
   return true;
 }

@@ -182,6 +182,38 @@ TEST(DaemonConfig, KeyframesSection) {
   EXPECT_TRUE(mentions(problems, "cadence"));
 }
 
+TEST(DaemonConfig, LoopClosureSection) {
+  const DaemonConfig defaults = parseWith("");
+  EXPECT_TRUE(defaults.loop_closure.enabled) << "on by default";
+  EXPECT_TRUE(defaults.odometry().loop_closure.enabled);
+  EXPECT_EQ(defaults.loop_closure.max_places, 128);
+  const DaemonConfig c = parseWith(
+      "loop_closure: {enabled: false, max_places: 64, place_spacing: 0.2, search_radius: 0.5, "
+      "min_similarity: 0.8, max_correction_deg: 3, check_interval: 10, confirmations: 3, "
+      "max_turn_rate_deg_s: 10}\n");
+  EXPECT_FALSE(c.odometry().loop_closure.enabled);
+  EXPECT_EQ(c.loop_closure.max_places, 64);
+  EXPECT_DOUBLE_EQ(c.loop_closure.place_spacing, 0.2);
+  EXPECT_DOUBLE_EQ(c.loop_closure.search_radius, 0.5);
+  EXPECT_DOUBLE_EQ(c.loop_closure.min_similarity, 0.8);
+  EXPECT_NEAR(c.loop_closure.max_correction_rad, 3 * std::numbers::pi / 180.0, 1e-12);
+  EXPECT_EQ(c.loop_closure.check_interval, 10);
+  EXPECT_EQ(c.loop_closure.confirmations, 3);
+  EXPECT_NEAR(c.loop_closure.max_turn_rate_rad_s, 10 * std::numbers::pi / 180.0, 1e-12);
+  EXPECT_THAT(c.describe(), HasSubstr("loop_closure:\n  enabled: false\n  max_places: 64"));
+  const auto problems = problemsOf(
+      kFileSource +
+      "loop_closure: {max_places: 1, place_spacing: 0, search_radius: 20, min_similarity: 1, "
+      "max_correction_deg: 45, check_interval: 0, confirmations: 11, max_turn_rate_deg_s: -1, "
+      "memory: x}\n");
+  for (const char* key : {"loop_closure.max_places", "loop_closure.place_spacing",
+                          "loop_closure.search_radius", "loop_closure.min_similarity",
+                          "loop_closure.max_correction_deg", "loop_closure.check_interval",
+                          "loop_closure.confirmations", "loop_closure.max_turn_rate_deg_s",
+                          "memory"})
+    EXPECT_TRUE(mentions(problems, key)) << key;
+}
+
 TEST(DaemonConfig, SchedulingSection) {
   const DaemonConfig defaults = parseWith("");
   EXPECT_EQ(defaults.scheduling.fifo_priority, 0) << "normal scheduling by default";

@@ -12,7 +12,7 @@ namespace {
 
 /// The command line, as parsed.
 struct Args {
-  std::string dataset, input, out_tum, relative_csv, config, calibration;
+  std::string dataset, input, out_tum, out_odometry_tum, relative_csv, config, calibration;
   std::string method = omnipose::replay::ReplayOptions{}.method;
   bool quiet = false;
 };
@@ -26,8 +26,12 @@ void addOptions(CLI::App& app, Args& a) {
       ->required();
   app.add_option("--out", a.out_tum,
                  "TUM trajectory to write (timestamp s, position, quaternion; first frame at "
-                 "identity; position up to scale)")
+                 "identity; position up to scale): the map pose, corrected by loop closures")
       ->type_name("EST.tum");
+  app.add_option("--out-odometry", a.out_odometry_tum,
+                 "TUM trajectory of the odometry's own pose (continuous, never corrected by a "
+                 "loop closure; the same as --out with loop_closure off)")
+      ->type_name("ODOM.tum");
   app.add_option("--relative", a.relative_csv,
                  "per-pair CSV: rotation vector (rad), translation direction (unit), |tau|, "
                  "residual (px), windows used, status, track state, segment, keyframe, seconds "
@@ -58,6 +62,7 @@ omnipose::replay::ReplayOptions replayOptions(const CLI::App& app, const Args& a
   options.method = a.method;
   auto given = [&](const char* flag) { return app.count(flag) > 0; };
   if (given("--out")) options.out_tum = a.out_tum;
+  if (given("--out-odometry")) options.out_odometry_tum = a.out_odometry_tum;
   if (given("--relative")) options.relative_csv = a.relative_csv;
   if (given("--config")) options.config = a.config;
   if (given("--calibration")) options.calibration = a.calibration;
@@ -68,15 +73,17 @@ omnipose::replay::ReplayOptions replayOptions(const CLI::App& app, const Args& a
 }
 
 constexpr const char* kUsage =
-    "usage: omnipose-replay DATASET [--out EST.tum] [--relative REL.csv]\n"
+    "usage: omnipose-replay DATASET [--out EST.tum] [--out-odometry ODOM.tum]\n"
+    "                       [--relative REL.csv]\n"
     "                       [--input omni|panorama] [--config daemon.yaml]\n"
     "                       [--calibration CAL.yaml] [--method NAME] [--quiet]";
 
 constexpr const char* kDescription =
     "Estimates the camera motion of every consecutive frame pair of a dataset directory.\n"
     "Ends with: frames=N pairs=M skipped=K implausible=I lost=L bridged=B seconds_per_frame=X\n"
-    "(skipped: unreadable frames and the I implausible ones, decoded but not believed: a\n"
-    "glitching camera; X: median wall time per frame, seconds). Exit codes: 0 done, 1 failed (or no pair estimated), 2 bad command line.";
+    "loops=C places=P (skipped: unreadable frames and the I implausible ones, decoded but not\n"
+    "believed: a glitching camera; X: median wall time per frame, seconds; C: frames that\n"
+    "closed a loop with a place seen before; P: places in the memory at the end). Exit codes: 0 done, 1 failed (or no pair estimated), 2 bad command line.";
 
 }  // namespace
 
@@ -86,9 +93,10 @@ int main(int argc, char** argv) {
       argc, argv, {"omnipose-replay", kUsage, kDescription}, addOptions,
       [](omnipose::tools::Cli& cli, const Args& args) {
         const auto s = omnipose::replay::run(replayOptions(cli.app(), args), stderr);
-        std::printf("frames=%d pairs=%d skipped=%d implausible=%d lost=%d bridged=%d seconds_per_frame=%.6f\n",
+        std::printf("frames=%d pairs=%d skipped=%d implausible=%d lost=%d bridged=%d "
+                    "seconds_per_frame=%.6f loops=%d places=%d\n",
                     s.frames, s.pairs, s.skipped, s.implausible, s.lost, s.bridged,
-                    s.median_seconds_per_frame);
+                    s.median_seconds_per_frame, s.loops_closed, s.places);
         return s.pairs > 0 || s.frames == 1 ? 0 : 1;
       });
 }

@@ -94,8 +94,9 @@ ReplaySummary run(const ReplayOptions& options, std::FILE* log) {
     writeCsvHeader(csv);
   }
 
-  std::vector<StampedPose> trajectory;
+  std::vector<StampedPose> trajectory, odometry_trajectory;
   std::vector<double> seconds;
+  int loops_closed = 0, places = 0;
   seconds.reserve(dataset.frames.size());
   tools::ProgressLine progress(log, static_cast<int>(dataset.frames.size()), "frames",
                                options.progress);
@@ -103,6 +104,10 @@ ReplaySummary run(const ReplayOptions& options, std::FILE* log) {
       dataset, *odometry, gyro, odometry_options.pipeline.unwrap.input, trajectory,
       [&](int i, const DatasetFrame& f, const OdometryResult& result) {
         seconds.push_back(result.relative.timing.total);
+        if (result.state != TrackState::kLost)
+          odometry_trajectory.push_back({f.timestamp, result.pose});
+        loops_closed += result.loop_closed ? 1 : 0;
+        places = result.places;
         if (csv.is_open() && result.relative.has_motion) writeCsvRow(csv, i, f, result);
         progress.update(i + 1);
       },
@@ -110,6 +115,8 @@ ReplaySummary run(const ReplayOptions& options, std::FILE* log) {
   progress.finish();
   ReplaySummary summary;
   static_cast<ReplayCounts&>(summary) = counts;
+  summary.loops_closed = loops_closed;
+  summary.places = places;
   if (!gyro.empty()) {
     const GyroCounters g = odometry->gyroCounters();
     summary.gyro_frames = static_cast<int>(g.frames_with_gyro);
@@ -124,6 +131,7 @@ ReplaySummary run(const ReplayOptions& options, std::FILE* log) {
                  g.bias_sigma, static_cast<long long>(g.bias_readings));
   }
   if (options.out_tum) writeTum(*options.out_tum, trajectory);
+  if (options.out_odometry_tum) writeTum(*options.out_odometry_tum, odometry_trajectory);
   if (!seconds.empty()) {
     std::nth_element(seconds.begin(), seconds.begin() + seconds.size() / 2, seconds.end());
     summary.median_seconds_per_frame = seconds[seconds.size() / 2];

@@ -19,7 +19,8 @@ namespace omnipose::replay {
 
 struct ReplayOptions {
   std::filesystem::path dataset;
-  std::optional<std::filesystem::path> out_tum;
+  std::optional<std::filesystem::path> out_tum;           ///< the map pose
+  std::optional<std::filesystem::path> out_odometry_tum;  ///< the odometry's pose
   std::optional<std::filesystem::path> relative_csv;
   std::optional<std::filesystem::path> config;
   std::optional<std::filesystem::path> calibration;
@@ -32,6 +33,8 @@ struct ReplaySummary : ReplayCounts {
   /// frames whose rows' rotations within the frame came from the dataset's gyro (imu.csv)
   int gyro_frames = 0;
   double median_seconds_per_frame = 0.0;
+  int loops_closed = 0;  ///< frames that closed a loop (OdometryResult::loop_closed)
+  int places = 0;        ///< places in the odometry's memory at the end
 };
 
 /// Builds the estimator for `method`. Throws std::invalid_argument for an unknown name

@@ -32,7 +32,8 @@ namespace omnipose::calibrate {
 /// from its own in-window scale at the scale's full weight (MotionFit::Options::
 /// plane_depth_prior false), and that each pair's motion is its own registration, not pulled
 /// towards a keyframe (KeyframeOptions::slots 0; gaps are bridged against the last good
-/// frame). A calibration recording turns in place, where the scale sees no wall's depth
+/// frame), without a map (LoopClosureOptions::enabled false: the searches read the pairs,
+/// never the map pose). A calibration recording turns in place, where the scale sees no wall's depth
 /// gradient, and the searches read what a wrong readout or clock offset leaves in each
 /// pair's fit over that pair's interval: with the scale weighed 0.01, as the plane prior
 /// weighs it, --readout-from read the real-camera benchmark's readout 3.8 % short instead of
@@ -42,6 +43,7 @@ inline OdometryOptions calibrationOdometry() {
   OdometryOptions o;
   o.pipeline.fit.plane_depth_prior = false;
   o.keyframes.slots = 0;
+  o.loop_closure.enabled = false;
   return o;
 }
 

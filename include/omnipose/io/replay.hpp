@@ -44,8 +44,10 @@ std::vector<GyroSample> datasetGyroSamples(const Dataset& dataset, std::string& 
 /// or empty) given as a live stream would have delivered them, then processed. A frame that
 /// cannot be read is skipped, counted and logged, and the odometry told of the gap; one the
 /// odometry refuses (black, implausible) is skipped, counted and logged; a lost fit is
-/// counted and logged. `trajectory` gets the chained pose of every frame that has one
-/// (segment starts, tracked and bridged frames), stamped with the frame's timestamp.
+/// counted and logged. `trajectory` gets the map pose (OdometryResult::map_pose: the chained
+/// pose corrected by the loop closures so far) of every frame that has one (segment starts,
+/// tracked and bridged frames), stamped with the frame's timestamp; the observer sees the
+/// odometry's own pose (OdometryResult::pose).
 ReplayCounts replayDataset(const Dataset& dataset, Odometry& odometry,
                            std::span<const GyroSample> gyro, InputKind input,
                            std::vector<StampedPose>& trajectory, const ReplayObserver& observe,

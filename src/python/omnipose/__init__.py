@@ -102,13 +102,16 @@ def _yaml_section(name: str, values: Mapping[str, Any]) -> str:
 
 def options_yaml(pipeline: Mapping[str, Any], keyframes: Optional[Mapping[str, Any]] = None,
                  plausibility: Optional[Mapping[str, Any]] = None,
-                 input: Optional[str] = None) -> str:
+                 input: Optional[str] = None,
+                 loop_closure: Optional[Mapping[str, Any]] = None) -> str:
     """The daemon.yaml text that sets these options (what Odometry and replay() parse)."""
     text = _yaml_section("pipeline", pipeline) if pipeline else ""
     if keyframes is not None:
         text += _yaml_section("keyframes", keyframes)
     if plausibility is not None:
         text += _yaml_section("plausibility", plausibility)
+    if loop_closure is not None:
+        text += _yaml_section("loop_closure", loop_closure)
     if input is not None:
         text += "input: " + _yaml_scalar("input", input) + "\n"
     return text
@@ -122,12 +125,13 @@ def _warn(messages: List[str]) -> None:
 class Odometry(_omnipose.Odometry):
     """The odometry: frames in, per frame the motion since the previous one and the chained pose.
 
-    ``Odometry(calibration, *, input=None, keyframes=None, plausibility=None, **pipeline)``:
+    ``Odometry(calibration, *, input=None, keyframes=None, plausibility=None,
+    loop_closure=None, **pipeline)``:
     ``pipeline`` holds daemon.yaml's ``pipeline:`` keys (window, step, huber_delta_px,
     median, refine_iterations, use_rotation_scale, estimate_rotation_scale, min_confidence,
     inlier_sigmas, moving_content, noise_weighting, plane_depth_prior, threads, fftw_wisdom;
-    a relative fftw_wisdom path is relative to the current directory); ``keyframes`` and
-    ``plausibility`` dicts of those sections' keys. Defaults are the daemon's (threads 0: every
+    a relative fftw_wisdom path is relative to the current directory); ``keyframes``,
+    ``plausibility`` and ``loop_closure`` dicts of those sections' keys. Defaults are the daemon's (threads 0: every
     core). Raises ConfigError (a ValueError) listing every bad key or value by its daemon.yaml
     key, ValueError when the options do not fit the calibration (e.g. a window taller than
     the panorama). The parser's warnings (threads clamped to the cores) are issued as
@@ -139,8 +143,10 @@ class Odometry(_omnipose.Odometry):
 
     def __init__(self, calibration: Calibration, *, input: Optional[str] = None,
                  keyframes: Optional[Mapping[str, Any]] = None,
-                 plausibility: Optional[Mapping[str, Any]] = None, **pipeline: Any) -> None:
-        super().__init__(calibration, options_yaml(pipeline, keyframes, plausibility, input),
+                 plausibility: Optional[Mapping[str, Any]] = None,
+                 loop_closure: Optional[Mapping[str, Any]] = None, **pipeline: Any) -> None:
+        super().__init__(calibration,
+                         options_yaml(pipeline, keyframes, plausibility, input, loop_closure),
                          _OPTIONS_ORIGIN)
         _warn(list(self.warnings))
 
@@ -150,13 +156,15 @@ class Replay:
     """A dataset replayed as omnipose-replay does: the trajectory it writes (--out) and its counts.
 
     timestamps (N,) seconds and poses (N, 4, 4) of the frames with a pose (segment starts and
-    tracked frames; a lost frame has none), sequences (N,) their frame indices, states (N) their
+    tracked frames; a lost frame has none): the map pose, corrected by loop closures, as --out
+    writes it; odometry_poses (N, 4, 4) the odometry's own (--out-odometry); sequences (N,) their frame indices, states (N) their
     TrackState names; frames, pairs, skipped (unreadable or rejected), implausible (of the
     skipped), lost, bridged, gyro_frames (rows' rotations from imu.csv); the median pipeline
     time per frame, seconds; log: omnipose-replay's lines for skipped and lost frames."""
 
     timestamps: np.ndarray
     poses: np.ndarray
+    odometry_poses: np.ndarray
     sequences: np.ndarray
     states: List[str]
     frames: int
@@ -176,6 +184,7 @@ FrameCallback = Callable[[int, str, FrameResult], None]
 def replay(dataset_dir: PathLike, *, calibration: Optional[PathLike] = None,
            input: Optional[str] = None, keyframes: Optional[Mapping[str, Any]] = None,
            plausibility: Optional[Mapping[str, Any]] = None,
+           loop_closure: Optional[Mapping[str, Any]] = None,
            on_frame: Optional[FrameCallback] = None, **pipeline: Any) -> Replay:
     """Replays a dataset directory (calibration.yaml, frames/, timestamps.txt, imu.csv when its
     calibration has an imu section) through the odometry with Odometry's options, as
@@ -186,7 +195,8 @@ def replay(dataset_dir: PathLike, *, calibration: Optional[PathLike] = None,
     callbacks and is raised by replay() at the end. The GIL is released while it runs (but
     for the callbacks). Raises RuntimeError naming the path for a dataset that cannot be
     opened, ConfigError for bad options or a bad calibration."""
-    return _replay(dataset_dir, options_yaml(pipeline, keyframes, plausibility, input),
+    return _replay(dataset_dir,
+                   options_yaml(pipeline, keyframes, plausibility, input, loop_closure),
                    _OPTIONS_ORIGIN, calibration, on_frame)
 
 
@@ -194,7 +204,7 @@ def replay_with_config(dataset_dir: PathLike, config: PathLike, *,
                        calibration: Optional[PathLike] = None,
                        on_frame: Optional[FrameCallback] = None) -> Replay:
     """replay() with the options of a daemon.yaml file (``omnipose-replay DATASET --config
-    FILE``): its pipeline, keyframes, plausibility and input sections; relative paths in it
+    FILE``): its pipeline, keyframes, plausibility, loop_closure and input sections; relative paths in it
     (fftw_wisdom) are relative to the file. ConfigError names the file and every bad key."""
     path = os.fspath(config)
     try:

@@ -46,7 +46,8 @@ void addPoses(nb::dict& d, const char* times_key, const char* poses_key,
 
 /// A replay's outcome (replayDataset()) with what Python gets of each pose.
 struct ReplayRun {
-  std::vector<StampedPose> trajectory;
+  std::vector<StampedPose> trajectory;           ///< the map pose
+  std::vector<StampedPose> odometry_trajectory;  ///< the odometry's pose, per trajectory entry
   std::vector<std::string> states;  ///< per trajectory entry
   std::vector<double> sequences;    ///< frame index per trajectory entry
   std::vector<std::string> log;     ///< skipped / lost frames, as omnipose-replay logs them
@@ -101,6 +102,7 @@ void runReplay(const Dataset& dataset, const OdometryOptions& options,
         run.seconds.push_back(r.relative.timing.total);
         on_frame(i, frame, r, geometry);
         if (r.state == TrackState::kLost) return;  // no pose in the trajectory
+        run.odometry_trajectory.push_back({frame.timestamp, r.pose});
         run.states.emplace_back(toString(r.state));
         run.sequences.push_back(i);
       },
@@ -130,6 +132,9 @@ nb::dict replay(const std::filesystem::path& dataset_dir, const std::string& opt
   callback.rethrow();
   nb::dict d;
   addPoses(d, "timestamps", "poses", run.trajectory);
+  nb::dict odometry_poses;
+  addPoses(odometry_poses, "timestamps", "poses", run.odometry_trajectory);
+  d["odometry_poses"] = odometry_poses["poses"];
   d["sequences"] = ownedArray(std::move(run.sequences), {run.trajectory.size()});
   d["states"] = run.states;
   d["frames"] = static_cast<int>(dataset.frames.size());

@@ -79,6 +79,10 @@ FrameResult toFrameResult(const Expected<OdometryResult>& result, double time_s,
   f.windows_used = e.windows_used;
   f.windows_total = e.windows_total;
   f.pose = r.pose.matrix();
+  f.map_pose = r.map_pose.matrix();
+  f.loop_closed = r.loop_closed;
+  f.loop_place_sequence = r.loop_place_sequence;
+  f.places = r.places;
   f.segment = r.segment;
   f.sequence = r.sequence;
   f.reference_sequence = r.reference_sequence;
@@ -174,6 +178,13 @@ void bindResult(nb::module_& m) {
       .def_ro("windows_total", &R::windows_total, "Windows given to the fit, masked ones included.")
       .def_ro("pose", &R::pose,
               "Chained pose, 4 x 4 (camera to segment origin; positions in scene distances).")
+      .def_ro("map_pose", &R::map_pose,
+              "The pose in the map frame, 4 x 4: `pose` corrected by the loop closures so far "
+              "(jumps when a loop closes; equal to `pose` before the first closure).")
+      .def_ro("loop_closed", &R::loop_closed, "This frame closed a loop: map_pose jumped.")
+      .def_ro("loop_place_sequence", &R::loop_place_sequence,
+              "The place a closing frame was matched with (its frame's sequence), else -1.")
+      .def_ro("places", &R::places, "Places in the odometry's memory.")
       .def_ro("segment", &R::segment, "0 for the first segment, +1 at each new one.")
       .def_ro("sequence", &R::sequence, "This frame's number.")
       .def_ro("reference_sequence", &R::reference_sequence,

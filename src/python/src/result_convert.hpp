@@ -50,6 +50,10 @@ struct FrameResult {
   int windows_used = 0;
   int windows_total = 0;
   Eigen::Matrix4d pose = Eigen::Matrix4d::Identity();
+  Eigen::Matrix4d map_pose = Eigen::Matrix4d::Identity();
+  bool loop_closed = false;
+  std::int64_t loop_place_sequence = -1;
+  int places = 0;
   int segment = 0;
   std::int64_t sequence = -1;
   std::int64_t reference_sequence = -1;

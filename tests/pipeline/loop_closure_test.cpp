@@ -1,0 +1,251 @@
+// Loop closure (src/pipeline/loop_closure.hpp, OdometryResult::map_pose) against the exact
+// renderer. Driving a rectangle and back to its start closes a loop: the map pose's heading
+// comes back to the truth while the odometry's pose, continuous, is the same as without a
+// map. Matches that would be wrong are refused: a look-alike far from where the odometry
+// says the robot is (two identical rooms), a match that needs a larger turn of the map
+// than the odometry can have drifted (a symmetric room), a view that is not the place.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <numbers>
+#include <vector>
+
+#include "allocation_counter.hpp"
+#include "omnipose/odometry.hpp"
+#include "omnipose/so3.hpp"
+#include "omnipose/synth/synth.hpp"
+#include "pipeline/frame_registrar.hpp"
+#include "pipeline/loop_closure.hpp"
+#include "render_fixture.hpp"
+
+namespace omnipose {
+namespace {
+
+constexpr double kDeg = std::numbers::pi / 180.0;
+
+Eigen::Isometry3d at(double x, double y, double yaw) {
+  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+  T.linear() = rotationFromVector(Eigen::Vector3d(0.0, 0.0, yaw));
+  T.translation() = Eigen::Vector3d(x, y, 0.0);
+  return T;
+}
+
+double yawOf(const Eigen::Isometry3d& T) { return std::atan2(T(1, 0), T(0, 0)); }
+
+cv::Mat noisy(const cv::Mat& render, std::uint64_t seed) {
+  synth::DegradeOptions noise;
+  noise.noise_sigma = 2.0;
+  return synth::degrade(render, noise, seed);
+}
+
+/// LoopClosure fed frames of a sphere scene (every position looks the same, so the
+/// odometry's word decides where a frame is) at odometry poses the test chooses.
+class MapOfSphereViews : public ::testing::Test {
+ protected:
+  MapOfSphereViews()
+      : renderer_(synth::Scene::load(testing::indoorPhoto(), synth::SceneKind::kSphere),
+                  Calibration{}, {synth::OutputKind::kOmni, 2}),
+        registrar_(Calibration{}, PipelineOptions{}, 2),
+        loop_(LoopClosureOptions{}, registrar_, 1, 0.03) {}
+
+  /// The frame whose true heading is `true_yaw` at odometry pose `odometry`.
+  pipeline::LoopClosure::Update feed(double true_yaw, const Eigen::Isometry3d& odometry) {
+    const cv::Mat frame = noisy(renderer_.render(at(0, 0, true_yaw)), ++seed_);
+    EXPECT_TRUE(registrar_.unwrap(frame).has_value());
+    if (!registrar_.hasPrevious()) registrar_.makeCurrentPrevious();
+    pipeline::LoopClosure::Frame f;
+    f.sequence = static_cast<std::int64_t>(seed_);
+    f.time_s = static_cast<double>(seed_) / 30.0;
+    f.odometry = odometry;
+    return loop_.update(f);
+  }
+  /// Places at the origin and along +x every 0.12 scene distances (6 of them), the views
+  /// all at heading 0 and the odometry without drift.
+  void driveOut() {
+    feed(0.0, at(0, 0, 0));
+    for (int k = 1; k <= 6; ++k) feed(0.0, at(0.12 * k, 0, 0));
+    ASSERT_EQ(loop_.places(), 7);
+  }
+  /// `frames` frames of heading `true_yaw` at odometry pose `odometry`; the closures.
+  int closuresOver(int frames, double true_yaw, const Eigen::Isometry3d& odometry,
+                   pipeline::LoopClosure::Update* last = nullptr) {
+    int closed = 0;
+    for (int k = 0; k < frames; ++k) {
+      const auto u = feed(true_yaw, odometry);
+      closed += u.loop_closed ? 1 : 0;
+      if (last != nullptr) *last = u;
+    }
+    return closed;
+  }
+
+  synth::Renderer renderer_;
+  pipeline::FrameRegistrar registrar_;
+  pipeline::LoopClosure loop_;
+  std::uint64_t seed_ = 0;
+};
+
+TEST_F(MapOfSphereViews, BackAtTheStartWithAHeadingDriftClosesTheLoop) {
+  driveOut();
+  // Back near the start, the odometry's heading 2 degrees off.
+  pipeline::LoopClosure::Update last;
+  const int closed = closuresOver(14, 0.0, at(0.01, 0, 2.0 * kDeg), &last);
+  EXPECT_GE(closed, 1);
+  ::testing::Test::RecordProperty("map_yaw_error_rad", std::to_string(yawOf(last.map_pose)));
+  EXPECT_NEAR(yawOf(last.map_pose), 0.0, 0.05 * kDeg) << "the map's heading is the truth's";
+  EXPECT_NEAR(yawOf(last.correction), -2.0 * kDeg, 0.05 * kDeg);
+}
+
+TEST_F(MapOfSphereViews, ALookAlikeFarFromWhereTheOdometryIsDoesNotCloseALoop) {
+  driveOut();
+  // The same view (an identical room) 2 scene distances on: nothing within search_radius.
+  EXPECT_EQ(closuresOver(20, 0.0, at(2.0, 0, 2.0 * kDeg)), 0);
+}
+
+TEST_F(MapOfSphereViews, AMatchNeedingALargerTurnThanTheDriftCanBeIsRefused) {
+  driveOut();
+  // The view turned 30 degrees from where the odometry faces (a symmetric room's other
+  // half, or a wrong match): beyond max_correction_rad.
+  pipeline::LoopClosure::Update last;
+  EXPECT_EQ(closuresOver(20, 30.0 * kDeg, at(0.01, 0, 0.0), &last), 0);
+  EXPECT_TRUE(last.correction.isApprox(Eigen::Isometry3d::Identity()));
+}
+
+TEST_F(MapOfSphereViews, AViewThatIsNotThePlaceDoesNotCloseALoop) {
+  driveOut();
+  // Something else entirely in front of the camera (the photo upside down: the same
+  // texture, a different place).
+  int closed = 0;
+  for (int k = 0; k < 20; ++k) {
+    cv::Mat frame = noisy(renderer_.render(at(0, 0, 0)), ++seed_);
+    cv::flip(frame, frame, 0);
+    ASSERT_TRUE(registrar_.unwrap(frame).has_value());
+    pipeline::LoopClosure::Frame f;
+    f.sequence = static_cast<std::int64_t>(seed_);
+    f.odometry = at(0.01, 0, 0.5 * kDeg);
+    closed += loop_.update(f).loop_closed ? 1 : 0;
+  }
+  EXPECT_EQ(closed, 0);
+}
+
+TEST_F(MapOfSphereViews, ComparingAndClosingAllocatesNothing) {
+  if (!testing::AllocationCounter::available())
+    GTEST_SKIP() << "sanitizer build: the sanitizer owns malloc, allocations are not counted";
+  cv::setNumThreads(1);
+  driveOut();
+  std::vector<cv::Mat> frames;
+  for (int k = 0; k < 3; ++k) frames.push_back(noisy(renderer_.render(at(0, 0, 0)), 100 + k));
+  const auto step = [&](int k, double drift) {
+    EXPECT_TRUE(registrar_.unwrap(frames[static_cast<std::size_t>(k % 3)]).has_value());
+    pipeline::LoopClosure::Frame f;
+    f.sequence = 1000 + k;
+    f.odometry = at(0.01, 0, drift);
+    return loop_.update(f).loop_closed;
+  };
+  for (int k = 0; k < 14; ++k) step(k, 1.0 * kDeg);  // warm up: a closure
+  testing::AllocationCounter counter;
+  int closed = 0;
+  for (int k = 0; k < 30; ++k) closed += step(k, (1.0 + 0.1 * (k / 10)) * kDeg) ? 1 : 0;
+  EXPECT_EQ(counter.stop(), 0);
+  EXPECT_GE(closed, 1);
+}
+
+/// A rectangle of 1.2 x 0.8 m in the box room at 3 cm per frame with 90-degree left turns
+/// in place at 6 degrees per frame, `laps` times, then `extra` frames along the first side.
+std::vector<Eigen::Isometry3d> rectangle(int laps, int extra) {
+  std::vector<Eigen::Isometry3d> truth{Eigen::Isometry3d::Identity()};
+  const auto go = [&](int frames, double step_m) {
+    for (int k = 0; k < frames; ++k) {
+      Eigen::Isometry3d T = truth.back();
+      T.translation() += T.linear() * Eigen::Vector3d(step_m, 0, 0);
+      truth.push_back(T);
+    }
+  };
+  const auto turn = [&] {
+    for (int k = 0; k < 15; ++k) truth.push_back(truth.back() * at(0, 0, 6.0 * kDeg));
+  };
+  for (int lap = 0; lap < laps; ++lap) {
+    for (int side = 0; side < 4; ++side) {
+      go(side % 2 == 0 ? 40 : 27, 0.03);
+      turn();
+    }
+  }
+  go(extra, 0.03);
+  return truth;
+}
+
+struct RectangleRun {
+  std::vector<OdometryResult> results;
+  std::vector<Eigen::Isometry3d> truth;
+};
+
+/// The frames of rectangle(1, 12), rendered once for the tests that drive it.
+const std::vector<cv::Mat>& rectangleFrames() {
+  static const std::vector<cv::Mat> frames = [] {
+    const synth::Renderer renderer(
+        synth::Scene::load(testing::indoorPhoto(), synth::SceneKind::kBox), Calibration{},
+        {synth::OutputKind::kOmni, 1});
+    std::vector<cv::Mat> out;
+    const std::vector<Eigen::Isometry3d> truth = rectangle(1, 12);
+    for (std::size_t k = 0; k < truth.size(); ++k)
+      out.push_back(noisy(renderer.render(truth[k]), k + 1));
+    return out;
+  }();
+  return frames;
+}
+
+RectangleRun driveRectangle(const OdometryOptions& options) {
+  RectangleRun run;
+  run.truth = rectangle(1, 12);
+  const std::vector<cv::Mat>& frames = rectangleFrames();
+  Odometry odometry(Calibration{}, options);
+  for (std::size_t k = 0; k < run.truth.size(); ++k) {
+    auto r = odometry.process(frames[k], {k / 30.0});
+    EXPECT_TRUE(r.has_value()) << k << ": " << (r ? "" : r.error().c_str());
+    if (!r) return run;
+    run.results.push_back(*r);
+  }
+  return run;
+}
+
+TEST(LoopClosure, DrivingBackToTheStartBringsTheMapHeadingBack) {
+  OdometryOptions without;
+  without.loop_closure.enabled = false;
+  const RectangleRun odometry_only = driveRectangle(without);
+  const RectangleRun mapped = driveRectangle(OdometryOptions{});
+  ASSERT_EQ(mapped.results.size(), mapped.truth.size());
+  ASSERT_EQ(odometry_only.results.size(), mapped.truth.size());
+  int closures = 0, first_closure = -1;
+  double jump_without_closure = 0.0;
+  for (std::size_t k = 0; k < mapped.results.size(); ++k) {
+    const OdometryResult& r = mapped.results[k];
+    EXPECT_TRUE(r.pose.isApprox(odometry_only.results[k].pose, 1e-9))
+        << k << ": the odometry's pose is the same with and without the map";
+    if (r.loop_closed) {
+      ++closures;
+      if (first_closure < 0) first_closure = static_cast<int>(k);
+    } else if (k > 0) {
+      // Without a closure the map pose moves as the odometry's pose does.
+      const Eigen::Isometry3d d_map = mapped.results[k - 1].map_pose.inverse() * r.map_pose;
+      const Eigen::Isometry3d d_odom = mapped.results[k - 1].pose.inverse() * r.pose;
+      jump_without_closure = std::max(
+          jump_without_closure, rotationVector(d_map.linear().transpose() * d_odom.linear()).norm());
+    }
+  }
+  const std::size_t end = mapped.results.size() - 1;
+  const double odometry_error =
+      rotationVector(mapped.results[end].pose.linear().transpose() * mapped.truth[end].linear()).norm();
+  const double map_error =
+      rotationVector(mapped.results[end].map_pose.linear().transpose() * mapped.truth[end].linear()).norm();
+  ::testing::Test::RecordProperty("closures", closures);
+  ::testing::Test::RecordProperty("first_closure_frame", first_closure);
+  ::testing::Test::RecordProperty("odometry_heading_error_rad", std::to_string(odometry_error));
+  ::testing::Test::RecordProperty("map_heading_error_rad", std::to_string(map_error));
+  EXPECT_GE(closures, 1);
+  EXPECT_GT(first_closure, 190) << "no closure before the robot is back at the start";
+  EXPECT_LT(jump_without_closure, 1e-9);
+  EXPECT_LT(map_error, 0.1 * kDeg);
+  EXPECT_GT(mapped.results[end].places, 10);
+}
+
+}  // namespace
+}  // namespace omnipose

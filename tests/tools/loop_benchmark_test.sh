@@ -1,0 +1,40 @@
+#!/usr/bin/env bash
+# tools/loop_benchmark.sh in a quick mode (one lap of one tuning room and one report-only
+# room, 1 x 1 rays): each is rendered, replayed and measured at the lap's end, and the table
+# has a row per room, every cell a number, and the median and worst of each group.
+# Usage: loop_benchmark_test.sh SOURCE_DIR BUILD_DIR
+set -euo pipefail
+src=$1
+build=$(realpath "$2")
+cd "$src"
+bash -n tools/loop_benchmark.sh
+rc=0
+out=$(bash tools/loop_benchmark.sh --frobnicate 2>&1) || rc=$?
+[ "$rc" = 2 ] || { echo "loop_benchmark.sh --frobnicate: exit $rc, expected 2: $out" >&2; exit 1; }
+rc=0
+out=$(LAPS=6 bash tools/loop_benchmark.sh 2>&1) || rc=$?
+[ "$rc" = 2 ] || { echo "loop_benchmark.sh with LAPS=6: exit $rc, expected 2: $out" >&2; exit 1; }
+if [ ! -f ../shared/data/equirect/park_theta_v_5376x2688.jpg ]; then
+  echo "loop_benchmark.sh: syntax and usage checked (no park photo beside the repository)"
+  exit 0
+fi
+tmp=$(mktemp -d)
+trap 'rm -rf "$tmp"' EXIT
+rc=0
+out=$(BUILD_DIR=$build ROOMS="indoor kitchen" bash tools/loop_benchmark.sh "$tmp/bad" 2>&1) || rc=$?
+[ "$rc" = 2 ] && grep -q "no room named kitchen" <<< "$out" ||
+  { echo "loop_benchmark.sh with an unknown room: exit $rc: $out" >&2; exit 1; }
+BUILD_DIR=$build ROOMS="indoor indoor_t270" LAPS=1 bash tools/loop_benchmark.sh "$tmp/loops" \
+  > "$tmp/log" 2>&1 || { echo "loop_benchmark.sh failed:" >&2; tail -20 "$tmp/log" >&2; exit 1; }
+table=$tmp/loops/LOOPS.md
+rooms=$(grep -cE '^\| [a-z_0-9]+ \| (tuning|report-only) \|' "$table")
+summaries=$(grep -cE '^\| \*\*(median|worst)\*\* \|' "$table")
+[ "$rooms" = 2 ] || { echo "LOOPS.md: $rooms room rows, expected 2" >&2; cat "$table" >&2; exit 1; }
+[ "$summaries" = 4 ] || { echo "LOOPS.md: $summaries summary rows, expected 4" >&2; exit 1; }
+# Per room: the map's and the odometry's error after the lap, closures and places.
+bad=$(grep -E '^\| [a-z_0-9]+ \| (tuning|report-only) \|' "$table" |
+      awk -F'|' '{if ($4 !~ /^ [0-9]+\.[0-9]+ $/ || $5 !~ /^ [0-9]+\.[0-9]+ $/ || $6 !~ /^ [0-9]+ $/ || $7 !~ /^ [0-9]+ $/) print}' | wc -l)
+[ "$bad" = 0 ] || { echo "LOOPS.md: cells that are not numbers" >&2; cat "$table" >&2; exit 1; }
+places=$(grep -E '^\| indoor \|' "$table" | awk -F'|' '{print $7}')
+[ "$places" -gt 5 ] || { echo "LOOPS.md: $places places after a lap" >&2; cat "$table" >&2; exit 1; }
+echo "loop_benchmark.sh: 2 rooms, 1 lap, measured"
