@@ -117,7 +117,13 @@ TEST(DaemonOnFakeIio, TheGyroOfAnIioDeviceTakesTheRollingShutterOut) {
   EXPECT_EQ(last.imu_samples, static_cast<std::int64_t>(samples.size())) << "every rate arrived";
   EXPECT_EQ(last.imu_samples_refused + last.imu_messages_bad + last.imu_samples_dropped, 0);
   EXPECT_EQ(last.imu_device_lost, 0);
-  EXPECT_GE(last.frames_processed, 10);
+  // Realtime replay: a frame whose time has passed before the pipeline is ready for it is
+  // dropped as a camera would drop it (lost upstream) or overwritten by a newer one (stale),
+  // the more so under a sanitizer or on a busy machine; every frame is accounted for.
+  EXPECT_EQ(last.frames_received, 13);
+  EXPECT_EQ(last.frames_processed + last.frames_skipped_stale + last.frames_lost_upstream, 13);
+  EXPECT_EQ(last.frames_bad, 0);
+  EXPECT_GE(last.frames_processed, 5);
   EXPECT_GT(last.frames_with_gyro, 0);
   EXPECT_GE(last.frames_with_gyro, last.frames_processed - 1);
   EXPECT_EQ(last.frames_with_gyro + last.frames_without_gyro, last.frames_processed);
