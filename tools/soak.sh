@@ -18,11 +18,15 @@
 #     printed);
 #   - memory is flat: after the warm-up (the first max(1000, FRAMES/10) frames), no RSS
 #     sample exceeds the first post-warm-up sample by more than RSS_TOLERANCE_KB.
+# With DATASET set, that recording (a dataset directory, e.g. the loop benchmark's five laps:
+# build/loops/indoor/dataset after `ROOMS=indoor tools/loop_benchmark.sh`) is looped as it is,
+# with no faults: the accounting and memory checks stay, and the places kept and the loops
+# closed are reported (the map's memory filling up and forgetting).
 # Usage: tools/soak.sh [FRAMES]   (default 10000: about 6 minutes)
 # Environment: BUILD_DIR (default build; built with tools/build.sh when omniposed is missing),
 # SAMPLE (seconds between samples, default 5), RSS_TOLERANCE_KB (default 512), NICE (default 10),
 # VANISH (seconds the directory is away, default 2), STALL (seconds without a new frame that
-# fail the run, default 60), KEEP=1 keeps the working directory.
+# fail the run, default 60), KEEP=1 keeps the working directory, DATASET (see above).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 # shellcheck source=tools/common/final_status.sh
@@ -39,6 +43,11 @@ tolerance_kb=${RSS_TOLERANCE_KB:-512}
 nice_level=${NICE:-10}
 vanish=${VANISH:-2}
 stall=${STALL:-60}
+dataset=${DATASET:-}
+if [ -n "$dataset" ] && [ ! -f "$dataset/calibration.yaml" ]; then
+  echo "soak: DATASET=$dataset is not a dataset directory (no calibration.yaml)" >&2
+  exit 2
+fi
 if [ ! -x "$bin/omniposed" ] || [ ! -x "$bin/omnipose-synth" ] || [ ! -x "$bin/omnipose-listen" ]; then
   bash tools/build.sh
 fi
@@ -51,10 +60,16 @@ cleanup() {
 }
 trap cleanup EXIT
 
-echo "soak: rendering the recording"
-"$bin/omnipose-synth" --texture tests/data/equirect/indoor_1024x512.jpg --out "$work/data" \
-  --preset mixed --frames 60 --seed 7 --supersample 1 >"$work/synth.log" 2>&1
-python3 tools/common/hostile_dataset.py "$work/data" --seed 7
+if [ -n "$dataset" ]; then
+  ln -s "$(realpath "$dataset")" "$work/data"
+else
+  echo "soak: rendering the recording"
+  "$bin/omnipose-synth" --texture tests/data/equirect/indoor_1024x512.jpg --out "$work/data" \
+    --preset mixed --frames 60 --seed 7 --supersample 1 >"$work/synth.log" 2>&1
+  python3 tools/common/hostile_dataset.py "$work/data" --seed 7
+fi
+faults=1
+[ -n "$dataset" ] && faults=0
 fifo_frame=000035.png  # far (> 200 ms) from the other faults: its line is not rate-limited away
 cat >"$work/daemon.yaml" <<YAML
 source: {type: file, path: data, realtime: true, loop: true}
@@ -103,7 +118,7 @@ while :; do
     exit 1
   fi
   printf 'soak: %8.0f %10d %10d\n' "$(awk -v a="$now" -v b="$start" 'BEGIN {print a - b}')" "$received" "$rss_kb"
-  if [ "$vanished" -eq 0 ] && [ "$received" -ge $((frames / 2)) ]; then
+  if [ "$faults" = 1 ] && [ "$vanished" -eq 0 ] && [ "$received" -ge $((frames / 2)) ]; then
     mv "$work/data" "$work/data.away"
     sleep "$vanish"
     mv "$work/data.away" "$work/data"
@@ -111,7 +126,7 @@ while :; do
   fi
   # A quarter of the way, while the source streams (it listed the frames when it opened):
   # a FIFO without a writer where a frame file was, read without blocking and refused.
-  if [ "$fifo_made" -eq 0 ] && [ "$received" -ge $((frames / 4)) ]; then
+  if [ "$faults" = 1 ] && [ "$fifo_made" -eq 0 ] && [ "$received" -ge $((frames / 4)) ]; then
     rm "$work/data/frames/$fifo_frame"
     mkfifo "$work/data/frames/$fifo_frame"
     fifo_made=1
@@ -157,16 +172,18 @@ if [ "$received" -ne $((f_processed + skipped + bad + lost)) ]; then
   echo "soak: FAIL: received $received != processed $f_processed + skipped $skipped + bad $bad + lost $lost" >&2
   fail=1
 fi
-if [ "$bad" -eq 0 ] || [ "${failures:-0}" -eq 0 ] || [ "${implausible:-0}" -eq 0 ]; then
-  echo "soak: FAIL: the faults were not all met: bad frames $bad, implausible ${implausible:-?}, source failures ${failures:-?}" >&2
-  fail=1
-fi
-for fault in "60000x60000" "resynchronised" "source re-opened" "implausible frame" "not a regular file (a FIFO)"; do
-  if ! grep -q "$fault" "$work/daemon.err"; then
-    echo "soak: FAIL: the daemon's log never mentions '$fault'" >&2
+if [ "$faults" = 1 ]; then
+  if [ "$bad" -eq 0 ] || [ "${failures:-0}" -eq 0 ] || [ "${implausible:-0}" -eq 0 ]; then
+    echo "soak: FAIL: the faults were not all met: bad frames $bad, implausible ${implausible:-?}, source failures ${failures:-?}" >&2
     fail=1
   fi
-done
+  for fault in "60000x60000" "resynchronised" "source re-opened" "implausible frame" "not a regular file (a FIFO)"; do
+    if ! grep -q "$fault" "$work/daemon.err"; then
+      echo "soak: FAIL: the daemon's log never mentions '$fault'" >&2
+      fail=1
+    fi
+  done
+fi
 if [ "$poses" -ne "$f_processed" ]; then
   echo "soak: FAIL: the log holds $poses poses, the final status says $f_processed processed" >&2
   fail=1
@@ -189,5 +206,8 @@ printf 'soak: %d frames in %.0f s (%.1f frames/s); received %d = processed %d + 
   "$f_processed" "$seconds" "$(awk -v n="$f_processed" -v s="$seconds" 'BEGIN {print n / s}')" "$received" "$f_processed" \
   "$skipped" "$bad" "${implausible:-?}" "$lost" "${failures:-?}" "$poses" "$warmup" "${baseline_kb:-?}" "$max_after_kb" "$last_kb" \
   "${growth:-?}" "$tolerance_kb" "$samples"
+# The map: "..., loops closed N, ..., places N, source ..." (the daemon's last log line).
+summary_line=$(grep -E 'stopped: received|SIGHUP received' "$work/daemon.err" | tail -1)
+echo "soak: map: loops closed $(sed -n 's/.* loops closed \([0-9]*\).*/\1/p' <<<"$summary_line"), places $(sed -n 's/.* places \([0-9]*\).*/\1/p' <<<"$summary_line")"
 if [ "$fail" -ne 0 ]; then exit 1; fi
 echo "soak: PASS"

@@ -4,6 +4,7 @@
 /// (DESIGN.md sections 2 and 3): omega = axis * angle (radians), R = exp([omega]x).
 
 #include <Eigen/Core>
+#include <Eigen/Geometry>
 
 namespace omnipose {
 
@@ -20,5 +21,12 @@ Eigen::Matrix3d skew(const Eigen::Vector3d& v);
 /// R(t) = R0 exp([phi(t)]x) turns at rightJacobian(phi) * dphi/dt rad/s about its own axes.
 /// The identity at phi = 0; exact (a series near 0) for any |phi| < 2 pi.
 Eigen::Matrix3d rightJacobian(const Eigen::Vector3d& phi);
+/// The rigid transform of rotation `R` and translation `t`: x -> R x + t.
+inline Eigen::Isometry3d isometry(const Eigen::Matrix3d& R, const Eigen::Vector3d& t) {
+  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+  T.linear() = R;
+  T.translation() = t;
+  return T;
+}
 
 }  // namespace omnipose

@@ -34,6 +34,15 @@ double getDegrees(Reader& r, const YAML::Node& node, const std::string& path,
   return degrees;
 }
 
+/// A validate() problem of the options' field `field` (radians), named by the daemon.yaml key
+/// `key` the user wrote in degrees: "key: <degrees> <range_in_degrees>"; other problems as
+/// they are.
+std::string inDegrees(std::string problem, std::string_view field, std::string_view key,
+                      double degrees, std::string_view range_in_degrees) {
+  if (!problem.starts_with(std::string(field) + ":")) return problem;
+  return std::string(key) + ": " + std::to_string(degrees) + " " + std::string(range_in_degrees);
+}
+
 constexpr detail::Named<SourceConfig::Type> kSourceTypes[] = {
     {SourceConfig::Type::kFile, "file"},
     {SourceConfig::Type::kV4l2, "v4l2"},
@@ -141,17 +150,16 @@ void parseKeyframes(Reader& r, const YAML::Node& node, KeyframeOptions& k) {
     return;
   r.get(node, "keyframes", "slots", k.slots);
   r.get(node, "keyframes", "max_translation", k.max_translation);
-  getDegrees(r, node, "keyframes", "max_tilt_deg", k.max_tilt_rad);
+  const double tilt_deg = getDegrees(r, node, "keyframes", "max_tilt_deg", k.max_tilt_rad);
   r.get(node, "keyframes", "anchor_gain", k.anchor_gain);
   r.get(node, "keyframes", "anchor_interval", k.anchor_interval);
   r.get(node, "keyframes", "min_ring_peak", k.min_ring_peak);
   r.get(node, "keyframes", "gap_after_s", k.gap_after_s);
   // The ranges are the odometry's own (KeyframeOptions::validate(), checked by parse()),
-  // named by the key the user wrote (max_tilt_deg for the field max_tilt_rad).
-  for (std::string p : k.validate()) {
-    if (p.starts_with("max_tilt_rad:")) p = "max_tilt_deg:" + p.substr(13);
-    r.add("keyframes." + p);
-  }
+  // named by the key the user wrote (degrees where the field is in radians).
+  for (const std::string& p : k.validate())
+    r.add("keyframes." + inDegrees(p, "max_tilt_rad", "max_tilt_deg", tilt_deg,
+                                   "deg is outside [0, 28.6]"));
 }
 
 void parseLoopClosure(Reader& r, const YAML::Node& node, LoopClosureOptions& l) {
@@ -173,14 +181,12 @@ void parseLoopClosure(Reader& r, const YAML::Node& node, LoopClosureOptions& l) 
       getDegrees(r, node, "loop_closure", "max_turn_rate_deg_s", l.max_turn_rate_rad_s);
   // The ranges are the odometry's own (LoopClosureOptions::validate()), named by the key the
   // user wrote (degrees where the field is in radians).
-  for (std::string problem : l.validate()) {
-    if (problem.starts_with("max_correction_rad:"))
-      problem = "max_correction_deg: " + std::to_string(correction_deg) +
-                " deg is outside (0, 28.6]";
-    if (problem.starts_with("max_turn_rate_rad_s:"))
-      problem = "max_turn_rate_deg_s: " + std::to_string(turn_deg) + " deg/s is outside (0, 5730]";
-    r.add("loop_closure." + problem);
-  }
+  for (const std::string& p : l.validate())
+    r.add("loop_closure." +
+          inDegrees(inDegrees(p, "max_correction_rad", "max_correction_deg", correction_deg,
+                              "deg is outside (0, 28.6]"),
+                    "max_turn_rate_rad_s", "max_turn_rate_deg_s", turn_deg,
+                    "deg/s is outside (0, 5730]"));
 }
 
 void parsePlausibility(Reader& r, const YAML::Node& node, PlausibilityOptions& p) {
@@ -196,11 +202,9 @@ void parsePlausibility(Reader& r, const YAML::Node& node, PlausibilityOptions& p
   r.get(node, "plausibility", "max_rejected", p.max_rejected);
   // The ranges are the odometry's own (PlausibilityOptions::validate()), named by the key the
   // user wrote (max_rotation_deg_s for the field max_rotation_rad_s).
-  for (std::string problem : p.validate()) {
-    if (problem.starts_with("max_rotation_rad_s:"))
-      problem = "max_rotation_deg_s: " + std::to_string(rate_deg) + " deg/s is outside (0, 18000]";
-    r.add("plausibility." + problem);
-  }
+  for (const std::string& problem : p.validate())
+    r.add("plausibility." + inDegrees(problem, "max_rotation_rad_s", "max_rotation_deg_s",
+                                      rate_deg, "deg/s is outside (0, 18000]"));
 }
 
 void parseLcm(Reader& r, const YAML::Node& node, LcmConfig& l) {

@@ -29,7 +29,8 @@ sigset_t stopSignals() {
   return set;
 }
 
-/// "received 10, processed 9, ..., segment 0, source streaming" (counters.hpp's labels).
+/// "received 10, processed 9, ..., segment 0, places 3, source streaming" (counters.hpp's
+/// labels).
 std::string summary(const DaemonStats& s) {
   std::string text;
   text.reserve(400);
@@ -39,7 +40,8 @@ std::string summary(const DaemonStats& s) {
     text += std::to_string(value);
     text += ", ";
   });
-  text += "segment " + std::to_string(s.segment) + ", source " + toString(s.source_state);
+  text += "segment " + std::to_string(s.segment) + ", places " + std::to_string(s.places) +
+          ", source " + toString(s.source_state);
   return text;
 }
 

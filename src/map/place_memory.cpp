@@ -98,6 +98,7 @@ void PlaceMemory::store(int id, const cv::Mat& panorama, const PlaceSignature::V
   p.sequence = sequence;
   p.time_s = time_s;
   p.yaw_rate = yaw_rate;
+  p.serial = ++stored_;
   touch(id);
 }
 
@@ -120,6 +121,7 @@ int PlaceMemory::leastRecentlyUsed(int keep_a, int keep_b) const {
 void PlaceMemory::clear() {
   for (Place& p : places_) p.valid = false;
   size_ = 0;
+  stored_ = 0;
 }
 
 }  // namespace omnipose::map

@@ -51,6 +51,7 @@ struct Place {
   double time_s = 0.0;
   double yaw_rate = 0.0;       ///< the camera's turn rate about z then, rad/s (rolling shutter)
   long last_used = 0;          ///< PlaceMemory::touch()'s clock
+  long serial = 0;             ///< its number in the order places were stored (1 = the first)
   cv::Mat panorama;            ///< CV_8UC1
   PlaceSignature::Vector signature{};
 };
@@ -62,6 +63,9 @@ class PlaceMemory {
 
   int capacity() const { return static_cast<int>(places_.size()); }
   int size() const { return size_; }
+  /// Places stored since construction or clear(), forgotten ones included: the newest
+  /// place's Place::serial.
+  long stored() const { return stored_; }
   const Place& operator[](int id) const { return places_[static_cast<std::size_t>(id)]; }
 
   /// Stores the place of id `id` (a node id, < capacity): the panorama `panorama`
@@ -78,6 +82,7 @@ class PlaceMemory {
  private:
   std::vector<Place> places_;
   int size_ = 0;
+  long stored_ = 0;
   long clock_ = 0;
 };
 

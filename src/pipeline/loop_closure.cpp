@@ -25,13 +25,6 @@ constexpr double kLooseSigma = 10.0;
 /// A registration's rotation sigma is taken within these bounds, radians.
 constexpr double kMinLoopSigma = 5e-4, kMaxLoopSigma = 5e-3;
 
-Eigen::Isometry3d isometry(const Eigen::Matrix3d& R, const Eigen::Vector3d& t) {
-  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
-  T.linear() = R;
-  T.translation() = t;
-  return T;
-}
-
 double yawOf(const Eigen::Matrix3d& R) { return std::atan2(R(1, 0), R(0, 0)); }
 
 double wrapAngle(double a) { return std::remainder(a, 2.0 * std::numbers::pi); }
@@ -46,8 +39,7 @@ LoopClosure::LoopClosure(const LoopClosureOptions& options, FrameRegistrar& regi
       min_ring_peak_(min_ring_peak),
       memory_(options.max_places, registrar.panorama().size()),
       signer_(registrar.panorama().size()),
-      graph_(options.max_places, 4 * options.max_places),
-      serial_(static_cast<std::size_t>(options.max_places), 0) {}
+      graph_(options.max_places, 4 * options.max_places) {}
 
 Eigen::Isometry3d LoopClosure::correction() const {
   if (anchor_ < 0) return Eigen::Isometry3d::Identity();
@@ -103,7 +95,7 @@ LoopClosure::Update LoopClosure::update(const Frame& frame) {
           anchor_distance_ = 0.0;
           anchor_frames_ = 0;
           loose_ = false;
-          chain_serial_ = serial_clock_;
+          chain_serial_ = memory_.stored();
           memory_.touch(id);
           confirmed_ = 0;
           out.loop_closed = true;
@@ -133,10 +125,10 @@ int LoopClosure::candidate(const Eigen::Isometry3d& map_pose) {
   bool signed_frame = false;
   int best = -1;
   double best_similarity = options_.min_similarity;
-  const long newest = std::max(chain_serial_, serial_clock_ - kNewestPlaces);
+  const long newest = std::max(chain_serial_, memory_.stored() - kNewestPlaces);
   for (int id = 0; id < memory_.capacity(); ++id) {
     const map::Place& p = memory_[id];
-    if (!p.valid || id == anchor_ || serial_[static_cast<std::size_t>(id)] > newest) continue;
+    if (!p.valid || id == anchor_ || p.serial > newest) continue;
     if ((graph_.pose(id).translation() - map_pose.translation()).norm() > options_.search_radius)
       continue;
     if (!signed_frame) {
@@ -208,7 +200,6 @@ void LoopClosure::addPlace(const Frame& frame, const Eigen::Isometry3d& map_pose
   }
   signer_.compute(registrar_.panorama(), signature_);
   memory_.store(id, registrar_.panorama(), signature_, frame.sequence, frame.time_s, frame.yaw_rate);
-  serial_[static_cast<std::size_t>(id)] = ++serial_clock_;
   anchor_ = id;
   anchor_odometry_ = frame.odometry;
   anchor_distance_ = 0.0;
@@ -227,7 +218,6 @@ void LoopClosure::clear() {
   loose_ = false;
   frames_to_check_ = 0;
   confirmed_ = 0;
-  serial_clock_ = 0;
   chain_serial_ = 0;
 }
 

@@ -83,9 +83,7 @@ class LoopClosure {
   map::PlaceSignature signer_;
   map::PoseGraph graph_;
   map::PlaceSignature::Vector signature_{};
-  std::vector<long> serial_;  ///< per place: places made before it (the newest are not compared)
-  long serial_clock_ = 0;
-  long chain_serial_ = 0;  ///< serial_clock_ at the last loop closure
+  long chain_serial_ = 0;  ///< PlaceMemory::stored() at the last loop closure
   int anchor_ = -1;
   Eigen::Isometry3d anchor_odometry_ = Eigen::Isometry3d::Identity();
   double anchor_distance_ = 0.0;  ///< odometry path length since the anchor (scene distances)

@@ -40,13 +40,6 @@ double secondsSince(Clock::time_point start) {
   return std::chrono::duration<double>(Clock::now() - start).count();
 }
 
-Eigen::Isometry3d isometry(const Eigen::Matrix3d& R, const Eigen::Vector3d& t) {
-  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
-  T.linear() = R;
-  T.translation() = t;
-  return T;
-}
-
 /// `T` with its rotation projected back onto SO(3). The chain composes every pose from the
 /// keyframe's (K * (K^-1 * predicted)), and an Isometry's inverse is its transpose, so a
 /// rounding error in K's orthogonality would double at every such step.

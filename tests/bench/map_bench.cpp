@@ -11,18 +11,11 @@
 
 #include "bench_stats.hpp"
 #include "map/pose_graph.hpp"
-#include "omnipose/so3.hpp"
+#include "planar_pose.hpp"
 
 namespace {
 
 using omnipose::map::PoseGraph;
-
-Eigen::Isometry3d planar(double yaw, double x, double y) {
-  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
-  T.linear() = omnipose::rotationFromVector(Eigen::Vector3d(0.0, 0.0, yaw));
-  T.translation() = Eigen::Vector3d(x, y, 0.0);
-  return T;
-}
 
 /// The i-th place of laps of a unit square, 24 places a lap, heading along the path.
 Eigen::Isometry3d place(int i) {
@@ -33,7 +26,7 @@ Eigen::Isometry3d place(int i) {
   const double yaw = side * std::numbers::pi / 2;
   const double x = side == 0 ? f : side == 1 ? 1.0 : side == 2 ? 1.0 - f : 0.0;
   const double y = side == 0 ? 0.0 : side == 1 ? f : side == 2 ? 1.0 : 1.0 - f;
-  return planar(yaw, x, y);
+  return omnipose::testing::planarPose(x, y, yaw);
 }
 
 void BM_PoseGraphSolve(benchmark::State& state) {
@@ -46,7 +39,7 @@ void BM_PoseGraphSolve(benchmark::State& state) {
     PoseGraph::Edge e;
     e.from = i - 1;
     e.to = i;
-    e.relative = place(i - 1).inverse() * place(i) * planar(0.2 * std::numbers::pi / 180, 0, 0);
+    e.relative = place(i - 1).inverse() * place(i) * omnipose::testing::planarPose(0, 0, 0.2 * std::numbers::pi / 180);
     e.rotation_sigma = 1e-3;
     e.position_sigma = 0.01;
     chain = chain * e.relative;

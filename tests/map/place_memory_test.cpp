@@ -59,7 +59,7 @@ TEST(PlaceSignature, TellsDifferentViewsApart) {
   EXPECT_EQ(PlaceSignature::similarity(a, flat), 0.0) << "no texture, no signature";
 }
 
-TEST(PlaceMemory, ForgetsTheLeastRecentlyUsedPlaceAndAllocatesNothing) {
+TEST(PlaceMemory, ForgetsTheLeastRecentlyUsedPlaceNumbersThemAndAllocatesNothing) {
   PlaceMemory memory(4, kPanorama);
   PlaceSignature signer(kPanorama);
   const cv::Mat view = photoBand(200);
@@ -75,6 +75,11 @@ TEST(PlaceMemory, ForgetsTheLeastRecentlyUsedPlaceAndAllocatesNothing) {
   memory.remove(2);
   EXPECT_EQ(memory.size(), 3);
   EXPECT_EQ(memory.leastRecentlyUsed(-1, -1), 3);
+  memory.store(2, view, signature, 50, 50 / 30.0, 0.0);
+  EXPECT_EQ(memory.stored(), 5) << "forgotten places count";
+  EXPECT_EQ(memory[2].serial, 5) << "the newest";
+  EXPECT_EQ(memory[3].serial, 4);
+  memory.remove(2);
   if (testing::AllocationCounter::available()) {
     EXPECT_EQ(counter.stop(), 0);
   }

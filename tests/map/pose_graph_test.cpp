@@ -9,6 +9,7 @@
 
 #include "allocation_counter.hpp"
 #include "map/pose_graph.hpp"
+#include "planar_pose.hpp"
 #include "omnipose/so3.hpp"
 
 namespace omnipose::map {
@@ -16,12 +17,7 @@ namespace {
 
 constexpr double kDeg = std::numbers::pi / 180.0;
 
-Eigen::Isometry3d pose(double yaw, double x, double y) {
-  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
-  T.linear() = rotationFromVector(Eigen::Vector3d(0.0, 0.0, yaw));
-  T.translation() = Eigen::Vector3d(x, y, 0.0);
-  return T;
-}
+Eigen::Isometry3d pose(double yaw, double x, double y) { return testing::planarPose(x, y, yaw); }
 
 double yawError(const Eigen::Isometry3d& a, const Eigen::Isometry3d& b) {
   return rotationVector(a.linear().transpose() * b.linear()).norm();
@@ -62,6 +58,19 @@ DriftedSquare driftedSquare(int per_side, double drift) {
   return s;
 }
 
+/// The loop edge from node `from` back to node 0, exact (the truth's), much surer than the
+/// odometry's edges.
+PoseGraph::Edge exactLoop(const DriftedSquare& s, int from) {
+  PoseGraph::Edge loop;
+  loop.from = from;
+  loop.to = 0;
+  loop.relative = s.truth[static_cast<std::size_t>(from)].inverse() * s.truth[0];
+  loop.rotation_sigma = 1e-4;
+  loop.position_sigma = 1e-3;
+  loop.loop = true;
+  return loop;
+}
+
 TEST(PoseGraph, AnExactLoopEdgeSpreadsTheDriftAndClosesTheLoop) {
   const DriftedSquare s = driftedSquare(5, 0.5 * kDeg);
   PoseGraph graph(32, 64);
@@ -71,13 +80,7 @@ TEST(PoseGraph, AnExactLoopEdgeSpreadsTheDriftAndClosesTheLoop) {
   const double drift_before = yawError(graph.pose(last), s.truth[last]);
   EXPECT_NEAR(drift_before, last * 0.5 * kDeg, 1e-9);
 
-  PoseGraph::Edge loop;
-  loop.from = last;
-  loop.to = 0;
-  loop.relative = s.truth[last].inverse() * s.truth[0];
-  loop.rotation_sigma = 1e-4;
-  loop.position_sigma = 1e-3;
-  loop.loop = true;
+  const PoseGraph::Edge loop = exactLoop(s, last);
   ASSERT_TRUE(graph.addEdge(loop));
   graph.solve();
 
@@ -112,14 +115,7 @@ TEST(PoseGraph, ARemovedNodeLeavesItsNeighboursJoined) {
   for (int i = 0; i <= last; ++i) bumped.addNode(i == last ? moved : s.chain[static_cast<std::size_t>(i)]);
   for (const auto& e : s.odometry) bumped.addEdge(e);
   bumped.removeNode(5);
-  PoseGraph::Edge loop;
-  loop.from = last;
-  loop.to = 0;
-  loop.relative = s.truth[last].inverse() * s.truth[0];
-  loop.rotation_sigma = 1e-4;
-  loop.position_sigma = 1e-3;
-  loop.loop = true;
-  ASSERT_TRUE(bumped.addEdge(loop));
+  ASSERT_TRUE(bumped.addEdge(exactLoop(s, last)));
   bumped.solve();
   for (int i = 0; i <= last; ++i) {
     if (i == 5) continue;
@@ -176,13 +172,7 @@ TEST(PoseGraph, SolvingAllocatesNothing) {
   testing::AllocationCounter counter;
   for (const auto& T : s.chain) graph.addNode(T);
   for (const auto& e : s.odometry) graph.addEdge(e);
-  PoseGraph::Edge loop;
-  loop.from = 99;
-  loop.to = 0;
-  loop.relative = s.truth[99].inverse() * s.truth[0];
-  loop.rotation_sigma = 1e-4;
-  loop.loop = true;
-  graph.addEdge(loop);
+  graph.addEdge(exactLoop(s, 99));
   graph.solve();
   graph.removeNode(50);
   graph.solve();

@@ -16,6 +16,7 @@
 #include "omnipose/synth/synth.hpp"
 #include "pipeline/frame_registrar.hpp"
 #include "pipeline/loop_closure.hpp"
+#include "planar_pose.hpp"
 #include "render_fixture.hpp"
 
 namespace omnipose {
@@ -23,12 +24,7 @@ namespace {
 
 constexpr double kDeg = std::numbers::pi / 180.0;
 
-Eigen::Isometry3d at(double x, double y, double yaw) {
-  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
-  T.linear() = rotationFromVector(Eigen::Vector3d(0.0, 0.0, yaw));
-  T.translation() = Eigen::Vector3d(x, y, 0.0);
-  return T;
-}
+using testing::planarPose;
 
 double yawOf(const Eigen::Isometry3d& T) { return std::atan2(T(1, 0), T(0, 0)); }
 
@@ -50,7 +46,7 @@ class MapOfSphereViews : public ::testing::Test {
 
   /// The frame whose true heading is `true_yaw` at odometry pose `odometry`.
   pipeline::LoopClosure::Update feed(double true_yaw, const Eigen::Isometry3d& odometry) {
-    const cv::Mat frame = noisy(renderer_.render(at(0, 0, true_yaw)), ++seed_);
+    const cv::Mat frame = noisy(renderer_.render(planarPose(0, 0, true_yaw)), ++seed_);
     EXPECT_TRUE(registrar_.unwrap(frame).has_value());
     if (!registrar_.hasPrevious()) registrar_.makeCurrentPrevious();
     pipeline::LoopClosure::Frame f;
@@ -62,8 +58,8 @@ class MapOfSphereViews : public ::testing::Test {
   /// Places at the origin and along +x every 0.12 scene distances (6 of them), the views
   /// all at heading 0 and the odometry without drift.
   void driveOut() {
-    feed(0.0, at(0, 0, 0));
-    for (int k = 1; k <= 6; ++k) feed(0.0, at(0.12 * k, 0, 0));
+    feed(0.0, planarPose(0, 0, 0));
+    for (int k = 1; k <= 6; ++k) feed(0.0, planarPose(0.12 * k, 0, 0));
     ASSERT_EQ(loop_.places(), 7);
   }
   /// `frames` frames of heading `true_yaw` at odometry pose `odometry`; the closures.
@@ -88,7 +84,7 @@ TEST_F(MapOfSphereViews, BackAtTheStartWithAHeadingDriftClosesTheLoop) {
   driveOut();
   // Back near the start, the odometry's heading 2 degrees off.
   pipeline::LoopClosure::Update last;
-  const int closed = closuresOver(14, 0.0, at(0.01, 0, 2.0 * kDeg), &last);
+  const int closed = closuresOver(14, 0.0, planarPose(0.01, 0, 2.0 * kDeg), &last);
   EXPECT_GE(closed, 1);
   ::testing::Test::RecordProperty("map_yaw_error_rad", std::to_string(yawOf(last.map_pose)));
   EXPECT_NEAR(yawOf(last.map_pose), 0.0, 0.05 * kDeg) << "the map's heading is the truth's";
@@ -98,7 +94,7 @@ TEST_F(MapOfSphereViews, BackAtTheStartWithAHeadingDriftClosesTheLoop) {
 TEST_F(MapOfSphereViews, ALookAlikeFarFromWhereTheOdometryIsDoesNotCloseALoop) {
   driveOut();
   // The same view (an identical room) 2 scene distances on: nothing within search_radius.
-  EXPECT_EQ(closuresOver(20, 0.0, at(2.0, 0, 2.0 * kDeg)), 0);
+  EXPECT_EQ(closuresOver(20, 0.0, planarPose(2.0, 0, 2.0 * kDeg)), 0);
 }
 
 TEST_F(MapOfSphereViews, AMatchNeedingALargerTurnThanTheDriftCanBeIsRefused) {
@@ -106,7 +102,7 @@ TEST_F(MapOfSphereViews, AMatchNeedingALargerTurnThanTheDriftCanBeIsRefused) {
   // The view turned 30 degrees from where the odometry faces (a symmetric room's other
   // half, or a wrong match): beyond max_correction_rad.
   pipeline::LoopClosure::Update last;
-  EXPECT_EQ(closuresOver(20, 30.0 * kDeg, at(0.01, 0, 0.0), &last), 0);
+  EXPECT_EQ(closuresOver(20, 30.0 * kDeg, planarPose(0.01, 0, 0.0), &last), 0);
   EXPECT_TRUE(last.correction.isApprox(Eigen::Isometry3d::Identity()));
 }
 
@@ -116,12 +112,12 @@ TEST_F(MapOfSphereViews, AViewThatIsNotThePlaceDoesNotCloseALoop) {
   // texture, a different place).
   int closed = 0;
   for (int k = 0; k < 20; ++k) {
-    cv::Mat frame = noisy(renderer_.render(at(0, 0, 0)), ++seed_);
+    cv::Mat frame = noisy(renderer_.render(planarPose(0, 0, 0)), ++seed_);
     cv::flip(frame, frame, 0);
     ASSERT_TRUE(registrar_.unwrap(frame).has_value());
     pipeline::LoopClosure::Frame f;
     f.sequence = static_cast<std::int64_t>(seed_);
-    f.odometry = at(0.01, 0, 0.5 * kDeg);
+    f.odometry = planarPose(0.01, 0, 0.5 * kDeg);
     closed += loop_.update(f).loop_closed ? 1 : 0;
   }
   EXPECT_EQ(closed, 0);
@@ -133,12 +129,12 @@ TEST_F(MapOfSphereViews, ComparingAndClosingAllocatesNothing) {
   cv::setNumThreads(1);
   driveOut();
   std::vector<cv::Mat> frames;
-  for (int k = 0; k < 3; ++k) frames.push_back(noisy(renderer_.render(at(0, 0, 0)), 100 + k));
+  for (int k = 0; k < 3; ++k) frames.push_back(noisy(renderer_.render(planarPose(0, 0, 0)), 100 + k));
   const auto step = [&](int k, double drift) {
     EXPECT_TRUE(registrar_.unwrap(frames[static_cast<std::size_t>(k % 3)]).has_value());
     pipeline::LoopClosure::Frame f;
     f.sequence = 1000 + k;
-    f.odometry = at(0.01, 0, drift);
+    f.odometry = planarPose(0.01, 0, drift);
     return loop_.update(f).loop_closed;
   };
   for (int k = 0; k < 14; ++k) step(k, 1.0 * kDeg);  // warm up: a closure
@@ -161,7 +157,7 @@ std::vector<Eigen::Isometry3d> rectangle(int laps, int extra) {
     }
   };
   const auto turn = [&] {
-    for (int k = 0; k < 15; ++k) truth.push_back(truth.back() * at(0, 0, 6.0 * kDeg));
+    for (int k = 0; k < 15; ++k) truth.push_back(truth.back() * planarPose(0, 0, 6.0 * kDeg));
   };
   for (int lap = 0; lap < laps; ++lap) {
     for (int side = 0; side < 4; ++side) {
