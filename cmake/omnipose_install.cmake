@@ -111,7 +111,7 @@ calibrate, listen, plots) and the LCM message types for Python and Java.")
 set(CPACK_DEBIAN_DEV_PACKAGE_NAME libomnipose-dev)
 set(CPACK_DEBIAN_DEV_PACKAGE_SECTION libdevel)
 set(CPACK_DEBIAN_DEV_PACKAGE_DEPENDS
-    "libopencv-dev, libopencv-contrib-dev, libeigen3-dev (>= 3.4), libyaml-cpp-dev, libfftw3-dev, liblcm-dev, libglib2.0-dev, pkg-config")
+    "libopencv-dev, libopencv-contrib-dev, libeigen3-dev (>= 3.4), libyaml-cpp-dev, libfftw3-dev, zlib1g-dev, liblcm-dev, libglib2.0-dev, pkg-config")
 set(CPACK_DEBIAN_DEV_DESCRIPTION
     "pose of an omni-directional camera (development files)
 Headers, static libraries and the CMake package (find_package(omnipose)) of the

@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# libFuzzer runs under ASan + UBSan, one target at a time (tests/fuzz), eleven targets:
+# libFuzzer runs under ASan + UBSan, one target at a time (tests/fuzz), twelve targets:
 #   fuzz_calibration_yaml   calibration.yaml (Calibration::parse)
 #   fuzz_daemon_yaml        daemon.yaml (DaemonConfig::parse)
 #   fuzz_frame_pipeline     frame decode (readFrame) + Pipeline::process on arbitrary bytes
@@ -13,6 +13,7 @@
 #                           cv::omnidir FileStorage, mask image)
 #   fuzz_calibrate_frames   omnipose-calibrate's frame set (ring detector, calibrateLens,
 #                           proposeMask) on 1-4 small frames
+#   fuzz_map_file           the saved map of places (decodeMap, restoreSnapshot, the solve)
 # Usage: tools/fuzz.sh [SECONDS] [TARGET...]   (default 600 s each, every target; .ci/run
 # uses 20 s)
 # Installs clang-16 and its libFuzzer runtime (Debian 12 packages) when missing; builds every
@@ -33,7 +34,8 @@ cd "$(dirname "$0")/.."
 seconds=${1:-600}
 shift || true
 all_targets=(fuzz_calibration_yaml fuzz_daemon_yaml fuzz_frame_pipeline fuzz_timestamps_tum
-             fuzz_gyro_csv fuzz_imu_lcm fuzz_gyro_stream fuzz_iio_scan fuzz_ocamcalib fuzz_lens_mask fuzz_calibrate_frames)
+             fuzz_gyro_csv fuzz_imu_lcm fuzz_gyro_stream fuzz_iio_scan fuzz_ocamcalib fuzz_lens_mask fuzz_calibrate_frames
+             fuzz_map_file)
 targets=("$@")
 [ ${#targets[@]} -eq 0 ] && targets=("${all_targets[@]}")
 nice_level=${NICE:-15}

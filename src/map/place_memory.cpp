@@ -102,6 +102,23 @@ void PlaceMemory::store(int id, const cv::Mat& panorama, const PlaceSignature::V
   touch(id);
 }
 
+void PlaceMemory::restore(int id, const cv::Mat& panorama,
+                          const PlaceSignature::Vector& signature, std::int64_t sequence,
+                          double time_s, double yaw_rate, long serial, long last_used) {
+  Place& p = places_[static_cast<std::size_t>(id)];
+  if (!p.valid) ++size_;
+  p.valid = true;
+  panorama.copyTo(p.panorama);  // the same size and type: no allocation
+  p.signature = signature;
+  p.sequence = sequence;
+  p.time_s = time_s;
+  p.yaw_rate = yaw_rate;
+  p.serial = serial;
+  p.last_used = last_used;
+  stored_ = std::max(stored_, serial);
+  clock_ = std::max(clock_, last_used);
+}
+
 void PlaceMemory::remove(int id) {
   Place& p = places_[static_cast<std::size_t>(id)];
   if (p.valid) --size_;

@@ -72,6 +72,11 @@ class PlaceMemory {
   /// (CV_32FC1, the constructor's size; rounded to 8 bits) with its signature.
   void store(int id, const cv::Mat& panorama, const PlaceSignature::Vector& signature,
              std::int64_t sequence, double time_s, double yaw_rate);
+  /// Stores a place as it was saved (map_file.hpp): `panorama` CV_8UC1 of the
+  /// constructor's size, its serial and last use kept (the memory's counters follow them).
+  void restore(int id, const cv::Mat& panorama, const PlaceSignature::Vector& signature,
+               std::int64_t sequence, double time_s, double yaw_rate, long serial,
+               long last_used);
   void remove(int id);
   /// Marks place `id` as used now (a match): the least recently used goes first when full.
   void touch(int id) { places_[static_cast<std::size_t>(id)].last_used = ++clock_; }

@@ -59,6 +59,8 @@ class PoseGraph {
   const Eigen::Isometry3d& pose(int id) const { return poses_[static_cast<std::size_t>(id)]; }
   int nodeCount() const { return nodes_; }
   int edgeCount() const { return static_cast<int>(edge_count_); }
+  /// Edge `i`, 0 <= i < edgeCount() (the order changes as nodes are removed).
+  const Edge& edge(int i) const { return edges_[static_cast<std::size_t>(i)]; }
   int maxNodes() const { return static_cast<int>(alive_.size()); }
 
  private:

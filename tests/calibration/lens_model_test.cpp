@@ -30,26 +30,7 @@ const fs::path kData = fs::path(OMNIPOSE_SOURCE_DIR) / "tests/data/catadioptric"
 const fs::path kOffice = kData / "mirror_office_ocamcalib.txt";
 const fs::path kSteep = kData / "steep_mirror_800_ocamcalib.txt";
 
-/// A temporary directory of its own per test (ctest runs tests in parallel).
-class TempDir {
- public:
-  TempDir() {
-    const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
-    path_ = fs::temp_directory_path() /
-            ("omnipose_lens_" + std::string(info->name()) + "_" + std::to_string(::getpid()));
-    fs::remove_all(path_);
-    fs::create_directories(path_);
-  }
-  ~TempDir() { fs::remove_all(path_); }
-  const fs::path& path() const { return path_; }
-  fs::path write(const std::string& name, const std::string& text) const {
-    std::ofstream(path_ / name) << text;
-    return path_ / name;
-  }
-
- private:
-  fs::path path_;
-};
+using testing::TempDir;
 
 std::string ocamYaml(const std::string& file, const std::string& extra = "") {
   return "omni:\n  model: ocamcalib\n  ocamcalib_file: " + file +

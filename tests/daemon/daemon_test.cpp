@@ -699,7 +699,9 @@ TEST(Daemon, PublishesOnePosePerFrameStatusAtItsRateAndAFinalStatus) {
     // How often the frames waited for a worker: a share, and none without any time waited.
     EXPECT_GE(s.frames_waited_share, 0.0f);
     EXPECT_LE(s.frames_waited_share, 1.0f);
-    if (s.frames_waited_share > 0.0f) EXPECT_GT(s.worker_wait_ms, 0.0f);
+    if (s.frames_waited_share > 0.0f) {
+      EXPECT_GT(s.worker_wait_ms, 0.0f);
+    }
     // pipeline.threads 0: every core this process may use, of which 1 or more take part.
     EXPECT_EQ(s.threads, omnipose::runtime::WorkerPool::onlineCores());
     EXPECT_GE(s.threads_active, 1);
@@ -1177,7 +1179,9 @@ TEST(Daemon, PanoramaPicturesArePublishedWhenAskedAtTheirRate) {
                                    [&](const pose_t& p) { return p.sequence == m.sequence; });
     ASSERT_NE(pose, bus.poses.end()) << "picture of a frame without a pose";
     EXPECT_EQ(m.utime, pose->utime);
-    if (i > 0) EXPECT_GE(m.utime - bus.pictures[i - 1].utime, std::llround(1e6 / hz));
+    if (i > 0) {
+      EXPECT_GE(m.utime - bus.pictures[i - 1].utime, std::llround(1e6 / hz));
+    }
     // MemorySource's ping-pong order: 0 1 2 3 2 1 0 1 ...
     const std::int64_t cycle = 2 * static_cast<std::int64_t>(frames.size()) - 2;
     std::int64_t k = m.sequence % cycle;

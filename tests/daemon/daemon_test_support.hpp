@@ -52,27 +52,6 @@ inline fs::path indoorPhoto() {
 }
 inline fs::path binaryDir() { return fs::path(OMNIPOSE_BINARY_DIR) / "bin"; }
 
-/// A fresh directory under $TMPDIR (or /tmp), removed with everything in it at the end.
-class TempDir {
- public:
-  explicit TempDir(const std::string& tag = "daemon") {
-    const char* base = std::getenv("TMPDIR");
-    std::string pattern = std::string(base && *base ? base : "/tmp") + "/omnipose-" + tag + "-XXXXXX";
-    if (!mkdtemp(pattern.data())) throw std::runtime_error("mkdtemp failed for " + pattern);
-    path_ = pattern;
-  }
-  ~TempDir() {
-    std::error_code ec;
-    fs::remove_all(path_, ec);
-  }
-  TempDir(const TempDir&) = delete;
-  TempDir& operator=(const TempDir&) = delete;
-  const fs::path& path() const { return path_; }
-  fs::path operator/(const std::string& name) const { return path_ / name; }
-
- private:
-  fs::path path_;
-};
 
 /// A rendered dataset shared by all test processes (ctest runs each test in its own
 /// process): OMNIPOSE_BINARY_DIR/tests/daemon-data/<name>-<stamp>, where the stamp is the

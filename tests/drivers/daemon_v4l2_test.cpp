@@ -35,6 +35,7 @@
 #include "omnipose/status_t.hpp"
 #include "omnipose/synth/synth.hpp"
 #include "shared_lcm_sink.hpp"
+#include "test_files.hpp"
 #include "omnipose/io/trajectory.hpp"
 #include "v4l2/v4l2_source.hpp"
 
@@ -49,24 +50,6 @@ using testing::FakeV4l2Device;
 
 constexpr int kFrames = 16;
 
-/// A fresh directory, removed at the end.
-class TempDir {
- public:
-  TempDir() {
-    const char* base = std::getenv("TMPDIR");
-    std::string pattern = std::string(base && *base ? base : "/tmp") + "/omnipose-v4l2-XXXXXX";
-    if (!mkdtemp(pattern.data())) throw std::runtime_error("mkdtemp failed");
-    path_ = pattern;
-  }
-  ~TempDir() {
-    std::error_code ec;
-    fs::remove_all(path_, ec);
-  }
-  const fs::path& path() const { return path_; }
-
- private:
-  fs::path path_;
-};
 
 /// Rendered omni frames of the "yaw" preset and their ground-truth poses (rendered once).
 struct Rendered {
@@ -217,7 +200,7 @@ class DaemonOnFakeV4l2 : public ::testing::TestWithParam<const char*> {};
 
 TEST_P(DaemonOnFakeV4l2, RenderedOmniFramesGivePosesMatchingTheGroundTruth) {
   const std::string format = GetParam();
-  TempDir tmp;
+  testing::TempDir tmp("v4l2");
   Calibration{}.save(tmp.path() / "calibration.yaml");
   const DaemonConfig config =
       DaemonConfig::parse(daemonYaml(tmp.path() / "calibration.yaml", format), "test.yaml", tmp.path());
@@ -264,7 +247,7 @@ TEST_P(DaemonOnFakeV4l2, RenderedOmniFramesGivePosesMatchingTheGroundTruth) {
 INSTANTIATE_TEST_SUITE_P(Formats, DaemonOnFakeV4l2, ::testing::Values("YUYV", "MJPG", "GREY"));
 
 TEST(DaemonOnFakeV4l2Unplug, DeviceVanishingMidStreamIsReopenedByTheCaptureLoopAndCountedOnce) {
-  TempDir tmp;
+  testing::TempDir tmp("v4l2");
   Calibration{}.save(tmp.path() / "calibration.yaml");
   const DaemonConfig config =
       DaemonConfig::parse(daemonYaml(tmp.path() / "calibration.yaml", "YUYV"), "test.yaml", tmp.path());
@@ -333,7 +316,7 @@ TEST(DaemonOnFakeV4l2Unplug, DeviceVanishingMidStreamIsReopenedByTheCaptureLoopA
 // signal), the capture loop closes the source and re-opens it with its back-off until the
 // camera is back. Frames come from the fake's own thread in real time, as on a robot.
 TEST(DaemonOnFakeLibcameraUnplug, CameraVanishingMidStreamIsReopenedByTheCaptureLoopAndCountedOnce) {
-  TempDir tmp;
+  testing::TempDir tmp("v4l2");
   Calibration{}.save(tmp.path() / "calibration.yaml");
   const DaemonConfig config = DaemonConfig::parse(
       "source: {type: file, path: /nonexistent}\ncalibration: " +
@@ -549,7 +532,7 @@ TEST(CameraSourceFactory, LibcameraIsBuiltWhenFound) {
 }
 
 TEST(DaemonStartup, MissingV4l2DeviceIsAClearErrorNamingIt) {
-  TempDir tmp;
+  testing::TempDir tmp("v4l2");
   Calibration{}.save(tmp.path() / "calibration.yaml");
   const DaemonConfig config = DaemonConfig::parse(
       daemonYaml(tmp.path() / "calibration.yaml", "YUYV", "/dev/video-omnipose-missing"),
@@ -567,7 +550,7 @@ TEST(DaemonStartup, MissingV4l2DeviceIsAClearErrorNamingIt) {
 
 
 TEST(DaemonStartup, ASecondDaemonOnTheSameCameraIsRefusedWithTheHoldersPid) {
-  TempDir tmp;
+  testing::TempDir tmp("v4l2");
   Calibration{}.save(tmp.path() / "calibration.yaml");
   // A node the lock can take (the fake serves any path); a symbolic link to it is the same
   // camera, as /dev/v4l/by-id/... is /dev/video0.
