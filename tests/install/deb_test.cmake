@@ -59,7 +59,7 @@ if(NOT last_output MATCHES "Version: ${version}\n" OR NOT last_output MATCHES "S
 endif()
 string(REGEX MATCH "Depends: [^\n]+" dev_depends "${last_output}")
 foreach(dep libopencv-dev libopencv-contrib-dev libeigen3-dev libyaml-cpp-dev libfftw3-dev
-            liblcm-dev)
+            zlib1g-dev liblcm-dev)
   if(NOT dev_depends MATCHES "${dep}")
     message(FATAL_ERROR "libomnipose-dev does not depend on ${dep}: ${dev_depends}")
   endif()
