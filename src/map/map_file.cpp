@@ -48,9 +48,10 @@ class Writer {
   std::string& out_;
 };
 
+/// Reads in order from bytes whose size the caller has checked against the header's counts.
 class Reader {
  public:
-  Reader(const std::uint8_t* data, std::size_t size) : data_(data), size_(size) {}
+  explicit Reader(const std::uint8_t* data) : data_(data) {}
   template <typename T>
   T get() {
     T value;
@@ -80,7 +81,6 @@ class Reader {
 
  private:
   const std::uint8_t* data_;
-  std::size_t size_;
   std::size_t at_ = 0;
 };
 
@@ -169,11 +169,12 @@ Expected<void> restoreSnapshot(const MapSnapshot& snapshot, PlaceMemory& memory,
   }
   for (const PoseGraph::Edge& e : snapshot.edges) {
     if (!graph.addEdge(e)) {
+      const int kept = graph.edgeCount();
       memory.clear();
       graph.clear();
       return fail(ErrorCode::kInvalidArgument,
-                  "edge %d-%d names no place or is beyond the %d edges kept", e.from, e.to,
-                  graph.edgeCount());
+                  "edge %d-%d names no place, or the graph is full at %d edges", e.from, e.to,
+                  kept);
     }
   }
   return {};
@@ -226,7 +227,7 @@ Expected<void> decodeMap(const std::vector<std::uint8_t>& bytes, const std::stri
   if (bytes.size() < kHeaderBytes + 4)
     return fail(ErrorCode::kInvalidArgument, "%s: cut short: %zu bytes, no complete header", name,
                 bytes.size());
-  Reader r(bytes.data(), bytes.size());
+  Reader r(bytes.data());
   r.take(kMagic.size());
   const auto version = r.get<std::uint32_t>();
   if (version != kVersion)
