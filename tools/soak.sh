@@ -20,8 +20,8 @@
 #     sample exceeds the first post-warm-up sample by more than RSS_TOLERANCE_KB.
 # With DATASET set, that recording (a dataset directory, e.g. the loop benchmark's five laps:
 # build/loops/indoor/dataset after `ROOMS=indoor tools/loop_benchmark.sh`) is looped as it is,
-# with no faults: the accounting and memory checks stay, and the places kept and the loops
-# closed are reported (the map's memory filling up and forgetting).
+# with no faults: the accounting and memory checks stay (the RSS while places are made and
+# loops close), and the places kept and the loops closed are reported.
 # Usage: tools/soak.sh [FRAMES]   (default 10000: about 6 minutes)
 # Environment: BUILD_DIR (default build; built with tools/build.sh when omniposed is missing),
 # SAMPLE (seconds between samples, default 5), RSS_TOLERANCE_KB (default 512), NICE (default 10),
