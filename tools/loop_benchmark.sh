@@ -8,7 +8,9 @@
 # every lap (the robot back where and as it started) the heading error of the map pose
 # (--out: corrected by loop closures) and of the odometry's pose (--out-odometry: the chain
 # a controller integrates) is measured (tools/drift/lap_errors.py), with the loop closures
-# and the places kept. Writes OUTDIR/LOOPS.md (command, date, version, the table with each
+# and the places kept; and, over the last lap, the map pose's largest and RMS error (the
+# lap's end is where the map was last tied to the first place: the error on the way is the
+# one that does not flatter). Writes OUTDIR/LOOPS.md (command, date, version, the table with each
 # group's median and worst) and every room's dataset, trajectories and logs.
 #
 # Usage: tools/loop_benchmark.sh [--publish] [OUTDIR]    (default OUTDIR build/loops)
@@ -97,18 +99,23 @@ import re, statistics, sys
 out, laps, names = sys.argv[1], int(sys.argv[2]), sys.argv[3:]
 def errors(name, pose):
     return [float(line.split()[1]) for line in open("%s/%s/%s.laps" % (out, name, pose))]
+def last_lap_spread(name):
+    """The map pose's largest and RMS error over the last lap."""
+    last = open("%s/%s/map.laps" % (out, name)).read().split("\n")[laps - 1].split()
+    return [float(last[3]), float(last[4])]
 def counts(name):
     text = open("%s/%s/replay.txt" % (out, name)).read()
     return [int(re.search(key + r"=(\d+)", text).group(1)) for key in ("loops", "places")]
 head = ["room", "group"] + ["map lap %d" % k for k in range(1, laps + 1)] + \
-       ["odometry lap %d" % k for k in range(1, laps + 1)] + ["loop closures", "places"]
+       ["odometry lap %d" % k for k in range(1, laps + 1)] + \
+       ["map worst in lap %d" % laps, "map RMS in lap %d" % laps, "loop closures", "places"]
 print("| " + " | ".join(head) + " |")
-print("|---|---|" + "---:|" * (2 * laps + 2))
-rows = {n: (errors(n, "map"), errors(n, "odometry"), counts(n)) for n in names}
+print("|---|---|" + "---:|" * (2 * laps + 4))
+rows = {n: (errors(n, "map"), errors(n, "odometry"), counts(n), last_lap_spread(n)) for n in names}
 groups = {n: open("%s/%s/group" % (out, n)).read().strip() for n in names}
 for n in names:
-    m, o, c = rows[n]
-    print("| " + " | ".join([n, groups[n]] + ["%.3f" % x for x in m + o] +
+    m, o, c, spread = rows[n]
+    print("| " + " | ".join([n, groups[n]] + ["%.3f" % x for x in m + o + spread] +
                             [str(x) for x in c]) + " |")
 for group in ("tuning", "report-only"):
     members = [n for n in names if groups[n] == group]
@@ -118,6 +125,7 @@ for group in ("tuning", "report-only"):
         cells = ["**%s**" % label, group]
         for pose in (0, 1):
             cells += ["%.3f" % f(rows[n][pose][k] for n in members) for k in range(laps)]
+        cells += ["%.3f" % f(rows[n][3][k] for n in members) for k in range(2)]
         cells += ["", ""]
         print("| " + " | ".join(cells) + " |")
 PY
@@ -135,8 +143,11 @@ PY
   echo "error of the pose, degrees, at the end of the lap (back where and as it started; the"
   echo "error of the pose relative to the first frame's, \`tools/drift/lap_errors.py\`). map: the"
   echo "map pose (\`--out\`, corrected by loop closures); odometry: the odometry's pose"
-  echo "(\`--out-odometry\`, which a controller integrates). Loop closures: frames that closed a"
-  echo "loop; places: kept at the end. The report-only rooms are never used to choose a setting."
+  echo "(\`--out-odometry\`, which a controller integrates). The lap's end is where the map pose"
+  echo "was last tied to the first place; map worst / RMS in the last lap: the largest and the RMS"
+  echo "rotation error of the map pose over that lap's frames, the figure that does not flatter."
+  echo "Loop closures: frames that closed a loop; places: kept at the end. The report-only rooms"
+  echo "are never used to choose a setting."
   echo
   cat "$out/table.md"
 } > "$out/LOOPS.md"

@@ -1,12 +1,14 @@
 #!/usr/bin/env python3
 """The chained attitude's error at given frames (the end of each lap of a loop driven several
 times): what a controller integrating the pose has drifted by when the robot is back where it
-started. Usage: lap_errors.py GROUNDTRUTH.tum EST.tum FRAME...
+started, and how far off it was on the way there. Usage: lap_errors.py GROUNDTRUTH.tum EST.tum FRAME...
 GROUNDTRUTH.tum: the dataset's ground truth (frame k on line k); EST.tum: a replay's poses
 (omnipose-replay --out or --out-odometry), matched to the ground truth by timestamp; both
 taken relative to their first pose. Prints one line per FRAME: the frame, the rotation
-error angle and its yaw part, degrees ("nan" where the estimate has no pose at that frame's
-timestamp). Exit 1 with a message on unreadable input.
+error angle and its yaw part at that frame, then the largest and the RMS rotation error
+angle over the frames since the previous FRAME (from frame 1 for the first), degrees ("nan"
+where the estimate has no pose at that frame's timestamp, or none in the span). Exit 1 with
+a message on unreadable input.
 """
 import math
 import sys
@@ -37,18 +39,29 @@ def main(argv):
     q0_est = by_time.get(round(t0, 6))
     if q0_est is None:
         sys.exit(f"{argv[2]}: no pose at the first frame's timestamp {t0}")
+    def error_at(k):
+        """truth^-1 * estimate at frame k, both relative to their first pose; None without one."""
+        t, q_true = truth[k]
+        q_est = by_time.get(round(t, 6))
+        if q_est is None:
+            return None
+        return mul(conj(mul(conj(q0_true), q_true)), mul(conj(q0_est), q_est))
+
+    previous = 0
     for text in argv[3:]:
         k = int(text)
         if not 0 <= k < len(truth):
             sys.exit(f"frame {k} is outside the ground truth's {len(truth)} poses")
-        t, q_true = truth[k]
-        q_est = by_time.get(round(t, 6))
-        if q_est is None:
-            print(f"{k} nan nan")
+        span = [e for e in (error_at(j) for j in range(previous + 1, k + 1)) if e is not None]
+        angles = [angle_deg(e) for e in span]
+        spread = (f"{max(angles):.4f} {math.sqrt(sum(a * a for a in angles) / len(angles)):.4f}"
+                  if angles else "nan nan")
+        previous = k
+        error = error_at(k)
+        if error is None:
+            print(f"{k} nan nan {spread}")
             continue
-        # Both relative to their first pose; the error is truth^-1 * estimate.
-        error = mul(conj(mul(conj(q0_true), q_true)), mul(conj(q0_est), q_est))
-        print(f"{k} {angle_deg(error):.4f} {yaw_deg(error):.4f}")
+        print(f"{k} {angle_deg(error):.4f} {yaw_deg(error):.4f} {spread}")
 
 
 if __name__ == "__main__":
