@@ -57,13 +57,16 @@ flags="-U__cpp_concepts -D__cpp_concepts=202002L -Wno-builtin-macro-redefined"
 # src/runtime/simd.hpp uses GCC's __builtin_shuffle (one and two operands):
 # tests/fuzz/clang_compat.hpp gives clang the same (element-wise) shuffles.
 flags="$flags -include $PWD/tests/fuzz/clang_compat.hpp"
-flags="$flags -fsanitize=fuzzer-no-link,address,undefined -fno-sanitize=vptr -fno-sanitize-recover=all -fno-omit-frame-pointer -g"
+# Line tables only (-gline-tables-only, the default -g dropped from RelWithDebInfo): enough
+# for the sanitizers' stack traces, and a third less compile time in CI's 90 minutes.
+flags="$flags -fsanitize=fuzzer-no-link,address,undefined -fno-sanitize=vptr -fno-sanitize-recover=all -fno-omit-frame-pointer -gline-tables-only"
 launcher=()
 command -v ccache >/dev/null && launcher=(-DCMAKE_CXX_COMPILER_LAUNCHER=ccache -DCMAKE_C_COMPILER_LAUNCHER=ccache)
 build_start=$(date +%s)
 nice -n "$nice_level" cmake -S . -B "$dir" -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo \
   -DCMAKE_C_COMPILER=clang-16 -DCMAKE_CXX_COMPILER=clang++-16 "${launcher[@]}" \
-  -DCMAKE_CXX_FLAGS="$flags" -DCMAKE_EXE_LINKER_FLAGS="-fsanitize=address,undefined" \
+  -DCMAKE_CXX_FLAGS="$flags" -DCMAKE_CXX_FLAGS_RELWITHDEBINFO="-O2 -DNDEBUG" \
+  -DCMAKE_EXE_LINKER_FLAGS="-fsanitize=address,undefined" \
   -DOMNIPOSE_BUILD_FUZZERS=ON -DOMNIPOSE_BUILD_BENCHMARKS=OFF >/dev/null
 nice -n "$nice_level" cmake --build "$dir" -j"$jobs" --target "${targets[@]}"
 echo "fuzz.sh: built ${#targets[@]} target(s) in $(( $(date +%s) - build_start )) s"
