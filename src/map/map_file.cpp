@@ -117,7 +117,7 @@ void reserveSnapshot(MapSnapshot& out, cv::Size panorama, int places, int edges)
 void takeSnapshot(const PlaceMemory& memory, const PoseGraph& graph, MapSnapshot& out) {
   const cv::Size panorama = memory.capacity() > 0 ? memory[0].panorama.size() : cv::Size();
   // Room for the largest graph: later snapshots allocate nothing.
-  reserveSnapshot(out, panorama, memory.capacity(), 4 * memory.capacity());
+  reserveSnapshot(out, panorama, memory.capacity(), graph.maxEdges());
   // The snapshot's number of each live place, by increasing id (node 0 stays first).
   std::vector<int>& index = out.index;
   index.assign(static_cast<std::size_t>(memory.capacity()), -1);

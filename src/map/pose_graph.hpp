@@ -62,6 +62,7 @@ class PoseGraph {
   /// Edge `i`, 0 <= i < edgeCount() (the order changes as nodes are removed).
   const Edge& edge(int i) const { return edges_[static_cast<std::size_t>(i)]; }
   int maxNodes() const { return static_cast<int>(alive_.size()); }
+  int maxEdges() const { return static_cast<int>(edges_.size()); }
 
  private:
   /// Numbers the nodes node 0 reaches (index_[id], -1 for none and node 0); their count.

@@ -10,8 +10,6 @@
 #include <cmath>
 #include <cstdint>
 #include <filesystem>
-#include <fstream>
-#include <iterator>
 #include <numbers>
 #include <opencv2/core.hpp>
 #include <string>
@@ -75,21 +73,17 @@ struct Map {
   }
 };
 
-std::vector<std::uint8_t> bytesOf(const fs::path& path) {
-  std::ifstream in(path, std::ios::binary);
-  return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
-}
-
-void writeBytes(const fs::path& path, const std::vector<std::uint8_t>& bytes) {
-  std::ofstream out(path, std::ios::binary | std::ios::trunc);
-  out.write(reinterpret_cast<const char*>(bytes.data()), static_cast<std::streamsize>(bytes.size()));
+/// The snapshot of `map` as the daemon would save it.
+MapSnapshot snapshotOf(const Map& map) {
+  MapSnapshot snapshot;
+  takeSnapshot(map.memory, map.graph, snapshot);
+  return snapshot;
 }
 
 TEST(MapFile, ARoundTripKeepsEveryPlaceAndEdge) {
   const testing::TempDir tmp("map");
   const Map map;
-  MapSnapshot saved;
-  takeSnapshot(map.memory, map.graph, saved);
+  const MapSnapshot saved = snapshotOf(map);
   ASSERT_EQ(saved.place_count, 5);
   ASSERT_TRUE(saveMap(tmp / "map.bin", saved).has_value());
 
@@ -156,35 +150,32 @@ TEST(MapFile, TheFormatIsTheOneTheHeaderDescribes) {
 
 TEST(MapFile, WhatIsNotAUsableMapIsRefusedNamingTheFileAndWhy) {
   const testing::TempDir tmp("map");
-  const Map map;
-  MapSnapshot snapshot;
-  takeSnapshot(map.memory, map.graph, snapshot);
   const fs::path good = tmp / "good.map";
-  ASSERT_TRUE(saveMap(good, snapshot).has_value());
-  const std::vector<std::uint8_t> bytes = bytesOf(good);
+  ASSERT_TRUE(saveMap(good, snapshotOf(Map())).has_value());
+  const std::string bytes = testing::readText(good);
 
   struct Case {
     std::string name;
-    std::vector<std::uint8_t> content;
+    std::string content;
     std::string why;
   };
   std::vector<Case> cases;
-  cases.push_back({"text.map", {'h', 'e', 'l', 'l', 'o', '\n'}, "not an omnipose map"});
+  cases.push_back({"text.map", "hello\n", "not an omnipose map"});
   cases.push_back({"empty.map", {}, "not an omnipose map"});
   cases.push_back({"header_only.map", {bytes.begin(), bytes.begin() + 30}, "cut short"});
   cases.push_back({"cut.map", {bytes.begin(), bytes.end() - 1}, "cut short or grown"});
-  std::vector<std::uint8_t> grown = bytes;
-  grown.push_back(0);
+  std::string grown = bytes;
+  grown.push_back('\0');
   cases.push_back({"grown.map", grown, "cut short or grown"});
-  std::vector<std::uint8_t> damaged = bytes;
+  std::string damaged = bytes;
   damaged[bytes.size() / 2] ^= 0x10;
   cases.push_back({"damaged.map", damaged, "damaged"});
-  std::vector<std::uint8_t> version = bytes;
+  std::string version = bytes;
   version[13] = 2;  // the u32 after the 13-byte magic
   cases.push_back({"version.map", version, "map version 2; this build reads version 1"});
   for (const Case& c : cases) {
     SCOPED_TRACE(c.name);
-    writeBytes(tmp / c.name, c.content);
+    tmp.write(c.name, c.content);
     MapSnapshot out;
     const auto got = loadMap(tmp / c.name, kPanorama, 8, out);
     ASSERT_FALSE(got.has_value());
@@ -218,15 +209,12 @@ TEST(MapFile, WhatIsNotAUsableMapIsRefusedNamingTheFileAndWhy) {
 
 TEST(MapFile, AFileThatIsNotAMapIsNeverOverwritten) {
   const testing::TempDir tmp("map");
-  const Map map;
-  MapSnapshot snapshot;
-  takeSnapshot(map.memory, map.graph, snapshot);
-  const fs::path path = tmp / "notes.txt";
-  writeBytes(path, {'k', 'e', 'e', 'p', '\n'});
+  MapSnapshot snapshot = snapshotOf(Map());
+  const fs::path path = tmp.write("notes.txt", "keep\n");
   const auto got = saveMap(path, snapshot);
   ASSERT_FALSE(got.has_value());
   EXPECT_THAT(got.error().message(), HasSubstr(path.string()));
-  EXPECT_EQ(bytesOf(path), (std::vector<std::uint8_t>{'k', 'e', 'e', 'p', '\n'}));
+  EXPECT_EQ(testing::readText(path), "keep\n");
   // A map is replaced by the newer one.
   const fs::path map_path = tmp / "map.bin";
   ASSERT_TRUE(saveMap(map_path, snapshot).has_value());
@@ -243,9 +231,7 @@ TEST(MapFile, AFileThatIsNotAMapIsNeverOverwritten) {
 }
 
 TEST(MapFile, ASnapshotTooLargeForTheMemoryIsRefusedAndLeavesItEmpty) {
-  const Map map;
-  MapSnapshot snapshot;
-  takeSnapshot(map.memory, map.graph, snapshot);
+  const MapSnapshot snapshot = snapshotOf(Map());
   PlaceMemory memory(4, kPanorama);
   PoseGraph graph(4, 16);
   const auto got = restoreSnapshot(snapshot, memory, graph);
