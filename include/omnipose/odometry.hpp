@@ -62,6 +62,9 @@
 #include "omnipose/window_motion.hpp"
 
 namespace omnipose {
+namespace map {
+struct MapSnapshot;  // src/map/map_file.hpp: the map as saved (private to the core library)
+}  // namespace map
 
 struct KeyframeOptions {
   /// Keyframes kept, the current one included (1..16; each holds a panorama's spectra,
@@ -243,6 +246,9 @@ struct OdometryResult {
   /// else -1.
   std::int64_t loop_place_sequence = -1;
   int places = 0;  ///< places in the memory
+  /// The map was loaded (Odometry::restoreMap()) and this frame's place in it is not found
+  /// yet: map_pose is the odometry's pose; the frame that finds it closes a loop.
+  bool relocalising = false;
 
   /// A pose with motion (kTracked, kBridged or kGyroBridged).
   bool tracked() const {
@@ -335,6 +341,20 @@ class Odometry {
   bool wisdomLoaded() const;
   /// Windows per panorama (0 for a pairwise method).
   int windowCount() const;
+  /// The panorama's size in pixels (empty for a pairwise method): a saved map's places'.
+  cv::Size panoramaSize() const;
+
+  /// The map (LoopClosureOptions) copied into `out` (src/map/map_file.hpp, for in-tree
+  /// callers that save it from another thread). The first call makes room for the largest
+  /// map; later ones allocate nothing. False without a map (loop closure off, a pairwise
+  /// method).
+  bool snapshotMap(map::MapSnapshot& out) const;
+  /// Replaces the map with a saved one. Where the frames are in it is unknown until one is
+  /// recognised (OdometryResult::relocalising; a loaded map that no frame recognises is
+  /// dropped after the robot has moved and a new one begun: DESIGN.md section 5).
+  /// kInvalidArgument, the map then empty, when it does not fit (another panorama size, more
+  /// places than max_places) or there is no map.
+  Expected<void> restoreMap(const map::MapSnapshot& snapshot);
   /// The motion model's window attenuation kappa (motion_model.hpp).
   double windowAttenuation() const;
 

@@ -1,6 +1,7 @@
 #include "pipeline/loop_closure.hpp"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <numbers>
 
@@ -24,6 +25,8 @@ constexpr double kDriftPerFrame = 3e-4;
 constexpr double kLooseSigma = 10.0;
 /// A registration's rotation sigma is taken within these bounds, radians.
 constexpr double kMinLoopSigma = 5e-4, kMaxLoopSigma = 5e-3;
+/// Matches in a row, at least, that anchor a loaded map (relocalisation).
+constexpr int kRelocaliseConfirmations = 3;
 
 double yawOf(const Eigen::Matrix3d& R) { return std::atan2(R(1, 0), R(0, 0)); }
 
@@ -57,11 +60,30 @@ LoopClosure::Update LoopClosure::hold(const Eigen::Isometry3d& odometry, bool br
 }
 
 LoopClosure::Update LoopClosure::update(const Frame& frame) {
-  anchor_distance_ += (last_odometry_.inverse() * frame.odometry).translation().norm();
+  const double step = (last_odometry_.inverse() * frame.odometry).translation().norm();
+  anchor_distance_ += step;
   ++anchor_frames_;
   last_odometry_ = frame.odometry;
   Update out;
   const bool steady = frame.turn_rate <= options_.max_turn_rate_rad_s;
+  if (relocalising_) {
+    relocalise_distance_ += step;
+    if (steady && --frames_to_check_ <= 0) {
+      frames_to_check_ = options_.check_interval;
+      if (!relocalise(frame, out) && relocalise_checks_ >= kRelocaliseChecks &&
+          relocalise_distance_ >= options_.search_radius) {
+        clear();  // not a place of the loaded map: a new map from here
+        last_odometry_ = frame.odometry;
+      }
+    }
+    if (relocalising_) {
+      out.map_pose = frame.odometry;
+      return out;
+    }
+    out.correction = correction();
+    out.map_pose = out.correction * frame.odometry;
+    if (out.loop_closed) return out;
+  }
   Eigen::Isometry3d predicted = correction() * frame.odometry;
   if (steady && anchor_ >= 0 && --frames_to_check_ <= 0) {
     frames_to_check_ = options_.check_interval;
@@ -144,17 +166,10 @@ int LoopClosure::candidate(const Eigen::Isometry3d& map_pose) {
   return best;
 }
 
-std::optional<Eigen::Isometry3d> LoopClosure::verify(int id, const Eigen::Isometry3d& predicted,
-                                                     const Frame& frame, double* rotation_sigma) {
+std::optional<Eigen::Isometry3d> LoopClosure::registerAt(int id, const Eigen::Matrix3d& R0,
+                                                         const Frame& frame,
+                                                         double* rotation_sigma) {
   const map::Place& place = memory_[id];
-  if (!registrar_.loadKeyframe(spare_slot_, place.panorama)) return std::nullopt;
-  // The yaw from the whole ring, within reach of the prediction; roll and pitch predicted.
-  const std::optional<double> ring = registrar_.ringYaw(spare_slot_, min_ring_peak_);
-  if (!ring) return std::nullopt;
-  const Eigen::Matrix3d& Rp = predicted.linear();
-  const double yaw_change = wrapAngle(*ring - yawOf(Rp));
-  if (std::abs(yaw_change) > options_.max_correction_rad) return std::nullopt;
-  const Eigen::Matrix3d R0 = rotationFromVector(Eigen::Vector3d(0.0, 0.0, yaw_change)) * Rp;
   const std::optional<MotionEstimate> start = registrar_.alignedPass(R0, spare_slot_);
   if (!start || start->status == FitStatus::kLost) return std::nullopt;
   const PassResult pass = registrar_.secondRefine(*start, rotationFromVector(start->omega) * R0,
@@ -167,13 +182,108 @@ std::optional<Eigen::Isometry3d> LoopClosure::verify(int id, const Eigen::Isomet
   Eigen::Matrix3d R = pass.rotation;
   if (const double s = registrar_.meanWindowTime(); s != 0.0 && !pass.gyro_rows)
     R = rotationFromVector(Eigen::Vector3d(0.0, 0.0, (place.yaw_rate - frame.yaw_rate) * s)) * R;
-  if (rotationVector(Rp.transpose() * R).norm() > options_.max_correction_rad) return std::nullopt;
-  const Eigen::Isometry3d M = isometry(R, pass.estimate.tau);
-  if ((M.translation() - predicted.translation()).norm() > options_.search_radius)
-    return std::nullopt;
+  // The fit's rotation agrees with the ring's heading it started from.
+  if (rotationVector(R0.transpose() * R).norm() > options_.max_correction_rad) return std::nullopt;
   const double variance = pass.estimate.covariance.topLeftCorner<3, 3>().trace() / 3.0;
   *rotation_sigma = std::clamp(std::sqrt(std::max(variance, 0.0)), kMinLoopSigma, kMaxLoopSigma);
+  return isometry(R, pass.estimate.tau);
+}
+
+std::optional<Eigen::Isometry3d> LoopClosure::verify(int id, const Eigen::Isometry3d& predicted,
+                                                     const Frame& frame, double* rotation_sigma) {
+  if (!registrar_.loadKeyframe(spare_slot_, memory_[id].panorama)) return std::nullopt;
+  // The yaw from the whole ring, within reach of the prediction; roll and pitch predicted.
+  const std::optional<double> ring = registrar_.ringYaw(spare_slot_, min_ring_peak_);
+  if (!ring) return std::nullopt;
+  const Eigen::Matrix3d& Rp = predicted.linear();
+  const double yaw_change = wrapAngle(*ring - yawOf(Rp));
+  if (std::abs(yaw_change) > options_.max_correction_rad) return std::nullopt;
+  const Eigen::Matrix3d R0 = rotationFromVector(Eigen::Vector3d(0.0, 0.0, yaw_change)) * Rp;
+  const std::optional<Eigen::Isometry3d> M = registerAt(id, R0, frame, rotation_sigma);
+  if (!M) return std::nullopt;
+  if (rotationVector(Rp.transpose() * M->linear()).norm() > options_.max_correction_rad)
+    return std::nullopt;
+  if ((M->translation() - predicted.translation()).norm() > options_.search_radius)
+    return std::nullopt;
   return M;
+}
+
+std::optional<Eigen::Isometry3d> LoopClosure::recognise(int id, const Frame& frame) {
+  if (!registrar_.loadKeyframe(spare_slot_, memory_[id].panorama)) return std::nullopt;
+  // Nothing predicts the heading: the ring's, level.
+  const std::optional<double> ring = registrar_.ringYaw(spare_slot_, min_ring_peak_);
+  if (!ring) return std::nullopt;
+  double sigma = kMaxLoopSigma;
+  const std::optional<Eigen::Isometry3d> M =
+      registerAt(id, rotationFromVector(Eigen::Vector3d(0.0, 0.0, *ring)), frame, &sigma);
+  if (!M || M->translation().norm() > options_.search_radius) return std::nullopt;
+  return M;
+}
+
+bool LoopClosure::relocalise(const Frame& frame, Update& out) {
+  ++relocalise_checks_;
+  signer_.compute(registrar_.panorama(), signature_);
+  // The places most like the frame, best first.
+  std::array<int, kRelocaliseCandidates> best;
+  std::array<double, kRelocaliseCandidates> best_similarity;
+  best.fill(-1);
+  best_similarity.fill(options_.min_similarity);
+  for (int id = 0; id < memory_.capacity(); ++id) {
+    if (!memory_[id].valid) continue;
+    const double similarity = map::PlaceSignature::similarity(signature_, memory_[id].signature);
+    for (int k = 0; k < kRelocaliseCandidates; ++k) {
+      if (similarity < best_similarity[static_cast<std::size_t>(k)]) continue;
+      for (int j = kRelocaliseCandidates - 1; j > k; --j) {
+        best[static_cast<std::size_t>(j)] = best[static_cast<std::size_t>(j - 1)];
+        best_similarity[static_cast<std::size_t>(j)] = best_similarity[static_cast<std::size_t>(j - 1)];
+      }
+      best[static_cast<std::size_t>(k)] = id;
+      best_similarity[static_cast<std::size_t>(k)] = similarity;
+      break;
+    }
+  }
+  // Each match implies the map's correction (map from odometry); all must agree.
+  int matched = -1;
+  Eigen::Isometry3d match_M = Eigen::Isometry3d::Identity();
+  Eigen::Isometry3d correction_now = Eigen::Isometry3d::Identity();
+  const auto agree = [&](const Eigen::Isometry3d& a, const Eigen::Isometry3d& b) {
+    return rotationVector(a.linear().transpose() * b.linear()).norm() <= kAgreeRad &&
+           (a.translation() - b.translation()).norm() <= options_.place_spacing;
+  };
+  for (const int id : best) {
+    if (id < 0) break;
+    const std::optional<Eigen::Isometry3d> M = recognise(id, frame);
+    if (!M) continue;
+    const Eigen::Isometry3d C = graph_.pose(id) * *M * frame.odometry.inverse();
+    if (matched >= 0 && !agree(C, correction_now)) {
+      confirmed_ = 0;  // two places, two answers: a look-alike
+      return false;
+    }
+    if (matched < 0) {
+      matched = id;
+      match_M = *M;
+      correction_now = C;
+    }
+  }
+  if (matched < 0) {
+    confirmed_ = 0;
+    return false;
+  }
+  confirmed_ = confirmed_ > 0 && agree(correction_now, pending_map_) ? confirmed_ + 1 : 1;
+  pending_map_ = correction_now;
+  if (confirmed_ < std::max(kRelocaliseConfirmations, options_.confirmations)) return false;
+  relocalising_ = false;
+  anchor_ = matched;
+  anchor_odometry_ = frame.odometry * match_M.inverse();
+  anchor_distance_ = 0.0;
+  anchor_frames_ = 0;
+  loose_ = false;
+  chain_serial_ = memory_.stored();
+  memory_.touch(matched);
+  confirmed_ = 0;
+  out.loop_closed = true;
+  out.place_sequence = memory_[matched].sequence;
+  return true;
 }
 
 void LoopClosure::addPlace(const Frame& frame, const Eigen::Isometry3d& map_pose) {
@@ -219,6 +329,20 @@ void LoopClosure::clear() {
   frames_to_check_ = 0;
   confirmed_ = 0;
   chain_serial_ = 0;
+  relocalising_ = false;
+  relocalise_checks_ = 0;
+  relocalise_distance_ = 0.0;
+}
+
+void LoopClosure::snapshot(map::MapSnapshot& out) const { map::takeSnapshot(memory_, graph_, out); }
+
+Expected<void> LoopClosure::restore(const map::MapSnapshot& snapshot) {
+  clear();
+  if (auto restored = map::restoreSnapshot(snapshot, memory_, graph_); !restored) return restored;
+  relocalising_ = memory_.size() > 0;
+  // Every loaded place may be compared with a frame.
+  chain_serial_ = memory_.stored();
+  return {};
 }
 
 }  // namespace omnipose::pipeline

@@ -18,12 +18,25 @@
 /// loop edge from the anchor to that place, the graph is solved again, and the place becomes
 /// the anchor, at the pose the registration measured.
 ///
+/// A map loaded from a file (restore()) is unanchored: where the odometry's frame lies in it
+/// is unknown, so until a frame is recognised (relocalisation) the frames make no places and
+/// their map pose is the odometry's. Every check_interval frames the frame is compared with
+/// the kRelocaliseCandidates places most like it by signature, wherever they are, with the
+/// yaw from the whole ring unconstrained; a match must pass verify()'s tests against the
+/// ring's heading and lie within search_radius of its place, and when two places match, they
+/// must agree on the map's correction. max(3, confirmations) matches in a row that agree on
+/// the correction (rotation within 0.3 deg, position within place_spacing) anchor the map: a
+/// loop closed, the map pose jumps to the loaded map's frame. After kRelocaliseChecks checks
+/// without it, once the odometry has moved search_radius, the loaded map is dropped and a new
+/// one begun.
+///
 /// Realtime: the constructor allocates everything; update() allocates nothing.
 
 #include <Eigen/Geometry>
 #include <cstdint>
 #include <optional>
 
+#include "map/map_file.hpp"
 #include "map/place_memory.hpp"
 #include "map/pose_graph.hpp"
 #include "omnipose/odometry.hpp"
@@ -60,13 +73,31 @@ class LoopClosure {
   /// (a new segment), so the next place is joined to the anchor only loosely.
   Update hold(const Eigen::Isometry3d& odometry, bool broken);
   int places() const { return memory_.size(); }
+  /// A loaded map not yet anchored (see the file comment).
+  bool relocalising() const { return relocalising_; }
   void clear();
+  /// Copies the map into `out` (map_file.hpp's takeSnapshot(): allocation-free once `out`
+  /// has been used).
+  void snapshot(map::MapSnapshot& out) const;
+  /// Replaces the map with `snapshot`'s, unanchored (see the file comment); an empty one
+  /// clears the map. kInvalidArgument, leaving the map empty, when it does not fit.
+  Expected<void> restore(const map::MapSnapshot& snapshot);
+
+  /// Places compared with a frame per relocalisation check, and the checks after which an
+  /// unrecognised loaded map is dropped.
+  static constexpr int kRelocaliseCandidates = 2;
+  static constexpr int kRelocaliseChecks = 100;
 
  private:
   Eigen::Isometry3d correction() const;
   /// The place (not the anchor nor among the newest) to compare the frame at map pose
   /// `map_pose` with; -1 for none.
   int candidate(const Eigen::Isometry3d& map_pose);
+  /// The frame's pose in place `id`'s frame (loaded in the spare slot) from a registration
+  /// started at rotation `R0`: kOk, most windows, its rotation within max_correction_rad of
+  /// R0. Its rotation sigma into `rotation_sigma`.
+  std::optional<Eigen::Isometry3d> registerAt(int id, const Eigen::Matrix3d& R0,
+                                              const Frame& frame, double* rotation_sigma);
   /// The frame's pose in place `id`'s frame from the registration, verified against the
   /// map's prediction `predicted` (the same pose from the map); nullopt when it fails.
   std::optional<Eigen::Isometry3d> verify(int id, const Eigen::Isometry3d& predicted,
@@ -74,6 +105,11 @@ class LoopClosure {
   /// Makes the frame a place (the least recently used one forgotten when full).
   void addPlace(const Frame& frame, const Eigen::Isometry3d& map_pose);
   bool nearAPlace(const Eigen::Isometry3d& map_pose) const;
+  /// A relocalisation check (see the file comment); true when the map is anchored.
+  bool relocalise(const Frame& frame, Update& out);
+  /// The frame's pose in place `id`'s frame, its heading from the whole ring; nullopt when
+  /// the registration fails verify()'s tests or lies beyond search_radius.
+  std::optional<Eigen::Isometry3d> recognise(int id, const Frame& frame);
 
   LoopClosureOptions options_;
   FrameRegistrar& registrar_;
@@ -94,6 +130,10 @@ class LoopClosure {
   /// Matches in a row and the correction (rotation vector, map frame) of the last one.
   int confirmed_ = 0;
   Eigen::Vector3d pending_correction_ = Eigen::Vector3d::Zero();
+  bool relocalising_ = false;
+  int relocalise_checks_ = 0;
+  double relocalise_distance_ = 0.0;  ///< odometry path length since restore()
+  Eigen::Isometry3d pending_map_ = Eigen::Isometry3d::Identity();  ///< the last match's correction
 };
 
 }  // namespace omnipose::pipeline

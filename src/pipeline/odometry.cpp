@@ -542,6 +542,7 @@ void Odometry::Impl::placeOnMap(OdometryResult& out, bool measured) {
   out.loop_closed = u.loop_closed;
   out.loop_place_sequence = u.place_sequence;
   out.places = loop->places();
+  out.relocalising = loop->relocalising();
 }
 
 void Odometry::Impl::finishTiming(OdometryResult& out) {
@@ -770,6 +771,19 @@ bool Odometry::wisdomLoaded() const {
 }
 int Odometry::windowCount() const {
   return impl_->registrar ? impl_->registrar->windowCount() : 0;
+}
+cv::Size Odometry::panoramaSize() const {
+  return impl_->registrar ? impl_->registrar->panorama().size() : cv::Size();
+}
+bool Odometry::snapshotMap(map::MapSnapshot& out) const {
+  if (!impl_->loop) return false;
+  impl_->loop->snapshot(out);
+  return true;
+}
+Expected<void> Odometry::restoreMap(const map::MapSnapshot& snapshot) {
+  if (!impl_->loop)
+    return std::unexpected(Error(ErrorCode::kInvalidArgument, "there is no map: loop closure is off"));
+  return impl_->loop->restore(snapshot);
 }
 double Odometry::windowAttenuation() const {
   return impl_->registrar ? impl_->registrar->windowAttenuation() : 1.0;

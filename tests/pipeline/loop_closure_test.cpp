@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "allocation_counter.hpp"
+#include "map/map_file.hpp"
 #include "omnipose/odometry.hpp"
 #include "omnipose/so3.hpp"
 #include "omnipose/synth/synth.hpp"
@@ -27,6 +28,7 @@ constexpr double kDeg = std::numbers::pi / 180.0;
 using testing::planarPose;
 
 double yawOf(const Eigen::Isometry3d& T) { return std::atan2(T(1, 0), T(0, 0)); }
+double wrapAngle(double a) { return std::remainder(a, 2.0 * std::numbers::pi); }
 
 cv::Mat noisy(const cv::Mat& render, std::uint64_t seed) {
   synth::DegradeOptions noise;
@@ -241,6 +243,147 @@ TEST(LoopClosure, DrivingBackToTheStartBringsTheMapHeadingBack) {
   EXPECT_LT(jump_without_closure, 1e-9);
   EXPECT_LT(map_error, 0.1 * kDeg);
   EXPECT_GT(mapped.results[end].places, 10);
+}
+
+/// The rectangle's first side, turn and second side (rendered once, like rectangleFrames()).
+constexpr std::size_t kTwoSides = 85;
+const std::vector<cv::Mat>& twoSidesFrames() {
+  static const std::vector<cv::Mat> frames = [] {
+    const synth::Renderer renderer(
+        synth::Scene::load(testing::indoorPhoto(), synth::SceneKind::kBox), Calibration{},
+        {synth::OutputKind::kOmni, 1});
+    std::vector<cv::Mat> out;
+    const std::vector<Eigen::Isometry3d> truth = rectangle(1, 0);
+    for (std::size_t k = 0; k < kTwoSides; ++k) out.push_back(noisy(renderer.render(truth[k]), k + 1));
+    return out;
+  }();
+  return frames;
+}
+
+/// The map of twoSidesFrames(), as saved at its end.
+const map::MapSnapshot& savedRectangleMap() {
+  static const map::MapSnapshot saved = [] {
+    Odometry odometry(Calibration{}, OdometryOptions{});
+    const std::vector<cv::Mat>& frames = twoSidesFrames();
+    for (std::size_t k = 0; k < frames.size(); ++k)
+      EXPECT_TRUE(odometry.process(frames[k], {k / 30.0}).has_value());
+    map::MapSnapshot snapshot;
+    EXPECT_TRUE(odometry.snapshotMap(snapshot));
+    return snapshot;
+  }();
+  return saved;
+}
+
+struct Restart {
+  int first_closure = -1;  ///< the frame (from the restart) that found the map, -1 for none
+  /// At that frame: the map pose's heading error, and that of the place matched as saved
+  /// (the map's own error there, from the first run's drift and solve), radians.
+  double heading_error_rad = 0.0;
+  double place_heading_error_rad = 0.0;
+  double place_distance_m = 0.0;  ///< between the frame's true position and the place's
+  bool relocalising_until_closure = true;
+  bool map_pose_was_odometry_until_closure = true;
+};
+
+/// A restart with the saved map at frame `from` of the rectangle: the odometry begins at the
+/// identity there, up to `frames` frames on, until it finds the map.
+Restart restartAt(std::size_t from, std::size_t frames) {
+  const map::MapSnapshot& saved = savedRectangleMap();
+  const std::vector<Eigen::Isometry3d> truth = rectangle(1, 12);
+  const std::vector<cv::Mat>& images = twoSidesFrames();
+  Odometry odometry(Calibration{}, OdometryOptions{});
+  EXPECT_TRUE(odometry.restoreMap(saved).has_value());
+  Restart out;
+  for (std::size_t k = from; k < from + frames && k < images.size(); ++k) {
+    auto r = odometry.process(images[k], {k / 30.0});
+    EXPECT_TRUE(r.has_value()) << k;
+    if (!r) break;
+    if (!r->loop_closed) {
+      out.relocalising_until_closure = out.relocalising_until_closure && r->relocalising;
+      out.map_pose_was_odometry_until_closure =
+          out.map_pose_was_odometry_until_closure && r->map_pose.isApprox(r->pose, 1e-12);
+      continue;
+    }
+    out.first_closure = static_cast<int>(k - from);
+    out.heading_error_rad = wrapAngle(yawOf(truth[k].inverse() * r->map_pose));
+    // The places were numbered by their frames' index in the first run.
+    const auto place = static_cast<std::size_t>(r->loop_place_sequence);
+    for (int i = 0; i < saved.place_count; ++i) {
+      const map::SavedPlace& p = saved.places[static_cast<std::size_t>(i)];
+      if (p.sequence != r->loop_place_sequence) continue;
+      out.place_heading_error_rad = wrapAngle(yawOf(truth[place].inverse() * p.pose));
+    }
+    out.place_distance_m = (truth[k].translation() - truth[place].translation()).norm();
+    break;
+  }
+  return out;
+}
+
+TEST(LoopClosureRestart, ASavedMapFindsTheHeadingAgainAfterARestartInAKnownPlace) {
+  const map::MapSnapshot& saved = savedRectangleMap();
+  ASSERT_GE(saved.place_count, 5);
+  // Restarted at the start of the second side, facing 90 degrees from where the map began.
+  const Restart r = restartAt(58, 24);
+  ::testing::Test::RecordProperty("first_closure_frame", r.first_closure);
+  ::testing::Test::RecordProperty("heading_error_rad", std::to_string(r.heading_error_rad));
+  ::testing::Test::RecordProperty("place_heading_error_rad",
+                                  std::to_string(r.place_heading_error_rad));
+  ASSERT_GE(r.first_closure, 0) << "the saved map was not recognised";
+  EXPECT_LE(r.first_closure, 19) << "three checks six frames apart";
+  EXPECT_TRUE(r.relocalising_until_closure);
+  EXPECT_TRUE(r.map_pose_was_odometry_until_closure);
+  EXPECT_LT(r.place_distance_m, 0.3) << "a place near the frame";
+  // The heading is the map's at that place: its own error there and the match's.
+  EXPECT_NEAR(r.heading_error_rad, r.place_heading_error_rad, 0.1 * kDeg);
+  EXPECT_LT(std::abs(r.heading_error_rad), 0.3 * kDeg);
+}
+
+TEST(LoopClosureRestart, ARestartFarFromEveryPlaceIsNotTakenForOne) {
+  // The saved map of the rectangle; the camera started in a room it has never seen, the
+  // same room mirrored (the signature, a magnitude spectrum along the azimuth, cannot tell
+  // a mirror image): no closure, the map pose stays the odometry's.
+  synth::Scene mirrored = synth::Scene::load(testing::indoorPhoto(), synth::SceneKind::kBox);
+  synth::turnTexture(mirrored, 0.0, true);
+  const synth::Renderer renderer(std::move(mirrored), Calibration{}, {synth::OutputKind::kOmni, 1});
+  Odometry odometry(Calibration{}, OdometryOptions{});
+  ASSERT_TRUE(odometry.restoreMap(savedRectangleMap()).has_value());
+  int closed = 0;
+  for (int k = 0; k < 40; ++k) {
+    const cv::Mat frame =
+        noisy(renderer.render(planarPose(0.01 * k, 0, 0.5 * kDeg * k)), 500 + k);
+    auto r = odometry.process(frame, {k / 30.0});
+    ASSERT_TRUE(r.has_value());
+    closed += r->loop_closed ? 1 : 0;
+    EXPECT_TRUE(r->relocalising) << k;
+    EXPECT_TRUE(r->map_pose.isApprox(r->pose, 1e-12)) << k;
+  }
+  EXPECT_EQ(closed, 0);
+}
+
+TEST(LoopClosureRestart, AMapOfAnotherPanoramaSizeIsRefusedAndLeavesNoMap) {
+  const synth::Renderer renderer(
+      synth::Scene::load(testing::indoorPhoto(), synth::SceneKind::kBox), Calibration{},
+      {synth::OutputKind::kOmni, 1});
+  std::vector<cv::Mat> frames;
+  for (int k = 0; k < 3; ++k) frames.push_back(noisy(renderer.render(planarPose(0.03 * k, 0, 0)), 7 + k));
+  map::MapSnapshot other;
+  {
+    Odometry first(Calibration{}, OdometryOptions{});
+    for (std::size_t k = 0; k < 3; ++k) ASSERT_TRUE(first.process(frames[k], {k / 30.0}));
+    ASSERT_TRUE(first.snapshotMap(other));
+    ASSERT_EQ(other.place_count, 1);
+  }
+  other.panorama = cv::Size(other.panorama.width / 2, other.panorama.height);
+  Odometry odometry(Calibration{}, OdometryOptions{});
+  const auto restored = odometry.restoreMap(other);
+  ASSERT_FALSE(restored.has_value());
+  EXPECT_EQ(restored.error().code(), ErrorCode::kInvalidArgument);
+  for (int k = 0; k < 2; ++k) {
+    auto r = odometry.process(frames[static_cast<std::size_t>(k)], {k / 30.0});
+    ASSERT_TRUE(r.has_value());
+    EXPECT_FALSE(r->relocalising);
+    EXPECT_EQ(r->places, k) << "a new map begins at the first frame with motion";
+  }
 }
 
 }  // namespace
