@@ -162,12 +162,22 @@ void parseKeyframes(Reader& r, const YAML::Node& node, KeyframeOptions& k) {
                                    "deg is outside [0, 28.6]"));
 }
 
-void parseLoopClosure(Reader& r, const YAML::Node& node, LoopClosureOptions& l) {
+void parseLoopClosure(Reader& r, const YAML::Node& node, const std::filesystem::path& base_dir,
+                      LoopClosureOptions& l, MapFileConfig& m) {
   if (!r.checkMap(node, "loop_closure",
                   {"enabled", "max_places", "place_spacing", "search_radius", "min_similarity",
                    "max_correction_deg", "check_interval", "confirmations",
-                   "max_turn_rate_deg_s"}))
+                   "max_turn_rate_deg_s", "map_file", "save_interval_s"}))
     return;
+  std::string map_file;
+  r.get(node, "loop_closure", "map_file", map_file);
+  if (!map_file.empty())
+    m.path = std::filesystem::path(map_file).is_absolute() ? std::filesystem::path(map_file)
+                                                           : base_dir / map_file;
+  r.get(node, "loop_closure", "save_interval_s", m.save_interval_s);
+  if (!(m.save_interval_s >= 0.0 && m.save_interval_s <= 86400.0))
+    r.add("loop_closure.save_interval_s: " + std::to_string(m.save_interval_s) +
+          " is outside [0, 86400] (0: only at shutdown)");
   r.get(node, "loop_closure", "enabled", l.enabled);
   r.get(node, "loop_closure", "max_places", l.max_places);
   r.get(node, "loop_closure", "place_spacing", l.place_spacing);
@@ -310,7 +320,10 @@ DaemonConfig DaemonConfig::parse(const std::string& text, const std::string& ori
     if (root["pipeline"]) parsePipeline(r, root["pipeline"], base_dir, c.pipeline);
     if (root["keyframes"]) parseKeyframes(r, root["keyframes"], c.keyframes);
     if (root["plausibility"]) parsePlausibility(r, root["plausibility"], c.plausibility);
-    if (root["loop_closure"]) parseLoopClosure(r, root["loop_closure"], c.loop_closure);
+    if (root["loop_closure"])
+      parseLoopClosure(r, root["loop_closure"], base_dir, c.loop_closure, c.map_file);
+    if (!c.map_file.path.empty() && !c.loop_closure.enabled)
+      r.add("loop_closure.map_file: set while loop_closure.enabled is false (no map to keep)");
     if (root["lcm"]) parseLcm(r, root["lcm"], c.lcm);
     if (root["scheduling"]) parseScheduling(r, root["scheduling"], c.scheduling);
     if (root["imu"]) parseImu(r, root["imu"], c.lcm, c.imu);
@@ -401,6 +414,8 @@ std::string DaemonConfig::describe() const {
     << "\n  check_interval: " << loop_closure.check_interval
     << "\n  confirmations: " << loop_closure.confirmations
     << "\n  max_turn_rate_deg_s: " << loop_closure.max_turn_rate_rad_s * 180.0 / std::numbers::pi
+    << "\n  map_file: \"" << map_file.path.string() << "\""
+    << "\n  save_interval_s: " << map_file.save_interval_s
     << "\n"
     << "lcm:\n  url: \"" << lcm.url << "\"\n  pose_channel: " << lcm.pose_channel
     << "\n  status_channel: " << lcm.status_channel << "\n  fit_channel: \"" << lcm.fit_channel

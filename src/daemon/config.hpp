@@ -52,6 +52,15 @@ struct SourceConfig {
 const char* toString(SourceConfig::Type type);
 
 /// LCM output.
+/// The map kept on disk by the daemon (loop_closure.map_file, loop_closure.save_interval_s).
+struct MapFileConfig {
+  /// Empty: the map lives and dies with the process. Resolved against the config file's
+  /// folder; its directory must exist.
+  std::filesystem::path path;
+  /// The map is saved this often while running, seconds, [0, 86400]; 0: only at shutdown.
+  double save_interval_s = 60.0;
+};
+
 struct LcmConfig {
   std::string url;                  ///< "" = LCM's default (udpm multicast)
   std::string pose_channel = "OMNI_POSE";
@@ -117,6 +126,9 @@ struct DaemonConfig {
   PlausibilityOptions plausibility;
   /// loop_closure section (max_correction_deg and max_turn_rate_deg_s in degrees there).
   LoopClosureOptions loop_closure;
+  /// loop_closure.map_file and loop_closure.save_interval_s: where the daemon keeps the map
+  /// across restarts (map_keeper.hpp).
+  MapFileConfig map_file;
   LcmConfig lcm;
   SchedulingConfig scheduling;
   ImuConfig imu;

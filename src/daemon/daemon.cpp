@@ -58,9 +58,11 @@ Daemon::Daemon(const DaemonConfig& config, std::FILE* log, std::unique_ptr<Frame
   }
   source_description_ = source_->describe();
   source_warnings_ = source_->warnings();
-  phase("building the pipeline (FFT plans)");
+  phase(config_.map_file.path.empty() ? "building the pipeline (FFT plans)"
+                                      : "building the pipeline (FFT plans), loading the map");
   processor_ = std::make_unique<Processor>(calibration, config_.odometry(), config_.lcm, *sink_,
-                                           board_, source_description_, gyro_queue_.get());
+                                           board_, source_description_, gyro_queue_.get(),
+                                           config_.map_file);
   capture_ = std::make_unique<CaptureLoop>(*source_, *mailbox_, board_, options_.capture);
 }
 
@@ -117,6 +119,7 @@ void Daemon::join() {
   mailbox_->requestStop();
   if (capture_thread_.joinable()) capture_thread_.join();
   if (imu_) imu_->stop();
+  processor_->finish();
   processor_->publishStatus(true);
 }
 

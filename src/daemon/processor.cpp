@@ -51,7 +51,8 @@ std::int64_t cpuTimeNs(clockid_t clock) {
 
 Processor::Processor(const Calibration& calibration, const OdometryOptions& odometry,
                      const LcmConfig& lcm, MessageSink& sink, StatusBoard& board,
-                     const std::string& source_description, GyroQueue* gyro)
+                     const std::string& source_description, GyroQueue* gyro,
+                     const MapFileConfig& map_file)
     : odometry_(calibration, odometry),
       lcm_(lcm),
       sink_(sink),
@@ -69,6 +70,10 @@ Processor::Processor(const Calibration& calibration, const OdometryOptions& odom
       error_text_(kMaxText + 1, '\0'),
       started_(SteadyClock::now()),
       last_status_time_(started_) {
+  if (!map_file.path.empty() && odometry.loop_closure.enabled) {
+    map_keeper_ = std::make_unique<MapKeeper>(map_file, odometry.loop_closure.max_places, board_);
+    map_keeper_->load(odometry_);
+  }
   load_.process_cpu_ns = cpuTimeNs(CLOCK_PROCESS_CPUTIME_ID);
   load_at_start_ = load_at_status_ = load_;
   *pose_ = pose_t{};
@@ -98,6 +103,10 @@ Processor::Processor(const Calibration& calibration, const OdometryOptions& odom
 }
 
 Processor::~Processor() = default;
+
+void Processor::finish() {
+  if (map_keeper_) map_keeper_->saveNow(odometry_);
+}
 
 bool Processor::publish(const std::string& channel, std::span<const std::uint8_t> message) {
   if (!sink_.publish(channel, message.data(), message.size())) {
@@ -249,7 +258,18 @@ void Processor::handleFrame(const MailboxFrame& frame) {
     publish(lcm_.fit_channel, diagnostics_buffer_, n);
   }
   if (pictures_) pictures(frame);
+  if (map_keeper_) keepMap(info, r);
   processing_ms_.add(static_cast<float>(millisSince(t_start)));
+}
+
+void Processor::keepMap(const FrameInfo& info, const OdometryResult& r) {
+  if (relocalising_ && r.loop_closed)
+    board_.logInfo("map: frame %llu recognised place %lld of the loaded map; the map pose is "
+                   "in its frame now",
+                   static_cast<unsigned long long>(info.sequence),
+                   static_cast<long long>(r.loop_place_sequence));
+  relocalising_ = r.relocalising;
+  map_keeper_->afterFrame(odometry_, SteadyClock::now());
 }
 
 void Processor::fillDiagnostics(const FrameInfo& info, const OdometryResult& r,

@@ -29,6 +29,7 @@
 
 #include "daemon/frame_mailbox.hpp"
 #include "daemon/gyro_queue.hpp"
+#include "daemon/map_keeper.hpp"
 #include "daemon/message_sink.hpp"
 #include "daemon/panorama_pictures.hpp"
 #include "daemon/sample_ring.hpp"
@@ -53,10 +54,12 @@ class Processor {
   /// Builds the pipeline (throws std::invalid_argument listing bad options) and sizes
   /// every message. `sink` and `board` are borrowed and must outlive this.
   /// `source_description` goes into status_t.source. `gyro` (borrowed, may be null): the
-  /// robot's gyro samples, given to the odometry before each frame.
+  /// robot's gyro samples, given to the odometry before each frame. `map_file`: with a
+  /// path, the map is loaded from it here and saved to it (map_keeper.hpp).
   Processor(const Calibration& calibration, const OdometryOptions& odometry,
             const LcmConfig& lcm, MessageSink& sink, StatusBoard& board,
-            const std::string& source_description, GyroQueue* gyro = nullptr);
+            const std::string& source_description, GyroQueue* gyro = nullptr,
+            const MapFileConfig& map_file = {});
   ~Processor();
   Processor(const Processor&) = delete;
   Processor& operator=(const Processor&) = delete;
@@ -65,6 +68,8 @@ class Processor {
   void handleFrame(const MailboxFrame& frame);
   /// Publishes a status message (`final`: the last one before exit). Allocation-free.
   void publishStatus(bool final);
+  /// After the last frame: saves the map (loop_closure.map_file). Not realtime.
+  void finish();
 
  private:
   bool publish(const std::string& channel, std::vector<std::uint8_t>& buffer, int size);
@@ -74,6 +79,9 @@ class Processor {
   /// The load fields of a status over `wall_s` seconds: since the last status, or the run.
   void fillLoad(status_t& s, bool final, double wall_s);
   void fillDiagnostics(const FrameInfo& info, const OdometryResult& result, std::int8_t status);
+  /// After a frame, with loop_closure.map_file: says when a loaded map was found, and hands
+  /// the map to the saver when a save is due (MapKeeper::afterFrame()).
+  void keepMap(const FrameInfo& info, const OdometryResult& r);
   /// Gives the odometry the gyro samples queued since the last frame.
   void takeGyro();
   /// After the frame (`sequence`, timestamp `t` on the odometry's clock): the odometry's gyro
@@ -94,6 +102,8 @@ class Processor {
   std::unique_ptr<status_t> status_;
   std::unique_ptr<fit_diagnostics_t> diagnostics_msg_;
   std::unique_ptr<PanoramaPictures> pictures_;  ///< lcm.panorama_channel set
+  std::unique_ptr<MapKeeper> map_keeper_;       ///< loop_closure.map_file set
+  bool relocalising_ = false;  ///< the last frame's OdometryResult::relocalising
   std::vector<std::uint8_t> pose_buffer_;
   std::vector<std::uint8_t> status_buffer_;
   std::vector<std::uint8_t> diagnostics_buffer_;

@@ -42,6 +42,9 @@ std::string summary(const DaemonStats& s) {
   });
   text += "segment " + std::to_string(s.segment) + ", places " + std::to_string(s.places) +
           ", source " + toString(s.source_state);
+  if (s.maps_saved > 0 || s.map_save_failures > 0)
+    text += ", maps saved " + std::to_string(s.maps_saved) + " (failed " +
+            std::to_string(s.map_save_failures) + ")";
   return text;
 }
 

@@ -11,6 +11,7 @@
 #include "daemon/message_sink.hpp"
 #include "daemon/source_factory.hpp"
 #include "iio/iio_gyro.hpp"
+#include "map/map_file.hpp"
 #include "omnipose/io/dataset.hpp"
 #include "omnipose/calibration.hpp"
 #include "omnipose/pipeline.hpp"
@@ -79,6 +80,33 @@ void checkWisdom(const DaemonConfig& config, StartupCheck& out) {
   }
 }
 
+/// loop_closure.map_file: a map to load (what it holds), or none yet where its directory
+/// exists; a file that cannot be used is a finding (the daemon starts with an empty map), a
+/// directory that does not exist a problem (the map could never be saved).
+void checkMapFile(const DaemonConfig& config, const Calibration& calibration, StartupCheck& out) {
+  const std::filesystem::path& file = config.map_file.path;
+  if (file.empty()) return;
+  const std::string origin = config.origin.empty() ? "daemon.yaml" : config.origin;
+  map::MapSnapshot snapshot;
+  const Expected<void> loaded =
+      map::loadMap(file, {calibration.panorama.width, calibration.panorama.height},
+                   config.loop_closure.max_places, snapshot);
+  std::error_code ec;
+  if (loaded) {
+    out.findings.push_back("map_file " + file.string() + ": " +
+                           std::to_string(snapshot.place_count) + " places, " +
+                           std::to_string(snapshot.edges.size()) + " edges (loaded at start-up)");
+  } else if (loaded.error().code() != ErrorCode::kNotFound) {
+    out.findings.push_back(std::string("map_file: ") + loaded.error().c_str() +
+                           "; the daemon would start with an empty map");
+  } else if (std::filesystem::is_directory(file.has_parent_path() ? file.parent_path() : ".", ec)) {
+    out.findings.push_back("map_file " + file.string() + ": none yet; written while running");
+  } else {
+    out.problems.push_back(origin + ": loop_closure.map_file: " + file.string() +
+                           ": its directory does not exist (the map could never be saved)");
+  }
+}
+
 /// imu.source iio: the device found under /sys/bus/iio/devices (by index or name), nothing
 /// opened or written; the calibration's imu section is checkAgainst()'s.
 void checkImu(const DaemonConfig& config, StartupCheck& out) {
@@ -122,6 +150,7 @@ StartupCheck checkStartup(const DaemonConfig& config) {
   if (!out.problems.empty()) return out;
 
   checkWisdom(config, out);
+  checkMapFile(config, calibration, out);
   try {
     // Without the wisdom file: --check writes nothing (planning would save it).
     PipelineOptions options = config.pipeline;

@@ -87,6 +87,8 @@ DaemonStats StatusBoard::snapshot() const {
   s.places = places.load();
   s.source_state = sourceState();
   s.messages_published = messages_published.load();
+  s.maps_saved = maps_saved.load();
+  s.map_save_failures = map_save_failures.load();
   return s;
 }
 

@@ -44,6 +44,10 @@ struct DaemonStats {
   /// Messages (pose, status, diagnostics) published without an error: with
   /// publish_failures, tells a run whose every message failed (not part of status_t).
   std::int64_t messages_published = 0;
+  /// The map written to loop_closure.map_file, and the writes that failed (map_keeper.hpp;
+  /// not part of status_t).
+  std::int64_t maps_saved = 0;
+  std::int64_t map_save_failures = 0;
 };
 
 /// Fills the counters, segment, places and source state of a status message (status_t) from a
@@ -70,6 +74,8 @@ class StatusBoard {
 #undef OMNIPOSE_BOARD_COUNTER
   std::atomic<int> segment{-1};
   std::atomic<int> places{0};
+  std::atomic<std::int64_t> maps_saved{0};         ///< DaemonStats::maps_saved
+  std::atomic<std::int64_t> map_save_failures{0};  ///< DaemonStats::map_save_failures
   std::atomic<std::int64_t> messages_published{0};  ///< DaemonStats::messages_published
 
   void setSourceState(SourceState state) { source_state_.store(state); }

@@ -214,6 +214,27 @@ TEST(DaemonConfig, LoopClosureSection) {
     EXPECT_TRUE(mentions(problems, key)) << key;
 }
 
+TEST(DaemonConfig, TheMapFileIsResolvedAgainstTheConfigFolderAndItsIntervalChecked) {
+  const DaemonConfig defaults = parseWith("");
+  EXPECT_TRUE(defaults.map_file.path.empty()) << "no map file by default";
+  EXPECT_DOUBLE_EQ(defaults.map_file.save_interval_s, 60.0);
+  const DaemonConfig c = DaemonConfig::parse(
+      kFileSource + "loop_closure: {map_file: maps/robot.map, save_interval_s: 0}\n",
+      "/etc/omnipose/daemon.yaml", "/etc/omnipose");
+  EXPECT_EQ(c.map_file.path, std::filesystem::path("/etc/omnipose/maps/robot.map"));
+  EXPECT_DOUBLE_EQ(c.map_file.save_interval_s, 0.0) << "0: only at shutdown";
+  EXPECT_THAT(c.describe(), HasSubstr("map_file: \"/etc/omnipose/maps/robot.map\"\n  save_interval_s: 0"));
+  EXPECT_EQ(parseWith("loop_closure: {map_file: /var/lib/omnipose/robot.map}\n").map_file.path,
+            std::filesystem::path("/var/lib/omnipose/robot.map"));
+  EXPECT_TRUE(mentions(problemsOf(kFileSource + "loop_closure: {save_interval_s: -1}\n"),
+                       "loop_closure.save_interval_s: -1"));
+  EXPECT_TRUE(mentions(problemsOf(kFileSource + "loop_closure: {save_interval_s: .nan}\n"),
+                       "loop_closure.save_interval_s"));
+  EXPECT_TRUE(mentions(
+      problemsOf(kFileSource + "loop_closure: {enabled: false, map_file: robot.map}\n"),
+      "loop_closure.map_file: set while loop_closure.enabled is false"));
+}
+
 TEST(DaemonConfig, SchedulingSection) {
   const DaemonConfig defaults = parseWith("");
   EXPECT_EQ(defaults.scheduling.fifo_priority, 0) << "normal scheduling by default";

@@ -34,6 +34,7 @@
 
 #include "allocation_counter.hpp"
 #include "daemon/daemon.hpp"
+#include "daemon/map_keeper.hpp"
 #include "daemon_test_support.hpp"
 
 namespace omnipose {
@@ -259,6 +260,40 @@ TEST(DaemonAllocation, WholeProcessIncludingLcmUdpmPublishAllocatesNothing) {
   RecordProperty("lcm_udpm_allocations", static_cast<int>(lcm));
   EXPECT_EQ(own, 0) << "allocations outside the LCM publish call";
   EXPECT_EQ(lcm, 0) << "LCM's udpm publish allocated";
+}
+
+TEST(DaemonAllocation, TheMapsSnapshotOnTheFrameThreadAllocatesNothing) {
+  if (!AllocationCounter::available())
+    GTEST_SKIP() << "sanitizer build: the sanitizer owns malloc, allocations are not counted";
+  // The frame thread's part of keeping the map (MapKeeper::afterFrame(): a copy of the map
+  // handed to the saver thread every save_interval_s); the saver's writing is not realtime
+  // and is not counted (this thread only).
+  testing::TempDir tmp("map-keeper-alloc");
+  const std::vector<cv::Mat> frames = testing::renderFrames("translate", 12);
+  OdometryOptions options;
+  options.pipeline.threads = 1;
+  Odometry odometry(Calibration{}, options);
+  daemon::StatusBoard board(nullptr);
+  MapFileConfig config;
+  config.path = tmp / "robot.map";
+  config.save_interval_s = 1e-6;  // every frame the saver is idle
+  daemon::MapKeeper keeper(config, options.loop_closure.max_places, board);
+  keeper.load(odometry);
+  for (std::size_t k = 0; k < 4; ++k) ASSERT_TRUE(odometry.process(frames[k], {k / 30.0}));
+  long allocations = 0;
+  for (std::size_t k = 4; k < frames.size(); ++k) {
+    ASSERT_TRUE(odometry.process(frames[k], {k / 30.0}));
+    AllocationCounter mine(AllocationCounter::Scope::kThisThread);
+    keeper.afterFrame(odometry, daemon::SteadyClock::now());
+    allocations += mine.stop();
+    // Give the saver its time: the next frame then snapshots again.
+    for (int wait = 0; wait < 200 && board.maps_saved.load() < static_cast<long>(k - 3); ++wait)
+      std::this_thread::sleep_for(5ms);
+  }
+  RecordProperty("maps_saved", static_cast<int>(board.maps_saved.load()));
+  EXPECT_GE(board.maps_saved.load(), 4) << "snapshots were taken and written";
+  EXPECT_EQ(board.map_save_failures.load(), 0);
+  EXPECT_EQ(allocations, 0);
 }
 
 }  // namespace

@@ -149,6 +149,31 @@ TEST(DaemonCheck, EveryProblemIsListedAtOnceByTheKeyTheUserWrote) {
   EXPECT_THAT(fixed.findings[2], HasSubstr("lens model linear, panorama 1100x110: usable"));
 }
 
+TEST(DaemonCheck, TheMapFileIsDescribedAndADirectoryThatIsNotThereIsAProblem) {
+  TempDir tmp("check_map");
+  Calibration{}.save(tmp / "calibration.yaml");
+  fs::create_directories(tmp / "d/frames");
+  testing::writeText(tmp / "d/frames/000000.png", "");
+  const auto check = [&](const std::string& map_file) {
+    return daemon::checkStartup(DaemonConfig::parse(
+        "source: {type: file, path: d}\ncalibration: calibration.yaml\n"
+        "loop_closure: {map_file: " + map_file + "}\n",
+        (tmp / "daemon.yaml").string(), tmp.path()));
+  };
+  const auto missing_dir = check("no_such_dir/robot.map");
+  ASSERT_EQ(missing_dir.problems.size(), 1u) << lines(missing_dir.problems);
+  EXPECT_THAT(missing_dir.problems[0],
+              HasSubstr("loop_closure.map_file: " + (tmp / "no_such_dir/robot.map").string() +
+                        ": its directory does not exist"));
+  const auto none_yet = check("robot.map");
+  EXPECT_TRUE(none_yet.problems.empty()) << lines(none_yet.problems);
+  EXPECT_THAT(lines(none_yet.findings), HasSubstr("robot.map: none yet; written while running"));
+  testing::writeText(tmp / "notes.txt", "not a map");
+  const auto foreign = check("notes.txt");
+  EXPECT_TRUE(foreign.problems.empty()) << "the daemon starts, with an empty map";
+  EXPECT_THAT(lines(foreign.findings), HasSubstr("the daemon would start with an empty map"));
+}
+
 TEST(DaemonCheck, CameraOptionsAreCheckedWithoutOpeningTheDevice) {
   TempDir tmp("check_v4l2");
   Calibration{}.save(tmp / "calibration.yaml");

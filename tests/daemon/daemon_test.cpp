@@ -29,6 +29,7 @@
 #include "gyro_dataset.hpp"
 #include "omnipose/io/gyro.hpp"
 #include "daemon/config.hpp"
+#include "map/map_file.hpp"
 #include "replay.hpp"
 
 using ::testing::HasSubstr;
@@ -1447,6 +1448,142 @@ class FailingChannelSink final : public daemon::MessageSink {
   lcm::LCM& lcm_;
   std::string failing_;
 };
+
+/// The yaw dataset's frames from `from` on, in `dir`.
+void datasetFrom(const fs::path& dir, int from) {
+  testing::copyDataset(yawDataset(), dir);
+  std::ifstream in(dir / "timestamps.txt");
+  std::ostringstream out;
+  std::string name;
+  double t = 0.0;
+  for (int k = 0; in >> name >> t; ++k) {
+    if (k >= from)
+      out << name << ' ' << std::fixed << t << '\n';
+    else
+      fs::remove(dir / "frames" / name);
+  }
+  testing::writeText(dir / "timestamps.txt", out.str());
+}
+
+/// The text a daemon wrote to its log (a temporary file).
+std::string logText(std::FILE* log) {
+  std::fflush(log);
+  std::rewind(log);
+  std::string text;
+  for (int c; (c = std::fgetc(log)) != EOF;) text += static_cast<char>(c);
+  return text;
+}
+
+TEST(DaemonMap, TheMapIsSavedAtShutdownAndARestartFindsTheHeadingInIt) {
+  TempDir tmp("daemon-map");
+  // The yaw dataset turns 1-6 degrees a frame: compared on every frame however fast it turns.
+  // Saved every 50 ms while running (the saver thread), and at shutdown.
+  const std::string map_section = "loop_closure:\n  map_file: " + (tmp / "robot.map").string() +
+                                  "\n  save_interval_s: 0.05\n  check_interval: 1\n"
+                                  "  max_turn_rate_deg_s: 5000\n";
+  Bus first;
+  std::map<double, Eigen::Matrix3d> first_map;  // by source timestamp
+  {
+    std::FILE* log = std::tmpfile();
+    Daemon d(parseConfig(testing::fileSourceConfig(yawDataset(), "", false) + map_section), log,
+             nullptr, first.sink(), lossless());
+    first.run(d, 60s);
+    d.join();
+    EXPECT_GE(d.stats().maps_saved, 2) << "while running and at shutdown";
+    EXPECT_EQ(d.stats().map_save_failures, 0);
+    const std::string text = logText(log);
+    std::fclose(log);
+    EXPECT_THAT(text, ::testing::HasSubstr("none yet; starting with an empty map"));
+    EXPECT_THAT(text, ::testing::HasSubstr("places saved"));
+  }
+  for (const pose_t& p : first.poses)
+    first_map[p.source_timestamp] =
+        Eigen::Quaterniond(p.map_orientation[0], p.map_orientation[1], p.map_orientation[2],
+                           p.map_orientation[3])
+            .toRotationMatrix();
+  map::MapSnapshot saved;
+  ASSERT_TRUE(map::loadMap(tmp / "robot.map", {Calibration{}.panorama.width, Calibration{}.panorama.height},
+                           128, saved));
+  ASSERT_GE(saved.place_count, 1);
+
+  // Started again in the middle of the same turn: the odometry begins at the identity there,
+  // 8 frames of heading away from where the map began.
+  datasetFrom(tmp / "later", 8);
+  Bus second;
+  std::FILE* log = std::tmpfile();
+  {
+    Daemon d(parseConfig(testing::fileSourceConfig(tmp / "later", "", false) + map_section), log,
+             nullptr, second.sink(), lossless());
+    second.run(d, 60s);
+  }
+  const std::string text = logText(log);
+  std::fclose(log);
+  EXPECT_THAT(text, ::testing::HasSubstr("places loaded"));
+  EXPECT_THAT(text, ::testing::HasSubstr("recognised place"));
+  ASSERT_EQ(second.poses.size(), static_cast<std::size_t>(kFrames - 8));
+  int closed_at = -1;
+  double worst_heading = 0.0;
+  for (std::size_t k = 0; k < second.poses.size(); ++k) {
+    const pose_t& p = second.poses[k];
+    const Eigen::Matrix3d map_rotation =
+        Eigen::Quaterniond(p.map_orientation[0], p.map_orientation[1], p.map_orientation[2],
+                           p.map_orientation[3])
+            .toRotationMatrix();
+    if (closed_at < 0 && p.loop_closed) closed_at = static_cast<int>(k);
+    SCOPED_TRACE("frame " + std::to_string(p.source_index));
+    if (closed_at < 0) {
+      EXPECT_LT(testing::rotationError(map_rotation, testing::poseRotation(p)), 1e-9)
+          << "the map pose is the odometry's until the map is found";
+    } else {
+      ASSERT_TRUE(first_map.contains(p.source_timestamp));
+      const double error = testing::rotationError(map_rotation, first_map[p.source_timestamp]);
+      worst_heading = std::max(worst_heading, error);
+      EXPECT_LT(error, 0.1 * std::numbers::pi / 180.0) << "the heading in the map is the first run's";
+    }
+  }
+  ::testing::Test::RecordProperty("closed_at_frame", closed_at);
+  ::testing::Test::RecordProperty("worst_heading_after_rad", std::to_string(worst_heading));
+  EXPECT_GE(closed_at, 0) << "the saved map was not recognised";
+  EXPECT_LE(closed_at, 5) << "three matches on three checked frames";
+}
+
+TEST(DaemonMap, ADamagedMapIsKeptAsideAndAForeignFileIsNeverOverwritten) {
+  TempDir tmp("daemon-map-refused");
+  const auto run = [&](const fs::path& map_file) {
+    const std::string config = testing::fileSourceConfig(yawDataset(), "", false) +
+                               "loop_closure:\n  map_file: " + map_file.string() +
+                               "\n  save_interval_s: 0\n";
+    std::FILE* log = std::tmpfile();
+    Bus bus;
+    daemon::DaemonStats stats;
+    {
+      Daemon d(parseConfig(config), log, nullptr, bus.sink(), lossless());
+      bus.run(d, 60s);
+      d.join();
+      stats = d.stats();
+    }
+    EXPECT_EQ(bus.poses.size(), static_cast<std::size_t>(kFrames)) << "the daemon ran";
+    std::string text = logText(log);
+    std::fclose(log);
+    return std::make_pair(stats, text);
+  };
+  // A map cut short: refused by name, kept aside, a new map saved.
+  testing::writeText(tmp / "damaged.map", "OMNIPOSE MAP\n\x01\x00");
+  const auto [damaged_stats, damaged_log] = run(tmp / "damaged.map");
+  EXPECT_THAT(damaged_log, ::testing::HasSubstr((tmp / "damaged.map").string() + " refused"));
+  EXPECT_THAT(damaged_log, ::testing::HasSubstr("kept as " + (tmp / "damaged.map.refused").string()));
+  EXPECT_TRUE(fs::exists(tmp / "damaged.map.refused"));
+  EXPECT_EQ(damaged_stats.maps_saved, 1);
+  map::MapSnapshot saved;
+  EXPECT_TRUE(map::loadMap(tmp / "damaged.map", {Calibration{}.panorama.width, Calibration{}.panorama.height},
+                           128, saved));
+  // Someone else's file: refused, left as it was, nothing saved over it.
+  testing::writeText(tmp / "notes.txt", "not a map\n");
+  const auto [foreign_stats, foreign_log] = run(tmp / "notes.txt");
+  EXPECT_THAT(foreign_log, ::testing::HasSubstr("not an omnipose map and is left alone"));
+  EXPECT_EQ(foreign_stats.maps_saved, 0);
+  EXPECT_EQ(testing::readText(tmp / "notes.txt"), "not a map\n");
+}
 
 TEST(DaemonFaults, FailedPublishesAreCountedInThePublishedStatus) {
   constexpr int kTotal = 12;

@@ -147,6 +147,42 @@ TEST_F(MapOfSphereViews, ComparingAndClosingAllocatesNothing) {
   EXPECT_GE(closed, 1);
 }
 
+TEST_F(MapOfSphereViews, ALoadedMapOfLookAlikesIsNeverAnchoredAndIsDroppedOnceTheRobotMoved) {
+  driveOut();
+  map::MapSnapshot saved;
+  loop_.snapshot(saved);
+  ASSERT_EQ(saved.place_count, 7);
+  // Every place of a sphere looks the same from everywhere: two places match a frame and
+  // disagree on where the map puts it, so no frame anchors the loaded map.
+  LoopClosureOptions options;
+  options.check_interval = 1;
+  pipeline::LoopClosure restarted(options, registrar_, 1, 0.03);
+  ASSERT_TRUE(restarted.restore(saved).has_value());
+  EXPECT_TRUE(restarted.relocalising());
+  EXPECT_EQ(restarted.places(), 7);
+  std::vector<cv::Mat> frames;
+  for (int k = 0; k < 3; ++k) frames.push_back(noisy(renderer_.render(planarPose(0, 0, 0.3)), 40 + k));
+  int closed = 0, checks_relocalising = 0;
+  for (int k = 0; k < pipeline::LoopClosure::kRelocaliseChecks + 5; ++k) {
+    ASSERT_TRUE(registrar_.unwrap(frames[static_cast<std::size_t>(k % 3)]).has_value());
+    pipeline::LoopClosure::Frame f;
+    f.sequence = 100 + k;
+    // The robot drives 0.4 scene distances (more than search_radius) along y.
+    f.odometry = planarPose(0, 0.004 * k, 0);
+    const auto u = restarted.update(f);
+    closed += u.loop_closed ? 1 : 0;
+    if (restarted.relocalising()) {
+      ++checks_relocalising;
+      EXPECT_TRUE(u.map_pose.isApprox(f.odometry)) << k;
+      EXPECT_EQ(restarted.places(), 7) << "no places while the map is not found";
+    }
+  }
+  EXPECT_EQ(closed, 0);
+  EXPECT_EQ(checks_relocalising, pipeline::LoopClosure::kRelocaliseChecks - 1);
+  EXPECT_FALSE(restarted.relocalising()) << "dropped";
+  EXPECT_EQ(restarted.places(), 1) << "a new map, begun where the old one was dropped";
+}
+
 /// A rectangle of 1.2 x 0.8 m in the box room at 3 cm per frame with 90-degree left turns
 /// in place at 6 degrees per frame, `laps` times, then `extra` frames along the first side.
 std::vector<Eigen::Isometry3d> rectangle(int laps, int extra) {
