@@ -182,8 +182,6 @@ std::optional<Eigen::Isometry3d> LoopClosure::registerAt(int id, const Eigen::Ma
   Eigen::Matrix3d R = pass.rotation;
   if (const double s = registrar_.meanWindowTime(); s != 0.0 && !pass.gyro_rows)
     R = rotationFromVector(Eigen::Vector3d(0.0, 0.0, (place.yaw_rate - frame.yaw_rate) * s)) * R;
-  // The fit's rotation agrees with the ring's heading it started from.
-  if (rotationVector(R0.transpose() * R).norm() > options_.max_correction_rad) return std::nullopt;
   const double variance = pass.estimate.covariance.topLeftCorner<3, 3>().trace() / 3.0;
   *rotation_sigma = std::clamp(std::sqrt(std::max(variance, 0.0)), kMinLoopSigma, kMaxLoopSigma);
   return isometry(R, pass.estimate.tau);
@@ -213,10 +211,13 @@ std::optional<Eigen::Isometry3d> LoopClosure::recognise(int id, const Frame& fra
   // Nothing predicts the heading: the ring's, level.
   const std::optional<double> ring = registrar_.ringYaw(spare_slot_, min_ring_peak_);
   if (!ring) return std::nullopt;
+  const Eigen::Matrix3d R0 = rotationFromVector(Eigen::Vector3d(0.0, 0.0, *ring));
   double sigma = kMaxLoopSigma;
-  const std::optional<Eigen::Isometry3d> M =
-      registerAt(id, rotationFromVector(Eigen::Vector3d(0.0, 0.0, *ring)), frame, &sigma);
-  if (!M || M->translation().norm() > options_.search_radius) return std::nullopt;
+  const std::optional<Eigen::Isometry3d> M = registerAt(id, R0, frame, &sigma);
+  // The fit's rotation agrees with the ring's heading, and the frame is near the place.
+  if (!M || rotationVector(R0.transpose() * M->linear()).norm() > options_.max_correction_rad ||
+      M->translation().norm() > options_.search_radius)
+    return std::nullopt;
   return M;
 }
 
@@ -242,6 +243,8 @@ bool LoopClosure::relocalise(const Frame& frame, Update& out) {
       break;
     }
   }
+  // No place like the frame is no evidence either way: the matches so far stand.
+  if (best[0] < 0) return false;
   // Each match implies the map's correction (map from odometry); all must agree.
   int matched = -1;
   Eigen::Isometry3d match_M = Eigen::Isometry3d::Identity();

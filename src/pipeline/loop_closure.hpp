@@ -25,7 +25,8 @@
 /// yaw from the whole ring unconstrained; a match must pass verify()'s tests against the
 /// ring's heading and lie within search_radius of its place, and when two places match, they
 /// must agree on the map's correction. max(3, confirmations) matches in a row that agree on
-/// the correction (rotation within 0.3 deg, position within place_spacing) anchor the map: a
+/// the correction (rotation within 0.3 deg, position within place_spacing; a check with no
+/// place like the frame breaks no row, one whose places fail does) anchor the map: a
 /// loop closed, the map pose jumps to the loaded map's frame. After kRelocaliseChecks checks
 /// without it, once the odometry has moved search_radius, the loaded map is dropped and a new
 /// one begun.
@@ -94,8 +95,8 @@ class LoopClosure {
   /// `map_pose` with; -1 for none.
   int candidate(const Eigen::Isometry3d& map_pose);
   /// The frame's pose in place `id`'s frame (loaded in the spare slot) from a registration
-  /// started at rotation `R0`: kOk, most windows, its rotation within max_correction_rad of
-  /// R0. Its rotation sigma into `rotation_sigma`.
+  /// started at rotation `R0`: a kOk fit of most windows, or nullopt. Its rotation sigma into
+  /// `rotation_sigma`.
   std::optional<Eigen::Isometry3d> registerAt(int id, const Eigen::Matrix3d& R0,
                                               const Frame& frame, double* rotation_sigma);
   /// The frame's pose in place `id`'s frame from the registration, verified against the
@@ -108,7 +109,8 @@ class LoopClosure {
   /// A relocalisation check (see the file comment); true when the map is anchored.
   bool relocalise(const Frame& frame, Update& out);
   /// The frame's pose in place `id`'s frame, its heading from the whole ring; nullopt when
-  /// the registration fails verify()'s tests or lies beyond search_radius.
+  /// the registration fails, its rotation is farther than max_correction_rad from the ring's
+  /// or it lies beyond search_radius.
   std::optional<Eigen::Isometry3d> recognise(int id, const Frame& frame);
 
   LoopClosureOptions options_;

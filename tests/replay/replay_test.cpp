@@ -14,6 +14,7 @@
 
 #include "bad_images.hpp"
 #include "gyro_dataset.hpp"
+#include "map/map_file.hpp"
 #include "omnipose/eval/evaluation.hpp"
 #include "omnipose/synth/synth.hpp"
 
@@ -139,6 +140,54 @@ TEST_F(ReplayTest, MissingDatasetOrCalibrationIsAClearError) {
     FAIL();
   } catch (const std::invalid_argument& e) {
     EXPECT_THAT(e.what(), HasSubstr("akazerot"));
+  }
+}
+
+TEST_F(ReplayTest, PartOfTheDatasetAndAMapSavedAndLoaded) {
+  replay::ReplayOptions o;
+  o.dataset = root_ / "data";
+  o.progress = false;
+  // The yaw sequence turns 1-6 degrees a frame: places and checks however fast it turns.
+  std::ofstream(root_ / "map.yaml") << "loop_closure: {check_interval: 1, max_turn_rate_deg_s: 5000}\n";
+  o.config = root_ / "map.yaml";
+  o.map_out = root_ / "first.map";
+  o.count = 3;
+  const replay::ReplaySummary first = replay::run(o, stderr);
+  EXPECT_EQ(first.frames, 3) << "--count";
+  EXPECT_EQ(first.relocalised_at, -1) << "no map loaded";
+  map::MapSnapshot saved;
+  ASSERT_TRUE(map::loadMap(root_ / "first.map", {Calibration{}.panorama.width, Calibration{}.panorama.height},
+                           128, saved));
+  EXPECT_EQ(saved.place_count, first.places);
+  EXPECT_GE(saved.place_count, 1);
+
+  o.map_out.reset();
+  o.map_in = root_ / "first.map";
+  o.from = 6;
+  o.count = 0;
+  o.out_tum = root_ / "restart.tum";
+  const replay::ReplaySummary restart = replay::run(o, stderr);
+  EXPECT_EQ(restart.frames, 2) << "--from 6: frames 6 and 7";
+  const std::vector<StampedPose> poses = readTum(root_ / "restart.tum");
+  ASSERT_EQ(poses.size(), 2u);
+  const std::vector<StampedPose> truth = readTum(root_ / "data/groundtruth.tum");
+  EXPECT_NEAR(poses[0].timestamp, truth[6].timestamp, 1e-6) << "the first pose is frame 6's";
+
+  o.from = 8;
+  try {
+    replay::run(o, stderr);
+    FAIL() << "--from past the end";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_THAT(e.what(), HasSubstr("--from 8: the dataset has 8 frames"));
+  }
+  o.from = 0;
+  std::ofstream(root_ / "notes.txt") << "not a map\n";
+  o.map_in = root_ / "notes.txt";
+  try {
+    replay::run(o, stderr);
+    FAIL() << "a file that is not a map";
+  } catch (const std::runtime_error& e) {
+    EXPECT_THAT(e.what(), HasSubstr("--map-in: " + (root_ / "notes.txt").string()));
   }
 }
 

@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # tools/loop_benchmark.sh in a quick mode (one lap of one tuning room and one report-only
 # room, 1 x 1 rays): each is rendered, replayed and measured at the lap's end, and the table
-# has a row per room, every cell a number, and the median and worst of each group.
+# has a row per room, every cell a number, and the median and worst of each group. Then
+# tools/restart_benchmark.sh on that lap: a restart finds the saved map and is measured.
 # Usage: loop_benchmark_test.sh SOURCE_DIR BUILD_DIR
 set -euo pipefail
 src=$1
@@ -39,3 +40,18 @@ bad=$(grep -E '^\| [a-z_0-9]+ \| (tuning|report-only) \|' "$table" |
 places=$(grep -E '^\| indoor \|' "$table" | awk -F'|' '{print $9}')
 [ "$places" -gt 5 ] || { echo "LOOPS.md: $places places after a lap" >&2; cat "$table" >&2; exit 1; }
 echo "loop_benchmark.sh: 2 rooms, 1 lap, measured"
+
+# tools/restart_benchmark.sh on that lap: the map of its first 300 frames saved, a restart at
+# frame 100 with it finds the map (after the turn at 100-129) and measures the error from there.
+bash -n tools/restart_benchmark.sh
+rc=0
+out=$(bash tools/restart_benchmark.sh "$tmp/r" 2>&1) || rc=$?
+[ "$rc" = 2 ] || { echo "restart_benchmark.sh without a room: exit $rc, expected 2: $out" >&2; exit 1; }
+BUILD_DIR=$build MAP_FRAMES=300 RESTARTS=100 COUNT=80 \
+  bash tools/restart_benchmark.sh "$tmp/restarts" "$tmp/loops/indoor" > "$tmp/restart.log" 2>&1 ||
+  { echo "restart_benchmark.sh failed:" >&2; tail -20 "$tmp/restart.log" >&2; exit 1; }
+row=$(grep -E '^\| indoor \| 100 \|' "$tmp/restarts/RESTARTS.md") ||
+  { echo "RESTARTS.md: no row for the restart at 100" >&2; cat "$tmp/restarts/RESTARTS.md" >&2; exit 1; }
+awk -F'|' '{exit !($4 ~ /^ 1[0-5][0-9] \(\+[0-9]+\) $/ && $5 ~ /^ [0-9.]+ \/ [0-9.]+ \/ [0-9.]+ $/ && $5 + 0 < 1.0)}' <<< "$row" ||
+  { echo "RESTARTS.md: the restart at 100 did not find the map within 80 frames, or its error is not a number below 1 deg: $row" >&2; exit 1; }
+echo "restart_benchmark.sh: a restart found the map: $row"

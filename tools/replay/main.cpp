@@ -14,6 +14,8 @@ namespace {
 struct Args {
   std::string dataset, input, out_tum, out_odometry_tum, relative_csv, config, calibration;
   std::string method = omnipose::replay::ReplayOptions{}.method;
+  std::string map_in, map_out;
+  int from = 0, count = 0;
   bool quiet = false;
 };
 
@@ -52,6 +54,17 @@ void addOptions(CLI::App& app, Args& a) {
                  "rotation-only RANSAC)")
       ->type_name(methods)
       ->check(omnipose::tools::oneOf(omnipose::replay::methodNames()));
+  app.add_option("--from", a.from, "start at this frame (dataset order, from 0)")
+      ->type_name("INDEX")
+      ->check(CLI::NonNegativeNumber);
+  app.add_option("--count", a.count, "replay at most this many frames (0: to the end)")
+      ->type_name("N")
+      ->check(CLI::NonNegativeNumber);
+  app.add_option("--map-in", a.map_in,
+                 "a map saved by --map-out or by omniposed (loop_closure.map_file) to start "
+                 "with: the frames find where they are in it, then the map pose is in its frame")
+      ->type_name("MAP");
+  app.add_option("--map-out", a.map_out, "save the map after the last frame")->type_name("MAP");
   app.add_flag("--quiet", a.quiet, "no progress line (it is shown only on a terminal anyway)");
 }
 
@@ -66,6 +79,10 @@ omnipose::replay::ReplayOptions replayOptions(const CLI::App& app, const Args& a
   if (given("--relative")) options.relative_csv = a.relative_csv;
   if (given("--config")) options.config = a.config;
   if (given("--calibration")) options.calibration = a.calibration;
+  if (given("--map-in")) options.map_in = a.map_in;
+  if (given("--map-out")) options.map_out = a.map_out;
+  options.from = a.from;
+  options.count = a.count;
   options.progress = !a.quiet;
   if (a.input == "omni") options.input = omnipose::InputKind::kOmni;
   else if (a.input == "panorama") options.input = omnipose::InputKind::kPanorama;
@@ -76,14 +93,16 @@ constexpr const char* kUsage =
     "usage: omnipose-replay DATASET [--out EST.tum] [--out-odometry ODOM.tum]\n"
     "                       [--relative REL.csv]\n"
     "                       [--input omni|panorama] [--config daemon.yaml]\n"
-    "                       [--calibration CAL.yaml] [--method NAME] [--quiet]";
+    "                       [--calibration CAL.yaml] [--method NAME] [--from INDEX]\n"
+    "                       [--count N] [--map-in MAP] [--map-out MAP] [--quiet]";
 
 constexpr const char* kDescription =
     "Estimates the camera motion of every consecutive frame pair of a dataset directory.\n"
     "Ends with: frames=N pairs=M skipped=K implausible=I lost=L bridged=B seconds_per_frame=X\n"
     "loops=C places=P (skipped: unreadable frames and the I implausible ones, decoded but not\n"
     "believed: a glitching camera; X: median wall time per frame, seconds; C: frames that\n"
-    "closed a loop with a place seen before; P: places in the memory at the end). Exit codes: 0 done, 1 failed (or no pair estimated), 2 bad command line.";
+    "closed a loop with a place seen before; P: places in the memory at the end; with --map-in,\n"
+    "relocalised=F: the frame that found the loaded map, -1 if none). Exit codes: 0 done, 1 failed (or no pair estimated), 2 bad command line.";
 
 }  // namespace
 
@@ -94,9 +113,11 @@ int main(int argc, char** argv) {
       [](omnipose::tools::Cli& cli, const Args& args) {
         const auto s = omnipose::replay::run(replayOptions(cli.app(), args), stderr);
         std::printf("frames=%d pairs=%d skipped=%d implausible=%d lost=%d bridged=%d "
-                    "seconds_per_frame=%.6f loops=%d places=%d\n",
+                    "seconds_per_frame=%.6f loops=%d places=%d",
                     s.frames, s.pairs, s.skipped, s.implausible, s.lost, s.bridged,
                     s.median_seconds_per_frame, s.loops_closed, s.places);
+        if (cli.app().count("--map-in") > 0) std::printf(" relocalised=%d", s.relocalised_at);
+        std::printf("\n");
         return s.pairs > 0 || s.frames == 1 ? 0 : 1;
       });
 }

@@ -11,6 +11,7 @@
 #include "omnipose/io/replay.hpp"
 #include "omnipose/io/trajectory.hpp"
 #include "omnipose/odometry.hpp"
+#include "map/map_file.hpp"
 #include "omnipose/pipeline.hpp"
 #include "progress_line.hpp"
 
@@ -69,6 +70,21 @@ std::unique_ptr<Odometry> makeOdometry(const std::string& method, const Calibrat
   return std::make_unique<Odometry>(makeEstimator(method, calibration, options.pipeline));
 }
 
+namespace {
+
+void loadMapInto(const std::filesystem::path& path, const OdometryOptions& options,
+                 Odometry& odometry) {
+  map::MapSnapshot snapshot;
+  if (const Expected<void> loaded = map::loadMap(path, odometry.panoramaSize(),
+                                                 options.loop_closure.max_places, snapshot);
+      !loaded)
+    throw std::runtime_error(std::string("--map-in: ") + loaded.error().c_str());
+  if (const Expected<void> restored = odometry.restoreMap(snapshot); !restored)
+    throw std::runtime_error("--map-in " + path.string() + ": " + restored.error().c_str());
+}
+
+}  // namespace
+
 ReplaySummary run(const ReplayOptions& options, std::FILE* log) {
   OdometryOptions odometry_options = DaemonConfig{}.odometry();  // what the daemon runs
   if (options.config) {
@@ -77,11 +93,19 @@ ReplaySummary run(const ReplayOptions& options, std::FILE* log) {
     odometry_options = config.odometry();
   }
   if (options.input) odometry_options.pipeline.unwrap.input = *options.input;
-  const Dataset dataset = Dataset::open(options.dataset, options.calibration);
+  Dataset dataset = Dataset::open(options.dataset, options.calibration);
   if (const std::string assumed = dataset.assumptions(); !assumed.empty())
     std::fprintf(log, "warning: %s\n", assumed.c_str());
   for (const std::string& w : dataset.warnings) std::fprintf(log, "warning: %s\n", w.c_str());
+  if (options.from < 0 || options.from >= static_cast<int>(dataset.frames.size()))
+    throw std::invalid_argument("--from " + std::to_string(options.from) + ": the dataset has " +
+                                std::to_string(dataset.frames.size()) + " frames");
+  dataset.frames.erase(dataset.frames.begin(), dataset.frames.begin() + options.from);
+  if (options.count < 0) throw std::invalid_argument("--count " + std::to_string(options.count) + ": negative");
+  if (options.count > 0 && options.count < static_cast<int>(dataset.frames.size()))
+    dataset.frames.resize(static_cast<std::size_t>(options.count));
   auto odometry = makeOdometry(options.method, dataset.calibration, odometry_options);
+  if (options.map_in) loadMapInto(*options.map_in, odometry_options, *odometry);
   std::string gyro_warning;
   std::vector<GyroSample> gyro = datasetGyroSamples(dataset, gyro_warning);
   if (!gyro_warning.empty()) std::fprintf(log, "warning: %s\n", gyro_warning.c_str());
@@ -96,7 +120,7 @@ ReplaySummary run(const ReplayOptions& options, std::FILE* log) {
 
   std::vector<StampedPose> trajectory, odometry_trajectory;
   std::vector<double> seconds;
-  int loops_closed = 0, places = 0;
+  int loops_closed = 0, places = 0, relocalised_at = -1;
   seconds.reserve(dataset.frames.size());
   tools::ProgressLine progress(log, static_cast<int>(dataset.frames.size()), "frames",
                                options.progress);
@@ -107,6 +131,7 @@ ReplaySummary run(const ReplayOptions& options, std::FILE* log) {
         if (result.state != TrackState::kLost)
           odometry_trajectory.push_back({f.timestamp, result.pose});
         loops_closed += result.loop_closed ? 1 : 0;
+        if (options.map_in && relocalised_at < 0 && result.loop_closed) relocalised_at = i + options.from;
         places = result.places;
         if (csv.is_open() && result.relative.has_motion) writeCsvRow(csv, i, f, result);
         progress.update(i + 1);
@@ -117,6 +142,15 @@ ReplaySummary run(const ReplayOptions& options, std::FILE* log) {
   static_cast<ReplayCounts&>(summary) = counts;
   summary.loops_closed = loops_closed;
   summary.places = places;
+  summary.relocalised_at = relocalised_at;
+  if (options.map_out) {
+    map::MapSnapshot snapshot;
+    if (!odometry->snapshotMap(snapshot))
+      throw std::invalid_argument("--map-out: there is no map (loop_closure off, or --method " +
+                                  options.method + ")");
+    if (const Expected<void> saved = map::saveMap(*options.map_out, snapshot); !saved)
+      throw std::runtime_error(std::string("--map-out: ") + saved.error().c_str());
+  }
   if (!gyro.empty()) {
     const GyroCounters g = odometry->gyroCounters();
     summary.gyro_frames = static_cast<int>(g.frames_with_gyro);

@@ -27,6 +27,15 @@ struct ReplayOptions {
   std::optional<InputKind> input;  ///< overrides the config's input
   std::string method = "ifmi";
   bool progress = true;
+  /// The first frame replayed (dataset order): a run that starts part of the way in; and
+  /// at most this many frames from it (0: to the end).
+  int from = 0;
+  int count = 0;
+  /// A map (src/map/map_file.hpp) loaded before the first frame: the frames relocalise in it
+  /// (Odometry::restoreMap()); one that cannot be used is an error naming it.
+  std::optional<std::filesystem::path> map_in;
+  /// Where the map is saved after the last frame.
+  std::optional<std::filesystem::path> map_out;
 };
 
 struct ReplaySummary : ReplayCounts {
@@ -35,6 +44,8 @@ struct ReplaySummary : ReplayCounts {
   double median_seconds_per_frame = 0.0;
   int loops_closed = 0;  ///< frames that closed a loop (OdometryResult::loop_closed)
   int places = 0;        ///< places in the odometry's memory at the end
+  /// With map_in: the frame (dataset index) on which the loaded map was found; -1 if never.
+  int relocalised_at = -1;
 };
 
 /// Builds the estimator for `method`. Throws std::invalid_argument for an unknown name
