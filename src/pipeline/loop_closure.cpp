@@ -112,16 +112,7 @@ LoopClosure::Update LoopClosure::update(const Frame& frame) {
             edge.loop = true;
             if (graph_.addEdge(edge)) graph_.solve();
           }
-          anchor_ = id;
-          anchor_odometry_ = frame.odometry * M->inverse();
-          anchor_distance_ = 0.0;
-          anchor_frames_ = 0;
-          loose_ = false;
-          chain_serial_ = memory_.stored();
-          memory_.touch(id);
-          confirmed_ = 0;
-          out.loop_closed = true;
-          out.place_sequence = memory_[id].sequence;
+          anchorAt(id, frame.odometry * M->inverse(), out);
           predicted = correction() * frame.odometry;
         }
       } else {
@@ -276,17 +267,21 @@ bool LoopClosure::relocalise(const Frame& frame, Update& out) {
   pending_map_ = correction_now;
   if (confirmed_ < std::max(kRelocaliseConfirmations, options_.confirmations)) return false;
   relocalising_ = false;
-  anchor_ = matched;
-  anchor_odometry_ = frame.odometry * match_M.inverse();
+  anchorAt(matched, frame.odometry * match_M.inverse(), out);
+  return true;
+}
+
+void LoopClosure::anchorAt(int id, const Eigen::Isometry3d& place_odometry, Update& out) {
+  anchor_ = id;
+  anchor_odometry_ = place_odometry;
   anchor_distance_ = 0.0;
   anchor_frames_ = 0;
   loose_ = false;
   chain_serial_ = memory_.stored();
-  memory_.touch(matched);
+  memory_.touch(id);
   confirmed_ = 0;
   out.loop_closed = true;
-  out.place_sequence = memory_[matched].sequence;
-  return true;
+  out.place_sequence = memory_[id].sequence;
 }
 
 void LoopClosure::addPlace(const Frame& frame, const Eigen::Isometry3d& map_pose) {

@@ -103,6 +103,9 @@ class LoopClosure {
   /// map's prediction `predicted` (the same pose from the map); nullopt when it fails.
   std::optional<Eigen::Isometry3d> verify(int id, const Eigen::Isometry3d& predicted,
                                           const Frame& frame, double* rotation_sigma);
+  /// A match closed a loop (or found a loaded map): place `id` becomes the anchor, the
+  /// odometry putting it at `place_odometry`; `out` says so.
+  void anchorAt(int id, const Eigen::Isometry3d& place_odometry, Update& out);
   /// Makes the frame a place (the least recently used one forgotten when full).
   void addPlace(const Frame& frame, const Eigen::Isometry3d& map_pose);
   bool nearAPlace(const Eigen::Isometry3d& map_pose) const;
