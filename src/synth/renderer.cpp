@@ -87,6 +87,7 @@ Renderer::Renderer(Scene scene, Calibration calibration, RenderOptions options)
   if (!problems.empty()) throw std::invalid_argument("Renderer:" + joinLines(problems));
   pyramid_ = detail::buildPyramid(scene_.texture);
   walkers_ = drawWalkers(scene_.walkers, scene_.box.floor);
+  ray_table_ = buildRayTable();
 }
 
 cv::Size Renderer::outputSize() const {
@@ -390,7 +391,26 @@ struct Renderer::PixelRays {
   std::vector<Ray> rays;                ///< k x k sub-samples, row by row
 };
 
+/// Every output pixel's PixelRays, row by row: the pixel's own fields in `pixels`, its k x k
+/// sub-sample rays at rays[(y * width + x) * k * k ...]. Bearings in doubles, exactly as
+/// omniRays() / panoramaRays() compute them, so a frame is the same bit for bit with or
+/// without the table.
+struct Renderer::RayTable {
+  struct Pixel {
+    Eigen::Vector3d centre, right, below;
+    bool has_lod = false;
+  };
+  int width = 0;
+  int samples = 0;  ///< k x k
+  std::vector<Pixel> pixels;
+  std::vector<PixelRays::Ray> rays;
+};
+
 namespace {
+
+/// The largest ray table a renderer keeps (an 800 x 800 omni image with 1 x 1 rays takes
+/// 72 MB, with 3 x 3 rays 230 MB); larger outputs compute their rays for every frame.
+constexpr std::size_t kMaxRayTableBytes = std::size_t{256} << 20;
 
 /// The box filter's sub-samples of pixel (x, y): sets rays.rays to k x k entries, row by row,
 /// each given by set(sx, sy, ray) at its sub-pixel centre (x + (i + 0.5) / k - 0.5, ...).
@@ -407,9 +427,52 @@ void forSubPixels(int k, double x, double y, Rays& rays, const Set& set) {
 
 }  // namespace
 
+std::shared_ptr<const Renderer::RayTable> Renderer::buildRayTable() const {
+  const cv::Size size = outputSize();
+  const auto pixels = static_cast<std::size_t>(size.area());
+  const auto samples = static_cast<std::size_t>(options_.supersample) * options_.supersample;
+  if (pixels * (sizeof(RayTable::Pixel) + samples * sizeof(PixelRays::Ray)) > kMaxRayTableBytes)
+    return nullptr;
+  auto table = std::make_shared<RayTable>();
+  table->width = size.width;
+  table->samples = static_cast<int>(samples);
+  table->pixels.resize(pixels);
+  table->rays.resize(pixels * samples);
+  const bool omni = options_.output == OutputKind::kOmni;
+  cv::parallel_for_(cv::Range(0, size.height), [&](const cv::Range& rows) {
+    PixelRays rays;
+    for (int y = rows.start; y < rows.end; ++y) {
+      for (int x = 0; x < size.width; ++x) {
+        if (omni) omniRays(x, y, rays);
+        else panoramaRays(x, y, rays);
+        const std::size_t i = static_cast<std::size_t>(y) * size.width + x;
+        table->pixels[i] = {rays.centre, rays.right, rays.below, rays.has_lod};
+        std::copy(rays.rays.begin(), rays.rays.end(), table->rays.begin() + i * samples);
+      }
+    }
+  });
+  return table;
+}
+
+void Renderer::pixelRays(int x, int y, PixelRays& rays) const {
+  if (!ray_table_) {
+    if (options_.output == OutputKind::kOmni) omniRays(x, y, rays);
+    else panoramaRays(x, y, rays);
+    return;
+  }
+  const RayTable& table = *ray_table_;
+  const std::size_t i = static_cast<std::size_t>(y) * table.width + x;
+  const RayTable::Pixel& pixel = table.pixels[i];
+  rays.has_lod = pixel.has_lod;
+  rays.centre = pixel.centre;
+  rays.right = pixel.right;
+  rays.below = pixel.below;
+  const auto first = table.rays.begin() + static_cast<std::ptrdiff_t>(i * table.samples);
+  rays.rays.assign(first, first + table.samples);
+}
+
 void Renderer::renderRows(std::span<const View> views, int n, int row_begin, int row_end,
                           cv::Mat& out) const {
-  const bool omni = options_.output == OutputKind::kOmni;
   PixelRays rays;
   std::vector<std::vector<PlacedWalker>> placed(static_cast<std::size_t>(n));
   for (int y = row_begin; y < row_end; ++y) {
@@ -424,8 +487,7 @@ void Renderer::renderRows(std::span<const View> views, int n, int row_begin, int
     }
     float* row = out.ptr<float>(y);
     for (int x = 0; x < out.cols; ++x) {
-      if (omni) omniRays(x, y, rays);
-      else panoramaRays(x, y, rays);
+      pixelRays(x, y, rays);
       if (n == 1) {
         row[x] = shade(rays, row_views[0].pose, placed[0]);
         continue;

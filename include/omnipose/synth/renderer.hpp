@@ -7,6 +7,7 @@
 
 #include <Eigen/Geometry>
 #include <functional>
+#include <memory>
 #include <opencv2/core.hpp>
 #include <span>
 #include <string>
@@ -79,7 +80,9 @@ inline constexpr int kMaxAutoExposureSamples = 64;
 /// Thread safety: render() is const and may be called from several threads.
 class Renderer {
  public:
-  /// Builds the texture pyramid and draws the walkers. Throws std::invalid_argument listing
+  /// Builds the texture pyramid, draws the walkers and computes every output pixel's rays
+  /// (their bearings do not depend on the pose; kept when they take at most 256 MB: 112 bytes
+  /// a pixel with 1 x 1 rays, 32 more per extra ray). Throws std::invalid_argument listing
   /// invalid options, calibration fields or walkers (Walkers::validate(kind, box)).
   Renderer(Scene scene, Calibration calibration, RenderOptions options = {});
 
@@ -147,6 +150,14 @@ class Renderer {
   };
   /// The rays of one output pixel, which do not depend on the pose (renderer.cpp).
   struct PixelRays;
+  /// Every output pixel's rays, computed once at construction when they fit in
+  /// kMaxRayTableBytes (renderer.cpp); else each frame computes them again.
+  struct RayTable;
+  /// The rays of output pixel (x, y): from the table, or computed.
+  void pixelRays(int x, int y, PixelRays& rays) const;
+  /// The table of every pixel's rays, or null when it would be larger than
+  /// kMaxRayTableBytes.
+  std::shared_ptr<const RayTable> buildRayTable() const;
 
   /// Renders rows [row_begin, row_end), row y as the mean over its n views
   /// views[y * n + i], i < n (views.size() = rows * n).
@@ -176,6 +187,7 @@ class Renderer {
   RenderOptions options_;
   std::vector<cv::Mat> pyramid_;  ///< texture mip levels, level 0 = scene_.texture
   std::vector<Walker> walkers_;
+  std::shared_ptr<const RayTable> ray_table_;  ///< null when it would not fit
 };
 
 /// Capture time of row y of a frame (calibration.hpp: the camera model's row timing, which
