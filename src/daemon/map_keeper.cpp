@@ -55,12 +55,8 @@ void MapKeeper::load(Odometry& odometry) {
   } else if (std::error_code ec; std::filesystem::is_regular_file(config_.path, ec) &&
                                  startsLikeAMap(config_.path)) {
     // A damaged map: kept for a look, and a new one saved in its place.
-    const std::filesystem::path aside = config_.path.string() + ".refused";
-    std::filesystem::rename(config_.path, aside, ec);
-    const std::string kept =
-        ec ? "could not keep it aside: " + ec.message() : "kept as " + aside.string();
     board_.reportError("map %s refused (%s); %s; starting with an empty map", path.c_str(),
-                       loaded.error().c_str(), kept.c_str());
+                       loaded.error().c_str(), keepAside(".refused").c_str());
   } else {
     foreign_ = true;
     board_.reportError("map %s refused (%s); it is not an omnipose map and is left alone: "
@@ -71,7 +67,30 @@ void MapKeeper::load(Odometry& odometry) {
   odometry.snapshotMap(snapshot_);
 }
 
-void MapKeeper::afterFrame(const Odometry& odometry, SteadyClock::time_point now) {
+std::string MapKeeper::keepAside(const char* suffix) const {
+  const std::filesystem::path aside = config_.path.string() + suffix;
+  std::error_code ec;
+  std::filesystem::rename(config_.path, aside, ec);
+  return ec ? "could not keep it aside: " + ec.message() : "kept as " + aside.string();
+}
+
+void MapKeeper::afterFrame(const Odometry& odometry, const OdometryResult& result,
+                           std::uint64_t sequence, SteadyClock::time_point now) {
+  if (relocalising_ && !result.relocalising) {
+    if (result.loop_closed) {
+      board_.logInfo("map: frame %llu recognised place %lld of the loaded map; the map pose is "
+                     "in its frame now",
+                     static_cast<unsigned long long>(sequence),
+                     static_cast<long long>(result.loop_place_sequence));
+    } else {
+      keep_aside_ = true;
+      board_.reportError("map %s: no place of it recognised by frame %llu, after the robot moved; "
+                         "a new map is begun, and the loaded one will be kept as %s.unrecognised",
+                         config_.path.string().c_str(), static_cast<unsigned long long>(sequence),
+                         config_.path.string().c_str());
+    }
+  }
+  relocalising_ = result.relocalising;
   if (foreign_ || config_.save_interval_s <= 0.0 || now < next_save_) return;
   {
     std::lock_guard lock(mutex_);
@@ -99,6 +118,9 @@ bool MapKeeper::saveNow(const Odometry& odometry) {
 }
 
 bool MapKeeper::write() {
+  if (keep_aside_.exchange(false))
+    board_.logInfo("map %s: the loaded map no frame recognised is %s", config_.path.string().c_str(),
+                   keepAside(".unrecognised").c_str());
   if (const Expected<void> saved = map::saveMap(config_.path, snapshot_); !saved) {
     ++board_.map_save_failures;
     board_.reportError("map %s: not saved: %s", config_.path.string().c_str(),

@@ -241,6 +241,7 @@ void Processor::handleFrame(const MailboxFrame& frame) {
   p.loop_closed = r.loop_closed;
   p.loop_place_sequence = r.loop_place_sequence;
   p.places = r.places;
+  p.relocalising = r.relocalising;
   if (r.loop_closed) ++board_.loops_closed;
   p.processing_time_s = static_cast<float>(motion.timing.total);
 
@@ -258,18 +259,8 @@ void Processor::handleFrame(const MailboxFrame& frame) {
     publish(lcm_.fit_channel, diagnostics_buffer_, n);
   }
   if (pictures_) pictures(frame);
-  if (map_keeper_) keepMap(info, r);
+  if (map_keeper_) map_keeper_->afterFrame(odometry_, r, info.sequence, SteadyClock::now());
   processing_ms_.add(static_cast<float>(millisSince(t_start)));
-}
-
-void Processor::keepMap(const FrameInfo& info, const OdometryResult& r) {
-  if (relocalising_ && r.loop_closed)
-    board_.logInfo("map: frame %llu recognised place %lld of the loaded map; the map pose is "
-                   "in its frame now",
-                   static_cast<unsigned long long>(info.sequence),
-                   static_cast<long long>(r.loop_place_sequence));
-  relocalising_ = r.relocalising;
-  map_keeper_->afterFrame(odometry_, SteadyClock::now());
 }
 
 void Processor::fillDiagnostics(const FrameInfo& info, const OdometryResult& r,

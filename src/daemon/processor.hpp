@@ -79,9 +79,6 @@ class Processor {
   /// The load fields of a status over `wall_s` seconds: since the last status, or the run.
   void fillLoad(status_t& s, bool final, double wall_s);
   void fillDiagnostics(const FrameInfo& info, const OdometryResult& result, std::int8_t status);
-  /// After a frame, with loop_closure.map_file: says when a loaded map was found, and hands
-  /// the map to the saver when a save is due (MapKeeper::afterFrame()).
-  void keepMap(const FrameInfo& info, const OdometryResult& r);
   /// Gives the odometry the gyro samples queued since the last frame.
   void takeGyro();
   /// After the frame (`sequence`, timestamp `t` on the odometry's clock): the odometry's gyro
@@ -103,7 +100,6 @@ class Processor {
   std::unique_ptr<fit_diagnostics_t> diagnostics_msg_;
   std::unique_ptr<PanoramaPictures> pictures_;  ///< lcm.panorama_channel set
   std::unique_ptr<MapKeeper> map_keeper_;       ///< loop_closure.map_file set
-  bool relocalising_ = false;  ///< the last frame's OdometryResult::relocalising
   std::vector<std::uint8_t> pose_buffer_;
   std::vector<std::uint8_t> status_buffer_;
   std::vector<std::uint8_t> diagnostics_buffer_;

@@ -44,19 +44,20 @@ struct DaemonStats {
   /// Messages (pose, status, diagnostics) published without an error: with
   /// publish_failures, tells a run whose every message failed (not part of status_t).
   std::int64_t messages_published = 0;
-  /// The map written to loop_closure.map_file, and the writes that failed (map_keeper.hpp;
-  /// not part of status_t).
+  /// The map written to loop_closure.map_file, and the writes that failed (map_keeper.hpp).
   std::int64_t maps_saved = 0;
   std::int64_t map_save_failures = 0;
 };
 
-/// Fills the counters, segment, places and source state of a status message (status_t) from a
+/// Fills the counters, segment, places, map saves and source state of a status message (status_t) from a
 /// snapshot. Allocation-free.
 template <typename Status>
 void fillStatus(const DaemonStats& stats, Status& status) {
   copyCounters(stats, status);
   status.segment = stats.segment;
   status.places = stats.places;
+  status.maps_saved = stats.maps_saved;
+  status.map_save_failures = stats.map_save_failures;
   status.source_state = static_cast<std::int8_t>(stats.source_state);
 }
 

@@ -282,9 +282,10 @@ TEST(DaemonAllocation, TheMapsSnapshotOnTheFrameThreadAllocatesNothing) {
   for (std::size_t k = 0; k < 4; ++k) ASSERT_TRUE(odometry.process(frames[k], {k / 30.0}));
   long allocations = 0;
   for (std::size_t k = 4; k < frames.size(); ++k) {
-    ASSERT_TRUE(odometry.process(frames[k], {k / 30.0}));
+    const auto result = odometry.process(frames[k], {k / 30.0});
+    ASSERT_TRUE(result);
     AllocationCounter mine(AllocationCounter::Scope::kThisThread);
-    keeper.afterFrame(odometry, daemon::SteadyClock::now());
+    keeper.afterFrame(odometry, *result, k, daemon::SteadyClock::now());
     allocations += mine.stop();
     // Give the saver its time: the next frame then snapshots again.
     for (int wait = 0; wait < 200 && board.maps_saved.load() < static_cast<long>(k - 3); ++wait)

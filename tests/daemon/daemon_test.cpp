@@ -16,6 +16,7 @@
 #include "daemon/daemon.hpp"
 #include "file/file_frame_source.hpp"
 #include "daemon/frame_mailbox.hpp"
+#include "daemon/map_keeper.hpp"
 #include "daemon/panorama_pictures.hpp"
 #include "daemon/sample_ring.hpp"
 #include "daemon/source_factory.hpp"
@@ -1491,6 +1492,12 @@ TEST(DaemonMap, TheMapIsSavedAtShutdownAndARestartFindsTheHeadingInIt) {
     d.join();
     EXPECT_GE(d.stats().maps_saved, 2) << "while running and at shutdown";
     EXPECT_EQ(d.stats().map_save_failures, 0);
+    ASSERT_FALSE(first.statuses.empty());
+    EXPECT_TRUE(first.statuses.back().final);
+    EXPECT_EQ(first.statuses.back().maps_saved, d.stats().maps_saved)
+        << "the final status counts the save at shutdown too";
+    EXPECT_EQ(first.statuses.back().map_save_failures, 0);
+    for (const pose_t& p : first.poses) EXPECT_FALSE(p.relocalising) << "no map was loaded";
     const std::string text = logText(log);
     std::fclose(log);
     EXPECT_THAT(text, ::testing::HasSubstr("none yet; starting with an empty map"));
@@ -1531,6 +1538,7 @@ TEST(DaemonMap, TheMapIsSavedAtShutdownAndARestartFindsTheHeadingInIt) {
             .toRotationMatrix();
     if (closed_at < 0 && p.loop_closed) closed_at = static_cast<int>(k);
     SCOPED_TRACE("frame " + std::to_string(p.source_index));
+    EXPECT_EQ(p.relocalising, closed_at < 0) << "pose_t says whether the map is found";
     if (closed_at < 0) {
       EXPECT_LT(testing::rotationError(map_rotation, testing::poseRotation(p)), 1e-9)
           << "the map pose is the odometry's until the map is found";
@@ -1583,6 +1591,65 @@ TEST(DaemonMap, ADamagedMapIsKeptAsideAndAForeignFileIsNeverOverwritten) {
   EXPECT_THAT(foreign_log, ::testing::HasSubstr("not an omnipose map and is left alone"));
   EXPECT_EQ(foreign_stats.maps_saved, 0);
   EXPECT_EQ(testing::readText(tmp / "notes.txt"), "not a map\n");
+}
+
+TEST(DaemonMap, ALoadedMapNoFrameRecognisesIsKeptAsideBeforeANewMapIsSavedOverIt) {
+  // MapKeeper's part: the odometry's dropping of an unrecognised map (LoopClosure, tested in
+  // MapOfSphereViews) is given as the results it reports: relocalising, then not, without a
+  // loop closed on that frame.
+  TempDir tmp("daemon-map-unrecognised");
+  const std::vector<cv::Mat> frames = testing::renderFrames("translate", 10);
+  OdometryOptions options;
+  options.pipeline.threads = 1;
+  MapFileConfig config;
+  config.path = tmp / "robot.map";
+  config.save_interval_s = 0.0;
+  {
+    Odometry odometry(Calibration{}, options);
+    daemon::StatusBoard board(nullptr);
+    daemon::MapKeeper keeper(config, options.loop_closure.max_places, board);
+    keeper.load(odometry);
+    for (std::size_t k = 0; k < frames.size(); ++k)
+      ASSERT_TRUE(odometry.process(frames[k], {k / 30.0}));
+    ASSERT_TRUE(keeper.saveNow(odometry));
+  }
+  ASSERT_FALSE(testing::readText(config.path).empty());
+  const auto restart = [&](bool recognised) {
+    std::FILE* log = std::tmpfile();
+    daemon::StatusBoard board(log);
+    {
+      Odometry odometry(Calibration{}, options);
+      daemon::MapKeeper keeper(config, options.loop_closure.max_places, board);
+      keeper.load(odometry);
+      OdometryResult r;
+      r.relocalising = true;
+      keeper.afterFrame(odometry, r, 1, SteadyClock::now());
+      r.relocalising = false;
+      r.loop_closed = recognised;
+      r.loop_place_sequence = recognised ? 4 : -1;
+      keeper.afterFrame(odometry, r, 2, SteadyClock::now());
+      EXPECT_TRUE(keeper.saveNow(odometry));
+    }
+    std::string text = logText(log);
+    std::fclose(log);
+    return text;
+  };
+
+  const std::string found_log = restart(true);
+  EXPECT_THAT(found_log, HasSubstr("frame 2 recognised place 4 of the loaded map"));
+  EXPECT_FALSE(fs::exists(tmp / "robot.map.unrecognised"));
+
+  const std::string loaded_map = testing::readText(config.path);  // as the last run saved it
+  const std::string dropped_log = restart(false);
+  EXPECT_THAT(dropped_log, HasSubstr("no place of it recognised by frame 2"));
+  EXPECT_THAT(dropped_log, HasSubstr("kept as " + (tmp / "robot.map.unrecognised").string()));
+  EXPECT_TRUE(testing::readText(tmp / "robot.map.unrecognised") == loaded_map)
+      << "the loaded map, byte for byte";
+  map::MapSnapshot saved;
+  EXPECT_TRUE(map::loadMap(config.path,
+                           {Calibration{}.panorama.width, Calibration{}.panorama.height},
+                           options.loop_closure.max_places, saved))
+      << "the new map is saved in its place";
 }
 
 TEST(DaemonFaults, FailedPublishesAreCountedInThePublishedStatus) {
