@@ -49,8 +49,8 @@ struct DaemonStats {
   std::int64_t map_save_failures = 0;
 };
 
-/// Fills the counters, segment, places, map saves and source state of a status message (status_t) from a
-/// snapshot. Allocation-free.
+/// Fills the counters, segment, places, map saves and source state of a status message
+/// (status_t) from a snapshot. Allocation-free.
 template <typename Status>
 void fillStatus(const DaemonStats& stats, Status& status) {
   copyCounters(stats, status);

@@ -438,13 +438,11 @@ std::shared_ptr<const Renderer::RayTable> Renderer::buildRayTable() const {
   table->samples = static_cast<int>(samples);
   table->pixels.resize(pixels);
   table->rays.resize(pixels * samples);
-  const bool omni = options_.output == OutputKind::kOmni;
   cv::parallel_for_(cv::Range(0, size.height), [&](const cv::Range& rows) {
     PixelRays rays;
     for (int y = rows.start; y < rows.end; ++y) {
       for (int x = 0; x < size.width; ++x) {
-        if (omni) omniRays(x, y, rays);
-        else panoramaRays(x, y, rays);
+        computeRays(x, y, rays);
         const std::size_t i = static_cast<std::size_t>(y) * size.width + x;
         table->pixels[i] = {rays.centre, rays.right, rays.below, rays.has_lod};
         std::copy(rays.rays.begin(), rays.rays.end(), table->rays.begin() + i * samples);
@@ -454,10 +452,14 @@ std::shared_ptr<const Renderer::RayTable> Renderer::buildRayTable() const {
   return table;
 }
 
+void Renderer::computeRays(int x, int y, PixelRays& rays) const {
+  if (options_.output == OutputKind::kOmni) omniRays(x, y, rays);
+  else panoramaRays(x, y, rays);
+}
+
 void Renderer::pixelRays(int x, int y, PixelRays& rays) const {
   if (!ray_table_) {
-    if (options_.output == OutputKind::kOmni) omniRays(x, y, rays);
-    else panoramaRays(x, y, rays);
+    computeRays(x, y, rays);
     return;
   }
   const RayTable& table = *ray_table_;

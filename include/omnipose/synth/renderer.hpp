@@ -153,6 +153,8 @@ class Renderer {
   /// Every output pixel's rays, computed once at construction when they fit in
   /// kMaxRayTableBytes (renderer.cpp); else each frame computes them again.
   struct RayTable;
+  /// The rays of output pixel (x, y) as omniRays() or panoramaRays() compute them.
+  void computeRays(int x, int y, PixelRays& rays) const;
   /// The rays of output pixel (x, y): from the table, or computed.
   void pixelRays(int x, int y, PixelRays& rays) const;
   /// The table of every pixel's rays, or null when it would be larger than
