@@ -34,6 +34,9 @@ function(omnipose_add_test name)
     OMNIPOSE_SOURCE_DIR="${CMAKE_SOURCE_DIR}"
     OMNIPOSE_BINARY_DIR="${CMAKE_BINARY_DIR}")
   set_target_properties(${name} PROPERTIES RUNTIME_OUTPUT_DIRECTORY ${CMAKE_BINARY_DIR}/tests)
+  if(TARGET omnipose_test_pch)
+    target_precompile_headers(${name} REUSE_FROM omnipose_test_pch)  # tests/CMakeLists.txt
+  endif()
   # Labels: the test folder (tests/daemon -> "daemon"), plus "allocation" (below) and "long".
   get_filename_component(folder ${CMAKE_CURRENT_SOURCE_DIR} NAME)
   set(labels ${folder})

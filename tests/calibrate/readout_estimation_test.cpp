@@ -116,7 +116,8 @@ struct ToolRun {
   long max_rss_kb = 0;
 };
 ToolRun runCalibrate(const std::vector<std::string>& args, const std::filesystem::path& log) {
-  const std::string tool = std::string(OMNIPOSE_BINARY_DIR) + "/bin/omnipose-calibrate";
+  const std::string tool =
+      (std::filesystem::path(OMNIPOSE_BINARY_DIR) / "bin" / "omnipose-calibrate").string();
   std::vector<char*> argv{const_cast<char*>(tool.c_str())};
   for (const auto& a : args) argv.push_back(const_cast<char*>(a.c_str()));
   argv.push_back(nullptr);
@@ -126,8 +127,9 @@ ToolRun runCalibrate(const std::vector<std::string>& args, const std::filesystem
   posix_spawn_file_actions_adddup2(&actions, 1, 2);
   pid_t pid = -1;
   ToolRun run;
-  if (posix_spawn(&pid, tool.c_str(), &actions, nullptr, argv.data(), environ) != 0) return run;
+  const int spawned = posix_spawn(&pid, tool.c_str(), &actions, nullptr, argv.data(), environ);
   posix_spawn_file_actions_destroy(&actions);
+  if (spawned != 0) return run;
   int status = 0;
   rusage usage{};
   wait4(pid, &status, 0, &usage);
