@@ -38,17 +38,16 @@ MapKeeper::~MapKeeper() {
   if (saver_.joinable()) saver_.join();
 }
 
-void MapKeeper::load(Odometry& odometry) {
+void MapKeeper::load(Odometry& odometry, const Calibration& calibration) {
   const std::string path = config_.path.string();
-  const Expected<void> loaded =
-      map::loadMap(config_.path, odometry.panoramaSize(), max_places_, snapshot_);
+  const Expected<void> loaded = map::loadMap(config_.path, calibration, max_places_, snapshot_);
   if (loaded) {
     if (const Expected<void> restored = odometry.restoreMap(snapshot_); restored) {
       board_.logInfo("map %s: %d places loaded; finding where the robot is in it", path.c_str(),
                      snapshot_.place_count);
     } else {
-      board_.reportError("map %s: refused (%s); starting with an empty map", path.c_str(),
-                         restored.error().c_str());
+      board_.reportError("map %s refused (%s); %s; starting with an empty map", path.c_str(),
+                         restored.error().c_str(), keepAside(".refused").c_str());
     }
   } else if (loaded.error().code() == ErrorCode::kNotFound) {
     board_.logInfo("map %s: none yet; starting with an empty map", path.c_str());

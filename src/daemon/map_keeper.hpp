@@ -9,7 +9,8 @@
 ///
 /// A file that cannot be used never stops the daemon: it starts with an empty map, and says
 /// why, naming the file. A damaged map (cut short, a bad checksum, another version or
-/// panorama size, too many places) is kept aside as `<map_file>.refused` and a new map is
+/// panorama size, another calibration's lens, too many places) is kept aside as
+/// `<map_file>.refused` and a new map is
 /// saved in its place; a file that is not an omnipose map is left alone and the map is not
 /// saved (saving would overwrite it). A loaded map in which no frame is recognised (the
 /// odometry drops it once the robot has moved and begins a new one) is kept aside as
@@ -43,7 +44,7 @@ class MapKeeper {
 
   /// Loads the file into `odometry` (see the file comment) and makes room for the snapshots.
   /// Call once, before the first frame.
-  void load(Odometry& odometry);
+  void load(Odometry& odometry, const Calibration& calibration);
   /// After a frame (`result`, the frame's `sequence`), on the frame's thread: logs the frame
   /// that recognises a place of the loaded map, and the loaded map's being dropped (its file is
   /// then kept aside at the next save); every save_interval_s (when the saver is idle) the map

@@ -72,7 +72,7 @@ Processor::Processor(const Calibration& calibration, const OdometryOptions& odom
       last_status_time_(started_) {
   if (!map_file.path.empty() && odometry.loop_closure.enabled) {
     map_keeper_ = std::make_unique<MapKeeper>(map_file, odometry.loop_closure.max_places, board_);
-    map_keeper_->load(odometry_);
+    map_keeper_->load(odometry_, calibration);
   }
   load_.process_cpu_ns = cpuTimeNs(CLOCK_PROCESS_CPUTIME_ID);
   load_at_start_ = load_at_status_ = load_;

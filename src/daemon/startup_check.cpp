@@ -89,8 +89,7 @@ void checkMapFile(const DaemonConfig& config, const Calibration& calibration, St
   const std::string origin = config.origin.empty() ? "daemon.yaml" : config.origin;
   map::MapSnapshot snapshot;
   const Expected<void> loaded =
-      map::loadMap(file, {calibration.panorama.width, calibration.panorama.height},
-                   config.loop_closure.max_places, snapshot);
+      map::loadMap(file, calibration, config.loop_closure.max_places, snapshot);
   std::error_code ec;
   if (loaded) {
     out.findings.push_back("map_file " + file.string() + ": " +

@@ -6,6 +6,7 @@
 #include <bit>
 #include <cmath>
 #include <cstring>
+#include <limits>
 #include <string_view>
 
 #include "omnipose/file_io.hpp"
@@ -18,9 +19,10 @@ static_assert(std::endian::native == std::endian::little,
 namespace {
 
 constexpr std::string_view kMagic = "OMNIPOSE MAP\n";
-constexpr std::uint32_t kVersion = 1;
+constexpr std::uint32_t kVersion = 2;
 constexpr std::size_t kSignatureFloats = std::tuple_size_v<PlaceSignature::Vector>;
-constexpr std::size_t kHeaderBytes = kMagic.size() + 5 * 4;
+constexpr std::size_t kLensBytes = std::tuple_size_v<decltype(LensGrid::xy)> * 4;
+constexpr std::size_t kHeaderBytes = kMagic.size() + 5 * 4 + kLensBytes;
 constexpr std::size_t kPoseBytes = 7 * 8;
 /// A place without its panorama.
 constexpr std::size_t kPlaceBytes = 5 * 8 + kPoseBytes + kSignatureFloats * 4;
@@ -101,6 +103,38 @@ constexpr FileKind kMapKind{"omnipose map", looksLikeMapFile};
 }  // namespace
 
 bool looksLikeMapFile(std::string_view head) { return head.starts_with(kMagic); }
+
+LensGrid::LensGrid() { xy.fill(std::numeric_limits<float>::quiet_NaN()); }
+
+LensGrid LensGrid::of(const Calibration& calibration) {
+  LensGrid grid;
+  const double W = calibration.panorama.width, H = calibration.panorama.height;
+  for (int row = 0; row < kRows; ++row) {
+    const double v = (H - 1.0) * row / (kRows - 1);
+    for (int column = 0; column < kColumns; ++column) {
+      const double u = (column + 0.5) * W / kColumns - 0.5;
+      const Eigen::Vector2d p = calibration.omniPixel(u, v);
+      const std::size_t i = 2 * static_cast<std::size_t>(row * kColumns + column);
+      grid.xy[i] = static_cast<float>(p.x());
+      grid.xy[i + 1] = static_cast<float>(p.y());
+    }
+  }
+  return grid;
+}
+
+double LensGrid::farthestPx(const LensGrid& other) const {
+  double farthest = 0.0;
+  for (std::size_t i = 0; i < xy.size(); i += 2) {
+    const bool seen = !std::isnan(xy[i]) && !std::isnan(xy[i + 1]);
+    const bool other_seen = !std::isnan(other.xy[i]) && !std::isnan(other.xy[i + 1]);
+    if (!seen && !other_seen) continue;
+    const double d = seen && other_seen ? std::hypot(double{xy[i]} - other.xy[i],
+                                                     double{xy[i + 1]} - other.xy[i + 1])
+                                        : std::numeric_limits<double>::infinity();
+    farthest = std::isfinite(d) ? std::max(farthest, d) : std::numeric_limits<double>::infinity();
+  }
+  return farthest;
+}
 
 void reserveSnapshot(MapSnapshot& out, cv::Size panorama, int places, int edges) {
   out.panorama = panorama;
@@ -193,6 +227,7 @@ std::string encodeMap(const MapSnapshot& snapshot) {
   w.put<std::uint32_t>(static_cast<std::uint32_t>(snapshot.panorama.height));
   w.put<std::uint32_t>(static_cast<std::uint32_t>(places));
   w.put<std::uint32_t>(static_cast<std::uint32_t>(snapshot.edges.size()));
+  w.putBytes(snapshot.lens.xy.data(), kLensBytes);
   for (std::size_t i = 0; i < places; ++i) {
     const SavedPlace& p = snapshot.places[i];
     w.put<std::int64_t>(p.sequence);
@@ -253,6 +288,7 @@ Expected<void> decodeMap(const std::vector<std::uint8_t>& bytes, const std::stri
 
   const cv::Size panorama(static_cast<int>(width), static_cast<int>(height));
   reserveSnapshot(out, panorama, static_cast<int>(places), static_cast<int>(edges));
+  std::memcpy(out.lens.xy.data(), r.take(kLensBytes), kLensBytes);
   out.place_count = 0;
   for (std::uint32_t i = 0; i < places; ++i) {
     SavedPlace& p = out.places[i];
@@ -297,8 +333,9 @@ Expected<void> saveMap(const std::filesystem::path& path, const MapSnapshot& sna
   return writeFileAtomically(path, encodeMap(snapshot), kMapKind);
 }
 
-Expected<void> loadMap(const std::filesystem::path& path, cv::Size panorama, int max_places,
-                       MapSnapshot& out) {
+Expected<void> loadMap(const std::filesystem::path& path, const Calibration& calibration,
+                       int max_places, MapSnapshot& out) {
+  const cv::Size panorama(calibration.panorama.width, calibration.panorama.height);
   out.place_count = 0;
   out.edges.clear();
   const std::uintmax_t max_bytes =
@@ -322,6 +359,19 @@ Expected<void> loadMap(const std::filesystem::path& path, cv::Size panorama, int
                        "%s: panoramas of %d x %d pixels; this calibration's are %d x %d",
                        what.c_str(), out.panorama.width, out.panorama.height, panorama.width,
                        panorama.height));
+  if (const double moved = out.lens.farthestPx(LensGrid::of(calibration));
+      out.place_count > 0 && !(moved <= kLensGridTolerancePx)) {
+    if (std::isinf(moved))
+      return refuse(fail(ErrorCode::kInvalidArgument,
+                         "%s: made with another calibration: its lens sees panorama pixels "
+                         "this calibration's does not, or the reverse",
+                         what.c_str()));
+    return refuse(fail(ErrorCode::kInvalidArgument,
+                       "%s: made with another calibration: its panorama pixels fall up to %.1f "
+                       "frame pixels from this calibration's (tolerance %.1f: another lens, "
+                       "mirror centre or panorama geometry)",
+                       what.c_str(), moved, kLensGridTolerancePx));
+  }
   if (out.place_count > max_places)
     return refuse(fail(ErrorCode::kInvalidArgument, "%s: %d places, more than the %d kept",
                        what.c_str(), out.place_count, max_places));

@@ -176,6 +176,7 @@ struct Odometry::Impl {
         gate(std::in_place, o.plausibility, inputFrameSize(c, o.pipeline.unwrap.input).height,
              registrar->windowCount()),
         keyframes(static_cast<std::size_t>(std::max(o.keyframes.slots, 1))),
+        lens_grid(map::LensGrid::of(c)),
         readout_yaw(registrar->meanWindowTime()) {
     // The slot after the keyframes' is the loop closure's, for the places it compares.
     if (o.loop_closure.enabled)
@@ -314,6 +315,7 @@ struct Odometry::Impl {
   std::unique_ptr<MotionEstimator> pairwise;          ///< or another per-pair method
   std::vector<Keyframe> keyframes;
   std::optional<pipeline::LoopClosure> loop;  ///< the map (LoopClosureOptions::enabled)
+  map::LensGrid lens_grid;  ///< the calibration's, kept with the map (map_file.hpp)
   bool frame_mapped = false;                  ///< placeOnMap() ran for the current frame
   pipeline::ReadoutYaw readout_yaw;  ///< chains the pairs' yaws (rolling shutter)
   int active = -1;  ///< slot of the keyframe the last frame used
@@ -778,6 +780,7 @@ cv::Size Odometry::panoramaSize() const {
 bool Odometry::snapshotMap(map::MapSnapshot& out) const {
   if (!impl_->loop) return false;
   impl_->loop->snapshot(out);
+  out.lens = impl_->lens_grid;
   return true;
 }
 Expected<void> Odometry::restoreMap(const map::MapSnapshot& snapshot) {

@@ -278,7 +278,7 @@ TEST(DaemonAllocation, TheMapsSnapshotOnTheFrameThreadAllocatesNothing) {
   config.path = tmp / "robot.map";
   config.save_interval_s = 1e-6;  // every frame the saver is idle
   daemon::MapKeeper keeper(config, options.loop_closure.max_places, board);
-  keeper.load(odometry);
+  keeper.load(odometry, Calibration{});
   for (std::size_t k = 0; k < 4; ++k) ASSERT_TRUE(odometry.process(frames[k], {k / 30.0}));
   long allocations = 0;
   for (std::size_t k = 4; k < frames.size(); ++k) {

@@ -1509,8 +1509,7 @@ TEST(DaemonMap, TheMapIsSavedAtShutdownAndARestartFindsTheHeadingInIt) {
                            p.map_orientation[3])
             .toRotationMatrix();
   map::MapSnapshot saved;
-  ASSERT_TRUE(map::loadMap(tmp / "robot.map", {Calibration{}.panorama.width, Calibration{}.panorama.height},
-                           128, saved));
+  ASSERT_TRUE(map::loadMap(tmp / "robot.map", Calibration{}, 128, saved));
   ASSERT_GE(saved.place_count, 1);
 
   // Started again in the middle of the same turn: the odometry begins at the identity there,
@@ -1555,12 +1554,14 @@ TEST(DaemonMap, TheMapIsSavedAtShutdownAndARestartFindsTheHeadingInIt) {
   EXPECT_LE(closed_at, 5) << "three matches on three checked frames";
 }
 
-TEST(DaemonMap, ADamagedMapIsKeptAsideAndAForeignFileIsNeverOverwritten) {
+TEST(DaemonMap, ADamagedMapOrOneOfAnotherLensIsKeptAsideAndAForeignFileIsNeverOverwritten) {
   TempDir tmp("daemon-map-refused");
   const auto run = [&](const fs::path& map_file) {
+    // Compared on every frame however fast the yaw dataset turns, so the map has places.
     const std::string config = testing::fileSourceConfig(yawDataset(), "", false) +
                                "loop_closure:\n  map_file: " + map_file.string() +
-                               "\n  save_interval_s: 0\n";
+                               "\n  save_interval_s: 0\n  check_interval: 1\n"
+                               "  max_turn_rate_deg_s: 5000\n";
     std::FILE* log = std::tmpfile();
     Bus bus;
     daemon::DaemonStats stats;
@@ -1583,8 +1584,17 @@ TEST(DaemonMap, ADamagedMapIsKeptAsideAndAForeignFileIsNeverOverwritten) {
   EXPECT_TRUE(fs::exists(tmp / "damaged.map.refused"));
   EXPECT_EQ(damaged_stats.maps_saved, 1);
   map::MapSnapshot saved;
-  EXPECT_TRUE(map::loadMap(tmp / "damaged.map", {Calibration{}.panorama.width, Calibration{}.panorama.height},
-                           128, saved));
+  EXPECT_TRUE(map::loadMap(tmp / "damaged.map", Calibration{}, 128, saved));
+  // The map just saved, as if made under a lens whose centre is 5 pixels to the right:
+  // refused by name and why, kept aside, a new map saved.
+  ASSERT_GE(saved.place_count, 1);
+  for (std::size_t i = 0; i < saved.lens.xy.size(); i += 2) saved.lens.xy[i] += 5.0f;
+  ASSERT_TRUE(map::saveMap(tmp / "other_lens.map", saved));
+  const auto [lens_stats, lens_log] = run(tmp / "other_lens.map");
+  EXPECT_THAT(lens_log, ::testing::HasSubstr((tmp / "other_lens.map").string() + " refused"));
+  EXPECT_THAT(lens_log, ::testing::HasSubstr("made with another calibration"));
+  EXPECT_TRUE(fs::exists(tmp / "other_lens.map.refused"));
+  EXPECT_EQ(lens_stats.maps_saved, 1);
   // Someone else's file: refused, left as it was, nothing saved over it.
   testing::writeText(tmp / "notes.txt", "not a map\n");
   const auto [foreign_stats, foreign_log] = run(tmp / "notes.txt");
@@ -1608,7 +1618,7 @@ TEST(DaemonMap, ALoadedMapNoFrameRecognisesIsKeptAsideBeforeANewMapIsSavedOverIt
     Odometry odometry(Calibration{}, options);
     daemon::StatusBoard board(nullptr);
     daemon::MapKeeper keeper(config, options.loop_closure.max_places, board);
-    keeper.load(odometry);
+    keeper.load(odometry, Calibration{});
     for (std::size_t k = 0; k < frames.size(); ++k)
       ASSERT_TRUE(odometry.process(frames[k], {k / 30.0}));
     ASSERT_TRUE(keeper.saveNow(odometry));
@@ -1620,7 +1630,7 @@ TEST(DaemonMap, ALoadedMapNoFrameRecognisesIsKeptAsideBeforeANewMapIsSavedOverIt
     {
       Odometry odometry(Calibration{}, options);
       daemon::MapKeeper keeper(config, options.loop_closure.max_places, board);
-      keeper.load(odometry);
+      keeper.load(odometry, Calibration{});
       OdometryResult r;
       r.relocalising = true;
       keeper.afterFrame(odometry, r, 1, SteadyClock::now());
@@ -1646,9 +1656,7 @@ TEST(DaemonMap, ALoadedMapNoFrameRecognisesIsKeptAsideBeforeANewMapIsSavedOverIt
   EXPECT_TRUE(testing::readText(tmp / "robot.map.unrecognised") == loaded_map)
       << "the loaded map, byte for byte";
   map::MapSnapshot saved;
-  EXPECT_TRUE(map::loadMap(config.path,
-                           {Calibration{}.panorama.width, Calibration{}.panorama.height},
-                           options.loop_closure.max_places, saved))
+  EXPECT_TRUE(map::loadMap(config.path, Calibration{}, options.loop_closure.max_places, saved))
       << "the new map is saved in its place";
 }
 

@@ -1,7 +1,8 @@
 // The map file (src/map/map_file.hpp) as loadMap() reads it: decodeMap on arbitrary bytes,
 // with the input's last four bytes replaced by the CRC-32 of the others (so that the fuzzer
 // reaches past the checksum to the counts, poses and edges). Either an error naming the file,
-// or a snapshot that restores into a memory and a graph of its size and solves.
+// or a snapshot whose lens grid compares with a calibration's and that restores into a memory
+// and a graph of its size and solves.
 #include <zlib.h>
 
 #include <algorithm>
@@ -26,6 +27,9 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
     if (decoded.error().message().rfind("fuzz.map: ", 0) != 0) __builtin_trap();
     return 0;
   }
+  // The file's lens grid against a calibration's: a distance, or infinity, never NaN.
+  static const map::LensGrid kLens = map::LensGrid::of(omnipose::Calibration{});
+  if (!(snapshot.lens.farthestPx(kLens) >= 0.0)) __builtin_trap();
   const int places = snapshot.place_count;
   if (places < 0 || places > static_cast<int>(snapshot.places.size())) __builtin_trap();
   if (places == 0 || places > 256 || snapshot.panorama.width < 2 * 24 + 1 ||

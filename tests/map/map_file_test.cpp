@@ -1,7 +1,7 @@
 // The map on disk (src/map/map_file.hpp): a saved map comes back place for place and edge for
 // edge, renumbered with node 0 first; a file that is not a usable map (missing, foreign, cut
-// short, damaged, another version, another panorama size, too many places, not a regular
-// file) is refused naming the file and why, leaving nothing loaded; a file that is not a map
+// short, damaged, another version, another panorama size or lens, too many places, not a
+// regular file) is refused naming the file and why, leaving nothing loaded; a file that is not a map
 // is never overwritten; a second snapshot allocates nothing.
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
@@ -10,6 +10,7 @@
 #include <cmath>
 #include <cstdint>
 #include <filesystem>
+#include <limits>
 #include <numbers>
 #include <opencv2/core.hpp>
 #include <string>
@@ -27,6 +28,16 @@ namespace fs = std::filesystem;
 using ::testing::HasSubstr;
 
 const cv::Size kPanorama(220, 22);
+
+/// The default calibration with panoramas of `size` pixels.
+Calibration calibrationOf(cv::Size size) {
+  Calibration c;
+  c.panorama.width = size.width;
+  c.panorama.height = size.height;
+  c.panorama.horizon_row = (size.height - 1) / 2.0;
+  return c;
+}
+const Calibration kCalibration = calibrationOf(kPanorama);
 
 /// A textured panorama (CV_32FC1), different for every seed.
 cv::Mat texture(int seed) {
@@ -77,6 +88,7 @@ struct Map {
 MapSnapshot snapshotOf(const Map& map) {
   MapSnapshot snapshot;
   takeSnapshot(map.memory, map.graph, snapshot);
+  snapshot.lens = LensGrid::of(kCalibration);  // as Odometry::snapshotMap() does
   return snapshot;
 }
 
@@ -88,8 +100,9 @@ TEST(MapFile, ARoundTripKeepsEveryPlaceAndEdge) {
   ASSERT_TRUE(saveMap(tmp / "map.bin", saved).has_value());
 
   MapSnapshot loaded;
-  const auto ok = loadMap(tmp / "map.bin", kPanorama, 8, loaded);
+  const auto ok = loadMap(tmp / "map.bin", kCalibration, 8, loaded);
   ASSERT_TRUE(ok.has_value()) << ok.error().message();
+  EXPECT_EQ(loaded.lens.farthestPx(saved.lens), 0.0);
   PlaceMemory memory(8, kPanorama);
   PoseGraph graph(8, 32);
   ASSERT_TRUE(restoreSnapshot(loaded, memory, graph).has_value());
@@ -130,12 +143,21 @@ TEST(MapFile, ARoundTripKeepsEveryPlaceAndEdge) {
 
 TEST(MapFile, TheFormatIsTheOneTheHeaderDescribes) {
   // The fuzzer's seed, written byte by byte from the file comment of map_file.hpp (Python's
-  // struct and zlib.crc32), not by encodeMap: two places of 52 x 4 pixels and one edge.
+  // struct and zlib.crc32), not by encodeMap: two places of 52 x 4 pixels and one edge; its
+  // lens grid's x, y pairs are (i, -i) but the last, which is NaN (no bearing).
   const fs::path seed =
       fs::path(OMNIPOSE_SOURCE_DIR) / "tests/fuzz/corpus/fuzz_map_file/two_places.map";
+  const std::string text = testing::readText(seed);
   MapSnapshot out;
-  const auto ok = loadMap(seed, cv::Size(52, 4), 2, out);
+  const auto ok = decodeMap({text.begin(), text.end()}, seed.string(), out);
   ASSERT_TRUE(ok.has_value()) << ok.error().message();
+  for (int i = 0; i + 1 < LensGrid::kPoints; ++i) {
+    EXPECT_EQ(out.lens.xy[2 * i], static_cast<float>(i));
+    EXPECT_EQ(out.lens.xy[2 * i + 1], -static_cast<float>(i));
+  }
+  EXPECT_TRUE(std::isnan(out.lens.xy[2 * LensGrid::kPoints - 2]));
+  EXPECT_TRUE(std::isnan(out.lens.xy[2 * LensGrid::kPoints - 1]));
+  EXPECT_EQ(out.panorama, cv::Size(52, 4));
   ASSERT_EQ(out.place_count, 2);
   EXPECT_EQ(out.places[1].sequence, 101);
   EXPECT_EQ(out.places[1].serial, 2);
@@ -171,13 +193,13 @@ TEST(MapFile, WhatIsNotAUsableMapIsRefusedNamingTheFileAndWhy) {
   damaged[bytes.size() / 2] ^= 0x10;
   cases.push_back({"damaged.map", damaged, "damaged"});
   std::string version = bytes;
-  version[13] = 2;  // the u32 after the 13-byte magic
-  cases.push_back({"version.map", version, "map version 2; this build reads version 1"});
+  version[13] = 3;  // the u32 after the 13-byte magic
+  cases.push_back({"version.map", version, "map version 3; this build reads version 2"});
   for (const Case& c : cases) {
     SCOPED_TRACE(c.name);
     tmp.write(c.name, c.content);
     MapSnapshot out;
-    const auto got = loadMap(tmp / c.name, kPanorama, 8, out);
+    const auto got = loadMap(tmp / c.name, kCalibration, 8, out);
     ASSERT_FALSE(got.has_value());
     EXPECT_EQ(got.error().code(), ErrorCode::kInvalidArgument);
     EXPECT_THAT(got.error().message(), HasSubstr((tmp / c.name).string()));
@@ -187,24 +209,73 @@ TEST(MapFile, WhatIsNotAUsableMapIsRefusedNamingTheFileAndWhy) {
   }
 
   MapSnapshot out;
-  auto got = loadMap(good, cv::Size(440, 22), 8, out);
+  auto got = loadMap(good, calibrationOf({440, 22}), 8, out);
   ASSERT_FALSE(got.has_value());
   EXPECT_THAT(got.error().message(), HasSubstr("panoramas of 220 x 22 pixels; this calibration's are 440 x 22"));
   EXPECT_EQ(out.place_count, 0);
-  got = loadMap(good, kPanorama, 4, out);
+  got = loadMap(good, kCalibration, 4, out);
   ASSERT_FALSE(got.has_value()) << "5 places for a memory of 4";
   EXPECT_THAT(got.error().message(), HasSubstr(good.string()));
   EXPECT_EQ(out.place_count, 0);
-  got = loadMap(tmp / "missing.map", kPanorama, 8, out);
+  got = loadMap(tmp / "missing.map", kCalibration, 8, out);
   ASSERT_FALSE(got.has_value());
   EXPECT_EQ(got.error().code(), ErrorCode::kNotFound);
   EXPECT_THAT(got.error().message(), HasSubstr("missing.map"));
   ASSERT_EQ(::mkfifo((tmp / "fifo.map").c_str(), 0600), 0);
-  got = loadMap(tmp / "fifo.map", kPanorama, 8, out);
+  got = loadMap(tmp / "fifo.map", kCalibration, 8, out);
   ASSERT_FALSE(got.has_value()) << "a FIFO without a writer neither blocks nor loads";
   EXPECT_THAT(got.error().message(), HasSubstr("FIFO"));
-  ASSERT_TRUE(loadMap(good, kPanorama, 8, out).has_value()) << "the good one still loads";
+  ASSERT_TRUE(loadMap(good, kCalibration, 8, out).has_value()) << "the good one still loads";
   EXPECT_EQ(out.place_count, 5);
+}
+
+TEST(MapFile, AMapOfAnotherLensIsRefusedAndARecalibrationOfThisOneIsNot) {
+  const testing::TempDir tmp("map");
+  const fs::path path = tmp / "map.bin";
+  ASSERT_TRUE(saveMap(path, snapshotOf(Map())).has_value());
+  MapSnapshot out;
+  const auto loadWith = [&](const Calibration& calibration) {
+    return loadMap(path, calibration, 8, out);
+  };
+
+  Calibration recalibrated = kCalibration;  // the mirror's centre found half a pixel away
+  recalibrated.omni.center_x += 0.5;
+  EXPECT_TRUE(loadWith(recalibrated).has_value());
+  EXPECT_NEAR(out.lens.farthestPx(LensGrid::of(recalibrated)), 0.5, 1e-3);
+
+  struct Case {
+    const char* what;
+    Calibration calibration;
+  };
+  std::vector<Case> cases;
+  cases.push_back({"centre 5 px away", kCalibration});
+  cases.back().calibration.omni.center_y += 5.0;
+  cases.push_back({"a larger ring", kCalibration});
+  cases.back().calibration.omni.radius_outer += 20.0;
+  cases.push_back({"the robot's front elsewhere", kCalibration});
+  cases.back().calibration.omni.azimuth_zero_deg += 10.0;
+  cases.push_back({"the panorama's forward column elsewhere", kCalibration});
+  cases.back().calibration.panorama.forward_column += 10.0;
+  cases.push_back({"the mirror's outer edge at the bottom", kCalibration});
+  cases.back().calibration.omni.outer_edge = OuterEdge::kBottom;
+  for (const Case& c : cases) {
+    SCOPED_TRACE(c.what);
+    const auto got = loadWith(c.calibration);
+    ASSERT_FALSE(got.has_value());
+    EXPECT_EQ(got.error().code(), ErrorCode::kInvalidArgument);
+    EXPECT_THAT(got.error().message(), HasSubstr(path.string()));
+    EXPECT_THAT(got.error().message(), HasSubstr("made with another calibration"));
+    EXPECT_EQ(out.place_count, 0);
+  }
+
+  // A grid with no bearing where the calibration's has one (or not finite): never "near".
+  LensGrid blind = LensGrid::of(kCalibration);
+  blind.xy[4] = std::numeric_limits<float>::quiet_NaN();
+  EXPECT_TRUE(std::isinf(blind.farthestPx(LensGrid::of(kCalibration))));
+  EXPECT_TRUE(std::isinf(LensGrid::of(kCalibration).farthestPx(blind)));
+  blind.xy[4] = std::numeric_limits<float>::infinity();
+  EXPECT_TRUE(std::isinf(blind.farthestPx(LensGrid::of(kCalibration))));
+  EXPECT_EQ(LensGrid().farthestPx(LensGrid()), 0.0) << "two grids never computed";
 }
 
 TEST(MapFile, AFileThatIsNotAMapIsNeverOverwritten) {
@@ -222,7 +293,7 @@ TEST(MapFile, AFileThatIsNotAMapIsNeverOverwritten) {
   snapshot.edges.resize(1);
   ASSERT_TRUE(saveMap(map_path, snapshot).has_value());
   MapSnapshot out;
-  ASSERT_TRUE(loadMap(map_path, kPanorama, 8, out).has_value());
+  ASSERT_TRUE(loadMap(map_path, kCalibration, 8, out).has_value());
   EXPECT_EQ(out.place_count, 2);
   EXPECT_EQ(out.edges.size(), 1u);
   int files = 0;

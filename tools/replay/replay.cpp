@@ -72,10 +72,10 @@ std::unique_ptr<Odometry> makeOdometry(const std::string& method, const Calibrat
 
 namespace {
 
-void loadMapInto(const std::filesystem::path& path, const OdometryOptions& options,
-                 Odometry& odometry) {
+void loadMapInto(const std::filesystem::path& path, const Calibration& calibration,
+                 const OdometryOptions& options, Odometry& odometry) {
   map::MapSnapshot snapshot;
-  if (const Expected<void> loaded = map::loadMap(path, odometry.panoramaSize(),
+  if (const Expected<void> loaded = map::loadMap(path, calibration,
                                                  options.loop_closure.max_places, snapshot);
       !loaded)
     throw std::runtime_error(std::string("--map-in: ") + loaded.error().c_str());
@@ -105,7 +105,8 @@ ReplaySummary run(const ReplayOptions& options, std::FILE* log) {
   if (options.count > 0 && options.count < static_cast<int>(dataset.frames.size()))
     dataset.frames.resize(static_cast<std::size_t>(options.count));
   auto odometry = makeOdometry(options.method, dataset.calibration, odometry_options);
-  if (options.map_in) loadMapInto(*options.map_in, odometry_options, *odometry);
+  if (options.map_in)
+    loadMapInto(*options.map_in, dataset.calibration, odometry_options, *odometry);
   std::string gyro_warning;
   std::vector<GyroSample> gyro = datasetGyroSamples(dataset, gyro_warning);
   if (!gyro_warning.empty()) std::fprintf(log, "warning: %s\n", gyro_warning.c_str());
