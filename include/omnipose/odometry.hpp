@@ -341,8 +341,6 @@ class Odometry {
   bool wisdomLoaded() const;
   /// Windows per panorama (0 for a pairwise method).
   int windowCount() const;
-  /// The panorama's size in pixels (empty for a pairwise method): a saved map's places'.
-  cv::Size panoramaSize() const;
 
   /// The map (LoopClosureOptions) copied into `out` (src/map/map_file.hpp, for in-tree
   /// callers that save it from another thread). The first call makes room for the largest

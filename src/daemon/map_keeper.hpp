@@ -11,10 +11,10 @@
 /// why, naming the file. A damaged map (cut short, a bad checksum, another version or
 /// panorama size, another calibration's lens, too many places) is kept aside as
 /// `<map_file>.refused` and a new map is saved in its place; a file that is not an omnipose
-/// map is left alone and the map is not saved (saving would overwrite it). A loaded map in which no frame is recognised (the
-/// odometry drops it once the robot has moved and begins a new one) is kept aside as
-/// `<map_file>.unrecognised` before the new map is first saved over it. Saves and failures are
-/// counted (StatusBoard).
+/// map is left alone and the map is not saved (saving would overwrite it). A loaded map in
+/// which no frame is recognised (the odometry drops it once the robot has moved and begins a
+/// new one) is kept aside as `<map_file>.unrecognised` before the new map is first saved over
+/// it. Saves and failures are counted (StatusBoard).
 
 #include <atomic>
 #include <condition_variable>

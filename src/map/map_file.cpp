@@ -128,10 +128,11 @@ double LensGrid::farthestPx(const LensGrid& other) const {
     const bool seen = !std::isnan(xy[i]) && !std::isnan(xy[i + 1]);
     const bool other_seen = !std::isnan(other.xy[i]) && !std::isnan(other.xy[i + 1]);
     if (!seen && !other_seen) continue;
-    const double d = seen && other_seen ? std::hypot(double{xy[i]} - other.xy[i],
-                                                     double{xy[i + 1]} - other.xy[i + 1])
-                                        : std::numeric_limits<double>::infinity();
-    farthest = std::isfinite(d) ? std::max(farthest, d) : std::numeric_limits<double>::infinity();
+    if (!seen || !other_seen) return std::numeric_limits<double>::infinity();
+    const double d =
+        std::hypot(double{xy[i]} - other.xy[i], double{xy[i + 1]} - other.xy[i + 1]);
+    if (!std::isfinite(d)) return std::numeric_limits<double>::infinity();
+    farthest = std::max(farthest, d);
   }
   return farthest;
 }

@@ -774,9 +774,6 @@ bool Odometry::wisdomLoaded() const {
 int Odometry::windowCount() const {
   return impl_->registrar ? impl_->registrar->windowCount() : 0;
 }
-cv::Size Odometry::panoramaSize() const {
-  return impl_->registrar ? impl_->registrar->panorama().size() : cv::Size();
-}
 bool Odometry::snapshotMap(map::MapSnapshot& out) const {
   if (!impl_->loop) return false;
   impl_->loop->snapshot(out);

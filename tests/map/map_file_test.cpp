@@ -1,8 +1,8 @@
 // The map on disk (src/map/map_file.hpp): a saved map comes back place for place and edge for
 // edge, renumbered with node 0 first; a file that is not a usable map (missing, foreign, cut
 // short, damaged, another version, another panorama size or lens, too many places, not a
-// regular file) is refused naming the file and why, leaving nothing loaded; a file that is not a map
-// is never overwritten; a second snapshot allocates nothing.
+// regular file) is refused naming the file and why, leaving nothing loaded; a file that is not
+// a map is never overwritten; a second snapshot allocates nothing.
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 #include <sys/stat.h>
