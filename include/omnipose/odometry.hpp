@@ -284,6 +284,26 @@ struct GyroCounters {
   double last_sample_t = std::numeric_limits<double>::quiet_NaN();
 };
 
+/// What the map (LoopClosureOptions) made of the frames it compared with its places, counts
+/// since construction: how often a place was registered against a frame, and which test
+/// refused each match that closed nothing. All zero without a map.
+struct LoopClosureCounters {
+  /// Registrations of a frame against a place (a loop-closure check that found a place in
+  /// reach like the frame; a relocalisation check, once per place it tries).
+  std::int64_t compared = 0;
+  std::int64_t no_ring_peak = 0;  ///< refused: the whole-ring search found no clear heading
+  /// Refused: the ring's or the fit's heading farther than max_correction_rad from the map's
+  /// prediction (from the ring's, relocalising): a look-alike turned, or a wrong peak.
+  std::int64_t turned_too_far = 0;
+  std::int64_t fit_failed = 0;    ///< refused: not a kOk fit of most windows
+  std::int64_t too_far = 0;       ///< refused: the fit puts the frame beyond search_radius
+  std::int64_t verified = 0;      ///< matches that passed every test
+  /// Relocalisation checks whose two places each matched the frame but disagreed on where
+  /// the map puts it (a symmetric room, two identical rooms): the check counts for nothing.
+  std::int64_t disagreed = 0;
+  std::int64_t closures = 0;      ///< loops closed, loaded maps found included
+};
+
 class Odometry {
  public:
   /// Every problem that would stop the constructor (Pipeline::validate's, prefixed
@@ -316,6 +336,8 @@ class Odometry {
   /// pairwise method. Keeps the last 8192 samples (8 s at 1 kHz); allocates nothing.
   void addGyro(std::span<const GyroSample> samples);
   GyroCounters gyroCounters() const;
+  /// The map's comparisons and why they closed nothing (LoopClosureCounters).
+  LoopClosureCounters loopClosureCounters() const;
 
   /// Reports a frame that could not be read (decode error): the next frame is bridged.
   void markGap();

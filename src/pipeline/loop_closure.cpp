@@ -162,12 +162,17 @@ std::optional<Eigen::Isometry3d> LoopClosure::registerAt(int id, const Eigen::Ma
                                                          double* rotation_sigma) {
   const map::Place& place = memory_[id];
   const std::optional<MotionEstimate> start = registrar_.alignedPass(R0, spare_slot_);
-  if (!start || start->status == FitStatus::kLost) return std::nullopt;
+  if (!start || start->status == FitStatus::kLost) {
+    ++counters_.fit_failed;
+    return std::nullopt;
+  }
   const PassResult pass = registrar_.secondRefine(*start, rotationFromVector(start->omega) * R0,
                                                   start->tau, spare_slot_);
   if (!pass.refined || pass.estimate.status != FitStatus::kOk ||
-      pass.estimate.windows_used < kMinWindowShare * registrar_.windowCount())
+      pass.estimate.windows_used < kMinWindowShare * registrar_.windowCount()) {
+    ++counters_.fit_failed;
     return std::nullopt;
+  }
   // With a rolling shutter the rotation is between the windows' mean capture times; the
   // place's turn rate and this frame's move it to the timestamps.
   Eigen::Matrix3d R = pass.rotation;
@@ -181,34 +186,57 @@ std::optional<Eigen::Isometry3d> LoopClosure::registerAt(int id, const Eigen::Ma
 std::optional<Eigen::Isometry3d> LoopClosure::verify(int id, const Eigen::Isometry3d& predicted,
                                                      const Frame& frame, double* rotation_sigma) {
   if (!registrar_.loadKeyframe(spare_slot_, memory_[id].panorama)) return std::nullopt;
+  ++counters_.compared;
   // The yaw from the whole ring, within reach of the prediction; roll and pitch predicted.
   const std::optional<double> ring = registrar_.ringYaw(spare_slot_, min_ring_peak_);
-  if (!ring) return std::nullopt;
+  if (!ring) {
+    ++counters_.no_ring_peak;
+    return std::nullopt;
+  }
   const Eigen::Matrix3d& Rp = predicted.linear();
   const double yaw_change = wrapAngle(*ring - yawOf(Rp));
-  if (std::abs(yaw_change) > options_.max_correction_rad) return std::nullopt;
+  if (std::abs(yaw_change) > options_.max_correction_rad) {
+    ++counters_.turned_too_far;
+    return std::nullopt;
+  }
   const Eigen::Matrix3d R0 = rotationFromVector(Eigen::Vector3d(0.0, 0.0, yaw_change)) * Rp;
   const std::optional<Eigen::Isometry3d> M = registerAt(id, R0, frame, rotation_sigma);
   if (!M) return std::nullopt;
-  if (rotationVector(Rp.transpose() * M->linear()).norm() > options_.max_correction_rad)
+  if (rotationVector(Rp.transpose() * M->linear()).norm() > options_.max_correction_rad) {
+    ++counters_.turned_too_far;
     return std::nullopt;
-  if ((M->translation() - predicted.translation()).norm() > options_.search_radius)
+  }
+  if ((M->translation() - predicted.translation()).norm() > options_.search_radius) {
+    ++counters_.too_far;
     return std::nullopt;
+  }
+  ++counters_.verified;
   return M;
 }
 
 std::optional<Eigen::Isometry3d> LoopClosure::recognise(int id, const Frame& frame) {
   if (!registrar_.loadKeyframe(spare_slot_, memory_[id].panorama)) return std::nullopt;
+  ++counters_.compared;
   // Nothing predicts the heading: the ring's, level.
   const std::optional<double> ring = registrar_.ringYaw(spare_slot_, min_ring_peak_);
-  if (!ring) return std::nullopt;
+  if (!ring) {
+    ++counters_.no_ring_peak;
+    return std::nullopt;
+  }
   const Eigen::Matrix3d R0 = rotationFromVector(Eigen::Vector3d(0.0, 0.0, *ring));
   double sigma = kMaxLoopSigma;
   const std::optional<Eigen::Isometry3d> M = registerAt(id, R0, frame, &sigma);
+  if (!M) return std::nullopt;
   // The fit's rotation agrees with the ring's heading, and the frame is near the place.
-  if (!M || rotationVector(R0.transpose() * M->linear()).norm() > options_.max_correction_rad ||
-      M->translation().norm() > options_.search_radius)
+  if (rotationVector(R0.transpose() * M->linear()).norm() > options_.max_correction_rad) {
+    ++counters_.turned_too_far;
     return std::nullopt;
+  }
+  if (M->translation().norm() > options_.search_radius) {
+    ++counters_.too_far;
+    return std::nullopt;
+  }
+  ++counters_.verified;
   return M;
 }
 
@@ -250,6 +278,7 @@ bool LoopClosure::relocalise(const Frame& frame, Update& out) {
     if (!M) continue;
     const Eigen::Isometry3d C = graph_.pose(id) * *M * frame.odometry.inverse();
     if (matched >= 0 && !agree(C, correction_now)) {
+      ++counters_.disagreed;
       confirmed_ = 0;  // two places, two answers: a look-alike
       return false;
     }
@@ -280,6 +309,7 @@ void LoopClosure::anchorAt(int id, const Eigen::Isometry3d& place_odometry, Upda
   chain_serial_ = memory_.stored();
   memory_.touch(id);
   confirmed_ = 0;
+  ++counters_.closures;
   out.loop_closed = true;
   out.place_sequence = memory_[id].sequence;
 }

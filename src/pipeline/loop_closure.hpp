@@ -74,6 +74,8 @@ class LoopClosure {
   /// (a new segment), so the next place is joined to the anchor only loosely.
   Update hold(const Eigen::Isometry3d& odometry, bool broken);
   int places() const { return memory_.size(); }
+  /// Since construction (clear() and restore() keep them).
+  const LoopClosureCounters& counters() const { return counters_; }
   /// A loaded map not yet anchored (see the file comment).
   bool relocalising() const { return relocalising_; }
   void clear();
@@ -117,6 +119,7 @@ class LoopClosure {
   std::optional<Eigen::Isometry3d> recognise(int id, const Frame& frame);
 
   LoopClosureOptions options_;
+  LoopClosureCounters counters_;
   FrameRegistrar& registrar_;
   int spare_slot_;
   double min_ring_peak_;

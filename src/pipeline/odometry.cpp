@@ -725,6 +725,10 @@ void Odometry::addGyro(std::span<const GyroSample> samples) {
   }
 }
 
+LoopClosureCounters Odometry::loopClosureCounters() const {
+  return impl_->loop ? impl_->loop->counters() : LoopClosureCounters{};
+}
+
 GyroCounters Odometry::gyroCounters() const {
   GyroCounters c = impl_->gyro_counters;
   c.bias = impl_->gyro_bias.bias();

@@ -183,10 +183,12 @@ TEST_F(MapOfSphereViews, ALoadedMapOfLookAlikesIsNeverAnchoredAndIsDroppedOnceTh
   EXPECT_EQ(restarted.places(), 1) << "a new map, begun where the old one was dropped";
 }
 
-/// A rectangle of 1.2 x 0.8 m in the box room at 3 cm per frame with 90-degree left turns
-/// in place at 6 degrees per frame, `laps` times, then `extra` frames along the first side.
-std::vector<Eigen::Isometry3d> rectangle(int laps, int extra) {
-  std::vector<Eigen::Isometry3d> truth{Eigen::Isometry3d::Identity()};
+/// A rectangle of 1.2 x 0.8 m (`short_side` frames of 3 cm: 27) in the box room at 3 cm per
+/// frame with 90-degree left turns in place at 6 degrees per frame, `laps` times, then
+/// `extra` frames along the first side; it starts at `start`, facing as it does.
+std::vector<Eigen::Isometry3d> rectangle(int laps, int extra, int short_side = 27,
+                                         const Eigen::Isometry3d& start = Eigen::Isometry3d::Identity()) {
+  std::vector<Eigen::Isometry3d> truth{start};
   const auto go = [&](int frames, double step_m) {
     for (int k = 0; k < frames; ++k) {
       Eigen::Isometry3d T = truth.back();
@@ -199,7 +201,7 @@ std::vector<Eigen::Isometry3d> rectangle(int laps, int extra) {
   };
   for (int lap = 0; lap < laps; ++lap) {
     for (int side = 0; side < 4; ++side) {
-      go(side % 2 == 0 ? 40 : 27, 0.03);
+      go(side % 2 == 0 ? 40 : short_side, 0.03);
       turn();
     }
   }
@@ -279,6 +281,159 @@ TEST(LoopClosure, DrivingBackToTheStartBringsTheMapHeadingBack) {
   EXPECT_LT(jump_without_closure, 1e-9);
   EXPECT_LT(map_error, 0.1 * kDeg);
   EXPECT_GT(mapped.results[end].places, 10);
+}
+
+// Whole scenes built to fool the map: each frame rendered from the exact renderer, so what a
+// closure matched can be told from the truth. A closure is wrong when the place it matched
+// was made more than search_radius (0.3 scene distances, about 0.75 m in this room) from
+// where the frame truly is, or when it turns the map pose's heading away from the truth.
+
+/// A run of Odometry with the default options over rendered frames, and what its closures
+/// matched.
+struct ClosureAudit {
+  int frames = 0;       ///< processed without error
+  int closures = 0;
+  int wrong_place = 0;  ///< closures whose place was truly more than 0.75 m away
+  double worst_place_distance_m = 0.0;  ///< over the closures
+  /// Over the closure frames: the map pose's rotation error against the truth, radians.
+  double worst_closure_rotation_error_rad = 0.0;
+  double end_map_rotation_error_rad = 0.0;  ///< at the last frame
+  LoopClosureCounters map;                  ///< the odometry's, at the end
+};
+
+/// Rotation between a frame's estimated pose and its true one, both from the first frame.
+double rotationError(const Eigen::Isometry3d& estimate, const Eigen::Isometry3d& truth0,
+                     const Eigen::Isometry3d& truth) {
+  return rotationVector(estimate.linear().transpose() * (truth0.inverse() * truth).linear()).norm();
+}
+
+ClosureAudit auditClosures(const std::vector<cv::Mat>& frames,
+                           const std::vector<Eigen::Isometry3d>& truth) {
+  ClosureAudit audit;
+  Odometry odometry(Calibration{}, OdometryOptions{});
+  for (std::size_t k = 0; k < frames.size(); ++k) {
+    const auto r = odometry.process(frames[k], {k / 30.0, static_cast<std::int64_t>(k)});
+    if (!r) continue;  // a glitch the odometry refused (the cut between two rooms)
+    ++audit.frames;
+    audit.end_map_rotation_error_rad = rotationError(r->map_pose, truth[0], truth[k]);
+    if (!r->loop_closed) continue;
+    ++audit.closures;
+    const auto place = static_cast<std::size_t>(r->loop_place_sequence);
+    const double distance = (truth[k].translation() - truth.at(place).translation()).norm();
+    audit.worst_place_distance_m = std::max(audit.worst_place_distance_m, distance);
+    audit.wrong_place += distance > 0.75 ? 1 : 0;
+    audit.worst_closure_rotation_error_rad =
+        std::max(audit.worst_closure_rotation_error_rad, audit.end_map_rotation_error_rad);
+  }
+  audit.map = odometry.loopClosureCounters();
+  return audit;
+}
+
+void recordAudit(const ClosureAudit& audit) {
+  ::testing::Test::RecordProperty("closures", audit.closures);
+  ::testing::Test::RecordProperty("worst_place_distance_m",
+                                  std::to_string(audit.worst_place_distance_m));
+  ::testing::Test::RecordProperty("worst_closure_rotation_error_rad",
+                                  std::to_string(audit.worst_closure_rotation_error_rad));
+  ::testing::Test::RecordProperty("end_map_rotation_error_rad",
+                                  std::to_string(audit.end_map_rotation_error_rad));
+  const LoopClosureCounters& m = audit.map;
+  for (const auto& [name, value] :
+       {std::pair{"compared", m.compared}, {"no_ring_peak", m.no_ring_peak},
+        {"turned_too_far", m.turned_too_far}, {"fit_failed", m.fit_failed},
+        {"too_far", m.too_far}, {"verified", m.verified}, {"map_closures", m.closures}})
+    ::testing::Test::RecordProperty(name, std::to_string(value));
+}
+
+/// The indoor photo's box room made point-symmetric about its centre: the photo's first half
+/// of azimuths repeated in the second, so the view from (x, y) facing psi is the view from
+/// (-x, -y) facing psi + 180 deg.
+synth::Scene symmetricRoom() {
+  synth::Scene scene = synth::Scene::load(testing::indoorPhoto(), synth::SceneKind::kBox);
+  const int half = scene.texture.cols / 2;
+  scene.texture(cv::Rect(0, 0, half, scene.texture.rows))
+      .copyTo(scene.texture(cv::Rect(half, 0, half, scene.texture.rows)));
+  return scene;
+}
+
+TEST(LookAlikeScenes, TheOtherHalfOfASymmetricRoomNeverClosesALoop) {
+  // One lap of a 1.2 x 0.4 m rectangle centred on the room, then back along the first side:
+  // on the third side the robot sees, 0.4-0.75 m from it, the first side's places exactly as
+  // they were made, turned by 180 degrees in the map. Only the start is a true revisit.
+  const synth::Renderer renderer(symmetricRoom(), Calibration{}, {synth::OutputKind::kOmni, 1});
+  const std::vector<Eigen::Isometry3d> truth =
+      rectangle(1, 20, 13, Eigen::Isometry3d(Eigen::Translation3d(-0.6, -0.2, 0.0)));
+  // The trap is real: the third side's frame is the first side's, turned.
+  const Eigen::Isometry3d mirror = planarPose(0, 0, std::numbers::pi);
+  const cv::Mat first = renderer.render(truth[10]);
+  const cv::Mat third = renderer.render(mirror * truth[10]);
+  EXPECT_LT(cv::norm(first, third, cv::NORM_L1) / static_cast<double>(first.total()), 1.0)
+      << "mean grey-level difference";
+  std::vector<cv::Mat> frames;
+  for (std::size_t k = 0; k < truth.size(); ++k)
+    frames.push_back(noisy(renderer.render(truth[k]), 900 + k));
+  const ClosureAudit audit = auditClosures(frames, truth);
+  recordAudit(audit);
+  EXPECT_EQ(audit.frames, static_cast<int>(truth.size()));
+  EXPECT_GE(audit.map.turned_too_far, 1) << "a place registered and refused for its heading";
+  EXPECT_EQ(audit.wrong_place, 0) << "worst " << audit.worst_place_distance_m << " m";
+  EXPECT_LT(audit.worst_closure_rotation_error_rad, 0.5 * kDeg);
+  EXPECT_LT(audit.end_map_rotation_error_rad, 1.0 * kDeg);
+}
+
+TEST(LookAlikeScenes, ARoomLikeTheFirstBeyondADoorIsNotTakenForIt) {
+  // The robot drives 1.5 m along the room's x axis, then through a door (a cut in the
+  // frames: the odometry cannot follow it) into a second room exactly like the first, 1.5 m
+  // further along x, where it drives the first stretch again: every view of the second
+  // room is one the map holds, 1.5 m (0.6 scene distances) from where the robot is.
+  constexpr double kRoomOffset = 1.5;
+  constexpr int kStretch = 50;  // frames of 3 cm in each room
+  const synth::Renderer renderer(
+      synth::Scene::load(testing::indoorPhoto(), synth::SceneKind::kBox), Calibration{},
+      {synth::OutputKind::kOmni, 1});
+  std::vector<Eigen::Isometry3d> truth;
+  std::vector<cv::Mat> frames;
+  for (int k = 0; k < 2 * kStretch; ++k) {
+    truth.push_back(planarPose(-0.75 + 0.03 * k, 0.1, 0.0));
+    const double in_room = k < kStretch ? 0.0 : kRoomOffset;
+    const Eigen::Isometry3d seen = Eigen::Translation3d(-in_room, 0, 0) * truth.back();
+    frames.push_back(noisy(renderer.render(seen), 1200 + static_cast<std::uint64_t>(k)));
+  }
+  const ClosureAudit audit = auditClosures(frames, truth);
+  recordAudit(audit);
+  // The odometry refuses a few frames after the cut as glitches, then takes up the chain.
+  EXPECT_GE(audit.frames, 2 * kStretch - 10);
+  EXPECT_EQ(audit.closures, 0) << "the robot never came back to a place";
+}
+
+TEST(LookAlikeScenes, PeopleInFrontOfTheCameraAtTheStartNeverCloseALoopWrongly) {
+  // The rectangle's lap, centred on the room, then back along its first side with three
+  // people 0.6 m wide walking around the room's centre 1.1-1.4 m from it (0.4-1 m from the
+  // camera), in both directions: the frames that come back to the first places have people
+  // in front of the camera that the places do not.
+  const std::vector<Eigen::Isometry3d> truth =
+      rectangle(1, 20, 27, Eigen::Isometry3d(Eigen::Translation3d(-0.6, -0.4, 0.0)));
+  const std::size_t back = truth.size() - 21;  // the first frame back at the start
+  const synth::Renderer empty(synth::Scene::load(testing::indoorPhoto(), synth::SceneKind::kBox),
+                              Calibration{}, {synth::OutputKind::kOmni, 1});
+  synth::Scene scene = synth::Scene::load(testing::indoorPhoto(), synth::SceneKind::kBox);
+  scene.walkers.count = 3;
+  scene.walkers.width_m = 0.6;
+  scene.walkers.min_distance_m = 1.1;
+  scene.walkers.max_distance_m = 1.4;
+  scene.walkers.speed_m_s = 0.8;
+  scene.walkers.seed = 54;
+  const synth::Renderer people(std::move(scene), Calibration{}, {synth::OutputKind::kOmni, 1});
+  std::vector<cv::Mat> frames;
+  for (std::size_t k = 0; k < truth.size(); ++k)
+    frames.push_back(noisy(k < back ? empty.render(truth[k]) : people.render(truth[k], k / 30.0),
+                           1500 + k));
+  const ClosureAudit audit = auditClosures(frames, truth);
+  recordAudit(audit);
+  EXPECT_EQ(audit.frames, static_cast<int>(truth.size()));
+  EXPECT_GE(audit.map.compared, 1) << "frames with people were compared with the places";
+  EXPECT_EQ(audit.wrong_place, 0) << "worst " << audit.worst_place_distance_m << " m";
+  EXPECT_LT(audit.worst_closure_rotation_error_rad, 0.5 * kDeg);
 }
 
 /// The rectangle's first side, turn and second side (rendered once, like rectangleFrames()).

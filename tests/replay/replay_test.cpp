@@ -165,8 +165,18 @@ TEST_F(ReplayTest, PartOfTheDatasetAndAMapSavedAndLoaded) {
   o.from = 6;
   o.count = 0;
   o.out_tum = root_ / "restart.tum";
-  const replay::ReplaySummary restart = replay::run(o, stderr);
+  std::FILE* log = std::tmpfile();
+  ASSERT_NE(log, nullptr);
+  const replay::ReplaySummary restart = replay::run(o, log);
+  std::rewind(log);
+  std::string logged;
+  for (int c = std::fgetc(log); c != EOF; c = std::fgetc(log)) logged.push_back(static_cast<char>(c));
+  std::fclose(log);
   EXPECT_EQ(restart.frames, 2) << "--from 6: frames 6 and 7";
+  // The frames were compared with the loaded map's places, and the log says how it went.
+  // (The line is written only when a registration was made.)
+  EXPECT_THAT(logged, HasSubstr("map: frames registered against a place ")) << logged;
+  EXPECT_THAT(logged, HasSubstr(" look-alike disagreements, ")) << logged;
   const std::vector<StampedPose> poses = readTum(root_ / "restart.tum");
   ASSERT_EQ(poses.size(), 2u);
   const std::vector<StampedPose> truth = readTum(root_ / "data/groundtruth.tum");

@@ -165,6 +165,15 @@ ReplaySummary run(const ReplayOptions& options, std::FILE* log) {
                  static_cast<long long>(g.frames_gyro_bridged), g.bias.x(), g.bias.y(), g.bias.z(),
                  g.bias_sigma, static_cast<long long>(g.bias_readings));
   }
+  if (const LoopClosureCounters m = odometry->loopClosureCounters(); m.compared > 0)
+    std::fprintf(log,
+                 "map: frames registered against a place %lld times; refused: %lld without a "
+                 "clear heading on the ring, %lld turned too far, %lld fits failed, %lld too far; "
+                 "%lld verified, %lld look-alike disagreements, %lld loops closed\n",
+                 static_cast<long long>(m.compared), static_cast<long long>(m.no_ring_peak),
+                 static_cast<long long>(m.turned_too_far), static_cast<long long>(m.fit_failed),
+                 static_cast<long long>(m.too_far), static_cast<long long>(m.verified),
+                 static_cast<long long>(m.disagreed), static_cast<long long>(m.closures));
   if (options.out_tum) writeTum(*options.out_tum, trajectory);
   if (options.out_odometry_tum) writeTum(*options.out_odometry_tum, odometry_trajectory);
   if (!seconds.empty()) {
