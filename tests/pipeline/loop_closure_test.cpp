@@ -186,8 +186,9 @@ TEST_F(MapOfSphereViews, ALoadedMapOfLookAlikesIsNeverAnchoredAndIsDroppedOnceTh
 /// A rectangle of 1.2 x 0.8 m (`short_side` frames of 3 cm: 27) in the box room at 3 cm per
 /// frame with 90-degree left turns in place at 6 degrees per frame, `laps` times, then
 /// `extra` frames along the first side; it starts at `start`, facing as it does.
-std::vector<Eigen::Isometry3d> rectangle(int laps, int extra, int short_side = 27,
-                                         const Eigen::Isometry3d& start = Eigen::Isometry3d::Identity()) {
+std::vector<Eigen::Isometry3d> rectangle(
+    int laps, int extra, int short_side = 27,
+    const Eigen::Isometry3d& start = Eigen::Isometry3d::Identity()) {
   std::vector<Eigen::Isometry3d> truth{start};
   const auto go = [&](int frames, double step_m) {
     for (int k = 0; k < frames; ++k) {

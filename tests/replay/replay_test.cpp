@@ -170,7 +170,8 @@ TEST_F(ReplayTest, PartOfTheDatasetAndAMapSavedAndLoaded) {
   const replay::ReplaySummary restart = replay::run(o, log);
   std::rewind(log);
   std::string logged;
-  for (int c = std::fgetc(log); c != EOF; c = std::fgetc(log)) logged.push_back(static_cast<char>(c));
+  for (int c = std::fgetc(log); c != EOF; c = std::fgetc(log))
+    logged.push_back(static_cast<char>(c));
   std::fclose(log);
   EXPECT_EQ(restart.frames, 2) << "--from 6: frames 6 and 7";
   // The frames were compared with the loaded map's places, and the log says how it went.
