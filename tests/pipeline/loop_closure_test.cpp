@@ -91,6 +91,13 @@ TEST_F(MapOfSphereViews, BackAtTheStartWithAHeadingDriftClosesTheLoop) {
   ::testing::Test::RecordProperty("map_yaw_error_rad", std::to_string(yawOf(last.map_pose)));
   EXPECT_NEAR(yawOf(last.map_pose), 0.0, 0.05 * kDeg) << "the map's heading is the truth's";
   EXPECT_NEAR(yawOf(last.correction), -2.0 * kDeg, 0.05 * kDeg);
+  // The counters say what happened: every closure verified, none refused by the gates.
+  const LoopClosureCounters& c = loop_.counters();
+  EXPECT_EQ(c.closures, closed);
+  EXPECT_GE(c.verified, c.closures * LoopClosureOptions{}.confirmations);
+  EXPECT_EQ(c.compared, c.verified + c.no_ring_peak + c.turned_too_far + c.fit_failed + c.too_far);
+  EXPECT_EQ(c.turned_too_far, 0);
+  EXPECT_EQ(c.disagreed, 0);
 }
 
 TEST_F(MapOfSphereViews, ALookAlikeFarFromWhereTheOdometryIsDoesNotCloseALoop) {
@@ -178,6 +185,8 @@ TEST_F(MapOfSphereViews, ALoadedMapOfLookAlikesIsNeverAnchoredAndIsDroppedOnceTh
     }
   }
   EXPECT_EQ(closed, 0);
+  EXPECT_GE(restarted.counters().disagreed, 1) << "two places that disagree on the map";
+  EXPECT_EQ(restarted.counters().closures, 0);
   EXPECT_EQ(checks_relocalising, pipeline::LoopClosure::kRelocaliseChecks - 1);
   EXPECT_FALSE(restarted.relocalising()) << "dropped";
   EXPECT_EQ(restarted.places(), 1) << "a new map, begun where the old one was dropped";
