@@ -468,7 +468,7 @@ TEST(DaemonConfig, AMultiMegabyteValueGivesAShortMessage) {
     const std::string short_what = whatOf(text);
     SCOPED_TRACE(short_what.substr(0, 300));
     EXPECT_LT(short_what.size(), 1024u);
-    EXPECT_THAT(short_what, HasSubstr(std::string(60, 'p') + "... (1048576 bytes)"));
+    EXPECT_THAT(short_what, HasSubstr(std::string(60, 'p').append("... (1048576 bytes)")));
   }
 }
 

@@ -54,9 +54,9 @@ const std::vector<cv::Mat>& cleanFrames(int count = kFrames) {
 
 /// A frame of another camera: the real catadioptric photo, grey, at the frame size.
 cv::Mat foreignFrame() {
-  const cv::Mat photo = cv::imread(std::string(OMNIPOSE_SOURCE_DIR) +
-                                       "/tests/data/catadioptric/mirror_office_1920x1080.jpg",
-                                   cv::IMREAD_GRAYSCALE);
+  const std::string path = std::string(OMNIPOSE_SOURCE_DIR)
+                               .append("/tests/data/catadioptric/mirror_office_1920x1080.jpg");
+  const cv::Mat photo = cv::imread(path, cv::IMREAD_GRAYSCALE);
   cv::Mat out;
   cv::resize(photo, out, cleanFrames(1)[0].size(), 0, 0, cv::INTER_AREA);
   return out;
