@@ -48,16 +48,8 @@ bench_fresh_out loop_benchmark lenses
 out=$(realpath "$out")
 bench_ocamcalib_calibration "$out/calibration.yaml" "$lens"
 pool_rooms "$out"
-if [ -n "${ROOMS:-}" ]; then
-  selected=()
-  for name in $ROOMS; do
-    found=""
-    for entry in "${rooms[@]}"; do [ "${entry%%|*}" = "$name" ] && found=$entry; done
-    [ -n "$found" ] || { echo "loop_benchmark: no room named $name in the pool" >&2; exit 2; }
-    selected+=("$found")
-  done
-  rooms=("${selected[@]}")
-fi
+bench_pick loop_benchmark room "${ROOMS:-}" "${rooms[@]}"
+rooms=("${picked[@]}")
 printf 'pipeline:\n  fftw_wisdom: "%s"\n' "$out/loops.wisdom" > "$out/replay.yaml"
 # The drift benchmark's sensor: noise sigma 3 grey levels, per-frame gain 1 + N(0, 0.05) and
 # offset N(0, 3) grey levels; PNG frames.

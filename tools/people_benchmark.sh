@@ -60,19 +60,7 @@ all_situations=(
   "third_of_ring|5,0.6,1.8,1.2|1.2,1.6|slow_turn"
   "driving|2,0.5,1.8,1.2|1.5,2.0|straight"
 )
-pick() {  # pick NAME_LIST ENTRY...: the entries whose name (before the first |) is listed
-  local names=$1 entry name found
-  shift
-  picked=()
-  [ -z "$names" ] && { picked=("$@"); return 0; }
-  for name in $names; do
-    found=""
-    for entry in "$@"; do [ "${entry%%|*}" = "$name" ] && found=$entry; done
-    [ -n "$found" ] || { echo "people_benchmark: no entry named $name" >&2; exit 2; }
-    picked+=("$found")
-  done
-}
-pick "${SITUATIONS:-}" "${all_situations[@]}"
+bench_pick people_benchmark situation "${SITUATIONS:-}" "${all_situations[@]}"
 situations=("${picked[@]}")
 
 bench_fresh_out people_benchmark motions
@@ -82,18 +70,10 @@ scene_pool=()
 for entry in "${rooms[@]}"; do
   case "${entry%%|*}" in indoor|park|office|indoor_t270|park_m240) scene_pool+=("$entry") ;; esac
 done
-pick "${SCENES:-}" "${scene_pool[@]}"
+bench_pick people_benchmark scene "${SCENES:-}" "${scene_pool[@]}"
 scenes=("${picked[@]}")
 
-cat > "$out/motions/slow_turn.yaml" <<YAML
-# The robot turning slowly in place: yaw 0.3..0.6 deg/frame, positive, drawn per frame.
-seed: 0
-frame_rate: 30
-frames: $frames
-segments:
-  - frames: $((frames - 1))
-    rotation: {axis: z, step_deg: [0.3, 0.6], sign: positive}
-YAML
+bench_slow_turn_motion "$out/motions/slow_turn.yaml" "$frames"
 cat > "$out/motions/straight.yaml" <<YAML
 # The robot driving straight ahead at 0.3 m/s (1 cm per frame) from the room's centre.
 seed: 0

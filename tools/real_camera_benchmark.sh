@@ -121,15 +121,7 @@ ramps="3 -4 2 -3.5 4 -2.5"
   echo "segments:"
   ramps_segments $((frames - 1)) "$ramps" 6
 } > "$out/motions/ramps_vib.yaml"
-cat > "$out/motions/slow_turn.yaml" <<YAML
-# The robot turning slowly: yaw 0.3..0.6 deg/frame, positive, drawn per frame.
-seed: 0
-frame_rate: 30
-frames: $frames
-segments:
-  - frames: $((frames - 1))
-    rotation: {axis: z, step_deg: [0.3, 0.6], sign: positive}
-YAML
+bench_slow_turn_motion "$out/motions/slow_turn.yaml" "$frames"
 # The camera-gyro calibration's own recording (not one of the sequences scored): 3 s of
 # turning in place at other rates (peaks -2.5, +3.5, -4, +2, -3, +4 reached in 5 steps),
 # with 1 deg of vibration of another seed.

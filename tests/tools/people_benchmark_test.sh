@@ -12,7 +12,7 @@ source tests/tools/benchmark_script_checks.sh
 check_script_usage tools/people_benchmark.sh 'Usage: tools/people_benchmark.sh \[--publish\] \[OUTDIR\]'
 rc=0
 msg=$(SITUATIONS=nobody bash tools/people_benchmark.sh /tmp/unused 2>&1) || rc=$?
-[ "$rc" = 2 ] && grep -q "no entry named nobody" <<< "$msg" || fail "an unknown situation: exit $rc: $msg"
+[ "$rc" = 2 ] && grep -q "no situation named nobody" <<< "$msg" || fail "an unknown situation: exit $rc: $msg"
 rc=0
 msg=$(FRAMES=5 bash tools/people_benchmark.sh /tmp/unused 2>&1) || rc=$?
 [ "$rc" = 2 ] && grep -q "FRAMES=5" <<< "$msg" || fail "FRAMES=5: exit $rc: $msg"

@@ -1,7 +1,8 @@
 # shellcheck shell=bash
 # What the benchmark scripts (tools/accuracy_benchmark.sh, drift_benchmark.sh, drift_pool.sh,
-# real_camera_benchmark.sh) share: their arguments, the command line their reports quote,
-# the programs they need and the lens calibrations they write. Sourcing it sets the strict mode (set -euo pipefail) and makes
+# real_camera_benchmark.sh, loop_benchmark.sh, people_benchmark.sh) share: their arguments, the
+# command line their reports quote, the programs they need, the lens calibrations and motion
+# scripts they write and the entries they pick by name. Sourcing it sets the strict mode (set -euo pipefail) and makes
 # the repository's top directory the working directory and `root`.
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -145,4 +146,34 @@ bench_fresh_out() {
   rm -rf "$out"
   mkdir -p "$out"
   for d in "$@"; do mkdir -p "$out/$d"; done
+}
+
+# bench_pick NAME WHAT NAMES ENTRY...: sets the array `picked` to the entries ("name|...")
+# named in NAMES (separated by spaces, in that order), or to every entry when NAMES is empty.
+# A name that no entry has is a usage error: "NAME: no WHAT named N" (exit 2).
+bench_pick() {
+  local script=$1 what=$2 names=$3 entry name found
+  shift 3
+  picked=()
+  if [ -z "$names" ]; then picked=("$@"); return 0; fi
+  for name in $names; do
+    found=""
+    for entry in "$@"; do [ "${entry%%|*}" = "$name" ] && found=$entry; done
+    [ -n "$found" ] || { echo "$script: no $what named $name" >&2; exit 2; }
+    picked+=("$found")
+  done
+}
+
+# bench_slow_turn_motion FILE FRAMES: writes the motion script `slow_turn` (the robot turning
+# slowly in place, yaw 0.3..0.6 deg/frame, positive, drawn per frame) of FRAMES frames to FILE.
+bench_slow_turn_motion() {
+  cat > "$1" <<YAML
+# The robot turning slowly: yaw 0.3..0.6 deg/frame, positive, drawn per frame.
+seed: 0
+frame_rate: 30
+frames: $2
+segments:
+  - frames: $(($2 - 1))
+    rotation: {axis: z, step_deg: [0.3, 0.6], sign: positive}
+YAML
 }
