@@ -299,7 +299,7 @@ TEST(LoopClosure, DrivingBackToTheStartBringsTheMapHeadingBack) {
 // where the frame truly is, or when it turns the map pose's heading away from the truth.
 
 /// A run of Odometry with the default options over rendered frames, and what its closures
-/// matched.
+/// matched (auditClosures(), which also records it as the test's properties).
 struct ClosureAudit {
   int frames = 0;       ///< processed without error
   int closures = 0;
@@ -315,6 +315,23 @@ struct ClosureAudit {
 double rotationError(const Eigen::Isometry3d& estimate, const Eigen::Isometry3d& truth0,
                      const Eigen::Isometry3d& truth) {
   return rotationVector(estimate.linear().transpose() * (truth0.inverse() * truth).linear()).norm();
+}
+
+/// Records the audit's figures as the test's properties (--gtest_output).
+void recordAudit(const ClosureAudit& audit) {
+  ::testing::Test::RecordProperty("closures", audit.closures);
+  ::testing::Test::RecordProperty("worst_place_distance_m",
+                                  std::to_string(audit.worst_place_distance_m));
+  ::testing::Test::RecordProperty("worst_closure_rotation_error_rad",
+                                  std::to_string(audit.worst_closure_rotation_error_rad));
+  ::testing::Test::RecordProperty("end_map_rotation_error_rad",
+                                  std::to_string(audit.end_map_rotation_error_rad));
+  const LoopClosureCounters& m = audit.map;
+  for (const auto& [name, value] :
+       {std::pair{"compared", m.compared}, {"no_ring_peak", m.no_ring_peak},
+        {"turned_too_far", m.turned_too_far}, {"fit_failed", m.fit_failed},
+        {"too_far", m.too_far}, {"verified", m.verified}, {"map_closures", m.closures}})
+    ::testing::Test::RecordProperty(name, std::to_string(value));
 }
 
 ClosureAudit auditClosures(const std::vector<cv::Mat>& frames,
@@ -336,23 +353,8 @@ ClosureAudit auditClosures(const std::vector<cv::Mat>& frames,
         std::max(audit.worst_closure_rotation_error_rad, audit.end_map_rotation_error_rad);
   }
   audit.map = odometry.loopClosureCounters();
+  recordAudit(audit);
   return audit;
-}
-
-void recordAudit(const ClosureAudit& audit) {
-  ::testing::Test::RecordProperty("closures", audit.closures);
-  ::testing::Test::RecordProperty("worst_place_distance_m",
-                                  std::to_string(audit.worst_place_distance_m));
-  ::testing::Test::RecordProperty("worst_closure_rotation_error_rad",
-                                  std::to_string(audit.worst_closure_rotation_error_rad));
-  ::testing::Test::RecordProperty("end_map_rotation_error_rad",
-                                  std::to_string(audit.end_map_rotation_error_rad));
-  const LoopClosureCounters& m = audit.map;
-  for (const auto& [name, value] :
-       {std::pair{"compared", m.compared}, {"no_ring_peak", m.no_ring_peak},
-        {"turned_too_far", m.turned_too_far}, {"fit_failed", m.fit_failed},
-        {"too_far", m.too_far}, {"verified", m.verified}, {"map_closures", m.closures}})
-    ::testing::Test::RecordProperty(name, std::to_string(value));
 }
 
 /// The indoor photo's box room made point-symmetric about its centre: the photo's first half
@@ -383,7 +385,6 @@ TEST(LookAlikeScenes, TheOtherHalfOfASymmetricRoomNeverClosesALoop) {
   for (std::size_t k = 0; k < truth.size(); ++k)
     frames.push_back(noisy(renderer.render(truth[k]), 900 + k));
   const ClosureAudit audit = auditClosures(frames, truth);
-  recordAudit(audit);
   EXPECT_EQ(audit.frames, static_cast<int>(truth.size()));
   EXPECT_GE(audit.map.turned_too_far, 1) << "a place registered and refused for its heading";
   EXPECT_EQ(audit.wrong_place, 0) << "worst " << audit.worst_place_distance_m << " m";
@@ -410,7 +411,6 @@ TEST(LookAlikeScenes, ARoomLikeTheFirstBeyondADoorIsNotTakenForIt) {
     frames.push_back(noisy(renderer.render(seen), 1200 + static_cast<std::uint64_t>(k)));
   }
   const ClosureAudit audit = auditClosures(frames, truth);
-  recordAudit(audit);
   // The odometry refuses a few frames after the cut as glitches, then takes up the chain.
   EXPECT_GE(audit.frames, 2 * kStretch - 10);
   EXPECT_EQ(audit.closures, 0) << "the robot never came back to a place";
@@ -439,7 +439,6 @@ TEST(LookAlikeScenes, PeopleInFrontOfTheCameraAtTheStartNeverCloseALoopWrongly) 
     frames.push_back(noisy(k < back ? empty.render(truth[k]) : people.render(truth[k], k / 30.0),
                            1500 + k));
   const ClosureAudit audit = auditClosures(frames, truth);
-  recordAudit(audit);
   EXPECT_EQ(audit.frames, static_cast<int>(truth.size()));
   EXPECT_GE(audit.map.compared, 1) << "frames with people were compared with the places";
   EXPECT_EQ(audit.wrong_place, 0) << "worst " << audit.worst_place_distance_m << " m";
