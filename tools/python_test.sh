@@ -1,8 +1,8 @@
 #!/usr/bin/env bash
 # The Python package (pyproject.toml, src/python/): installs the Debian packages, builds the
 # programs (a no-op after tools/test.sh), renders a 24-frame rotating sequence with exact
-# ground truth, replays it with omnipose-replay (writing FFTW wisdom) and runs the daemon on it
-# into an LCM log (the tests compare the package with all three),
+# ground truth (and a 16-frame walk), replays it with omnipose-replay (writing FFTW wisdom) and
+# runs the daemon on it into an LCM log (the tests compare the package with all three),
 # installs the package with `pip install .` into a venv under build-python/ and runs its
 # pytest suite (tests/python).
 # Usage: tools/python_test.sh [pytest arguments]
@@ -16,6 +16,10 @@ rm -rf "$data"
 mkdir -p "$data"
 build/bin/omnipose-synth --texture tests/data/equirect/indoor_1024x512.jpg --out "$data/mixed" \
   --preset mixed --frames 24 --seed 1 --noise 3 >/dev/null
+# A 16-frame walk of 5-15 cm steps in the box room: driven there and back by the loop-closure
+# test, whose return meets the places of the way out.
+build/bin/omnipose-synth --texture tests/data/equirect/indoor_1024x512.jpg --out "$data/walk" \
+  --preset translate --frames 16 --seed 1 --noise 3 >/dev/null
 # FFTW wisdom shared by the C++ replay and the tests: the same FFT algorithms, so the same
 # last bits (FFTW_MEASURE alone may pick other algorithms in another process).
 echo "pipeline: {fftw_wisdom: fftw_wisdom.txt}" > "$data/replay.yaml"
@@ -38,6 +42,7 @@ source tools/common/python_venv.sh
 python_venv foxglove,figure,test
 
 export OMNIPOSE_TEST_DATASET="$PWD/$data/mixed"
+export OMNIPOSE_TEST_WALK_DATASET="$PWD/$data/walk"
 export OMNIPOSE_TEST_REPLAY_TUM="$PWD/$data/mixed_replay.tum"
 export OMNIPOSE_TEST_WISDOM="$PWD/$data/fftw_wisdom.txt"
 export OMNIPOSE_TEST_DAEMON_LOG="$PWD/$data/daemon.lcm"

@@ -59,7 +59,20 @@
     "times the iio gyro went away or failed (unplugged, driver unbound, a read error) and "  \
     "was closed to be looked for again every 0.5 s")                                        \
   X(loops_closed, "loops closed",                                                            \
-    "frames that closed a loop with a place seen before (pose_t loop_closed)")
+    "frames that closed a loop with a place seen before (pose_t loop_closed)")                \
+  X(map_registrations, "map registrations",                                                  \
+    "frames registered against a place of the map (loop_closure; LoopClosureCounters)")       \
+  X(map_refused_no_heading, "map refused (no heading)",                                      \
+    "registrations refused: the whole-ring search found no clear heading")                   \
+  X(map_refused_turned, "map refused (turned)",                                              \
+    "registrations refused: turned farther than max_correction_deg from the prediction")     \
+  X(map_refused_fit, "map refused (fit)",                                                    \
+    "registrations refused: the fit failed or left out most windows")                        \
+  X(map_refused_too_far, "map refused (too far)",                                            \
+    "registrations refused: the fit puts the frame beyond search_radius")                    \
+  X(map_verified, "map verified", "registrations that passed every test")                    \
+  X(map_disagreed, "map disagreed",                                                          \
+    "relocalisation checks whose two places matched the frame but disagreed on where it is")
 
 namespace omnipose::daemon {
 

@@ -162,6 +162,19 @@ void Processor::countGyro(std::uint64_t sequence, double t) {
                      static_cast<unsigned long long>(sequence), c.last_sample_t, t);
 }
 
+void Processor::countMap(const OdometryResult& r) {
+  board_.places.store(r.places);
+  if (r.loop_closed) ++board_.loops_closed;
+  const LoopClosureCounters c = odometry_.loopClosureCounters();
+  board_.map_registrations.store(c.compared);
+  board_.map_refused_no_heading.store(c.no_ring_peak);
+  board_.map_refused_turned.store(c.turned_too_far);
+  board_.map_refused_fit.store(c.fit_failed);
+  board_.map_refused_too_far.store(c.too_far);
+  board_.map_verified.store(c.verified);
+  board_.map_disagreed.store(c.disagreed);
+}
+
 void Processor::handleFrame(const MailboxFrame& frame) {
   const auto t_start = SteadyClock::now();
   const FrameInfo& info = frame.info;
@@ -242,13 +255,12 @@ void Processor::handleFrame(const MailboxFrame& frame) {
   p.loop_place_sequence = r.loop_place_sequence;
   p.places = r.places;
   p.relocalising = r.relocalising;
-  if (r.loop_closed) ++board_.loops_closed;
+  countMap(r);
   p.processing_time_s = static_cast<float>(motion.timing.total);
 
   const int size = p.encode(pose_buffer_.data(), 0, static_cast<int>(pose_buffer_.size()));
   publish(lcm_.pose_channel, pose_buffer_, size);
   board_.segment.store(p.segment);
-  board_.places.store(p.places);
   ++board_.frames_processed;
   latency_ms_.add(static_cast<float>(wallClockMicros() - info.capture_time_us) * 1e-3f);
 

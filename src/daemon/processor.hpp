@@ -85,6 +85,9 @@ class Processor {
   /// counters to the board, and a report of the frame when the gyro's samples did not cover
   /// it (with a gyro stream configured).
   void countGyro(std::uint64_t sequence, double t);
+  /// After a frame the odometry took: its places, a closed loop, and the map's registrations
+  /// and refusals (LoopClosureCounters) to the board.
+  void countMap(const OdometryResult& result);
 
   Odometry odometry_;
   LcmConfig lcm_;

@@ -33,7 +33,7 @@ sigset_t stopSignals() {
 /// labels).
 std::string summary(const DaemonStats& s) {
   std::string text;
-  text.reserve(400);
+  text.reserve(800);
   forEachCounter(s, [&](const char* label, std::int64_t value) {
     text += label;
     text += ' ';

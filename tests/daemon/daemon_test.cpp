@@ -1552,6 +1552,19 @@ TEST(DaemonMap, TheMapIsSavedAtShutdownAndARestartFindsTheHeadingInIt) {
   ::testing::Test::RecordProperty("worst_heading_after_rad", std::to_string(worst_heading));
   EXPECT_GE(closed_at, 0) << "the saved map was not recognised";
   EXPECT_LE(closed_at, 5) << "three matches on three checked frames";
+  // The status says what the map made of the frames: the matches that found the place, and
+  // every registration ending in exactly one verdict.
+  ASSERT_FALSE(second.statuses.empty());
+  const status_t& s = second.statuses.back();
+  EXPECT_TRUE(s.final);
+  EXPECT_GE(s.loops_closed, 1);
+  EXPECT_GE(s.map_verified, LoopClosureOptions{}.confirmations);
+  EXPECT_EQ(s.map_registrations, s.map_verified + s.map_refused_no_heading +
+                                     s.map_refused_turned + s.map_refused_fit +
+                                     s.map_refused_too_far);
+  EXPECT_EQ(s.map_disagreed, 0) << "the places of one spot agree on where the robot is";
+  ::testing::Test::RecordProperty("map_registrations", std::to_string(s.map_registrations));
+  ::testing::Test::RecordProperty("map_verified", std::to_string(s.map_verified));
 }
 
 TEST(DaemonMap, ADamagedMapOrOneOfAnotherLensIsKeptAsideAndAForeignFileIsNeverOverwritten) {

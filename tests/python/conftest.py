@@ -2,7 +2,8 @@
 
 The dataset: OMNIPOSE_TEST_DATASET, a directory omnipose-synth rendered (tools/python_test.sh
 renders a 24-frame rotating sequence with exact ground truth); OMNIPOSE_TEST_REPLAY_TUM, what
-the C++ omnipose-replay wrote for it (--out). Tests that need them are skipped without them."""
+the C++ omnipose-replay wrote for it (--out); OMNIPOSE_TEST_WALK_DATASET, a 16-frame walk in
+the box room. Tests that need them are skipped without them."""
 
 import os
 import pathlib
@@ -26,6 +27,12 @@ def _env_path(name):
 @pytest.fixture(scope="session")
 def dataset_dir():
     return _env_path("OMNIPOSE_TEST_DATASET")
+
+
+@pytest.fixture(scope="session")
+def walk_dataset_dir():
+    """A 16-frame walk of 5-15 cm steps in omnipose-synth's box room (tools/python_test.sh)."""
+    return _env_path("OMNIPOSE_TEST_WALK_DATASET")
 
 
 @pytest.fixture(scope="session")

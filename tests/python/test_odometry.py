@@ -268,6 +268,31 @@ def test_counters_are_not_read_while_another_thread_processes(calibration, frame
     assert odometry.gyro_counters()["accepted"] == 0  # free again once no frame is processed
 
 
+def test_the_maps_counters_say_what_became_of_each_registration(walk_dataset_dir):
+    # The walk driven there and back: the return meets the places of the way out (places every
+    # 2 cm of scene distance, so that more than the five newest lie in reach).
+    dataset = omnipose.open_dataset(walk_dataset_dir)
+    frames = [omnipose.read_frame(p) for p in dataset.frames]
+    there_and_back = list(range(len(frames))) + list(range(len(frames) - 2, -1, -1))
+    counts = {}
+    for enabled in (True, False):
+        odometry = omnipose.Odometry(dataset.calibration, threads=1, loop_closure={
+            "enabled": enabled, "check_interval": 1, "place_spacing": 0.02, "search_radius": 0.1})
+        closed = sum(odometry.process(frames[i], k / 30).loop_closed
+                     for k, i in enumerate(there_and_back))
+        counts[enabled] = odometry.loop_closure_counters()
+        assert counts[enabled]["closures"] == closed
+    c = counts[True]
+    assert set(c) == {"compared", "no_ring_peak", "turned_too_far", "fit_failed", "too_far",
+                      "verified", "disagreed", "closures"}
+    assert c["closures"] >= 1, c
+    assert c["verified"] >= 2 * c["closures"], c  # confirmations: 2 matches in a row
+    assert c["compared"] == (c["verified"] + c["no_ring_peak"] + c["turned_too_far"]
+                             + c["fit_failed"] + c["too_far"]), c
+    assert c["disagreed"] == 0, c
+    assert all(v == 0 for v in counts[False].values()), counts[False]
+
+
 def test_type_stubs_are_installed():
     package = pathlib.Path(omnipose.__file__).parent
     assert (package / "py.typed").exists()

@@ -96,6 +96,23 @@ class PyOdometry {
     return d;
   }
 
+  nb::dict loopClosureCounters() {
+    const LoopClosureCounters c = [&] {
+      std::unique_lock<std::mutex> lock = claim("loop_closure_counters");  // process() writes them
+      return odometry_->loopClosureCounters();
+    }();
+    nb::dict d;
+    d["compared"] = c.compared;
+    d["no_ring_peak"] = c.no_ring_peak;
+    d["turned_too_far"] = c.turned_too_far;
+    d["fit_failed"] = c.fit_failed;
+    d["too_far"] = c.too_far;
+    d["verified"] = c.verified;
+    d["disagreed"] = c.disagreed;
+    d["closures"] = c.closures;
+    return d;
+  }
+
   /// The same frames through Odometry::process in a C++ loop (GIL released): wall seconds.
   /// What the Python loop is compared with (tools/python_overhead.py).
   double processLoopSeconds(nb::ndarray<const std::uint8_t, nb::ndim<3>, nb::c_contig,
@@ -179,6 +196,13 @@ void bindOdometry(nb::module_& m) {
            "section; bad samples are counted (gyro_counters), never an error.")
       .def("gyro_counters", &PyOdometry::gyroCounters,
            "What became of the gyro samples and the frames that could use them (counts).")
+      .def("loop_closure_counters", &PyOdometry::loopClosureCounters,
+           "What the map made of the frames it registered against its places, counts since "
+           "construction: 'compared' registrations, each ending in exactly one of 'verified' "
+           "and the refusals 'no_ring_peak' (no clear heading on the ring), 'turned_too_far' "
+           "(beyond max_correction_deg of the prediction), 'fit_failed' and 'too_far' (beyond "
+           "search_radius); 'disagreed': relocalisation checks whose two places disagreed; "
+           "'closures': loops closed. All 0 with loop_closure off.")
       .def("mark_gap", &PyOdometry::markGap, "A frame could not be read: the next is bridged.")
       .def("reset", &PyOdometry::reset, "Forgets everything: segment 0 starts again.")
       .def("_process_loop_seconds", &PyOdometry::processLoopSeconds, nb::arg("frames"),
