@@ -10,6 +10,8 @@ package's Odometry (the defaults) and prints, per straight and turn of every lap
 - the fit's own yaw sigma over it: the square root of the sum of the pairs' yaw variances
   (FrameResult.covariance[2, 2]), degrees, and per pair;
 - the median number of windows the fits used.
+With --direct A-B,...: frame B registered against frame A directly (a fresh Odometry given the
+two frames), its yaw error and sigma, beside the chain's drift from A to B.
 Run, after `LAPS=2 ROOMS=office_m180 tools/loop_benchmark.sh build/loops2` and with the package
 installed (tools/python_test.sh makes build-python/venv):
   build-python/venv/bin/python docs/results/experiments/straight_drift.py \\
@@ -34,7 +36,10 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("dataset", help="a render of tools/drift/rectangle*.yaml")
     parser.add_argument("--laps", type=int, default=2, help="laps to replay (default 2)")
+    parser.add_argument("--direct", default="",
+                        help="pairs A-B separated by commas: B registered against A directly")
     args = parser.parse_args()
+    pairs = [tuple(int(x) for x in p.split("-")) for p in args.direct.split(",") if p]
     dataset = omnipose.open_dataset(args.dataset)
     if dataset.groundtruth is None:
         raise SystemExit(f"{args.dataset}: no groundtruth.tum")
@@ -66,6 +71,21 @@ def main() -> None:
               f"  {math.degrees(math.sqrt(variance[span].mean())):8.5f}"
               f"  {np.median(windows[span]):7.1f}")
         start = end
+    for a, b in pairs:
+        direct(dataset, truth, a, b, error[b] - error[a])
+
+
+def direct(dataset, truth, a: int, b: int, chain_drift: float) -> None:
+    odometry = omnipose.Odometry(dataset.calibration)
+    odometry.process(omnipose.read_frame(dataset.frames[a]), 0.0)
+    r = odometry.process(omnipose.read_frame(dataset.frames[b]), dataset.timestamps[1])
+    move = np.linalg.inv(truth[a]) @ truth[b]
+    text = (f"direct {a}-{b}: moved {np.linalg.norm(move[:3, 3]):.2f} m, the chain drifted "
+            f"{chain_drift:+.3f} deg; registered: {r.status}")
+    if r.has_motion and r.status != "lost":
+        text += (f", {r.windows_used} windows, yaw error {yaw_deg(move[:3, :3].T @ r.rotation):+.3f}"
+                 f" deg, sigma {math.degrees(math.sqrt(r.covariance[2, 2])):.3f}")
+    print(text)
 
 
 if __name__ == "__main__":
