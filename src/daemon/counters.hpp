@@ -67,7 +67,7 @@
   X(map_refused_turned, "map refused (turned)",                                              \
     "registrations refused: turned farther than max_correction_deg from the prediction")     \
   X(map_refused_fit, "map refused (fit)",                                                    \
-    "registrations refused: the fit failed or left out most windows")                        \
+    "registrations refused: the fit was not ok, or used under half the windows")             \
   X(map_refused_too_far, "map refused (too far)",                                            \
     "registrations refused: the fit puts the frame beyond search_radius")                    \
   X(map_verified, "map verified", "registrations that passed every test")                    \

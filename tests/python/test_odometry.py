@@ -269,8 +269,8 @@ def test_counters_are_not_read_while_another_thread_processes(calibration, frame
 
 
 def test_the_maps_counters_say_what_became_of_each_registration(walk_dataset_dir):
-    # The walk driven there and back: the return meets the places of the way out (places every
-    # 2 cm of scene distance, so that more than the five newest lie in reach).
+    # The walk driven there and back: the return meets the places of the way out (a place every
+    # 0.02 scene distances, so that more than the five newest lie in reach).
     dataset = omnipose.open_dataset(walk_dataset_dir)
     frames = [omnipose.read_frame(p) for p in dataset.frames]
     there_and_back = list(range(len(frames))) + list(range(len(frames) - 2, -1, -1))
