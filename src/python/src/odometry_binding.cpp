@@ -77,10 +77,7 @@ class PyOdometry {
   }
 
   nb::dict gyroCounters() {
-    const GyroCounters g = [&] {
-      std::unique_lock<std::mutex> lock = claim("gyro_counters");  // process() writes them
-      return odometry_->gyroCounters();
-    }();
+    const GyroCounters g = readClaimed("gyro_counters", &Odometry::gyroCounters);
     nb::dict d;
     d["accepted"] = g.accepted;
     d["not_finite"] = g.not_finite;
@@ -97,10 +94,8 @@ class PyOdometry {
   }
 
   nb::dict loopClosureCounters() {
-    const LoopClosureCounters c = [&] {
-      std::unique_lock<std::mutex> lock = claim("loop_closure_counters");  // process() writes them
-      return odometry_->loopClosureCounters();
-    }();
+    const LoopClosureCounters c =
+        readClaimed("loop_closure_counters", &Odometry::loopClosureCounters);
     nb::dict d;
     d["compared"] = c.compared;
     d["no_ring_peak"] = c.no_ring_peak;
@@ -147,6 +142,13 @@ class PyOdometry {
       throw std::runtime_error(std::string("Odometry.") + what +
                                ": another thread is using this Odometry (one caller at a time)");
     return lock;
+  }
+  /// A copy of what `read` returns (counters process() writes), taken while no other thread is
+  /// inside a call; the lock is released before the copy is turned into Python objects.
+  template <typename T>
+  T readClaimed(const char* what, T (Odometry::*read)() const) {
+    std::unique_lock<std::mutex> lock = claim(what);
+    return ((*odometry_).*read)();
   }
 
   std::vector<std::string> warnings_;
