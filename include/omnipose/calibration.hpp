@@ -112,7 +112,13 @@ struct SensorTiming {
   /// global shutter (default); negative = the last row is read first. |readout_s| at most
   /// kMaxReadoutS.
   double readout_s = 0.0;
+  /// Seconds each row is exposed, centred on its capture time; 0 = not known (default).
+  /// Only the gyro path reads it: a row exposed while the camera turns shows the mean of the
+  /// poses over its exposure (motion blur), which it takes out with the gyro's rotation
+  /// (DESIGN.md section 3, "Motion blur"). At most kMaxExposureS.
+  double exposure_s = 0.0;
   static constexpr double kMaxReadoutS = 0.1;
+  static constexpr double kMaxExposureS = 0.1;
 };
 
 /// The camera-gyro calibration (calibration.yaml section `imu`, DESIGN.md sections 2 and 6):

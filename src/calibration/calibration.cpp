@@ -116,6 +116,11 @@ void checkFields(const Calibration& c, std::vector<std::string>& p) {
     p.push_back("sensor.readout_s: " + std::to_string(c.sensor.readout_s) +
                 " s is longer than a frame can be read out (|readout_s| <= " +
                 std::to_string(SensorTiming::kMaxReadoutS) + " s; 0 = global shutter)");
+  if (finite(c.sensor.exposure_s, "sensor.exposure_s") &&
+      !(c.sensor.exposure_s >= 0.0 && c.sensor.exposure_s <= SensorTiming::kMaxExposureS))
+    p.push_back("sensor.exposure_s: " + std::to_string(c.sensor.exposure_s) +
+                " s must be in [0, " + std::to_string(SensorTiming::kMaxExposureS) +
+                "] (0 = not known)");
   if (c.imu) {
     const ImuCalibration& imu = *c.imu;
     if (!imu.rotation.coeffs().allFinite())
@@ -466,8 +471,10 @@ Calibration Calibration::parse(const std::string& text, const std::string& origi
     r.get(pano, "panorama", "forward_column", c.panorama.forward_column, Need::kOptional);
 
     if (const YAML::Node sensor = YamlReader::child(root, "sensor");
-        sensor && r.checkMap(sensor, "sensor", {"readout_s"}))
+        sensor && r.checkMap(sensor, "sensor", {"readout_s", "exposure_s"})) {
       r.get(sensor, "sensor", "readout_s", c.sensor.readout_s, Need::kOptional);
+      r.get(sensor, "sensor", "exposure_s", c.sensor.exposure_s, Need::kOptional);
+    }
     if (const YAML::Node imu = YamlReader::child(root, "imu"); imu) readImuSection(r, imu, c);
   }
   // Range checks only make sense on values that were read.
@@ -518,7 +525,11 @@ std::string Calibration::toYaml() const {
     << "  height: " << panorama.height << "\n"
     << "  horizon_row: " << panorama.horizon_row << "\n"
     << "  forward_column: " << panorama.forward_column << "\n";
-  if (sensor.readout_s != 0.0) o << "sensor:\n  readout_s: " << sensor.readout_s << "\n";
+  if (sensor.readout_s != 0.0 || sensor.exposure_s != 0.0) {
+    o << "sensor:\n";
+    if (sensor.readout_s != 0.0) o << "  readout_s: " << sensor.readout_s << "\n";
+    if (sensor.exposure_s != 0.0) o << "  exposure_s: " << sensor.exposure_s << "\n";
+  }
   if (imu) {
     const Eigen::Quaterniond& q = imu->rotation;
     o.precision(17);

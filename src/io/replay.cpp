@@ -1,5 +1,6 @@
 #include "omnipose/io/replay.hpp"
 
+#include <cmath>
 #include <cstdint>
 #include <opencv2/core.hpp>
 
@@ -39,7 +40,10 @@ ReplayCounts replayDataset(const Dataset& dataset, Odometry& odometry,
     }
     if (!gyro.empty() && calibration.imu) {
       const std::size_t n =
-          gyroSamplesArrivedBy(gyro, *calibration.imu, calibration.sensor.readout_s, f.timestamp);
+          gyroSamplesArrivedBy(gyro, *calibration.imu,
+                               std::abs(calibration.sensor.readout_s) +
+                                   0.5 * calibration.sensor.exposure_s,
+                               f.timestamp);
       odometry.addGyro(gyro.first(n));
       gyro = gyro.subspan(n);
     }

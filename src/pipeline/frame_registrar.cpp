@@ -111,6 +111,7 @@ FrameRegistrar::FrameRegistrar(const Calibration& c, const PipelineOptions& o, i
   second_windows_.resize(windows);
   weights_.resize(windows);
   refine_weights_.resize(windows);
+  row_scale_.resize(windows);
   second_weights_.resize(windows);
   shifts_only_.resize(windows);  // rs_confidence 0: no rotation/scale
   expected_dv_.resize(windows);
@@ -119,7 +120,7 @@ FrameRegistrar::FrameRegistrar(const Calibration& c, const PipelineOptions& o, i
   for (int k = 0; k < registration_.windowCount(); ++k)
     window_azimuth_.push_back(c.panorama.azimuth(registration_.windowCenter(k)));
   if (c.sensor.readout_s != 0.0) measureWindowTimes();
-  current_rows_ = previous_rows_ = FrameRotation(c.sensor.readout_s);
+  current_rows_ = previous_rows_ = FrameRotation(c.sensor.readout_s, c.sensor.exposure_s);
   keyframe_rows_.assign(static_cast<std::size_t>(keyframe_slots), previous_rows_);
   wisdom_.saveIfPlanned();
 }
@@ -136,7 +137,6 @@ void FrameRegistrar::measureWindowTimes() {
   const auto at = [&](int u, int v) { return time.at<double>(v, ((u % W) + W) % W); };
   const int top = registration_.windowTop(), windows = registration_.windowCount();
   window_times_.assign(static_cast<std::size_t>(windows), {});
-  row_scale_.resize(static_cast<std::size_t>(windows));
   double sum_s = 0.0;  // over the windows the lens model sees
   int timed = 0;
   for (int k = 0; k < windows; ++k) {
@@ -183,7 +183,7 @@ Expected<void> FrameRegistrar::unwrap(const cv::Mat& frame) {
 bool FrameRegistrar::measureRowRotations(std::span<const GyroSample> samples,
                                          const ImuCalibration& imu, const Eigen::Vector3d& bias,
                                          double time, double max_gap_s) {
-  if (window_times_.empty()) {
+  if (!rowsMoveWithinFrame()) {
     current_rows_.forget();
     return false;
   }
@@ -269,7 +269,8 @@ void FrameRegistrar::correctRowsWithGyro(std::span<WindowMotion> windows,
     row_scale_[k] = {1.0, 1.0};
     WindowMotion& m = windows[k];
     if (!m.valid) continue;
-    const WindowTime& w = window_times_[k];
+    // A global shutter's rows are all captured at the timestamp.
+    const WindowTime w = window_times_.empty() ? WindowTime{} : window_times_[k];
     const double theta = window_azimuth_[k];
     const ModelMotion rotated = predictMotion(estimate, theta, fit_.kappa());
     // The whole shift: a de-rotated pass's residual plus the de-rotation.
@@ -288,8 +289,8 @@ void FrameRegistrar::correctRowsWithGyro(std::span<WindowMotion> windows,
     const double stretch = std::abs(g) < 0.5 * dt ? dt / (dt - g) : 1.0;
     Eigen::Matrix<double, 6, 1> within = Eigen::Matrix<double, 6, 1>::Zero();
     within.head<3>() =
-        rotationVector(rotationFromVector(-reference.turnAt(w.s + g_r)) *
-                       rotationFromVector(X * current_rows_.turnAt(w.s + g_c)));
+        rotationVector(rotationFromVector(-reference.exposedTurnAt(w.s + g_r)) *
+                       rotationFromVector(X * current_rows_.exposedTurnAt(w.s + g_c)));
     const ModelMotion c = predictMotion(within, theta, fit_.kappa());
     // The translation's part: the shift less the rotations.
     const double du_t = du - c.du_rad / gamma - rotated.du_rad / gamma;
@@ -304,12 +305,13 @@ MotionEstimate FrameRegistrar::fitPass(std::span<WindowMotion> windows,
                                        const Eigen::Vector3d& warp_omega,
                                        const FrameRotation& reference) {
   last_pass_gyro_ = false;
-  if (window_times_.empty() || !(shutter_.interval_s > 0.0)) return fitWindows(windows);
+  if (!(shutter_.interval_s > 0.0)) return fitWindows(windows);
   if (reference.known() && current_rows_.known()) {
     correctRowsWithGyro(windows, warp_omega, reference);
     last_pass_gyro_ = true;
     return fitScaled(windows);
   }
+  if (window_times_.empty()) return fitWindows(windows);
   // Window k compares the reference's rows captured at t_ref + s(c + d) with the current
   // frame's at t_cur + s(c): it measures the motion over [t_ref + s_k + g_k, t_cur + s_k],
   // g_k = grad s . d (d: its whole shift, the de-rotation's included). With the velocity

@@ -91,10 +91,16 @@ class FrameRegistrar {
   /// the gyro's `samples` (FrameRotation): passes against a reference whose rotation is
   /// known too then take each window's capture times out exactly (DESIGN.md section 3,
   /// "Rolling shutter with a gyro") instead of from the pair's own motion. False (unknown:
-  /// the images alone) when the samples do not cover the frame's readout, and for a global
-  /// shutter (nothing to take out).
+  /// the images alone) when the samples do not cover the frame's readout and exposure, and
+  /// for a global shutter of unknown exposure (nothing to take out).
   bool measureRowRotations(std::span<const GyroSample> samples, const ImuCalibration& imu,
                            const Eigen::Vector3d& bias, double time, double max_gap_s);
+
+  /// Whether the rows' poses differ from the timestamp's: a rolling shutter, or an exposure
+  /// time (motion blur) in the calibration. Only then do the rows need the gyro.
+  bool rowsMoveWithinFrame() const {
+    return calibration_.sensor.readout_s != 0.0 || calibration_.sensor.exposure_s != 0.0;
+  }
 
   /// Whether a previous frame is set (the first pass can run).
   bool hasPrevious() const { return has_previous_; }

@@ -8,9 +8,11 @@
 
 namespace omnipose::pipeline {
 
-FrameRotation::FrameRotation(double span_s) {
-  const int pieces = std::max(1, static_cast<int>(std::ceil(std::abs(span_s) / kStepS)));
-  step_ = std::abs(span_s) / pieces;
+FrameRotation::FrameRotation(double span_s, double exposure_s)
+    : origin_(-0.5 * exposure_s), exposure_(exposure_s) {
+  const double length = std::abs(span_s) + exposure_s;
+  const int pieces = std::max(1, static_cast<int>(std::ceil(length / kStepS)));
+  step_ = length / pieces;
   turn_.assign(static_cast<std::size_t>(pieces) + 1, Eigen::Vector3d::Zero());
   rate_ = turn_;
 }
@@ -20,7 +22,7 @@ bool FrameRotation::measure(std::span<const GyroSample> samples, const ImuCalibr
   known_ = false;
   Eigen::Matrix3d R = Eigen::Matrix3d::Identity();
   for (std::size_t i = 0; i < turn_.size(); ++i) {
-    const double at = time + static_cast<double>(i) * step_;
+    const double at = time + origin_ + static_cast<double>(i) * step_;
     if (i > 0) {
       const std::optional<Eigen::Matrix3d> piece =
           integrateGyro(samples, imu, bias, at - step_, at, max_gap_s);
@@ -33,19 +35,43 @@ bool FrameRotation::measure(std::span<const GyroSample> samples, const ImuCalibr
     rate_[i] = *rate;
   }
   known_ = true;
+  if (origin_ < 0.0) {
+    // The turns so far start at the exposure's beginning: re-referred to the timestamp,
+    // where the curve through them stands at R0 (rates are in the axes of their own time).
+    const Eigen::Matrix3d R0t = rotationFromVector(turnAt(0.0)).transpose();
+    for (Eigen::Vector3d& turn : turn_) turn = rotationVector(R0t * rotationFromVector(turn));
+  }
   return true;
 }
 
 Eigen::Vector3d FrameRotation::turnAt(double s) const {
+  const double x = s - origin_;
   const std::size_t last = turn_.size() - 1;
-  if (!(s > 0.0)) return turn_.front() + rate_.front() * s;
-  if (step_ == 0.0 || s >= static_cast<double>(last) * step_)
-    return turn_.back() + rate_.back() * (s - static_cast<double>(last) * step_);
-  const auto i = std::min(static_cast<std::size_t>(s / step_), last - 1);
-  const double u = s / step_ - static_cast<double>(i), u2 = u * u, u3 = u2 * u;
+  if (!(x > 0.0)) return turn_.front() + rate_.front() * x;
+  if (step_ == 0.0 || x >= static_cast<double>(last) * step_)
+    return turn_.back() + rate_.back() * (x - static_cast<double>(last) * step_);
+  const auto i = std::min(static_cast<std::size_t>(x / step_), last - 1);
+  const double u = x / step_ - static_cast<double>(i), u2 = u * u, u3 = u2 * u;
   // The rotation vector's rate is the angular velocity to first order in the (small) turn.
   return (2.0 * u3 - 3.0 * u2 + 1.0) * turn_[i] + (u3 - 2.0 * u2 + u) * step_ * rate_[i] +
          (3.0 * u2 - 2.0 * u3) * turn_[i + 1] + (u3 - u2) * step_ * rate_[i + 1];
+}
+
+Eigen::Vector3d FrameRotation::exposedTurnAt(double s) const {
+  if (!(exposure_ > 0.0)) return turnAt(s);
+  // turnAt() is one cubic between two kept samples and linear beyond them: two Gauss
+  // points per stretch between sample times integrate it exactly.
+  const double a = s - 0.5 * exposure_, b = s + 0.5 * exposure_;
+  const double g = 0.5 / std::sqrt(3.0);
+  Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+  const double first = std::floor((a - origin_) / step_), end = std::ceil((b - origin_) / step_);
+  for (double k = first; k < end; k += 1.0) {
+    const double from = std::max(a, origin_ + k * step_);
+    const double to = std::min(b, origin_ + (k + 1.0) * step_);
+    const double mid = 0.5 * (from + to), length = to - from;
+    if (length > 0.0) sum += 0.5 * length * (turnAt(mid - g * length) + turnAt(mid + g * length));
+  }
+  return sum / exposure_;
 }
 
 }  // namespace omnipose::pipeline

@@ -3,10 +3,11 @@
 /// The camera's rotation within one frame, from the gyro (private to the core library): a
 /// rolling-shutter frame's rows are captured over its readout, and the gyro tells how the
 /// camera turned from the frame's timestamp to each row (DESIGN.md section 3, "Rolling
-/// shutter with a gyro").
+/// shutter with a gyro"); a row exposed while the camera turns shows the mean of the poses
+/// over its exposure (section 3, "Motion blur").
 ///
-/// Realtime: the constructor allocates; measure(), turnAt() and copies between two of the
-/// same span allocate nothing and never throw.
+/// Realtime: the constructor allocates; measure(), turnAt(), exposedTurnAt() and copies
+/// between two of the same span and exposure allocate nothing and never throw.
 
 #include <Eigen/Core>
 #include <span>
@@ -22,12 +23,14 @@ class FrameRotation {
   /// Spacing of the samples of the rotation kept, seconds.
   static constexpr double kStepS = 0.001;
 
-  /// For capture times in [0, span_s] after the timestamp (|readout_s|).
-  explicit FrameRotation(double span_s = 0.0);
+  /// For capture times in [0, span_s] after the timestamp (|span_s|: the readout), each
+  /// exposed for `exposure_s` seconds centred on it (>= 0; 0: an instant).
+  explicit FrameRotation(double span_s = 0.0, double exposure_s = 0.0);
 
-  /// The rotation from camera time `time` (the frame's timestamp, seconds) over the span,
-  /// integrated from the gyro's `samples` (integrateGyro(), gyroRateAt()). False, and not
-  /// known(), when the samples do not cover [time, time + span] or have a gap there.
+  /// The rotation from camera time `time` (the frame's timestamp, seconds) over the span
+  /// widened by half the exposure on either side, integrated from the gyro's `samples`
+  /// (integrateGyro(), gyroRateAt()). False, and not known(), when the samples do not cover
+  /// [time - exposure / 2, time + span + exposure / 2] or have a gap there.
   bool measure(std::span<const GyroSample> samples, const ImuCalibration& imu,
                const Eigen::Vector3d& bias, double time, double max_gap_s);
   bool known() const { return known_; }
@@ -35,12 +38,19 @@ class FrameRotation {
 
   /// The rotation vector from the timestamp to `s` seconds after it, radians, in the camera's
   /// axes at the timestamp: the cubic Hermite curve through the kept samples and their rates
-  /// (beyond the span, the end's rate). Requires known().
+  /// (beyond them, on along the end's rate). Requires known().
   Eigen::Vector3d turnAt(double s) const;
+
+  /// The mean of turnAt() over the exposure centred `s` seconds after the timestamp: what a
+  /// row captured then shows (the blurred image's pose, to first order in the turn within
+  /// the exposure). turnAt(s) without an exposure. Requires known().
+  Eigen::Vector3d exposedTurnAt(double s) const;
 
  private:
   double step_ = 0.0;
-  std::vector<Eigen::Vector3d> turn_, rate_;  ///< at i * step_ after the timestamp
+  double origin_ = 0.0;    ///< seconds after the timestamp of the first kept sample (<= 0)
+  double exposure_ = 0.0;  ///< seconds
+  std::vector<Eigen::Vector3d> turn_, rate_;  ///< at origin_ + i * step_ after the timestamp
   bool known_ = false;
 };
 

@@ -168,7 +168,6 @@ struct Odometry::Impl {
 
   Impl(const Calibration& c, const OdometryOptions& o)
       : gyro_calibration(c.imu),
-        rolling_shutter(c.sensor.readout_s != 0.0),
         keyframe_options(o.keyframes),
         plausibility_options(o.plausibility),
         registrar(std::in_place, c, o.pipeline,
@@ -243,7 +242,7 @@ struct Odometry::Impl {
       c.previous_velocity = velocity;
       c.previous_interval_s = velocity_interval;
     }
-    if (gyro_calibration && rolling_shutter) c.gyro_rotation = gyroRotation(reference_time);
+    if (gyro_calibration && registrar->rowsMoveWithinFrame()) c.gyro_rotation = gyroRotation(reference_time);
     registrar->setShutter(c);
   }
   /// The camera's rotation from `reference_time` to the current frame's from the gyro (its
@@ -268,7 +267,7 @@ struct Odometry::Impl {
   double gyroMaxGap() const { return kGyroGapIntervals * gyro.typicalInterval(); }
   /// The current frame's rows' rotations from the gyro, counted.
   void measureRowRotations() {
-    if (!gyro_calibration || !rolling_shutter) return;
+    if (!gyro_calibration || !registrar->rowsMoveWithinFrame()) return;
     if (registrar->measureRowRotations(gyro.samples(), *gyro_calibration, gyro_bias.bias(),
                                        time, gyroMaxGap()))
       ++gyro_counters.frames_with_gyro;
@@ -304,7 +303,6 @@ struct Odometry::Impl {
               TrackState state);
 
   std::optional<ImuCalibration> gyro_calibration;  ///< the calibration's imu section
-  bool rolling_shutter = false;                    ///< sensor.readout_s is not 0
   imu::GyroBuffer gyro{kGyroSamplesKept};
   pipeline::GyroBias gyro_bias;
   GyroCounters gyro_counters;

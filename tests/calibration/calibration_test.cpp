@@ -136,9 +136,29 @@ TEST(CalibrationSensor, ReadoutTimeIsReadValidatedAndSaved) {
     const std::string what = problemsOf(bad);
     EXPECT_THAT(what, HasSubstr("cal.yaml: sensor.readout_s")) << bad << what;
   }
-  EXPECT_THAT(problemsOf("sensor:\n  exposure_s: 0.01\n"),
-              HasSubstr("sensor.exposure_s: unknown key"));
+  EXPECT_THAT(problemsOf("sensor:\n  shutter_s: 0.01\n"), HasSubstr("sensor.shutter_s: unknown key"));
   EXPECT_EQ(problemsOf("sensor:\n  readout_s: 0.1\n"), "") << "the longest readout is allowed";
+}
+
+TEST(CalibrationSensor, ExposureTimeIsReadValidatedAndSaved) {
+  EXPECT_EQ(Calibration::parse(kValid).sensor.exposure_s, 0.0) << "not known";
+  const Calibration c = Calibration::parse(std::string(kValid) + "sensor:\n  exposure_s: 0.008\n");
+  EXPECT_DOUBLE_EQ(c.sensor.exposure_s, 0.008);
+  EXPECT_EQ(c.sensor.readout_s, 0.0);
+  EXPECT_THAT(c.toYaml(), HasSubstr("sensor:\n  exposure_s: 0.008"));
+  EXPECT_DOUBLE_EQ(Calibration::parse(c.toYaml()).sensor.exposure_s, 0.008);
+  const Calibration both = Calibration::parse(
+      std::string(kValid) + "sensor:\n  readout_s: 0.0267\n  exposure_s: 0.01\n");
+  EXPECT_THAT(both.toYaml(), HasSubstr("sensor:\n  readout_s: 0.0267\n  exposure_s: 0.01\n"));
+  for (const char* bad : {"sensor:\n  exposure_s: -0.001\n", "sensor:\n  exposure_s: 0.2\n",
+                          "sensor:\n  exposure_s: .inf\n", "sensor:\n  exposure_s: long\n"}) {
+    const std::string what = problemsOf(bad);
+    EXPECT_THAT(what, HasSubstr("cal.yaml: sensor.exposure_s")) << bad << what;
+  }
+  // Both bad: both named.
+  const std::string two = problemsOf("sensor:\n  readout_s: 0.5\n  exposure_s: -1\n");
+  EXPECT_THAT(two, HasSubstr("sensor.readout_s"));
+  EXPECT_THAT(two, HasSubstr("sensor.exposure_s"));
 }
 
 TEST(CalibrationImu, TheGyrosMountingAndClockAreReadValidatedAndSaved) {

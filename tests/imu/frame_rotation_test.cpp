@@ -50,6 +50,43 @@ TEST(FrameRotation, FollowsTheGyroAtEveryCaptureTime) {
   EXPECT_EQ(rotation.turnAt(0.0), Eigen::Vector3d::Zero());
 }
 
+TEST(FrameRotation, AnExposedRowShowsTheMeanTurnOverItsExposure) {
+  const Recording r = recording(0.0, 0.2);
+  const double readout = 0.0267, exposure = 0.01, time = 0.1, gap = 0.02;
+  FrameRotation rotation(readout, exposure);
+  ASSERT_TRUE(rotation.measure(r.samples, r.imu, Eigen::Vector3d::Zero(), time, gap));
+  // Still the turn from the timestamp, now also over the exposure's margins (within twice
+  // the curve's error: the timestamp falls between two kept samples now).
+  for (double s = -0.5 * exposure; s <= readout + 0.5 * exposure; s += 0.0013) {
+    const auto exact = integrateGyro(r.samples, r.imu, Eigen::Vector3d::Zero(), time, time + s, gap);
+    ASSERT_TRUE(exact.has_value());
+    EXPECT_LT((rotation.turnAt(s) - rotationVector(*exact)).norm(), 4e-7) << "s = " << s;
+  }
+  // The mean over the exposure, against 2001 turns integrated on their own.
+  for (const double s : {0.0, 0.0071, 0.5 * readout, readout}) {
+    Eigen::Vector3d mean = Eigen::Vector3d::Zero();
+    constexpr int kPoints = 2001;
+    for (int i = 0; i < kPoints; ++i) {
+      const double at = s + exposure * ((i + 0.5) / kPoints - 0.5);
+      mean += rotationVector(
+          *integrateGyro(r.samples, r.imu, Eigen::Vector3d::Zero(), time, time + at, gap));
+    }
+    mean /= kPoints;
+    EXPECT_LT((rotation.exposedTurnAt(s) - mean).norm(), 4e-7) << "s = " << s;
+    // It differs from the turn at the capture time by the rate's change over the exposure
+    // (exposure^2 / 24 times the angular acceleration, here about 1e-5 rad).
+    EXPECT_GT((rotation.exposedTurnAt(s) - rotation.turnAt(s)).norm(), 3e-6) << "s = " << s;
+  }
+  // Without an exposure it is the turn at the capture time, bit for bit.
+  FrameRotation instant(readout);
+  ASSERT_TRUE(instant.measure(r.samples, r.imu, Eigen::Vector3d::Zero(), time, gap));
+  EXPECT_EQ(instant.exposedTurnAt(0.011), instant.turnAt(0.011));
+  // The exposure's margins need samples too: these end 1.5-4 ms after the last row's capture.
+  const Recording short_r = recording(0.0, time + readout + 0.004 - r.imu.time_offset_s);
+  EXPECT_TRUE(instant.measure(short_r.samples, r.imu, Eigen::Vector3d::Zero(), time, gap));
+  EXPECT_FALSE(rotation.measure(short_r.samples, r.imu, Eigen::Vector3d::Zero(), time, gap));
+}
+
 TEST(FrameRotation, IsUnknownWhereTheSamplesDoNotReach) {
   const Recording r = recording(0.0, 0.1);
   FrameRotation rotation(0.03);

@@ -547,7 +547,8 @@ int run(const Args& a) {
                         : synth::MotionScript::preset(a.preset.empty() ? "demo" : a.preset);
   if (a.frames) script.frames = *a.frames;
   if (a.seed) script.seed = *a.seed;
-  // The rows are rendered with the readout the dataset's calibration then states.
+  // The rows are rendered with the readout and exposure the dataset's calibration then states.
+  calibration.sensor.exposure_s = a.exposure_time;
   const double readout = a.readout_given ? a.readout : calibration.sensor.readout_s;
   calibration.sensor.readout_s = readout;
   if (!(std::abs(readout) <= 1.0 / script.frame_rate)) {
