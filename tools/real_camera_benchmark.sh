@@ -263,7 +263,17 @@ for entry in "${sequences[@]}"; do
     grep -q '^imu:' "$dir/dataset/calibration.yaml" ||
       { echo "   $name: the dataset's calibration.yaml has no imu section" >&2; exit 1; }
     estimators=(ifmi)
-    [[ "$name" == *_gyro200 ]] && estimators=(ifmi ifmi_imu_from)
+    if [[ "$name" == *_gyro200 ]]; then
+      estimators=(ifmi ifmi_imu_from)
+      # The exposure time is the camera's setting, not measured: the estimated calibration
+      # gets the sequence's (when it has one) beside its own readout.
+      exposure_line=$(grep -m1 '^  exposure_s:' "$dir/dataset/calibration.yaml" || true)
+      if [ -f "$calib/estimated.yaml" ]; then
+        awk -v line="$exposure_line" '{ print } /^sensor:/ && line != "" { print line; put = 1 }
+          END { if (line != "" && !put) printf "sensor:\n%s\n", line }' \
+          "$calib/estimated.yaml" > "$dir/calibration_imu_from.yaml"
+      fi
+    fi
   elif [[ "$rolling_sequences" == *" $name "* ]]; then
     estimators=(ifmi ifmi_readout_unknown akazerot)
     sed '/^sensor:/,/^[^[:space:]]/{/^sensor:/d;/^[[:space:]]/d}' "$dir/dataset/calibration.yaml" \
@@ -279,7 +289,7 @@ for entry in "${sequences[@]}"; do
     case "$est" in
       ifmi) args=(--config "$out/replay.yaml") ;;
       ifmi_readout_unknown) args=(--config "$out/replay.yaml" --calibration "$dir/calibration_readout_unknown.yaml") ;;
-      ifmi_imu_from) args=(--config "$out/replay.yaml" --calibration "$calib/estimated.yaml") ;;
+      ifmi_imu_from) args=(--config "$out/replay.yaml" --calibration "$dir/calibration_imu_from.yaml") ;;
       akazerot) args=(--method akazerot) ;;
     esac
     t0=$(date +%s)
@@ -475,12 +485,14 @@ fi
   echo "  pointing to the calibration a user would measure from a recording of its own (90 frames,"
   echo "  seed 202: the robot turning in place at other rates with 1 deg of vibration, motion"
   echo "  \`calib_turns\`, the same camera and gyro): \`omnipose-calibrate --readout-from\` for the readout,"
-  echo "  then \`omnipose-calibrate --imu-from\` with it for the gyro's mounting and clock. Measured:"
+  echo "  then \`omnipose-calibrate --imu-from\` with it for the gyro's mounting and clock, and the"
+  echo "  sequence's exposure time (\`sensor.exposure_s\`, a camera setting, not measured) where it has"
+  echo "  one. Measured:"
   echo "  $calib_summary."
   echo
   echo "Estimators: \`ifmi\` = \`omnipose-replay DATASET\` (the dataset's calibration.yaml records"
   echo "\`sensor: readout_s\` when rendered with a rolling shutter, so the camera model knows the"
-  echo "readout); \`ifmi, readout unknown\` = the same with \`--calibration\` pointing to that file without"
+  echo "readout, and \`sensor: exposure_s\` with motion blur, which the gyro rows use); \`ifmi, readout unknown\` = the same with \`--calibration\` pointing to that file without"
   echo "its \`sensor:\` section (rolling-shutter rows; its twin is plain ifmi, the twin having no rolling"
   echo "shutter); \`akazerot\` = \`omnipose-replay DATASET --method akazerot\` (AKAZE features, OpenGV"
   echo "2-point rotation-only RANSAC). ifmi runs with the default pipeline and one FFTW wisdom file."

@@ -59,8 +59,8 @@ std::optional<Eigen::Vector3d> gyroRateAt(std::span<const GyroSample> samples,
 /// delivered by the time the frame captured at camera time `frame_time` (seconds) has been
 /// read out: the count before the first sample stamped after frame_time + |readout_s| + 10 ms
 /// on the camera's clock (`imu`'s offset). Pass the readout plus half the exposure time where
-/// the calibration states one (the last row is exposed until then). For giving a recording to Odometry::addGyro() as it
-/// would have arrived (call it with the samples not yet given).
+/// the calibration states one (the last row is exposed until then). For giving a recording
+/// to Odometry::addGyro() as it would have arrived (call it with the samples not yet given).
 std::size_t gyroSamplesArrivedBy(std::span<const GyroSample> samples, const ImuCalibration& imu,
                                  double readout_s, double frame_time);
 

@@ -242,7 +242,8 @@ struct Odometry::Impl {
       c.previous_velocity = velocity;
       c.previous_interval_s = velocity_interval;
     }
-    if (gyro_calibration && registrar->rowsMoveWithinFrame()) c.gyro_rotation = gyroRotation(reference_time);
+    if (gyro_calibration && registrar->rowsMoveWithinFrame())
+      c.gyro_rotation = gyroRotation(reference_time);
     registrar->setShutter(c);
   }
   /// The camera's rotation from `reference_time` to the current frame's from the gyro (its

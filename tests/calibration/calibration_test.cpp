@@ -136,7 +136,8 @@ TEST(CalibrationSensor, ReadoutTimeIsReadValidatedAndSaved) {
     const std::string what = problemsOf(bad);
     EXPECT_THAT(what, HasSubstr("cal.yaml: sensor.readout_s")) << bad << what;
   }
-  EXPECT_THAT(problemsOf("sensor:\n  shutter_s: 0.01\n"), HasSubstr("sensor.shutter_s: unknown key"));
+  EXPECT_THAT(problemsOf("sensor:\n  shutter_s: 0.01\n"),
+              HasSubstr("sensor.shutter_s: unknown key"));
   EXPECT_EQ(problemsOf("sensor:\n  readout_s: 0.1\n"), "") << "the longest readout is allowed";
 }
 

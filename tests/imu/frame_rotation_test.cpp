@@ -58,7 +58,8 @@ TEST(FrameRotation, AnExposedRowShowsTheMeanTurnOverItsExposure) {
   // Still the turn from the timestamp, now also over the exposure's margins (within twice
   // the curve's error: the timestamp falls between two kept samples now).
   for (double s = -0.5 * exposure; s <= readout + 0.5 * exposure; s += 0.0013) {
-    const auto exact = integrateGyro(r.samples, r.imu, Eigen::Vector3d::Zero(), time, time + s, gap);
+    const auto exact =
+        integrateGyro(r.samples, r.imu, Eigen::Vector3d::Zero(), time, time + s, gap);
     ASSERT_TRUE(exact.has_value());
     EXPECT_LT((rotation.turnAt(s) - rotationVector(*exact)).norm(), 4e-7) << "s = " << s;
   }

@@ -70,8 +70,8 @@ Errors run(const std::vector<cv::Mat>& frames, const std::vector<StampedPose>& t
   for (std::size_t k = 0; k < frames.size(); ++k) {
     if (gyro != nullptr) {
       // As they would arrive: the samples up to 10 ms after the frame's last row.
-      const double until =
-          truth[k].timestamp + readout_s + 0.01 + 0.5 * exposure_s - gyro->calibration.time_offset_s;
+      const double until = truth[k].timestamp + readout_s + 0.01 + 0.5 * exposure_s -
+                           gyro->calibration.time_offset_s;
       std::size_t end = given;
       while (end < gyro->samples.size() && gyro->samples[end].t <= until) ++end;
       odometry.addGyro(std::span(gyro->samples).subspan(given, end - given));
