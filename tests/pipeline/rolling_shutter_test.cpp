@@ -13,6 +13,7 @@
 #include <string>
 #include <vector>
 
+#include "omnipose/gyro.hpp"
 #include "omnipose/odometry.hpp"
 #include "omnipose/synth/gyro.hpp"
 #include "omnipose/so3.hpp"
@@ -69,13 +70,13 @@ Errors run(const std::vector<cv::Mat>& frames, const std::vector<StampedPose>& t
   std::size_t given = 0;  // samples given to the odometry so far
   for (std::size_t k = 0; k < frames.size(); ++k) {
     if (gyro != nullptr) {
-      // As they would arrive: the samples up to 10 ms after the frame's last row.
-      const double until = truth[k].timestamp + readout_s + 0.01 + 0.5 * exposure_s -
-                           gyro->calibration.time_offset_s;
-      std::size_t end = given;
-      while (end < gyro->samples.size() && gyro->samples[end].t <= until) ++end;
-      odometry.addGyro(std::span(gyro->samples).subspan(given, end - given));
-      given = end;
+      // As they would arrive: the samples up to 10 ms after the end of the frame's last row's
+      // exposure.
+      const std::span<const GyroSample> rest = std::span(gyro->samples).subspan(given);
+      const std::size_t n = gyroSamplesArrivedBy(rest, gyro->calibration,
+                                                 readout_s + 0.5 * exposure_s, truth[k].timestamp);
+      odometry.addGyro(rest.first(n));
+      given += n;
     }
     auto r = odometry.process(frames[k], {truth[k].timestamp});
     EXPECT_TRUE(r.has_value()) << (r ? "" : r.error().c_str());

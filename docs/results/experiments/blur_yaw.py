@@ -23,7 +23,8 @@ Usage: blur_yaw.py DATASET ESTIMATE.tum [--exposure E]
   ESTIMATE  omnipose-replay's estimate of DATASET from the images alone (a calibration
             without sensor.exposure_s)
   E         the exposure, seconds (default: sensor.exposure_s of DATASET/calibration.yaml)
-Needs numpy. docs/results/ANALYSIS.md, "Motion blur", reads it.
+Needs numpy and the Python package (tools/python_test.sh installs both into
+build-python/venv). docs/results/ANALYSIS.md, "Motion blur", reads it.
 """
 import argparse
 import math
@@ -33,19 +34,12 @@ import sys
 
 import numpy as np
 
+from omnipose.foxglove_topics import quaternion_matrix
+
 PANORAMA_WIDTH = 1100  # px over 2 pi: the default calibration's panorama
 OMEGA = np.linspace(0.01, 3.0, 600)  # rad/px: the translation band (W below 1e-4 beyond)
 WEIGHT = np.exp(-OMEGA**2)  # the cross-power's weight for a 1 px Gaussian peak
 TAUS = 400  # samples of the exposure
-
-
-def quaternion_matrix(x, y, z, w):
-    n = math.sqrt(x * x + y * y + z * z + w * w)
-    x, y, z, w = x / n, y / n, z / n, w / n
-    return np.array([
-        [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
-        [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
-        [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)]])
 
 
 def yaw_of(rotation):
@@ -61,7 +55,8 @@ def read_tum(path):
         if not line.strip() or line.startswith('#'):
             continue
         f = line.split()
-        poses[round(float(f[0]), 6)] = quaternion_matrix(*map(float, f[4:8]))
+        qx, qy, qz, qw = map(float, f[4:8])
+        poses[round(float(f[0]), 6)] = quaternion_matrix(qw, qx, qy, qz)
     return poses
 
 
