@@ -122,6 +122,24 @@ class WindowRegistration {
   /// Whether a reference is set.
   bool hasReference() const;
 
+  /// The most samples of a blur path setMotionBlur() reads per window.
+  static constexpr int kMaxBlurSamples = 64;
+  /// setMotionBlur() leaves a window alone whose blur is shorter than this, pixels (its
+  /// kernel's phase is then its centroid's), or longer than kMaxBlurExtentPx.
+  static constexpr double kMinBlurExtentPx = 0.5;
+  static constexpr double kMaxBlurExtentPx = 32.0;
+  /// The motion blur of the frame whose windows are transformed next (measure()'s
+  /// `current`, setReference()'s panorama; not setKeyframe()'s): `paths` holds, for each of
+  /// the windowCount() windows in turn, `samples` (1..kMaxBlurSamples) shifts in pixels, in
+  /// du's sense (WindowMotion), of the sharp frames the blurred one averages (equally spaced
+  /// over the exposure). Each window's translation band is then freed of its blur kernel's
+  /// phase about the kernel's mean, so the window's du reads the mean of its shifts
+  /// whatever the kernel's shape (a long, asymmetric blur otherwise moves the correlation
+  /// peak off that mean). Only horizontal blur: vertical shifts are not given. Applies to
+  /// every frame until set again; empty `paths`, or fewer than windowCount() * samples
+  /// values, clears it. Allocation-free; about windows x 65 x samples complex products.
+  void setMotionBlur(std::span<const float> paths, int samples);
+
   /// Sets the static map of usable panorama pixels (CV_32FC1, W x H, 1 = usable, 0 = masked
   /// or outside the lens, e.g. Unwrapper::validity()). Start-up only: allocates one weight
   /// table per window when anything is masked, and drops the reference. Masked pixels are

@@ -112,6 +112,7 @@ FrameRegistrar::FrameRegistrar(const Calibration& c, const PipelineOptions& o, i
   weights_.resize(windows);
   refine_weights_.resize(windows);
   row_scale_.resize(windows);
+  if (c.sensor.exposure_s > 0.0) blur_paths_.resize(windows * kBlurSamples);
   second_weights_.resize(windows);
   shifts_only_.resize(windows);  // rs_confidence 0: no rotation/scale
   expected_dv_.resize(windows);
@@ -187,7 +188,34 @@ bool FrameRegistrar::measureRowRotations(std::span<const GyroSample> samples,
     current_rows_.forget();
     return false;
   }
-  return current_rows_.measure(samples, imu, bias, time, max_gap_s);
+  const bool known = current_rows_.measure(samples, imu, bias, time, max_gap_s);
+  passMotionBlur();
+  return known;
+}
+
+void FrameRegistrar::passMotionBlur() {
+  if (blur_paths_.empty() || !current_rows_.known()) {
+    registration_.setMotionBlur({}, 0);
+    return;
+  }
+  // Window k's pixels, captured around s_k, are the mean of the sharp frames over the
+  // exposure E centred there: the frame turned by turnAt(s_k + tau) - turnAt(s_k) (to first
+  // order in the turn within E) shows each shifted as predictMotion() says.
+  const double exposure = calibration_.sensor.exposure_s, gamma = calibration_.panorama.gamma();
+  const int windows = registration_.windowCount();
+  for (int k = 0; k < windows; ++k) {
+    const auto i = static_cast<std::size_t>(k);
+    const double s = window_times_.empty() ? 0.0 : window_times_[i].s;
+    const Eigen::Vector3d centre = current_rows_.turnAt(s);
+    for (int j = 0; j < kBlurSamples; ++j) {
+      const double tau = exposure * ((j + 0.5) / kBlurSamples - 0.5);
+      Eigen::Matrix<double, 6, 1> turn = Eigen::Matrix<double, 6, 1>::Zero();
+      turn.head<3>() = current_rows_.turnAt(s + tau) - centre;
+      blur_paths_[i * kBlurSamples + j] = static_cast<float>(
+          predictMotion(turn, window_azimuth_[i], fit_.kappa()).du_rad / gamma);
+    }
+  }
+  registration_.setMotionBlur(blur_paths_, kBlurSamples);
 }
 
 void FrameRegistrar::makeCurrentPrevious() {

@@ -92,7 +92,8 @@ class FrameRegistrar {
   /// known too then take each window's capture times out exactly (DESIGN.md section 3,
   /// "Rolling shutter with a gyro") instead of from the pair's own motion. False (unknown:
   /// the images alone) when the samples do not cover the frame's readout and exposure, and
-  /// for a global shutter of unknown exposure (nothing to take out).
+  /// for a global shutter of unknown exposure (nothing to take out). With an exposure time it
+  /// gives the registration each window's blur path too (passMotionBlur()), or takes it back.
   bool measureRowRotations(std::span<const GyroSample> samples, const ImuCalibration& imu,
                            const Eigen::Vector3d& bias, double time, double max_gap_s);
 
@@ -280,6 +281,14 @@ class FrameRegistrar {
   double mean_window_time_ = 0.0;
   std::vector<MotionFit::RowScale> row_scale_;  ///< per window: the fit's row scale (fitPass())
   ShutterContext shutter_;
+  /// Samples of each window's blur path over the exposure (setMotionBlur()).
+  static constexpr int kBlurSamples = 32;
+  /// Per window, kBlurSamples shifts over the current frame's exposure, pixels (du's sense);
+  /// empty without an exposure time in the calibration.
+  std::vector<float> blur_paths_;
+  /// Gives the registration the current frame's horizontal blur path in every window from
+  /// current_rows_ (or none when they are not known).
+  void passMotionBlur();
   /// The rotation within the current frame, the previous one and each keyframe
   /// (measureRowRotations()).
   FrameRotation current_rows_, previous_rows_;

@@ -1,7 +1,9 @@
 #include "omnipose/window_registration.hpp"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
+#include <complex>
 #include <cstring>
 #include <limits>
 #include <numbers>
@@ -328,6 +330,14 @@ struct WindowRegistration::Impl {
   runtime::WorkerPool* pool;
   std::vector<std::unique_ptr<Worker>> workers;  ///< one per pool worker
   std::size_t translation_band, log_polar_band;  ///< band sizes (the same for every worker)
+  int band_cols = 0;  ///< columns of a translation band (its rows: band_size / band_cols)
+  /// setMotionBlur(): per window, the phases K / |K| of the blur kernel of the frame
+  /// whitened next at the band's columns (band_cols each); blur_active[k] = 0: none.
+  std::vector<runtime::Complex> blur_kernel;
+  std::vector<unsigned char> blur_active;
+  /// Multiplies the translation band of window k (just whitened from the frame whose blur
+  /// setMotionBlur() gave) by conj(K / |K|), row by row: the blur kernel's phase taken out.
+  void removeBlur(int k, runtime::Complex* band) const;
   double angle_step, log_step;                   ///< log-polar grid steps
 
   // Static mask (setValidity): per window, the taper times the feathered usable map,
@@ -379,8 +389,9 @@ struct WindowRegistration::Impl {
   /// The column stage of `panorama` on the pool (when some window uses it).
   void transformColumns(const cv::Mat& panorama);
   /// The whitened translation bands and log-polar bands of every window of `panorama` into
-  /// `ref` (the noise measured last whitens them).
-  void transformInto(const cv::Mat& panorama, WindowSpectra& ref);
+  /// `ref` (the noise measured last whitens them); `blurred`: `panorama` is the frame whose
+  /// blur setMotionBlur() gave (removeBlur()).
+  void transformInto(const cv::Mat& panorama, WindowSpectra& ref, bool blurred);
   void setValidity(const cv::Mat& validity);
   bool acceptsImage(const cv::Mat& panorama) const;
   TaperedWindow loadWindow(Worker& w, const cv::Mat& panorama, int k) const;
@@ -437,6 +448,9 @@ WindowRegistration::Impl::Impl(cv::Size panorama, const Options& o,
   for (int i = 0; i < pool->size(); ++i)
     workers.push_back(std::make_unique<Worker>(fft_size, o.max_rotation_rad, effort));
   translation_band = workers[0]->translation.bandSize();
+  band_cols = workers[0]->translation.surfaceCols() / 2 + 1;
+  blur_kernel.resize(static_cast<std::size_t>(windows) * band_cols);
+  blur_active.assign(static_cast<std::size_t>(windows), 0);
   log_polar_band = workers[0]->rotation_scale.bandSize();
   angle_step = workers[0]->log_polar_map.angleStep();
   log_step = workers[0]->log_polar_map.logRadiusStep();
@@ -699,11 +713,13 @@ void WindowRegistration::Impl::measureWindow(Worker& w, const cv::Mat& panorama,
     w.window_fft.execute();
     cur_translation_noise = w.translation.whiten(w.spectrum.data(), tw.energy, w.derotated.data(),
                                                  options.shift_covariance, noisePower(k));
+    removeBlur(k, w.derotated.data());
     translation_band_ptr = w.derotated.data();
   } else if (translation_band_ptr == nullptr) {  // F_c not whitened yet (frame not kept)
     cur_translation_noise = w.translation.whiten(w.spectrum.data(), cur.energy,
                                                  w.scratch_translation.data(),
                                                  options.shift_covariance, noisePower(k));
+    removeBlur(k, w.scratch_translation.data());
     translation_band_ptr = w.scratch_translation.data();
   }
 
@@ -768,7 +784,8 @@ int WindowRegistration::windowCount() const { return impl_->windows; }
 double WindowRegistration::windowCenter(int k) const { return impl_->windowCenter(k); }
 int WindowRegistration::windowTop() const { return impl_->top; }
 
-void WindowRegistration::Impl::transformInto(const cv::Mat& panorama, WindowSpectra& ref) {
+void WindowRegistration::Impl::transformInto(const cv::Mat& panorama, WindowSpectra& ref,
+                                             bool blurred) {
   transformColumns(panorama);
   auto task = [&](int worker, int k) {
     Worker& w = *workers[worker];
@@ -776,13 +793,86 @@ void WindowRegistration::Impl::transformInto(const cv::Mat& panorama, WindowSpec
     const TaperedWindow tw =
         transformWindow(w, panorama, k, ref.log_polar.data() + k * log_polar_band);
     ref.textured[k] = tw.textured;
-    if (tw.textured)
-      ref.translation_noise[i] =
-          w.translation.whiten(w.spectrum.data(), tw.energy,
-                               ref.translation.data() + k * translation_band,
-                               options.shift_covariance, noisePower(k));
+    if (!tw.textured) return;
+    runtime::Complex* band = ref.translation.data() + k * translation_band;
+    ref.translation_noise[i] = w.translation.whiten(w.spectrum.data(), tw.energy, band,
+                                                    options.shift_covariance, noisePower(k));
+    if (blurred) removeBlur(k, band);
   };
   pool->run(windows, task);
+}
+
+void WindowRegistration::Impl::removeBlur(int k, runtime::Complex* band) const {
+  if (!blur_active[static_cast<std::size_t>(k)]) return;
+  namespace simd = runtime::simd;
+  // blur_kernel holds K / |K|: the band is multiplied by its conjugate.
+  const auto* kernel =
+      reinterpret_cast<const float*>(blur_kernel.data() + static_cast<std::size_t>(k) * band_cols);
+  const std::size_t rows = translation_band / static_cast<std::size_t>(band_cols);
+  const int pairs = 2 * (band_cols / 2);
+  for (std::size_t r = 0; r < rows; ++r) {
+    auto* row = reinterpret_cast<float*>(band + r * band_cols);
+    for (int c = 0; c < pairs; c += 2)
+      simd::store(row + 2 * c, simd::mulConj(simd::load(row + 2 * c), simd::load(kernel + 2 * c)));
+    if (pairs < band_cols) {
+      const int c = 2 * pairs;
+      const float re = row[c] * kernel[c] + row[c + 1] * kernel[c + 1];
+      const float im = row[c + 1] * kernel[c] - row[c] * kernel[c + 1];
+      row[c] = re;
+      row[c + 1] = im;
+    }
+  }
+}
+
+void WindowRegistration::setMotionBlur(std::span<const float> paths, int samples) {
+  Impl& s = *impl_;
+  std::fill(s.blur_active.begin(), s.blur_active.end(), 0);
+  if (samples < 1 || samples > kMaxBlurSamples ||
+      paths.size() < static_cast<std::size_t>(s.windows) * samples)
+    return;
+  // Window k of a frame blurred along x_j (j < samples: the shifts, in du's sense, of the
+  // sharp frames it averages) is the sharp window w(u) averaged as w(u + x_j): its spectrum
+  // is the sharp one times K(w) = mean_j exp(i w x_j). With the x_j taken about their mean,
+  // conj(K) / |K| takes K's phase out and leaves the window's shift at the mean of the x_j.
+  // K at the band's columns w = c * step by the recurrence exp(i c step x) (real arithmetic:
+  // std::complex's product checks for NaN and does not vectorise).
+  const double step = 2.0 * std::numbers::pi / s.fft_size;  // rad/px between band columns
+  std::array<double, kMaxBlurSamples> re{}, im{}, turn_re{}, turn_im{};
+  for (int k = 0; k < s.windows; ++k) {
+    const float* x = paths.data() + static_cast<std::size_t>(k) * samples;
+    double mean = 0.0, lo = x[0], hi = x[0];
+    for (int j = 0; j < samples; ++j) {
+      mean += x[j];
+      lo = std::min<double>(lo, x[j]);
+      hi = std::max<double>(hi, x[j]);
+    }
+    mean /= samples;
+    if (!std::isfinite(mean) || !(hi - lo >= kMinBlurExtentPx) || !(hi - lo <= kMaxBlurExtentPx))
+      continue;
+    for (int j = 0; j < samples; ++j) {
+      turn_re[j] = std::cos(step * (x[j] - mean));
+      turn_im[j] = std::sin(step * (x[j] - mean));
+      re[j] = 1.0;
+      im[j] = 0.0;
+    }
+    runtime::Complex* kernel = s.blur_kernel.data() + static_cast<std::size_t>(k) * s.band_cols;
+    for (int c = 0; c < s.band_cols; ++c) {
+      double sum_re = 0.0, sum_im = 0.0;
+      for (int j = 0; j < samples; ++j) {
+        sum_re += re[j];
+        sum_im += im[j];
+        const double next_re = re[j] * turn_re[j] - im[j] * turn_im[j];
+        im[j] = re[j] * turn_im[j] + im[j] * turn_re[j];
+        re[j] = next_re;
+      }
+      const double magnitude = std::hypot(sum_re, sum_im);
+      kernel[c] = magnitude > 1e-9 * samples
+                      ? runtime::Complex(static_cast<float>(sum_re / magnitude),
+                                         static_cast<float>(sum_im / magnitude))
+                      : runtime::Complex(1.0f, 0.0f);
+    }
+    s.blur_active[static_cast<std::size_t>(k)] = 1;
+  }
 }
 
 void WindowRegistration::setReference(const cv::Mat& panorama) {
@@ -790,7 +880,7 @@ void WindowRegistration::setReference(const cv::Mat& panorama) {
   if (!s.acceptsImage(panorama)) return;
   s.keepPendingKeyframe();
   s.measureNoise(panorama);
-  s.transformInto(panorama, *s.reference);
+  s.transformInto(panorama, *s.reference, true);
   s.has_reference = true;
   s.next_ready = false;
 }
@@ -852,6 +942,7 @@ bool WindowRegistration::measure(const cv::Mat& current, std::span<WindowMotion>
         cur_translation = next.translation.data() + k * s.translation_band;
         translation_noise = w.translation.whiten(w.spectrum.data(), tw.energy, cur_translation,
                                                  s.options.shift_covariance, s.noisePower(k));
+        s.removeBlur(k, cur_translation);
       }
       next.translation_noise[i] = translation_noise;
     }
@@ -915,7 +1006,7 @@ bool WindowRegistration::setKeyframe(int slot, const cv::Mat& panorama) {
   // A slot still shared with the reference (storeKeyframe()) is given up by it: the
   // reference stays the reference, the slot gets spectra of its own.
   if (s.pending_keyframe == slot) s.pending_keyframe = -1;
-  s.transformInto(panorama, *s.keyframes[static_cast<std::size_t>(slot)]);
+  s.transformInto(panorama, *s.keyframes[static_cast<std::size_t>(slot)], false);
   s.keyframe_stored[static_cast<std::size_t>(slot)] = 1;
   return true;
 }
