@@ -671,7 +671,7 @@ TEST(WindowRegistrationMotionBlur, ALopsidedBlurIsMeasuredAtItsMeanShift) {
   }
 }
 
-TEST(WindowRegistrationMotionBlur, ShortOrClearedBlurChangesNothing) {
+TEST(WindowRegistrationMotionBlur, AShortUnusableOrClearedBlurChangesNothing) {
   const cv::Mat& eq = equirect(kIndoor);
   REQUIRE_IMAGE(eq, kIndoor);
   const cv::Mat a = test::fourierShiftedBand(eq, eq.rows / 2, 110, 0.0, 0.0);
@@ -688,6 +688,14 @@ TEST(WindowRegistrationMotionBlur, ShortOrClearedBlurChangesNothing) {
     short_paths[i] = static_cast<float>(0.9 * WindowRegistration::kMinBlurExtentPx *
                                         static_cast<double>(i % samples) / (samples - 1));
   reg.setMotionBlur(short_paths, samples);
+  reg.setReference(a);
+  expectSame(measureAll(reg, b, false), expected);
+  // Paths no window can use: not finite, or longer than kMaxBlurExtentPx.
+  std::vector<float> unusable(short_paths.size());
+  for (std::size_t i = 0; i < unusable.size(); ++i)
+    unusable[i] = (i / samples) % 2 == 0 ? std::numeric_limits<float>::quiet_NaN()
+                                         : static_cast<float>(i % samples) * 10.0f;
+  reg.setMotionBlur(unusable, samples);
   reg.setReference(a);
   expectSame(measureAll(reg, b, false), expected);
   // A long blur given, then cleared (too few values clear it as well).
