@@ -205,7 +205,7 @@ void FrameRegistrar::passMotionBlur() {
   const int windows = registration_.windowCount();
   for (int k = 0; k < windows; ++k) {
     const auto i = static_cast<std::size_t>(k);
-    const double s = window_times_.empty() ? 0.0 : window_times_[i].s;
+    const double s = windowTime(i).s;
     const Eigen::Vector3d centre = current_rows_.turnAt(s);
     for (int j = 0; j < kBlurSamples; ++j) {
       const double tau = exposure * ((j + 0.5) / kBlurSamples - 0.5);
@@ -297,8 +297,7 @@ void FrameRegistrar::correctRowsWithGyro(std::span<WindowMotion> windows,
     row_scale_[k] = {1.0, 1.0};
     WindowMotion& m = windows[k];
     if (!m.valid) continue;
-    // A global shutter's rows are all captured at the timestamp.
-    const WindowTime w = window_times_.empty() ? WindowTime{} : window_times_[k];
+    const WindowTime w = windowTime(k);
     const double theta = window_azimuth_[k];
     const ModelMotion rotated = predictMotion(estimate, theta, fit_.kappa());
     // The whole shift: a de-rotated pass's residual plus the de-rotation.

@@ -278,6 +278,11 @@ class FrameRegistrar {
     double s = 0.0, ds_du = 0.0, ds_dv = 0.0;
   };
   std::vector<WindowTime> window_times_;
+  /// Window k's capture time: window_times_[k], or the timestamp's (all zero) for a global
+  /// shutter, whose rows are all captured then.
+  WindowTime windowTime(std::size_t k) const {
+    return window_times_.empty() ? WindowTime{} : window_times_[k];
+  }
   double mean_window_time_ = 0.0;
   std::vector<MotionFit::RowScale> row_scale_;  ///< per window: the fit's row scale (fitPass())
   ShutterContext shutter_;
