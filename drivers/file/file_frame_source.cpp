@@ -176,6 +176,7 @@ Expected<FrameInfo> FileFrameSource::next(cv::Mat& out, std::chrono::millisecond
   info.sequence = sequence_++;
   info.index = static_cast<int>(next_index_);
   info.source_timestamp = frame.timestamp;
+  info.exposure_s = frame.exposure_s;
   info.resynchronised = due.resynchronised;
   ++next_index_;
 

@@ -19,6 +19,7 @@
 ///   Camera::requestCompleted                  CameraListener::requestCompleted(Completion)
 ///   Camera::disconnected                      CameraListener::disconnected()
 ///   controls::SensorTimestamp (metadata)      Completion::sensor_timestamp_ns
+///   controls::ExposureTime (metadata)         Completion::exposure_time_us
 ///
 /// Cost on the robot: one virtual call per completed request (the listener) and one per
 /// queued request; the adapter copies a request's result into a Completion on libcamera's
@@ -65,6 +66,8 @@ struct Completion {
   std::uint32_t bytes_used = 0;         ///< FrameMetadata::planes()[0].bytesused
   bool has_sensor_timestamp = false;    ///< the request's metadata has SensorTimestamp
   std::int64_t sensor_timestamp_ns = 0; ///< controls::SensorTimestamp (CLOCK_BOOTTIME, ns)
+  bool has_exposure_time = false;       ///< the request's metadata has ExposureTime
+  std::int32_t exposure_time_us = 0;    ///< controls::ExposureTime, microseconds
 };
 
 /// The source's side of libcamera's signals. Called on libcamera's (or the fake's) thread.

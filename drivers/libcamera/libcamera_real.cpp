@@ -171,6 +171,10 @@ class RealCamera final : public libcam::Camera {
       c.has_sensor_timestamp = true;
       c.sensor_timestamp_ns = *sensor;
     }
+    if (const auto exposure = request->metadata().get(libcamera::controls::ExposureTime)) {
+      c.has_exposure_time = true;
+      c.exposure_time_us = *exposure;
+    }
     listener->requestCompleted(c);
   }
   void onDisconnected() {

@@ -4,9 +4,11 @@
 
 #include <algorithm>
 #include <cerrno>
+#include <cmath>
 #include <condition_variable>
 #include <cstring>
 #include <ctime>
+#include <limits>
 #include <mutex>
 #include <sstream>
 
@@ -386,10 +388,17 @@ LibcameraSource::Impl::Step LibcameraSource::Impl::take(cv::Mat& out, FrameInfo&
   const libcam::Completion request = taken[static_cast<std::size_t>(chosen)];
   taken.clear();
 
-  // SensorTimestamp: ns on CLOCK_BOOTTIME; the buffer's own timestamp when absent.
-  const std::int64_t ts_ns = request.has_sensor_timestamp
-                                 ? request.sensor_timestamp_ns
-                                 : static_cast<std::int64_t>(request.timestamp_ns);
+  // SensorTimestamp: ns on CLOCK_BOOTTIME; the buffer's own timestamp when absent. Moved to
+  // the first row's capture time (the middle of its exposure) as the calibration says.
+  const double exposure_s = request.has_exposure_time && request.exposure_time_us > 0
+                                ? 1e-6 * request.exposure_time_us
+                                : std::numeric_limits<double>::quiet_NaN();
+  const double offset_s = options.sensor.captureTimeOffset(
+      std::isnan(exposure_s) ? options.sensor.exposure_s : exposure_s);
+  const std::int64_t ts_ns = (request.has_sensor_timestamp
+                                  ? request.sensor_timestamp_ns
+                                  : static_cast<std::int64_t>(request.timestamp_ns)) +
+                             std::llround(offset_s * 1e9);
 
   auto converted = convert(request, out);
   const bool requeued = requeue(request.cookie);
@@ -407,6 +416,7 @@ LibcameraSource::Impl::Step LibcameraSource::Impl::take(cv::Mat& out, FrameInfo&
   info.steady_time_us =
       (ts_ns > 0 ? ts_ns - (clockNs(CLOCK_BOOTTIME) - monotonic_now) : monotonic_now) / 1000;
   info.sequence = sequence.delivered(request.sequence, info.capture_time_us, fps);
+  info.exposure_s = exposure_s;
   ++stats.delivered;
   if (!requeued) disconnect("queueing a request failed");
   return Step::kDelivered;

@@ -38,6 +38,7 @@
 #include <string>
 #include <vector>
 
+#include "omnipose/calibration.hpp"
 #include "omnipose/frame_source.hpp"
 
 namespace omnipose {
@@ -64,6 +65,11 @@ struct LibcameraOptions {
   /// more samples make a preempted measurement less likely; each costs three clock reads.
   int clock_samples = 7;
   bool drop_stale = true;  ///< when every request had completed, wait for a fresh frame
+  /// The calibration's sensor timing: each frame's stamp (SensorTimestamp) is moved to its
+  /// first row's capture time by SensorTiming::captureTimeOffset() of the exposure the
+  /// camera reported for it (ExposureTime), or of `sensor.exposure_s` when it reported none;
+  /// the reported exposure goes on in FrameInfo::exposure_s.
+  SensorTiming sensor;
 };
 
 /// Every problem of `options`, without touching libcamera (empty = valid). The daemon's

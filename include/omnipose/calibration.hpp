@@ -103,6 +103,13 @@ struct PanoramaGeometry {
   Eigen::Vector3d bearing(double u, double v) const;
 };
 
+/// Where in the exposure of the row read first a camera's timestamp falls (calibration.yaml
+/// `sensor.timestamp`): the middle (omnipose's own convention: a frame's timestamp is its
+/// first row's capture time), the start (Android's SENSOR_TIMESTAMP), or the end, when the
+/// row's readout starts (a CSI-2 receiver's start-of-frame interrupt, as on a Raspberry Pi).
+enum class StampedAt { kExposureMiddle, kExposureStart, kExposureEnd };
+const char* toString(StampedAt at);
+
 /// Row timing of the sensor (DESIGN.md section 2). A phone or Raspberry Pi camera reads its
 /// rows out one after another (rolling shutter): row y of a frame of H rows is captured at
 /// t + rowTime(y, H, readout_s), t being the frame's timestamp (the capture of the row read
@@ -117,6 +124,16 @@ struct SensorTiming {
   /// poses over its exposure (motion blur), which it takes out with the gyro's rotation
   /// (DESIGN.md section 3, "Motion blur"). At most kMaxExposureS.
   double exposure_s = 0.0;
+  /// Where the camera stamps a frame; the sources move each stamp to the first row's
+  /// capture time (captureTimeOffset()).
+  StampedAt stamped_at = StampedAt::kExposureMiddle;
+  /// Seconds to add to the stamp of a frame whose rows were exposed for `exposure_s`
+  /// seconds to get its first row's capture time: 0, +exposure / 2 or -exposure / 2.
+  double captureTimeOffset(double exposure_s) const {
+    return stamped_at == StampedAt::kExposureStart ? 0.5 * exposure_s
+           : stamped_at == StampedAt::kExposureEnd ? -0.5 * exposure_s
+                                                   : 0.0;
+  }
   static constexpr double kMaxReadoutS = 0.1;
   static constexpr double kMaxExposureS = 0.1;
 };

@@ -11,6 +11,7 @@
 
 #include <chrono>
 #include <cstdint>
+#include <limits>
 #include <opencv2/core.hpp>
 #include <optional>
 #include <string>
@@ -30,6 +31,9 @@ struct FrameInfo {
   std::uint64_t sequence = 0;        ///< source's frame counter (gaps = frames lost upstream)
   double source_timestamp = 0.0;     ///< file sources: the recorded timestamp, seconds
   int index = -1;                    ///< file sources: frame index in the dataset
+  /// How long the frame's rows were exposed, seconds, as the camera reported it for this
+  /// frame (libcamera's ExposureTime; a dataset's timestamps.txt); NaN: not reported.
+  double exposure_s = std::numeric_limits<double>::quiet_NaN();
   /// The source's clock jumped forward by more than its pacing bound before this frame (a
   /// recording with a gap in its timestamps): pacing was resynchronised to this frame
   /// instead of waiting the gap out. The capture loop reports it.

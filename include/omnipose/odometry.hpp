@@ -188,6 +188,12 @@ struct FrameStamp {
   double time_s = 0.0;         ///< capture time of the frame, seconds (any epoch)
   std::int64_t sequence = -1;  ///< the frame's number (-1: numbered by the odometry)
   bool gap_before = false;     ///< frames were lost since the previous call (or a reconnect)
+  /// How long each row of this frame was exposed, seconds, as the camera reported it (under
+  /// auto-exposure it changes from frame to frame). NaN: not reported, the calibration's
+  /// sensor.exposure_s holds. Only the gyro path reads it (DESIGN.md section 3, "Motion
+  /// blur"); a value outside [0, SensorTiming::kMaxExposureS] is not used (the calibration's
+  /// holds) and is counted (GyroCounters::exposures_refused).
+  double exposure_s = std::numeric_limits<double>::quiet_NaN();
 };
 
 /// How a frame's pose was obtained.
@@ -276,6 +282,9 @@ struct GyroCounters {
   std::int64_t frames_gyro_bridged = 0;
   /// Frame pairs whose images' rotation updated the gyro's bias estimate.
   std::int64_t bias_readings = 0;
+  /// Frames whose stated exposure (FrameStamp::exposure_s) was not a number of seconds in
+  /// [0, SensorTiming::kMaxExposureS]: modelled with the calibration's instead.
+  std::int64_t exposures_refused = 0;
   /// The gyro's bias as estimated from the images, rad/s about the IMU's axes (zero before
   /// any reading), and one standard deviation of it (infinite before two readings).
   Eigen::Vector3d bias = Eigen::Vector3d::Zero();

@@ -29,6 +29,9 @@ constexpr detail::Named<LensModelKind> kLensModels[] = {{LensModelKind::kLinear,
                                                         {LensModelKind::kMei, "mei"}};
 constexpr detail::Named<AzimuthDirection> kAzimuthDirections[] = {{AzimuthDirection::kCw, "cw"},
                                                                   {AzimuthDirection::kCcw, "ccw"}};
+constexpr detail::Named<StampedAt> kStampedAt[] = {{StampedAt::kExposureMiddle, "exposure_middle"},
+                                                   {StampedAt::kExposureStart, "exposure_start"},
+                                                   {StampedAt::kExposureEnd, "exposure_end"}};
 constexpr detail::Named<OuterEdge> kOuterEdges[] = {{OuterEdge::kTop, "top"},
                                                     {OuterEdge::kBottom, "bottom"}};
 
@@ -54,6 +57,7 @@ Eigen::Vector3d bearingOf(double theta, double elevation) {
 }  // namespace
 
 const char* toString(LensModelKind kind) { return detail::nameOf(kLensModels, kind); }
+const char* toString(StampedAt at) { return detail::nameOf(kStampedAt, at); }
 const char* toString(AzimuthDirection direction) {
   return detail::nameOf(kAzimuthDirections, direction);
 }
@@ -471,9 +475,10 @@ Calibration Calibration::parse(const std::string& text, const std::string& origi
     r.get(pano, "panorama", "forward_column", c.panorama.forward_column, Need::kOptional);
 
     if (const YAML::Node sensor = YamlReader::child(root, "sensor");
-        sensor && r.checkMap(sensor, "sensor", {"readout_s", "exposure_s"})) {
+        sensor && r.checkMap(sensor, "sensor", {"readout_s", "exposure_s", "timestamp"})) {
       r.get(sensor, "sensor", "readout_s", c.sensor.readout_s, Need::kOptional);
       r.get(sensor, "sensor", "exposure_s", c.sensor.exposure_s, Need::kOptional);
+      r.getNamed(sensor, "sensor", "timestamp", kStampedAt, c.sensor.stamped_at, Need::kOptional);
     }
     if (const YAML::Node imu = YamlReader::child(root, "imu"); imu) readImuSection(r, imu, c);
   }
@@ -525,10 +530,12 @@ std::string Calibration::toYaml() const {
     << "  height: " << panorama.height << "\n"
     << "  horizon_row: " << panorama.horizon_row << "\n"
     << "  forward_column: " << panorama.forward_column << "\n";
-  if (sensor.readout_s != 0.0 || sensor.exposure_s != 0.0) {
+  const bool stamp_stated = sensor.stamped_at != StampedAt::kExposureMiddle;
+  if (sensor.readout_s != 0.0 || sensor.exposure_s != 0.0 || stamp_stated) {
     o << "sensor:\n";
     if (sensor.readout_s != 0.0) o << "  readout_s: " << sensor.readout_s << "\n";
     if (sensor.exposure_s != 0.0) o << "  exposure_s: " << sensor.exposure_s << "\n";
+    if (stamp_stated) o << "  timestamp: " << toString(sensor.stamped_at) << "\n";
   }
   if (imu) {
     const Eigen::Quaterniond& q = imu->rotation;

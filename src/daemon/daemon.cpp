@@ -32,7 +32,7 @@ Daemon::Daemon(const DaemonConfig& config, std::FILE* log, std::unique_ptr<Frame
   source_lock_ = lockSource(config_.source);
   source_ = source ? std::move(source)
                    : makeFrameSource(config_.source, {frame_size, config_.calibration,
-                                                     calibration.sensor.readout_s});
+                                                     calibration.sensor});
   phase("opening the LCM output");
   sink_ = sink ? std::move(sink) : makeLcmSink(config_.lcm.url);
   phase("opening the gyro");

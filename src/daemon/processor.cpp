@@ -175,8 +175,7 @@ void Processor::countMap(const OdometryResult& r) {
   board_.map_disagreed.store(c.disagreed);
 }
 
-void Processor::handleFrame(const MailboxFrame& frame) {
-  const auto t_start = SteadyClock::now();
+FrameStamp Processor::stampOf(const MailboxFrame& frame) {
   const FrameInfo& info = frame.info;
   // The recording's own timestamps when there are some (a hole in a recording replayed as
   // fast as possible is still a hole), else the capture time on the clock that does not
@@ -184,11 +183,21 @@ void Processor::handleFrame(const MailboxFrame& frame) {
   const double t = info.index >= 0            ? info.source_timestamp
                    : info.steady_time_us > 0 ? static_cast<double>(info.steady_time_us) * 1e-6
                                              : static_cast<double>(info.capture_time_us) * 1e-6;
+  return {.time_s = t,
+          .sequence = static_cast<std::int64_t>(info.sequence),
+          .gap_before = frame.gap_before,
+          .exposure_s = info.exposure_s};
+}
+
+void Processor::handleFrame(const MailboxFrame& frame) {
+  const auto t_start = SteadyClock::now();
+  const FrameInfo& info = frame.info;
+  const FrameStamp stamp = stampOf(frame);
+  const double t = stamp.time_s;
   takeGyro();
 
   const std::int64_t cpu_start = cpuTimeNs(CLOCK_THREAD_CPUTIME_ID);
-  Expected<OdometryResult> result =
-      odometry_.process(*frame.image, {t, static_cast<std::int64_t>(info.sequence), frame.gap_before});
+  Expected<OdometryResult> result = odometry_.process(*frame.image, stamp);
   load_.processing_cpu_ns += cpuTimeNs(CLOCK_THREAD_CPUTIME_ID) - cpu_start;
   countGyro(info.sequence, t);
   load_.processing_wall_ns +=

@@ -79,6 +79,9 @@ class Processor {
   /// The load fields of a status over `wall_s` seconds: since the last status, or the run.
   void fillLoad(status_t& s, bool final, double wall_s);
   void fillDiagnostics(const FrameInfo& info, const OdometryResult& result, std::int8_t status);
+  /// What the odometry is told of `frame` besides its pixels: its time (see the definition),
+  /// number, a gap before it, and the exposure its source reported.
+  static FrameStamp stampOf(const MailboxFrame& frame);
   /// Gives the odometry the gyro samples queued since the last frame.
   void takeGyro();
   /// After the frame (`sequence`, timestamp `t` on the odometry's clock): the odometry's gyro

@@ -88,13 +88,15 @@ std::unique_ptr<FrameSource> makeFrameSource(const SourceConfig& config,
       throwIfInvalid(checkSourceOptions(config));
       {
         V4l2Options options = v4l2Options(config);
-        options.readout_s = context.readout_s;
+        options.readout_s = context.sensor.readout_s;
         return std::make_unique<V4l2Source>(options);
       }
     case SourceConfig::Type::kLibcamera:
 #if defined(OMNIPOSE_HAVE_LIBCAMERA)
       throwIfInvalid(checkSourceOptions(config));
-      return std::make_unique<LibcameraSource>(libcameraOptions(config));
+      LibcameraOptions options = libcameraOptions(config);
+      options.sensor = context.sensor;
+      return std::make_unique<LibcameraSource>(options);
 #else
       break;
 #endif

@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "daemon/config.hpp"
+#include "omnipose/calibration.hpp"
 #include "omnipose/frame_source.hpp"
 
 namespace omnipose {
@@ -28,8 +29,10 @@ struct SourceContext {
   cv::Size frame_size;
   /// The daemon's calibration file (a file source uses it instead of DATASET/calibration.yaml).
   std::filesystem::path calibration;
-  /// Its sensor.readout_s (a V4L2 source dates end-of-frame timestamps back by it).
-  double readout_s = 0.0;
+  /// Its sensor timing: a V4L2 source dates end-of-frame timestamps back by the readout, a
+  /// libcamera source moves each stamp to the first row's capture time (`stamped_at`, the
+  /// frame's reported exposure, else `exposure_s`).
+  SensorTiming sensor;
 };
 
 /// source.device, .width, .height, .fps, .format as V4l2Options (tuning left at its

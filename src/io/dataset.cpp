@@ -7,6 +7,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <map>
 #include <stdexcept>
 
@@ -25,13 +26,18 @@ namespace {
 constexpr double kMaxTimestamp = 1e10;
 constexpr std::size_t kMaxWarnings = 20;
 
+/// Longest exposure timestamps.txt may state, seconds.
+constexpr double kMaxStatedExposure = 10.0;
+
 struct Stamp {
   double time = 0.0;
+  double exposure = std::numeric_limits<double>::quiet_NaN();
   int line = 0;
 };
 
-/// timestamps.txt: "<file name> <seconds>" per line. A malformed line, a value that is not a
-/// plain decimal, a time beyond +-1e10 s or a name given twice is an error naming the line.
+/// timestamps.txt: "<file name> <seconds> [<exposure seconds>]" per line. A malformed line, a
+/// value that is not a plain decimal, a time beyond +-1e10 s, an exposure outside [0, 10] s
+/// or a name given twice is an error naming the line.
 std::map<std::string, Stamp, std::less<>> readTimestamps(const fs::path& path) {
   const std::string text = readTextFileOrThrow(path);
   std::map<std::string, Stamp, std::less<>> stamps;
@@ -47,7 +53,15 @@ std::map<std::string, Stamp, std::less<>> readTimestamps(const fs::path& path) {
     if (!(std::abs(*t) <= kMaxTimestamp))
       throw std::runtime_error(where(r.line) +
                                "timestamp must be a finite number of seconds within +-1e10");
-    const auto [it, inserted] = stamps.try_emplace(std::string(r.fields[0]), Stamp{*t, r.line});
+    Stamp stamp{*t, std::numeric_limits<double>::quiet_NaN(), r.line};
+    if (r.fields.size() >= 3) {
+      const std::optional<double> e = io::parseDecimal(r.fields[2]);
+      if (!e || !(*e >= 0.0 && *e <= kMaxStatedExposure))
+        throw std::runtime_error(where(r.line) + "exposure '" + detail::shown(r.fields[2]) +
+                                 "' is not a decimal number of seconds in [0, 10]");
+      stamp.exposure = *e;
+    }
+    const auto [it, inserted] = stamps.try_emplace(std::string(r.fields[0]), stamp);
     if (!inserted)
       throw std::runtime_error(where(r.line) + detail::shown(r.fields[0]) + " given twice (first on line " +
                                std::to_string(it->second.line) + ")");
@@ -93,7 +107,10 @@ Dataset Dataset::open(const fs::path& root, const std::optional<fs::path>& calib
         throw std::runtime_error(stamps_path.string() + ": no timestamp for frame " +
                                  f.path.filename().string());
       }
-      f.timestamp = it->second.time;
+      f.exposure_s = it->second.exposure;
+      // The camera's stamp moved to the first row's capture time (sensor.timestamp).
+      const double exposure = std::isnan(f.exposure_s) ? d.calibration.sensor.exposure_s : f.exposure_s;
+      f.timestamp = it->second.time + d.calibration.sensor.captureTimeOffset(exposure);
       const std::string where = stamps_path.string() + ":" + std::to_string(it->second.line) + ": ";
       if (f.timestamp < 0.0)
         warn(where + f.path.filename().string() + " at " + std::to_string(f.timestamp) +

@@ -39,15 +39,16 @@ ReplayCounts replayDataset(const Dataset& dataset, Odometry& odometry,
       continue;
     }
     if (!gyro.empty() && calibration.imu) {
-      const std::size_t n =
-          gyroSamplesArrivedBy(gyro, *calibration.imu,
-                               std::abs(calibration.sensor.readout_s) +
-                                   0.5 * calibration.sensor.exposure_s,
-                               f.timestamp);
+      const double exposure =
+          std::isnan(f.exposure_s) ? calibration.sensor.exposure_s : f.exposure_s;
+      const std::size_t n = gyroSamplesArrivedBy(
+          gyro, *calibration.imu, std::abs(calibration.sensor.readout_s) + 0.5 * exposure,
+          f.timestamp);
       odometry.addGyro(gyro.first(n));
       gyro = gyro.subspan(n);
     }
-    const Expected<OdometryResult> result = odometry.process(image, {f.timestamp, i});
+    const Expected<OdometryResult> result = odometry.process(
+        image, {.time_s = f.timestamp, .sequence = i, .exposure_s = f.exposure_s});
     if (!result) {
       ++counts.skipped;
       if (result.error().code() == ErrorCode::kImplausible) ++counts.implausible;

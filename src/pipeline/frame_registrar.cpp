@@ -112,7 +112,7 @@ FrameRegistrar::FrameRegistrar(const Calibration& c, const PipelineOptions& o, i
   weights_.resize(windows);
   refine_weights_.resize(windows);
   row_scale_.resize(windows);
-  if (c.sensor.exposure_s > 0.0) blur_paths_.resize(windows * kBlurSamples);
+  blur_paths_.resize(windows * kBlurSamples);
   second_weights_.resize(windows);
   shifts_only_.resize(windows);  // rs_confidence 0: no rotation/scale
   expected_dv_.resize(windows);
@@ -121,7 +121,8 @@ FrameRegistrar::FrameRegistrar(const Calibration& c, const PipelineOptions& o, i
   for (int k = 0; k < registration_.windowCount(); ++k)
     window_azimuth_.push_back(c.panorama.azimuth(registration_.windowCenter(k)));
   if (c.sensor.readout_s != 0.0) measureWindowTimes();
-  current_rows_ = previous_rows_ = FrameRotation(c.sensor.readout_s, c.sensor.exposure_s);
+  current_rows_ = previous_rows_ =
+      FrameRotation(c.sensor.readout_s, c.sensor.exposure_s, SensorTiming::kMaxExposureS);
   keyframe_rows_.assign(static_cast<std::size_t>(keyframe_slots), previous_rows_);
   wisdom_.saveIfPlanned();
 }
@@ -183,25 +184,30 @@ Expected<void> FrameRegistrar::unwrap(const cv::Mat& frame) {
 
 bool FrameRegistrar::measureRowRotations(std::span<const GyroSample> samples,
                                          const ImuCalibration& imu, const Eigen::Vector3d& bias,
-                                         double time, double max_gap_s) {
-  if (!rowsMoveWithinFrame()) {
-    current_rows_.forget();
+                                         double time, double max_gap_s, double exposure_s) {
+  if (!rowsMoveWithinFrame(exposure_s)) {
+    forgetRowRotations();
     return false;
   }
-  const bool known = current_rows_.measure(samples, imu, bias, time, max_gap_s);
+  const bool known = current_rows_.measure(samples, imu, bias, time, max_gap_s, exposure_s);
   passMotionBlur();
   return known;
 }
 
+void FrameRegistrar::forgetRowRotations() {
+  current_rows_.forget();
+  passMotionBlur();
+}
+
 void FrameRegistrar::passMotionBlur() {
-  if (blur_paths_.empty() || !current_rows_.known()) {
+  if (!current_rows_.known() || !(current_rows_.exposure() > 0.0)) {
     registration_.setMotionBlur({}, 0);
     return;
   }
   // Window k's pixels, captured around s_k, are the mean of the sharp frames over the
   // exposure E centred there: the frame turned by turnAt(s_k + tau) - turnAt(s_k) (to first
   // order in the turn within E) shows each shifted as predictMotion() says.
-  const double exposure = calibration_.sensor.exposure_s, gamma = calibration_.panorama.gamma();
+  const double exposure = current_rows_.exposure(), gamma = calibration_.panorama.gamma();
   const int windows = registration_.windowCount();
   for (int k = 0; k < windows; ++k) {
     const auto i = static_cast<std::size_t>(k);

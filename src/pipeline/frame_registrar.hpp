@@ -87,20 +87,26 @@ class FrameRegistrar {
   /// calibration it changes nothing.
   void setShutter(const ShutterContext& shutter) { shutter_ = shutter; }
 
-  /// The camera's rotation within the current frame (timestamp `time`, camera seconds) from
-  /// the gyro's `samples` (FrameRotation): passes against a reference whose rotation is
-  /// known too then take each window's capture times out exactly (DESIGN.md section 3,
-  /// "Rolling shutter with a gyro") instead of from the pair's own motion. False (unknown:
-  /// the images alone) when the samples do not cover the frame's readout and exposure, and
-  /// for a global shutter of unknown exposure (nothing to take out). With an exposure time it
-  /// gives the registration each window's blur path too (passMotionBlur()), or takes it back.
+  /// The camera's rotation within the current frame (timestamp `time`, camera seconds,
+  /// exposed for `exposure_s` seconds in [0, SensorTiming::kMaxExposureS]: its own or the
+  /// calibration's) from the gyro's `samples` (FrameRotation): passes against a reference
+  /// whose rotation is known too then take each window's capture times out exactly
+  /// (DESIGN.md section 3, "Rolling shutter with a gyro") instead of from the pair's own
+  /// motion. False (unknown: the images alone) when the samples do not cover the frame's
+  /// readout and exposure, and for a global shutter without an exposure (nothing to take
+  /// out). With an exposure it gives the registration each window's blur path too
+  /// (passMotionBlur()), or takes it back.
   bool measureRowRotations(std::span<const GyroSample> samples, const ImuCalibration& imu,
-                           const Eigen::Vector3d& bias, double time, double max_gap_s);
+                           const Eigen::Vector3d& bias, double time, double max_gap_s,
+                           double exposure_s);
 
-  /// Whether the rows' poses differ from the timestamp's: a rolling shutter, or an exposure
-  /// time (motion blur) in the calibration. Only then do the rows need the gyro.
-  bool rowsMoveWithinFrame() const {
-    return calibration_.sensor.readout_s != 0.0 || calibration_.sensor.exposure_s != 0.0;
+  /// The current frame's rows' rotations unknown (the images alone), its blur path cleared.
+  void forgetRowRotations();
+
+  /// Whether the rows' poses differ from the timestamp's: a rolling shutter, or a frame
+  /// exposed for `exposure_s` > 0 seconds (motion blur). Only then do the rows need the gyro.
+  bool rowsMoveWithinFrame(double exposure_s) const {
+    return calibration_.sensor.readout_s != 0.0 || exposure_s > 0.0;
   }
 
   /// Whether a previous frame is set (the first pass can run).
@@ -288,8 +294,7 @@ class FrameRegistrar {
   ShutterContext shutter_;
   /// Samples of each window's blur path over the exposure (setMotionBlur()).
   static constexpr int kBlurSamples = 32;
-  /// Per window, kBlurSamples shifts over the current frame's exposure, pixels (du's sense);
-  /// empty without an exposure time in the calibration.
+  /// Per window, kBlurSamples shifts over the current frame's exposure, pixels (du's sense).
   std::vector<float> blur_paths_;
   /// Gives the registration the current frame's horizontal blur path in every window from
   /// current_rows_ (or none when they are not known).

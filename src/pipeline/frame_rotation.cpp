@@ -8,20 +8,55 @@
 
 namespace omnipose::pipeline {
 
-FrameRotation::FrameRotation(double span_s, double exposure_s)
-    : origin_(-0.5 * exposure_s), exposure_(exposure_s) {
-  const double length = std::abs(span_s) + exposure_s;
-  const int pieces = std::max(1, static_cast<int>(std::ceil(length / kStepS)));
-  step_ = length / pieces;
-  turn_.assign(static_cast<std::size_t>(pieces) + 1, Eigen::Vector3d::Zero());
+namespace {
+
+int piecesOver(double length) {
+  return std::max(1, static_cast<int>(std::ceil(length / FrameRotation::kStepS)));
+}
+
+}  // namespace
+
+FrameRotation::FrameRotation(double span_s, double exposure_s, double max_exposure_s)
+    : span_(std::abs(span_s)),
+      default_exposure_(exposure_s),
+      max_exposure_(std::max(exposure_s, max_exposure_s)) {
+  const auto most = static_cast<std::size_t>(piecesOver(span_ + max_exposure_)) + 1;
+  turn_.assign(most, Eigen::Vector3d::Zero());
   rate_ = turn_;
+  layOut(default_exposure_);
+}
+
+void FrameRotation::layOut(double exposure_s) {
+  exposure_ = exposure_s;
+  origin_ = -0.5 * exposure_s;
+  const double length = span_ + exposure_s;
+  const int pieces = piecesOver(length);
+  step_ = length / pieces;
+  count_ = std::min(static_cast<std::size_t>(pieces) + 1, turn_.size());
+}
+
+bool FrameRotation::measure(std::span<const GyroSample> samples, const ImuCalibration& imu,
+                            const Eigen::Vector3d& bias, double time, double max_gap_s,
+                            double exposure_s) {
+  if (!(exposure_s >= 0.0 && exposure_s <= max_exposure_)) {
+    known_ = false;
+    return false;
+  }
+  layOut(exposure_s);
+  return integrate(samples, imu, bias, time, max_gap_s);
 }
 
 bool FrameRotation::measure(std::span<const GyroSample> samples, const ImuCalibration& imu,
                             const Eigen::Vector3d& bias, double time, double max_gap_s) {
+  layOut(default_exposure_);
+  return integrate(samples, imu, bias, time, max_gap_s);
+}
+
+bool FrameRotation::integrate(std::span<const GyroSample> samples, const ImuCalibration& imu,
+                              const Eigen::Vector3d& bias, double time, double max_gap_s) {
   known_ = false;
   Eigen::Matrix3d R = Eigen::Matrix3d::Identity();
-  for (std::size_t i = 0; i < turn_.size(); ++i) {
+  for (std::size_t i = 0; i < count_; ++i) {
     const double at = time + origin_ + static_cast<double>(i) * step_;
     if (i > 0) {
       const std::optional<Eigen::Matrix3d> piece =
@@ -39,17 +74,18 @@ bool FrameRotation::measure(std::span<const GyroSample> samples, const ImuCalibr
     // The turns so far start at the exposure's beginning: re-referred to the timestamp,
     // where the curve through them stands at R0 (rates are in the axes of their own time).
     const Eigen::Matrix3d R0t = rotationFromVector(turnAt(0.0)).transpose();
-    for (Eigen::Vector3d& turn : turn_) turn = rotationVector(R0t * rotationFromVector(turn));
+    for (std::size_t i = 0; i < count_; ++i)
+      turn_[i] = rotationVector(R0t * rotationFromVector(turn_[i]));
   }
   return true;
 }
 
 Eigen::Vector3d FrameRotation::turnAt(double s) const {
   const double x = s - origin_;
-  const std::size_t last = turn_.size() - 1;
+  const std::size_t last = count_ - 1;
   if (!(x > 0.0)) return turn_.front() + rate_.front() * x;
   if (step_ == 0.0 || x >= static_cast<double>(last) * step_)
-    return turn_.back() + rate_.back() * (x - static_cast<double>(last) * step_);
+    return turn_[last] + rate_[last] * (x - static_cast<double>(last) * step_);
   const auto i = std::min(static_cast<std::size_t>(x / step_), last - 1);
   const double u = x / step_ - static_cast<double>(i), u2 = u * u, u3 = u2 * u;
   // The rotation vector's rate is the angular velocity to first order in the (small) turn.

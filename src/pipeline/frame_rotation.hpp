@@ -7,7 +7,7 @@
 /// over its exposure (section 3, "Motion blur").
 ///
 /// Realtime: the constructor allocates; measure(), turnAt(), exposedTurnAt() and copies
-/// between two of the same span and exposure allocate nothing and never throw.
+/// between two constructed alike allocate nothing and never throw.
 
 #include <Eigen/Core>
 #include <span>
@@ -24,17 +24,27 @@ class FrameRotation {
   static constexpr double kStepS = 0.001;
 
   /// For capture times in [0, span_s] after the timestamp (|span_s|: the readout), each
-  /// exposed for `exposure_s` seconds centred on it (>= 0; 0: an instant).
-  explicit FrameRotation(double span_s = 0.0, double exposure_s = 0.0);
+  /// exposed for `exposure_s` seconds centred on it (>= 0; 0: an instant) unless a frame
+  /// states its own exposure, which may be up to max(exposure_s, max_exposure_s) seconds.
+  explicit FrameRotation(double span_s = 0.0, double exposure_s = 0.0,
+                         double max_exposure_s = 0.0);
 
   /// The rotation from camera time `time` (the frame's timestamp, seconds) over the span
   /// widened by half the exposure on either side, integrated from the gyro's `samples`
   /// (integrateGyro(), gyroRateAt()). False, and not known(), when the samples do not cover
-  /// [time - exposure / 2, time + span + exposure / 2] or have a gap there.
+  /// [time - exposure / 2, time + span + exposure / 2] or have a gap there. The first form
+  /// takes the constructor's exposure; the second this frame's, `exposure_s` seconds, and is
+  /// false (nothing measured) when that is not within [0, the constructor's maximum].
   bool measure(std::span<const GyroSample> samples, const ImuCalibration& imu,
                const Eigen::Vector3d& bias, double time, double max_gap_s);
+  bool measure(std::span<const GyroSample> samples, const ImuCalibration& imu,
+               const Eigen::Vector3d& bias, double time, double max_gap_s, double exposure_s);
   bool known() const { return known_; }
   void forget() { known_ = false; }
+  /// The exposure of the frame measured last, seconds (the constructor's before any).
+  double exposure() const { return exposure_; }
+  /// The longest exposure measure() takes, seconds.
+  double maxExposure() const { return max_exposure_; }
 
   /// The rotation vector from the timestamp to `s` seconds after it, radians, in the camera's
   /// axes at the timestamp: the cubic Hermite curve through the kept samples and their rates
@@ -47,10 +57,20 @@ class FrameRotation {
   Eigen::Vector3d exposedTurnAt(double s) const;
 
  private:
+  /// Spaces the kept samples over the span and `exposure_s`.
+  void layOut(double exposure_s);
+  /// measure() over the samples as laid out.
+  bool integrate(std::span<const GyroSample> samples, const ImuCalibration& imu,
+                 const Eigen::Vector3d& bias, double time, double max_gap_s);
+
+  double span_ = 0.0;      ///< |span_s|, seconds
+  double default_exposure_ = 0.0, max_exposure_ = 0.0;  ///< seconds
   double step_ = 0.0;
   double origin_ = 0.0;    ///< seconds after the timestamp of the first kept sample (<= 0)
   double exposure_ = 0.0;  ///< seconds
-  std::vector<Eigen::Vector3d> turn_, rate_;  ///< at origin_ + i * step_ after the timestamp
+  std::size_t count_ = 1;  ///< kept samples in use, the first count_ of turn_ and rate_
+  /// At origin_ + i * step_ after the timestamp; sized once for the longest exposure.
+  std::vector<Eigen::Vector3d> turn_, rate_;
   bool known_ = false;
 };
 

@@ -242,7 +242,7 @@ struct Odometry::Impl {
       c.previous_velocity = velocity;
       c.previous_interval_s = velocity_interval;
     }
-    if (gyro_calibration && registrar->rowsMoveWithinFrame())
+    if (gyro_calibration && registrar->rowsMoveWithinFrame(exposure))
       c.gyro_rotation = gyroRotation(reference_time);
     registrar->setShutter(c);
   }
@@ -266,11 +266,24 @@ struct Odometry::Impl {
   bool gyroBridge(OdometryResult& out);
   /// Two samples further apart than this are a gap, seconds.
   double gyroMaxGap() const { return kGyroGapIntervals * gyro.typicalInterval(); }
+  /// The exposure the current frame is modelled with: `stated` (FrameStamp::exposure_s)
+  /// when it is a usable number of seconds, else the calibration's (a refusal counted).
+  double frameExposure(double stated) {
+    const double calibrated = registrar->calibration().sensor.exposure_s;
+    if (std::isnan(stated)) return calibrated;
+    if (stated >= 0.0 && stated <= SensorTiming::kMaxExposureS) return stated;
+    ++gyro_counters.exposures_refused;
+    return calibrated;
+  }
   /// The current frame's rows' rotations from the gyro, counted.
   void measureRowRotations() {
-    if (!gyro_calibration || !registrar->rowsMoveWithinFrame()) return;
+    if (!gyro_calibration) return;
+    if (!registrar->rowsMoveWithinFrame(exposure)) {
+      registrar->forgetRowRotations();
+      return;
+    }
     if (registrar->measureRowRotations(gyro.samples(), *gyro_calibration, gyro_bias.bias(),
-                                       time, gyroMaxGap()))
+                                       time, gyroMaxGap(), exposure))
       ++gyro_counters.frames_with_gyro;
     else
       ++gyro_counters.frames_without_gyro;
@@ -335,6 +348,7 @@ struct Odometry::Impl {
   Eigen::Matrix<double, 6, 1> velocity = Eigen::Matrix<double, 6, 1>::Zero();
   double velocity_interval = 0.0;
   double time = 0.0;       ///< of the frame being processed
+  double exposure = 0.0;   ///< the exposure of the frame being processed, seconds
   std::int64_t auto_sequence = 0;
   std::int64_t sequence = -1;  ///< the frame being processed
   Clock::time_point t_start;
@@ -568,6 +582,7 @@ Expected<OdometryResult> Odometry::Impl::process(const cv::Mat& frame, const Fra
   out.sequence = sequence;
   if (pairwise) return processPairwise(frame, out);
 
+  exposure = frameExposure(stamp.exposure_s);
   pipeline::FrameRegistrar& r = *registrar;
   const auto burst = r.frameBurst();
   FrameMotion& m = out.relative;

@@ -1,3 +1,4 @@
+#include <cmath>
 #include <cstdio>
 #include <fstream>
 #include <opencv2/imgcodecs.hpp>
@@ -30,7 +31,7 @@ std::string DatasetWriter::frameName(std::size_t i) const {
   return name;
 }
 
-void DatasetWriter::addFrame(const cv::Mat& image, const StampedPose& pose) {
+void DatasetWriter::addFrame(const cv::Mat& image, const StampedPose& pose, double exposure_s) {
   const std::filesystem::path path = directory_ / "frames" / frameName(poses_.size());
   if (image.empty() || image.type() != CV_8UC1) {
     throw std::invalid_argument(path.string() + ": frame must be a non-empty CV_8UC1 image");
@@ -46,6 +47,7 @@ void DatasetWriter::addFrame(const cv::Mat& image, const StampedPose& pose) {
   }
   if (!ok) throw std::runtime_error(path.string() + ": cannot write frame");
   poses_.push_back(pose);
+  exposures_.push_back(exposure_s);
 }
 
 void DatasetWriter::writeGyro(std::span<const GyroSample> samples) {
@@ -58,7 +60,12 @@ void DatasetWriter::finish() {
   char seconds[64];
   for (std::size_t i = 0; i < poses_.size(); ++i) {
     std::snprintf(seconds, sizeof(seconds), "%.6f", poses_[i].timestamp);
-    out << frameName(i) << ' ' << seconds << '\n';
+    out << frameName(i) << ' ' << seconds;
+    if (std::isfinite(exposures_[i])) {
+      std::snprintf(seconds, sizeof(seconds), "%.9g", exposures_[i]);
+      out << ' ' << seconds;
+    }
+    out << '\n';
   }
   if (!out) throw std::runtime_error(stamps.string() + ": cannot write timestamps");
   // Ground truth relative to the first frame: T_0^-1 * T_k, so the first pose is identity.

@@ -162,6 +162,26 @@ TEST(CalibrationSensor, ExposureTimeIsReadValidatedAndSaved) {
   EXPECT_THAT(two, HasSubstr("sensor.exposure_s"));
 }
 
+TEST(CalibrationSensor, WhereTheCameraStampsAFrameIsReadValidatedAndSaved) {
+  EXPECT_EQ(Calibration::parse(kValid).sensor.stamped_at, StampedAt::kExposureMiddle);
+  EXPECT_THAT(Calibration::parse(kValid).toYaml(), Not(HasSubstr("timestamp:")));
+  for (const StampedAt at : {StampedAt::kExposureStart, StampedAt::kExposureEnd}) {
+    const Calibration c = Calibration::parse(std::string(kValid) + "sensor:\n  timestamp: " +
+                                             toString(at) + "\n");
+    EXPECT_EQ(c.sensor.stamped_at, at);
+    EXPECT_EQ(Calibration::parse(c.toYaml()).sensor.stamped_at, at) << c.toYaml();
+  }
+  SensorTiming t;
+  EXPECT_EQ(t.captureTimeOffset(0.01), 0.0);
+  t.stamped_at = StampedAt::kExposureStart;
+  EXPECT_DOUBLE_EQ(t.captureTimeOffset(0.01), 0.005);
+  t.stamped_at = StampedAt::kExposureEnd;
+  EXPECT_DOUBLE_EQ(t.captureTimeOffset(0.01), -0.005);
+  const std::string what = problemsOf("sensor:\n  timestamp: readout\n");
+  EXPECT_THAT(what, HasSubstr("cal.yaml: sensor.timestamp: 'readout' is not"));
+  EXPECT_THAT(what, HasSubstr("exposure_end"));
+}
+
 TEST(CalibrationImu, TheGyrosMountingAndClockAreReadValidatedAndSaved) {
   EXPECT_FALSE(Calibration::parse(kValid).imu.has_value()) << "no section: no gyro";
   EXPECT_THAT(Calibration::parse(kValid).toYaml(), Not(HasSubstr("imu:")));

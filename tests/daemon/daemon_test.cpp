@@ -6,6 +6,8 @@
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
+#include <cmath>
+#include <fstream>
 #include <functional>
 #include <numbers>
 #include <opencv2/imgcodecs.hpp>
@@ -283,6 +285,28 @@ TEST(FileFrameSource, DeliversEveryFrameInOrderAsGreyWithItsTimestamp) {
   auto end = source.next(buffer, 100ms);
   ASSERT_FALSE(end.has_value());
   EXPECT_EQ(end.error().code(), ErrorCode::kEndOfStream);
+}
+
+TEST(FileFrameSource, PassesEachFramesRecordedExposure) {
+  TempDir tmp("filesrc-exposure");
+  testing::copyDataset(yawDataset(), tmp / "d");
+  {
+    std::ofstream out(tmp / "d" / "timestamps.txt");
+    for (int i = 0; i < kFrames; ++i)
+      out << testing::frameName(i) << ' ' << i / 30.0 << (i == 2 ? "" : " 0.00" + std::to_string(i % 9 + 1))
+          << '\n';
+  }
+  FileFrameSource source(fileOptions(tmp / "d", /*realtime=*/false));
+  ASSERT_TRUE(source.open().has_value());
+  cv::Mat buffer(omniSize(), CV_8UC1);
+  for (int i = 0; i < kFrames; ++i) {
+    auto got = source.next(buffer, 100ms);
+    ASSERT_TRUE(got.has_value()) << got.error().c_str();
+    if (i == 2)
+      EXPECT_TRUE(std::isnan(got->exposure_s)) << "none recorded";
+    else
+      EXPECT_DOUBLE_EQ(got->exposure_s, 0.001 * (i % 9 + 1)) << "frame " << i;
+  }
 }
 
 TEST(FileFrameSource, RealtimeDeliversAtTheRecordedIntervals) {

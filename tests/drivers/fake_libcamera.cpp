@@ -301,6 +301,9 @@ void FakeCamera::produceFrame(std::uint64_t content_index, bool flag_error) {
     c.bytes_used = s.frame_size;
     c.has_sensor_timestamp = config_.sensor_timestamp;
     c.sensor_timestamp_ns = config_.sensor_timestamp ? boottime : 0;
+    c.has_exposure_time = !config_.exposure_time_us.empty();
+    if (c.has_exposure_time)
+      c.exposure_time_us = config_.exposure_time_us[seq % config_.exposure_time_us.size()];
   }
   deliver(c);
 }

@@ -66,6 +66,9 @@ struct FakeCameraConfig {
   unsigned max_buffers = 8;
   bool frame_duration_settable = true;
   bool sensor_timestamp = true;
+  /// ExposureTime in each request's metadata, microseconds: frame n (the camera's sequence)
+  /// reports exposure_time_us[n % size]; empty: none reported.
+  std::vector<std::int32_t> exposure_time_us;
   std::int64_t default_frame_duration_ns = 33'333'333;
 };
 

@@ -314,6 +314,48 @@ TEST_F(LibcameraStreamTest, SensorTimestampBecomesWallClockMicroseconds) {
   }
 }
 
+TEST_F(LibcameraStreamTest, TheReportedExposureGoesOnAndMovesTheStampToTheCaptureTime) {
+  // A camera that stamps the start of its first row's readout (the end of its exposure) and
+  // reports each frame's ExposureTime: every stamp moved back by half that frame's exposure.
+  FakeCameraConfig c;
+  c.exposure_time_us = {4000, 16000, 9000};
+  replugWith(c);
+  LibcameraOptions o = options();
+  o.sensor.stamped_at = StampedAt::kExposureEnd;
+  o.sensor.exposure_s = 0.03;  // the calibration's, not used: each frame states its own
+  auto s = source(o);
+  ASSERT_TRUE(s->open());
+  for (int i = 0; i < 3; ++i) {
+    auto f = nextAfter(*s, 1);
+    ASSERT_TRUE(f);
+    const double exposure_us = c.exposure_time_us[static_cast<std::size_t>(i)];
+    EXPECT_DOUBLE_EQ(f->exposure_s, 1e-6 * exposure_us);
+    const std::int64_t error = f->capture_time_us * 1000 - manager_->realtimeOffsetNs() -
+                               manager_->boottimeOf(static_cast<std::uint64_t>(i)) +
+                               static_cast<std::int64_t>(500.0 * exposure_us);
+    EXPECT_LE(std::abs(error), 500) << "frame " << i;
+    const std::int64_t steady_error =
+        f->steady_time_us * 1000 -
+        (manager_->boottimeOf(static_cast<std::uint64_t>(i)) - manager_->boottimeOffsetNs() -
+         static_cast<std::int64_t>(500.0 * exposure_us));
+    EXPECT_LE(std::abs(steady_error), 1000) << "frame " << i;
+  }
+}
+
+TEST_F(LibcameraStreamTest, WithoutAReportedExposureTheCalibrationsMovesTheStamp) {
+  LibcameraOptions o = options();
+  o.sensor.stamped_at = StampedAt::kExposureStart;
+  o.sensor.exposure_s = 0.01;
+  auto s = source(o);
+  ASSERT_TRUE(s->open());
+  auto f = nextAfter(*s, 1);
+  ASSERT_TRUE(f);
+  EXPECT_TRUE(std::isnan(f->exposure_s)) << "not reported";
+  const std::int64_t error = f->capture_time_us * 1000 - manager_->realtimeOffsetNs() -
+                             manager_->boottimeOf(0) - 5 * kMs;
+  EXPECT_LE(std::abs(error), 500) << "moved on by half the calibration's 10 ms";
+}
+
 TEST_F(LibcameraStreamTest, BufferTimestampWhenSensorTimestampIsAbsent) {
   FakeCameraConfig c;
   c.sensor_timestamp = false;

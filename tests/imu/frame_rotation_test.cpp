@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <limits>
 #include <vector>
 
 #include "omnipose/calibration.hpp"
@@ -86,6 +87,40 @@ TEST(FrameRotation, AnExposedRowShowsTheMeanTurnOverItsExposure) {
   const Recording short_r = recording(0.0, time + readout + 0.004 - r.imu.time_offset_s);
   EXPECT_TRUE(instant.measure(short_r.samples, r.imu, Eigen::Vector3d::Zero(), time, gap));
   EXPECT_FALSE(rotation.measure(short_r.samples, r.imu, Eigen::Vector3d::Zero(), time, gap));
+}
+
+TEST(FrameRotation, AFrameStatingItsOwnExposureIsMeasuredOverIt) {
+  const Recording r = recording(0.0, 0.3);
+  const double readout = 0.0267, time = 0.1, gap = 0.02;
+  // Room for exposures up to 30 ms; 10 ms unless a frame states its own.
+  FrameRotation varying(readout, 0.01, 0.03);
+  EXPECT_EQ(varying.maxExposure(), 0.03);
+  for (const double exposure : {0.004, 0.03, 0.0, 0.017}) {
+    FrameRotation fixed(readout, exposure);
+    ASSERT_TRUE(fixed.measure(r.samples, r.imu, Eigen::Vector3d::Zero(), time, gap));
+    ASSERT_TRUE(varying.measure(r.samples, r.imu, Eigen::Vector3d::Zero(), time, gap, exposure));
+    EXPECT_EQ(varying.exposure(), exposure);
+    // Bit for bit what a rotation made for that exposure measures.
+    for (const double s : {-0.011, 0.0, 0.0071, readout, readout + 0.012}) {
+      EXPECT_EQ(varying.turnAt(s), fixed.turnAt(s)) << exposure << " s = " << s;
+      EXPECT_EQ(varying.exposedTurnAt(s), fixed.exposedTurnAt(s)) << exposure << " s = " << s;
+    }
+    // A copy carries the frame's exposure (a previous or keyframe's rows).
+    FrameRotation copy(readout, 0.01, 0.03);
+    copy = varying;
+    EXPECT_EQ(copy.exposedTurnAt(0.0071), fixed.exposedTurnAt(0.0071));
+  }
+  // The plain form goes back to the constructor's exposure.
+  FrameRotation ten(readout, 0.01);
+  ASSERT_TRUE(ten.measure(r.samples, r.imu, Eigen::Vector3d::Zero(), time, gap));
+  ASSERT_TRUE(varying.measure(r.samples, r.imu, Eigen::Vector3d::Zero(), time, gap));
+  EXPECT_EQ(varying.exposure(), 0.01);
+  EXPECT_EQ(varying.exposedTurnAt(0.0071), ten.exposedTurnAt(0.0071));
+  // Longer than its room, negative or not a number: nothing measured.
+  for (const double bad : {0.031, -0.001, std::numeric_limits<double>::quiet_NaN()}) {
+    EXPECT_FALSE(varying.measure(r.samples, r.imu, Eigen::Vector3d::Zero(), time, gap, bad));
+    EXPECT_FALSE(varying.known());
+  }
 }
 
 TEST(FrameRotation, IsUnknownWhereTheSamplesDoNotReach) {

@@ -5,6 +5,7 @@
 
 #include <sys/stat.h>
 
+#include <cmath>
 #include <fstream>
 #include <opencv2/imgcodecs.hpp>
 
@@ -57,6 +58,45 @@ TEST_F(DatasetTest, TimestampsFileIsUsedAndAMissingEntryIsNamed) {
     FAIL();
   } catch (const std::runtime_error& e) {
     EXPECT_THAT(e.what(), HasSubstr("f2.png"));
+  }
+}
+
+TEST_F(DatasetTest, AFramesRecordedExposureIsReadAndItsStampMovedToTheCaptureTime) {
+  {
+    std::ofstream out(root_ / "timestamps.txt");
+    out << "f0.png 10.5 0.004\nf1.png 10.6\nf2.png 10.7 0.016\n";
+  }
+  const Dataset middle = Dataset::open(root_);
+  EXPECT_DOUBLE_EQ(middle.frames[0].exposure_s, 0.004);
+  EXPECT_TRUE(std::isnan(middle.frames[1].exposure_s)) << "not recorded";
+  EXPECT_DOUBLE_EQ(middle.frames[2].exposure_s, 0.016);
+  EXPECT_DOUBLE_EQ(middle.frames[2].timestamp, 10.7) << "stamped at the middle: kept";
+  // A camera that stamps the end of the first row's exposure (the start of its readout):
+  // each stamp moved back by half its own exposure, the calibration's where none is recorded.
+  Calibration end;
+  end.sensor.stamped_at = StampedAt::kExposureEnd;
+  end.sensor.exposure_s = 0.01;
+  end.save(root_ / "calibration.yaml");
+  const Dataset d = Dataset::open(root_);
+  EXPECT_DOUBLE_EQ(d.frames[0].timestamp, 10.5 - 0.002);
+  EXPECT_DOUBLE_EQ(d.frames[1].timestamp, 10.6 - 0.005);
+  EXPECT_DOUBLE_EQ(d.frames[2].timestamp, 10.7 - 0.008);
+  Calibration start = end;
+  start.sensor.stamped_at = StampedAt::kExposureStart;
+  start.save(root_ / "calibration.yaml");
+  EXPECT_DOUBLE_EQ(Dataset::open(root_).frames[2].timestamp, 10.7 + 0.008);
+  // An exposure that is not a number of seconds in [0, 10] names its line.
+  for (const char* bad : {"-0.001", "11", "nan", "1/30", "0x1p-6"}) {
+    {
+      std::ofstream out(root_ / "timestamps.txt");
+      out << "f0.png 10.5\nf1.png 10.6 " << bad << "\nf2.png 10.7\n";
+    }
+    try {
+      Dataset::open(root_);
+      ADD_FAILURE() << bad << " accepted";
+    } catch (const std::runtime_error& e) {
+      EXPECT_THAT(e.what(), HasSubstr("timestamps.txt:2: exposure '")) << bad;
+    }
   }
 }
 

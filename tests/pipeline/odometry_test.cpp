@@ -458,18 +458,23 @@ TEST(Odometry, TheGyroPathAllocatesNothingThroughBadSamplesAndAFullBuffer) {
                             {0.0, Eigen::Vector3d(200.0, 0.0, 0.0)},
                             {0.0, Eigen::Vector3d::Zero()}};  // long before the last sample
 
+  // Each frame states its own exposure (auto-exposure), the calibration's (NaN), none, the
+  // longest there is room for, or one that is refused.
+  const double stated[] = {NAN, 0.004, SensorTiming::kMaxExposureS, 0.0, -1.0};
   testing::AllocationCounter counter;
   int ok = 0;
   for (int i = 6; i < 126; ++i) {
     const double t = i / 30.0;
-    while (t_gyro <= t + 0.04) odometry.addGyro(fill(t + 0.04));
+    while (t_gyro <= t + 0.08) odometry.addGyro(fill(t + 0.08));
     if (i % 40 == 0) odometry.addGyro(bad);
-    if (odometry.process(frames[static_cast<std::size_t>(i % 6)], {t}).has_value()) ++ok;
+    const FrameStamp stamp{.time_s = t, .exposure_s = stated[i % 5]};
+    if (odometry.process(frames[static_cast<std::size_t>(i % 6)], stamp).has_value()) ++ok;
   }
   const std::int64_t allocations = counter.stop();
   EXPECT_EQ(ok, 120);
   EXPECT_EQ(allocations, 0) << "heap allocations in 120 frames with the gyro";
   const GyroCounters c = odometry.gyroCounters();
+  EXPECT_EQ(c.exposures_refused, 24);
   EXPECT_GT(c.frames_with_gyro, 100);
   EXPECT_EQ(c.not_finite, 3);
   EXPECT_EQ(c.too_fast, 3);

@@ -352,3 +352,16 @@ def test_panorama_and_jpeg(calibration, frames):
         omnipose.Panorama(calibration, "donut")
     with pytest.raises(ValueError, match="frame"):
         pano.unwrap(np.zeros((3, 3), np.uint8))
+
+
+def test_a_frames_stated_exposure_is_taken_and_a_bad_one_counted(calibration, frames):
+    # Without a gyro the exposure changes no pose; one that is not a number of seconds in
+    # [0, 0.1] is refused and counted.
+    plain = omnipose.Odometry(calibration, threads=1)
+    stated = omnipose.Odometry(calibration, threads=1)
+    for i, f in enumerate(frames[:3]):
+        a = plain.process(f, i / 30)
+        b = stated.process(f, i / 30, exposure=[0.004, 0.2, -1.0][i])
+        assert np.array_equal(a.pose, b.pose)
+    assert plain.gyro_counters()["exposures_refused"] == 0
+    assert stated.gyro_counters()["exposures_refused"] == 2

@@ -19,6 +19,7 @@
 
 #include "omnipose/calibration.hpp"
 #include "omnipose/gyro.hpp"
+#include "omnipose/io/dataset.hpp"
 #include "omnipose/io/gyro.hpp"
 #include "omnipose/io/trajectory.hpp"
 #include "omnipose/so3.hpp"
@@ -155,6 +156,10 @@ TEST(ProgramCliChecks, SemanticMistakesExitTwo) {
       {"omnipose-synth", {"--texture", "t.jpg", "--out", "o", "--readout", "0.05"}, "--readout"},
       {"omnipose-synth", {"--texture", "t.jpg", "--out", "o", "--texture-width", "1023"}, "--texture-width"},
       {"omnipose-synth", {"--texture", "t.jpg", "--out", "o", "--texture-turn", "nan"}, "--texture-turn"},
+      {"omnipose-synth", {"--texture", "t.jpg", "--out", "o", "--exposure-times", "0.01,-0.002"}, "--exposure-times:"},
+      {"omnipose-synth", {"--texture", "t.jpg", "--out", "o", "--exposure-times", "0.01", "--exposure-time", "0.01"},
+       "give one of them"},
+      {"omnipose-synth", {"--texture", "t.jpg", "--out", "o", "--exposure-times", "0.01,0.05"}, "--exposure-times: 0.05"},
       {"omnipose-synth", {"--texture", "t.jpg", "--out", "o", "--gyro-noise", "1e-4"}, "--gyro-noise needs --gyro-rate"},
       {"omnipose-synth", {"--texture", "t.jpg", "--out", "o", "--gyro-rate", "0"}, "--gyro-rate:"},
       {"omnipose-synth", {"--texture", "t.jpg", "--out", "o", "--gyro-rate", "200", "--gyro-bias", "-1"}, "--gyro-bias:"},
@@ -227,6 +232,26 @@ TEST(SynthCli, WritesTheGyroOfTheRenderedMotionAndItsCalibration) {
       EXPECT_LT(omnipose::rotationVector(pair.transpose() * *R).norm(), 2e-5) << "pair " << k;
     }
   }
+  fs::remove_all(dir);
+}
+
+// omnipose-synth --exposure-times: each frame exposed for its own time, which timestamps.txt
+// records beside its stamp and the dataset reader gives back; the calibration states none.
+TEST(SynthCli, WritesEachFramesExposureBesideItsTimestamp) {
+  const fs::path dir = fs::temp_directory_path() / ("omnipose-synth-ae-" + std::to_string(::getpid()));
+  fs::remove_all(dir);
+  const fs::path photo = fs::path(OMNIPOSE_SOURCE_DIR) / "tests/data/equirect/indoor_1024x512.jpg";
+  const Outcome r = run("omnipose-synth",
+                        {"--texture", photo.string(), "--out", dir.string(), "--preset", "mixed", "--frames", "5",
+                         "--output", "panorama", "--supersample", "1", "--exposure-times", "0.004,0.016",
+                         "--exposure-samples", "2", "--quiet"});
+  ASSERT_EQ(r.exit_code, 0) << r.out << r.err;
+  EXPECT_THAT(r.out, HasSubstr("exposures 2 cycled up to 0.016 s"));
+  const omnipose::Dataset d = omnipose::Dataset::open(dir);
+  ASSERT_EQ(d.frames.size(), 5u);
+  for (std::size_t k = 0; k < d.frames.size(); ++k)
+    EXPECT_DOUBLE_EQ(d.frames[k].exposure_s, k % 2 == 0 ? 0.004 : 0.016) << "frame " << k;
+  EXPECT_EQ(d.calibration.sensor.exposure_s, 0.0);
   fs::remove_all(dir);
 }
 

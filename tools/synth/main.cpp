@@ -1,11 +1,13 @@
 /// omnipose-synth: renders a synthetic dataset (DESIGN.md section 6) from an equirect photo,
 /// with exact ground truth, through the exact renderer of omnipose::synth.
 
+#include <algorithm>
 #include <array>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <iostream>
+#include <limits>
 #include <optional>
 #include <map>
 #include <string>
@@ -45,6 +47,8 @@ struct Args {
   synth::Interpolation between_frames = synth::Interpolation::kSmooth;
   bool readout_given = false;  ///< else the calibration's sensor.readout_s
   double exposure_time = 0.0;  ///< motion blur: exposure time, seconds (0 = none)
+  /// Auto-exposure: frame k exposed for exposure_times[k % size()] seconds, reported with it.
+  std::vector<double> exposure_times;
   int exposure_samples = 0;    ///< sub-exposures, 0 = chosen from the motion
   double exposure_step = 0.0;  ///< auto-exposure step, relative (0 = none)
   int exposure_step_every = 0;
@@ -181,6 +185,12 @@ void addEffectOptions(CLI::App& app, Args& a, Raw& raw) {
                  "mean of sub-exposures along the motion between frames, and of the walkers' "
                  "motion); at most one frame interval (default 0: none)")
       ->type_name("S");
+  app.add_option("--exposure-times", a.exposure_times,
+                 "auto-exposure: frame k exposed for S_(k mod n) seconds, each written beside "
+                 "its timestamp in timestamps.txt as a camera reports it (calibration.yaml "
+                 "states none); each at most one frame interval; not with --exposure-time")
+      ->delimiter(',')
+      ->type_name("S1,S2,...");
   app.add_option("--exposure-samples", a.exposure_samples,
                  "sub-exposures of --exposure-time, 1..256 (default: enough that each moves "
                  "the image by at most 0.5 px, at most 64)")
@@ -359,11 +369,16 @@ void finish(const CLI::App& app, Args& a, const Raw& raw) {
     throw UsageError("--occluder paints the omni image: it needs --output omni");
   if (!(a.exposure_time >= 0 && std::isfinite(a.exposure_time)))
     throw UsageError("--exposure-time: must be >= 0 seconds");
+  for (const double e : a.exposure_times)
+    if (!(e > 0 && std::isfinite(e))) throw UsageError("--exposure-times: each must be > 0 seconds");
+  if (!a.exposure_times.empty() && a.exposure_time > 0.0)
+    throw UsageError("--exposure-times and --exposure-time: give one of them");
   if (given("--exposure-samples")) {
     if (a.exposure_samples < 1 || a.exposure_samples > synth::kMaxExposureSamples)
       throw UsageError("--exposure-samples: must be in [1, " +
                        std::to_string(synth::kMaxExposureSamples) + "]");
-    if (a.exposure_time == 0.0) throw UsageError("--exposure-samples needs --exposure-time");
+    if (a.exposure_time == 0.0 && a.exposure_times.empty())
+      throw UsageError("--exposure-samples needs --exposure-time or --exposure-times");
   }
   if (!(a.exposure_step >= 0 && a.exposure_step <= 1))
     throw UsageError("--exposure-step: must be in [0, 1]");
@@ -417,6 +432,18 @@ std::optional<synth::Walkers> walkersOf(const Args& a, const synth::MotionScript
   return w;
 }
 
+/// Frame k's exposure, seconds (0: none).
+double exposureOf(const Args& a, std::size_t k) {
+  return a.exposure_times.empty() ? a.exposure_time : a.exposure_times[k % a.exposure_times.size()];
+}
+
+/// The longest exposure of any frame, seconds (0: none).
+double longestExposure(const Args& a) {
+  double most = a.exposure_time;
+  for (const double e : a.exposure_times) most = std::max(most, e);
+  return most;
+}
+
 /// The sub-exposure counts of the frames rendered (0 and 0 without rolling shutter or blur).
 struct SampleRange {
   int fewest = 0, most = 0;
@@ -437,14 +464,14 @@ SampleRange renderFrames(const Args& a, const synth::Renderer& renderer,
       return synth::poseAtTime(control, stamp + t, a.between_frames);
     };
     cv::Mat image;
-    if (readout == 0.0 && a.exposure_time == 0.0) {
+    if (readout == 0.0 && longestExposure(a) == 0.0) {
       // Global shutter: the frame's own pose (and the walkers at its timestamp).
       image = renderer.walkers().empty() ? renderer.render(poses[k].pose)
                                          : renderer.render(poses[k].pose, stamp);
     } else {
       synth::FrameTiming timing{.timestamp_s = stamp,
                                 .readout_s = readout,
-                                .exposure_s = a.exposure_time,
+                                .exposure_s = exposureOf(a, k),
                                 .exposure_samples = a.exposure_samples};
       timing.exposure_samples = renderer.exposureSamples(pose_at, timing);
       samples.fewest = k == 0 ? timing.exposure_samples
@@ -454,7 +481,9 @@ SampleRange renderFrames(const Args& a, const synth::Renderer& renderer,
     }
     if (a.occluder) a.occluder->paint(image, calibration);
     if (!vignette.empty()) cv::multiply(image, vignette, image);
-    writer.addFrame(synth::degrade(image, degrade, k), poses[k]);
+    writer.addFrame(synth::degrade(image, degrade, k), poses[k],
+                    a.exposure_times.empty() ? std::numeric_limits<double>::quiet_NaN()
+                                             : exposureOf(a, k));
     progress.update(static_cast<int>(k + 1));
   }
   progress.finish();
@@ -479,8 +508,8 @@ GyroRecording gyroSamples(synth::GyroSimulation gyro, std::uint64_t seed,
                           const std::vector<StampedPose>& control, const Args& a, double readout) {
   constexpr double kGyroMarginS = 0.1;
   gyro.seed = seed;
-  const double first = control.front().timestamp - 0.5 * a.exposure_time - kGyroMarginS;
-  const double last = control.back().timestamp + std::abs(readout) + 0.5 * a.exposure_time +
+  const double first = control.front().timestamp - 0.5 * longestExposure(a) - kGyroMarginS;
+  const double last = control.back().timestamp + std::abs(readout) + 0.5 * longestExposure(a) +
                       kGyroMarginS;
   return synth::simulateGyro(control, a.between_frames, gyro, first, last);
 }
@@ -505,7 +534,12 @@ std::string effectsText(const Args& a, const synth::MotionScript& script, double
     shutter = text;
   }
   std::string effects;
-  if (a.exposure_time > 0.0) {
+  if (!a.exposure_times.empty()) {
+    char text[128];
+    std::snprintf(text, sizeof(text), ", exposures %zu cycled up to %.4g s in %d..%d sub-exposures",
+                  a.exposure_times.size(), longestExposure(a), samples.fewest, samples.most);
+    effects += text;
+  } else if (a.exposure_time > 0.0) {
     char text[96];
     std::snprintf(text, sizeof(text), ", exposure %.4g s in %d..%d sub-exposures",
                   a.exposure_time, samples.fewest, samples.most);
@@ -557,10 +591,10 @@ int run(const Args& a) {
                      "| s is longer than the frame interval of " + motion_name + " (" +
                      std::to_string(1.0 / script.frame_rate) + " s)");
   }
-  if (!(a.exposure_time <= 1.0 / script.frame_rate)) {
-    throw UsageError("--exposure-time: " + std::to_string(a.exposure_time) +
-                     " s is longer than the frame interval of " + motion_name + " (" +
-                     std::to_string(1.0 / script.frame_rate) + " s)");
+  if (!(longestExposure(a) <= 1.0 / script.frame_rate)) {
+    throw UsageError((a.exposure_times.empty() ? "--exposure-time: " : "--exposure-times: ") +
+                     std::to_string(longestExposure(a)) + " s is longer than the frame interval of " +
+                     motion_name + " (" + std::to_string(1.0 / script.frame_rate) + " s)");
   }
 
   const synth::SceneKind kind =

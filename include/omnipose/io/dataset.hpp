@@ -3,11 +3,13 @@
 /// A recorded or rendered dataset directory (DESIGN.md section 6):
 ///   DATASET/calibration.yaml   lens and panorama
 ///   DATASET/frames/            images sorted by name: png, jpg, jpeg, pgm, ppm, bmp
-///   DATASET/timestamps.txt     optional "<file name> <seconds>" per line; else i / 30 s
+///   DATASET/timestamps.txt     optional "<file name> <seconds> [<exposure seconds>]" per
+///                              line; else i / 30 s
 ///   DATASET/groundtruth.tum    optional camera poses (TUM)
 
 #include <cstdint>
 #include <filesystem>
+#include <limits>
 #include <opencv2/core.hpp>
 #include <optional>
 #include <string>
@@ -21,7 +23,13 @@ namespace omnipose {
 
 struct DatasetFrame {
   std::filesystem::path path;
-  double timestamp = 0.0;  ///< seconds
+  /// Seconds: the first row's capture time, the recorded stamp moved by the calibration's
+  /// sensor.timestamp (SensorTiming::captureTimeOffset()) when it is not the middle of the
+  /// exposure.
+  double timestamp = 0.0;
+  /// The frame's exposure as recorded (timestamps.txt's third column), seconds; NaN: not
+  /// recorded (FrameStamp::exposure_s).
+  double exposure_s = std::numeric_limits<double>::quiet_NaN();
 };
 
 struct Dataset {
@@ -51,7 +59,8 @@ struct Dataset {
   /// folder or no images in it, missing/invalid calibration (CalibrationError), a
   /// timestamps.txt or groundtruth.tum that is not a regular file or is larger than
   /// kMaxTextFileBytes (file_io.hpp), a malformed timestamps.txt line (a value that is not
-  /// a plain decimal within +-1e10 s, a file name given twice: the line is named), or a
+  /// a plain decimal within +-1e10 s, an exposure outside [0, 10] s, a file name given
+  /// twice: the line is named), or a
   /// frame without a timestamp.
   static Dataset open(const std::filesystem::path& root,
                       const std::optional<std::filesystem::path>& calibration_override = {});

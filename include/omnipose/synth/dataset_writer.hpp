@@ -4,6 +4,7 @@
 
 #include <cstddef>
 #include <filesystem>
+#include <limits>
 #include <opencv2/core.hpp>
 #include <span>
 #include <string>
@@ -31,8 +32,10 @@ class DatasetWriter {
                 int jpeg_quality = 0);
 
   /// Writes the next frame (CV_8UC1) with its timestamp and ground-truth pose
-  /// T_world_camera. Throws std::runtime_error naming the file when it cannot be written.
-  void addFrame(const cv::Mat& image, const StampedPose& pose);
+  /// T_world_camera, and the exposure its camera reports (seconds, timestamps.txt's third
+  /// column; NaN: none). Throws std::runtime_error naming the file when it cannot be written.
+  void addFrame(const cv::Mat& image, const StampedPose& pose,
+                double exposure_s = std::numeric_limits<double>::quiet_NaN());
   /// Writes the gyro's samples as DIR/imu.csv (io/gyro.hpp). Throws std::runtime_error
   /// naming the file when it cannot be written.
   void writeGyro(std::span<const GyroSample> samples);
@@ -47,6 +50,7 @@ class DatasetWriter {
   std::filesystem::path directory_;
   int jpeg_quality_;
   std::vector<StampedPose> poses_;
+  std::vector<double> exposures_;  ///< per frame, seconds; NaN: none stated
 };
 
 }  // namespace omnipose::synth

@@ -1,13 +1,16 @@
 #include <nanobind/eigen/dense.h>
 #include <nanobind/ndarray.h>
+#include <nanobind/stl/optional.h>
 #include <nanobind/stl/string.h>
 #include <nanobind/stl/tuple.h>
 #include <nanobind/stl/vector.h>
 
 #include <chrono>
 #include <filesystem>
+#include <limits>
 #include <memory>
 #include <mutex>
+#include <optional>
 #include <span>
 
 #include "bindings.hpp"
@@ -48,14 +51,19 @@ class PyOdometry {
         odometry_(std::make_unique<Odometry>(calibration, options_)),
         geometry_(windowGeometry(calibration, *odometry_)) {}
 
-  FrameResult process(nb::handle frame, double time_s, std::int64_t sequence, bool gap_before) {
+  FrameResult process(nb::handle frame, double time_s, std::int64_t sequence, bool gap_before,
+                      std::optional<double> exposure) {
     AnyArray array;  // holds the frame's array for the call
     const cv::Mat view = frameView(frame, frame_size_, "frame", array);
     std::unique_lock<std::mutex> lock = claim("process");
     Expected<OdometryResult> result;
     {
       nb::gil_scoped_release release;
-      result = odometry_->process(view, {time_s, sequence, gap_before});
+      result = odometry_->process(
+          view, {.time_s = time_s,
+                 .sequence = sequence,
+                 .gap_before = gap_before,
+                 .exposure_s = exposure.value_or(std::numeric_limits<double>::quiet_NaN())});
     }
     return toFrameResult(result, time_s, geometry_);
   }
@@ -88,6 +96,7 @@ class PyOdometry {
     d["frames_without_gyro"] = g.frames_without_gyro;
     d["frames_gyro_bridged"] = g.frames_gyro_bridged;
     d["bias_readings"] = g.bias_readings;
+    d["exposures_refused"] = g.exposures_refused;
     d["bias"] = Eigen::Vector3d(g.bias);
     d["bias_sigma"] = g.bias_sigma;
     return d;
@@ -185,11 +194,14 @@ void bindOdometry(nb::module_& m) {
            "daemon.yaml key, and ValueError when the options do not fit the calibration.")
       .def("process", &PyOdometry::process, nb::arg("frame"), nb::arg("t"),
            nb::arg("sequence") = -1, nb::arg("gap_before") = false,
+           nb::arg("exposure") = nb::none(),
            "Processes the next frame: a uint8 array (H, W) grey, (H, W, 3) BGR or (H, W, 4) BGRA "
            "of the calibration's frame size (frame_shape), read in place (no copy; rows may be "
            "strided) while the GIL is released: do not change it during the call. t: capture "
            "time, seconds (any epoch); sequence: the frame's number (-1: counted); gap_before: "
-           "frames were lost since the previous call. A rejected frame (black, a glitch) comes "
+           "frames were lost since the previous call; exposure: how long its rows were exposed, "
+           "seconds, as the camera reported it (None: the calibration's sensor.exposure_s; "
+           "a value outside [0, 0.1] is counted in gyro_counters and not used). A rejected frame (black, a glitch) comes "
            "back with ok False. Raises TypeError (not a uint8 array) or ValueError (wrong shape "
            "or layout) naming what was expected.")
       .def("add_gyro", &PyOdometry::addGyro, nb::arg("t"), nb::arg("rates"),
