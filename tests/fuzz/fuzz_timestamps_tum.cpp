@@ -1,7 +1,7 @@
 // DATASET/timestamps.txt and groundtruth.tum (the TUM reader, readTum), through
 // Dataset::open with a valid calibration and three frame files: either every frame gets a
-// finite timestamp and every ground-truth pose is finite, or std::runtime_error names the
-// file. The input's first half is timestamps.txt, its second half groundtruth.tum (present
+// finite timestamp (and no exposure or one in [0, 10] s) and every ground-truth pose is
+// finite, or std::runtime_error names the file. The input's first half is timestamps.txt, its second half groundtruth.tum (present
 // when the first byte is odd).
 #include <cmath>
 #include <cstdint>
@@ -38,8 +38,12 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   try {
     const omnipose::Dataset d = omnipose::Dataset::open(root);
     if (d.frames.size() != 3) __builtin_trap();
-    for (const auto& f : d.frames)
+    for (const auto& f : d.frames) {
       if (!std::isfinite(f.timestamp)) __builtin_trap();
+      // A recorded exposure is a number of seconds in [0, 10], or none (NaN).
+      if (!std::isnan(f.exposure_s) && !(f.exposure_s >= 0.0 && f.exposure_s <= 10.0))
+        __builtin_trap();
+    }
     if (d.groundtruth) {
       for (const auto& p : *d.groundtruth)
         if (!std::isfinite(p.timestamp) || !p.pose.matrix().allFinite()) __builtin_trap();
