@@ -145,8 +145,15 @@ void Processor::takeGyro() {
     odometry_.addGyro(std::span<const GyroSample>(gyro_batch_.data(), n));
 }
 
-void Processor::countGyro(std::uint64_t sequence, double t) {
+void Processor::countGyro(const FrameStamp& stamp) {
   const GyroCounters c = odometry_.gyroCounters();
+  const auto sequence = static_cast<unsigned long long>(stamp.sequence);
+  if (c.exposures_refused != exposures_refused_) {
+    exposures_refused_ = c.exposures_refused;
+    board_.reportError("frame %llu: its source reported an exposure of %g s, not in [0, %g] s: "
+                       "modelled with the calibration's sensor.exposure_s",
+                       sequence, stamp.exposure_s, SensorTiming::kMaxExposureS);
+  }
   board_.imu_samples.store(c.accepted);
   board_.imu_samples_refused.store(c.not_finite + c.too_fast + c.out_of_order);
   board_.imu_clock_restarts.store(c.clock_restarts);
@@ -159,7 +166,7 @@ void Processor::countGyro(std::uint64_t sequence, double t) {
   board_.reportError("frame %llu: the gyro's samples do not cover its readout (the newest at "
                      "%.6f s on the IMU's clock, the frame at %.6f s): registered from the "
                      "images alone",
-                     static_cast<unsigned long long>(sequence), c.last_sample_t, t);
+                     sequence, c.last_sample_t, stamp.time_s);
 }
 
 void Processor::countMap(const OdometryResult& r) {
@@ -193,13 +200,12 @@ void Processor::handleFrame(const MailboxFrame& frame) {
   const auto t_start = SteadyClock::now();
   const FrameInfo& info = frame.info;
   const FrameStamp stamp = stampOf(frame);
-  const double t = stamp.time_s;
   takeGyro();
 
   const std::int64_t cpu_start = cpuTimeNs(CLOCK_THREAD_CPUTIME_ID);
   Expected<OdometryResult> result = odometry_.process(*frame.image, stamp);
   load_.processing_cpu_ns += cpuTimeNs(CLOCK_THREAD_CPUTIME_ID) - cpu_start;
-  countGyro(info.sequence, t);
+  countGyro(stamp);
   load_.processing_wall_ns +=
       std::chrono::duration_cast<std::chrono::nanoseconds>(SteadyClock::now() - t_start).count();
   ++load_.frames;

@@ -84,10 +84,10 @@ class Processor {
   static FrameStamp stampOf(const MailboxFrame& frame);
   /// Gives the odometry the gyro samples queued since the last frame.
   void takeGyro();
-  /// After the frame (`sequence`, timestamp `t` on the odometry's clock): the odometry's gyro
-  /// counters to the board, and a report of the frame when the gyro's samples did not cover
-  /// it (with a gyro stream configured).
-  void countGyro(std::uint64_t sequence, double t);
+  /// After the frame `stamp` (its time on the odometry's clock): the odometry's gyro counters
+  /// to the board, a report of the frame when the gyro's samples did not cover it (with a
+  /// gyro stream configured), and one when the exposure its source reported was refused.
+  void countGyro(const FrameStamp& stamp);
   /// After a frame the odometry took: its places, a closed loop, and the map's registrations
   /// and refusals (LoopClosureCounters) to the board.
   void countMap(const OdometryResult& result);
@@ -99,6 +99,7 @@ class Processor {
   bool diagnostics_ = false;
   GyroQueue* gyro_ = nullptr;
   std::int64_t frames_without_gyro_ = 0;  ///< GyroCounters' at the last frame
+  std::int64_t exposures_refused_ = 0;    ///< GyroCounters' at the last frame
   std::array<GyroSample, 256> gyro_batch_;  ///< takeGyro()'s scratch
 
   std::unique_ptr<pose_t> pose_;

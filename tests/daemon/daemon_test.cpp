@@ -430,12 +430,12 @@ TEST(SourceFactory, BuildsTheConfiguredSourceOrSaysWhatIsNotBuiltIn) {
   SourceConfig config;
   config.type = SourceConfig::Type::kFile;
   config.path = yawDataset();
-  auto source = daemon::makeFrameSource(config, {omniSize(), yawDataset() / "calibration.yaml"});
+  auto source = daemon::makeFrameSource(config, {omniSize(), yawDataset() / "calibration.yaml", {}});
   ASSERT_NE(source, nullptr);
   EXPECT_THAT(source->describe(), HasSubstr(yawDataset().string()));
   // Camera sources are created, not opened: no device is needed. V4L2 is always built in.
   config.type = SourceConfig::Type::kV4l2;
-  auto v4l2 = daemon::makeFrameSource(config, {omniSize(), {}});
+  auto v4l2 = daemon::makeFrameSource(config, {omniSize(), {}, {}});
   ASSERT_NE(v4l2, nullptr);
   EXPECT_THAT(v4l2->describe(), HasSubstr("v4l2 " + config.device));
   // libcamera is built in when drivers/libcamera found it (OMNIPOSE_HAVE_LIBCAMERA, set for
@@ -443,12 +443,12 @@ TEST(SourceFactory, BuildsTheConfiguredSourceOrSaysWhatIsNotBuiltIn) {
   // start-up error that names it.
   config.type = SourceConfig::Type::kLibcamera;
 #if defined(OMNIPOSE_HAVE_LIBCAMERA)
-  auto camera = daemon::makeFrameSource(config, {omniSize(), {}});
+  auto camera = daemon::makeFrameSource(config, {omniSize(), {}, {}});
   ASSERT_NE(camera, nullptr);
   EXPECT_THAT(camera->describe(), HasSubstr("libcamera camera " + config.camera));
 #else
   try {
-    daemon::makeFrameSource(config, {omniSize(), {}});
+    daemon::makeFrameSource(config, {omniSize(), {}, {}});
     ADD_FAILURE() << "expected 'not built into this daemon' for libcamera";
   } catch (const std::runtime_error& e) {
     EXPECT_THAT(e.what(), HasSubstr("not built into this daemon"));
@@ -736,6 +736,26 @@ TEST(Daemon, PublishesOnePosePerFrameStatusAtItsRateAndAFinalStatus) {
   EXPECT_EQ(last.source, "memory (6 frames)");
   for (std::size_t k = 0; k + 1 < bus.statuses.size(); ++k) EXPECT_FALSE(bus.statuses[k].final);
   EXPECT_TRUE(bus.diagnostics.empty()) << "diagnostics are off by default";
+}
+
+TEST(Daemon, AReportedExposureThatIsNotOneIsReportedAndNoFrameIsLost) {
+  // Frame 5 of the recording states an exposure of half a second: every frame still has its
+  // pose (the calibration's exposure holds for it), and the fault names the frame.
+  TempDir tmp("daemon-exposure");
+  testing::copyDataset(yawDataset(), tmp / "d");
+  {
+    std::ofstream out(tmp / "d" / "timestamps.txt");
+    for (int i = 0; i < kFrames; ++i)
+      out << testing::frameName(i) << ' ' << i / 30.0 << (i == 5 ? " 0.5" : " 0.004") << '\n';
+  }
+  Bus bus;
+  Daemon d(parseConfig(testing::fileSourceConfig(tmp / "d", "", /*realtime=*/false)), nullptr,
+           nullptr, bus.sink());
+  bus.run(d, 60s);
+  ASSERT_EQ(bus.poses.size(), static_cast<std::size_t>(kFrames));
+  const status_t& last = bus.statuses.back();
+  EXPECT_EQ(last.frames_bad, 0);
+  EXPECT_THAT(last.last_error, HasSubstr("frame 5: its source reported an exposure of 0.5 s"));
 }
 
 TEST(Daemon, CorruptFramesMidStreamAreSkippedReportedAndMarkTheGap) {

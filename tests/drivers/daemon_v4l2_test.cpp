@@ -423,14 +423,14 @@ TEST(CameraSourceFactory, BuildsV4l2AndReportsEveryBadKey) {
   c.width = 640;
   c.height = 480;
   c.format = "MJPG";
-  auto source = daemon::makeFrameSource(c, {omniSize(), {}});
+  auto source = daemon::makeFrameSource(c, {omniSize(), {}, {}});
   ASSERT_NE(source, nullptr);
   EXPECT_THAT(source->describe(), HasSubstr("v4l2 /dev/video3"));
 
   c.format = "RGB3";
   c.fps = 0;
   try {
-    daemon::makeFrameSource(c, {omniSize(), {}});
+    daemon::makeFrameSource(c, {omniSize(), {}, {}});
     ADD_FAILURE() << "expected an error";
   } catch (const std::runtime_error& e) {
     EXPECT_THAT(e.what(), HasSubstr("source.format: 'RGB3'"));
@@ -487,7 +487,7 @@ TEST(CameraSourceFactory, CheckSourceOptionsListsEveryProblemWithoutOpeningAnyth
             "source.format: 'XYZ' is not a V4L2 format this source converts (GREY, YUYV, MJPG)");
   // makeFrameSource() refuses the same section with the same list.
   try {
-    daemon::makeFrameSource(c, {omniSize(), {}});
+    daemon::makeFrameSource(c, {omniSize(), {}, {}});
     ADD_FAILURE() << "expected an error";
   } catch (const std::runtime_error& e) {
     for (const auto& p : problems)
@@ -518,12 +518,12 @@ TEST(CameraSourceFactory, LibcameraIsBuiltWhenFound) {
   c.type = SourceConfig::Type::kLibcamera;
   c.camera = "0";
 #if defined(OMNIPOSE_HAVE_LIBCAMERA)
-  auto source = daemon::makeFrameSource(c, {omniSize(), {}});
+  auto source = daemon::makeFrameSource(c, {omniSize(), {}, {}});
   ASSERT_NE(source, nullptr);
   EXPECT_THAT(source->describe(), HasSubstr("libcamera camera 0"));
 #else
   try {
-    daemon::makeFrameSource(c, {omniSize(), {}});
+    daemon::makeFrameSource(c, {omniSize(), {}, {}});
     ADD_FAILURE() << "expected 'not built into this daemon'";
   } catch (const std::runtime_error& e) {
     EXPECT_THAT(e.what(), HasSubstr("not built into this daemon"));
