@@ -31,22 +31,28 @@ struct ImagePair {
 };
 
 /// Every consecutive tracked pair of `frames`; with `gyro` (and calibration.imu) registered
-/// with each row's rotation within its frame from the gyro.
+/// with each row's rotation within its frame from the gyro, frame k exposed for exposures[k]
+/// (empty: the calibration's exposure).
 std::vector<ImagePair> imagePairs(const Calibration& calibration, std::span<const cv::Mat> frames,
                                   std::span<const double> times, const OdometryOptions& options,
-                                  std::span<const GyroSample> gyro = {}) {
+                                  std::span<const GyroSample> gyro = {},
+                                  std::span<const double> exposures = {}) {
   Odometry odometry(calibration, options);
   std::vector<ImagePair> pairs;
   std::size_t next = 0;
   for (std::size_t k = 0; k < frames.size(); ++k) {
+    FrameStamp stamp{.time_s = times[k]};
+    if (!exposures.empty()) stamp.exposure_s = exposures[k];
     if (!gyro.empty()) {
       const std::span<const GyroSample> rest = gyro.subspan(next);
-      const std::size_t n =
-          gyroSamplesArrivedBy(rest, *calibration.imu, calibration.sensor.readout_s, times[k]);
+      const double exposure =
+          std::isnan(stamp.exposure_s) ? calibration.sensor.exposure_s : stamp.exposure_s;
+      const std::size_t n = gyroSamplesArrivedBy(
+          rest, *calibration.imu, std::abs(calibration.sensor.readout_s) + 0.5 * exposure, times[k]);
       odometry.addGyro(rest.first(n));
       next += n;
     }
-    const auto r = odometry.process(frames[k], {times[k]});
+    const auto r = odometry.process(frames[k], stamp);
     if (!r || r->state != TrackState::kTracked || r->reference_sequence != r->sequence - 1 ||
         k == 0)
       continue;
@@ -235,7 +241,8 @@ std::optional<Clock> searchClock(const std::vector<ImagePair>& pairs, std::span<
 /// rate changes within it), and the clock from them, kRounds times. Updates `pairs` and
 /// `clock`; false (out.summary says why) when it cannot.
 bool reclockRollingShutter(const Calibration& calibration, std::span<const cv::Mat> frames,
-                           std::span<const double> times, std::span<const GyroSample> samples,
+                           std::span<const double> times, std::span<const double> exposures,
+                           std::span<const GyroSample> samples,
                            const ImuSearchOptions& options, std::vector<ImagePair>& pairs,
                            Clock& clock, ImuEstimate& out) {
   constexpr int kRounds = 4;
@@ -245,7 +252,7 @@ bool reclockRollingShutter(const Calibration& calibration, std::span<const cv::M
     imu.rotation = Eigen::Quaterniond(clock.fit.X).normalized();
     imu.time_offset_s = clock.offset.at;
     c.imu = imu;
-    pairs = coveredPairs(imagePairs(c, frames, times, options.odometry, samples), samples,
+    pairs = coveredPairs(imagePairs(c, frames, times, options.odometry, samples, exposures), samples,
                          options.max_offset_s, options.max_gap_s);
     if (static_cast<int>(pairs.size()) < kMinPairs)
       return cannot(out, std::to_string(pairs.size()) + " frame pairs tracked with the gyro's rows, at "
@@ -312,7 +319,8 @@ std::vector<std::string> ImuSearchOptions::validate() const {
 ImuEstimate estimateImuCalibration(const Calibration& calibration, std::span<const cv::Mat> frames,
                                    std::span<const double> times_s,
                                    std::span<const GyroSample> samples,
-                                   const ImuSearchOptions& options) {
+                                   const ImuSearchOptions& options,
+                                   std::span<const double> exposures_s) {
   if (const auto problems = options.validate(); !problems.empty()) {
     std::string what = "estimateImuCalibration: invalid options:";
     for (const auto& p : problems) what += "\n  " + p;
@@ -321,6 +329,9 @@ ImuEstimate estimateImuCalibration(const Calibration& calibration, std::span<con
   if (frames.size() != times_s.size())
     throw std::invalid_argument("estimateImuCalibration: " + std::to_string(frames.size()) +
                                 " frames but " + std::to_string(times_s.size()) + " times");
+  if (!exposures_s.empty() && exposures_s.size() != frames.size())
+    throw std::invalid_argument("estimateImuCalibration: " + std::to_string(frames.size()) +
+                                " frames but " + std::to_string(exposures_s.size()) + " exposures");
   ImuEstimate out;
   const std::vector<ImagePair> tracked = imagePairs(calibration, frames, times_s, options.odometry);
   std::vector<ImagePair> pairs = coveredPairs(tracked, samples, options.max_offset_s, options.max_gap_s);
@@ -335,7 +346,8 @@ ImuEstimate estimateImuCalibration(const Calibration& calibration, std::span<con
   auto clock = searchClock(pairs, samples, options, out);
   if (!clock) return out;
   if (calibration.sensor.readout_s != 0.0 &&
-      !reclockRollingShutter(calibration, frames, times_s, samples, options, pairs, *clock, out))
+      !reclockRollingShutter(calibration, frames, times_s, exposures_s, samples, options, pairs,
+                             *clock, out))
     return out;
   out.pairs = static_cast<int>(pairs.size());
   const double axis_ratio = measureUncertainty(pairs, clock->fit, clock->offset.curvature, out);

@@ -142,6 +142,9 @@ TEST(ImuEstimation, TooFewPairsOrAGyroThatMissesTheFramesIsSaid) {
                std::invalid_argument);
   EXPECT_THROW(estimateImuCalibration(Calibration{}, r.images, std::span(r.times).first(3), r.gyro.samples),
                std::invalid_argument);
+  const std::vector<double> exposures(3, 0.01);  // frames' exposures must be one per frame
+  EXPECT_THROW(estimateImuCalibration(Calibration{}, r.images, r.times, r.gyro.samples, {}, exposures),
+               std::invalid_argument);
 }
 
 // omnipose-calibrate --imu-from on a dataset written like a robot's recording: the imu section

@@ -198,11 +198,13 @@ omnipose::calibrate::ModelImport importOcamCalibFile(const fs::path& file,
   return omnipose::calibrate::importOcamCalib(file, modelImportOptions(given), frames);
 }
 
-/// The frames of a recording (--readout-from, --imu-from) with their timestamps.
+/// The frames of a recording (--readout-from, --imu-from) with their timestamps and the
+/// exposures recorded with them (NaN: none).
 struct Recording {
   omnipose::Dataset dataset;
   std::vector<cv::Mat> frames;
   std::vector<double> times;
+  std::vector<double> exposures;
 };
 
 /// Opens DATASET, which must have timestamps.txt (`what` is measured against the frame
@@ -210,7 +212,7 @@ struct Recording {
 /// consecutive), no others; a frame that cannot be read is skipped and said.
 Recording readRecording(const fs::path& dataset_dir, std::size_t max_frames, bool quiet,
                         const char* what) {
-  Recording r{omnipose::Dataset::open(dataset_dir), {}, {}};
+  Recording r{omnipose::Dataset::open(dataset_dir), {}, {}, {}};
   if (!r.dataset.timestamps_from_file)
     throw std::runtime_error((dataset_dir / "timestamps.txt").string() + ": missing; " + what +
                              " is measured against the frame times");
@@ -234,6 +236,7 @@ Recording readRecording(const fs::path& dataset_dir, std::size_t max_frames, boo
     }
     r.frames.push_back(std::move(*image));
     r.times.push_back(f.timestamp);
+    r.exposures.push_back(f.exposure_s);
   }
   return r;
 }
@@ -281,7 +284,7 @@ int estimateImuOf(const fs::path& dataset_dir, const fs::path& out_yaml, std::si
                 gyro.median_interval_s > 0.0 ? 1.0 / gyro.median_interval_s : 0.0, dataset_dir.c_str(),
                 -options.max_offset_s, options.max_offset_s);
   const omnipose::calibrate::ImuEstimate e = omnipose::calibrate::estimateImuCalibration(
-      r.dataset.calibration, r.frames, r.times, gyro.samples, options);
+      r.dataset.calibration, r.frames, r.times, gyro.samples, options, r.exposures);
   if (!e.found) {
     std::fprintf(stderr, "omnipose-calibrate: %s\n", e.summary.c_str());
     return 1;

@@ -80,11 +80,14 @@ struct ImuEstimate {
 /// Not found (with the reason in summary): fewer than 10 consecutive tracked pairs covered by
 /// the samples without a gap, a best offset at the end of the range, a mounting or offset
 /// less certain than the options allow (a recording that turns about one axis, or at a steady
-/// rate). Throws std::invalid_argument on invalid options, a frame count different from the
-/// time count, or an invalid calibration.
+/// rate). `exposures_s`: each frame's exposure as its camera reported it (seconds; NaN or
+/// empty: the calibration's sensor.exposure_s; FrameStamp::exposure_s). Throws
+/// std::invalid_argument on invalid options, a frame count different from the time count (or
+/// from a non-empty exposure count), or an invalid calibration.
 ImuEstimate estimateImuCalibration(const Calibration& calibration, std::span<const cv::Mat> frames,
                                    std::span<const double> times_s,
                                    std::span<const GyroSample> samples,
-                                   const ImuSearchOptions& options = {});
+                                   const ImuSearchOptions& options = {},
+                                   std::span<const double> exposures_s = {});
 
 }  // namespace omnipose::calibrate
