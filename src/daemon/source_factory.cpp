@@ -94,9 +94,11 @@ std::unique_ptr<FrameSource> makeFrameSource(const SourceConfig& config,
     case SourceConfig::Type::kLibcamera:
 #if defined(OMNIPOSE_HAVE_LIBCAMERA)
       throwIfInvalid(checkSourceOptions(config));
-      LibcameraOptions options = libcameraOptions(config);
-      options.sensor = context.sensor;
-      return std::make_unique<LibcameraSource>(options);
+      {
+        LibcameraOptions options = libcameraOptions(config);
+        options.sensor = context.sensor;
+        return std::make_unique<LibcameraSource>(options);
+      }
 #else
       break;
 #endif
