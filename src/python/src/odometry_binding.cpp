@@ -201,8 +201,8 @@ void bindOdometry(nb::module_& m) {
            "time, seconds (any epoch); sequence: the frame's number (-1: counted); gap_before: "
            "frames were lost since the previous call; exposure: how long its rows were exposed, "
            "seconds, as the camera reported it (None: the calibration's sensor.exposure_s; "
-           "a value outside [0, 0.1] is counted in gyro_counters and not used). A rejected frame (black, a glitch) comes "
-           "back with ok False. Raises TypeError (not a uint8 array) or ValueError (wrong shape "
+           "a value outside [0, 0.1] is counted in gyro_counters and not used). A rejected "
+           "frame (black, a glitch) comes back with ok False. Raises TypeError (not a uint8 array) or ValueError (wrong shape "
            "or layout) naming what was expected.")
       .def("add_gyro", &PyOdometry::addGyro, nb::arg("t"), nb::arg("rates"),
            "Gyro samples before the frames they cover: t (N,) seconds on the IMU's clock, "
