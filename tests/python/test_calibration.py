@@ -1,5 +1,7 @@
 """Calibration.load / parse and read_frame: values and errors that name the file and field."""
 
+import pathlib
+
 import numpy as np
 import pytest
 
@@ -70,9 +72,23 @@ def test_open_dataset_reads_timestamps_and_groundtruth(dataset):
     assert dataset.timestamps_from_file
     assert dataset.timestamps.shape == (24,)
     assert np.all(np.diff(dataset.timestamps) > 0)
+    assert dataset.exposures.shape == (24,) and np.all(np.isnan(dataset.exposures))  # none recorded
     gt = dataset.groundtruth
     assert gt["poses"].shape == (24, 4, 4)
     assert np.allclose(gt["poses"][0], np.eye(4))
+
+
+def test_open_dataset_reads_each_frames_recorded_exposure(dataset_dir, tmp_path):
+    copy = tmp_path / "d"
+    copy.mkdir()
+    source = pathlib.Path(dataset_dir)
+    (copy / "frames").symlink_to(source / "frames")
+    (copy / "calibration.yaml").write_text((source / "calibration.yaml").read_text())
+    names = sorted(p.name for p in (copy / "frames").iterdir())
+    (copy / "timestamps.txt").write_text(
+        "".join(f"{n} {i / 30} {0.004 if i % 2 else 0.012}\n" for i, n in enumerate(names)))
+    d = omnipose.open_dataset(copy)
+    assert np.allclose(d.exposures, [0.004 if i % 2 else 0.012 for i in range(len(names))])
 
 
 def test_open_dataset_error_names_the_path(tmp_path):

@@ -228,7 +228,9 @@ def _replay(dataset_dir: PathLike, text: str, origin: str, calibration: Optional
 @dataclass(frozen=True)
 class Dataset:
     """A dataset directory as the library reads it: its calibration, frame files and their
-    timestamps (seconds; i / 30 s without timestamps.txt), ground truth when it has
+    timestamps (seconds; i / 30 s without timestamps.txt; moved to the middle of the first
+    row's exposure as the calibration's sensor.timestamp says), each frame's exposure as
+    recorded (timestamps.txt's third column, seconds; NaN where none), ground truth when it has
     groundtruth.tum (``groundtruth["timestamps"]`` (M,), ``groundtruth["poses"]`` (M, 4, 4),
     camera to world), the gyro file (imu.csv) when present, and the reader's warnings."""
 
@@ -236,6 +238,7 @@ class Dataset:
     calibration: Calibration
     frames: List[str]
     timestamps: np.ndarray
+    exposures: np.ndarray
     timestamps_from_file: bool
     gyro_file: Optional[str]
     groundtruth: Optional[dict]

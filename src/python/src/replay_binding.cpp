@@ -163,13 +163,15 @@ nb::dict openDataset(const std::filesystem::path& dataset_dir,
   d["root"] = dataset.root;
   d["calibration"] = dataset.calibration;
   std::vector<std::filesystem::path> paths;
-  std::vector<double> times;
+  std::vector<double> times, exposures;
   for (const DatasetFrame& f : dataset.frames) {
     paths.push_back(f.path);
     times.push_back(f.timestamp);
+    exposures.push_back(f.exposure_s);
   }
   d["frames"] = paths;
   d["timestamps"] = ownedArray(std::move(times), {dataset.frames.size()});
+  d["exposures"] = ownedArray(std::move(exposures), {dataset.frames.size()});
   d["timestamps_from_file"] = dataset.timestamps_from_file;
   d["gyro_file"] = dataset.gyro_file;
   d["warnings"] = dataset.warnings;
