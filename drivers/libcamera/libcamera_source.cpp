@@ -393,8 +393,8 @@ LibcameraSource::Impl::Step LibcameraSource::Impl::take(cv::Mat& out, FrameInfo&
   const double exposure_s = request.has_exposure_time && request.exposure_time_us > 0
                                 ? 1e-6 * request.exposure_time_us
                                 : std::numeric_limits<double>::quiet_NaN();
-  const double offset_s = options.sensor.captureTimeOffset(
-      std::isnan(exposure_s) ? options.sensor.exposure_s : exposure_s);
+  const double offset_s =
+      options.sensor.captureTimeOffset(options.sensor.exposureOf(exposure_s));
   const std::int64_t ts_ns = (request.has_sensor_timestamp
                                   ? request.sensor_timestamp_ns
                                   : static_cast<std::int64_t>(request.timestamp_ns)) +

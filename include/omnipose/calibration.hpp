@@ -24,6 +24,7 @@
 
 #include <Eigen/Core>
 #include <Eigen/Geometry>
+#include <cmath>
 #include <filesystem>
 #include <opencv2/core.hpp>
 #include <optional>
@@ -127,6 +128,14 @@ struct SensorTiming {
   /// Where the camera stamps a frame; the sources move each stamp to the first row's
   /// capture time (captureTimeOffset()).
   StampedAt stamped_at = StampedAt::kExposureMiddle;
+  /// A frame's exposure, seconds: `stated_s`, as its camera reported it, or exposure_s when
+  /// it reported none (NaN).
+  double exposureOf(double stated_s) const { return std::isnan(stated_s) ? exposure_s : stated_s; }
+  /// Seconds after the timestamp of a frame exposed for `exposure_s` seconds at which its
+  /// last row's exposure ends: how far past the stamp the gyro's samples must reach.
+  double exposureEndAfterStamp(double exposure_s) const {
+    return std::abs(readout_s) + 0.5 * exposure_s;
+  }
   /// Seconds to add to the stamp of a frame whose rows were exposed for `exposure_s`
   /// seconds to get its first row's capture time: 0, +exposure / 2 or -exposure / 2.
   double captureTimeOffset(double exposure_s) const {

@@ -45,10 +45,10 @@ std::vector<ImagePair> imagePairs(const Calibration& calibration, std::span<cons
     if (!exposures.empty()) stamp.exposure_s = exposures[k];
     if (!gyro.empty()) {
       const std::span<const GyroSample> rest = gyro.subspan(next);
-      const double exposure =
-          std::isnan(stamp.exposure_s) ? calibration.sensor.exposure_s : stamp.exposure_s;
+      const SensorTiming& sensor = calibration.sensor;
       const std::size_t n = gyroSamplesArrivedBy(
-          rest, *calibration.imu, std::abs(calibration.sensor.readout_s) + 0.5 * exposure, times[k]);
+          rest, *calibration.imu, sensor.exposureEndAfterStamp(sensor.exposureOf(stamp.exposure_s)),
+          times[k]);
       odometry.addGyro(rest.first(n));
       next += n;
     }

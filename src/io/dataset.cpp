@@ -109,8 +109,8 @@ Dataset Dataset::open(const fs::path& root, const std::optional<fs::path>& calib
       }
       f.exposure_s = it->second.exposure;
       // The camera's stamp moved to the first row's capture time (sensor.timestamp).
-      const double exposure = std::isnan(f.exposure_s) ? d.calibration.sensor.exposure_s : f.exposure_s;
-      f.timestamp = it->second.time + d.calibration.sensor.captureTimeOffset(exposure);
+      const SensorTiming& sensor = d.calibration.sensor;
+      f.timestamp = it->second.time + sensor.captureTimeOffset(sensor.exposureOf(f.exposure_s));
       const std::string where = stamps_path.string() + ":" + std::to_string(it->second.line) + ": ";
       if (f.timestamp < 0.0)
         warn(where + f.path.filename().string() + " at " + std::to_string(f.timestamp) +

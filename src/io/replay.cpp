@@ -39,10 +39,9 @@ ReplayCounts replayDataset(const Dataset& dataset, Odometry& odometry,
       continue;
     }
     if (!gyro.empty() && calibration.imu) {
-      const double exposure =
-          std::isnan(f.exposure_s) ? calibration.sensor.exposure_s : f.exposure_s;
+      const SensorTiming& sensor = calibration.sensor;
       const std::size_t n = gyroSamplesArrivedBy(
-          gyro, *calibration.imu, std::abs(calibration.sensor.readout_s) + 0.5 * exposure,
+          gyro, *calibration.imu, sensor.exposureEndAfterStamp(sensor.exposureOf(f.exposure_s)),
           f.timestamp);
       odometry.addGyro(gyro.first(n));
       gyro = gyro.subspan(n);

@@ -269,11 +269,11 @@ struct Odometry::Impl {
   /// The exposure the current frame is modelled with: `stated` (FrameStamp::exposure_s)
   /// when it is a usable number of seconds, else the calibration's (a refusal counted).
   double frameExposure(double stated) {
-    const double calibrated = registrar->calibration().sensor.exposure_s;
-    if (std::isnan(stated)) return calibrated;
-    if (stated >= 0.0 && stated <= SensorTiming::kMaxExposureS) return stated;
+    const SensorTiming& sensor = registrar->calibration().sensor;
+    const double exposure = sensor.exposureOf(stated);
+    if (exposure >= 0.0 && exposure <= SensorTiming::kMaxExposureS) return exposure;
     ++gyro_counters.exposures_refused;
-    return calibrated;
+    return sensor.exposure_s;
   }
   /// The current frame's rows' rotations from the gyro, counted.
   void measureRowRotations() {

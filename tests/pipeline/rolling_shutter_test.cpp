@@ -79,8 +79,9 @@ Errors run(const std::vector<cv::Mat>& frames, const std::vector<StampedPose>& t
       // exposure.
       const std::span<const GyroSample> rest = std::span(gyro->samples).subspan(given);
       const double exposure = stated.empty() ? exposure_s : std::max(exposure_s, stated[k]);
-      const std::size_t n = gyroSamplesArrivedBy(rest, gyro->calibration,
-                                                 readout_s + 0.5 * exposure, truth[k].timestamp);
+      const std::size_t n =
+          gyroSamplesArrivedBy(rest, gyro->calibration,
+                               calibration.sensor.exposureEndAfterStamp(exposure), truth[k].timestamp);
       odometry.addGyro(rest.first(n));
       given += n;
     }
