@@ -122,7 +122,7 @@ FrameRegistrar::FrameRegistrar(const Calibration& c, const PipelineOptions& o, i
     window_azimuth_.push_back(c.panorama.azimuth(registration_.windowCenter(k)));
   if (c.sensor.readout_s != 0.0) measureWindowTimes();
   current_rows_ = previous_rows_ =
-      FrameRotation(c.sensor.readout_s, c.sensor.exposure_s, SensorTiming::kMaxExposureS);
+      FrameRotation(c.sensor.readout_s, SensorTiming::kMaxExposureS);
   keyframe_rows_.assign(static_cast<std::size_t>(keyframe_slots), previous_rows_);
   wisdom_.saveIfPlanned();
 }

@@ -16,14 +16,12 @@ int piecesOver(double length) {
 
 }  // namespace
 
-FrameRotation::FrameRotation(double span_s, double exposure_s, double max_exposure_s)
-    : span_(std::abs(span_s)),
-      default_exposure_(exposure_s),
-      max_exposure_(std::max(exposure_s, max_exposure_s)) {
+FrameRotation::FrameRotation(double span_s, double max_exposure_s)
+    : span_(std::abs(span_s)), max_exposure_(max_exposure_s) {
   const auto most = static_cast<std::size_t>(piecesOver(span_ + max_exposure_)) + 1;
   turn_.assign(most, Eigen::Vector3d::Zero());
   rate_ = turn_;
-  layOut(default_exposure_);
+  layOut(0.0);
 }
 
 void FrameRotation::layOut(double exposure_s) {
@@ -38,23 +36,9 @@ void FrameRotation::layOut(double exposure_s) {
 bool FrameRotation::measure(std::span<const GyroSample> samples, const ImuCalibration& imu,
                             const Eigen::Vector3d& bias, double time, double max_gap_s,
                             double exposure_s) {
-  if (!(exposure_s >= 0.0 && exposure_s <= max_exposure_)) {
-    known_ = false;
-    return false;
-  }
-  layOut(exposure_s);
-  return integrate(samples, imu, bias, time, max_gap_s);
-}
-
-bool FrameRotation::measure(std::span<const GyroSample> samples, const ImuCalibration& imu,
-                            const Eigen::Vector3d& bias, double time, double max_gap_s) {
-  layOut(default_exposure_);
-  return integrate(samples, imu, bias, time, max_gap_s);
-}
-
-bool FrameRotation::integrate(std::span<const GyroSample> samples, const ImuCalibration& imu,
-                              const Eigen::Vector3d& bias, double time, double max_gap_s) {
   known_ = false;
+  if (!(exposure_s >= 0.0 && exposure_s <= max_exposure_)) return false;
+  layOut(exposure_s);
   Eigen::Matrix3d R = Eigen::Matrix3d::Identity();
   for (std::size_t i = 0; i < count_; ++i) {
     const double at = time + origin_ + static_cast<double>(i) * step_;

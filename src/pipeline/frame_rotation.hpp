@@ -24,24 +24,19 @@ class FrameRotation {
   static constexpr double kStepS = 0.001;
 
   /// For capture times in [0, span_s] after the timestamp (|span_s|: the readout), each
-  /// exposed for `exposure_s` seconds centred on it (>= 0; 0: an instant) unless a frame
-  /// states its own exposure, which may be up to max(exposure_s, max_exposure_s) seconds.
-  explicit FrameRotation(double span_s = 0.0, double exposure_s = 0.0,
-                         double max_exposure_s = 0.0);
+  /// exposed for up to `max_exposure_s` seconds centred on it (>= 0).
+  explicit FrameRotation(double span_s = 0.0, double max_exposure_s = 0.0);
 
   /// The rotation from camera time `time` (the frame's timestamp, seconds) over the span
   /// widened by half the exposure on either side, integrated from the gyro's `samples`
   /// (integrateGyro(), gyroRateAt()). False, and not known(), when the samples do not cover
-  /// [time - exposure / 2, time + span + exposure / 2] or have a gap there. The first form
-  /// takes the constructor's exposure; the second this frame's, `exposure_s` seconds, and is
-  /// false (nothing measured) when that is not within [0, the constructor's maximum].
-  bool measure(std::span<const GyroSample> samples, const ImuCalibration& imu,
-               const Eigen::Vector3d& bias, double time, double max_gap_s);
+  /// [time - exposure / 2, time + span + exposure / 2] or have a gap there, and when the
+  /// frame's exposure, `exposure_s` seconds (0: an instant), is not within [0, maxExposure()].
   bool measure(std::span<const GyroSample> samples, const ImuCalibration& imu,
                const Eigen::Vector3d& bias, double time, double max_gap_s, double exposure_s);
   bool known() const { return known_; }
   void forget() { known_ = false; }
-  /// The exposure of the frame measured last, seconds (the constructor's before any).
+  /// The exposure of the frame measured last, seconds (0 before any).
   double exposure() const { return exposure_; }
   /// The longest exposure measure() takes, seconds.
   double maxExposure() const { return max_exposure_; }
@@ -59,12 +54,9 @@ class FrameRotation {
  private:
   /// Spaces the kept samples over the span and `exposure_s`.
   void layOut(double exposure_s);
-  /// measure() over the samples as laid out.
-  bool integrate(std::span<const GyroSample> samples, const ImuCalibration& imu,
-                 const Eigen::Vector3d& bias, double time, double max_gap_s);
 
-  double span_ = 0.0;      ///< |span_s|, seconds
-  double default_exposure_ = 0.0, max_exposure_ = 0.0;  ///< seconds
+  double span_ = 0.0;          ///< |span_s|, seconds
+  double max_exposure_ = 0.0;  ///< seconds
   double step_ = 0.0;
   double origin_ = 0.0;    ///< seconds after the timestamp of the first kept sample (<= 0)
   double exposure_ = 0.0;  ///< seconds

@@ -43,7 +43,7 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   const omnipose::ImuCalibration imu;
   const Eigen::Vector3d bias(1e-3, -2e-3, 5e-4);
   omnipose::pipeline::FrameRotation rotation(readout);
-  if (rotation.measure(samples, imu, bias, t0, max_gap)) {
+  if (rotation.measure(samples, imu, bias, t0, max_gap, 0.0)) {
     for (const double s : {0.0, 0.5 * std::abs(readout), std::abs(readout), std::abs(readout) + 0.01})
       if (!rotation.turnAt(s).allFinite()) __builtin_trap();
   }

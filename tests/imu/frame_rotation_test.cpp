@@ -38,7 +38,7 @@ TEST(FrameRotation, FollowsTheGyroAtEveryCaptureTime) {
   const Recording r = recording(0.0, 0.2);
   const double readout = 0.0267, time = 0.1, gap = 0.02;
   FrameRotation rotation(readout);
-  ASSERT_TRUE(rotation.measure(r.samples, r.imu, Eigen::Vector3d::Zero(), time, gap));
+  ASSERT_TRUE(rotation.measure(r.samples, r.imu, Eigen::Vector3d::Zero(), time, gap, 0.0));
   ASSERT_TRUE(rotation.known());
   for (double s = 0.0; s <= readout; s += 0.0013) {
     const auto exact = integrateGyro(r.samples, r.imu, Eigen::Vector3d::Zero(), time, time + s, gap);
@@ -55,7 +55,7 @@ TEST(FrameRotation, AnExposedRowShowsTheMeanTurnOverItsExposure) {
   const Recording r = recording(0.0, 0.2);
   const double readout = 0.0267, exposure = 0.01, time = 0.1, gap = 0.02;
   FrameRotation rotation(readout, exposure);
-  ASSERT_TRUE(rotation.measure(r.samples, r.imu, Eigen::Vector3d::Zero(), time, gap));
+  ASSERT_TRUE(rotation.measure(r.samples, r.imu, Eigen::Vector3d::Zero(), time, gap, exposure));
   // Still the turn from the timestamp, now also over the exposure's margins (within twice
   // the curve's error: the timestamp falls between two kept samples now).
   for (double s = -0.5 * exposure; s <= readout + 0.5 * exposure; s += 0.0013) {
@@ -81,23 +81,24 @@ TEST(FrameRotation, AnExposedRowShowsTheMeanTurnOverItsExposure) {
   }
   // Without an exposure it is the turn at the capture time, bit for bit.
   FrameRotation instant(readout);
-  ASSERT_TRUE(instant.measure(r.samples, r.imu, Eigen::Vector3d::Zero(), time, gap));
+  ASSERT_TRUE(instant.measure(r.samples, r.imu, Eigen::Vector3d::Zero(), time, gap, 0.0));
   EXPECT_EQ(instant.exposedTurnAt(0.011), instant.turnAt(0.011));
   // The exposure's margins need samples too: these end 1.5-4 ms after the last row's capture.
   const Recording short_r = recording(0.0, time + readout + 0.004 - r.imu.time_offset_s);
-  EXPECT_TRUE(instant.measure(short_r.samples, r.imu, Eigen::Vector3d::Zero(), time, gap));
-  EXPECT_FALSE(rotation.measure(short_r.samples, r.imu, Eigen::Vector3d::Zero(), time, gap));
+  EXPECT_TRUE(instant.measure(short_r.samples, r.imu, Eigen::Vector3d::Zero(), time, gap, 0.0));
+  EXPECT_FALSE(
+      rotation.measure(short_r.samples, r.imu, Eigen::Vector3d::Zero(), time, gap, exposure));
 }
 
 TEST(FrameRotation, AFrameStatingItsOwnExposureIsMeasuredOverIt) {
   const Recording r = recording(0.0, 0.3);
   const double readout = 0.0267, time = 0.1, gap = 0.02;
-  // Room for exposures up to 30 ms; 10 ms unless a frame states its own.
-  FrameRotation varying(readout, 0.01, 0.03);
+  // Room for exposures up to 30 ms.
+  FrameRotation varying(readout, 0.03);
   EXPECT_EQ(varying.maxExposure(), 0.03);
   for (const double exposure : {0.004, 0.03, 0.0, 0.017}) {
     FrameRotation fixed(readout, exposure);
-    ASSERT_TRUE(fixed.measure(r.samples, r.imu, Eigen::Vector3d::Zero(), time, gap));
+    ASSERT_TRUE(fixed.measure(r.samples, r.imu, Eigen::Vector3d::Zero(), time, gap, exposure));
     ASSERT_TRUE(varying.measure(r.samples, r.imu, Eigen::Vector3d::Zero(), time, gap, exposure));
     EXPECT_EQ(varying.exposure(), exposure);
     // Bit for bit what a rotation made for that exposure measures.
@@ -106,16 +107,10 @@ TEST(FrameRotation, AFrameStatingItsOwnExposureIsMeasuredOverIt) {
       EXPECT_EQ(varying.exposedTurnAt(s), fixed.exposedTurnAt(s)) << exposure << " s = " << s;
     }
     // A copy carries the frame's exposure (a previous or keyframe's rows).
-    FrameRotation copy(readout, 0.01, 0.03);
+    FrameRotation copy(readout, 0.03);
     copy = varying;
     EXPECT_EQ(copy.exposedTurnAt(0.0071), fixed.exposedTurnAt(0.0071));
   }
-  // The plain form goes back to the constructor's exposure.
-  FrameRotation ten(readout, 0.01);
-  ASSERT_TRUE(ten.measure(r.samples, r.imu, Eigen::Vector3d::Zero(), time, gap));
-  ASSERT_TRUE(varying.measure(r.samples, r.imu, Eigen::Vector3d::Zero(), time, gap));
-  EXPECT_EQ(varying.exposure(), 0.01);
-  EXPECT_EQ(varying.exposedTurnAt(0.0071), ten.exposedTurnAt(0.0071));
   // Longer than its room, negative or not a number: nothing measured.
   for (const double bad : {0.031, -0.001, std::numeric_limits<double>::quiet_NaN()}) {
     EXPECT_FALSE(varying.measure(r.samples, r.imu, Eigen::Vector3d::Zero(), time, gap, bad));
@@ -127,14 +122,14 @@ TEST(FrameRotation, IsUnknownWhereTheSamplesDoNotReach) {
   const Recording r = recording(0.0, 0.1);
   FrameRotation rotation(0.03);
   // The samples end 10 ms into the readout (camera time 0.104).
-  EXPECT_FALSE(rotation.measure(r.samples, r.imu, Eigen::Vector3d::Zero(), 0.094, 0.02));
+  EXPECT_FALSE(rotation.measure(r.samples, r.imu, Eigen::Vector3d::Zero(), 0.094, 0.02, 0.0));
   EXPECT_FALSE(rotation.known());
-  ASSERT_TRUE(rotation.measure(r.samples, r.imu, Eigen::Vector3d::Zero(), 0.05, 0.02));
+  ASSERT_TRUE(rotation.measure(r.samples, r.imu, Eigen::Vector3d::Zero(), 0.05, 0.02, 0.0));
   // A gap longer than the largest interval allowed.
   std::vector<GyroSample> holed;
   for (const GyroSample& s : r.samples)
     if (s.t < 0.055 || s.t > 0.07) holed.push_back(s);
-  EXPECT_FALSE(rotation.measure(holed, r.imu, Eigen::Vector3d::Zero(), 0.05, 0.01));
+  EXPECT_FALSE(rotation.measure(holed, r.imu, Eigen::Vector3d::Zero(), 0.05, 0.01, 0.0));
   EXPECT_FALSE(rotation.known());
 }
 
