@@ -99,6 +99,18 @@ class MotionFit {
     /// the walls' texture (docs/results/DRIFT_POOL.md). The covariance counts the prior with
     /// its coupling of neighbouring depths.
     bool plane_depth_prior = true;
+    /// Leave out, before the fit, the windows that no static scene explains
+    /// (daemon.yaml `pipeline.ring_consensus`; off by default): the two sinusoids fitted with
+    /// one depth for every window by least median of squares over the ring, a window out
+    /// when no relative inverse depth in [0, 8] brings its du and dv within 4 robust sigmas
+    /// (at least 0.5 px) of them (ring_consensus.hpp). Without it per_window_depth lets a
+    /// translation explain people walking across a third of the ring as near objects, and
+    /// the background between them as far. With it, on the people benchmark the worst
+    /// render's rotation error falls from 66x its twin to 5x; driving without people the
+    /// per-pair error is as good or better, but the heading at the end of a lap moves by up
+    /// to half a degree either way from room to room, which is why it is not yet the default
+    /// (docs/results/ANALYSIS.md, "A consensus over the ring").
+    bool ring_consensus = false;
     /// With per_window_depth: how much of the horizontal expansion that a change of depth
     /// across a window adds the measured in-window scale carries. A window on a wall seen
     /// at an angle expands vertically by -lambda (tau_x cos + tau_y sin), as the model's

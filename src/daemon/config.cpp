@@ -96,6 +96,7 @@ constexpr PipelineKey kPipelineKeys[] = {
     {"pipeline.moving_content", "moving_content"},
     {"pipeline.noise_weighting", "registration.noise_weighting"},
     {"pipeline.plane_depth_prior", "fit.plane_depth_prior"},
+    {"pipeline.ring_consensus", "fit.ring_consensus"},
     {"pipeline.threads", "threads"},
     {"pipeline.fftw_wisdom", "fftw_wisdom"},
     {"input", "unwrap.input"},
@@ -132,6 +133,7 @@ void parsePipeline(Reader& r, const YAML::Node& node, const std::filesystem::pat
   r.get(node, "pipeline", "moving_content", p.moving_content);
   r.get(node, "pipeline", "noise_weighting", p.registration.noise_weighting);
   r.get(node, "pipeline", "plane_depth_prior", p.fit.plane_depth_prior);
+  r.get(node, "pipeline", "ring_consensus", p.fit.ring_consensus);
   r.get(node, "pipeline", "threads", p.threads);
   std::string wisdom;
   r.get(node, "pipeline", "fftw_wisdom", wisdom);
@@ -391,7 +393,8 @@ std::string DaemonConfig::describe() const {
     << "\n  inlier_sigmas: " << p.fit.inlier_sigmas
     << "\n  moving_content: " << p.moving_content
     << "\n  noise_weighting: " << p.registration.noise_weighting
-    << "\n  plane_depth_prior: " << p.fit.plane_depth_prior << "\n  threads: " << p.threads
+    << "\n  plane_depth_prior: " << p.fit.plane_depth_prior
+    << "\n  ring_consensus: " << p.fit.ring_consensus << "\n  threads: " << p.threads
     << "\n  fftw_wisdom: \"" << p.fftw_wisdom << "\"\n"
     << "keyframes:\n  slots: " << keyframes.slots
     << "\n  max_translation: " << keyframes.max_translation

@@ -14,6 +14,7 @@
 #include "common/periodic.hpp"
 #include "common/problem_list.hpp"
 #include "omnipose/motion_model.hpp"
+#include "omnipose/ring_consensus.hpp"
 
 namespace omnipose {
 namespace {
@@ -203,6 +204,10 @@ struct MotionFit::Impl {
     double w_lo = 0.0, w_hi = 0.0;
   };
   std::vector<PlaneNeighbours> plane;  ///< per window, planeNeighbours()
+  std::vector<RingSample> ring;               ///< the kept windows, ringConsensus()
+  std::vector<std::uint8_t> ring_inconsistent;  ///< per entry of `ring`
+  /// Leaves out the kept windows that no static scene explains (ring_consensus.hpp).
+  void ringConsensus(std::span<const WindowMotion> windows, double forward_column);
   /// The depths' information matrix (max_windows square, so that its factorisation never
   /// reallocates), its factorisation, and the right-hand sides [N_lambda,x | gauge]
   /// (depthMarginalInformation()).
@@ -237,6 +242,8 @@ MotionFit::Impl::Impl(const Options& o, double gamma_per_column, double attenuat
       final_weight(static_cast<std::size_t>(max_windows), 0.0),
       depth_xl(static_cast<std::size_t>(max_windows)),
       plane(static_cast<std::size_t>(max_windows)),
+      ring(static_cast<std::size_t>(max_windows)),
+      ring_inconsistent(static_cast<std::size_t>(max_windows)),
       depth_m(max_windows, max_windows),
       depth_rhs(max_windows, 7),
       depth_llt(max_windows) {}
@@ -318,6 +325,8 @@ int MotionFit::Impl::buildTranslationRows(std::span<const WindowMotion> windows,
     }
   }
 
+  if (options.ring_consensus) ringConsensus(windows, forward_column);
+
   // Relative standard deviations of du (scratch[0, n)) and dv (scratch[n, 2n)).
   double* const sd_u = scratch.data();
   double* const sd_v = sd_u + n;
@@ -341,6 +350,26 @@ int MotionFit::Impl::buildTranslationRows(std::span<const WindowMotion> windows,
     r += 2;
   }
   return r;
+}
+
+void MotionFit::Impl::ringConsensus(std::span<const WindowMotion> windows,
+                                    double forward_column) {
+  const int n = static_cast<int>(windows.size());
+  int m = 0;
+  for (int k = 0; k < n; ++k) {
+    if (!keep[k]) continue;
+    ring[m++] = RingSample{gamma * (windows[k].center_u - forward_column), windows[k].du,
+                           windows[k].dv};
+  }
+  const std::span<std::uint8_t> flags(ring_inconsistent.data(), static_cast<std::size_t>(m));
+  if (flagInconsistentWindows(std::span<const RingSample>(ring.data(), m), RingConsensusOptions{},
+                              flags, scratch) == 0)
+    return;
+  m = 0;
+  for (int k = 0; k < n; ++k) {
+    if (!keep[k]) continue;
+    if (flags[m++]) keep[k] = 0;
+  }
 }
 
 template <typename Variance>

@@ -141,6 +141,12 @@ TEST(DaemonConfig, PlaneDepthPrior) {
       [](const DaemonConfig& c) { return c.pipeline.fit.plane_depth_prior; }, "walls");
 }
 
+TEST(DaemonConfig, RingConsensus) {
+  expectBooleanPipelineKey(
+      "ring_consensus", false,
+      [](const DaemonConfig& c) { return c.pipeline.fit.ring_consensus; }, "people");
+}
+
 TEST(DaemonConfig, PanoramaPicturesAreOffUnlessAChannelIsNamed) {
   const DaemonConfig defaults = parseWith("");
   EXPECT_EQ(defaults.lcm.panorama_channel, "");
