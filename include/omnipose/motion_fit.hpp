@@ -107,8 +107,8 @@ class MotionFit {
     /// translation explain people walking across a third of the ring as near objects, and
     /// the background between them as far. With it, on the people benchmark the worst
     /// render's rotation error falls from 66x its twin to 5x; driving without people the
-    /// per-pair error is as good or better, but the heading at the end of a lap moves by up
-    /// to half a degree either way from room to room, which is why it is not yet the default
+    /// per-pair error is as good or better, but the heading at the end of a lap moves either
+    /// way from room to room (up to 0.5 deg worse), which is why it is not yet the default
     /// (docs/results/ANALYSIS.md, "A consensus over the ring").
     bool ring_consensus = false;
     /// With per_window_depth: how much of the horizontal expansion that a change of depth

@@ -2,8 +2,8 @@
 // The motion most of the ring agrees on, and the windows that no static scene explains.
 //
 // The fit's model splits into two sinusoids over the window azimuth theta (motion_model.hpp):
-//   du = a + lambda_k (b sin theta + c cos theta)      (yaw; tau_x, tau_y)
-//   dv = d + e sin theta + f cos theta - lambda_k g    (roll, pitch; tau_z, here folded into d)
+//   du = a + lambda_k (b sin theta + c cos theta)      (a: yaw; b, c: tau_x, tau_y)
+//   dv = e sin theta + f cos theta + lambda_k d        (e, f: roll, pitch; d: -tau_z)
 // with lambda_k > 0 the window's relative inverse depth. With a free lambda_k per window a
 // translation can explain almost any pattern of du: people walking across a third of the
 // ring become "near objects" of a translation that is not there, and the background between
@@ -42,8 +42,9 @@ struct RingSample {
 
 /// Sets inconsistent[k] = 1 for the samples no static scene explains (see above), 0 for the
 /// others, and returns how many were flagged. `work` must hold at least samples.size()
-/// doubles (no allocation). With fewer than 8 samples, or when no triple of windows is well
-/// conditioned (all on one side of the ring), nothing is flagged.
+/// doubles and `inconsistent` at least samples.size() flags (no allocation). With fewer than 8
+/// samples, a smaller buffer, or when no triple of windows is well conditioned (all on one side
+/// of the ring), nothing is flagged.
 int flagInconsistentWindows(std::span<const RingSample> samples,
                             const RingConsensusOptions& options, std::span<std::uint8_t> inconsistent,
                             std::span<double> work);
