@@ -113,6 +113,26 @@ TEST(RingConsensus, APersonMovingAgainstTheParallaxIsFlaggedWhileDriving) {
     EXPECT_EQ(flags[k], inArc(s[k].theta, 60, 90) ? 1 : 0) << "window " << k;
 }
 
+// Within 45 degrees of the direction of travel du is not tested (it tells the direction
+// there, not the depth); turning in place there is no such axis and every window is tested.
+TEST(RingConsensus, NearTheDirectionOfTravelDuIsNotTested) {
+  for (const bool driving : {true, false}) {
+    SCOPED_TRACE(driving ? "driving" : "turning in place");
+    std::mt19937 rng(16);
+    Ring ring;
+    ring.yaw_px = driving ? 0.0 : 2.0;
+    ring.b = driving ? -2.0 : 0.0;
+    std::vector<RingSample> s = ring.samples(rng);
+    // Window 1 (10 degrees): under the driving, its du is -2 lambda sin(10 deg) <= 0 for
+    // every depth; +1.5 px makes it positive.
+    s[1].du_px += 1.5;
+    int flagged = 0;
+    const std::vector<std::uint8_t> flags = flagsOf(s, flagged);
+    EXPECT_EQ(flags[1], driving ? 0 : 1);
+    EXPECT_EQ(flagged, driving ? 0 : 1);
+  }
+}
+
 // A person's window whose dv is off (the person's head and shoulders in it) is flagged by dv.
 TEST(RingConsensus, ADvOutlierIsFlagged) {
   std::mt19937 rng(12);
