@@ -100,16 +100,18 @@ class MotionFit {
     /// its coupling of neighbouring depths.
     bool plane_depth_prior = true;
     /// Leave out, before the fit, the windows that no static scene explains
-    /// (daemon.yaml `pipeline.ring_consensus`; off by default): the two sinusoids fitted with
+    /// (daemon.yaml `pipeline.ring_consensus`; off by default): du's sinusoid fitted with
     /// one depth for every window by least median of squares over the ring, a window out
-    /// when no relative inverse depth in [0, 8] brings its du and dv within 4 robust sigmas
-    /// (at least 0.5 px) of them (ring_consensus.hpp). Without it per_window_depth lets a
-    /// translation explain people walking across a third of the ring as near objects, and
-    /// the background between them as far. With it, on the people benchmark the worst
-    /// render's rotation error falls from 66x its twin to 5x; driving without people the
-    /// per-pair error is as good or better, but the heading at the end of a lap moves either
-    /// way from room to room (up to 0.5 deg worse), which is why it is not yet the default
-    /// (docs/results/ANALYSIS.md, "A consensus over the ring").
+    /// when no relative inverse depth in [0, 8] brings its du within 4 robust sigmas (at
+    /// least 0.5 px) of it; not tested within 45 deg of the direction of travel
+    /// (ring_consensus.hpp). Without it per_window_depth lets a translation explain people
+    /// walking across a third of the ring as near objects, and the background between them
+    /// as far. With it, on the people benchmark the worst render's rotation error falls
+    /// from 66x its twin to 5x; driving without people the per-pair error is within 3 % and
+    /// the heading at the end of a lap moves by up to 0.15 deg worse in some rooms and
+    /// 0.58 deg better in another; it is not yet the default because the accuracy and
+    /// real-camera benchmarks have not been measured with it (docs/results/ANALYSIS.md,
+    /// "A consensus over the ring").
     bool ring_consensus = false;
     /// With per_window_depth: how much of the horizontal expansion that a change of depth
     /// across a window adds the measured in-window scale carries. A window on a wall seen

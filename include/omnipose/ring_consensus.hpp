@@ -1,26 +1,33 @@
 #pragma once
 // The motion most of the ring agrees on, and the windows that no static scene explains.
 //
-// The fit's model splits into two sinusoids over the window azimuth theta (motion_model.hpp):
+// The fit's model gives each window's horizontal shift as a sinusoid over its azimuth theta
+// (motion_model.hpp):
 //   du = a + lambda_k (b sin theta + c cos theta)      (a: yaw; b, c: tau_x, tau_y)
-//   dv = e sin theta + f cos theta + lambda_k d        (e, f: roll, pitch; d: -tau_z)
 // with lambda_k > 0 the window's relative inverse depth. With a free lambda_k per window a
 // translation can explain almost any pattern of du: people walking across a third of the
 // ring become "near objects" of a translation that is not there, and the background between
-// them "far" (docs/results/ANALYSIS.md, people). The consensus therefore fits each sinusoid
+// them "far" (docs/results/ANALYSIS.md, people). The consensus therefore fits the sinusoid
 // with ONE depth for all windows (lambda_k = 1), by least median of squares over triples of
 // windows spread around the ring (breakdown point 50 %: people may cover up to half of it),
 // then refits on its inliers. A window is inconsistent when no inverse depth in
-// [0, max_inverse_depth] brings its du under the consensus's translation, nor its dv, within
-// max(sigmas * robust sigma, floor_px) of the consensus: the robust sigma of those
-// depth-absorbed residuals over the ring. The consensus's sinusoids are refitted on the
-// windows within 2.5 of its robust sigmas, alternately with each window's depth, so that walls
-// at different distances do not turn it. A window the translation explains with some depth
-// (a wall close by while the robot drives) stays; a window that moves against a robot
-// turning in place does not. Near the translation's axis (within axis_half_width_deg, when
-// the translation moves the windows by more than floor_px) a window's du says more about the
-// axis's direction than about its depth, and the consensus's direction is not exact enough to
-// judge it: there du is not tested (people crossing the direction of travel stay in).
+// [0, max_inverse_depth] brings its du within max(sigmas * robust sigma, floor_px) of the
+// consensus: the robust sigma of those depth-absorbed residuals over the ring. The
+// consensus's sinusoid is refitted on the windows within 2.5 of its robust sigmas, alternately
+// with each window's depth, so that walls at different distances do not turn it. A window the
+// translation explains with some depth (a wall close by while the robot drives) stays; a
+// window that moves against a robot turning in place does not. Near the translation's axis
+// (within axis_half_width_deg, when the translation moves the windows by more than floor_px)
+// a window's du says more about the axis's direction than about its depth, and the
+// consensus's direction is not exact enough to judge it: there du is not tested (people
+// crossing the direction of travel stay in).
+//
+// dv is not tested. Its sinusoid (roll, pitch and the vertical translation) takes a
+// window's whole vertical shift, and beside a wall close by a slanted edge moving sideways
+// shifts a window vertically too: in driving a dv test left out about one window per fit
+// that no person was in (and its du with it), which moved a lap's heading by up to 1.2 deg,
+// better in some rooms and worse in others, and on the people pool it changed nothing (docs/results/ANALYSIS.md). The
+// fit's robust weights take care of a window's dv alone.
 #include <cstdint>
 #include <span>
 
@@ -33,11 +40,10 @@ struct RingConsensusOptions {
   double axis_half_width_deg = 45.0;  ///< du not tested this close to the translation's axis
 };
 
-/// One window as the consensus sees it: azimuth (radians) and shifts (pixels).
+/// One window as the consensus sees it: azimuth (radians) and horizontal shift (pixels).
 struct RingSample {
   double theta = 0.0;
   double du_px = 0.0;
-  double dv_px = 0.0;
 };
 
 /// Sets inconsistent[k] = 1 for the samples no static scene explains (see above), 0 for the

@@ -358,8 +358,7 @@ void MotionFit::Impl::ringConsensus(std::span<const WindowMotion> windows,
   int m = 0;
   for (int k = 0; k < n; ++k) {
     if (!keep[k]) continue;
-    ring[m++] = RingSample{gamma * (windows[k].center_u - forward_column), windows[k].du,
-                           windows[k].dv};
+    ring[m++] = RingSample{gamma * (windows[k].center_u - forward_column), windows[k].du};
   }
   const std::span<std::uint8_t> flags(ring_inconsistent.data(), static_cast<std::size_t>(m));
   if (flagInconsistentWindows(std::span<const RingSample>(ring.data(), m), RingConsensusOptions{},

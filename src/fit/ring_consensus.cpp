@@ -32,29 +32,23 @@ double medianOf(std::span<double> values) {
   return *mid;
 }
 
-/// One of the two sinusoids: y = sum_i p_i basis_i(theta), the components in `varying`
-/// multiplied by the window's relative inverse depth (du: the translation's harmonic; dv: the
-/// vertical translation), the others not (du: the yaw; dv: the roll and pitch harmonic).
-struct SinusoidModel {
-  double (*value)(const RingSample&);
-  std::array<bool, 3> varying;
+/// du = a + lambda (b sin theta + c cos theta): the yaw a, the translation's harmonic (b, c)
+/// times the window's relative inverse depth lambda.
+struct DuModel {
   double max_inverse_depth;
 
-  Eigen::RowVector3d row(double theta, double lambda) const {
-    Eigen::RowVector3d a = basis(theta);
-    for (int i = 0; i < 3; ++i)
-      if (varying[i]) a(i) *= lambda;
-    return a;
+  static Eigen::RowVector3d row(double theta, double lambda) {
+    return Eigen::RowVector3d(1.0, lambda * std::sin(theta), lambda * std::cos(theta));
   }
   /// The relative inverse depth in [0, max] that fits sample q best under p.
   double bestDepth(const RingSample& q, const Sinusoid& p) const {
-    const double fixed = row(q.theta, 0.0).dot(p), moving = row(q.theta, 1.0).dot(p) - fixed;
+    const double fixed = p(0), moving = row(q.theta, 1.0).dot(p) - fixed;
     if (!(std::abs(moving) > 1e-12)) return 1.0;
-    return std::clamp((value(q) - fixed) / moving, 0.0, max_inverse_depth);
+    return std::clamp((q.du_px - fixed) / moving, 0.0, max_inverse_depth);
   }
-  /// |y - model| at that depth.
+  /// |du - model| at that depth.
   double absorbedResidual(const RingSample& q, const Sinusoid& p) const {
-    return std::abs(value(q) - row(q.theta, bestDepth(q, p)).dot(p));
+    return std::abs(q.du_px - row(q.theta, bestDepth(q, p)).dot(p));
   }
 };
 
@@ -64,7 +58,7 @@ struct SinusoidModel {
 /// one's depth and the sinusoid by least squares (mean depth 1 over them), so that walls at
 /// different distances do not turn the consensus's translation. Returns false when no triple
 /// is well conditioned. `work`: samples.size() values, the last depths on return.
-bool consensusSinusoid(std::span<const RingSample> s, const SinusoidModel& model,
+bool consensusSinusoid(std::span<const RingSample> s, const DuModel& model,
                        std::span<double> work, Sinusoid& best) {
   const int m = static_cast<int>(s.size());
   const std::array<std::array<int, 2>, 3> spacing{
@@ -77,8 +71,8 @@ bool consensusSinusoid(std::span<const RingSample> s, const SinusoidModel& model
       A << basis(s[i].theta), basis(s[j].theta), basis(s[k].theta);
       if (!(std::abs(A.determinant()) > kMinDeterminant)) continue;
       const Sinusoid p = A.partialPivLu().solve(
-          Eigen::Vector3d(model.value(s[i]), model.value(s[j]), model.value(s[k])));
-      for (int q = 0; q < m; ++q) work[q] = std::abs(model.value(s[q]) - basis(s[q].theta).dot(p));
+          Eigen::Vector3d(s[i].du_px, s[j].du_px, s[k].du_px));
+      for (int q = 0; q < m; ++q) work[q] = std::abs(s[q].du_px - basis(s[q].theta).dot(p));
       const double score = medianOf(work.first(m));
       if (score < best_score) {
         best_score = score;
@@ -92,7 +86,7 @@ bool consensusSinusoid(std::span<const RingSample> s, const SinusoidModel& model
   const double gate = std::max(2.5 * sigma, 1e-6);
   // work[q]: the sample's depth, negative for the samples outside the gate.
   for (int q = 0; q < m; ++q)
-    work[q] = std::abs(model.value(s[q]) - basis(s[q].theta).dot(best)) < gate ? 1.0 : -1.0;
+    work[q] = std::abs(s[q].du_px - basis(s[q].theta).dot(best)) < gate ? 1.0 : -1.0;
   for (int iteration = 0; iteration < kDepthIterations; ++iteration) {
     Eigen::Matrix3d N = Eigen::Matrix3d::Zero();
     Eigen::Vector3d g = Eigen::Vector3d::Zero();
@@ -101,7 +95,7 @@ bool consensusSinusoid(std::span<const RingSample> s, const SinusoidModel& model
       if (work[q] < 0) continue;
       const Eigen::RowVector3d a = model.row(s[q].theta, work[q]);
       N.noalias() += a.transpose() * a;
-      g.noalias() += a.transpose() * model.value(s[q]);
+      g.noalias() += a.transpose() * s[q].du_px;
       ++used;
     }
     if (used < 3) break;
@@ -116,28 +110,9 @@ bool consensusSinusoid(std::span<const RingSample> s, const SinusoidModel& model
     if (!(mean > 1e-6)) break;
     for (int q = 0; q < m; ++q)
       if (work[q] >= 0) work[q] /= mean;
-    for (int i = 0; i < 3; ++i)
-      if (model.varying[i]) best(i) *= mean;
+    best.tail<2>() *= mean;
   }
   return true;
-}
-
-/// Flags the samples whose absorbed residual (residual(sample)) is beyond the threshold.
-template <typename Residual>
-int flagBeyond(std::span<const RingSample> s, Residual residual, const RingConsensusOptions& o,
-               std::span<std::uint8_t> flags, std::span<double> work) {
-  const int m = static_cast<int>(s.size());
-  for (int q = 0; q < m; ++q) work[q] = residual(s[q]);
-  const double sigma = kMadToSigma * medianOf(work.first(m));
-  const double threshold = std::max(o.sigmas * sigma, o.floor_px);
-  int flagged = 0;
-  for (int q = 0; q < m; ++q) {
-    if (residual(s[q]) > threshold && !flags[q]) {
-      flags[q] = 1;
-      ++flagged;
-    }
-  }
-  return flagged;
 }
 
 }  // namespace
@@ -149,25 +124,29 @@ int flagInconsistentWindows(std::span<const RingSample> samples,
   if (static_cast<int>(samples.size()) < kMinSamples || work.size() < samples.size() ||
       inconsistent.size() < samples.size())
     return 0;
-  const double L = options.max_inverse_depth;
-  const SinusoidModel du{[](const RingSample& q) { return q.du_px; }, {false, true, true}, L};
-  const SinusoidModel dv{[](const RingSample& q) { return q.dv_px; }, {true, false, false}, L};
-  Sinusoid u, v;
-  if (!consensusSinusoid(samples, du, work, u) || !consensusSinusoid(samples, dv, work, v))
-    return 0;
+  const DuModel du{options.max_inverse_depth};
+  Sinusoid u;
+  if (!consensusSinusoid(samples, du, work, u)) return 0;
   // Near the translation's axis a window's du says more about the axis's direction than
   // about its depth, and the consensus's direction is not exact enough to judge it there.
   const double amplitude = std::hypot(u(1), u(2));
   const double axis_sin = std::sin(options.axis_half_width_deg * std::numbers::pi / 180.0);
-  const auto du_residual = [&](const RingSample& q) {
+  const auto residual = [&](const RingSample& q) {
     if (amplitude > options.floor_px &&
         std::abs(u(1) * std::sin(q.theta) + u(2) * std::cos(q.theta)) < axis_sin * amplitude)
       return 0.0;
     return du.absorbedResidual(q, u);
   };
-  const auto dv_residual = [&](const RingSample& q) { return dv.absorbedResidual(q, v); };
-  return flagBeyond(samples, du_residual, options, inconsistent, work) +
-         flagBeyond(samples, dv_residual, options, inconsistent, work);
+  const int m = static_cast<int>(samples.size());
+  for (int q = 0; q < m; ++q) work[q] = residual(samples[q]);
+  const double sigma = kMadToSigma * medianOf(work.first(m));
+  const double threshold = std::max(options.sigmas * sigma, options.floor_px);
+  int flagged = 0;
+  for (int q = 0; q < m; ++q) {
+    inconsistent[q] = residual(samples[q]) > threshold ? 1 : 0;
+    flagged += inconsistent[q];
+  }
+  return flagged;
 }
 
 }  // namespace omnipose

@@ -438,6 +438,30 @@ TEST(MotionFit, TheRingConsensusKeepsPeopleAcrossAThirdOfTheRingOutOfTheFit) {
   EXPECT_GT(err_without, 3.0 * err_with) << "the people no longer bend the fit without it";
 }
 
+// The consensus tests du alone: a window whose du a static scene explains and whose dv it
+// does not (a slanted edge of a wall close by, a person's shoulders) keeps its du in the fit
+// (the fit's robust weights take its dv); one whose du it does not explain is left out whole.
+TEST(MotionFit, TheRingConsensusJudgesAWindowByItsDu) {
+  std::mt19937 rng(22);
+  MotionFit::Options with;
+  with.ring_consensus = true;
+  MotionFit fit(with, kGamma, kWindow, kWindows);
+  Vec6 x = Vec6::Zero();
+  x(2) = 0.006;  // turning in place
+  auto windows = synthesize(x, 0.03, 0.0, rng);
+  const int dv_wrong = 7, du_wrong = 31;
+  windows[dv_wrong].dv += 2.0;
+  windows[du_wrong].du += 3.0;
+  const MotionEstimate e = fit.fit(windows, 0.0);
+  ASSERT_NE(e.status, FitStatus::kLost);
+  EXPECT_LT((e.omega - x.head<3>()).norm(), 1e-4);
+  EXPECT_EQ(fit.finalWeight(du_wrong), 0.0);
+  // Its du row alone: about half of a whole window's weight.
+  EXPECT_GT(fit.finalWeight(dv_wrong), 0.3);
+  EXPECT_LT(fit.finalWeight(dv_wrong), 0.7);
+  EXPECT_GT(fit.finalWeight(20), 0.9);
+}
+
 TEST(MotionFit, HonoursTheForwardColumn) {
   std::mt19937 rng(3);
   MotionFit fit = makeFit();
