@@ -192,6 +192,11 @@ class MotionFit {
   /// the fit stopped before its final pass, and before any fit. Requires
   /// 0 <= k < maxWindows().
   double finalWeight(int k) const;
+  /// Whether the ring consensus (Options::ring_consensus) left window k out of the last
+  /// fit(): no static scene explains its du (a person walking by covers it). False with the
+  /// consensus off, for a window it did not judge (invalid, dropped by the median filter,
+  /// near the direction of travel) and before any fit. Requires 0 <= k < maxWindows().
+  bool judgedMoving(int k) const;
   /// Most windows one fit() accepts.
   int maxWindows() const;
 

@@ -26,8 +26,8 @@
 // window's whole vertical shift, and beside a wall close by a slanted edge moving sideways
 // shifts a window vertically too: in driving a dv test left out about one window per fit
 // that no person was in (and its du with it), which moved a lap's heading by up to 1.2 deg,
-// better in some rooms and worse in others, and on the people pool it changed nothing (docs/results/ANALYSIS.md). The
-// fit's robust weights take care of a window's dv alone.
+// better in some rooms and worse in others, while on the people pool it helped one render
+// of 35 (docs/results/ANALYSIS.md). The fit's robust weights take care of a window's dv.
 #include <cstdint>
 #include <span>
 

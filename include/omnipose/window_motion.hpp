@@ -42,7 +42,9 @@ struct WindowMotion {
   /// Share of the window's taper weight whose pixels its own motion does not explain
   /// (content moving on its own: a person walking by), in [0, 1]; the refinement pass's
   /// windows only (PipelineOptions::moving_content), 0 otherwise. confidence and
-  /// rs_confidence are already lowered by it (0 from 0.06 on).
+  /// rs_confidence are already lowered by it (0 from 0.06 on). In the windows a pass
+  /// reports (OdometryResult::windows), 1 for a window its fit's ring consensus left out
+  /// (MotionFit::judgedMoving: it moved as a whole, as no static scene does).
   double moving_fraction = 0.0;
   bool valid = false;       ///< false: window has no texture / no peak (confidence below
                             ///< min_confidence); ignore it. du, dv = 0 for a textureless window

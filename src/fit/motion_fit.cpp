@@ -206,6 +206,7 @@ struct MotionFit::Impl {
   std::vector<PlaneNeighbours> plane;  ///< per window, planeNeighbours()
   std::vector<RingSample> ring;               ///< the kept windows, ringConsensus()
   std::vector<std::uint8_t> ring_inconsistent;  ///< per entry of `ring`
+  std::vector<std::uint8_t> judged_moving;      ///< per window, MotionFit::judgedMoving()
   /// Leaves out the kept windows that no static scene explains (ring_consensus.hpp).
   void ringConsensus(std::span<const WindowMotion> windows, double forward_column);
   /// The depths' information matrix (max_windows square, so that its factorisation never
@@ -244,6 +245,7 @@ MotionFit::Impl::Impl(const Options& o, double gamma_per_column, double attenuat
       plane(static_cast<std::size_t>(max_windows)),
       ring(static_cast<std::size_t>(max_windows)),
       ring_inconsistent(static_cast<std::size_t>(max_windows)),
+      judged_moving(static_cast<std::size_t>(max_windows), 0),
       depth_m(max_windows, max_windows),
       depth_rhs(max_windows, 7),
       depth_llt(max_windows) {}
@@ -293,6 +295,8 @@ double MotionFit::kappa() const { return impl_->kappa; }
 double MotionFit::inverseDepth(int k) const { return impl_->depth[k]; }
 
 double MotionFit::finalWeight(int k) const { return impl_->final_weight[k]; }
+
+bool MotionFit::judgedMoving(int k) const { return impl_->judged_moving[k] != 0; }
 
 int MotionFit::maxWindows() const { return static_cast<int>(impl_->keep.size()); }
 
@@ -367,7 +371,10 @@ void MotionFit::Impl::ringConsensus(std::span<const WindowMotion> windows,
   m = 0;
   for (int k = 0; k < n; ++k) {
     if (!keep[k]) continue;
-    if (flags[m++]) keep[k] = 0;
+    if (flags[m++]) {
+      keep[k] = 0;
+      judged_moving[k] = 1;
+    }
   }
 }
 
@@ -853,6 +860,7 @@ MotionEstimate MotionFit::Impl::fit(std::span<const WindowMotion> windows,
   est.windows_total = static_cast<int>(windows.size());
   est.windows_masked = static_cast<int>(
       std::count_if(windows.begin(), windows.end(), [](const WindowMotion& w) { return w.masked; }));
+  std::fill(judged_moving.begin(), judged_moving.end(), std::uint8_t{0});
   if (windows.size() > keep.size()) {
     est.status = FitStatus::kLost;  // workspace too small: configuration error upstream
     return est;

@@ -242,7 +242,7 @@ std::optional<MotionEstimate> FrameRegistrar::firstPass(double* fit_seconds) {
     return std::nullopt;
   const auto t_fit = std::chrono::steady_clock::now();
   MotionEstimate estimate = fitPass(windows_, Eigen::Vector3d::Zero(), previous_rows_);
-  keepWeights(weights_);
+  keepVerdicts(windows_, weights_);
   start_gyro_ = last_pass_gyro_;
   if (fit_seconds != nullptr)
     *fit_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t_fit).count();
@@ -258,13 +258,16 @@ std::optional<MotionEstimate> FrameRegistrar::alignedPass(const Eigen::Matrix3d&
                              {}, slot))
     return std::nullopt;
   MotionEstimate estimate = fitPass(windows_, rotationVector(R), rowsOf(slot));
-  keepWeights(weights_);
+  keepVerdicts(windows_, weights_);
   start_gyro_ = last_pass_gyro_;
   return estimate;
 }
 
-void FrameRegistrar::keepWeights(std::vector<double>& weights) const {
+void FrameRegistrar::keepVerdicts(std::span<WindowMotion> windows,
+                                  std::vector<double>& weights) const {
   for (std::size_t k = 0; k < weights.size(); ++k) weights[k] = fit_.finalWeight(static_cast<int>(k));
+  for (std::size_t k = 0; k < windows.size(); ++k)
+    if (fit_.judgedMoving(static_cast<int>(k))) windows[k].moving_fraction = 1.0;
 }
 
 MotionEstimate FrameRegistrar::fitWindows(std::span<const WindowMotion> windows) {
@@ -515,7 +518,7 @@ PassResult FrameRegistrar::refineInto(const MotionEstimate& start, const Eigen::
     est.iterations += residual.iterations;
     if (residual.status == FitStatus::kDegraded) est.status = FitStatus::kDegraded;
     out.refined = true;
-    keepWeights(weights);
+    keepVerdicts(windows, weights);
     out.windows = windows;
     out.window_weights = weights;
     out.window_model = residual.vector();

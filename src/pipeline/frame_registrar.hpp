@@ -223,8 +223,10 @@ class FrameRegistrar {
                              const Eigen::Matrix3d& R_residual, const Eigen::Vector3d& tau);
   /// The motion fit of `windows`, its covariance multiplied by window_overlap_.
   MotionEstimate fitWindows(std::span<const WindowMotion> windows);
-  /// The last fit's MotionFit::finalWeight() of every window into `weights`.
-  void keepWeights(std::vector<double>& weights) const;
+  /// The last fit's verdict on each of its `windows`: MotionFit::finalWeight() into
+  /// `weights`, and moving_fraction 1 for the windows MotionFit::judgedMoving() (the ring
+  /// consensus left them out: they moved as a whole, as no static scene does).
+  void keepVerdicts(std::span<WindowMotion> windows, std::vector<double>& weights) const;
   /// The same with each window's rows scaled by row_scale_ (fitPass()).
   MotionEstimate fitScaled(std::span<const WindowMotion> windows);
   /// fitWindows() of the windows of a pass over the current panorama de-rotated by

@@ -460,6 +460,12 @@ TEST(MotionFit, TheRingConsensusJudgesAWindowByItsDu) {
   EXPECT_GT(fit.finalWeight(dv_wrong), 0.3);
   EXPECT_LT(fit.finalWeight(dv_wrong), 0.7);
   EXPECT_GT(fit.finalWeight(20), 0.9);
+  EXPECT_TRUE(fit.judgedMoving(du_wrong));
+  EXPECT_FALSE(fit.judgedMoving(dv_wrong));
+  EXPECT_FALSE(fit.judgedMoving(20));
+  // The verdict is the last fit's: without the people nothing is judged.
+  ASSERT_NE(fit.fit(synthesize(x, 0.03, 0.0, rng), 0.0).status, FitStatus::kLost);
+  EXPECT_FALSE(fit.judgedMoving(du_wrong));
 }
 
 TEST(MotionFit, HonoursTheForwardColumn) {

@@ -4,6 +4,7 @@
 // (PipelineOptions::moving_content), and measurably worse without the check.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <numbers>
 
@@ -105,6 +106,54 @@ TEST(Walkers, TheWindowsJudgedMovingWeighLessAndTheResultSaysWhich) {
   EXPECT_EQ(people.moving, 0.0) << "a window judged moving is left out of the fit";
   EXPECT_GT(people.still, 0.5);
   EXPECT_LE(twin.moving_windows, 1) << "nothing moves in the twin";
+}
+
+/// Over frames 1..3 of the turn, with the pixel check off and the ring consensus on or off:
+/// how many windows were reported moving as a whole (moving_fraction 1), and their largest
+/// fit weight.
+struct JudgedWhole {
+  int windows = 0;
+  double largest_weight = 0.0;
+};
+JudgedWhole judgedWhole(const synth::Renderer& renderer, bool ring_consensus) {
+  OdometryOptions options;
+  options.pipeline.moving_content = false;
+  options.pipeline.fit.ring_consensus = ring_consensus;
+  Odometry odometry(Calibration{}, options);
+  cv::RNG rng(29);
+  JudgedWhole j;
+  for (int k = 0; k < 4; ++k) {
+    const auto r = odometry.process(noisyFrame(renderer, k, rng), {k * kFrameInterval, k, false});
+    EXPECT_TRUE(r.has_value());
+    if (!r || k == 0) continue;
+    for (std::size_t i = 0; i < r->windows.size() && i < r->window_weights.size(); ++i) {
+      const double f = r->windows[i].moving_fraction;
+      EXPECT_TRUE(f == 0.0 || f == 1.0) << "only the consensus judges with the check off";
+      if (f == 1.0) {
+        ++j.windows;
+        j.largest_weight = std::max(j.largest_weight, r->window_weights[i]);
+      }
+    }
+  }
+  return j;
+}
+
+// The windows the ring consensus leaves out are in the result, as the pixel check's are: five
+// people covering a third of the ring around a slow turn.
+TEST(Walkers, TheWindowsTheRingConsensusLeftOutAreReportedMoving) {
+  if (!std::filesystem::exists(testing::indoorPhoto())) GTEST_SKIP() << "missing photo";
+  synth::Scene scene = synth::Scene::load(testing::indoorPhoto(), synth::SceneKind::kSphere);
+  const JudgedWhole twin = judgedWhole(synth::Renderer(scene, Calibration{}), true);
+  scene.walkers = synth::parseWalkers("5,0.6,1.8,1.2");
+  scene.walkers.min_distance_m = 1.2;
+  scene.walkers.max_distance_m = 1.6;
+  scene.walkers.seed = 5;
+  const synth::Renderer people(scene, Calibration{});
+  const JudgedWhole with = judgedWhole(people, true), without = judgedWhole(people, false);
+  EXPECT_GE(with.windows, 6);
+  EXPECT_EQ(with.largest_weight, 0.0) << "a window the consensus judged is out of the fit";
+  EXPECT_EQ(without.windows, 0);
+  EXPECT_LE(twin.windows, 1) << "nothing moves in the twin";
 }
 
 TEST(Walkers, PeopleWalkingAroundTheCameraDoNotMoveTheEstimate) {

@@ -136,7 +136,8 @@ void bindResult(nb::module_& m) {
               "out (beyond the inlier threshold, invalid, masked), (n,).")
       .def_ro("moving_fraction", &W::moving_fraction,
               "Share of the window's pixels its own motion does not explain (a person walking "
-              "by), 0..1; refinement pass only (moving_content), else 0, (n,).")
+              "by), 0..1; refinement pass only (moving_content), else 0; 1 for a window the "
+              "ring consensus (ring_consensus) left out, (n,).")
       .def_ro("refined", &W::refined,
               "The refinement pass's windows (the current panorama de-rotated by the estimate "
               "before it), else the first pass's.")
