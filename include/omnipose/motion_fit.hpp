@@ -109,9 +109,9 @@ class MotionFit {
     /// as far. With it, on the people benchmark the worst render's rotation error falls
     /// from 66x its twin to 5x; driving without people the per-pair error is within 3 % and
     /// the heading at the end of a lap moves by up to 0.15 deg worse in some rooms and
-    /// 0.58 deg better in another; it is not yet the default because the accuracy and
-    /// real-camera benchmarks have not been measured with it (docs/results/ANALYSIS.md,
-    /// "A consensus over the ring").
+    /// 0.58 deg better in another, and on the accuracy benchmark (no people) its per-pair
+    /// error is 1.00x median and up to 1.08x (the Kogeto lens's yaw): for those costs it is
+    /// not the default (docs/results/ANALYSIS.md, "A consensus over the ring").
     bool ring_consensus = false;
     /// With per_window_depth: how much of the horizontal expansion that a change of depth
     /// across a window adds the measured in-window scale carries. A window on a wall seen
