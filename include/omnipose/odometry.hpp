@@ -289,6 +289,10 @@ struct GyroCounters {
   /// any reading), and one standard deviation of it (infinite before two readings).
   Eigen::Vector3d bias = Eigen::Vector3d::Zero();
   double bias_sigma = 0.0;
+  /// With a rolling shutter or an exposure: how much later than their modelled capture times
+  /// the windows' yaw is read, seconds, as measured against the gyro (0 until told from 0;
+  /// DESIGN.md section 3, "Rolling shutter with a gyro").
+  double yaw_time_offset_s = 0.0;
   /// The newest sample kept, seconds on the IMU's clock; NaN before any.
   double last_sample_t = std::numeric_limits<double>::quiet_NaN();
 };

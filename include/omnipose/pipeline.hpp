@@ -48,6 +48,13 @@ struct PipelineOptions {
   /// out from 6 % (src/pipeline/moving_content.hpp; DESIGN.md section 4). Costs about 3 %
   /// of a frame's instructions; without refinement (refine_iterations 0) it does nothing.
   bool moving_content = true;
+  /// With a rolling shutter (or an exposure) and the robot's gyro: measure, against the gyro,
+  /// how much earlier or later than the model's capture times the windows' yaw was read (their
+  /// texture sets it) and read it there (src/pipeline/capture_time_offset.hpp; DESIGN.md
+  /// section 3, "Rolling shutter with a gyro"). Without a gyro it does nothing. A camera-gyro
+  /// clock offset that is off by more than the texture's offset (0.05-0.15 ms) makes it follow
+  /// the clock's error instead: `omnipose-calibrate --imu-from` measures the clock without it.
+  bool yaw_capture_time = true;
   /// Worker threads for the window registration and the de-rotation, the processing thread
   /// included, created at start-up (1 = everything on the calling thread; 0 = all online
   /// cores; at most WindowRegistration::kMaxThreads). The result is bit-identical for any

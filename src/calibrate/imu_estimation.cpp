@@ -32,11 +32,14 @@ struct ImagePair {
 
 /// Every consecutive tracked pair of `frames`; with `gyro` (and calibration.imu) registered
 /// with each row's rotation within its frame from the gyro, frame k exposed for exposures[k]
-/// (empty: the calibration's exposure).
+/// (empty: the calibration's exposure). The windows' yaw is read at the model's capture times
+/// (PipelineOptions::yaw_capture_time off): measured against the gyro at the clock offset
+/// being searched, the pairs' yaw would follow that offset's error.
 std::vector<ImagePair> imagePairs(const Calibration& calibration, std::span<const cv::Mat> frames,
-                                  std::span<const double> times, const OdometryOptions& options,
+                                  std::span<const double> times, OdometryOptions options,
                                   std::span<const GyroSample> gyro = {},
                                   std::span<const double> exposures = {}) {
+  options.pipeline.yaw_capture_time = false;
   Odometry odometry(calibration, options);
   std::vector<ImagePair> pairs;
   std::size_t next = 0;

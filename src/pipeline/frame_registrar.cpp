@@ -325,8 +325,8 @@ void FrameRegistrar::correctRowsWithGyro(std::span<WindowMotion> windows,
     const double stretch = std::abs(g) < 0.5 * dt ? dt / (dt - g) : 1.0;
     Eigen::Matrix<double, 6, 1> within = Eigen::Matrix<double, 6, 1>::Zero();
     within.head<3>() =
-        rotationVector(rotationFromVector(-reference.exposedTurnAt(w.s + g_r)) *
-                       rotationFromVector(X * current_rows_.exposedTurnAt(w.s + g_c)));
+        rotationVector(rotationFromVector(-turnForYawAt(reference, w.s + g_r)) *
+                       rotationFromVector(X * turnForYawAt(current_rows_, w.s + g_c)));
     const ModelMotion c = predictMotion(within, theta, fit_.kappa());
     // The translation's part: the shift less the rotations.
     const double du_t = du - c.du_rad / gamma - rotated.du_rad / gamma;
@@ -335,6 +335,12 @@ void FrameRegistrar::correctRowsWithGyro(std::span<WindowMotion> windows,
     m.dv = dv_t * stretch + (warped ? 0.0 : rotated.dv_rad / gamma);
     m.rotation -= c.rotation;
   }
+}
+
+Eigen::Vector3d FrameRegistrar::turnForYawAt(const FrameRotation& rows, double s) const {
+  Eigen::Vector3d turn = rows.exposedTurnAt(s);
+  if (yaw_time_offset_ != 0.0) turn.z() = rows.exposedTurnAt(s + yaw_time_offset_).z();
+  return turn;
 }
 
 MotionEstimate FrameRegistrar::fitPass(std::span<WindowMotion> windows,

@@ -109,6 +109,11 @@ class FrameRegistrar {
     return calibration_.sensor.readout_s != 0.0 || exposure_s > 0.0;
   }
 
+  /// With the gyro's rows (measureRowRotations()), every window's yaw within its frame is read
+  /// `offset_s` seconds after its modelled capture time (CaptureTimeOffset: where its texture
+  /// puts it); roll and pitch are not moved. 0, the default, reads them at the model's.
+  void setYawTimeOffset(double offset_s) { yaw_time_offset_ = offset_s; }
+
   /// Whether a previous frame is set (the first pass can run).
   bool hasPrevious() const { return has_previous_; }
   /// The current panorama becomes the previous frame (its spectra computed anew).
@@ -242,6 +247,9 @@ class FrameRegistrar {
   /// frame's), their translation stretched to the whole interval.
   void correctRowsWithGyro(std::span<WindowMotion> windows, const Eigen::Vector3d& warp_omega,
                            const FrameRotation& reference);
+  /// `rows`' mean turn over the exposure about `s` seconds after its timestamp, its yaw read
+  /// yaw_time_offset_ later (correctRowsWithGyro()).
+  Eigen::Vector3d turnForYawAt(const FrameRotation& rows, double s) const;
   /// The rotation within the frame `against` (WindowRegistration::kPreviousFrame or a
   /// keyframe slot).
   const FrameRotation& rowsOf(int against) const {
@@ -305,6 +313,7 @@ class FrameRegistrar {
   /// (measureRowRotations()).
   FrameRotation current_rows_, previous_rows_;
   std::vector<FrameRotation> keyframe_rows_;
+  double yaw_time_offset_ = 0.0;  ///< seconds, setYawTimeOffset()
   bool last_pass_gyro_ = false;  ///< the last fitPass() was corrected with the gyro
   bool start_gyro_ = false;      ///< ... and the last firstPass() or alignedPass()
   bool has_previous_ = false;

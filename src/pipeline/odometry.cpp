@@ -11,6 +11,7 @@
 #include "common/problem_list.hpp"
 #include "imu/gyro_buffer.hpp"
 #include "omnipose/so3.hpp"
+#include "pipeline/capture_time_offset.hpp"
 #include "pipeline/frame_registrar.hpp"
 #include "pipeline/gyro_bias.hpp"
 #include "pipeline/loop_closure.hpp"
@@ -168,6 +169,7 @@ struct Odometry::Impl {
 
   Impl(const Calibration& c, const OdometryOptions& o)
       : gyro_calibration(c.imu),
+        measure_yaw_capture_time(o.pipeline.yaw_capture_time),
         keyframe_options(o.keyframes),
         plausibility_options(o.plausibility),
         registrar(std::in_place, c, o.pipeline,
@@ -254,12 +256,27 @@ struct Odometry::Impl {
                          time, gyroMaxGap());
   }
   /// The images' rotation `images` from the last good frame to the current one, a reading
-  /// of the gyro's bias.
-  void updateGyroBias(const Eigen::Matrix3d& images) {
+  /// of the gyro's bias and, when the pass took the rows' turns from the gyro (`gyro_rows`),
+  /// of the time the windows' yaw was captured at (CaptureTimeOffset; the next frames' passes
+  /// read it there).
+  void updateFromGyro(const Eigen::Matrix3d& images, bool gyro_rows) {
     const std::optional<Eigen::Matrix3d> G = gyroRotation(last_time);
-    if (G && gyro_bias.update(images, *G, time - last_time,
-                              gyro_calibration->rotation.normalized().toRotationMatrix()))
+    if (!G) return;
+    if (gyro_rows && measure_yaw_capture_time &&
+        capture_offset.update(rotationVector(G->transpose() * images).z(),
+                              yawRateNow() - last_yaw_rate, capture_offset.offset()))
+      registrar->setYawTimeOffset(capture_offset.offset());
+    if (gyro_bias.update(images, *G, time - last_time,
+                         gyro_calibration->rotation.normalized().toRotationMatrix()))
       ++gyro_counters.bias_readings;
+  }
+  /// The gyro's yaw rate at the current frame's timestamp (rad/s, camera axes), NaN where
+  /// its samples do not tell or without a gyro.
+  double yawRateNow() const {
+    if (!gyro_calibration) return std::numeric_limits<double>::quiet_NaN();
+    const std::optional<Eigen::Vector3d> rate =
+        gyroRateAt(gyro.samples(), *gyro_calibration, gyro_bias.bias(), time, gyroMaxGap());
+    return rate ? rate->z() : std::numeric_limits<double>::quiet_NaN();
   }
   /// The current frame after a gap the images could not bridge, with the gyro's rotation
   /// since the last good frame: kGyroBridged, the frame a keyframe. False without one.
@@ -319,6 +336,11 @@ struct Odometry::Impl {
   std::optional<ImuCalibration> gyro_calibration;  ///< the calibration's imu section
   imu::GyroBuffer gyro{kGyroSamplesKept};
   pipeline::GyroBias gyro_bias;
+  /// PipelineOptions::yaw_capture_time: capture_offset measured and used.
+  bool measure_yaw_capture_time = false;
+  pipeline::CaptureTimeOffset capture_offset;
+  /// The gyro's yaw rate at the last good frame's timestamp (yawRateNow() then).
+  double last_yaw_rate = std::numeric_limits<double>::quiet_NaN();
   GyroCounters gyro_counters;
   KeyframeOptions keyframe_options;
   PlausibilityOptions plausibility_options;
@@ -413,7 +435,7 @@ void Odometry::Impl::finish(OdometryResult& out, const Eigen::Isometry3d& T_esti
                             const pipeline::PassResult& pass, TrackState state) {
   const Eigen::Isometry3d T = orthonormalized(T_estimated);
   if (gyro_calibration && state == TrackState::kTracked && pass.estimate.status == FitStatus::kOk)
-    updateGyroBias(pose.linear().transpose() * T.linear());
+    updateFromGyro(pose.linear().transpose() * T.linear(), pass.gyro_rows);
   out.state = state;
   const FrameMotion keep_timing = out.relative;
   out.relative.estimate = pass.estimate;
@@ -429,6 +451,7 @@ void Odometry::Impl::finish(OdometryResult& out, const Eigen::Isometry3d& T_esti
   out.pose = T;
   last_sequence = sequence;
   last_time = time;
+  last_yaw_rate = yawRateNow();
 }
 
 Expected<bool> Odometry::Impl::bridge(OdometryResult& out) {
@@ -747,6 +770,7 @@ GyroCounters Odometry::gyroCounters() const {
   GyroCounters c = impl_->gyro_counters;
   c.bias = impl_->gyro_bias.bias();
   c.bias_sigma = impl_->gyro_bias.sigma();
+  c.yaw_time_offset_s = impl_->capture_offset.offset();
   if (!impl_->gyro.samples().empty()) c.last_sample_t = impl_->gyro.samples().back().t;
   return c;
 }

@@ -129,6 +129,12 @@ TEST(DaemonConfig, MovingContentCheck) {
       "sometimes");
 }
 
+TEST(DaemonConfig, YawCaptureTime) {
+  expectBooleanPipelineKey(
+      "yaw_capture_time", true, [](const DaemonConfig& c) { return c.pipeline.yaw_capture_time; },
+      "gyro");
+}
+
 TEST(DaemonConfig, NoiseWeighting) {
   expectBooleanPipelineKey(
       "noise_weighting", false,

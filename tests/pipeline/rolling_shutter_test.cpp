@@ -9,11 +9,14 @@
 
 #include <algorithm>
 #include <cmath>
+#include <filesystem>
 #include <limits>
 #include <numbers>
 #include <sstream>
 #include <string>
 #include <vector>
+
+#include <opencv2/imgcodecs.hpp>
 
 #include "omnipose/gyro.hpp"
 #include "omnipose/odometry.hpp"
@@ -21,6 +24,7 @@
 #include "omnipose/so3.hpp"
 #include "omnipose/synth/synth.hpp"
 #include "render_fixture.hpp"
+#include "test_files.hpp"
 
 namespace omnipose {
 namespace {
@@ -29,8 +33,9 @@ constexpr double kReadout = 0.0267;  // 0.8 of a frame at 30 fps
 constexpr int kFrames = 26;
 
 /// Yaw ramps of 2-4 deg per frame reached in 6 frames, held, reversed; with track
-/// vibration (roll and pitch up to 0.5 deg, 1-9 Hz) when `vibration`.
-synth::MotionScript rampsScript(bool vibration) {
+/// vibration (roll and pitch up to 0.5 deg, 1-9 Hz) when `vibration`; `cycles` times
+/// (25 * cycles + 1 frames).
+synth::MotionScript rampsScript(bool vibration, int cycles = 1) {
   const std::vector<double> yaw_deg = {0.5, 1.0, 1.5, 2.0, 2.5, 3.0,  3.0,  3.0, 3.0,
                                        1.8, 0.6, -0.6, -1.8, -3.0, -4.2, -4.2, -4.2, -4.2,
                                        -3.5, -2.8, -2.1, -1.4, -0.7, 0.01, 0.01};
@@ -39,9 +44,10 @@ synth::MotionScript rampsScript(bool vibration) {
   if (vibration)
     yaml << "vibration: {amplitude_deg: 0.5, min_hz: 1, max_hz: 9, components: 3, seed: 7}\n";
   yaml << "segments:\n";
-  for (const double d : yaw_deg)
-    yaml << "  - frames: 1\n    rotation: {axis: z, step_deg: " << std::abs(d)
-         << ", sign: " << (d >= 0 ? "positive" : "negative") << "}\n";
+  for (int cycle = 0; cycle < cycles; ++cycle)
+    for (const double d : yaw_deg)
+      yaml << "  - frames: 1\n    rotation: {axis: z, step_deg: " << std::abs(d)
+           << ", sign: " << (d >= 0 ? "positive" : "negative") << "}\n";
   return synth::MotionScript::parse(yaml.str(), "ramps");
 }
 
@@ -108,13 +114,13 @@ Errors run(const std::vector<cv::Mat>& frames, const std::vector<StampedPose>& t
 /// The frames of `script`: rolling shutter (readout_s) or a global shutter (0), sensor
 /// noise of 2 grey levels; the motion between the samples of `trajectory` as `between`; each
 /// row exposed for exposure_s (motion blur: the mean of 12 sub-exposures) when not 0, or
-/// frame k for exposures[k] when those are given.
+/// frame k for exposures[k] when those are given; the sphere of `photo`.
 std::vector<cv::Mat> render(const std::vector<StampedPose>& trajectory, double readout_s,
                             synth::Interpolation between = synth::Interpolation::kConstantVelocity,
-                            double exposure_s = 0.0, std::span<const double> exposures = {}) {
-  const synth::Renderer renderer(
-      synth::Scene::load(testing::indoorPhoto(), synth::SceneKind::kSphere), Calibration{},
-      {.supersample = 2});
+                            double exposure_s = 0.0, std::span<const double> exposures = {},
+                            const std::filesystem::path& photo = testing::indoorPhoto()) {
+  const synth::Renderer renderer(synth::Scene::load(photo, synth::SceneKind::kSphere),
+                                 Calibration{}, {.supersample = 2});
   synth::DegradeOptions noise;
   noise.noise_sigma = 2.0;
   std::vector<cv::Mat> frames;
@@ -196,9 +202,10 @@ struct GyroSequence {
 };
 
 GyroSequence gyroSequence(std::uint64_t seed,
-                          synth::Interpolation between = synth::Interpolation::kSpline) {
+                          synth::Interpolation between = synth::Interpolation::kSpline,
+                          int cycles = 1) {
   GyroSequence s;
-  s.control = synth::generateTrajectory(rampsScript(true));
+  s.control = synth::generateTrajectory(rampsScript(true, cycles));
   for (const StampedPose& p : s.control)
     s.truth.push_back({p.timestamp, synth::poseAtTime(s.control, p.timestamp, between)});
   synth::GyroSimulation sim;
@@ -236,17 +243,57 @@ TEST(RollingShutter, TheGyroGivesEachRowsRotationWithinItsFrame) {
   EXPECT_EQ(counters.frames_without_gyro, 0);
   EXPECT_GT(counters.accepted, 0);
   EXPECT_EQ(counters.not_finite + counters.too_fast + counters.out_of_order, 0);
-  // Within 2x the global shutter's error in roll, pitch and yaw (1.1x and 1.6x here); the
-  // images alone are 9x in tilt and 35x in yaw, off where the turn rate changes.
+  // Within 2x the global shutter's error in roll, pitch and yaw (1.2x and 1.6x here); the
+  // images alone are 9x in tilt and 39x in yaw, off where the turn rate changes.
   EXPECT_LT(gyro.tilt, 2.0 * twin.tilt);
   EXPECT_LT(gyro.yaw, 2.0 * twin.yaw);
   EXPECT_LT(gyro.tilt, 0.25 * images.tilt);
   EXPECT_LT(gyro.yaw, 0.1 * images.yaw);
-  // Against a keyframe up to 40 degrees and 4 deg/frame of turn rate away (1.4x and 2.2x
+  // Against a keyframe up to 40 degrees and 4 deg/frame of turn rate away (1.1x and 1.6x
   // here): a window's pixels weigh in by their texture, not only by the taper its capture
-  // time is averaged under, so a larger change of rate between the two frames leaves more.
+  // time is averaged under, so a larger change of rate between the two frames leaves more
+  // (TheGyroFindsWhenTheWindowsYawWasCaptured: where the texture makes that an offset).
   EXPECT_LT(gyro_keyframes.tilt, 2.0 * twin_keyframes.tilt);
   EXPECT_LT(gyro_keyframes.yaw, 3.0 * twin_keyframes.yaw);
+}
+
+TEST(RollingShutter, TheGyroFindsWhenTheWindowsYawWasCaptured) {
+  // The indoor photo with its upper half blanked over half the azimuths (a bare sky beside a
+  // building): on that side every window's texture lies below the horizon, where the rows are
+  // read out at other times than the taper-weighted mean the model gives the window. Those
+  // windows' yaw is read away from their modelled capture times in the same sense all along
+  // that side, so the pair's yaw is that of other instants than the timestamps: off by that
+  // offset times the change of the yaw rate between the two frames. The gyro measures the
+  // rate change, the offset is regressed on it (CaptureTimeOffset), and the windows' yaw is
+  // read there.
+  testing::TempDir dir("capture-time");
+  cv::Mat photo = cv::imread(testing::indoorPhoto().string(), cv::IMREAD_COLOR);
+  ASSERT_FALSE(photo.empty());
+  cv::Mat sky = photo(cv::Rect(0, 0, photo.cols / 2, photo.rows / 2));
+  sky.setTo(cv::mean(sky));
+  const std::filesystem::path path = dir.path() / "half_sky.png";
+  ASSERT_TRUE(cv::imwrite(path.string(), photo));
+
+  const GyroSequence s = gyroSequence(1, synth::Interpolation::kSpline, 3);
+  const std::vector<cv::Mat> rolling =
+      render(s.control, kReadout, synth::Interpolation::kSpline, 0.0, {}, path);
+  const std::vector<cv::Mat> global =
+      render(s.control, 0.0, synth::Interpolation::kSpline, 0.0, {}, path);
+  const Errors twin = run(global, s.truth, 0.0);
+  GyroCounters counters;
+  const Errors gyro = run(rolling, s.truth, kReadout, 0, &s.gyro, &counters);
+  report("half_sky_global_shutter_twin", twin);
+  report("half_sky_gyro", gyro);
+  ::testing::Test::RecordProperty("half_sky_yaw_time_offset_s",
+                                  std::to_string(counters.yaw_time_offset_s));
+  EXPECT_EQ(counters.frames_with_gyro, static_cast<std::int64_t>(s.truth.size()));
+  // Read earlier than modelled here (texture towards the rows read out first).
+  EXPECT_LT(counters.yaw_time_offset_s, -0.05e-3);
+  EXPECT_GT(counters.yaw_time_offset_s, -0.4e-3);  // not held at the bound
+  // Yaw 2.2x the global shutter's here (-0.15 ms); read at the modelled times it was 3.2x,
+  // roll and pitch the same either way.
+  EXPECT_LT(gyro.yaw, 2.5 * twin.yaw);
+  EXPECT_LT(gyro.tilt, 2.0 * twin.tilt);
 }
 
 TEST(RollingShutter, TheGyroTakesTheMotionBlurOutOfTheRows) {

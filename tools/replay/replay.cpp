@@ -158,12 +158,13 @@ ReplaySummary run(const ReplayOptions& options, std::FILE* log) {
     std::fprintf(log,
                  "gyro: %s, %lld samples taken; rows' rotations from the gyro in %lld frames, "
                  "from the images alone in %lld (not covered); %lld gaps bridged by the gyro; "
-                 "bias %.5f %.5f %.5f rad/s (sigma %.5f, %lld readings)\n",
+                 "bias %.5f %.5f %.5f rad/s (sigma %.5f, %lld readings); windows' yaw read "
+                 "%+.4f ms after their modelled capture times\n",
                  dataset.gyro_file->c_str(), static_cast<long long>(g.accepted),
                  static_cast<long long>(g.frames_with_gyro),
                  static_cast<long long>(g.frames_without_gyro),
                  static_cast<long long>(g.frames_gyro_bridged), g.bias.x(), g.bias.y(), g.bias.z(),
-                 g.bias_sigma, static_cast<long long>(g.bias_readings));
+                 g.bias_sigma, static_cast<long long>(g.bias_readings), 1e3 * g.yaw_time_offset_s);
   }
   if (const LoopClosureCounters m = odometry->loopClosureCounters(); m.compared > 0)
     std::fprintf(log,

@@ -99,6 +99,7 @@ class PyOdometry {
     d["exposures_refused"] = g.exposures_refused;
     d["bias"] = Eigen::Vector3d(g.bias);
     d["bias_sigma"] = g.bias_sigma;
+    d["yaw_time_offset_s"] = g.yaw_time_offset_s;
     return d;
   }
 
