@@ -1,14 +1,14 @@
 #!/usr/bin/env python3
-"""The images' effective capture time, measured against the gyro (docs/results/ANALYSIS.md,
-"What sets the rolling shutter's yaw with a gyro: the windows' effective capture time";
-issue 49).
+"""The images' effective capture time, measured against the gyro offline (docs/results/ANALYSIS.md,
+"When the windows' yaw was captured"; issue 49): the prototype of `pipeline.yaw_capture_time`.
 
 With a rolling shutter and a gyro each window's rotation within its frame is read at one
 capture time, its taper-weighted mean. The correlation weighs the window's pixels by their
 texture, so the pair's rotation is measured between instants that are delta seconds off the
 timestamps: the images' yaw is then off by delta times the change of the yaw rate over the
 pair. This replays nothing: it takes an estimate already written (`omnipose-replay DATASET
---out EST.tum`), the dataset's imu.csv and calibration (its imu section), and
+--out EST.tum` with `pipeline.yaw_capture_time: false`, which the pipeline would otherwise
+correct itself), the dataset's imu.csv and calibration (its imu section), and
 - per pair, what the images say beyond the gyro, r = log(G^T R) (G the gyro's rotation
   between the timestamps, integrated at the camera's clock in the camera's axes; R the
   images'), and the rate change w(t_cur) - w(t_ref) from the gyro;
