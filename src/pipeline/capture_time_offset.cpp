@@ -40,9 +40,7 @@ bool CaptureTimeOffset::update(double beyond_rad, double rate_change, double use
     if (++readings_ == kWarmUp) startFromFirst();
     return true;
   }
-  const Line line = sums_.fit();
-  if (!(std::abs(y - line.intercept - line.slope * x) <= kMaxSigmas * std::sqrt(line.scatter)))
-    return false;
+  if (!sums_.fit().holds(x, y)) return false;
   sums_.add(x, y, 1.0);
   ++readings_;
   setOffset(sums_.fit());
@@ -55,11 +53,7 @@ void CaptureTimeOffset::startFromFirst() {
   Sums all;
   for (const auto& [x, y] : first_) all.add(x, y, 1.0);
   const Line line = all.fit();
-  const double limit = kMaxSigmas * std::sqrt(line.scatter);
-  for (std::size_t i = 0; i < first_.size(); ++i) {
-    const auto& [x, y] = first_[i];
-    sums_.add(x, y, std::abs(y - line.intercept - line.slope * x) <= limit ? 1.0 : 0.0);
-  }
+  for (const auto& [x, y] : first_) sums_.add(x, y, line.holds(x, y) ? 1.0 : 0.0);
   setOffset(sums_.fit());
 }
 

@@ -24,6 +24,7 @@
 /// Realtime: no allocation, never throws.
 
 #include <array>
+#include <cmath>
 #include <cstdint>
 #include <utility>
 
@@ -61,6 +62,10 @@ class CaptureTimeOffset {
   /// A regression line y = intercept + slope x, its residuals' variance and the slope's.
   struct Line {
     double intercept = 0.0, slope = 0.0, scatter = 0.0, slope_variance = 0.0;
+    /// Whether (x, y) lies within kMaxSigmas residual deviations of the line.
+    bool holds(double x, double y) const {
+      return std::abs(y - intercept - slope * x) <= kMaxSigmas * std::sqrt(scatter);
+    }
   };
   /// Exponentially weighted sums (kForget per reading) of 1, x (rate change), y (uncorrected
   /// yaw), x^2, x y and y^2.
