@@ -206,7 +206,8 @@ if "$bin/omnipose-calibrate" --readout-from "$calib/dataset" --out "$calib/measu
      > "$calib/readout.log" 2>&1 &&
    "$bin/omnipose-calibrate" --imu-from "$calib/measured" --out "$calib/estimated.yaml" \
      > "$calib/imu.log" 2>&1; then
-  calib_summary=$(python3 - "$calib/estimated.yaml" "$calib/dataset/calibration.yaml" <<'PY'
+  calib_summary=$(python3 - "$calib/estimated.yaml" "$calib/dataset/calibration.yaml" \
+                   "$calib/measured/calibration.yaml" <<'PY'
 import math, sys
 def section(path, name):
     out, inside = {}, False
@@ -217,17 +218,19 @@ def section(path, name):
             key, _, value = line.strip().partition(":")
             out[key] = value.split("#")[0].strip()
     return out
-est, true = [(section(p, "sensor"), section(p, "imu")) for p in sys.argv[1:3]]
+est, true, first = [(section(p, "sensor"), section(p, "imu")) for p in sys.argv[1:4]]
 def quat(text):
     return [float(x) for x in text.strip("[] ").split(",")]
 def angle_deg(a, b):
     dot = abs(sum(x * y for x, y in zip(a, b)))
     return 2 * math.degrees(math.acos(min(1.0, dot)))
 r_est, r_true = float(est[0]["readout_s"]), float(true[0]["readout_s"])
+r_first = float(first[0]["readout_s"])
 d_est, d_true = float(est[1]["time_offset_s"]), float(true[1]["time_offset_s"])
-print("readout %.5f s (%+.2f %%), clock offset %.5f s (%+.3f ms), mounting %.3f deg off"
-      % (r_est, 100 * (r_est / r_true - 1), d_est, 1e3 * (d_est - d_true),
-         angle_deg(quat(est[1]["rotation"]), quat(true[1]["rotation"]))))
+print("readout %.5f s (%+.2f %%; --readout-from %+.2f %%), clock offset %.5f s (%+.3f ms), "
+      "mounting %.3f deg off"
+      % (r_est, 100 * (r_est / r_true - 1), 100 * (r_first / r_true - 1), d_est,
+         1e3 * (d_est - d_true), angle_deg(quat(est[1]["rotation"]), quat(true[1]["rotation"]))))
 PY
 )
 else
@@ -484,8 +487,9 @@ fi
   echo "  \`ifmi, calibration from --readout-from and --imu-from\`: the same replay with \`--calibration\`"
   echo "  pointing to the calibration a user would measure from a recording of its own (90 frames,"
   echo "  seed 202: the robot turning in place at other rates with 1 deg of vibration, motion"
-  echo "  \`calib_turns\`, the same camera and gyro): \`omnipose-calibrate --readout-from\` for the readout,"
-  echo "  then \`omnipose-calibrate --imu-from\` with it for the gyro's mounting and clock, and the"
+  echo "  \`calib_turns\`, the same camera and gyro): \`omnipose-calibrate --readout-from\` for a first"
+  echo "  readout, then \`omnipose-calibrate --imu-from\` from it for the readout, the gyro's mounting"
+  echo "  and its clock (the last two first from the pairs, then all three from the pixels), and the"
   echo "  sequence's exposure time (\`sensor.exposure_s\`, a camera setting, not measured) where it has"
   echo "  one. Measured:"
   echo "  $calib_summary."

@@ -267,6 +267,38 @@ bool reclockRollingShutter(const Calibration& calibration, std::span<const cv::M
   return true;
 }
 
+/// With a rolling shutter, after reclockRollingShutter(): the readout, the clock offset and
+/// the mounting from the pixels (photometric_timing.hpp), starting from the clock's and held
+/// to its mounting by the pairs' uncertainty of it. Nullopt when the pixels cannot tell: the
+/// calibration's readout and the windows' clock stay, and out.readout_summary says why.
+std::optional<PhotometricTiming> measureTiming(const Calibration& calibration,
+                                               std::span<const cv::Mat> frames,
+                                               std::span<const double> times,
+                                               std::span<const GyroSample> samples,
+                                               const ImuSearchOptions& options,
+                                               const std::vector<ImagePair>& pairs,
+                                               const Clock& clock, ImuEstimate& out) {
+  Calibration c = calibration;
+  ImuCalibration imu;
+  imu.rotation = Eigen::Quaterniond(clock.fit.X).normalized();
+  imu.time_offset_s = clock.offset.at;
+  c.imu = imu;
+  ImuEstimate windows;
+  measureUncertainty(pairs, clock.fit, clock.offset.curvature, windows);
+  PhotometricTimingOptions pixels = options.pixels;
+  pixels.max_gap_s = options.max_gap_s;
+  const double mounting_sigma_rad = std::max(windows.rotation_sigma_deg * std::numbers::pi / 180.0, 1e-5);
+  const PhotometricTiming measured =
+      refineTimingFromPixels(c, frames, times, samples, clock.fit.bias, mounting_sigma_rad, pixels);
+  if (!measured.found) {
+    out.readout_summary = "the readout is the calibration's (" + fixed(calibration.sensor.readout_s, 6) +
+                          " s), not measured: " + measured.summary.substr(measured.summary.find(": ") + 2);
+    return std::nullopt;
+  }
+  out.readout_summary = measured.summary;
+  return measured;
+}
+
 /// `out` (its estimate and uncertainties measured) found, or refused with the reason when an
 /// uncertainty exceeds what `options` allow; `axis_ratio` from measureUncertainty().
 ImuEstimate judge(ImuEstimate out, double axis_ratio, const ImuSearchOptions& options) {
@@ -315,6 +347,7 @@ std::vector<std::string> ImuSearchOptions::validate() const {
     p.push_back("max_offset_sigma_s: must be a finite number > 0");
   if (!(max_gap_s > 0.0 && std::isfinite(max_gap_s)))
     p.push_back("max_gap_s: must be a finite number > 0");
+  for (const auto& q : pixels.validate()) p.push_back("pixels." + q);
   for (const auto& q : odometry.validate()) p.push_back("odometry." + q);
   return p;
 }
@@ -348,15 +381,26 @@ ImuEstimate estimateImuCalibration(const Calibration& calibration, std::span<con
   }
   auto clock = searchClock(pairs, samples, options, out);
   if (!clock) return out;
-  if (calibration.sensor.readout_s != 0.0 &&
-      !reclockRollingShutter(calibration, frames, times_s, exposures_s, samples, options, pairs,
-                             *clock, out))
-    return out;
+  std::optional<PhotometricTiming> timing;
+  if (calibration.sensor.readout_s != 0.0) {
+    if (!reclockRollingShutter(calibration, frames, times_s, exposures_s, samples, options, pairs,
+                               *clock, out))
+      return out;
+    timing = measureTiming(calibration, frames, times_s, samples, options, pairs, *clock, out);
+  }
   out.pairs = static_cast<int>(pairs.size());
   const double axis_ratio = measureUncertainty(pairs, clock->fit, clock->offset.curvature, out);
   out.imu.rotation = Eigen::Quaterniond(clock->fit.X).normalized();
   out.imu.time_offset_s = clock->offset.at;
   out.bias = clock->fit.bias;
+  if (timing) {
+    out.readout_s = timing->readout_s;
+    out.readout_sigma_s = timing->readout_sigma_s;
+    out.imu.time_offset_s = timing->time_offset_s;
+    out.time_offset_sigma_s = timing->time_offset_sigma_s;
+    out.imu.rotation = timing->rotation;
+    out.rotation_sigma_deg = timing->rotation_sigma_deg;
+  }
   return judge(out, axis_ratio, options);
 }
 

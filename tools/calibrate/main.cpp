@@ -293,6 +293,7 @@ int estimateImuOf(const fs::path& dataset_dir, const fs::path& out_yaml, std::si
   omnipose::ImuCalibration imu = e.imu;
   if (c.imu) imu.gyro_noise_density = c.imu->gyro_noise_density;
   c.imu = imu;
+  if (e.readout_s != 0.0) c.sensor.readout_s = e.readout_s;
   c.save(out_yaml);
   if (!quiet) {
     const Eigen::Quaterniond& q = e.imu.rotation;
@@ -300,6 +301,9 @@ int estimateImuOf(const fs::path& dataset_dir, const fs::path& out_yaml, std::si
                 "%+.6f, gyro bias (%+.6f, %+.6f, %+.6f) rad/s (not written: the pipeline tracks "
                 "it)\n",
                 q.w(), q.x(), q.y(), q.z(), e.imu.time_offset_s, e.bias.x(), e.bias.y(), e.bias.z());
+    if (!e.readout_summary.empty())
+      std::printf("omnipose-calibrate: %s%s\n", e.readout_s != 0.0 ? "sensor.readout_s: " : "",
+                  e.readout_summary.c_str());
     std::printf("omnipose-calibrate: %s; wrote %s\n", e.summary.c_str(), out_yaml.c_str());
   }
   return 0;
@@ -493,8 +497,9 @@ void addModeOptions(CLI::App& app, Args& a) {
                  "DATASET (calibration.yaml, frames/, timestamps.txt, imu.csv) of the robot "
                  "turning about changing axes, speeding up and slowing down: measures the "
                  "gyro's mounting (imu.rotation) and clock offset (imu.time_offset_s), prints "
-                 "the gyro's bias, and writes that calibration with them to --out (the readout "
-                 "is the dataset's: measure it first with --readout-from)")
+                 "the gyro's bias, and writes that calibration with them to --out; with a "
+                 "rolling shutter it also measures sensor.readout_s, starting from the "
+                 "dataset's (within about 10 %: a datasheet's, or --readout-from's)")
       ->type_name("DATASET")
       ->group(models);
   app.add_flag("--quiet", a.quiet, "print only errors")->group("Other");

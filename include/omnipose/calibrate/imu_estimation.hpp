@@ -19,10 +19,14 @@
 /// pair's rotation poorly when the rate changes within a frame (DESIGN.md section 3), so the
 /// first estimate is refined: the frames are registered again with each row's rotation within
 /// its frame from the gyro at that estimate, and the clock, mounting and bias found again from
-/// those pairs, four times. The readout is the calibration's (a datasheet's, or --readout-from's):
-/// a pair's rotation depends on the clock offset plus the mean row's capture time, so a
-/// readout off by dr comes out as an offset off by about dr / 2, which keeps the pairs'
-/// rotations right with that readout.
+/// those pairs, four times. With the calibration's readout (a datasheet's, or
+/// --readout-from's, a few per cent off) a pair's rotation depends on the clock offset plus the
+/// mean row's capture time, so the windows' offset comes out off by about half the readout's
+/// error. Then the readout and the clock offset are measured from the pixels with the gyro's
+/// rotation (photometric_timing.hpp: every pixel at its own row's time), and the mounting and
+/// bias found again from the pairs registered with that readout. When the pixels cannot tell
+/// (the rate of turn hardly changes within the frames), the calibration's readout and the
+/// windows' offset stay and readout_summary says why.
 
 #include <Eigen/Core>
 #include <opencv2/core.hpp>
@@ -31,6 +35,7 @@
 #include <utility>
 #include <vector>
 
+#include "omnipose/calibrate/photometric_timing.hpp"
 #include "omnipose/calibrate/readout_estimation.hpp"
 #include "omnipose/calibration.hpp"
 #include "omnipose/gyro.hpp"
@@ -49,6 +54,9 @@ struct ImuSearchOptions {
   /// Two samples further apart than this are a gap in the recording: the pairs within
   /// max_offset_s of it are left out, seconds.
   double max_gap_s = 0.05;
+  /// How the readout and the offset are measured from the pixels (rolling shutter only); its
+  /// max_gap_s is replaced by the one above.
+  PhotometricTimingOptions pixels;
   OdometryOptions odometry = calibrationOdometry();  ///< how the frames are registered
 
   /// One message per bad field (empty = valid).
@@ -68,6 +76,13 @@ struct ImuEstimate {
   Eigen::Vector3d bias_sigma = Eigen::Vector3d::Zero();
   double residual_rms_rad = 0.0;  ///< per pair, at the estimate
   int pairs = 0;                  ///< consecutive tracked pairs the gyro covers
+  /// With a rolling shutter whose readout the pixels measured: the readout (signed as
+  /// SensorTiming::readout_s) and its 1 sigma, seconds; then the mounting, time_offset_s and
+  /// their sigmas are the pixels' too (the bias and the residual stay the pairs'). 0 when not measured (a global shutter, or the pixels could not tell).
+  double readout_s = 0.0;
+  double readout_sigma_s = 0.0;
+  /// What the readout rests on, or why it is the calibration's (empty: a global shutter).
+  std::string readout_summary;
   /// Why no estimate, or what it rests on, for the user.
   std::string summary;
   /// Every offset tried and its score (mean squared residual, rad^2), in the order tried.
