@@ -295,6 +295,14 @@ PhotometricTiming refineTimingFromPixels(const Calibration& calibration,
     out.summary = "cannot: fewer than two frames";
     return out;
   }
+  const cv::Size omni(calibration.omni.image_width, calibration.omni.image_height);
+  for (std::size_t k = 0; k < frames.size(); ++k)
+    if (frames[k].size() != omni || frames[k].empty()) {
+      out.summary = "cannot: frame " + std::to_string(k) + " is " + std::to_string(frames[k].cols) + "x" +
+                    std::to_string(frames[k].rows) + ", not the calibration's omni image (" +
+                    std::to_string(omni.width) + "x" + std::to_string(omni.height) + ")";
+      return out;
+    }
   const double start_offset = calibration.imu->time_offset_s;
   ImuCalibration imu = *calibration.imu;
   imu.time_offset_s = 0.0;

@@ -273,9 +273,9 @@ TEST(PhotometricTiming, FindsTheReadoutAndTheOffsetFromRoughStarts) {
 }
 
 // A turn at a steady rate cannot tell the clock (the rotation between any two instants the same
-// time apart is the same): refused, saying so. Too few pairs inside the
-// gyro's recording are said; a calibration without a readout or an imu section, invalid
-// options and mismatched counts throw.
+// time apart is the same): refused, saying so. Too few pairs inside the gyro's recording are
+// said, and so is a frame of another size; a calibration without a readout or an imu section,
+// invalid options and mismatched counts throw.
 TEST(PhotometricTiming, ASteadyTurnOrTooFewPairsIsRefused) {
   const synth::GyroSimulation gyro = mountedGyro();
   synth::MotionScript steady = synth::MotionScript::parse(
@@ -298,6 +298,12 @@ TEST(PhotometricTiming, ASteadyTurnOrTooFewPairsIsRefused) {
   const PhotometricTiming few = refineTimingFromPixels(c, r.images, r.times, early, bias, kSigma);
   EXPECT_FALSE(few.found);
   EXPECT_THAT(few.summary, HasSubstr("inside the gyro's recording without a gap")) << few.summary;
+
+  std::vector<cv::Mat> panoramas = r.images;  // not omni images: said, not read out of bounds
+  panoramas[3] = cv::Mat(110, 1100, CV_8U, cv::Scalar(0));
+  const PhotometricTiming other = refineTimingFromPixels(c, panoramas, r.times, r.gyro.samples, bias, kSigma);
+  EXPECT_FALSE(other.found);
+  EXPECT_THAT(other.summary, HasSubstr("frame 3 is 1100x110, not the calibration's omni image")) << other.summary;
 
   EXPECT_THROW(refineTimingFromPixels(calibrationWithReadout(0.0267), r.images, r.times, r.gyro.samples, bias, kSigma),
                std::invalid_argument);

@@ -77,9 +77,11 @@ struct PhotometricTiming {
 /// at `times_s` (seconds, camera clock, increasing) and the gyro's `samples` less `bias`
 /// (rad/s, IMU axes). The mounting `calibration.imu->rotation` is corrected too, held to it with
 /// a prior of `mounting_sigma_rad` per axis (radians, > 0: how well the pairs' rotations knew
-/// it), so that a recording turning about one axis leaves it where it was. Not found (summary says why): fewer than 10 pairs the gyro covers
-/// without a gap, too few usable pixels, or estimates less certain than the options allow (a
-/// recording whose rate of turn hardly changes within a frame). Throws std::invalid_argument
+/// it), so that a recording turning about one axis leaves it where it was. `frames`: omni
+/// images of the calibration's size (any depth; gray, BGR or BGRA). Not found (summary says
+/// why): a frame of another size, fewer than 10 pairs the gyro covers without a gap, too few
+/// usable pixels, or estimates less certain than the options allow (a recording whose rate of
+/// turn hardly changes within a frame, or steady: its clock). Throws std::invalid_argument
 /// on invalid options, a calibration without readout or imu section, or mismatched counts.
 PhotometricTiming refineTimingFromPixels(const Calibration& calibration,
                                          std::span<const cv::Mat> frames,
