@@ -267,10 +267,10 @@ bool reclockRollingShutter(const Calibration& calibration, std::span<const cv::M
   return true;
 }
 
-/// With a rolling shutter, after reclockRollingShutter(): the readout, the clock offset and
-/// the mounting from the pixels (photometric_timing.hpp), starting from the clock's and held
-/// to its mounting by the pairs' uncertainty of it. Nullopt when the pixels cannot tell: the
-/// calibration's readout and the windows' clock stay, and out.readout_summary says why.
+/// The clock offset, the mounting and a rolling shutter's readout from the pixels
+/// (photometric_timing.hpp), starting from the pairs' clock and held to their mounting by its
+/// uncertainty. Nullopt when the pixels cannot tell: the calibration's readout and the pairs'
+/// clock and mounting stay, and out.pixels_summary says why.
 std::optional<PhotometricTiming> measureTiming(const Calibration& calibration,
                                                std::span<const cv::Mat> frames,
                                                std::span<const double> times,
@@ -291,11 +291,15 @@ std::optional<PhotometricTiming> measureTiming(const Calibration& calibration,
   const PhotometricTiming measured =
       refineTimingFromPixels(c, frames, times, samples, clock.fit.bias, mounting_sigma_rad, pixels);
   if (!measured.found) {
-    out.readout_summary = "the readout is the calibration's (" + fixed(calibration.sensor.readout_s, 6) +
-                          " s), not measured: " + measured.summary.substr(measured.summary.find(": ") + 2);
+    out.pixels_summary =
+        std::string(calibration.sensor.readout_s != 0.0 ? "the readout is the calibration's (" +
+                                                              fixed(calibration.sensor.readout_s, 6) + " s), "
+                                                        : "") +
+        "the clock and the mounting the pairs', not measured from the pixels: " +
+        measured.summary.substr(measured.summary.find(": ") + 2);
     return std::nullopt;
   }
-  out.readout_summary = measured.summary;
+  out.pixels_summary = "from the pixels: " + measured.summary;
   return measured;
 }
 
@@ -381,13 +385,12 @@ ImuEstimate estimateImuCalibration(const Calibration& calibration, std::span<con
   }
   auto clock = searchClock(pairs, samples, options, out);
   if (!clock) return out;
-  std::optional<PhotometricTiming> timing;
-  if (calibration.sensor.readout_s != 0.0) {
-    if (!reclockRollingShutter(calibration, frames, times_s, exposures_s, samples, options, pairs,
-                               *clock, out))
-      return out;
-    timing = measureTiming(calibration, frames, times_s, samples, options, pairs, *clock, out);
-  }
+  if (calibration.sensor.readout_s != 0.0 &&
+      !reclockRollingShutter(calibration, frames, times_s, exposures_s, samples, options, pairs,
+                             *clock, out))
+    return out;
+  const std::optional<PhotometricTiming> timing =
+      measureTiming(calibration, frames, times_s, samples, options, pairs, *clock, out);
   out.pairs = static_cast<int>(pairs.size());
   const double axis_ratio = measureUncertainty(pairs, clock->fit, clock->offset.curvature, out);
   out.imu.rotation = Eigen::Quaterniond(clock->fit.X).normalized();

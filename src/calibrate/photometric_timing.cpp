@@ -215,6 +215,7 @@ void pairResiduals(const Calibration& calibration, const OrientationTable& table
   // The geometry with each parameter moved by its finite-difference step.
   std::array<Geometry, kParams> moved;
   std::array<double, kParams> delta{};
+  const bool rolling = params.readout != 0.0;
   for (int j = 0; j < kParams; ++j) {
     Params p = params;
     delta[j] = j == 0 ? std::copysign(kReadoutDelta, params.readout) : j == 1 ? kOffsetDelta : kMountingDelta;
@@ -233,7 +234,7 @@ void pairResiduals(const Calibration& calibration, const OrientationTable& table
     Residual r;
     r.r = p.value - sample(earlier.image, q->x(), q->y());
     bool ok = true;
-    for (int j = 0; j < kParams && ok; ++j) {
+    for (int j = rolling ? 0 : 1; j < kParams && ok; ++j) {
       const auto qj = warp(calibration, table, p, t0, t1, moved[j]);
       ok = qj.has_value();
       if (ok) r.J[j] = static_cast<float>(-g.dot(*qj - *q) / delta[j]);
@@ -251,6 +252,201 @@ double robustSigma(const std::vector<std::vector<Residual>>& residuals) {
   const auto middle = magnitudes.begin() + static_cast<std::ptrdiff_t>(magnitudes.size() / 2);
   std::nth_element(magnitudes.begin(), middle, magnitudes.end());
   return 1.4826 * *middle;
+}
+
+/// One refinement's data: the gyro's orientation, the ring, the pairs the gyro covers, the
+/// frames prepared and each pair's pixels.
+struct Problem {
+  Problem(const Calibration& calibration, std::span<const cv::Mat> frames,
+          std::span<const double> times, std::span<const GyroSample> samples,
+          const Eigen::Vector3d& bias, const PhotometricTimingOptions& options)
+      : reach(1.5 * std::abs(calibration.sensor.readout_s) + kTableMargin),
+        table(samples, atZeroOffset(*calibration.imu), bias,
+              times.front() - calibration.imu->time_offset_s - kTableMargin,
+              times.back() - calibration.imu->time_offset_s + reach, options.max_gap_s),
+        ring(ringMask(calibration, false)) {
+    const double offset = calibration.imu->time_offset_s;
+    for (std::size_t k = 0; k + 1 < frames.size(); ++k)
+      if (times[k + 1] > times[k] && table.covers(times[k] - offset - 0.5 * kTableMargin,
+                                                  times[k + 1] - offset + reach - 0.5 * kTableMargin))
+        pairs.push_back(k);
+    if (static_cast<int>(pairs.size()) < kMinPairs) return;
+    prepared.resize(frames.size());
+    cv::parallel_for_(cv::Range(0, static_cast<int>(frames.size())), [&](const cv::Range& range) {
+      for (int k = range.start; k < range.end; ++k) prepared[k] = prepare(frames[k], ring, options.blur_sigma_px);
+    });
+    const cv::Mat inner = ringMask(calibration, true);
+    pixels.resize(pairs.size());
+    cv::parallel_for_(cv::Range(0, static_cast<int>(pairs.size())), [&](const cv::Range& range) {
+      for (int i = range.start; i < range.end; ++i)
+        pixels[i] = strongestPixels(calibration, prepared[pairs[i] + 1], inner, options.pixels_per_frame);
+    });
+  }
+
+  static ImuCalibration atZeroOffset(ImuCalibration imu) {
+    imu.time_offset_s = 0.0;
+    return imu;
+  }
+
+  double reach;                 ///< how far past a frame's stamp its rows may be read, seconds
+  OrientationTable table;       ///< on the IMU's clock (offset 0)
+  cv::Mat ring;                 ///< where a warped pixel may land
+  std::vector<std::size_t> pairs;  ///< k of each pair (k, k+1) the gyro covers
+  std::vector<Prepared> prepared;  ///< every frame
+  std::vector<std::vector<Pixel>> pixels;  ///< per pair, of its later frame
+};
+
+/// The normal equations of the pixels with Huber weights, each pair's gradient (for the
+/// sandwich) and the residuals' robust variance.
+struct Normal {
+  Matrix5d H = Matrix5d::Zero();
+  std::vector<Vector5d> gradients;
+  double variance = 1.0;
+  int used = 0;               ///< pairs with kMinPixelsPerPair residuals
+  double residual_rms = 0.0;  ///< unweighted, every residual
+};
+
+Normal normalEquations(const std::vector<std::vector<Residual>>& residuals, double huber_sigmas) {
+  Normal n;
+  const double sigma = std::max(robustSigma(residuals), 1e-9);
+  n.variance = sigma * sigma;
+  const double k = huber_sigmas * sigma;
+  n.gradients.assign(residuals.size(), Vector5d::Zero());
+  double sum_squares = 0.0;
+  long count = 0;
+  for (std::size_t i = 0; i < residuals.size(); ++i) {
+    if (static_cast<int>(residuals[i].size()) < kMinPixelsPerPair) continue;
+    ++n.used;
+    for (const Residual& r : residuals[i]) {
+      const double w = std::abs(r.r) <= k ? 1.0 : k / std::abs(r.r);
+      const Vector5d J = Eigen::Map<const Eigen::Matrix<float, kParams, 1>>(r.J).cast<double>();
+      n.H.selfadjointView<Eigen::Lower>().rankUpdate(J, w);
+      n.gradients[i] += w * r.r * J;
+      sum_squares += static_cast<double>(r.r) * r.r;
+      ++count;
+    }
+  }
+  n.H = n.H.selfadjointView<Eigen::Lower>();
+  n.residual_rms = count > 0 ? std::sqrt(sum_squares / count) : 0.0;
+  return n;
+}
+
+/// Gauss-Newton from `params` (updated) on the objective sum w r^2 / variance +
+/// |mounting|^2 * prior; `covariance` the sandwich at the last step. False (out.summary says
+/// why) when too few pairs keep their pixels or the system is singular.
+bool gaussNewton(const Problem& problem, const Calibration& calibration, std::span<const double> times,
+                 double prior, const PhotometricTimingOptions& options, Params& params,
+                 Matrix5d& covariance, PhotometricTiming& out) {
+  const bool rolling = params.readout != 0.0;
+  std::vector<std::vector<Residual>> residuals(problem.pairs.size());
+  for (out.iterations = 1; out.iterations <= options.max_iterations; ++out.iterations) {
+    cv::parallel_for_(cv::Range(0, static_cast<int>(problem.pairs.size())), [&](const cv::Range& range) {
+      for (int i = range.start; i < range.end; ++i) {
+        const std::size_t k = problem.pairs[i];
+        pairResiduals(calibration, problem.table, problem.prepared[k], problem.ring, problem.pixels[i],
+                      times[k], times[k + 1], params, residuals[i]);
+      }
+    });
+    const Normal n = normalEquations(residuals, options.huber_sigmas);
+    out.residual_rms = n.residual_rms;
+    if (n.used < kMinPairs) {
+      out.summary = "cannot: " + std::to_string(n.used) + " frame pairs keep " +
+                    std::to_string(kMinPixelsPerPair) + " pixels inside the ring, at least " +
+                    std::to_string(kMinPairs) + " needed";
+      return false;
+    }
+    Vector5d g = Vector5d::Zero();
+    Matrix5d B = Matrix5d::Zero();
+    for (const Vector5d& gi : n.gradients) {
+      g += gi / n.variance;
+      B += gi * gi.transpose() / (n.variance * n.variance);
+    }
+    Matrix5d A = n.H / n.variance;
+    A.bottomRightCorner<3, 3>().diagonal().array() += prior;
+    g.tail<3>() += prior * params.mounting;
+    // Solved scaled to a unit diagonal (seconds and radians weigh alike); a global shutter's
+    // readout is not estimated: its column is zero, its step zero.
+    if (!rolling) A(0, 0) = 1.0;
+    const Vector5d scale = A.diagonal().cwiseMax(std::numeric_limits<double>::min()).cwiseSqrt().cwiseInverse();
+    const Eigen::LDLT<Matrix5d> solver(scale.asDiagonal() * A * scale.asDiagonal());
+    if (solver.info() != Eigen::Success || !(solver.rcond() > 1e-12)) {
+      out.summary = "cannot: the pixels cannot tell the clock, the mounting and the readout apart "
+                    "(the rate of turn hardly changes)";
+      return false;
+    }
+    const Matrix5d Ainv = scale.asDiagonal() * solver.solve(Matrix5d::Identity()) * scale.asDiagonal();
+    Matrix5d information = B * (static_cast<double>(n.used) / std::max(1, n.used - kParams));
+    information.bottomRightCorner<3, 3>().diagonal().array() += prior;
+    covariance = Ainv * information * Ainv;
+    const Vector5d step = -Ainv * g;
+    params.readout += step(0);
+    params.offset += step(1);
+    params.mounting += step.tail<3>();
+    if ((step.array().abs() <= 0.01 * covariance.diagonal().array().sqrt()).all()) break;
+  }
+  out.iterations = std::min(out.iterations, options.max_iterations);
+  return true;
+}
+
+/// `out` filled from the estimate and judged: found, or refused with the reason when the
+/// readout ran away or an uncertainty exceeds what `options` allow.
+void judge(const Params& params, const Matrix5d& covariance, const Calibration& calibration,
+           const PhotometricTimingOptions& options, PhotometricTiming& out) {
+  const bool rolling = calibration.sensor.readout_s != 0.0;
+  out.readout_s = params.readout;
+  out.time_offset_s = params.offset;
+  out.rotation = (Eigen::Quaterniond(rotationFromVector(params.mounting)) * calibration.imu->rotation).normalized();
+  out.readout_sigma_s = std::sqrt(covariance(0, 0));
+  out.time_offset_sigma_s = std::sqrt(covariance(1, 1));
+  out.correlation = covariance(0, 1) / std::max(out.readout_sigma_s * out.time_offset_sigma_s,
+                                                std::numeric_limits<double>::min());
+  const Eigen::Matrix3d mounting = covariance.bottomRightCorner<3, 3>();
+  out.rotation_sigma_deg =
+      std::sqrt(Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(mounting).eigenvalues().maxCoeff()) * 180.0 /
+      std::numbers::pi;
+  out.rotation_change_deg = params.mounting.norm() * 180.0 / std::numbers::pi;
+  char text[320];
+  std::snprintf(text, sizeof(text),
+                "time offset %+.6f s +-%.6f, mounting moved %.3f deg +-%.3f, from the pixels of %d "
+                "pairs, %d Gauss-Newton steps, residual %.3f",
+                out.time_offset_s, out.time_offset_sigma_s, out.rotation_change_deg,
+                out.rotation_sigma_deg, out.pairs, out.iterations, out.residual_rms);
+  std::string measured = text;
+  if (rolling) {
+    std::snprintf(text, sizeof(text), "readout %.6f s +-%.6f (%.2f %%, correlation with the offset %+.2f), ",
+                  out.readout_s, out.readout_sigma_s,
+                  100.0 * out.readout_sigma_s / std::abs(out.readout_s), out.correlation);
+    measured = text + measured;
+    if (!(std::abs(out.readout_s) <= SensorTiming::kMaxReadoutS) ||
+        std::signbit(out.readout_s) != std::signbit(calibration.sensor.readout_s)) {
+      out.summary = "cannot: the readout ran away (" + measured + ")";
+      return;
+    }
+    if (!(out.readout_sigma_s <= options.max_readout_sigma * std::abs(out.readout_s))) {
+      out.summary = "cannot: the readout is not determined (" + measured +
+                    "): the rate of turn must change within the frames (shake, speed up, slow down)";
+      return;
+    }
+  }
+  if (!(out.time_offset_sigma_s <= options.max_offset_sigma_s)) {
+    out.summary = "cannot: the clock offset is not determined (" + measured + ")";
+    return;
+  }
+  out.found = true;
+  out.summary = measured;
+}
+
+/// Why `frames` cannot be used (empty: they can): fewer than two, or one not of the
+/// calibration's omni size.
+std::string framesProblem(const Calibration& calibration, std::span<const cv::Mat> frames) {
+  if (frames.size() < 2) return "fewer than two frames";
+  const cv::Size omni(calibration.omni.image_width, calibration.omni.image_height);
+  for (std::size_t k = 0; k < frames.size(); ++k)
+    if (frames[k].size() != omni || frames[k].empty())
+      return "frame " + std::to_string(k) + " is " + std::to_string(frames[k].cols) + "x" +
+             std::to_string(frames[k].rows) + ", not the calibration's omni image (" +
+             std::to_string(omni.width) + "x" + std::to_string(omni.height) + ")";
+  return {};
 }
 
 }  // namespace
@@ -285,176 +481,30 @@ PhotometricTiming refineTimingFromPixels(const Calibration& calibration,
   if (frames.size() != times_s.size())
     throw std::invalid_argument("refineTimingFromPixels: " + std::to_string(frames.size()) +
                                 " frames but " + std::to_string(times_s.size()) + " times");
-  if (calibration.sensor.readout_s == 0.0 || !calibration.imu)
-    throw std::invalid_argument("refineTimingFromPixels: the calibration needs sensor.readout_s "
-                                "(not 0) and an imu section");
+  if (!calibration.imu)
+    throw std::invalid_argument("refineTimingFromPixels: the calibration needs an imu section");
   if (!(mounting_sigma_rad > 0.0 && std::isfinite(mounting_sigma_rad)))
     throw std::invalid_argument("refineTimingFromPixels: mounting_sigma_rad must be a finite number > 0");
   PhotometricTiming out;
-  if (frames.size() < 2) {
-    out.summary = "cannot: fewer than two frames";
+  if (const std::string why = framesProblem(calibration, frames); !why.empty()) {
+    out.summary = "cannot: " + why;
     return out;
   }
-  const cv::Size omni(calibration.omni.image_width, calibration.omni.image_height);
-  for (std::size_t k = 0; k < frames.size(); ++k)
-    if (frames[k].size() != omni || frames[k].empty()) {
-      out.summary = "cannot: frame " + std::to_string(k) + " is " + std::to_string(frames[k].cols) + "x" +
-                    std::to_string(frames[k].rows) + ", not the calibration's omni image (" +
-                    std::to_string(omni.width) + "x" + std::to_string(omni.height) + ")";
-      return out;
-    }
-  const double start_offset = calibration.imu->time_offset_s;
-  ImuCalibration imu = *calibration.imu;
-  imu.time_offset_s = 0.0;
-  const double reach = 1.5 * std::abs(calibration.sensor.readout_s) + kTableMargin;
-  const OrientationTable table(samples, imu, bias, times_s.front() - start_offset - kTableMargin,
-                               times_s.back() - start_offset + reach, options.max_gap_s);
-
-  // The pairs the gyro covers, and their frames prepared once.
-  const cv::Mat ring = ringMask(calibration, false), inner = ringMask(calibration, true);
-  std::vector<std::size_t> pairs;
-  for (std::size_t k = 0; k + 1 < frames.size(); ++k)
-    if (times_s[k + 1] > times_s[k] &&
-        table.covers(times_s[k] - start_offset - 0.5 * kTableMargin,
-                     times_s[k + 1] - start_offset + reach - 0.5 * kTableMargin))
-      pairs.push_back(k);
-  out.pairs = static_cast<int>(pairs.size());
+  const Problem problem(calibration, frames, times_s, samples, bias, options);
+  out.pairs = static_cast<int>(problem.pairs.size());
   if (out.pairs < kMinPairs) {
-    out.summary = "cannot: " + std::to_string(pairs.size()) +
+    out.summary = "cannot: " + std::to_string(out.pairs) +
                   " consecutive frame pairs inside the gyro's recording without a gap, at least " +
                   std::to_string(kMinPairs) + " needed";
     return out;
   }
-  std::vector<Prepared> prepared(frames.size());
-  cv::parallel_for_(cv::Range(0, static_cast<int>(frames.size())), [&](const cv::Range& range) {
-    for (int k = range.start; k < range.end; ++k) prepared[k] = prepare(frames[k], ring, options.blur_sigma_px);
-  });
-  std::vector<std::vector<Pixel>> pixels(pairs.size());
-  cv::parallel_for_(cv::Range(0, static_cast<int>(pairs.size())), [&](const cv::Range& range) {
-    for (int i = range.start; i < range.end; ++i)
-      pixels[i] = strongestPixels(calibration, prepared[pairs[i] + 1], inner, options.pixels_per_frame);
-  });
-
-  std::vector<std::vector<Residual>> residuals(pairs.size());
-  const auto evaluate = [&](const Params& at) {
-    cv::parallel_for_(cv::Range(0, static_cast<int>(pairs.size())), [&](const cv::Range& range) {
-      for (int i = range.start; i < range.end; ++i) {
-        const std::size_t k = pairs[i];
-        pairResiduals(calibration, table, prepared[k], ring, pixels[i], times_s[k], times_s[k + 1],
-                      at, residuals[i]);
-      }
-    });
-  };
-  // The normal equations of the pixels with Huber weights, each pair's gradient (for the
-  // sandwich) and the residuals' robust variance.
-  Matrix5d H = Matrix5d::Zero();
-  std::vector<Vector5d> gradients(pairs.size());
-  double variance = 1.0;
-  const auto accumulate = [&]() -> int {
-    const double sigma = std::max(robustSigma(residuals), 1e-9);
-    variance = sigma * sigma;
-    const double k = options.huber_sigmas * sigma;
-    H.setZero();
-    int used = 0;
-    double sum_squares = 0.0;
-    long count = 0;
-    for (std::size_t i = 0; i < pairs.size(); ++i) {
-      gradients[i].setZero();
-      if (static_cast<int>(residuals[i].size()) < kMinPixelsPerPair) continue;
-      ++used;
-      for (const Residual& r : residuals[i]) {
-        const double w = std::abs(r.r) <= k ? 1.0 : k / std::abs(r.r);
-        const Vector5d J = Eigen::Map<const Eigen::Matrix<float, kParams, 1>>(r.J).cast<double>();
-        H.selfadjointView<Eigen::Lower>().rankUpdate(J, w);
-        gradients[i] += w * r.r * J;
-        sum_squares += static_cast<double>(r.r) * r.r;
-        ++count;
-      }
-    }
-    H = H.selfadjointView<Eigen::Lower>();
-    out.residual_rms = count > 0 ? std::sqrt(sum_squares / count) : 0.0;
-    return used;
-  };
-
   // The mounting's correction is held to how well the pairs' rotations knew it (a prior of
   // mounting_sigma_rad per axis): a recording that turns about one axis only leaves it there.
   const double prior = 1.0 / (mounting_sigma_rad * mounting_sigma_rad);
   Params params{calibration.sensor.readout_s, calibration.imu->time_offset_s, Eigen::Vector3d::Zero()};
   Matrix5d covariance = Matrix5d::Zero();
-  for (out.iterations = 1; out.iterations <= options.max_iterations; ++out.iterations) {
-    evaluate(params);
-    const int used = accumulate();
-    if (used < kMinPairs) {
-      out.summary = "cannot: " + std::to_string(used) + " frame pairs keep " +
-                    std::to_string(kMinPixelsPerPair) + " pixels inside the ring, at least " +
-                    std::to_string(kMinPairs) + " needed";
-      return out;
-    }
-    // Objective sum w r^2 / variance + |mounting|^2 / mounting_sigma^2.
-    Vector5d g = Vector5d::Zero();
-    Matrix5d B = Matrix5d::Zero();
-    for (const Vector5d& gi : gradients) {
-      g += gi / variance;
-      B += gi * gi.transpose() / (variance * variance);
-    }
-    Matrix5d A = H / variance;
-    A.bottomRightCorner<3, 3>().diagonal().array() += prior;
-    g.tail<3>() += prior * params.mounting;
-    const Eigen::LDLT<Matrix5d> solver(A);
-    if (solver.info() != Eigen::Success || !(solver.rcond() > 1e-12)) {
-      out.summary = "cannot: the pixels do not depend on the readout and the offset (the rate of "
-                    "turn hardly changes within a frame)";
-      return out;
-    }
-    const Matrix5d Ainv = solver.solve(Matrix5d::Identity());
-    Matrix5d information = B * (static_cast<double>(used) / std::max(1, used - kParams));
-    information.bottomRightCorner<3, 3>().diagonal().array() += prior;
-    covariance = Ainv * information * Ainv;
-    const Vector5d step = -solver.solve(g);
-    params.readout += step(0);
-    params.offset += step(1);
-    params.mounting += step.tail<3>();
-    if ((step.array().abs() < 0.01 * covariance.diagonal().array().sqrt()).all()) break;
-  }
-  out.iterations = std::min(out.iterations, options.max_iterations);
-  out.readout_s = params.readout;
-  out.time_offset_s = params.offset;
-  out.rotation = (Eigen::Quaterniond(rotationFromVector(params.mounting)) * calibration.imu->rotation).normalized();
-  out.readout_sigma_s = std::sqrt(covariance(0, 0));
-  out.time_offset_sigma_s = std::sqrt(covariance(1, 1));
-  out.correlation = covariance(0, 1) / std::max(out.readout_sigma_s * out.time_offset_sigma_s,
-                                                std::numeric_limits<double>::min());
-  out.rotation_sigma_deg =
-      std::sqrt(Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(covariance.bottomRightCorner<3, 3>())
-                    .eigenvalues()
-                    .maxCoeff()) *
-      180.0 / std::numbers::pi;
-  out.rotation_change_deg = params.mounting.norm() * 180.0 / std::numbers::pi;
-  char text[320];
-  std::snprintf(text, sizeof(text),
-                "readout %.6f s +-%.6f (%.2f %%), time offset %+.6f s +-%.6f (correlation %+.2f), "
-                "mounting moved %.3f deg +-%.3f, from the pixels of %d pairs, %d Gauss-Newton "
-                "steps, residual %.3f",
-                out.readout_s, out.readout_sigma_s,
-                100.0 * out.readout_sigma_s / std::abs(out.readout_s), out.time_offset_s,
-                out.time_offset_sigma_s, out.correlation, out.rotation_change_deg,
-                out.rotation_sigma_deg, out.pairs, out.iterations, out.residual_rms);
-  if (!(std::abs(out.readout_s) <= SensorTiming::kMaxReadoutS) ||
-      std::signbit(out.readout_s) != std::signbit(calibration.sensor.readout_s)) {
-    out.summary = std::string("cannot: the readout ran away (") + text + ")";
-    return out;
-  }
-  if (!(out.readout_sigma_s <= options.max_readout_sigma * std::abs(out.readout_s))) {
-    out.summary = std::string("cannot: the readout is not determined (") + text +
-                  "): the rate of turn must change within the frames (shake, speed up, slow down)";
-    return out;
-  }
-  if (!(out.time_offset_sigma_s <= options.max_offset_sigma_s)) {
-    out.summary = std::string("cannot: the clock offset is not determined (") + text + ")";
-    return out;
-  }
-  out.found = true;
-  out.summary = text;
+  if (!gaussNewton(problem, calibration, times_s, prior, options, params, covariance, out)) return out;
+  judge(params, covariance, calibration, options, out);
   return out;
 }
 

@@ -301,9 +301,7 @@ int estimateImuOf(const fs::path& dataset_dir, const fs::path& out_yaml, std::si
                 "%+.6f, gyro bias (%+.6f, %+.6f, %+.6f) rad/s (not written: the pipeline tracks "
                 "it)\n",
                 q.w(), q.x(), q.y(), q.z(), e.imu.time_offset_s, e.bias.x(), e.bias.y(), e.bias.z());
-    if (!e.readout_summary.empty())
-      std::printf("omnipose-calibrate: %s%s\n", e.readout_s != 0.0 ? "sensor.readout_s: " : "",
-                  e.readout_summary.c_str());
+    if (!e.pixels_summary.empty()) std::printf("omnipose-calibrate: %s\n", e.pixels_summary.c_str());
     std::printf("omnipose-calibrate: %s; wrote %s\n", e.summary.c_str(), out_yaml.c_str());
   }
   return 0;

@@ -22,11 +22,11 @@
 /// those pairs, four times. With the calibration's readout (a datasheet's, or
 /// --readout-from's, a few per cent off) a pair's rotation depends on the clock offset plus the
 /// mean row's capture time, so the windows' offset comes out off by about half the readout's
-/// error. Then the readout and the clock offset are measured from the pixels with the gyro's
-/// rotation (photometric_timing.hpp: every pixel at its own row's time), and the mounting and
-/// bias found again from the pairs registered with that readout. When the pixels cannot tell
-/// (the rate of turn hardly changes within the frames), the calibration's readout and the
-/// windows' offset stay and readout_summary says why.
+/// error. Last, with either shutter, the clock offset, the mounting and a rolling shutter's
+/// readout are measured from the pixels with the gyro's rotation (photometric_timing.hpp: every
+/// pixel at its own row's time), the mounting held to the pairs' estimate by its uncertainty.
+/// When the pixels cannot tell, the calibration's readout and the pairs' clock and mounting
+/// stay and pixels_summary says why.
 
 #include <Eigen/Core>
 #include <opencv2/core.hpp>
@@ -77,12 +77,13 @@ struct ImuEstimate {
   double residual_rms_rad = 0.0;  ///< per pair, at the estimate
   int pairs = 0;                  ///< consecutive tracked pairs the gyro covers
   /// With a rolling shutter whose readout the pixels measured: the readout (signed as
-  /// SensorTiming::readout_s) and its 1 sigma, seconds; then the mounting, time_offset_s and
-  /// their sigmas are the pixels' too (the bias and the residual stay the pairs'). 0 when not measured (a global shutter, or the pixels could not tell).
+  /// SensorTiming::readout_s) and its 1 sigma, seconds. 0 when not measured (a global
+  /// shutter, or the pixels could not tell).
   double readout_s = 0.0;
   double readout_sigma_s = 0.0;
-  /// What the readout rests on, or why it is the calibration's (empty: a global shutter).
-  std::string readout_summary;
+  /// What the pixels measured (then the mounting, time_offset_s and their sigmas are theirs;
+  /// the bias and the residual stay the pairs'), or why they could not.
+  std::string pixels_summary;
   /// Why no estimate, or what it rests on, for the user.
   std::string summary;
   /// Every offset tried and its score (mean squared residual, rad^2), in the order tried.

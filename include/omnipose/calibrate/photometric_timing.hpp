@@ -1,21 +1,23 @@
 #pragma once
 /// \file photometric_timing.hpp
-/// A rolling shutter's readout and the gyro's clock offset measured from the pixels
-/// themselves, with the gyro's rotation (`omnipose-calibrate --imu-from`, after the mounting
-/// and the bias are known: imu_estimation.hpp).
+/// The gyro's clock offset and mounting, and a rolling shutter's readout, measured from the
+/// pixels themselves with the gyro's rotation (`omnipose-calibrate --imu-from`, after the
+/// pairs' rotations gave a first mounting, clock and bias: imu_estimation.hpp).
 ///
 /// Why the pixels: registering windows (readout_estimation.hpp, the first estimate of
 /// imu_estimation.hpp) gives each window one capture time, the mean of its rows' times, while
 /// its correlation weighs its pixels by their texture. Where the texture lies unevenly within
 /// the windows the two differ, and the readout and the offset come out a little off (1 % and
 /// 0.04 ms on the real-camera benchmark's recording). Here every pixel keeps its own row's
-/// time, so no texture can bias them.
+/// time, so no texture can bias them; and a pair's rotation is measured by every pixel, not
+/// by the fit of a few dozen windows.
 ///
 /// How: for the robot turning in place (its translation between two frames small against the
 /// scene's distance), pixel p of frame k+1, exposed at row time s1 = t_{k+1} + rowTime(p),
 /// sees bearing b; at time s0 the camera saw it along R(s0, s1) b, the gyro's rotation
 /// between the two instants (integrateGyro's convention), which lands at pixel q of frame k,
-/// with s0 = t_k + rowTime(q) (two fixed-point steps). The readout and the offset minimise
+/// with s0 = t_k + rowTime(q) (three fixed-point steps). The readout (a rolling shutter's
+/// only), the offset and a small correction of the mounting minimise
 /// sum |I_{k+1}(p) - I_k(q)|^2 over the strongest-gradient pixels of the ring (frames
 /// smoothed, each normalised to zero mean and unit variance over the ring against exposure
 /// changes; Huber weights against what moves by itself), by Gauss-Newton: the residuals'
@@ -55,7 +57,7 @@ struct PhotometricTimingOptions {
 
 struct PhotometricTiming {
   bool found = false;
-  double readout_s = 0.0;            ///< signed as SensorTiming::readout_s
+  double readout_s = 0.0;            ///< signed as SensorTiming::readout_s; 0 global shutter
   double time_offset_s = 0.0;        ///< as ImuCalibration::time_offset_s
   double readout_sigma_s = 0.0;      ///< 1 sigma, seconds
   double time_offset_sigma_s = 0.0;  ///< 1 sigma, seconds
@@ -71,9 +73,9 @@ struct PhotometricTiming {
   std::string summary;               ///< why not found, or what it rests on
 };
 
-/// Refines `calibration.sensor.readout_s` (not 0: a rolling shutter whose readout is roughly
-/// known, from a datasheet or --readout-from, within about 10 %) and
-/// `calibration.imu->time_offset_s` (set, with the mounting) from consecutive `frames` captured
+/// Refines `calibration.imu->time_offset_s` and, with a rolling shutter,
+/// `calibration.sensor.readout_s` (its readout roughly known, from a datasheet or
+/// --readout-from, within about 10 %; 0, a global shutter, stays 0) from consecutive `frames` captured
 /// at `times_s` (seconds, camera clock, increasing) and the gyro's `samples` less `bias`
 /// (rad/s, IMU axes). The mounting `calibration.imu->rotation` is corrected too, held to it with
 /// a prior of `mounting_sigma_rad` per axis (radians, > 0: how well the pairs' rotations knew
@@ -82,7 +84,8 @@ struct PhotometricTiming {
 /// why): a frame of another size, fewer than 10 pairs the gyro covers without a gap, too few
 /// usable pixels, or estimates less certain than the options allow (a recording whose rate of
 /// turn hardly changes within a frame, or steady: its clock). Throws std::invalid_argument
-/// on invalid options, a calibration without readout or imu section, or mismatched counts.
+/// on invalid options, a calibration without an imu section, a mounting_sigma_rad not > 0,
+/// or mismatched counts.
 PhotometricTiming refineTimingFromPixels(const Calibration& calibration,
                                          std::span<const cv::Mat> frames,
                                          std::span<const double> times_s,
