@@ -83,10 +83,6 @@ class OrientationTable {
   std::vector<int> invalid_before_;  ///< invalid segments before entry i
 };
 
-/// A frame smoothed and normalised over the ring, with its gradient (grey levels per pixel).
-struct Prepared {
-  cv::Mat image, gx, gy;  ///< CV_32F
-};
 
 /// The frame pixels a frame pair may use: inside the ring (kEdgePx inside its edges when
 /// `inset`) and the calibration's mask.
@@ -105,20 +101,19 @@ cv::Mat ringMask(const Calibration& calibration, bool inset) {
   return mask;
 }
 
-Prepared prepare(const cv::Mat& frame, const cv::Mat& ring, double sigma) {
+/// `frame` (any depth; gray, BGR or BGRA) smoothed and normalised to zero mean and unit
+/// variance over the ring, CV_32F.
+cv::Mat prepare(const cv::Mat& frame, const cv::Mat& ring, double sigma) {
   cv::Mat gray;
   if (frame.channels() == 3) cv::cvtColor(frame, gray, cv::COLOR_BGR2GRAY);
   else if (frame.channels() == 4) cv::cvtColor(frame, gray, cv::COLOR_BGRA2GRAY);
   else gray = frame;
-  Prepared p;
-  gray.convertTo(p.image, CV_32F);
-  if (sigma > 0.0) cv::GaussianBlur(p.image, p.image, cv::Size(), sigma, sigma, cv::BORDER_REPLICATE);
+  cv::Mat image;
+  gray.convertTo(image, CV_32F);
+  if (sigma > 0.0) cv::GaussianBlur(image, image, cv::Size(), sigma, sigma, cv::BORDER_REPLICATE);
   cv::Scalar mean, stddev;
-  cv::meanStdDev(p.image, mean, stddev, ring);
-  p.image = (p.image - mean[0]) / std::max(stddev[0], 1e-6);
-  cv::Sobel(p.image, p.gx, CV_32F, 1, 0, 1, 0.5, 0.0, cv::BORDER_REPLICATE);
-  cv::Sobel(p.image, p.gy, CV_32F, 0, 1, 1, 0.5, 0.0, cv::BORDER_REPLICATE);
-  return p;
+  cv::meanStdDev(image, mean, stddev, ring);
+  return (image - mean[0]) / std::max(stddev[0], 1e-6);
 }
 
 /// Bilinear sample of a CV_32F image at (x, y), inside [0, cols - 1) x [0, rows - 1).
@@ -130,6 +125,14 @@ float sample(const cv::Mat& m, double x, double y) {
   return (1.0f - fy) * ((1.0f - fx) * a[0] + fx * a[1]) + fy * ((1.0f - fx) * b[0] + fx * b[1]);
 }
 
+/// The central-difference gradient of `m` bilinearly interpolated at (x, y), inside
+/// [1, cols - 2) x [1, rows - 2) (per pixel; not stored: a frame's gradient images would triple
+/// the memory of a long recording).
+Eigen::Vector2d gradient(const cv::Mat& m, double x, double y) {
+  return {0.5 * (sample(m, x + 1.0, y) - sample(m, x - 1.0, y)),
+          0.5 * (sample(m, x, y + 1.0) - sample(m, x, y - 1.0))};
+}
+
 /// A pixel of the later frame of a pair.
 struct Pixel {
   float x = 0.0f, y = 0.0f, value = 0.0f;
@@ -137,14 +140,17 @@ struct Pixel {
 };
 
 /// The `count` strongest-gradient pixels of `frame` inside `inner` (ring inset).
-std::vector<Pixel> strongestPixels(const Calibration& calibration, const Prepared& frame,
+std::vector<Pixel> strongestPixels(const Calibration& calibration, const cv::Mat& frame,
                                    const cv::Mat& inner, int count) {
+  cv::Mat gx, gy;
+  cv::Sobel(frame, gx, CV_32F, 1, 0, 1, 0.5, 0.0, cv::BORDER_REPLICATE);
+  cv::Sobel(frame, gy, CV_32F, 0, 1, 1, 0.5, 0.0, cv::BORDER_REPLICATE);
   std::vector<std::pair<float, cv::Point>> candidates;
   for (int y = 0; y < inner.rows; ++y)
     for (int x = 0; x < inner.cols; ++x) {
       if (!inner.at<uchar>(y, x)) continue;
-      const float gx = frame.gx.at<float>(y, x), gy = frame.gy.at<float>(y, x);
-      candidates.emplace_back(gx * gx + gy * gy, cv::Point(x, y));
+      const float dx = gx.at<float>(y, x), dy = gy.at<float>(y, x);
+      candidates.emplace_back(dx * dx + dy * dy, cv::Point(x, y));
     }
   const auto keep = std::min<std::size_t>(candidates.size(), static_cast<std::size_t>(count));
   std::nth_element(candidates.begin(), candidates.begin() + keep, candidates.end(),
@@ -155,7 +161,7 @@ std::vector<Pixel> strongestPixels(const Calibration& calibration, const Prepare
     const cv::Point p = candidates[i].second;
     const auto b = calibration.bearingOfPixel(p.x, p.y);
     if (!b) continue;
-    pixels.push_back({static_cast<float>(p.x), static_cast<float>(p.y), frame.image.at<float>(p), *b});
+    pixels.push_back({static_cast<float>(p.x), static_cast<float>(p.y), frame.at<float>(p), *b});
   }
   return pixels;
 }
@@ -208,7 +214,7 @@ struct Residual {
 
 /// The residuals of pair (k, k+1) at `params` (only the pixels that stay inside the ring).
 void pairResiduals(const Calibration& calibration, const OrientationTable& table,
-                   const Prepared& earlier, const cv::Mat& ring, const std::vector<Pixel>& pixels,
+                   const cv::Mat& earlier, const cv::Mat& ring, const std::vector<Pixel>& pixels,
                    double t0, double t1, const Params& params, std::vector<Residual>& out) {
   out.clear();
   const Geometry at = geometryOf(params);
@@ -224,15 +230,15 @@ void pairResiduals(const Calibration& calibration, const OrientationTable& table
     else p.mounting(j - 2) += delta[j];
     moved[j] = geometryOf(p);
   }
-  const double x_max = ring.cols - 2.0, y_max = ring.rows - 2.0;
+  const double x_max = ring.cols - 3.0, y_max = ring.rows - 3.0;
   for (const Pixel& p : pixels) {
     const auto q = warp(calibration, table, p, t0, t1, at);
-    if (!q || !(q->x() >= 1.0 && q->x() <= x_max && q->y() >= 1.0 && q->y() <= y_max)) continue;
+    if (!q || !(q->x() >= 1.0 && q->x() < x_max && q->y() >= 1.0 && q->y() < y_max)) continue;
     if (!ring.at<uchar>(static_cast<int>(std::lround(q->y())), static_cast<int>(std::lround(q->x()))))
       continue;
-    const Eigen::Vector2d g(sample(earlier.gx, q->x(), q->y()), sample(earlier.gy, q->x(), q->y()));
+    const Eigen::Vector2d g = gradient(earlier, q->x(), q->y());
     Residual r;
-    r.r = p.value - sample(earlier.image, q->x(), q->y());
+    r.r = p.value - sample(earlier, q->x(), q->y());
     bool ok = true;
     for (int j = rolling ? 0 : 1; j < kParams && ok; ++j) {
       const auto qj = warp(calibration, table, p, t0, t1, moved[j]);
@@ -292,7 +298,7 @@ struct Problem {
   OrientationTable table;       ///< on the IMU's clock (offset 0)
   cv::Mat ring;                 ///< where a warped pixel may land
   std::vector<std::size_t> pairs;  ///< k of each pair (k, k+1) the gyro covers
-  std::vector<Prepared> prepared;  ///< every frame
+  std::vector<cv::Mat> prepared;   ///< every frame, prepare()d
   std::vector<std::vector<Pixel>> pixels;  ///< per pair, of its later frame
 };
 
