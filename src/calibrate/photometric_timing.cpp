@@ -36,7 +36,6 @@ constexpr int kRowTimeSteps = 3;
 /// Pixels kept clear of the ring's edges: the warped pixel and its neighbours stay inside.
 constexpr double kEdgePx = 3.0;
 
-
 /// The camera's orientation R_{c(t_begin)}^T R_{c(t)} at IMU-clock times t (offset 0), from
 /// the gyro, tabulated every kTableStep seconds.
 class OrientationTable {

@@ -54,8 +54,8 @@ struct ImuSearchOptions {
   /// Two samples further apart than this are a gap in the recording: the pairs within
   /// max_offset_s of it are left out, seconds.
   double max_gap_s = 0.05;
-  /// How the readout and the offset are measured from the pixels (rolling shutter only); its
-  /// max_gap_s is replaced by the one above.
+  /// How the clock, the mounting and a rolling shutter's readout are measured from the
+  /// pixels; its max_gap_s is replaced by the one above.
   PhotometricTimingOptions pixels;
   OdometryOptions odometry = calibrationOdometry();  ///< how the frames are registered
 
