@@ -429,7 +429,8 @@ void judge(const Params& params, const Matrix5d& covariance, const Calibration& 
     }
     if (!(out.readout_sigma_s <= options.max_readout_sigma * std::abs(out.readout_s))) {
       out.summary = "cannot: the readout is not determined (" + measured +
-                    "): the rate of turn must change within the frames (shake, speed up, slow down)";
+                    "): record the robot turning in place (the pixels are compared as if the "
+                    "camera only turned), speeding up, slowing down and shaking";
       return;
     }
   }

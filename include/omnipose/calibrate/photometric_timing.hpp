@@ -83,7 +83,8 @@ struct PhotometricTiming {
 /// images of the calibration's size (any depth; gray, BGR or BGRA). Not found (summary says
 /// why): a frame of another size, fewer than 10 pairs the gyro covers without a gap, too few
 /// usable pixels, or estimates less certain than the options allow (a recording whose rate of
-/// turn hardly changes within a frame, or steady: its clock). Throws std::invalid_argument
+/// turn hardly changes within a frame, or steady: its clock; one that translates against a
+/// near scene: driving an arc at 0.3 m/s in a 6 x 5 m room left the readout 8 % uncertain). Throws std::invalid_argument
 /// on invalid options, a calibration without an imu section, a mounting_sigma_rad not > 0,
 /// or mismatched counts.
 PhotometricTiming refineTimingFromPixels(const Calibration& calibration,
