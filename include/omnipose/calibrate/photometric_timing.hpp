@@ -7,8 +7,9 @@
 /// Why the pixels: registering windows (readout_estimation.hpp, the first estimate of
 /// imu_estimation.hpp) gives each window one capture time, the mean of its rows' times, while
 /// its correlation weighs its pixels by their texture. Where the texture lies unevenly within
-/// the windows the two differ, and the readout and the offset come out a little off (1 % and
-/// 0.04 ms on the real-camera benchmark's recording). Here every pixel keeps its own row's
+/// the windows the two differ, and the readout and the offset come out a little off
+/// (docs/results/ANALYSIS.md, "The readout, the clock and the mounting from the pixels").
+/// Here every pixel keeps its own row's
 /// time, so no texture can bias them; and a pair's rotation is measured by every pixel, not
 /// by the fit of a few dozen windows.
 ///
@@ -74,19 +75,19 @@ struct PhotometricTiming {
 };
 
 /// Refines `calibration.imu->time_offset_s` and, with a rolling shutter,
-/// `calibration.sensor.readout_s` (its readout roughly known, from a datasheet or
-/// --readout-from, within about 10 %; 0, a global shutter, stays 0) from consecutive `frames` captured
-/// at `times_s` (seconds, camera clock, increasing) and the gyro's `samples` less `bias`
-/// (rad/s, IMU axes). The mounting `calibration.imu->rotation` is corrected too, held to it with
-/// a prior of `mounting_sigma_rad` per axis (radians, > 0: how well the pairs' rotations knew
-/// it), so that a recording turning about one axis leaves it where it was. `frames`: omni
-/// images of the calibration's size (any depth; gray, BGR or BGRA). Not found (summary says
-/// why): a frame of another size, fewer than 10 pairs the gyro covers without a gap, too few
-/// usable pixels, or estimates less certain than the options allow (a recording whose rate of
-/// turn hardly changes within a frame, or steady: its clock; one that translates against a
-/// near scene: driving an arc at 0.3 m/s in a 6 x 5 m room left the readout 8 % uncertain). Throws std::invalid_argument
-/// on invalid options, a calibration without an imu section, a mounting_sigma_rad not > 0,
-/// or mismatched counts.
+/// `calibration.sensor.readout_s` (roughly known, from a datasheet or --readout-from, within
+/// about 10 %; 0, a global shutter, stays 0) from consecutive `frames` captured at `times_s`
+/// (seconds, camera clock, increasing) and the gyro's `samples` less `bias` (rad/s, IMU axes).
+/// The mounting `calibration.imu->rotation` is corrected too, held to it with a prior of
+/// `mounting_sigma_rad` per axis (radians, > 0: how well the pairs' rotations knew it), so
+/// that a recording turning about one axis leaves it where it was. `frames`: omni images of
+/// the calibration's size (any depth; gray, BGR or BGRA).
+/// Not found (summary says why): a frame of another size, fewer than 10 pairs the gyro covers
+/// without a gap, too few usable pixels, or estimates less certain than the options allow (a
+/// recording whose rate of turn hardly changes within a frame; a steady turn, for the clock;
+/// a camera that translates against a near scene, driving instead of turning in place).
+/// Throws std::invalid_argument on invalid options, a calibration without an imu section, a
+/// mounting_sigma_rad not > 0, or mismatched counts.
 PhotometricTiming refineTimingFromPixels(const Calibration& calibration,
                                          std::span<const cv::Mat> frames,
                                          std::span<const double> times_s,
