@@ -209,6 +209,14 @@ struct Clock {
   Fit fit;
 };
 
+/// The imu section of `clock`'s estimate: its mounting and offset.
+ImuCalibration imuOf(const Clock& clock) {
+  ImuCalibration imu;
+  imu.rotation = Eigen::Quaterniond(clock.fit.X).normalized();
+  imu.time_offset_s = clock.offset.at;
+  return imu;
+}
+
 /// The clock offset, mounting and bias from `pairs`: the offset on the coarse grid over
 /// +-max_offset_s, on the fine grid around the best, the fit at the vertex. Nullopt (with
 /// out.summary) when the best offset is at the end of the range or the samples do not cover
@@ -251,10 +259,7 @@ bool reclockRollingShutter(const Calibration& calibration, std::span<const cv::M
   constexpr int kRounds = 4;
   Calibration c = calibration;
   for (int round = 0; round < kRounds; ++round) {
-    ImuCalibration imu;
-    imu.rotation = Eigen::Quaterniond(clock.fit.X).normalized();
-    imu.time_offset_s = clock.offset.at;
-    c.imu = imu;
+    c.imu = imuOf(clock);
     pairs = coveredPairs(imagePairs(c, frames, times, options.odometry, samples, exposures), samples,
                          options.max_offset_s, options.max_gap_s);
     if (static_cast<int>(pairs.size()) < kMinPairs)
@@ -269,25 +274,20 @@ bool reclockRollingShutter(const Calibration& calibration, std::span<const cv::M
 
 /// The clock offset, the mounting and a rolling shutter's readout from the pixels
 /// (photometric_timing.hpp), starting from the pairs' clock and held to their mounting by its
-/// uncertainty. Nullopt when the pixels cannot tell: the calibration's readout and the pairs'
-/// clock and mounting stay, and out.pixels_summary says why.
+/// uncertainty `mounting_sigma_deg` (measureUncertainty()). Nullopt when the pixels cannot
+/// tell: the calibration's readout and the pairs' clock and mounting stay, and
+/// out.pixels_summary says why.
 std::optional<PhotometricTiming> measureTiming(const Calibration& calibration,
                                                std::span<const cv::Mat> frames,
                                                std::span<const double> times,
                                                std::span<const GyroSample> samples,
-                                               const ImuSearchOptions& options,
-                                               const std::vector<ImagePair>& pairs,
-                                               const Clock& clock, ImuEstimate& out) {
+                                               const ImuSearchOptions& options, const Clock& clock,
+                                               double mounting_sigma_deg, ImuEstimate& out) {
   Calibration c = calibration;
-  ImuCalibration imu;
-  imu.rotation = Eigen::Quaterniond(clock.fit.X).normalized();
-  imu.time_offset_s = clock.offset.at;
-  c.imu = imu;
-  ImuEstimate windows;
-  measureUncertainty(pairs, clock.fit, clock.offset.curvature, windows);
+  c.imu = imuOf(clock);
   PhotometricTimingOptions pixels = options.pixels;
   pixels.max_gap_s = options.max_gap_s;
-  const double mounting_sigma_rad = std::max(windows.rotation_sigma_deg * std::numbers::pi / 180.0, 1e-5);
+  const double mounting_sigma_rad = std::max(mounting_sigma_deg * std::numbers::pi / 180.0, 1e-5);
   const PhotometricTiming measured =
       refineTimingFromPixels(c, frames, times, samples, clock.fit.bias, mounting_sigma_rad, pixels);
   if (!measured.found) {
@@ -389,12 +389,11 @@ ImuEstimate estimateImuCalibration(const Calibration& calibration, std::span<con
       !reclockRollingShutter(calibration, frames, times_s, exposures_s, samples, options, pairs,
                              *clock, out))
     return out;
-  const std::optional<PhotometricTiming> timing =
-      measureTiming(calibration, frames, times_s, samples, options, pairs, *clock, out);
   out.pairs = static_cast<int>(pairs.size());
   const double axis_ratio = measureUncertainty(pairs, clock->fit, clock->offset.curvature, out);
-  out.imu.rotation = Eigen::Quaterniond(clock->fit.X).normalized();
-  out.imu.time_offset_s = clock->offset.at;
+  const std::optional<PhotometricTiming> timing =
+      measureTiming(calibration, frames, times_s, samples, options, *clock, out.rotation_sigma_deg, out);
+  out.imu = imuOf(*clock);
   out.bias = clock->fit.bias;
   if (timing) {
     out.readout_s = timing->readout_s;

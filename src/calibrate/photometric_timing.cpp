@@ -14,6 +14,8 @@
 #include <optional>
 #include <stdexcept>
 
+#include "common/problem_list.hpp"
+#include "omnipose/calibrate/ring_detector.hpp"
 #include "omnipose/so3.hpp"
 
 namespace omnipose::calibrate {
@@ -83,32 +85,30 @@ class OrientationTable {
 };
 
 
-/// The frame pixels a frame pair may use: inside the ring (kEdgePx inside its edges when
-/// `inset`) and the calibration's mask.
-cv::Mat ringMask(const Calibration& calibration, bool inset) {
+/// The frame pixels a frame pair may use: inside the ring and the calibration's mask.
+struct RingMasks {
+  cv::Mat ring;   ///< where a warped pixel may land
+  cv::Mat inner;  ///< the same kEdgePx inside the ring's edges: where the pixels are chosen
+};
+
+RingMasks ringMasks(const Calibration& calibration) {
   const int rows = calibration.omni.image_height, cols = calibration.omni.image_width;
-  cv::Mat mask(rows, cols, CV_8U, cv::Scalar(0));
-  const double margin = inset ? kEdgePx : 0.0;
-  const double r_in = calibration.omni.radius_inner + margin;
-  const double r_out = calibration.omni.radius_outer - margin;
+  RingMasks m{cv::Mat(rows, cols, CV_8U, cv::Scalar(0)), cv::Mat(rows, cols, CV_8U, cv::Scalar(0))};
+  const double r_in = calibration.omni.radius_inner, r_out = calibration.omni.radius_outer;
   for (int y = 0; y < rows; ++y)
     for (int x = 0; x < cols; ++x) {
+      if (!calibration.omni.mask.empty() && calibration.omni.mask.at<uchar>(y, x) == 0) continue;
       const double r = calibration.ringRadius(x, y);
-      const bool masked = !calibration.omni.mask.empty() && calibration.omni.mask.at<uchar>(y, x) == 0;
-      if (r >= r_in && r <= r_out && !masked) mask.at<uchar>(y, x) = 255;
+      if (r >= r_in && r <= r_out) m.ring.at<uchar>(y, x) = 255;
+      if (r >= r_in + kEdgePx && r <= r_out - kEdgePx) m.inner.at<uchar>(y, x) = 255;
     }
-  return mask;
+  return m;
 }
 
 /// `frame` (any depth; gray, BGR or BGRA) smoothed and normalised to zero mean and unit
 /// variance over the ring, CV_32F.
 cv::Mat prepare(const cv::Mat& frame, const cv::Mat& ring, double sigma) {
-  cv::Mat gray;
-  if (frame.channels() == 3) cv::cvtColor(frame, gray, cv::COLOR_BGR2GRAY);
-  else if (frame.channels() == 4) cv::cvtColor(frame, gray, cv::COLOR_BGRA2GRAY);
-  else gray = frame;
-  cv::Mat image;
-  gray.convertTo(image, CV_32F);
+  cv::Mat image = toGreyFloat(frame);
   if (sigma > 0.0) cv::GaussianBlur(image, image, cv::Size(), sigma, sigma, cv::BORDER_REPLICATE);
   cv::Scalar mean, stddev;
   cv::meanStdDev(image, mean, stddev, ring);
@@ -269,7 +269,7 @@ struct Problem {
         table(samples, atZeroOffset(*calibration.imu), bias,
               times.front() - calibration.imu->time_offset_s - kTableMargin,
               times.back() - calibration.imu->time_offset_s + reach, options.max_gap_s),
-        ring(ringMask(calibration, false)) {
+        masks(ringMasks(calibration)) {
     const double offset = calibration.imu->time_offset_s;
     for (std::size_t k = 0; k + 1 < frames.size(); ++k)
       if (times[k + 1] > times[k] && table.covers(times[k] - offset - 0.5 * kTableMargin,
@@ -278,13 +278,12 @@ struct Problem {
     if (static_cast<int>(pairs.size()) < kMinPairs) return;
     prepared.resize(frames.size());
     cv::parallel_for_(cv::Range(0, static_cast<int>(frames.size())), [&](const cv::Range& range) {
-      for (int k = range.start; k < range.end; ++k) prepared[k] = prepare(frames[k], ring, options.blur_sigma_px);
+      for (int k = range.start; k < range.end; ++k) prepared[k] = prepare(frames[k], masks.ring, options.blur_sigma_px);
     });
-    const cv::Mat inner = ringMask(calibration, true);
     pixels.resize(pairs.size());
     cv::parallel_for_(cv::Range(0, static_cast<int>(pairs.size())), [&](const cv::Range& range) {
       for (int i = range.start; i < range.end; ++i)
-        pixels[i] = strongestPixels(calibration, prepared[pairs[i] + 1], inner, options.pixels_per_frame);
+        pixels[i] = strongestPixels(calibration, prepared[pairs[i] + 1], masks.inner, options.pixels_per_frame);
     });
   }
 
@@ -295,7 +294,7 @@ struct Problem {
 
   double reach;                 ///< how far past a frame's stamp its rows may be read, seconds
   OrientationTable table;       ///< on the IMU's clock (offset 0)
-  cv::Mat ring;                 ///< where a warped pixel may land
+  RingMasks masks;
   std::vector<std::size_t> pairs;  ///< k of each pair (k, k+1) the gyro covers
   std::vector<cv::Mat> prepared;   ///< every frame, prepare()d
   std::vector<std::vector<Pixel>> pixels;  ///< per pair, of its later frame
@@ -348,7 +347,7 @@ bool gaussNewton(const Problem& problem, const Calibration& calibration, std::sp
     cv::parallel_for_(cv::Range(0, static_cast<int>(problem.pairs.size())), [&](const cv::Range& range) {
       for (int i = range.start; i < range.end; ++i) {
         const std::size_t k = problem.pairs[i];
-        pairResiduals(calibration, problem.table, problem.prepared[k], problem.ring, problem.pixels[i],
+        pairResiduals(calibration, problem.table, problem.prepared[k], problem.masks.ring, problem.pixels[i],
                       times[k], times[k + 1], params, residuals[i]);
       }
     });
@@ -479,11 +478,7 @@ PhotometricTiming refineTimingFromPixels(const Calibration& calibration,
                                          std::span<const GyroSample> samples,
                                          const Eigen::Vector3d& bias, double mounting_sigma_rad,
                                          const PhotometricTimingOptions& options) {
-  if (const auto problems = options.validate(); !problems.empty()) {
-    std::string what = "refineTimingFromPixels: invalid options:";
-    for (const auto& p : problems) what += "\n  " + p;
-    throw std::invalid_argument(what);
-  }
+  detail::throwIfProblems("refineTimingFromPixels: invalid options", options.validate());
   if (frames.size() != times_s.size())
     throw std::invalid_argument("refineTimingFromPixels: " + std::to_string(frames.size()) +
                                 " frames but " + std::to_string(times_s.size()) + " times");
