@@ -12,6 +12,7 @@
 #include <stdexcept>
 
 #include "common/format.hpp"
+#include "common/problem_list.hpp"
 #include "omnipose/so3.hpp"
 
 namespace omnipose::calibrate {
@@ -361,11 +362,7 @@ ImuEstimate estimateImuCalibration(const Calibration& calibration, std::span<con
                                    std::span<const GyroSample> samples,
                                    const ImuSearchOptions& options,
                                    std::span<const double> exposures_s) {
-  if (const auto problems = options.validate(); !problems.empty()) {
-    std::string what = "estimateImuCalibration: invalid options:";
-    for (const auto& p : problems) what += "\n  " + p;
-    throw std::invalid_argument(what);
-  }
+  detail::throwIfProblems("estimateImuCalibration: invalid options", options.validate());
   if (frames.size() != times_s.size())
     throw std::invalid_argument("estimateImuCalibration: " + std::to_string(frames.size()) +
                                 " frames but " + std::to_string(times_s.size()) + " times");

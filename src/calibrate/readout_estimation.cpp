@@ -8,6 +8,7 @@
 #include <stdexcept>
 
 #include "common/format.hpp"
+#include "common/problem_list.hpp"
 
 namespace omnipose::calibrate {
 namespace {
@@ -63,11 +64,7 @@ std::vector<std::string> ReadoutSearchOptions::validate() const {
 ReadoutEstimate estimateReadout(const Calibration& calibration, std::span<const cv::Mat> frames,
                                 std::span<const double> times_s,
                                 const ReadoutSearchOptions& options) {
-  if (const auto problems = options.validate(); !problems.empty()) {
-    std::string what = "estimateReadout: invalid options:";
-    for (const auto& p : problems) what += "\n  " + p;
-    throw std::invalid_argument(what);
-  }
+  detail::throwIfProblems("estimateReadout: invalid options", options.validate());
   if (frames.size() != times_s.size())
     throw std::invalid_argument("estimateReadout: " + std::to_string(frames.size()) +
                                 " frames but " + std::to_string(times_s.size()) + " times");
