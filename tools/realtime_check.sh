@@ -9,8 +9,8 @@
 #        (default 60 fps, 180 frames)
 #   --load N   N busy processes (`while :; do :; done` at normal priority) run for the duration:
 #              the robot's controller and camera stack sharing the cores
-#   --nice K   omniposed runs at niceness K (a lower priority than the load when K > 0; K < 0,
-#              as the systemd unit's Nice=-5, needs root or an RLIMIT_NICE that permits it)
+#   --nice K   omniposed runs at niceness K, -20..19 (a lower priority than the load when K > 0;
+#              K < 0, as the systemd unit's Nice=-5, needs root or an RLIMIT_NICE that permits it)
 #   --fifo P   daemon.yaml asks for SCHED_FIFO at priority P (scheduling.fifo_priority, 1-99:
 #              needs root or CAP_SYS_NICE; omniposed refuses to start without)
 # Environment: BUILD_DIR (default build; built with tools/build.sh when a program is missing),
@@ -40,7 +40,8 @@ fps=${1:-60}
 frames=${2:-180}
 if ! [[ "$fps" =~ ^[0-9]+$ && "$frames" =~ ^[0-9]+$ && "$load" =~ ^[0-9]+$ &&
         "$nice_level" =~ ^-?[0-9]+$ && "$fifo" =~ ^[0-9]+$ ]] || [ "$fps" -lt 1 ] ||
-   [ "$frames" -lt 2 ] || [ "$fifo" -gt 99 ] || { [ "$fifo" -gt 0 ] && [ "$nice_level" -ne 0 ]; }; then
+   [ "$frames" -lt 2 ] || [ "$fifo" -gt 99 ] || [ "$nice_level" -lt -20 ] || [ "$nice_level" -gt 19 ] ||
+   { [ "$fifo" -gt 0 ] && [ "$nice_level" -ne 0 ]; }; then
   usage
 fi
 # nice(1) runs the command at its own niceness when it may not lower it: refuse instead.
