@@ -5,8 +5,9 @@
 set -euo pipefail
 src=$1
 bash -n "$src/tools/realtime_check.sh"
-for args in "--load" "--load x 30" "--nice x" "--nice 1.5" "--nice 20" "--nice -21" "--frobnicate" "0" "30 1" "--fifo 100" \
-            "--fifo 5 --nice 5" "--fifo 5 --nice -5" "--fifo"; do
+for args in "--load" "--load x 30" "--nice x" "--nice 1.5" "--nice 20" "--nice -21" \
+            "--frobnicate" "0" "30 1" "--fifo 100" "--fifo 5 --nice 5" "--fifo 5 --nice -5" \
+            "--fifo"; do
   rc=0
   # shellcheck disable=SC2086
   out=$(bash "$src/tools/realtime_check.sh" $args 2>&1) || rc=$?
