@@ -5,6 +5,7 @@
 #include <stdexcept>
 #include <utility>
 
+#include "common/problem_list.hpp"
 #include "omnipose/so3.hpp"
 #include "panorama_features.hpp"
 #include "relative_pose_solver.hpp"
@@ -129,11 +130,7 @@ FeatureMotionEstimator::FeatureMotionEstimator(const Calibration& calibration,
   if (problems.empty() && options.wrap_margin_px > calibration.panorama.width)
     problems.push_back(problem("wrap_margin_px", "must not exceed the panorama width",
                                options.wrap_margin_px));
-  if (!problems.empty()) {
-    std::string what = "invalid " + options.methodName() + " configuration:";
-    for (const auto& p : problems) what += "\n  " + p;
-    throw std::invalid_argument(what);
-  }
+  detail::throwIfProblems("invalid " + options.methodName() + " configuration", problems);
   impl_ = std::make_unique<Impl>(calibration, options);
 }
 

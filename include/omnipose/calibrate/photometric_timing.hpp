@@ -9,9 +9,8 @@
 /// its correlation weighs its pixels by their texture. Where the texture lies unevenly within
 /// the windows the two differ, and the readout and the offset come out a little off
 /// (docs/results/ANALYSIS.md, "The readout, the clock and the mounting from the pixels").
-/// Here every pixel keeps its own row's
-/// time, so no texture can bias them; and a pair's rotation is measured by every pixel, not
-/// by the fit of a few dozen windows.
+/// Here every pixel keeps its own row's time, so no texture can bias them; and a pair's
+/// rotation is measured by every pixel, not by the fit of a few dozen windows.
 ///
 /// How: for the robot turning in place (its translation between two frames small against the
 /// scene's distance), pixel p of frame k+1, exposed at row time s1 = t_{k+1} + rowTime(p),
