@@ -100,19 +100,20 @@ class MotionFit {
     /// its coupling of neighbouring depths.
     bool plane_depth_prior = true;
     /// Leave out, before the fit, the windows that no static scene explains
-    /// (daemon.yaml `pipeline.ring_consensus`; off by default): du's sinusoid fitted with
+    /// (daemon.yaml `pipeline.ring_consensus`; on by default): du's sinusoid fitted with
     /// one depth for every window by least median of squares over the ring, a window out
     /// when no relative inverse depth in [0, 8] brings its du within 4 robust sigmas (at
-    /// least 0.5 px) of it; not tested within 45 deg of the direction of travel
-    /// (ring_consensus.hpp). Without it per_window_depth lets a translation explain people
-    /// walking across a third of the ring as near objects, and the background between them
-    /// as far. With it, on the people benchmark the worst render's rotation error falls
-    /// from 66x its twin to 5x; driving without people the per-pair error is within 3 % and
-    /// the heading at the end of a lap moves by up to 0.15 deg worse in some rooms and
-    /// 0.58 deg better in another, and on the accuracy benchmark (no people) its per-pair
-    /// error is 1.00x median and up to 1.08x (the Kogeto lens's yaw): for those costs it is
-    /// not the default (docs/results/ANALYSIS.md, "A consensus over the ring").
-    bool ring_consensus = false;
+    /// least 0.5 px) of it, times the ring's median confidence over its own where its peak
+    /// is weaker; not tested within 45 deg of the direction of travel (ring_consensus.hpp).
+    /// Without it per_window_depth lets a translation explain people walking across a third
+    /// of the ring as near objects, and the background between them as far: on the people
+    /// benchmark the worst render's rotation error is 64x its twin without it and 6.3x with
+    /// it, and no render is more than 4 % worse with it. Driving without people the per-pair
+    /// error moves by at most 2 % and the heading at a lap's end by at most 0.016 deg the
+    /// wrong way; on the accuracy benchmark (no people) the per-pair error is 1.00x median
+    /// and at most 1.04x; 2.3 % more instructions per frame (docs/results/ANALYSIS.md, "The
+    /// ring consensus by default"). false: people walking by can bend the yaw.
+    bool ring_consensus = true;
     /// With per_window_depth: how much of the horizontal expansion that a change of depth
     /// across a window adds the measured in-window scale carries. A window on a wall seen
     /// at an angle expands vertically by -lambda (tau_x cos + tau_y sin), as the model's

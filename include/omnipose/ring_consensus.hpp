@@ -16,7 +16,12 @@
 // consensus's sinusoid is refitted on the windows within 2.5 of its robust sigmas, alternately
 // with each window's depth, so that walls at different distances do not turn it. A window the
 // translation explains with some depth (a wall close by while the robot drives) stays; a
-// window that moves against a robot turning in place does not. Near the translation's axis
+// window that moves against a robot turning in place does not. A window whose phase-correlation
+// peak is weaker than the ring's median peak has a less certain shift: its threshold is
+// multiplied by the median confidence over its own, so the consensus leaves out the windows
+// that disagree with it confidently (a person covering them) and leaves the weak ones (a
+// plain wall's noisy shift, or a window the pipeline's moving-content check has already
+// lowered) to the fit's weights. Near the translation's axis
 // (within axis_half_width_deg, when the translation moves the windows by more than floor_px)
 // a window's du says more about the axis's direction than about its depth, and the
 // consensus's direction is not exact enough to judge it: there du is not tested (people
@@ -40,14 +45,17 @@ struct RingConsensusOptions {
   double axis_half_width_deg = 45.0;  ///< du not tested this close to the translation's axis
 };
 
-/// One window as the consensus sees it: azimuth (radians) and horizontal shift (pixels).
+/// One window as the consensus sees it: azimuth (radians), horizontal shift (pixels) and the
+/// peak's confidence (WindowMotion::confidence; only its ratio to the other samples' counts).
+/// A confidence that is not finite or not above 0 counts as the median.
 struct RingSample {
   double theta = 0.0;
   double du_px = 0.0;
+  double confidence = 1.0;
 };
 
 /// Sets inconsistent[k] = 1 for the samples no static scene explains (see above), 0 for the
-/// others, and returns how many were flagged. `work` must hold at least samples.size()
+/// others, and returns how many were flagged. `work` must hold at least 3 samples.size()
 /// doubles and `inconsistent` at least samples.size() flags (no allocation). With fewer than 8
 /// samples, a smaller buffer, or when no triple of windows is well conditioned (all on one side
 /// of the ring), nothing is flagged.

@@ -362,7 +362,8 @@ void MotionFit::Impl::ringConsensus(std::span<const WindowMotion> windows,
   int m = 0;
   for (int k = 0; k < n; ++k) {
     if (!keep[k]) continue;
-    ring[m++] = RingSample{gamma * (windows[k].center_u - forward_column), windows[k].du};
+    ring[m++] = RingSample{gamma * (windows[k].center_u - forward_column), windows[k].du,
+                           windows[k].confidence};
   }
   const std::span<std::uint8_t> flags(ring_inconsistent.data(), static_cast<std::size_t>(m));
   if (flagInconsistentWindows(std::span<const RingSample>(ring.data(), m), RingConsensusOptions{},

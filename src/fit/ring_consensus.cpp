@@ -19,12 +19,19 @@ constexpr double kMinDeterminant = 0.2;
 /// Alternations of depths and sinusoid in the consensus's refit.
 constexpr int kDepthIterations = 10;
 
+bool hasConfidence(const RingSample& q) { return std::isfinite(q.confidence) && q.confidence > 0; }
+
 /// The sinusoid p0 + p1 sin theta + p2 cos theta.
 using Sinusoid = Eigen::Vector3d;
 
-Eigen::RowVector3d basis(double theta) {
-  return Eigen::RowVector3d(1.0, std::sin(theta), std::cos(theta));
-}
+/// Each sample's sin theta and cos theta, computed once per call.
+struct Azimuths {
+  std::span<const double> sin, cos;
+
+  Eigen::RowVector3d basis(int q) const { return Eigen::RowVector3d(1.0, sin[q], cos[q]); }
+  /// The translation's part of du at sample q under p, for unit inverse depth.
+  double moving(int q, const Sinusoid& p) const { return p(1) * sin[q] + p(2) * cos[q]; }
+};
 
 double medianOf(std::span<double> values) {
   const auto mid = values.begin() + static_cast<std::ptrdiff_t>(values.size() / 2);
@@ -36,19 +43,20 @@ double medianOf(std::span<double> values) {
 /// times the window's relative inverse depth lambda.
 struct DuModel {
   double max_inverse_depth;
+  Azimuths azimuths;
 
-  static Eigen::RowVector3d row(double theta, double lambda) {
-    return Eigen::RowVector3d(1.0, lambda * std::sin(theta), lambda * std::cos(theta));
+  Eigen::RowVector3d row(int q, double lambda) const {
+    return Eigen::RowVector3d(1.0, lambda * azimuths.sin[q], lambda * azimuths.cos[q]);
   }
-  /// The relative inverse depth in [0, max] that fits sample q best under p.
-  double bestDepth(const RingSample& q, const Sinusoid& p) const {
-    const double fixed = p(0), moving = row(q.theta, 1.0).dot(p) - fixed;
+  /// The relative inverse depth in [0, max] that fits sample q (du du_px) best under p.
+  double bestDepth(int q, double du_px, const Sinusoid& p) const {
+    const double moving = azimuths.moving(q, p);
     if (!(std::abs(moving) > 1e-12)) return 1.0;
-    return std::clamp((q.du_px - fixed) / moving, 0.0, max_inverse_depth);
+    return std::clamp((du_px - p(0)) / moving, 0.0, max_inverse_depth);
   }
   /// |du - model| at that depth.
-  double absorbedResidual(const RingSample& q, const Sinusoid& p) const {
-    return std::abs(q.du_px - row(q.theta, bestDepth(q, p)).dot(p));
+  double absorbedResidual(int q, double du_px, const Sinusoid& p) const {
+    return std::abs(du_px - p(0) - bestDepth(q, du_px, p) * azimuths.moving(q, p));
   }
 };
 
@@ -68,11 +76,11 @@ bool consensusSinusoid(std::span<const RingSample> s, const DuModel& model,
     for (int i = 0; i < m; ++i) {
       const int j = (i + d1) % m, k = (i + d2) % m;
       Eigen::Matrix3d A;
-      A << basis(s[i].theta), basis(s[j].theta), basis(s[k].theta);
+      A << model.azimuths.basis(i), model.azimuths.basis(j), model.azimuths.basis(k);
       if (!(std::abs(A.determinant()) > kMinDeterminant)) continue;
       const Sinusoid p = A.partialPivLu().solve(
           Eigen::Vector3d(s[i].du_px, s[j].du_px, s[k].du_px));
-      for (int q = 0; q < m; ++q) work[q] = std::abs(s[q].du_px - basis(s[q].theta).dot(p));
+      for (int q = 0; q < m; ++q) work[q] = std::abs(s[q].du_px - model.azimuths.basis(q).dot(p));
       const double score = medianOf(work.first(m));
       if (score < best_score) {
         best_score = score;
@@ -86,14 +94,14 @@ bool consensusSinusoid(std::span<const RingSample> s, const DuModel& model,
   const double gate = std::max(2.5 * sigma, 1e-6);
   // work[q]: the sample's depth, negative for the samples outside the gate.
   for (int q = 0; q < m; ++q)
-    work[q] = std::abs(s[q].du_px - basis(s[q].theta).dot(best)) < gate ? 1.0 : -1.0;
+    work[q] = std::abs(s[q].du_px - model.azimuths.basis(q).dot(best)) < gate ? 1.0 : -1.0;
   for (int iteration = 0; iteration < kDepthIterations; ++iteration) {
     Eigen::Matrix3d N = Eigen::Matrix3d::Zero();
     Eigen::Vector3d g = Eigen::Vector3d::Zero();
     int used = 0;
     for (int q = 0; q < m; ++q) {
       if (work[q] < 0) continue;
-      const Eigen::RowVector3d a = model.row(s[q].theta, work[q]);
+      const Eigen::RowVector3d a = model.row(q, work[q]);
       N.noalias() += a.transpose() * a;
       g.noalias() += a.transpose() * s[q].du_px;
       ++used;
@@ -105,7 +113,7 @@ bool consensusSinusoid(std::span<const RingSample> s, const DuModel& model,
     best = refit;
     double mean = 0.0;
     for (int q = 0; q < m; ++q)
-      if (work[q] >= 0) mean += (work[q] = model.bestDepth(s[q], best));
+      if (work[q] >= 0) mean += (work[q] = model.bestDepth(q, s[q].du_px, best));
     mean /= used;
     if (!(mean > 1e-6)) break;
     for (int q = 0; q < m; ++q)
@@ -121,29 +129,45 @@ int flagInconsistentWindows(std::span<const RingSample> samples,
                             const RingConsensusOptions& options,
                             std::span<std::uint8_t> inconsistent, std::span<double> work) {
   std::fill(inconsistent.begin(), inconsistent.end(), std::uint8_t{0});
-  if (static_cast<int>(samples.size()) < kMinSamples || work.size() < samples.size() ||
+  if (static_cast<int>(samples.size()) < kMinSamples || work.size() < 3 * samples.size() ||
       inconsistent.size() < samples.size())
     return 0;
-  const DuModel du{options.max_inverse_depth};
+  const int m = static_cast<int>(samples.size());
+  const std::span<double> sines = work.subspan(samples.size(), samples.size()),
+                          cosines = work.subspan(2 * samples.size(), samples.size());
+  for (int q = 0; q < m; ++q) {
+    sines[q] = std::sin(samples[q].theta);
+    cosines[q] = std::cos(samples[q].theta);
+  }
+  // The samples' median confidence, before work holds anything else.
+  int with_confidence = 0;
+  for (const RingSample& q : samples)
+    if (hasConfidence(q)) work[with_confidence++] = q.confidence;
+  const double median_confidence =
+      with_confidence > 0 ? medianOf(work.first(with_confidence)) : 1.0;
+  const DuModel du{options.max_inverse_depth, Azimuths{sines, cosines}};
   Sinusoid u;
-  if (!consensusSinusoid(samples, du, work, u)) return 0;
+  if (!consensusSinusoid(samples, du, work.first(samples.size()), u)) return 0;
   // Near the translation's axis a window's du says more about the axis's direction than
   // about its depth, and the consensus's direction is not exact enough to judge it there.
   const double amplitude = std::hypot(u(1), u(2));
   const double axis_sin = std::sin(options.axis_half_width_deg * std::numbers::pi / 180.0);
-  const auto residual = [&](const RingSample& q) {
-    if (amplitude > options.floor_px &&
-        std::abs(u(1) * std::sin(q.theta) + u(2) * std::cos(q.theta)) < axis_sin * amplitude)
+  const auto residual = [&](int q) {
+    if (amplitude > options.floor_px && std::abs(du.azimuths.moving(q, u)) < axis_sin * amplitude)
       return 0.0;
-    return du.absorbedResidual(q, u);
+    return du.absorbedResidual(q, samples[q].du_px, u);
   };
-  const int m = static_cast<int>(samples.size());
-  for (int q = 0; q < m; ++q) work[q] = residual(samples[q]);
+  for (int q = 0; q < m; ++q) work[q] = residual(q);
   const double sigma = kMadToSigma * medianOf(work.first(m));
   const double threshold = std::max(options.sigmas * sigma, options.floor_px);
+  // A weaker peak than the median's: a less certain shift, judged with a wider threshold.
+  const auto widening = [&](const RingSample& q) {
+    return hasConfidence(q) && q.confidence < median_confidence ? median_confidence / q.confidence
+                                                                : 1.0;
+  };
   int flagged = 0;
   for (int q = 0; q < m; ++q) {
-    inconsistent[q] = residual(samples[q]) > threshold ? 1 : 0;
+    inconsistent[q] = residual(q) > threshold * widening(samples[q]) ? 1 : 0;
     flagged += inconsistent[q];
   }
   return flagged;

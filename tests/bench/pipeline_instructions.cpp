@@ -8,7 +8,8 @@
 // Usage: omnipose-bench-instructions [--threads N] [--frames K] [--warmup W]
 //                                    [--refine R] [--wisdom FILE] [--save DIR | --load DIR]
 //                                    [--odometry [--readout S [--gyro HZ]] [--keyframe-slots N]]
-//                                    [--no-moving-content] [--noise-weighting]
+//                                    [--no-moving-content] [--no-ring-consensus]
+//                                    [--noise-weighting]
 // --odometry processes the frames with Odometry (what omniposed and omnipose-replay run),
 // stamped at 30 fps, instead of Pipeline (its default keyframes: the first frame stays in
 // reach, so every frame is registered against it as well; --keyframe-slots 0 counts
@@ -16,8 +17,10 @@
 // shutter of S seconds (the rows' capture times corrected in every pass), --gyro HZ gives it
 // a gyro sampled at HZ (the calibration's imu section; the rows' rotations from the gyro).
 // --no-moving-content turns the refinement pass's check for content moving on its own off
-// (PipelineOptions::moving_content), to count what it costs; --noise-weighting turns the
-// registration's signal-to-noise weighting on (WindowRegistration::Options::noise_weighting).
+// (PipelineOptions::moving_content), to count what it costs; --no-ring-consensus turns the
+// fit's ring consensus off (MotionFit::Options::ring_consensus), likewise; --noise-weighting
+// turns the registration's signal-to-noise weighting on
+// (WindowRegistration::Options::noise_weighting).
 // --save writes the two rendered frames to DIR/a.png, DIR/b.png; --load reads them instead
 // of rendering (an emulator then spends nothing on the renderer).
 #include <chrono>
@@ -56,7 +59,8 @@ struct Args {
   int threads = 1, frames = 10, warmup = 2, refine = 1;
   int keyframe_slots = omnipose::KeyframeOptions{}.slots;
   double readout = 0.0, gyro_hz = 0.0;
-  bool odometry = false, no_moving_content = false, noise_weighting = false;
+  bool odometry = false, no_moving_content = false, no_ring_consensus = false,
+       noise_weighting = false;
   std::string wisdom, save, load;
 };
 
@@ -64,7 +68,8 @@ constexpr const char* kUsage =
     "usage: omnipose-bench-instructions [--threads N] [--frames K] [--warmup W]\n"
     "                                   [--refine R] [--wisdom FILE] [--save DIR | --load DIR]\n"
     "                                   [--odometry [--readout S [--gyro HZ]] [--keyframe-slots N]]\n"
-    "                                   [--no-moving-content] [--noise-weighting]";
+    "                                   [--no-moving-content] [--no-ring-consensus]\n"
+    "                                   [--noise-weighting]";
 
 constexpr const char* kDescription =
     "Per-frame instruction counts of the pipeline, for valgrind --tool=callgrind\n"
@@ -108,6 +113,8 @@ void addOptions(CLI::App& app, Args& a) {
   app.add_flag("--no-moving-content", a.no_moving_content,
                "without the refinement pass's moving-content check "
                "(PipelineOptions::moving_content)");
+  app.add_flag("--no-ring-consensus", a.no_ring_consensus,
+               "without the fit's ring consensus (MotionFit::Options::ring_consensus)");
   app.add_flag("--noise-weighting", a.noise_weighting,
                "with the registration's signal-to-noise weighting "
                "(WindowRegistration::Options::noise_weighting)");
@@ -147,6 +154,7 @@ int run(const Args& a) {
   options.threads = a.threads;
   options.refine_iterations = a.refine;
   options.moving_content = !a.no_moving_content;
+  options.fit.ring_consensus = !a.no_ring_consensus;
   options.registration.noise_weighting = a.noise_weighting;
   options.fftw_wisdom = a.wisdom;
   omnipose::Calibration calibration;

@@ -149,7 +149,7 @@ TEST(DaemonConfig, PlaneDepthPrior) {
 
 TEST(DaemonConfig, RingConsensus) {
   expectBooleanPipelineKey(
-      "ring_consensus", false,
+      "ring_consensus", true,
       [](const DaemonConfig& c) { return c.pipeline.fit.ring_consensus; }, "people");
 }
 

@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <limits>
 #include <numbers>
 #include <random>
 #include <vector>
@@ -41,7 +42,7 @@ struct Ring {
 
 std::vector<std::uint8_t> flagsOf(const std::vector<RingSample>& s, int& flagged) {
   std::vector<std::uint8_t> flags(s.size(), 7);
-  std::vector<double> work(s.size());
+  std::vector<double> work(3 * s.size());
   flagged = flagInconsistentWindows(s, RingConsensusOptions{}, flags, work);
   return flags;
 }
@@ -147,6 +148,44 @@ TEST(RingConsensus, NoiseAloneIsNotFlagged) {
   }
 }
 
+// A window with a weaker peak than the ring's median is judged with a threshold widened by
+// the median confidence over its own: turning in place, a plain wall's window at 0.25 of the
+// median confidence 1.5 px off (its shift as uncertain as that) stays, the same offset with a
+// median peak is flagged, and a person 4.5 px off is flagged even with a peak that weak.
+// A confidence that is not above 0 or not finite counts as the median.
+TEST(RingConsensus, AWeakPeakIsJudgedWithAWiderThreshold) {
+  std::mt19937 rng(19);
+  Ring ring;
+  ring.yaw_px = 2.0;
+  std::vector<RingSample> s = ring.samples(rng);
+  for (RingSample& q : s) q.confidence = 0.6;
+  const int weak = 10, median_peak = 30, person = 45, unknown = 50, not_finite = 52;
+  s[weak].du_px += 1.5;
+  s[weak].confidence = 0.15;  // threshold 0.5 px x 4
+  s[median_peak].du_px += 1.5;
+  s[person].du_px += 4.5;
+  s[person].confidence = 0.15;
+  s[unknown].du_px += 1.5;
+  s[unknown].confidence = 0.0;
+  s[not_finite].du_px += 1.5;
+  s[not_finite].confidence = std::numeric_limits<double>::quiet_NaN();
+  int flagged = 0;
+  const std::vector<std::uint8_t> flags = flagsOf(s, flagged);
+  EXPECT_EQ(flags[weak], 0);
+  EXPECT_EQ(flags[median_peak], 1);
+  EXPECT_EQ(flags[person], 1);
+  EXPECT_EQ(flags[unknown], 1);
+  EXPECT_EQ(flags[not_finite], 1);
+  EXPECT_EQ(flagged, 4);
+  // A stronger peak than the median's is not judged more strictly: 0.4 px stays.
+  std::vector<RingSample> strong = ring.samples(rng);
+  for (RingSample& q : strong) q.confidence = 0.6;
+  strong[20].du_px += 0.4;
+  strong[20].confidence = 1.0;
+  flagsOf(strong, flagged);
+  EXPECT_EQ(flagged, 0);
+}
+
 TEST(RingConsensus, TooFewWindowsFlagNothing) {
   std::mt19937 rng(14);
   std::vector<RingSample> s = Ring{}.samples(rng);
@@ -164,7 +203,7 @@ TEST(RingConsensus, ShortWorkBufferFlagsNothing) {
   std::vector<RingSample> s = Ring{}.samples(rng);
   s[3].du_px += 10.0;
   std::vector<std::uint8_t> flags(s.size(), 1);
-  std::vector<double> work(s.size() - 1);
+  std::vector<double> work(3 * s.size() - 1);
   EXPECT_EQ(flagInconsistentWindows(s, RingConsensusOptions{}, flags, work), 0);
   for (std::uint8_t f : flags) EXPECT_EQ(f, 0);
 }
