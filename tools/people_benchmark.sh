@@ -20,8 +20,9 @@
 # (translation 1 cm/frame along x in the 6 x 5 m box room). Scenes: the room pool's textures
 # (tools/common/pool_rooms.sh) indoor, park and office (tuning) and indoor_t270 and
 # park_m240 (report-only: reported, never used to choose a setting).
-# Each people render is replayed with the defaults and with `pipeline.moving_content: false`
-# (the people check off), each twin with the defaults; omnipose-eval gives the per-pair
+# Each people render is replayed with the defaults, with `pipeline.moving_content: false`
+# (the pixel check off) and with `pipeline.ring_consensus: false` (the fit's ring consensus
+# off), each twin with the defaults; omnipose-eval gives the per-pair
 # rotation eps (RMSE of the relative-rotation error angle, mrad). Writes OUTDIR/PEOPLE.md
 # (command, date, version, one row per render with its ratios to the twin, and per group and
 # situation the median and the worst) and every render's dataset, trajectories and logs.
@@ -84,6 +85,7 @@ segments:
 YAML
 printf 'pipeline:\n  fftw_wisdom: "%s"\n' "$out/people.wisdom" > "$out/default.yaml"
 printf 'pipeline:\n  fftw_wisdom: "%s"\n  moving_content: false\n' "$out/people.wisdom" > "$out/check_off.yaml"
+printf 'pipeline:\n  fftw_wisdom: "%s"\n  ring_consensus: false\n' "$out/people.wisdom" > "$out/consensus_off.yaml"
 
 seed=301
 common=(--frames "$frames" --seed "$seed" --supersample "$supersample" --noise 3 --jpeg 90
@@ -134,10 +136,11 @@ for scene_entry in "${scenes[@]}"; do
       --walker-distance "$distance" --walker-seed "$walker_seed"
     with=$(eps "$dir" "$out/default.yaml" default)
     without=$(eps "$dir" "$out/check_off.yaml" check_off)
-    printf '%s\t%s\t%s\t%s\t%s\t%s\t%s\n' "$scene" "$group" "$name" "$walker_seed" "$with" \
-      "$without" "${twin_eps[$motion]}" >> "$rows"
-    printf '== %-12s %-14s eps %7s mrad (check off %7s), twin %7s\n' "$scene" "$name" "$with" \
-      "$without" "${twin_eps[$motion]}"
+    no_consensus=$(eps "$dir" "$out/consensus_off.yaml" consensus_off)
+    printf '%s\t%s\t%s\t%s\t%s\t%s\t%s\t%s\n' "$scene" "$group" "$name" "$walker_seed" "$with" \
+      "$without" "${twin_eps[$motion]}" "$no_consensus" >> "$rows"
+    printf '== %-12s %-14s eps %7s mrad (check off %7s, consensus off %7s), twin %7s\n' \
+      "$scene" "$name" "$with" "$without" "$no_consensus" "${twin_eps[$motion]}"
   done
   unset twin_eps
 done
@@ -157,25 +160,30 @@ lines = [
     "%s frames per render, %s x %s rays per pixel, noise sigma 3, JPEG 90, global shutter, the "
     "default lens (tools/people_benchmark.sh names each situation). eps: the per-pair rotation "
     "error's RMSE, mrad (`omnipose-eval`); default: `omnipose-replay` with the defaults; check "
-    "off: `pipeline.moving_content: false`; twin: the same render without the people, with the "
-    "defaults. The report-only scenes are never used to choose a setting." % (
-        frames, supersample, supersample), "",
-    "| scene | group | situation | walker seed | eps default | eps check off | eps twin "
-    "| default / twin | check off / twin | default / check off |",
-    "|---|---|---|---:|---:|---:|---:|---:|---:|---:|",
+    "off: `pipeline.moving_content: false` (the pixel check); consensus off: "
+    "`pipeline.ring_consensus: false` (the fit's ring consensus); twin: the same render "
+    "without the people, with the defaults. The report-only scenes are never used to choose a "
+    "setting." % (frames, supersample, supersample), "",
+    "| scene | group | situation | walker seed | eps default | eps check off "
+    "| eps consensus off | eps twin | default / twin | check off / twin | consensus off / twin "
+    "| default / check off | default / consensus off |",
+    "|---|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|",
 ]
-for scene, group, name, seed, with_, without, twin in rows:
-    lines.append("| %s | %s | %s | %s | %s | %s | %s | %.2f | %.2f | %.2f |" % (
-        scene, group, name, seed, with_, without, twin, ratio(with_, twin),
-        ratio(without, twin), ratio(with_, without)))
+for scene, group, name, seed, with_, without, twin, no_consensus in rows:
+    lines.append("| %s | %s | %s | %s | %s | %s | %s | %s | %.2f | %.2f | %.2f | %.2f | %.2f |" % (
+        scene, group, name, seed, with_, without, no_consensus, twin, ratio(with_, twin),
+        ratio(without, twin), ratio(no_consensus, twin), ratio(with_, without),
+        ratio(with_, no_consensus)))
 lines += ["", "Over each group, and each situation over the tuning scenes (median / worst):", "",
-          "| rows | renders | default / twin | check off / twin | default / check off |",
-          "|---|---:|---:|---:|---:|"]
+          "| rows | renders | default / twin | check off / twin | consensus off / twin "
+          "| default / check off | default / consensus off |",
+          "|---|---:|---:|---:|---:|---:|---:|"]
 def summary(label, subset):
     if not subset:
         return
     cols = [[ratio(r[4], r[6]) for r in subset], [ratio(r[5], r[6]) for r in subset],
-            [ratio(r[4], r[5]) for r in subset]]
+            [ratio(r[7], r[6]) for r in subset], [ratio(r[4], r[5]) for r in subset],
+            [ratio(r[4], r[7]) for r in subset]]
     lines.append("| %s | %d | %s |" % (label, len(subset), " | ".join(
         "%.2f / %.2f" % (statistics.median(c), max(c)) for c in cols)))
 for group in ("tuning", "report-only"):
