@@ -30,6 +30,19 @@ check_script_usage "$script" 'Usage: tools/accuracy_benchmark.sh \[--publish\] \
   [ -z "$ifmi_pipeline_yaml" ] && [ "$command_line" = 'IFMI_PIPELINE=" noise_weighting: true ;; refine_iterations: 2 " tools/x.sh OUT' ] ||
     fail "unset IFMI_PIPELINE changed something"
 )
+# bench_command_line: the environment the report names can be pasted back into a shell, a
+# value with spaces or quotes single-quoted.
+(
+  # shellcheck source=tools/common/benchmark.sh
+  source "$src/tools/common/benchmark.sh"
+  VARIANTS="ring_consensus: false|keyframes.slots: 0" FRAMES=10 ROOMS="it's" \
+    bench_command_line tools/x.sh --publish OUT -- VARIANTS FRAMES ROOMS UNSET_ONE
+  [ "$command_line" = "ROOMS='it'\\''s' FRAMES=10 VARIANTS='ring_consensus: false|keyframes.slots: 0' tools/x.sh --publish OUT" ] ||
+    fail "bench_command_line: $command_line"
+  eval "set -- $command_line"
+  [ "$#" = 6 ] && [ "$1" = "ROOMS=it's" ] && [ "$3" = "VARIANTS=ring_consensus: false|keyframes.slots: 0" ] ||
+    fail "bench_command_line does not read back: $*"
+)
 rc=0
 msg=$(source "$src/tools/common/benchmark.sh"; publish=1; command_line=x
       IFMI_PIPELINE="noise_weighting: true" bench_ifmi_pipeline demo 2>&1) || rc=$?

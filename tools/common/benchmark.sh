@@ -52,9 +52,13 @@ bench_command_line() {
   while [ $# -gt 0 ] && [ "$1" != "--" ]; do args+=("$1"); shift; done
   [ $# -gt 0 ] && shift
   [ ${#args[@]} -gt 0 ] && command_line="$command_line ${args[*]}"
-  local var
+  local var value
   for var in "$@"; do
-    [ -n "${!var:-}" ] && command_line="$var=${!var} $command_line"
+    value=${!var:-}
+    [ -n "$value" ] || continue
+    # A value a shell would split or expand is single-quoted, so the line can be pasted.
+    [[ "$value" =~ ^[A-Za-z0-9_./:,=+@%-]+$ ]] || value="'${value//\'/\'\\\'\'}'"
+    command_line="$var=$value $command_line"
   done
   return 0
 }
