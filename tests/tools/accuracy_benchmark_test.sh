@@ -23,11 +23,11 @@ check_script_usage "$script" 'Usage: tools/accuracy_benchmark.sh \[--publish\] \
   IFMI_PIPELINE=" noise_weighting: true ;; refine_iterations: 2 " bench_ifmi_pipeline x
   [ "$ifmi_pipeline_yaml" = $'  noise_weighting: true\n  refine_iterations: 2\n' ] ||
     fail "IFMI_PIPELINE yaml: '$ifmi_pipeline_yaml'"
-  [ "$command_line" = 'IFMI_PIPELINE=" noise_weighting: true ;; refine_iterations: 2 " tools/x.sh OUT' ] ||
+  [ "$command_line" = "IFMI_PIPELINE=' noise_weighting: true ;; refine_iterations: 2 ' tools/x.sh OUT" ] ||
     fail "IFMI_PIPELINE command line: $command_line"
   unset IFMI_PIPELINE
   bench_ifmi_pipeline x
-  [ -z "$ifmi_pipeline_yaml" ] && [ "$command_line" = 'IFMI_PIPELINE=" noise_weighting: true ;; refine_iterations: 2 " tools/x.sh OUT' ] ||
+  [ -z "$ifmi_pipeline_yaml" ] && [ "$command_line" = "IFMI_PIPELINE=' noise_weighting: true ;; refine_iterations: 2 ' tools/x.sh OUT" ] ||
     fail "unset IFMI_PIPELINE changed something"
 )
 # bench_command_line: the environment the report names can be pasted back into a shell, a

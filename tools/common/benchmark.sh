@@ -52,15 +52,19 @@ bench_command_line() {
   while [ $# -gt 0 ] && [ "$1" != "--" ]; do args+=("$1"); shift; done
   [ $# -gt 0 ] && shift
   [ ${#args[@]} -gt 0 ] && command_line="$command_line ${args[*]}"
-  local var value
+  local var
   for var in "$@"; do
-    value=${!var:-}
-    [ -n "$value" ] || continue
-    # A value a shell would split or expand is single-quoted, so the line can be pasted.
-    [[ "$value" =~ ^[A-Za-z0-9_./:,=+@%-]+$ ]] || value="'${value//\'/\'\\\'\'}'"
-    command_line="$var=$value $command_line"
+    [ -n "${!var:-}" ] && command_line="$(bench_assignment "$var") $command_line"
   done
   return 0
+}
+
+# bench_assignment VAR: prints VAR=value for the report's command line, the value
+# single-quoted when a shell would split or expand it, so the line can be pasted back.
+bench_assignment() {
+  local value=${!1:-}
+  [[ "$value" =~ ^[A-Za-z0-9_./:,=+@%-]+$ ]] || value="'${value//\'/\'\\\'\'}'"
+  printf '%s=%s' "$1" "$value"
 }
 
 # bench_ifmi_pipeline NAME: the entries of IFMI_PIPELINE ("key: value" entries of
@@ -72,7 +76,7 @@ bench_ifmi_pipeline() {
   local name=$1
   ifmi_pipeline_yaml=""
   [ -n "${IFMI_PIPELINE:-}" ] || return 0
-  command_line="IFMI_PIPELINE=\"$IFMI_PIPELINE\" $command_line"
+  command_line="$(bench_assignment IFMI_PIPELINE) $command_line"
   if [ "$publish" = 1 ]; then
     echo "$name: --publish publishes the defaults; unset IFMI_PIPELINE" >&2
     exit 2
