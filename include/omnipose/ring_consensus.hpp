@@ -11,8 +11,14 @@
 // with ONE depth for all windows (lambda_k = 1), by least median of squares over triples of
 // windows spread around the ring (breakdown point 50 %: people may cover up to half of it),
 // then refits on its inliers. A window is inconsistent when no inverse depth in
-// [0, max_inverse_depth] brings its du within max(sigmas * robust sigma, floor_px) of the
-// consensus: the robust sigma of those depth-absorbed residuals over the ring. The
+// [0, max_inverse_depth] brings its du within max(sigmas * robust sigma, floor) of the
+// consensus: the robust sigma of those depth-absorbed residuals over the ring. With a free
+// depth per window most of them are 0, and so is that sigma; the floor is then what judges:
+// sigmas times the least-median fit's own robust sigma (one depth for every window), kept
+// within [min_floor_px, floor_px]. Turning in place the ring agrees with one depth within
+// its noise (a few hundredths of a pixel), and a window that a person covers in part, its
+// shift pulled 0.2-0.6 px, stands out; driving past walls near and far, one depth misfits by
+// their parallax and the floor stays at floor_px. The
 // consensus's sinusoid is refitted on the windows within 2.5 of its robust sigmas, alternately
 // with each window's depth, so that walls at different distances do not turn it. A window the
 // translation explains with some depth (a wall close by while the robot drives) stays; a
@@ -39,8 +45,10 @@
 namespace omnipose {
 
 struct RingConsensusOptions {
-  double sigmas = 4.0;              ///< threshold in robust sigmas of the absorbed residuals
-  double floor_px = 0.5;            ///< threshold never below this, pixels
+  double sigmas = 4.0;  ///< threshold in robust sigmas of the absorbed residuals (and the floor's)
+  double floor_px = 0.5;      ///< the floor's largest value, pixels (one depth misfits the ring)
+  double min_floor_px = 0.1;  ///< the floor's smallest value, pixels (the ring agrees within noise);
+                              ///< above floor_px it is the floor
   double max_inverse_depth = 8.0;   ///< largest relative inverse depth a window may take
   double axis_half_width_deg = 45.0;  ///< du not tested this close to the translation's axis
 };

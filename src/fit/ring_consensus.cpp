@@ -65,9 +65,11 @@ struct DuModel {
 /// sixth of the ring); then, on the samples within 2.5 robust sigmas of it, alternately each
 /// one's depth and the sinusoid by least squares (mean depth 1 over them), so that walls at
 /// different distances do not turn the consensus's translation. Returns false when no triple
-/// is well conditioned. `work`: samples.size() values, the last depths on return.
+/// is well conditioned. `work`: samples.size() values, the last depths on return;
+/// `one_depth_sigma`: the robust sigma of the least-median fit's residuals (one depth for
+/// every window), pixels.
 bool consensusSinusoid(std::span<const RingSample> s, const DuModel& model,
-                       std::span<double> work, Sinusoid& best) {
+                       std::span<double> work, Sinusoid& best, double& one_depth_sigma) {
   const int m = static_cast<int>(s.size());
   const std::array<std::array<int, 2>, 3> spacing{
       {{m / 3, 2 * m / 3}, {m / 4, m / 2}, {m / 6, m / 2}}};
@@ -91,6 +93,7 @@ bool consensusSinusoid(std::span<const RingSample> s, const DuModel& model,
   if (!std::isfinite(best_score)) return false;
   // Rousseeuw's small-sample correction for three parameters.
   const double sigma = kMadToSigma * (1.0 + 5.0 / std::max(m - 3, 1)) * best_score;
+  one_depth_sigma = sigma;
   const double gate = std::max(2.5 * sigma, 1e-6);
   // work[q]: the sample's depth, negative for the samples outside the gate.
   for (int q = 0; q < m; ++q)
@@ -147,7 +150,8 @@ int flagInconsistentWindows(std::span<const RingSample> samples,
       with_confidence > 0 ? medianOf(work.first(with_confidence)) : 1.0;
   const DuModel du{options.max_inverse_depth, Azimuths{sines, cosines}};
   Sinusoid u;
-  if (!consensusSinusoid(samples, du, work.first(samples.size()), u)) return 0;
+  double one_depth_sigma = 0.0;
+  if (!consensusSinusoid(samples, du, work.first(samples.size()), u, one_depth_sigma)) return 0;
   // Near the translation's axis a window's du says more about the axis's direction than
   // about its depth, and the consensus's direction is not exact enough to judge it there.
   const double amplitude = std::hypot(u(1), u(2));
@@ -159,7 +163,12 @@ int flagInconsistentWindows(std::span<const RingSample> samples,
   };
   for (int q = 0; q < m; ++q) work[q] = residual(q);
   const double sigma = kMadToSigma * medianOf(work.first(m));
-  const double threshold = std::max(options.sigmas * sigma, options.floor_px);
+  // With a free depth per window most absorbed residuals are 0 and so is their sigma: the
+  // floor is the one-depth fit's noise (the ring's noise when the robot turns in place,
+  // the walls' parallax when it drives), within [min_floor_px, floor_px].
+  const double floor =
+      std::max(std::min(options.sigmas * one_depth_sigma, options.floor_px), options.min_floor_px);
+  const double threshold = std::max(options.sigmas * sigma, floor);
   // A weaker peak than the median's: a less certain shift, judged with a wider threshold.
   const auto widening = [&](const RingSample& q) {
     return hasConfidence(q) && q.confidence < median_confidence ? median_confidence / q.confidence

@@ -8,6 +8,8 @@
 #include <limits>
 #include <numbers>
 #include <random>
+#include <tuple>
+#include <utility>
 #include <vector>
 
 namespace omnipose {
@@ -131,28 +133,58 @@ TEST(RingConsensus, NearTheDirectionOfTravelDuIsNotTested) {
   }
 }
 
-// Noise alone (heavy-tailed, as a blurred JPEG 75 lens gives), every sample under the 0.5 px
-// floor, is not flagged.
+// Noise alone is not flagged: heavy-tailed (as a blurred JPEG 75 lens gives), every sample
+// under the floor, with the floor at its 0.1 px least (a sharp lens, noise of a few
+// hundredths of a pixel) and at its 0.5 px most (a blurred one, noise of a tenth).
 TEST(RingConsensus, NoiseAloneIsNotFlagged) {
-  for (const unsigned seed : {13u, 14u, 15u, 16u, 17u, 18u}) {
-    std::mt19937 rng(seed);
-    std::student_t_distribution<double> tails(3.0);
-    Ring ring;
-    ring.yaw_px = 2.0;
-    ring.noise_px = 0.0;
-    std::vector<RingSample> s = ring.samples(rng);
-    for (RingSample& q : s) q.du_px += std::clamp(0.05 * tails(rng), -0.45, 0.45);
-    int flagged = -1;
-    flagsOf(s, flagged);
-    EXPECT_EQ(flagged, 0) << "seed " << seed;
+  for (const auto& [scale, bound] : {std::pair{0.02, 0.09}, std::pair{0.125, 0.45}}) {
+    for (const unsigned seed : {13u, 14u, 15u, 16u, 17u, 18u}) {
+      std::mt19937 rng(seed);
+      std::student_t_distribution<double> tails(3.0);
+      Ring ring;
+      ring.yaw_px = 2.0;
+      ring.noise_px = 0.0;
+      std::vector<RingSample> s = ring.samples(rng);
+      for (RingSample& q : s) q.du_px += std::clamp(scale * tails(rng), -bound, bound);
+      int flagged = -1;
+      flagsOf(s, flagged);
+      EXPECT_EQ(flagged, 0) << "noise scale " << scale << ", seed " << seed;
+    }
   }
 }
 
+// Turning in place the ring agrees within its noise, and the windows a person covers in part
+// are pulled a few tenths of a pixel: the people benchmark's park render of two people
+// walking with the turn, one frame pair as the consensus saw it (docs/results/ANALYSIS.md).
+// Each is flagged, though under the 0.5 px that judges a driving robot's ring, and though
+// its weaker peak widens its threshold; the background is not.
+TEST(RingConsensus, WindowsAPersonCoversInPartAreFlaggedWhileTurning) {
+  std::mt19937 rng(21);
+  Ring ring;
+  ring.yaw_px = 0.41;
+  ring.noise_px = 0.008;
+  std::vector<RingSample> s = ring.samples(rng);
+  for (RingSample& q : s) q.confidence = 0.95;
+  // window: du's pull by the person, px, and the peak's confidence
+  const std::vector<std::tuple<int, double, double>> people{
+      {26, -0.22, 0.80}, {27, -0.50, 0.70}, {28, -0.55, 0.64}, {29, -0.28, 0.81},
+      {47, -0.14, 0.81}, {48, -0.25, 0.70}, {49, -0.51, 0.48}, {50, -0.65, 0.64},
+      {51, -0.22, 0.77}};
+  for (const auto& [k, pull, confidence] : people) {
+    s[k].du_px += pull;
+    s[k].confidence = confidence;
+  }
+  int flagged = 0;
+  const std::vector<std::uint8_t> flags = flagsOf(s, flagged);
+  for (const auto& [k, pull, confidence] : people) EXPECT_EQ(flags[k], 1) << "window " << k;
+  EXPECT_EQ(flagged, static_cast<int>(people.size()));
+}
+
 // A window with a weaker peak than the ring's median is judged with a threshold widened by
-// the median confidence over its own: turning in place, a plain wall's window at 0.25 of the
-// median confidence 1.5 px off (its shift as uncertain as that) stays, the same offset with a
-// median peak is flagged, and a person 4.5 px off is flagged even with a peak that weak.
-// A confidence that is not above 0 or not finite counts as the median.
+// the median confidence over its own: turning in place (the floor 0.1 px), a plain wall's
+// window at 0.25 of the median confidence 0.3 px off (its shift as uncertain as that) stays,
+// the same offset with a median peak is flagged, and a person 4.5 px off is flagged even with
+// a peak that weak. A confidence that is not above 0 or not finite counts as the median.
 TEST(RingConsensus, AWeakPeakIsJudgedWithAWiderThreshold) {
   std::mt19937 rng(19);
   Ring ring;
@@ -160,14 +192,14 @@ TEST(RingConsensus, AWeakPeakIsJudgedWithAWiderThreshold) {
   std::vector<RingSample> s = ring.samples(rng);
   for (RingSample& q : s) q.confidence = 0.6;
   const int weak = 10, median_peak = 30, person = 45, unknown = 50, not_finite = 52;
-  s[weak].du_px += 1.5;
-  s[weak].confidence = 0.15;  // threshold 0.5 px x 4
-  s[median_peak].du_px += 1.5;
+  s[weak].du_px += 0.3;
+  s[weak].confidence = 0.15;  // threshold 0.1 px x 4
+  s[median_peak].du_px += 0.3;
   s[person].du_px += 4.5;
   s[person].confidence = 0.15;
-  s[unknown].du_px += 1.5;
+  s[unknown].du_px += 0.3;
   s[unknown].confidence = 0.0;
-  s[not_finite].du_px += 1.5;
+  s[not_finite].du_px += 0.3;
   s[not_finite].confidence = std::numeric_limits<double>::quiet_NaN();
   int flagged = 0;
   const std::vector<std::uint8_t> flags = flagsOf(s, flagged);
@@ -177,10 +209,10 @@ TEST(RingConsensus, AWeakPeakIsJudgedWithAWiderThreshold) {
   EXPECT_EQ(flags[unknown], 1);
   EXPECT_EQ(flags[not_finite], 1);
   EXPECT_EQ(flagged, 4);
-  // A stronger peak than the median's is not judged more strictly: 0.4 px stays.
+  // A stronger peak than the median's is not judged more strictly: 0.04 px stays.
   std::vector<RingSample> strong = ring.samples(rng);
   for (RingSample& q : strong) q.confidence = 0.6;
-  strong[20].du_px += 0.4;
+  strong[20].du_px += 0.04;
   strong[20].confidence = 1.0;
   flagsOf(strong, flagged);
   EXPECT_EQ(flagged, 0);
