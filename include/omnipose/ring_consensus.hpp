@@ -45,10 +45,13 @@
 namespace omnipose {
 
 struct RingConsensusOptions {
-  double sigmas = 4.0;  ///< threshold in robust sigmas of the absorbed residuals (and the floor's)
+  /// Threshold in robust sigmas of the absorbed residuals; the floor in those of the
+  /// one-depth residuals.
+  double sigmas = 4.0;
   double floor_px = 0.5;      ///< the floor's largest value, pixels (one depth misfits the ring)
-  double min_floor_px = 0.1;  ///< the floor's smallest value, pixels (the ring agrees within noise);
-                              ///< above floor_px it is the floor
+  /// The floor's smallest value, pixels (the ring agrees within noise); above floor_px it is
+  /// the floor.
+  double min_floor_px = 0.1;
   double max_inverse_depth = 8.0;   ///< largest relative inverse depth a window may take
   double axis_half_width_deg = 45.0;  ///< du not tested this close to the translation's axis
 };
