@@ -102,17 +102,16 @@ class MotionFit {
     /// Leave out, before the fit, the windows that no static scene explains
     /// (daemon.yaml `pipeline.ring_consensus`; on by default): du's sinusoid fitted with
     /// one depth for every window by least median of squares over the ring, a window out
-    /// when no relative inverse depth in [0, 8] brings its du within 4 robust sigmas (at
-    /// least 0.5 px) of it, times the ring's median confidence over its own where its peak
-    /// is weaker; not tested within 45 deg of the direction of travel (ring_consensus.hpp).
-    /// Without it per_window_depth lets a translation explain people walking across a third
-    /// of the ring as near objects, and the background between them as far: on the people
-    /// benchmark the worst render's rotation error is 64x its twin without it and 6.3x with
-    /// it, and no render is more than 4 % worse with it. Driving without people the per-pair
-    /// error moves by at most 2 % and the heading at a lap's end by at most 0.016 deg the
-    /// wrong way; on the accuracy benchmark (no people) the per-pair error is 1.00x median
-    /// and at most 1.04x; 2.3 % more instructions per frame (docs/results/ANALYSIS.md, "The
-    /// ring consensus by default"). false: people walking by can bend the yaw.
+    /// when no relative inverse depth in [0, 8] brings its du within 4 robust sigmas of it
+    /// (at least the ring's own noise, kept within [0.1, 0.5] px), times the ring's median
+    /// confidence over its own where its peak is weaker; not tested within 45 deg of the
+    /// direction of travel, or within 10 deg when the consensus's direction agrees with the
+    /// previous fit's (ring_consensus.hpp). Without it per_window_depth lets a translation
+    /// explain people walking across a third of the ring as near objects, and the
+    /// background between them as far, and the yaw follows (docs/results/PEOPLE.md, its
+    /// "consensus off" column); where nobody walks it moves the per-pair error by a few
+    /// percent (docs/results/ANALYSIS.md, "The ring consensus by default"). false: people
+    /// walking by can bend the yaw.
     bool ring_consensus = true;
     /// With per_window_depth: how much of the horizontal expansion that a change of depth
     /// across a window adds the measured in-window scale carries. A window on a wall seen
@@ -168,6 +167,9 @@ class MotionFit {
   ~MotionFit();
 
   /// Fits the model to `windows`; a window's azimuth is theta = gamma * (center_u - forward_column).
+  /// With Options::ring_consensus a fit depends on the ones before it: the consensus takes the
+  /// direction of travel of the last fit (status kOk) whose translation moved the windows by
+  /// more than half a pixel as its prior (a copy carries it).
   /// `windows.size()` must not exceed maxWindows() (else status kLost). `row_scale`
   /// (optional, one per window, else status kLost): the model's du and dv for window k are
   /// row_scale[k].du and .dv times the motion's (a window whose measurement spans a longer

@@ -30,8 +30,13 @@
 // lowered) to the fit's weights. Near the translation's axis
 // (within axis_half_width_deg, when the translation moves the windows by more than floor_px)
 // a window's du says more about the axis's direction than about its depth, and the
-// consensus's direction is not exact enough to judge it: there du is not tested (people
-// crossing the direction of travel stay in).
+// consensus's direction is not exact enough to judge it: there du is not tested. Beside a
+// wall close by, one depth for every window misfits the near side's sharper crest, and the
+// least-median axis can be some 30 deg off. When it agrees with the previous fit's axis
+// (previous_axis_rad, within agreed_axis_half_width_deg; a robot's direction of travel in
+// the camera's frame hardly changes from one frame to the next), the axis is known and du
+// is tested from agreed_axis_half_width_deg of it: a person crossing in front of a driving
+// robot, whom no depth explains, is left out.
 //
 // dv is not tested. Its sinusoid (roll, pitch and the vertical translation) takes a
 // window's whole vertical shift, and beside a wall close by a slanted edge moving sideways
@@ -40,6 +45,7 @@
 // better in some rooms and worse in others, while on the people pool it helped one render
 // of 35 (docs/results/ANALYSIS.md). The fit's robust weights take care of a window's dv.
 #include <cstdint>
+#include <limits>
 #include <span>
 
 namespace omnipose {
@@ -54,6 +60,13 @@ struct RingConsensusOptions {
   double min_floor_px = 0.1;
   double max_inverse_depth = 8.0;   ///< largest relative inverse depth a window may take
   double axis_half_width_deg = 45.0;  ///< du not tested this close to the translation's axis
+  /// The translation's axis of the fit before, as the consensus's sinusoid gives it:
+  /// atan2(c, b) of b sin theta + c cos theta (radians; either sign of the axis). NaN:
+  /// unknown, and axis_half_width_deg holds.
+  double previous_axis_rad = std::numeric_limits<double>::quiet_NaN();
+  /// When the consensus's axis is within this of previous_axis_rad, du is not tested only
+  /// this close to the axis (degrees).
+  double agreed_axis_half_width_deg = 10.0;
 };
 
 /// One window as the consensus sees it: azimuth (radians), horizontal shift (pixels) and the

@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <limits>
 #include <memory>
 #include <numbers>
 #include <stdexcept>
@@ -207,6 +208,9 @@ struct MotionFit::Impl {
   std::vector<RingSample> ring;               ///< the kept windows, ringConsensus()
   std::vector<std::uint8_t> ring_inconsistent;  ///< per entry of `ring`
   std::vector<std::uint8_t> judged_moving;      ///< per window, MotionFit::judgedMoving()
+  /// The translation's axis of the last fit that moved the windows by more than the
+  /// consensus's floor (RingConsensusOptions::previous_axis_rad); NaN before any.
+  double previous_axis = std::numeric_limits<double>::quiet_NaN();
   /// Leaves out the kept windows that no static scene explains (ring_consensus.hpp).
   void ringConsensus(std::span<const WindowMotion> windows, double forward_column);
   /// The depths' information matrix (max_windows square, so that its factorisation never
@@ -366,8 +370,10 @@ void MotionFit::Impl::ringConsensus(std::span<const WindowMotion> windows,
                            windows[k].confidence};
   }
   const std::span<std::uint8_t> flags(ring_inconsistent.data(), static_cast<std::size_t>(m));
-  if (flagInconsistentWindows(std::span<const RingSample>(ring.data(), m), RingConsensusOptions{},
-                              flags, scratch) == 0)
+  RingConsensusOptions consensus;
+  consensus.previous_axis_rad = previous_axis;
+  if (flagInconsistentWindows(std::span<const RingSample>(ring.data(), m), consensus, flags,
+                              scratch) == 0)
     return;
   m = 0;
   for (int k = 0; k < n; ++k) {
@@ -944,6 +950,11 @@ MotionEstimate MotionFit::Impl::fit(std::span<const WindowMotion> windows,
       est.windows_used < options.min_window_fraction * (est.windows_total - est.windows_masked);
   est.status = (few || est.residual_rms_px > options.max_residual_px) ? FitStatus::kDegraded
                                                                         : FitStatus::kOk;
+  // du's translation part, kappa (-tau_x sin + tau_y cos) / gamma pixels (modelRows()), as
+  // the consensus writes it: b sin + c cos.
+  const double b = -kappa * est.tau(0) / gamma, c = kappa * est.tau(1) / gamma;
+  if (est.status == FitStatus::kOk && std::hypot(b, c) > RingConsensusOptions{}.floor_px)
+    previous_axis = std::atan2(c, b);
   return est;
 }
 

@@ -153,9 +153,16 @@ int flagInconsistentWindows(std::span<const RingSample> samples,
   double one_depth_sigma = 0.0;
   if (!consensusSinusoid(samples, du, work.first(samples.size()), u, one_depth_sigma)) return 0;
   // Near the translation's axis a window's du says more about the axis's direction than
-  // about its depth, and the consensus's direction is not exact enough to judge it there.
+  // about its depth, and the consensus's direction is not exact enough to judge it there,
+  // unless the fit before found the same axis.
   const double amplitude = std::hypot(u(1), u(2));
-  const double axis_sin = std::sin(options.axis_half_width_deg * std::numbers::pi / 180.0);
+  constexpr double kDegree = std::numbers::pi / 180.0;
+  const bool axis_agrees =
+      std::isfinite(options.previous_axis_rad) &&
+      std::abs(std::remainder(std::atan2(u(2), u(1)) - options.previous_axis_rad,
+                              std::numbers::pi)) < options.agreed_axis_half_width_deg * kDegree;
+  const double axis_sin = std::sin(
+      (axis_agrees ? options.agreed_axis_half_width_deg : options.axis_half_width_deg) * kDegree);
   const auto residual = [&](int q) {
     if (amplitude > options.floor_px && std::abs(du.azimuths.moving(q, u)) < axis_sin * amplitude)
       return 0.0;

@@ -469,6 +469,50 @@ TEST(MotionFit, TheRingConsensusJudgesAWindowByItsDu) {
   EXPECT_FALSE(fit.judgedMoving(du_wrong));
 }
 
+// A person crossing in front of a driving robot, 18-24 deg from the direction of travel,
+// moves those windows' du the way no static point there moves. The consensus does not judge
+// windows within 45 deg of its own axis, which can be 30 deg off beside a wall; once the fit
+// before has found the same axis, it judges them from 10 deg of it and leaves them out.
+TEST(MotionFit, APersonCrossingInFrontIsLeftOutOnceTheDirectionOfTravelIsKnown) {
+  std::mt19937 rng(23);
+  MotionFit::Options with;
+  ASSERT_TRUE(with.ring_consensus);
+  const double kappa = windowAttenuation(kWindow, kGamma);
+  Vec6 x = Vec6::Zero();
+  x(3) = 2.0 * kGamma / kappa;  // driving along +x: du = -2 sin(theta) px at unit depth
+  const auto crossing = [&] {
+    auto windows = synthesize(x, 0.03, 0.0, rng);
+    // Windows 0 and 1, 17.8 and 24.4 deg: a static point there moves by -2 lambda sin(theta)
+    // <= 0 px; the person, walking across, by +0.9 and +0.7 px.
+    windows[0].du += 1.5;
+    windows[1].du += 1.5;
+    return windows;
+  };
+  MotionFit driving(with, kGamma, kWindow, kWindows), first_frame(with, kGamma, kWindow, kWindows);
+  ASSERT_EQ(driving.fit(synthesize(x, 0.03, 0.0, rng), 0.0).status, FitStatus::kOk);
+  for (int frame = 0; frame < 3; ++frame) {
+    const auto windows = crossing();
+    ASSERT_NE(driving.fit(windows, 0.0).status, FitStatus::kLost);
+    for (const int k : {0, 1}) {
+      EXPECT_TRUE(driving.judgedMoving(k)) << "frame " << frame << " window " << k;
+      EXPECT_EQ(driving.finalWeight(k), 0.0) << "frame " << frame << " window " << k;
+    }
+    for (int k = 2; k < kWindows; ++k) EXPECT_FALSE(driving.judgedMoving(k)) << "window " << k;
+    // With no fit before it, the axis is the consensus's own and they are not judged.
+    MotionFit fresh = first_frame;
+    ASSERT_NE(fresh.fit(windows, 0.0).status, FitStatus::kLost);
+    EXPECT_FALSE(fresh.judgedMoving(0));
+    EXPECT_FALSE(fresh.judgedMoving(1));
+  }
+  // Turning in place does not set the direction of travel: the next drive starts unknown.
+  MotionFit turned(with, kGamma, kWindow, kWindows);
+  Vec6 turn = Vec6::Zero();
+  turn(2) = 0.006;
+  ASSERT_EQ(turned.fit(synthesize(turn, 0.03, 0.0, rng), 0.0).status, FitStatus::kOk);
+  ASSERT_NE(turned.fit(crossing(), 0.0).status, FitStatus::kLost);
+  EXPECT_FALSE(turned.judgedMoving(0));
+}
+
 TEST(MotionFit, HonoursTheForwardColumn) {
   std::mt19937 rng(3);
   MotionFit fit = makeFit();

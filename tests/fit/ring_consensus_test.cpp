@@ -114,7 +114,8 @@ TEST(RingConsensus, APersonMovingAgainstTheParallaxIsFlaggedWhileDriving) {
 }
 
 // Within 45 degrees of the direction of travel du is not tested (it tells the direction
-// there, not the depth); turning in place there is no such axis and every window is tested.
+// there, not the depth) while the fit before has not found the axis; turning in place there
+// is no such axis and every window is tested.
 TEST(RingConsensus, NearTheDirectionOfTravelDuIsNotTested) {
   for (const bool driving : {true, false}) {
     SCOPED_TRACE(driving ? "driving" : "turning in place");
@@ -130,6 +131,40 @@ TEST(RingConsensus, NearTheDirectionOfTravelDuIsNotTested) {
     const std::vector<std::uint8_t> flags = flagsOf(s, flagged);
     EXPECT_EQ(flags[1], driving ? 0 : 1);
     EXPECT_EQ(flagged, driving ? 0 : 1);
+  }
+}
+
+// When the previous fit's axis agrees with the consensus's (either sign, within 10 deg),
+// du is tested from 10 deg of the axis: a person crossing in front of the robot at 16-23 deg
+// is flagged. A previous axis 40 deg away, or none, leaves the 45-deg band.
+TEST(RingConsensus, NearTheDirectionOfTravelDuIsTestedWhenThePreviousFitAgrees) {
+  constexpr double kPi = std::numbers::pi;
+  struct Case {
+    double previous_axis;
+    bool judged;
+  };
+  // b sin + c cos with b = -2, c = 0: the axis atan2(c, b) is pi, or 0 for the other sign.
+  for (const Case& c : {Case{kPi, true}, Case{0.1, true}, Case{kPi - 40 * kPi / 180, false},
+                        Case{std::numeric_limits<double>::quiet_NaN(), false}}) {
+    SCOPED_TRACE(c.previous_axis);
+    std::mt19937 rng(17);
+    Ring ring;
+    ring.b = -2.0;
+    std::vector<RingSample> s = ring.samples(rng);
+    // Windows 2 and 3 (16 and 23 deg): a static window's du is -2 lambda sin(theta) < 0 there.
+    s[2].du_px += 1.5;
+    s[3].du_px += 1.5;
+    // Window 1 (10 deg, inside the narrow band) likewise: never tested.
+    s[1].du_px += 1.5;
+    RingConsensusOptions options;
+    options.previous_axis_rad = c.previous_axis;
+    std::vector<std::uint8_t> flags(s.size());
+    std::vector<double> work(3 * s.size());
+    const int flagged = flagInconsistentWindows(s, options, flags, work);
+    EXPECT_EQ(flags[2], c.judged ? 1 : 0);
+    EXPECT_EQ(flags[3], c.judged ? 1 : 0);
+    EXPECT_EQ(flags[1], 0);
+    EXPECT_EQ(flagged, c.judged ? 2 : 0);
   }
 }
 
