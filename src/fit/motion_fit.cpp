@@ -252,7 +252,11 @@ MotionFit::Impl::Impl(const Options& o, double gamma_per_column, double attenuat
       judged_moving(static_cast<std::size_t>(max_windows), 0),
       depth_m(max_windows, max_windows),
       depth_rhs(max_windows, 7),
-      depth_llt(max_windows) {}
+      depth_llt(max_windows) {
+  // Eigen's LLT leaves its status and norm unset until compute(): factorised once here, so
+  // that copying a MotionFit that has not fitted yet copies defined values.
+  depth_llt.compute(Eigen::MatrixXd::Identity(max_windows, max_windows));
+}
 
 MotionFit::MotionFit(const Options& options, double gamma, int window_px, int max_windows) {
   std::vector<std::string> problems = options.validate();
