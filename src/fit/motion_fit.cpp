@@ -5,7 +5,6 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
-#include <limits>
 #include <memory>
 #include <numbers>
 #include <stdexcept>
@@ -208,9 +207,9 @@ struct MotionFit::Impl {
   std::vector<RingSample> ring;               ///< the kept windows, ringConsensus()
   std::vector<std::uint8_t> ring_inconsistent;  ///< per entry of `ring`
   std::vector<std::uint8_t> judged_moving;      ///< per window, MotionFit::judgedMoving()
-  /// The translation's axis of the last fit that moved the windows by more than the
-  /// consensus's floor (RingConsensusOptions::previous_axis_rad); NaN before any.
-  double previous_axis = std::numeric_limits<double>::quiet_NaN();
+  /// The consensus's options; previous_axis_rad is the translation's axis of the last fit
+  /// that moved the windows by more than its floor (NaN before any).
+  RingConsensusOptions consensus;
   /// Leaves out the kept windows that no static scene explains (ring_consensus.hpp).
   void ringConsensus(std::span<const WindowMotion> windows, double forward_column);
   /// The depths' information matrix (max_windows square, so that its factorisation never
@@ -374,8 +373,6 @@ void MotionFit::Impl::ringConsensus(std::span<const WindowMotion> windows,
                            windows[k].confidence};
   }
   const std::span<std::uint8_t> flags(ring_inconsistent.data(), static_cast<std::size_t>(m));
-  RingConsensusOptions consensus;
-  consensus.previous_axis_rad = previous_axis;
   if (flagInconsistentWindows(std::span<const RingSample>(ring.data(), m), consensus, flags,
                               scratch) == 0)
     return;
@@ -957,8 +954,8 @@ MotionEstimate MotionFit::Impl::fit(std::span<const WindowMotion> windows,
   // du's translation part, kappa (-tau_x sin + tau_y cos) / gamma pixels (modelRows()), as
   // the consensus writes it: b sin + c cos.
   const double b = -kappa * est.tau(0) / gamma, c = kappa * est.tau(1) / gamma;
-  if (est.status == FitStatus::kOk && std::hypot(b, c) > RingConsensusOptions{}.floor_px)
-    previous_axis = std::atan2(c, b);
+  if (est.status == FitStatus::kOk && std::hypot(b, c) > consensus.floor_px)
+    consensus.previous_axis_rad = std::atan2(c, b);
   return est;
 }
 
