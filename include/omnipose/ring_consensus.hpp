@@ -43,8 +43,8 @@
 // threshold, yet its dv and du bend the fit. A window next to one left out is therefore left
 // out when its residual exceeds neighbour_fraction of its own threshold (the hysteresis of
 // Canny's edge linking: a strong flag, and weak ones joined to it). Where nobody walks a
-// window left out is mostly a single one whose peak erred, and its neighbours, which share
-// most of its columns, agree with the ring: they stay.
+// window left out is mostly a single one whose peak erred; its neighbours mostly agree with
+// the ring, and stay.
 //
 // dv is not tested. Its sinusoid (roll, pitch and the vertical translation) takes a
 // window's whole vertical shift, and beside a wall close by a slanted edge moving sideways

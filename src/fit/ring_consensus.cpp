@@ -190,10 +190,8 @@ int flagInconsistentWindows(std::span<const RingSample> samples,
     inconsistent[q] = residual(q) > threshold * widening(samples[q]) ? kFlagged : 0;
     flagged += inconsistent[q] != 0;
   }
-  // Neighbouring windows overlap (110 px wide, 20 px apart by default): the window beside
-  // one a person covers is likely covered in part, and its shift pulled part of the way.
-  // It is left out at neighbour_fraction of its threshold (hysteresis, as in Canny's edge
-  // linking); one step only, from the windows flagged above.
+  // The windows beside those flagged, at neighbour_fraction of their threshold (the
+  // hysteresis over overlapping windows, above); one step only.
   if (options.neighbour_fraction > 0.0 && flagged > 0) {
     constexpr double kTwoPi = 2.0 * std::numbers::pi;
     const double reach = kNeighbourSpacings * kTwoPi / m;
