@@ -42,10 +42,11 @@ struct Ring {
   }
 };
 
-std::vector<std::uint8_t> flagsOf(const std::vector<RingSample>& s, int& flagged) {
+std::vector<std::uint8_t> flagsOf(const std::vector<RingSample>& s, int& flagged,
+                                  const RingConsensusOptions& options = {}) {
   std::vector<std::uint8_t> flags(s.size(), 7);
   std::vector<double> work(3 * s.size());
-  flagged = flagInconsistentWindows(s, RingConsensusOptions{}, flags, work);
+  flagged = flagInconsistentWindows(s, options, flags, work);
   return flags;
 }
 
@@ -158,9 +159,8 @@ TEST(RingConsensus, NearTheDirectionOfTravelDuIsTestedWhenThePreviousFitAgrees) 
     s[1].du_px += 1.5;
     RingConsensusOptions options;
     options.previous_axis_rad = c.previous_axis;
-    std::vector<std::uint8_t> flags(s.size());
-    std::vector<double> work(3 * s.size());
-    const int flagged = flagInconsistentWindows(s, options, flags, work);
+    int flagged = 0;
+    const std::vector<std::uint8_t> flags = flagsOf(s, flagged, options);
     EXPECT_EQ(flags[2], c.judged ? 1 : 0);
     EXPECT_EQ(flags[3], c.judged ? 1 : 0);
     EXPECT_EQ(flags[1], 0);
@@ -243,9 +243,8 @@ TEST(RingConsensus, AWindowBesideAPersonIsLeftOutAtAFractionOfItsThreshold) {
 
   RingConsensusOptions without;
   without.neighbour_fraction = 0.0;
-  std::vector<std::uint8_t> strict(s.size());
-  std::vector<double> work(3 * s.size());
-  EXPECT_EQ(flagInconsistentWindows(s, without, strict, work), 6);
+  const std::vector<std::uint8_t> strict = flagsOf(s, flagged, without);
+  EXPECT_EQ(flagged, 6);
   EXPECT_EQ(strict[19], 0);
   EXPECT_EQ(strict[25], 0);
   EXPECT_EQ(strict[22], 1);
