@@ -146,6 +146,19 @@ class MotionFit {
     /// frame pairs, but the translation direction in a room and the chained drift get worse
     /// (docs/results/ANALYSIS.md). false: the confidence alone weighs both (the paper).
     bool window_covariance = false;
+    /// How far the final pass shrinks tau towards 0 when the images hardly ask for it
+    /// (daemon.yaml `pipeline.translation_shrinkage`). Turning in place, nothing needs a
+    /// translation, yet a free tau and per-window depths take up part of whatever else
+    /// moves (people walking by) and bend the rotation with it. tau becomes
+    /// tau max(0, 1 - K / chi2), chi2 = tau^T C^-1 tau, C the covariance of tau times
+    /// windowOverlapFactor() of the windows' size and spacing (the covariance the pipeline
+    /// publishes), and the rotation is solved again from the final pass with that tau. The
+    /// default K = 3 is the chi2 a tau of three degrees of freedom has on average when the
+    /// camera does not move: the factor is the share of chi2 above what noise alone gives
+    /// (an empirical-Bayes gain). A driving robot's tau has chi2 in the hundreds and keeps
+    /// all but a percent of its length; a turn in place keeps little or none
+    /// (docs/results/ANALYSIS.md). 0: tau as fitted (the fit before 2026-12-05). [0, 100].
+    double translation_shrinkage = 3.0;
 
     /// Every problem, one message per bad field, each starting with the field's name
     /// ("median: 4 must be odd (or 0/1 = off)"); empty when valid.

@@ -98,6 +98,7 @@ constexpr PipelineKey kPipelineKeys[] = {
     {"pipeline.noise_weighting", "registration.noise_weighting"},
     {"pipeline.plane_depth_prior", "fit.plane_depth_prior"},
     {"pipeline.ring_consensus", "fit.ring_consensus"},
+    {"pipeline.translation_shrinkage", "fit.translation_shrinkage"},
     {"pipeline.threads", "threads"},
     {"pipeline.fftw_wisdom", "fftw_wisdom"},
     {"input", "unwrap.input"},
@@ -136,6 +137,7 @@ void parsePipeline(Reader& r, const YAML::Node& node, const std::filesystem::pat
   r.get(node, "pipeline", "noise_weighting", p.registration.noise_weighting);
   r.get(node, "pipeline", "plane_depth_prior", p.fit.plane_depth_prior);
   r.get(node, "pipeline", "ring_consensus", p.fit.ring_consensus);
+  r.get(node, "pipeline", "translation_shrinkage", p.fit.translation_shrinkage);
   r.get(node, "pipeline", "threads", p.threads);
   std::string wisdom;
   r.get(node, "pipeline", "fftw_wisdom", wisdom);
@@ -397,7 +399,8 @@ std::string DaemonConfig::describe() const {
     << "\n  yaw_capture_time: " << p.yaw_capture_time
     << "\n  noise_weighting: " << p.registration.noise_weighting
     << "\n  plane_depth_prior: " << p.fit.plane_depth_prior
-    << "\n  ring_consensus: " << p.fit.ring_consensus << "\n  threads: " << p.threads
+    << "\n  ring_consensus: " << p.fit.ring_consensus
+    << "\n  translation_shrinkage: " << p.fit.translation_shrinkage << "\n  threads: " << p.threads
     << "\n  fftw_wisdom: \"" << p.fftw_wisdom << "\"\n"
     << "keyframes:\n  slots: " << keyframes.slots
     << "\n  max_translation: " << keyframes.max_translation

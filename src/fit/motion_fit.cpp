@@ -65,6 +65,7 @@ std::vector<std::string> MotionFit::Options::validate() const {
   detail::checkRange(p, "depth_prior_sigma", depth_prior_sigma, 0.0, 1000.0, "", true);
   detail::checkRange(p, "scale_depth_gradient", scale_depth_gradient, 0.0, 1.0);
   detail::checkRange(p, "rotation_deformation", rotation_deformation, 0.0, 100.0);
+  detail::checkRange(p, "translation_shrinkage", translation_shrinkage, 0.0, 100.0);
   return p;
 }
 
@@ -99,8 +100,41 @@ struct MotionFit::Impl {
       for (double& w : final_weight) w /= largest;
   }
 
+  /// Options::translation_shrinkage: x's tau scaled by max(0, 1 - K / chi2), chi2 from
+  /// `covariance` (the fit's, of independent windows) times the windows' overlap factor, and
+  /// its omega solved again from the final pass's normal equations N x = g with that tau.
+  void shrinkTranslation(std::span<const WindowMotion> windows,
+                         const Eigen::Matrix<double, 6, 6>& N,
+                         const Eigen::Matrix<double, 6, 1>& g,
+                         const Eigen::Matrix<double, 6, 6>& covariance,
+                         Eigen::Matrix<double, 6, 1>& x) {
+    // The windows' spacing from the first two (they come in ring order, evenly spaced);
+    // the overlap factor is kept for it.
+    const int step = windows.size() >= 2
+                         ? static_cast<int>(std::lround(windows[1].center_u - windows[0].center_u))
+                         : 0;
+    if (step != overlap_step) {
+      overlap_step = step;
+      overlap = step > 0 ? windowOverlapFactor(window_px, step) : 1.0;
+    }
+    const Eigen::Vector3d tau = x.tail<3>();
+    const Eigen::Matrix3d c = overlap * covariance.bottomRightCorner<3, 3>();
+    const Eigen::LDLT<Eigen::Matrix3d> c_ldlt(c);
+    if (c_ldlt.info() != Eigen::Success) return;
+    const double chi2 = tau.dot(c_ldlt.solve(tau));
+    if (!std::isfinite(chi2)) return;
+    const double factor =
+        chi2 > options.translation_shrinkage ? 1.0 - options.translation_shrinkage / chi2 : 0.0;
+    if (factor >= 1.0) return;
+    x.tail<3>() = factor * tau;
+    const Eigen::Vector3d omega = N.topLeftCorner<3, 3>().ldlt().solve(
+        g.head<3>() - N.topRightCorner<3, 3>() * x.tail<3>());
+    if (omega.allFinite()) x.head<3>() = omega;
+    else x.tail<3>() = tau;
+  }
+
   /// Allocates the workspace for `max_windows` windows (arguments already validated).
-  Impl(const Options& o, double gamma_per_column, double attenuation, int max_windows);
+  Impl(const Options& o, double gamma_per_column, int window_size, int max_windows);
 
   MotionEstimate fit(std::span<const WindowMotion> windows, double forward_column,
                      std::span<const RowScale> row_scale);
@@ -172,7 +206,10 @@ struct MotionFit::Impl {
 
   Options options;
   double gamma;
+  int window_px;  ///< window size L
   double kappa;
+  int overlap_step = 0;  ///< the window spacing `overlap` was computed for (0: none yet)
+  double overlap = 1.0;  ///< windowOverlapFactor(window_px, overlap_step)
   std::vector<Row> rows;
   std::vector<double> scratch;
   std::vector<unsigned char> keep;
@@ -234,11 +271,12 @@ struct MotionFit::Impl {
   }
 };
 
-MotionFit::Impl::Impl(const Options& o, double gamma_per_column, double attenuation,
+MotionFit::Impl::Impl(const Options& o, double gamma_per_column, int window_size,
                       int max_windows)
     : options(o),
       gamma(gamma_per_column),
-      kappa(attenuation),
+      window_px(window_size),
+      kappa(windowAttenuation(window_size, gamma_per_column)),
       rows(4 * static_cast<std::size_t>(max_windows)),
       scratch(rows.size()),
       keep(static_cast<std::size_t>(max_windows)),
@@ -264,7 +302,7 @@ MotionFit::MotionFit(const Options& options, double gamma, int window_px, int ma
   detail::checkRange(problems, "window_px", window_px, 1, 65536, " pixels");
   detail::checkRange(problems, "max_windows", max_windows, 1, 65536);
   detail::throwIfProblems("MotionFit", problems);
-  impl_ = std::make_unique<Impl>(options, gamma, windowAttenuation(window_px, gamma), max_windows);
+  impl_ = std::make_unique<Impl>(options, gamma, window_px, max_windows);
 }
 
 MotionFit::MotionFit(const MotionFit& other) : impl_(std::make_unique<Impl>(*other.impl_)) {}
@@ -944,6 +982,7 @@ MotionEstimate MotionFit::Impl::fit(std::span<const WindowMotion> windows,
   est.covariance = (wrr / dof) * marginal.solve(Mat6::Identity());
   est.residual_rms_px = shift_n > 0 ? std::sqrt(shift_rr / shift_n) : 0.0;
   est.windows_used = (shift_n + 1) / 2;  // du and dv rows of a window count once
+  if (options.translation_shrinkage > 0) shrinkTranslation(windows, N, g, est.covariance, x);
   est.omega = x.head<3>();
   est.tau = x.tail<3>();
 

@@ -153,6 +153,18 @@ TEST(DaemonConfig, RingConsensus) {
       [](const DaemonConfig& c) { return c.pipeline.fit.ring_consensus; }, "people");
 }
 
+TEST(DaemonConfig, TranslationShrinkage) {
+  EXPECT_DOUBLE_EQ(parseWith("").pipeline.fit.translation_shrinkage, 3.0);
+  const DaemonConfig off = parseWith("pipeline: {translation_shrinkage: 0}\n");
+  EXPECT_DOUBLE_EQ(off.pipeline.fit.translation_shrinkage, 0.0);
+  EXPECT_THAT(off.describe(), HasSubstr("translation_shrinkage: 0"));
+  for (const char* bad : {"-1", "101", "much"})
+    EXPECT_TRUE(mentions(problemsOf(kFileSource + "pipeline: {translation_shrinkage: " +
+                                    std::string(bad) + "}\n"),
+                         "pipeline.translation_shrinkage"))
+        << bad;
+}
+
 TEST(DaemonConfig, PanoramaPicturesAreOffUnlessAChannelIsNamed) {
   const DaemonConfig defaults = parseWith("");
   EXPECT_EQ(defaults.lcm.panorama_channel, "");

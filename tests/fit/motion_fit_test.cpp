@@ -115,10 +115,13 @@ TEST_P(MotionFitModes, RobustToNoiseAndTwentyPercentGrossOutliers) {
   // synthesize() gives the in-window rotation no error under translation (an ideal iFMI),
   // and |tau| here reaches 0.09: the fit's allowance for that error (rotation_deformation,
   // see TheInWindowRotationsErrorUnderTranslationDoesNotTiltTheRobot) would only take
-  // information away (the worst parameter 2.9e-3 instead of below 1.8e-3).
+  // information away (the worst parameter 2.9e-3 instead of below 1.8e-3). The test measures
+  // the fit's noise, so tau is not shrunk either: the shrinkage pulls the smaller of these
+  // translations towards 0 by more than that noise (the worst parameter 3.5e-3).
   MotionFit::Options options;
   options.per_window_depth = GetParam();
   options.rotation_deformation = 0.0;
+  options.translation_shrinkage = 0.0;
   MotionFit fit(options, kGamma, kWindow, kWindows);
   double worst = 0.0;
   for (int trial = 0; trial < 50; ++trial) {
@@ -395,6 +398,53 @@ TEST(MotionFit, PerWindowDepthConvergesQuicklyOnAPureRotation) {
                                       << " rad, per-window depth " << rmse_p << " rad";
 }
 
+// Turning in place, the fitted tau is noise: the shrinkage (Options::translation_shrinkage)
+// takes most of it to 0, exactly, and solves the rotation again without it. Over the whole
+// ring the rotation hardly couples to tau; with a third of the ring left out (people the
+// consensus removed) it does, and the rotation without tau's noise is closer. Driving, tau's chi2 is in the thousands: its length and
+// direction stay within a percent and the rotation is the unshrunk fit's.
+TEST(MotionFit, TheTranslationShrinksToZeroTurningInPlaceAndStaysDriving) {
+  std::mt19937 rng(17);
+  MotionFit::Options off_options;
+  off_options.translation_shrinkage = 0.0;
+  MotionFit shrunk = makeFit(), off(off_options, kGamma, kWindow, kWindows);
+  const int trials = 40;
+  int zeroed = 0;
+  double err_shrunk = 0.0, err_off = 0.0;
+  std::uniform_real_distribution<double> rot(-0.05, 0.05);
+  for (int t = 0; t < trials; ++t) {
+    Vec6 x = Vec6::Zero();
+    x.head<3>() << rot(rng), rot(rng), rot(rng);
+    auto windows = synthesize(x, 0.1, 0.0, rng);
+    for (int k = 0; k < kWindows / 3; ++k) windows[k].valid = false;
+    const MotionEstimate s = shrunk.fit(windows, 0.0), o = off.fit(windows, 0.0);
+    ASSERT_NE(s.status, FitStatus::kLost);
+    ASSERT_NE(o.status, FitStatus::kLost);
+    ASSERT_GT(o.tau.norm(), 0.0);
+    EXPECT_LE(s.tau.norm(), o.tau.norm()) << t;
+    zeroed += s.tau.norm() == 0.0;
+    err_shrunk += (s.omega - x.head<3>()).squaredNorm();
+    err_off += (o.omega - x.head<3>()).squaredNorm();
+  }
+  testing::recordFigure("turn_in_place_tau_zeroed_share", static_cast<double>(zeroed) / trials, 2);
+  testing::recordFigure("turn_in_place_rotation_rmse_shrunk_rad", std::sqrt(err_shrunk / trials), 7);
+  testing::recordFigure("turn_in_place_rotation_rmse_off_rad", std::sqrt(err_off / trials), 7);
+  EXPECT_GE(zeroed, trials / 2) << "fits whose tau went to 0";
+  EXPECT_LT(err_shrunk, err_off);
+
+  for (int t = 0; t < 10; ++t) {
+    Vec6 x = Vec6::Zero();
+    x.head<3>() << 0.2 * rot(rng), 0.2 * rot(rng), rot(rng);
+    x.tail<3>() << 0.02 * std::cos(t), 0.02 * std::sin(t), 0.0;
+    const auto windows = synthesize(x, 0.1, 0.0, rng, 0.0, boxRoomInverseDepth(0.5, -0.4));
+    const MotionEstimate s = shrunk.fit(windows, 0.0), o = off.fit(windows, 0.0);
+    ASSERT_EQ(s.status, FitStatus::kOk);
+    EXPECT_NEAR(s.tau.norm() / o.tau.norm(), 1.0, 0.01) << t;
+    EXPECT_GT(s.tau.normalized().dot(o.tau.normalized()), 1.0 - 1e-12) << t;
+    EXPECT_LT((s.omega - o.omega).norm(), 1e-5) << t;
+  }
+}
+
 // People walking across a third of the ring in two groups (the people benchmark's worst
 // render, docs/results/ANALYSIS.md) while the robot turns in place: with per-window depths a
 // translation explains them as near objects and the background between them as far, and the
@@ -586,13 +636,15 @@ TEST(MotionFit, InvalidOptionsNameEveryBadField) {
   o.inlier_sigmas = std::numeric_limits<double>::infinity();
   o.scale_depth_gradient = 1.5;
   o.rotation_deformation = -1.0;
+  o.translation_shrinkage = 101.0;
   const auto problems = o.validate();
-  ASSERT_EQ(problems.size(), 5u);
+  ASSERT_EQ(problems.size(), 6u);
   EXPECT_EQ(problems[0], "huber_delta_px: 0 is outside (0, 100] pixels");
   EXPECT_EQ(problems[1], "median: 4 must be odd (or 0/1 = off)");
   EXPECT_EQ(problems[2], "inlier_sigmas: must be a finite number, not inf");
   EXPECT_EQ(problems[3], "scale_depth_gradient: 1.5 is outside [0, 1]");
   EXPECT_EQ(problems[4], "rotation_deformation: -1 is outside [0, 100]");
+  EXPECT_EQ(problems[5], "translation_shrinkage: 101 is outside [0, 100]");
   EXPECT_THROW(MotionFit(o, kGamma, kWindow, kWindows), std::invalid_argument);
   EXPECT_THROW(MotionFit({}, kGamma, kWindow, 0), std::invalid_argument);  // no workspace
   EXPECT_TRUE(MotionFit::Options{}.validate().empty());
