@@ -21,8 +21,9 @@
 # (tools/common/pool_rooms.sh) indoor, park and office (tuning) and indoor_t270 and
 # park_m240 (report-only: reported, never used to choose a setting).
 # Each people render is replayed with the defaults, with `pipeline.moving_content: false`
-# (the pixel check off) and with `pipeline.ring_consensus: false` (the fit's ring consensus
-# off), each twin with the defaults; omnipose-eval gives the per-pair
+# (the pixel check off), with `pipeline.ring_consensus: false` (the fit's ring consensus
+# off) and with `pipeline.translation_shrinkage: 0`, each twin with the defaults and with the
+# shrinkage off; omnipose-eval gives the per-pair
 # rotation eps (RMSE of the relative-rotation error angle, mrad). Writes OUTDIR/PEOPLE.md
 # (command, date, version, one row per render with its ratios to the twin, and per group and
 # situation the median and the worst) and every render's dataset, trajectories and logs.
@@ -86,6 +87,7 @@ YAML
 printf 'pipeline:\n  fftw_wisdom: "%s"\n' "$out/people.wisdom" > "$out/default.yaml"
 printf 'pipeline:\n  fftw_wisdom: "%s"\n  moving_content: false\n' "$out/people.wisdom" > "$out/check_off.yaml"
 printf 'pipeline:\n  fftw_wisdom: "%s"\n  ring_consensus: false\n' "$out/people.wisdom" > "$out/consensus_off.yaml"
+printf 'pipeline:\n  fftw_wisdom: "%s"\n  translation_shrinkage: 0\n' "$out/people.wisdom" > "$out/shrinkage_off.yaml"
 
 seed=301
 common=(--frames "$frames" --seed "$seed" --supersample "$supersample" --noise 3 --jpeg 90
@@ -121,7 +123,7 @@ scene_index=0
 for scene_entry in "${scenes[@]}"; do
   IFS='|' read -r scene group photo texture <<< "$scene_entry"
   scene_index=$((scene_index + 1))
-  declare -A twin_eps=()
+  declare -A twin_eps=() twin_shrinkage_off=()
   situation_index=0
   for situation in "${situations[@]}"; do
     IFS='|' read -r name walkers distance motion <<< "$situation"
@@ -129,6 +131,8 @@ for scene_entry in "${scenes[@]}"; do
     if [ -z "${twin_eps[$motion]:-}" ]; then
       render "$out/$scene/twin_$motion" "$photo" "$texture" "$motion"
       twin_eps[$motion]=$(eps "$out/$scene/twin_$motion" "$out/default.yaml" default)
+      twin_shrinkage_off[$motion]=$(eps "$out/$scene/twin_$motion" "$out/shrinkage_off.yaml" \
+        shrinkage_off)
     fi
     dir=$out/$scene/$name
     walker_seed=$((1000 + 10 * situation_index + scene_index))
@@ -137,12 +141,15 @@ for scene_entry in "${scenes[@]}"; do
     with=$(eps "$dir" "$out/default.yaml" default)
     without=$(eps "$dir" "$out/check_off.yaml" check_off)
     no_consensus=$(eps "$dir" "$out/consensus_off.yaml" consensus_off)
-    printf '%s\t%s\t%s\t%s\t%s\t%s\t%s\t%s\n' "$scene" "$group" "$name" "$walker_seed" "$with" \
-      "$without" "${twin_eps[$motion]}" "$no_consensus" >> "$rows"
-    printf '== %-12s %-14s eps %7s mrad (check off %7s, consensus off %7s), twin %7s\n' \
-      "$scene" "$name" "$with" "$without" "$no_consensus" "${twin_eps[$motion]}"
+    no_shrinkage=$(eps "$dir" "$out/shrinkage_off.yaml" shrinkage_off)
+    printf '%s\t%s\t%s\t%s\t%s\t%s\t%s\t%s\t%s\t%s\n' "$scene" "$group" "$name" \
+      "$walker_seed" "$with" "$without" "${twin_eps[$motion]}" "$no_consensus" "$no_shrinkage" \
+      "${twin_shrinkage_off[$motion]}" >> "$rows"
+    printf '== %-12s %-14s eps %7s mrad (check off %7s, consensus off %7s, shrinkage off %7s), twin %7s (shrinkage off %7s)\n' \
+      "$scene" "$name" "$with" "$without" "$no_consensus" "$no_shrinkage" "${twin_eps[$motion]}" \
+      "${twin_shrinkage_off[$motion]}"
   done
-  unset twin_eps
+  unset twin_eps twin_shrinkage_off
 done
 
 elapsed=$(( $(date +%s) - start ))
@@ -161,29 +168,35 @@ lines = [
     "default lens (tools/people_benchmark.sh names each situation). eps: the per-pair rotation "
     "error's RMSE, mrad (`omnipose-eval`); default: `omnipose-replay` with the defaults; check "
     "off: `pipeline.moving_content: false` (the pixel check); consensus off: "
-    "`pipeline.ring_consensus: false` (the fit's ring consensus); twin: the same render "
-    "without the people, with the defaults. The report-only scenes are never used to choose a "
-    "setting." % (frames, supersample, supersample), "",
+    "`pipeline.ring_consensus: false` (the fit's ring consensus); shrinkage off: "
+    "`pipeline.translation_shrinkage: 0` (tau as fitted); twin: the same render without the "
+    "people, with the defaults (twin, shrinkage off: and with the shrinkage off). The "
+    "report-only scenes are never used to choose a setting." % (frames, supersample, supersample),
+    "",
     "| scene | group | situation | walker seed | eps default | eps check off "
-    "| eps consensus off | eps twin | default / twin | check off / twin | consensus off / twin "
-    "| default / check off | default / consensus off |",
-    "|---|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|",
+    "| eps consensus off | eps shrinkage off | eps twin | eps twin, shrinkage off "
+    "| default / twin | check off / twin | consensus off / twin "
+    "| default / check off | default / consensus off | default / shrinkage off "
+    "| twin / twin, shrinkage off |",
+    "|---|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|",
 ]
-for scene, group, name, seed, with_, without, twin, no_consensus in rows:
-    lines.append("| %s | %s | %s | %s | %s | %s | %s | %s | %.2f | %.2f | %.2f | %.2f | %.2f |" % (
-        scene, group, name, seed, with_, without, no_consensus, twin, ratio(with_, twin),
-        ratio(without, twin), ratio(no_consensus, twin), ratio(with_, without),
-        ratio(with_, no_consensus)))
+for scene, group, name, seed, with_, without, twin, no_consensus, no_shrink, twin_ns in rows:
+    lines.append("| %s | %s | %s | %s | %s | %s | %s | %s | %s | %s | %.2f | %.2f | %.2f | %.2f "
+                 "| %.2f | %.3f | %.3f |" % (
+        scene, group, name, seed, with_, without, no_consensus, no_shrink, twin, twin_ns,
+        ratio(with_, twin), ratio(without, twin), ratio(no_consensus, twin),
+        ratio(with_, without), ratio(with_, no_consensus), ratio(with_, no_shrink),
+        ratio(twin, twin_ns)))
 lines += ["", "Over each group, and each situation over the tuning scenes (median / worst):", "",
           "| rows | renders | default / twin | check off / twin | consensus off / twin "
-          "| default / check off | default / consensus off |",
-          "|---|---:|---:|---:|---:|---:|---:|"]
+          "| default / check off | default / consensus off | default / shrinkage off |",
+          "|---|---:|---:|---:|---:|---:|---:|---:|"]
 def summary(label, subset):
     if not subset:
         return
     cols = [[ratio(r[4], r[6]) for r in subset], [ratio(r[5], r[6]) for r in subset],
             [ratio(r[7], r[6]) for r in subset], [ratio(r[4], r[5]) for r in subset],
-            [ratio(r[4], r[7]) for r in subset]]
+            [ratio(r[4], r[7]) for r in subset], [ratio(r[4], r[8]) for r in subset]]
     lines.append("| %s | %d | %s |" % (label, len(subset), " | ".join(
         "%.2f / %.2f" % (statistics.median(c), max(c)) for c in cols)))
 for group in ("tuning", "report-only"):
