@@ -155,8 +155,8 @@ class MotionFit {
     /// publishes), and the rotation is solved again from the final pass with that tau. The
     /// default K = 3 is the chi2 a tau of three degrees of freedom has on average when the
     /// camera does not move: the factor is the share of chi2 above what noise alone gives
-    /// (an empirical-Bayes gain). A driving robot's tau has chi2 in the hundreds and keeps
-    /// all but a percent of its length; a turn in place keeps little or none
+    /// (an empirical-Bayes gain). On the people benchmark's straight drives chi2 is over 150
+    /// and tau keeps at least 98 % of its length; a turn in place keeps little or none
     /// (docs/results/ANALYSIS.md). 0: tau as fitted (the fit before 2026-12-05). [0, 100].
     double translation_shrinkage = 3.0;
 

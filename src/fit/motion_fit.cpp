@@ -129,8 +129,10 @@ struct MotionFit::Impl {
     x.tail<3>() = factor * tau;
     const Eigen::Vector3d omega = N.topLeftCorner<3, 3>().ldlt().solve(
         g.head<3>() - N.topRightCorner<3, 3>() * x.tail<3>());
-    if (omega.allFinite()) x.head<3>() = omega;
-    else x.tail<3>() = tau;
+    if (omega.allFinite())
+      x.head<3>() = omega;
+    else
+      x.tail<3>() = tau;  // the fit as it was
   }
 
   /// Allocates the workspace for `max_windows` windows (arguments already validated).

@@ -401,8 +401,9 @@ TEST(MotionFit, PerWindowDepthConvergesQuicklyOnAPureRotation) {
 // Turning in place, the fitted tau is noise: the shrinkage (Options::translation_shrinkage)
 // takes most of it to 0, exactly, and solves the rotation again without it. Over the whole
 // ring the rotation hardly couples to tau; with a third of the ring left out (people the
-// consensus removed) it does, and the rotation without tau's noise is closer. Driving, tau's chi2 is in the thousands: its length and
-// direction stay within a percent and the rotation is the unshrunk fit's.
+// consensus removed) it does, and the rotation without tau's noise is closer. Driving, tau
+// is far above its noise: its length and direction stay within a percent and the rotation
+// is the unshrunk fit's.
 TEST(MotionFit, TheTranslationShrinksToZeroTurningInPlaceAndStaysDriving) {
   std::mt19937 rng(17);
   MotionFit::Options off_options;
