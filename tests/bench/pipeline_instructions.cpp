@@ -9,7 +9,7 @@
 //                                    [--refine R] [--wisdom FILE] [--save DIR | --load DIR]
 //                                    [--odometry [--readout S [--gyro HZ]] [--keyframe-slots N]]
 //                                    [--no-moving-content] [--no-ring-consensus]
-//                                    [--noise-weighting]
+//                                    [--noise-weighting] [--translation-shrinkage K]
 // --odometry processes the frames with Odometry (what omniposed and omnipose-replay run),
 // stamped at 30 fps, instead of Pipeline (its default keyframes: the first frame stays in
 // reach, so every frame is registered against it as well; --keyframe-slots 0 counts
@@ -20,7 +20,8 @@
 // (PipelineOptions::moving_content), to count what it costs; --no-ring-consensus turns the
 // fit's ring consensus off (MotionFit::Options::ring_consensus), likewise; --noise-weighting
 // turns the registration's signal-to-noise weighting on
-// (WindowRegistration::Options::noise_weighting).
+// (WindowRegistration::Options::noise_weighting); --translation-shrinkage K sets the fit's
+// MotionFit::Options::translation_shrinkage (0: off).
 // --save writes the two rendered frames to DIR/a.png, DIR/b.png; --load reads them instead
 // of rendering (an emulator then spends nothing on the renderer).
 #include <chrono>
@@ -59,6 +60,7 @@ struct Args {
   int threads = 1, frames = 10, warmup = 2, refine = 1;
   int keyframe_slots = omnipose::KeyframeOptions{}.slots;
   double readout = 0.0, gyro_hz = 0.0;
+  double translation_shrinkage = omnipose::MotionFit::Options{}.translation_shrinkage;
   bool odometry = false, no_moving_content = false, no_ring_consensus = false,
        noise_weighting = false;
   std::string wisdom, save, load;
@@ -69,7 +71,7 @@ constexpr const char* kUsage =
     "                                   [--refine R] [--wisdom FILE] [--save DIR | --load DIR]\n"
     "                                   [--odometry [--readout S [--gyro HZ]] [--keyframe-slots N]]\n"
     "                                   [--no-moving-content] [--no-ring-consensus]\n"
-    "                                   [--noise-weighting]";
+    "                                   [--noise-weighting] [--translation-shrinkage K]";
 
 constexpr const char* kDescription =
     "Per-frame instruction counts of the pipeline, for valgrind --tool=callgrind\n"
@@ -118,6 +120,11 @@ void addOptions(CLI::App& app, Args& a) {
   app.add_flag("--noise-weighting", a.noise_weighting,
                "with the registration's signal-to-noise weighting "
                "(WindowRegistration::Options::noise_weighting)");
+  app.add_option("--translation-shrinkage", a.translation_shrinkage,
+                 "the fit's MotionFit::Options::translation_shrinkage (0: off)")
+      ->type_name("K")
+      ->check(CLI::Range(0.0, 100.0))
+      ->capture_default_str();
 }
 
 /// The benchmark's two frames: read from --load, or rendered (3 degrees of roll + yaw apart)
@@ -155,6 +162,7 @@ int run(const Args& a) {
   options.refine_iterations = a.refine;
   options.moving_content = !a.no_moving_content;
   options.fit.ring_consensus = !a.no_ring_consensus;
+  options.fit.translation_shrinkage = a.translation_shrinkage;
   options.registration.noise_weighting = a.noise_weighting;
   options.fftw_wisdom = a.wisdom;
   omnipose::Calibration calibration;
