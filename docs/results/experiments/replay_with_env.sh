@@ -26,30 +26,30 @@ bin=${BUILD_DIR:-$repo/build}/bin
 work=$(mktemp -d "${TMPDIR:-/tmp}/replay_with_env.XXXXXX")
 trap 'rm -rf "$work"' EXIT
 
-# eps_of GROUNDTRUTH TUM: the RMS of the per-pair eps, mrad.
+vars=("$@")
+
+# eps_of GROUNDTRUTH TUM: omnipose-eval's RMS of the per-pair eps, mrad (as
+# tools/people_benchmark.sh reads it).
 eps_of() {
-  "$bin/omnipose-eval" "$1" "$2" --pairs "$work/pairs.csv" > /dev/null
-  python3 -c '
-import csv, math, sys
-e = [float(r["eps"]) for r in csv.DictReader(open(sys.argv[1]))]
-print("%.5f" % (1e3 * math.sqrt(sum(v * v for v in e) / len(e))))' "$work/pairs.csv"
+  "$bin/omnipose-eval" "$1" "$2" --json "$work/eval.json" > /dev/null
+  python3 -c 'import json, sys; print("%.5f" % (1e3 * json.load(open(sys.argv[1]))[0]["eps"]["rmse"]))' \
+    "$work/eval.json"
 }
 
-replay() {  # replay DATASET CONFIG OUTPUT-OPTION TUM [more options]
-  local dataset=$1 config=$2 option=$3 tum=$4
-  shift 4
-  env "$@" "$bin/omnipose-replay" "$dataset" --config "$config" --quiet "$option" "$tum" \
-    "${extra[@]}" > /dev/null 2> "$work/replay.log" ||
+# replay DATASET CONFIG OPTION...: omnipose-replay with the variables set and the output OPTIONs.
+replay() {
+  local dataset=$1 config=$2
+  shift 2
+  env "${vars[@]}" "$bin/omnipose-replay" "$dataset" --config "$config" --quiet "$@" \
+    > /dev/null 2> "$work/replay.log" ||
     { echo "omnipose-replay failed on $dataset, see below" >&2; cat "$work/replay.log" >&2; exit 1; }
 }
 
-vars=("$@")
-extra=()
 case $kind in
   people)
     for d in "$dir"/*/*/; do
       [ -d "$d/dataset" ] || continue
-      replay "$d/dataset" "$dir/default.yaml" --out "$work/est.tum" "${vars[@]}"
+      replay "$d/dataset" "$dir/default.yaml" --out "$work/est.tum"
       rel=${d#"$dir"/}
       printf '%s\t%s\n' "${rel%/}" "$(eps_of "$d/dataset/groundtruth.tum" "$work/est.tum")"
     done > "$work/eps.tsv"
@@ -68,7 +68,7 @@ PY
   pool)
     for d in "$dir"/*/; do
       [ -d "$d/dataset" ] || continue
-      replay "$d/dataset" "$dir/default.yaml" --out-odometry "$work/odo.tum" "${vars[@]}"
+      replay "$d/dataset" "$dir/default.yaml" --out-odometry "$work/odo.tum"
       "$bin/omnipose-eval" --drift "$d/dataset/groundtruth.tum" "$work/odo.tum" |
         awk -v room="$(basename "$d")" '/end-point/{e=$4} /per-pair eps/{p=$4} END{print room "\t" e "\t" p}'
     done
@@ -76,9 +76,7 @@ PY
   loops)
     for d in "$dir"/*/; do
       [ -d "$d/dataset" ] || continue
-      extra=(--relative "$work/rel.csv")
-      replay "$d/dataset" "$dir/replay.yaml" --out-odometry "$work/odo.tum" "${vars[@]}"
-      extra=()
+      replay "$d/dataset" "$dir/replay.yaml" --out-odometry "$work/odo.tum" --relative "$work/rel.csv"
       straights=$(python3 "$repo/tools/drift/segment_errors.py" "$repo/tools/drift/rectangle_5laps.yaml" \
                     "$d/dataset/groundtruth.tum" "$work/rel.csv" |
                   awk '/^segment/ && /translation/{y = $(NF - 1); s += (y < 0 ? -y : y)} END{printf "%.3f", s}')
@@ -89,7 +87,7 @@ PY
   accuracy)
     for d in "$dir"/*/; do
       [ -d "$d/dataset" ] || continue
-      replay "$d/dataset" "$dir/replay.yaml" --out "$work/est.tum" "${vars[@]}"
+      replay "$d/dataset" "$dir/replay.yaml" --out "$work/est.tum"
       printf '%s\t%s\n' "$(basename "$d")" "$(eps_of "$d/dataset/groundtruth.tum" "$work/est.tum")"
     done
     ;;
