@@ -115,8 +115,7 @@ suite=(
 # 0.005 deg/s/sqrt(Hz), bias 0.5 deg/s, its clock 12.3 ms behind the camera's, mounted 40 deg
 # off the camera's axes, its exact calibration in calibration.yaml; the replay reads it (the
 # daemon takes a gyro over LCM or IIO only, so these rows have no daemon run).
-gyro="--gyro-rate 200 --gyro-noise 8.7e-5 --gyro-bias 0.0087 --gyro-time-offset 0.0123"
-gyro+=" --gyro-rotation 0.939692621,0.228013429,-0.228013429,0.114006714"
+gyro="--gyro-rate 200 $bench_gyro_model"
 # omniposed on $dir/dataset (file source, realtime), its poses decoded from its LCM log, its
 # counts, and both runs scored.
 run_daemon() {

@@ -37,6 +37,10 @@
 #   SUPERSAMPLE [2]      renderer anti-aliasing: K x K rays per pixel
 #   SITUATIONS  [all]    situation names separated by spaces (a quick check)
 #   SCENES      [all]    scene names separated by spaces
+#   GYRO        [0]      1: every render carries the robot's gyro (imu.csv and the
+#                        calibration's imu section, 200 Hz, bench_gyro_model; the frames the
+#                        same), so the replays combine it with the images (pipeline.gyro_fusion);
+#                        docs/results/experiments/gyro_fusion_people.sh compares with it off
 # Nothing is sent on the network; everything is seeded (the same build gives the same table).
 # shellcheck source=tools/common/benchmark.sh
 source "$(dirname "$0")/common/benchmark.sh"
@@ -92,6 +96,11 @@ printf 'pipeline:\n  fftw_wisdom: "%s"\n  translation_shrinkage: 0\n' "$out/peop
 seed=301
 common=(--frames "$frames" --seed "$seed" --supersample "$supersample" --noise 3 --jpeg 90
         --readout 0 --quiet)
+case "${GYRO:-0}" in
+  0) ;;
+  1) read -r -a gyro_flags <<< "--gyro-rate 200 $bench_gyro_model"; common+=("${gyro_flags[@]}") ;;
+  *) echo "people_benchmark: GYRO=$GYRO is neither 0 nor 1" >&2; exit 2 ;;
+esac
 # render DIR PHOTO TEXTURE_OPTIONS MOTION [WALKER OPTIONS...]: a dataset in DIR/dataset.
 render() {
   local dir=$1 photo=$2 texture=$3 motion=$4 scene=sphere
@@ -156,9 +165,10 @@ for scene_entry in "${scenes[@]}"; do
 done
 
 elapsed=$(( $(date +%s) - start ))
-python3 - "$rows" "$out/PEOPLE.md" "$command_line" "$version" "$elapsed" "$frames" "$supersample" <<'PY'
+python3 - "$rows" "$out/PEOPLE.md" "$command_line" "$version" "$elapsed" "$frames" "$supersample" \
+  "${GYRO:-0}" <<'PY'
 import statistics, sys, time
-rows_path, report, command, version, elapsed, frames, supersample = sys.argv[1:8]
+rows_path, report, command, version, elapsed, frames, supersample, gyro = sys.argv[1:9]
 rows = [line.rstrip("\n").split("\t") for line in open(rows_path) if line.strip()]
 def ratio(a, b):
     return float(a) / float(b) if float(b) > 0 else float("inf")
@@ -168,13 +178,16 @@ lines = [
         command, time.strftime("%Y-%m-%d %H:%M UTC", time.gmtime()), version,
         int(elapsed) // 60, int(elapsed) % 60), "",
     "%s frames per render, %s x %s rays per pixel, noise sigma 3, JPEG 90, global shutter, the "
-    "default lens (tools/people_benchmark.sh names each situation). eps: the per-pair rotation "
+    "default lens%s (tools/people_benchmark.sh names each situation). eps: the per-pair rotation "
     "error's RMSE, mrad (`omnipose-eval`); default: `omnipose-replay` with the defaults; check "
     "off: `pipeline.moving_content: false` (the pixel check); consensus off: "
     "`pipeline.ring_consensus: false` (the fit's ring consensus); shrinkage off: "
     "`pipeline.translation_shrinkage: 0` (tau as fitted); twin: the same render without the "
     "people, with the defaults (twin, shrinkage off: and with the shrinkage off). The "
-    "report-only scenes are never used to choose a setting." % (frames, supersample, supersample),
+    "report-only scenes are never used to choose a setting." % (
+        frames, supersample, supersample,
+        ", the robot's gyro beside each render (GYRO=1: 200 Hz, bias 0.5 deg/s)" if gyro == "1"
+        else ""),
     "",
     "| scene | group | situation | walker seed | eps default | eps check off "
     "| eps consensus off | eps shrinkage off | eps twin | eps twin, shrinkage off "

@@ -144,10 +144,8 @@ walkers="--walkers 3,0.5,1.8,1.2 --walker-distance 1.2,1.6 --walker-seed 5"
 exposure="--exposure-step 0.25 --exposure-step-every 10 --vignetting 0.3"
 blur="--exposure-time 0.01"
 # The robot's gyro (--gyro-rate HZ adds it to a sequence: imu.csv and the calibration's imu
-# section; the frames stay bit-identical, checked below): white noise 0.005 deg/s/sqrt(Hz),
-# bias 0.5 deg/s, its clock 12.3 ms behind the camera's, mounted 40 deg off the camera's axes.
-gyro_rotation=0.939692621,0.228013429,-0.228013429,0.114006714
-gyro="--gyro-noise 8.7e-5 --gyro-bias 0.0087 --gyro-time-offset 0.0123 --gyro-rotation $gyro_rotation"
+# section; the frames stay bit-identical, checked below): bench_gyro_model.
+gyro=$bench_gyro_model
 # name | motion | seed (motion draws and degradations) | supersample | sensor (noisy: $common,
 # clean: no noise, lossless frames) | effect flags
 sequences=(

@@ -55,6 +55,15 @@ struct PipelineOptions {
   /// clock offset that is off by more than the texture's offset (0.05-0.15 ms) makes it follow
   /// the clock's error instead: `omnipose-calibrate --imu-from` measures the clock without it.
   bool yaw_capture_time = true;
+  /// With the robot's gyro: each pair's motion (and each keyframe registration's) is the
+  /// images' combined with the gyro's rotation over the same interval, each weighed by its
+  /// covariance (the fit's; the gyro's white noise, calibration.yaml `imu.gyro_noise_density`,
+  /// and the uncertainty of its bias as the images track it), the translation corrected
+  /// through its correlation with the rotation (src/pipeline/gyro_fusion.hpp; DESIGN.md
+  /// section 3, "The gyro in each pair"). People walking by bend the images' rotation, not
+  /// the gyro's. The gyro's bias is still read from the images' rotation alone. Without a
+  /// gyro, or where its samples do not cover the pair, it does nothing.
+  bool gyro_fusion = true;
   /// Worker threads for the window registration and the de-rotation, the processing thread
   /// included, created at start-up (1 = everything on the calling thread; 0 = all online
   /// cores; at most WindowRegistration::kMaxThreads). The result is bit-identical for any

@@ -95,6 +95,7 @@ constexpr PipelineKey kPipelineKeys[] = {
     {"pipeline.inlier_sigmas", "fit.inlier_sigmas"},
     {"pipeline.moving_content", "moving_content"},
     {"pipeline.yaw_capture_time", "yaw_capture_time"},
+    {"pipeline.gyro_fusion", "gyro_fusion"},
     {"pipeline.noise_weighting", "registration.noise_weighting"},
     {"pipeline.plane_depth_prior", "fit.plane_depth_prior"},
     {"pipeline.ring_consensus", "fit.ring_consensus"},
@@ -134,6 +135,7 @@ void parsePipeline(Reader& r, const YAML::Node& node, const std::filesystem::pat
   r.get(node, "pipeline", "inlier_sigmas", p.fit.inlier_sigmas);
   r.get(node, "pipeline", "moving_content", p.moving_content);
   r.get(node, "pipeline", "yaw_capture_time", p.yaw_capture_time);
+  r.get(node, "pipeline", "gyro_fusion", p.gyro_fusion);
   r.get(node, "pipeline", "noise_weighting", p.registration.noise_weighting);
   r.get(node, "pipeline", "plane_depth_prior", p.fit.plane_depth_prior);
   r.get(node, "pipeline", "ring_consensus", p.fit.ring_consensus);
@@ -397,6 +399,7 @@ std::string DaemonConfig::describe() const {
     << "\n  inlier_sigmas: " << p.fit.inlier_sigmas
     << "\n  moving_content: " << p.moving_content
     << "\n  yaw_capture_time: " << p.yaw_capture_time
+    << "\n  gyro_fusion: " << p.gyro_fusion
     << "\n  noise_weighting: " << p.registration.noise_weighting
     << "\n  plane_depth_prior: " << p.fit.plane_depth_prior
     << "\n  ring_consensus: " << p.fit.ring_consensus

@@ -14,6 +14,7 @@
 #include "pipeline/capture_time_offset.hpp"
 #include "pipeline/frame_registrar.hpp"
 #include "pipeline/gyro_bias.hpp"
+#include "pipeline/gyro_fusion.hpp"
 #include "pipeline/loop_closure.hpp"
 #include "pipeline/plausibility.hpp"
 #include "pipeline/readout_yaw.hpp"
@@ -170,6 +171,7 @@ struct Odometry::Impl {
   Impl(const Calibration& c, const OdometryOptions& o)
       : gyro_calibration(c.imu),
         measure_yaw_capture_time(o.pipeline.yaw_capture_time),
+        fuse_gyro(o.pipeline.gyro_fusion),
         keyframe_options(o.keyframes),
         plausibility_options(o.plausibility),
         registrar(std::in_place, c, o.pipeline,
@@ -330,14 +332,35 @@ struct Odometry::Impl {
                                          key != nullptr ? &key->heading : nullptr);
   }
   /// Fills `out` for the current frame at pose `T` with the estimate `pass`.
+  /// `images`: the pair's rotation as the images alone measured it, for the gyro's bias (the
+  /// rotation of T from the last frame's pose when null).
   void finish(OdometryResult& out, const Eigen::Isometry3d& T, const pipeline::PassResult& pass,
-              TrackState state);
+              TrackState state, const Eigen::Matrix3d* images = nullptr);
 
   std::optional<ImuCalibration> gyro_calibration;  ///< the calibration's imu section
   imu::GyroBuffer gyro{kGyroSamplesKept};
   pipeline::GyroBias gyro_bias;
   /// PipelineOptions::yaw_capture_time: capture_offset measured and used.
   bool measure_yaw_capture_time = false;
+  /// PipelineOptions::gyro_fusion.
+  bool fuse_gyro = false;
+  /// The variance per axis of the gyro's rotation from `reference_time` to the current frame,
+  /// rad^2 (infinity without a gyro or before its bias is known).
+  double gyroVariance(double reference_time) const {
+    if (!gyro_calibration) return std::numeric_limits<double>::infinity();
+    return pipeline::gyroRotationVariance(
+        gyro_calibration->gyro_noise_density.value_or(pipeline::kPhoneGyroNoiseDensity),
+        gyro_bias.sigma(), time - reference_time);
+  }
+  /// With PipelineOptions::gyro_fusion: `R` (the images' rotation from `reference_time` to
+  /// the current frame) and `estimate` combined with the gyro's rotation over the same
+  /// interval (gyro_fusion.hpp); unchanged without a gyro, before its bias has settled
+  /// (GyroBias::settled()) or where its samples do not tell.
+  void fuseGyro(double reference_time, Eigen::Matrix3d& R, MotionEstimate& estimate) const {
+    if (!fuse_gyro || !gyro_bias.settled()) return;
+    if (const std::optional<Eigen::Matrix3d> G = gyroRotation(reference_time))
+      pipeline::fuseGyroRotation(R, estimate, *G, gyroVariance(reference_time));
+  }
   pipeline::CaptureTimeOffset capture_offset;
   /// The gyro's yaw rate at the last good frame's timestamp (yawRateNow() then).
   double last_yaw_rate = std::numeric_limits<double>::quiet_NaN();
@@ -432,10 +455,12 @@ void Odometry::Impl::addKeyframe(const Eigen::Isometry3d& at) {
 }
 
 void Odometry::Impl::finish(OdometryResult& out, const Eigen::Isometry3d& T_estimated,
-                            const pipeline::PassResult& pass, TrackState state) {
+                            const pipeline::PassResult& pass, TrackState state,
+                            const Eigen::Matrix3d* images) {
   const Eigen::Isometry3d T = orthonormalized(T_estimated);
   if (gyro_calibration && state == TrackState::kTracked && pass.estimate.status == FitStatus::kOk)
-    updateFromGyro(pose.linear().transpose() * T.linear(), pass.gyro_rows);
+    updateFromGyro(images != nullptr ? *images : pose.linear().transpose() * T.linear(),
+                   pass.gyro_rows);
   out.state = state;
   const FrameMotion keep_timing = out.relative;
   out.relative.estimate = pass.estimate;
@@ -502,7 +527,8 @@ bool Odometry::Impl::gyroBridge(OdometryResult& out) {
   // The rotation's variance: the gyro's white noise and the bias's uncertainty over the gap
   // (a phone-class gyro's noise when the calibration does not give it).
   const double dt = time - last_time;
-  const double density = gyro_calibration->gyro_noise_density.value_or(8.7e-5);
+  const double density =
+      gyro_calibration->gyro_noise_density.value_or(pipeline::kPhoneGyroNoiseDensity);
   const double bias_sigma = std::min(gyro_bias.sigma(), 0.02);
   pipeline::PassResult pass;
   pass.rotation = *G;
@@ -511,7 +537,7 @@ bool Odometry::Impl::gyroBridge(OdometryResult& out) {
   pass.estimate.status = FitStatus::kDegraded;
   pass.estimate.covariance.setZero();
   pass.estimate.covariance.topLeftCorner<3, 3>().diagonal().setConstant(
-      density * density * std::abs(dt) + bias_sigma * bias_sigma * dt * dt);
+      pipeline::gyroRotationVariance(density, bias_sigma, dt));
   pass.estimate.covariance.bottomRightCorner<3, 3>().diagonal().setConstant(
       std::numeric_limits<double>::infinity());
   registrar->makeCurrentPrevious();
@@ -653,7 +679,11 @@ Expected<OdometryResult> Odometry::Impl::process(const cv::Mat& frame, const Fra
       r.refine(*first, R1, first->tau, WindowRegistration::kPreviousFrame);
   if (Expected<void> ok = gate->checkConfidence(pass.windows, pass.estimate.status); !ok)
     return notBelieved(ok.error());
-  Eigen::Isometry3d T = pose * isometry(atTimestamps(pass, last_time), pass.estimate.tau);
+  const Eigen::Matrix3d images = atTimestamps(pass, last_time);
+  pipeline::PassResult fused = pass;
+  Eigen::Matrix3d R = images;
+  fuseGyro(last_time, R, fused.estimate);
+  Eigen::Isometry3d T = pose * isometry(R, fused.estimate.tau);
   // The pose, anchored to the keyframe in reach; with none (or one that no longer registers)
   // the frame becomes a keyframe.
   const int slot = chooseKeyframe(T);
@@ -671,7 +701,7 @@ Expected<OdometryResult> Odometry::Impl::process(const cv::Mat& frame, const Fra
                                         : last_sequence;
   if (keep_keyframe) useKeyframe(slot);
   r.advance();
-  finish(out, T, pass, TrackState::kTracked);
+  finish(out, T, fused, TrackState::kTracked, &images);
   believe(out);
   // Before addKeyframe(), which takes the current panorama.
   placeOnMap(out, pass.refined && velocity_interval > 0.0);
@@ -698,7 +728,9 @@ bool Odometry::Impl::anchorToKeyframe(int slot, const MotionEstimate& first,
     R = pass.gyro_rows ? std::optional(pass.rotation)
                        : readout_yaw.againstAnchor(pass.rotation, key.heading);
   if (!R) return false;
-  const Eigen::Isometry3d d = T.inverse() * (key.pose * isometry(*R, pass.estimate.tau));
+  MotionEstimate from_keyframe = pass.estimate;
+  fuseGyro(key.time_s, *R, from_keyframe);
+  const Eigen::Isometry3d d = T.inverse() * (key.pose * isometry(*R, from_keyframe.tau));
   const Eigen::Vector3d correction = rotationVector(d.linear());
   if (correction.norm() > kMaxAnchorCorrection) return false;
   const double gain = keyframe_options.anchor_gain;

@@ -135,6 +135,11 @@ TEST(DaemonConfig, YawCaptureTime) {
       "gyro");
 }
 
+TEST(DaemonConfig, GyroFusion) {
+  expectBooleanPipelineKey(
+      "gyro_fusion", true, [](const DaemonConfig& c) { return c.pipeline.gyro_fusion; }, "always");
+}
+
 TEST(DaemonConfig, NoiseWeighting) {
   expectBooleanPipelineKey(
       "noise_weighting", false,

@@ -75,6 +75,9 @@ Errors run(const std::vector<cv::Mat>& frames, const std::vector<StampedPose>& t
   if (gyro != nullptr) calibration.imu = gyro->calibration;
   OdometryOptions options;
   options.keyframes.slots = keyframe_slots;
+  // What the images read with the gyro's rows: the pair's rotation not combined with the
+  // gyro's (gyro_fusion_test.cpp checks that).
+  options.pipeline.gyro_fusion = false;
   Odometry odometry(calibration, options);
   Errors e;
   int pairs = 0;
