@@ -345,12 +345,15 @@ struct Odometry::Impl {
   /// PipelineOptions::gyro_fusion.
   bool fuse_gyro = false;
   /// The variance per axis of the gyro's rotation from `reference_time` to the current frame,
-  /// rad^2 (infinity without a gyro or before its bias is known).
-  double gyroVariance(double reference_time) const {
+  /// rad^2: its white noise (a phone-class gyro's when the calibration does not give it) and
+  /// the bias's uncertainty, at most `max_bias_sigma` rad/s, over the interval (infinity
+  /// without a gyro or before its bias is known).
+  double gyroVariance(double reference_time,
+                      double max_bias_sigma = std::numeric_limits<double>::infinity()) const {
     if (!gyro_calibration) return std::numeric_limits<double>::infinity();
     return pipeline::gyroRotationVariance(
         gyro_calibration->gyro_noise_density.value_or(pipeline::kPhoneGyroNoiseDensity),
-        gyro_bias.sigma(), time - reference_time);
+        std::min(gyro_bias.sigma(), max_bias_sigma), time - reference_time);
   }
   /// With PipelineOptions::gyro_fusion: `R` (the images' rotation from `reference_time` to
   /// the current frame) and `estimate` combined with the gyro's rotation over the same
@@ -524,20 +527,15 @@ Expected<bool> Odometry::Impl::bridge(OdometryResult& out) {
 bool Odometry::Impl::gyroBridge(OdometryResult& out) {
   const std::optional<Eigen::Matrix3d> G = gyroRotation(last_time);
   if (!G) return false;
-  // The rotation's variance: the gyro's white noise and the bias's uncertainty over the gap
-  // (a phone-class gyro's noise when the calibration does not give it).
-  const double dt = time - last_time;
-  const double density =
-      gyro_calibration->gyro_noise_density.value_or(pipeline::kPhoneGyroNoiseDensity);
-  const double bias_sigma = std::min(gyro_bias.sigma(), 0.02);
   pipeline::PassResult pass;
   pass.rotation = *G;
   pass.estimate.omega = rotationVector(*G);
   pass.estimate.tau.setZero();
   pass.estimate.status = FitStatus::kDegraded;
   pass.estimate.covariance.setZero();
+  // The rotation's variance over the gap, the bias's uncertainty taken as at most 0.02 rad/s.
   pass.estimate.covariance.topLeftCorner<3, 3>().diagonal().setConstant(
-      pipeline::gyroRotationVariance(density, bias_sigma, dt));
+      gyroVariance(last_time, 0.02));
   pass.estimate.covariance.bottomRightCorner<3, 3>().diagonal().setConstant(
       std::numeric_limits<double>::infinity());
   registrar->makeCurrentPrevious();
