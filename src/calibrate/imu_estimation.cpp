@@ -35,12 +35,15 @@ struct ImagePair {
 /// with each row's rotation within its frame from the gyro, frame k exposed for exposures[k]
 /// (empty: the calibration's exposure). The windows' yaw is read at the model's capture times
 /// (PipelineOptions::yaw_capture_time off): measured against the gyro at the clock offset
-/// being searched, the pairs' yaw would follow that offset's error.
+/// being searched, the pairs' yaw would follow that offset's error. Nor is the pairs' rotation
+/// combined with the gyro's (PipelineOptions::gyro_fusion off): it would carry the mounting
+/// and clock being measured into the measurement.
 std::vector<ImagePair> imagePairs(const Calibration& calibration, std::span<const cv::Mat> frames,
                                   std::span<const double> times, OdometryOptions options,
                                   std::span<const GyroSample> gyro = {},
                                   std::span<const double> exposures = {}) {
   options.pipeline.yaw_capture_time = false;
+  options.pipeline.gyro_fusion = false;
   Odometry odometry(calibration, options);
   std::vector<ImagePair> pairs;
   std::size_t next = 0;

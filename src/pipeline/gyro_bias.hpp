@@ -8,12 +8,22 @@
 /// is a degree of heading. Each pair the images measured well (kOk, against the previous
 /// frame) gives one reading of it: with the samples integrated after removing the estimate
 /// b, the gyro's rotation G and the images' R differ by exp(-C (beta - b) dt) (C the camera
-/// from IMU rotation), so beta - b = -C^T log(G^T R) / dt. The estimate is the per-axis
-/// median of the first kWarmUp readings, then an exponential average over kTimeConstantS
-/// seconds of pairs (the bias drifts). A pair whose images a person walking by turned gives
-/// a reading tens of times the images' noise: the median leaves such readings out of the
-/// start, and after it a reading further from the estimate than kGateSigmas of the readings'
-/// scatter (at least kMinGateRadS) is not used. A reading beyond kMaxBiasRadS is no bias.
+/// from IMU rotation), so beta - b = -C^T log(G^T R) / dt, with the variance per IMU axis
+/// diag(C^T S C) / dt^2 plus the gyro's white noise over the pair (S the images' rotation
+/// covariance). Each reading weighs the inverse of that variance: a pair whose images a
+/// person walking by turned is also one the fit is less sure of (several times the variance),
+/// and weighs less.
+///
+/// The estimate starts as the per-axis weighted median of the first kWarmUp readings (robust
+/// to a minority of readings whose variance does not show the person; its variance from the
+/// readings' mean square about it, so that a majority bent the same way is not taken as
+/// certain, with Student's t for few readings), then follows a Kalman
+/// filter of a bias that walks by kBiasRandomWalk. After the warm-up a reading further from
+/// the estimate, on any axis, than kGateSigmas sigmas of a usual reading (the readings' mean
+/// inverse variance; a reading that states a larger variance gets no wider gate) is not used:
+/// people bend many pairs in a row the same way, which a weight alone would let through.
+/// Every sigma is scaled by how far the readings scatter about the estimate against their
+/// stated variances (never below what they state). A reading beyond kMaxBiasRadS is no bias.
 ///
 /// Realtime: no allocation, never throws.
 
@@ -23,42 +33,62 @@
 
 namespace omnipose::pipeline {
 
+/// One pair's reading of the bias: the images' rotation and the gyro's over the same pair.
+struct GyroBiasReading {
+  Eigen::Matrix3d images = Eigen::Matrix3d::Identity();  ///< from the reference frame on
+  /// Covariance of the images' rotation (right perturbation, camera axes), rad^2; when not
+  /// positive and finite, kUnknownImagesSigma per axis.
+  Eigen::Matrix3d images_covariance = Eigen::Matrix3d::Zero();
+  Eigen::Matrix3d gyro = Eigen::Matrix3d::Identity();  ///< integrated with bias() removed
+  double gyro_variance = 0.0;  ///< of the gyro's rotation from its white noise, rad^2 per axis
+  double dt = 0.0;             ///< seconds of the pair
+};
+
 class GyroBias {
  public:
-  static constexpr int kWarmUp = 30;              ///< readings whose median starts it
-  static constexpr double kTimeConstantS = 5.0;   ///< the EMA's, seconds of pairs
+  static constexpr int kWarmUp = 30;  ///< readings whose weighted median starts it
+  /// Readings before the estimate is used (settled()).
+  static constexpr int kSettleReadings = 10;
+  /// How fast the bias may wander, rad/s/sqrt(s) (a MEMS gyro's with temperature, 0.006
+  /// deg/s/sqrt(s)): with a phone at 30 fps the filter remembers about 5 s of pairs.
+  static constexpr double kBiasRandomWalk = 1e-4;
   /// A reading further than this from zero is no MEMS gyro's bias (30 deg/s), rad/s.
   static constexpr double kMaxBiasRadS = 0.5;
-  /// After the warm-up, a reading further from the estimate than kGateSigmas times the
-  /// readings' scatter (rms per axis, times sqrt(3)), and never less than kMinGateRadS
-  /// (0.17 deg/s), is not used.
+  /// After the warm-up, a reading whose distance from the estimate exceeds kGateSigmas
+  /// sigmas of a usual reading on any axis is not used.
   static constexpr double kGateSigmas = 4.0;
-  static constexpr double kMinGateRadS = 0.003;
+  /// The images' rotation sigma per axis assumed where a pair gives no covariance (rad).
+  static constexpr double kUnknownImagesSigma = 1e-4;
 
-  /// One pair: the images' rotation `images` and the gyro's `gyro` (integrated with bias()
-  /// removed) from the reference frame to the current one over `dt` seconds; `camera_from_imu`
-  /// the calibration's rotation. False when not used (dt not positive, an outlier).
-  bool update(const Eigen::Matrix3d& images, const Eigen::Matrix3d& gyro, double dt,
-              const Eigen::Matrix3d& camera_from_imu);
+  /// One pair's reading. False when not used (dt not positive, an outlier, beyond
+  /// kMaxBiasRadS).
+  bool update(const GyroBiasReading& reading, const Eigen::Matrix3d& camera_from_imu);
   /// The estimate, rad/s about the IMU's axes (zero before any reading).
   const Eigen::Vector3d& bias() const { return bias_; }
   /// Readings used so far.
   std::int64_t readings() const { return readings_; }
-  /// Whether the warm-up's median has been taken (kWarmUp readings): before, a few pairs that
-  /// people bent can still move the estimate far.
-  bool settled() const { return readings_ >= kWarmUp; }
-  /// One standard deviation of the estimate, rad/s (about each axis): the readings' scatter
-  /// over the readings averaged; infinity before two readings.
+  /// Whether the estimate may be used to correct the gyro's rotations (kSettleReadings
+  /// readings): its sigma() tells how far.
+  bool settled() const { return readings_ >= kSettleReadings; }
+  /// One standard deviation of the estimate, rad/s (the RMS over the axes); infinity before
+  /// kSettleReadings readings.
   double sigma() const;
 
  private:
-  /// The median and the scatter (from the median absolute deviation) of first_[0, readings_).
+  /// The weighted median and its variance from first_ and first_weight_ [0, readings_).
   void startFromFirst();
+  /// The readings' scatter against their stated variances, never below 1.
+  double scale() const;
 
   Eigen::Vector3d bias_ = Eigen::Vector3d::Zero();
-  double scatter_ = 0.0;  ///< mean squared deviation of the readings from the estimate, per axis
+  Eigen::Vector3d variance_ = Eigen::Vector3d::Zero();  ///< of the estimate per axis, rad^2/s^2
+  /// Mean squared normalized residual of the readings (1: as their variances state).
+  double scatter_ = 1.0;
+  /// The readings' mean inverse variance per axis: 1 / it is the variance of a usual pair.
+  Eigen::Vector3d typical_weight_ = Eigen::Vector3d::Zero();
   std::int64_t readings_ = 0;
-  std::array<Eigen::Vector3d, kWarmUp> first_{};  ///< the warm-up's readings (absolute)
+  std::array<Eigen::Vector3d, kWarmUp> first_{};         ///< the warm-up's readings (absolute)
+  std::array<Eigen::Vector3d, kWarmUp> first_weight_{};  ///< their inverse variances
 };
 
 }  // namespace omnipose::pipeline

@@ -257,19 +257,23 @@ struct Odometry::Impl {
     return integrateGyro(gyro.samples(), *gyro_calibration, gyro_bias.bias(), reference_time,
                          time, gyroMaxGap());
   }
-  /// The images' rotation `images` from the last good frame to the current one, a reading
-  /// of the gyro's bias and, when the pass took the rows' turns from the gyro (`gyro_rows`),
-  /// of the time the windows' yaw was captured at (CaptureTimeOffset; the next frames' passes
-  /// read it there).
-  void updateFromGyro(const Eigen::Matrix3d& images, bool gyro_rows) {
+  /// The images' rotation from the last good frame to the current one (`images`, with the
+  /// covariance `images_covariance`), a reading of the gyro's bias and, when the pass took
+  /// the rows' turns from the gyro (`gyro_rows`), of the time the windows' yaw was captured
+  /// at (CaptureTimeOffset; the next frames' passes read it there).
+  void updateFromGyro(const Eigen::Matrix3d& images, const Eigen::Matrix3d& images_covariance,
+                      bool gyro_rows) {
     const std::optional<Eigen::Matrix3d> G = gyroRotation(last_time);
     if (!G) return;
     if (gyro_rows && measure_yaw_capture_time &&
         capture_offset.update(rotationVector(G->transpose() * images).z(),
                               yawRateNow() - last_yaw_rate, capture_offset.offset()))
       registrar->setYawTimeOffset(capture_offset.offset());
-    if (gyro_bias.update(images, *G, time - last_time,
-                         gyro_calibration->rotation.normalized().toRotationMatrix()))
+    const double dt = time - last_time;
+    const pipeline::GyroBiasReading reading{
+        images, images_covariance, *G,
+        pipeline::gyroRotationVariance(gyroNoiseDensity(), 0.0, dt), dt};
+    if (gyro_bias.update(reading, gyro_calibration->rotation.normalized().toRotationMatrix()))
       ++gyro_counters.bias_readings;
   }
   /// The gyro's yaw rate at the current frame's timestamp (rad/s, camera axes), NaN where
@@ -331,11 +335,17 @@ struct Odometry::Impl {
     return readout_yaw.betweenTimestamps(pass.rotation, reference_time, time,
                                          key != nullptr ? &key->heading : nullptr);
   }
+  /// A pair's rotation as the images alone measured it, and its covariance (rad^2, right
+  /// perturbation, camera axes).
+  struct PairRotation {
+    Eigen::Matrix3d rotation;
+    Eigen::Matrix3d covariance;
+  };
   /// Fills `out` for the current frame at pose `T` with the estimate `pass`.
   /// `images`: the pair's rotation as the images alone measured it, for the gyro's bias (the
-  /// rotation of T from the last frame's pose when null).
+  /// rotation of T from the last frame's pose and the covariance of `pass` when null).
   void finish(OdometryResult& out, const Eigen::Isometry3d& T, const pipeline::PassResult& pass,
-              TrackState state, const Eigen::Matrix3d* images = nullptr);
+              TrackState state, const PairRotation* images = nullptr);
 
   std::optional<ImuCalibration> gyro_calibration;  ///< the calibration's imu section
   imu::GyroBuffer gyro{kGyroSamplesKept};
@@ -352,8 +362,13 @@ struct Odometry::Impl {
                       double max_bias_sigma = std::numeric_limits<double>::infinity()) const {
     if (!gyro_calibration) return std::numeric_limits<double>::infinity();
     return pipeline::gyroRotationVariance(
-        gyro_calibration->gyro_noise_density.value_or(pipeline::kPhoneGyroNoiseDensity),
-        std::min(gyro_bias.sigma(), max_bias_sigma), time - reference_time);
+        gyroNoiseDensity(), std::min(gyro_bias.sigma(), max_bias_sigma), time - reference_time);
+  }
+  /// The gyro's white noise, rad/s/sqrt(Hz): the calibration's, or a phone-class gyro's.
+  double gyroNoiseDensity() const {
+    return gyro_calibration && gyro_calibration->gyro_noise_density
+               ? *gyro_calibration->gyro_noise_density
+               : pipeline::kPhoneGyroNoiseDensity;
   }
   /// With PipelineOptions::gyro_fusion: `R` (the images' rotation from `reference_time` to
   /// the current frame) and `estimate` combined with the gyro's rotation over the same
@@ -459,11 +474,14 @@ void Odometry::Impl::addKeyframe(const Eigen::Isometry3d& at) {
 
 void Odometry::Impl::finish(OdometryResult& out, const Eigen::Isometry3d& T_estimated,
                             const pipeline::PassResult& pass, TrackState state,
-                            const Eigen::Matrix3d* images) {
+                            const PairRotation* images) {
   const Eigen::Isometry3d T = orthonormalized(T_estimated);
   if (gyro_calibration && state == TrackState::kTracked && pass.estimate.status == FitStatus::kOk)
-    updateFromGyro(images != nullptr ? *images : pose.linear().transpose() * T.linear(),
-                   pass.gyro_rows);
+    updateFromGyro(
+        images != nullptr ? images->rotation : pose.linear().transpose() * T.linear(),
+        images != nullptr ? images->covariance
+                          : Eigen::Matrix3d(pass.estimate.covariance.topLeftCorner<3, 3>()),
+        pass.gyro_rows);
   out.state = state;
   const FrameMotion keep_timing = out.relative;
   out.relative.estimate = pass.estimate;
@@ -699,7 +717,8 @@ Expected<OdometryResult> Odometry::Impl::process(const cv::Mat& frame, const Fra
                                         : last_sequence;
   if (keep_keyframe) useKeyframe(slot);
   r.advance();
-  finish(out, T, fused, TrackState::kTracked, &images);
+  const PairRotation images_alone{images, pass.estimate.covariance.topLeftCorner<3, 3>()};
+  finish(out, T, fused, TrackState::kTracked, &images_alone);
   believe(out);
   // Before addKeyframe(), which takes the current panorama.
   placeOnMap(out, pass.refined && velocity_interval > 0.0);

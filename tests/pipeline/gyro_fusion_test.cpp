@@ -107,10 +107,13 @@ TEST(GyroBias, PairsThatPeopleBentDoNotMoveIt) {
   constexpr double kDt = 1.0 / 30.0;
   std::mt19937 rng(3);
   std::normal_distribution<double> noise(0.0, 0.002);  // 0.07 mrad a pair
+  const Eigen::Matrix3d kPairCovariance = Eigen::Matrix3d::Identity() * std::pow(0.002 * kDt, 2);
   pipeline::GyroBias bias;
   const auto give = [&](const Eigen::Vector3d& reading) {
     const Eigen::Vector3d error = reading - bias.bias();
-    return bias.update(rotationFromVector(-error * kDt), Eigen::Matrix3d::Identity(), kDt,
+    return bias.update({.images = rotationFromVector(-error * kDt),
+                        .images_covariance = kPairCovariance,
+                        .dt = kDt},
                        Eigen::Matrix3d::Identity());
   };
   const auto clean = [&] {
@@ -120,23 +123,67 @@ TEST(GyroBias, PairsThatPeopleBentDoNotMoveIt) {
   const Eigen::Vector3d bent(0.0, 0.0, -0.025);  // a person turned the images' yaw 0.8 mrad
   // The warm-up: 30 readings, 9 of them bent.
   for (int k = 0; k < pipeline::GyroBias::kWarmUp; ++k) {
-    EXPECT_FALSE(bias.settled());
+    EXPECT_EQ(bias.settled(), k >= pipeline::GyroBias::kSettleReadings);
     EXPECT_TRUE(give(k % 3 == 1 && k < 27 ? Eigen::Vector3d(clean() + bent) : clean()));
   }
   EXPECT_TRUE(bias.settled());
+  testing::recordFigure("warm_up_error_rad_s", (bias.bias() - truth).norm(), 6);
   EXPECT_LT((bias.bias() - truth).norm(), 2e-3) << bias.bias().transpose();  // the mean: 7.5e-3
   // Then 150 pairs (5 s), 30 of them bent: those are not used.
   int refused = 0;
   for (int k = 0; k < 150; ++k)
     refused += !give(k % 5 == 0 ? Eigen::Vector3d(clean() + bent) : clean());
   EXPECT_EQ(refused, 30);
+  testing::recordFigure("error_rad_s", (bias.bias() - truth).norm(), 6);
+  testing::recordFigure("sigma_rad_s", bias.sigma(), 6);
   EXPECT_LT((bias.bias() - truth).norm(), 1e-3) << bias.bias().transpose();
   EXPECT_LT(bias.sigma(), 5e-4);
   // A reading no MEMS gyro gives is never used, even in the warm-up.
   pipeline::GyroBias fresh;
-  EXPECT_FALSE(fresh.update(rotationFromVector(Eigen::Vector3d(0.0, 0.0, -0.03)),
-                            Eigen::Matrix3d::Identity(), kDt, Eigen::Matrix3d::Identity()));
+  EXPECT_FALSE(fresh.update({.images = rotationFromVector(Eigen::Vector3d(0.0, 0.0, -0.03)),
+                             .images_covariance = kPairCovariance,
+                             .dt = kDt},
+                            Eigen::Matrix3d::Identity()));
   EXPECT_EQ(fresh.readings(), 0);
+}
+
+// Pairs a person bent are also pairs the fit is less sure of: readings weigh the inverse of
+// the variance they state, so bent readings that are most of the first ones do not take the
+// start, and a run of them after it, each stating a wider sigma, gets no wider gate for it.
+TEST(GyroBias, ReadingsThatStateALargerVarianceWeighLess) {
+  const Eigen::Vector3d truth(-0.005, 0.002, 0.006);  // rad/s
+  constexpr double kDt = 1.0 / 30.0;
+  constexpr double kSigma = 0.002;  // rad/s per axis, a clean pair's (0.07 mrad)
+  std::mt19937 rng(11);
+  std::normal_distribution<double> noise(0.0, kSigma);
+  const Eigen::Vector3d bent(0.0, 0.002, 0.02);  // a person turned the images' yaw 0.7 mrad
+  pipeline::GyroBias bias;
+  const auto give = [&](bool is_bent) {
+    const double stated = is_bent ? 4.0 * kSigma : kSigma;
+    Eigen::Vector3d reading = truth + Eigen::Vector3d(noise(rng), noise(rng), noise(rng));
+    if (is_bent) reading += bent;
+    const Eigen::Vector3d error = reading - bias.bias();
+    const double variance = std::pow(stated * kDt, 2);
+    return bias.update({.images = rotationFromVector(-error * kDt),
+                        .images_covariance = Eigen::Matrix3d::Identity() * variance,
+                        .dt = kDt},
+                       Eigen::Matrix3d::Identity());
+  };
+  // The first ten: seven bent (the person came at once), three clean.
+  for (int k = 0; k < pipeline::GyroBias::kSettleReadings; ++k) EXPECT_TRUE(give(k < 7));
+  ASSERT_TRUE(bias.settled());
+  const double start_error = (bias.bias() - truth).norm();
+  testing::recordFigure("start_error_rad_s", start_error, 6);
+  EXPECT_LT(start_error, 3.0 * kSigma) << bias.bias().transpose();  // the plain median: 0.02 off
+  EXPECT_LT(start_error, 3.0 * bias.sigma());
+  // The warm-up's clean rest, then a second of bent pairs in a row: refused.
+  for (int k = pipeline::GyroBias::kSettleReadings; k < pipeline::GyroBias::kWarmUp; ++k)
+    EXPECT_TRUE(give(false));
+  int refused = 0;
+  for (int k = 0; k < 30; ++k) refused += !give(true);
+  testing::recordFigure("bent_refused", refused, 0);
+  EXPECT_GE(refused, 28);
+  EXPECT_LT((bias.bias() - truth).norm(), 1.5e-3) << bias.bias().transpose();
 }
 
 constexpr auto kSpline = synth::Interpolation::kSpline;
