@@ -13,7 +13,8 @@
 #                    frame mid-turn, ten corrupt in a row, a 2 s outage (60 frames missing),
 #                    each alone and all three together
 #   swing + gyro     the swing with the robot's gyro (imu.csv, 200 Hz) beside the same frames,
-#                    and its outage: replayed only (omniposed takes a gyro over LCM or IIO)
+#                    and its outage; the rectangle with the gyro: replayed only (omniposed
+#                    takes a gyro over LCM or IIO)
 # Every sequence ends with the attitude it began with. Each is replayed by omnipose-replay
 # (its TUM output of the odometry's pose, --out-odometry: what the controller integrates,
 # never corrected by a loop closure; tools/loop_benchmark.sh measures the map pose) and by
@@ -110,6 +111,7 @@ suite=(
   "swing_faults|swing, all three faults|copy:swing|--corrupt 37 --corrupt 110-119 --remove 150-209"
   "swing_gyro|swing, 200 Hz gyro (replay)|render:swing:sphere:gyro|"
   "swing_outage_gyro|swing, 2 s outage, 200 Hz gyro (replay)|copy:swing_gyro|--remove 150-209"
+  "loop_gyro|rectangle, 200 Hz gyro (replay)|render:rectangle:box:gyro|"
 )
 # The robot's gyro (render:...:gyro): imu.csv at 200 Hz beside the same frames, white noise
 # 0.005 deg/s/sqrt(Hz), bias 0.5 deg/s, its clock 12.3 ms behind the camera's, mounted 40 deg
@@ -175,8 +177,12 @@ for entry in "${suite[@]}"; do
     echo "   $name: omnipose-replay failed, see $dir/replay.log" >&2; tail -5 "$dir/replay.log" >&2; exit 1; }
 
   if [ -f "$dir/dataset/imu.csv" ]; then
-    [ "$name" = swing_gyro ] && { diff -rq "$out/swing/dataset/frames" "$dir/dataset/frames" > /dev/null ||
-      { echo "   $name: its frames differ from the swing's: the gyro changed the render" >&2; exit 1; }; }
+    # A render with the gyro has its twin's frames, bit for bit (swing_gyro: swing's).
+    if [[ $source == render:*:gyro ]]; then
+      twin=${name%_gyro}
+      diff -rq "$out/$twin/dataset/frames" "$dir/dataset/frames" > /dev/null ||
+        { echo "   $name: its frames differ from $twin's: the gyro changed the render" >&2; exit 1; }
+    fi
     "$bin/omnipose-eval" --drift "$dir/dataset/groundtruth.tum" "$dir/replay.tum" \
       --json "$dir/drift.json" > "$dir/drift.txt"
   else
@@ -270,7 +276,8 @@ PY
   echo "The gyro rows: the swing rendered again with the robot's gyro in imu.csv beside the same"
   echo "frames (checked bit for bit; 200 Hz, white noise 0.005 deg/s/sqrt(Hz), bias 0.5 deg/s, its"
   echo "clock 12.3 ms behind the camera's, mounted 40 deg off, the exact calibration in"
-  echo "calibration.yaml), and its outage; replayed only (omniposed takes a gyro over LCM or IIO)."
+  echo "calibration.yaml), and its outage; the rectangle the same way; replayed only (omniposed"
+  echo "takes a gyro over LCM or IIO)."
   echo
   echo "Runs: \`omnipose-replay\` (its TUM output) and \`omniposed\` (file source, \`realtime: true\`,"
   echo "publishing to an LCM \`file://\` log, decoded with \`omnipose-listen --tum\`) on the same"
