@@ -32,23 +32,64 @@ Eigen::Vector3d readingVariance(const GyroBiasReading& r, const Eigen::Matrix3d&
 bool GyroBias::update(const GyroBiasReading& reading, const Eigen::Matrix3d& camera_from_imu) {
   const double dt = reading.dt;
   if (!(dt > 0.0)) return false;
-  // The error of the estimate this pair shows, IMU axes.
-  const Eigen::Vector3d error =
-      -(camera_from_imu.transpose() * rotationVector(reading.gyro.transpose() * reading.images)) /
-      dt;
-  if (!error.allFinite() || !((bias_ + error).norm() <= kMaxBiasRadS)) return false;
+  // The bias this pair shows, IMU axes (the gyro was integrated with bias() removed).
+  const Eigen::Vector3d value =
+      bias_ -
+      (camera_from_imu.transpose() * rotationVector(reading.gyro.transpose() * reading.images)) /
+          dt;
+  if (!value.allFinite() || !(value.norm() <= kMaxBiasRadS)) return false;
   const Eigen::Vector3d variance = readingVariance(reading, camera_from_imu);
+  if (!variance.allFinite() || !(variance.minCoeff() > 0.0)) return false;
+  // A bias that walks, in both estimates alike (one may go long without a reading).
+  still_.walk(dt);
+  moving_.walk(dt);
+  Filter& filter = reading.translating ? moving_ : still_;
+  if (!filter.update(value, variance, dt)) {
+    combine(camera_from_imu);
+    return false;
+  }
+  combine(camera_from_imu);
+  return true;
+}
+
+void GyroBias::combine(const Eigen::Matrix3d& camera_from_imu) {
+  // The moving pairs' estimate, off by up to kDrivingYawSigma about the camera's vertical.
+  const Eigen::Vector3d vertical = camera_from_imu.transpose() * Eigen::Vector3d::UnitZ();
+  const Eigen::Vector3d moving_variance =
+      moving_.variance().array() +
+      kDrivingYawSigma * kDrivingYawSigma * vertical.array().square();
+  if (!still_.settled() && !moving_.settled()) {
+    const Filter& more = still_.readings() >= moving_.readings() ? still_ : moving_;
+    bias_ = more.estimate();
+    variance_ = &more == &moving_ ? moving_variance : more.variance();
+    return;
+  }
+  if (!still_.settled() || !moving_.settled()) {
+    const bool still = still_.settled();
+    bias_ = still ? still_.estimate() : moving_.estimate();
+    variance_ = still ? still_.variance() : moving_variance;
+    return;
+  }
+  const Eigen::Vector3d w_still = still_.variance().cwiseInverse();
+  const Eigen::Vector3d w_moving = moving_variance.cwiseInverse();
+  variance_ = (w_still + w_moving).cwiseInverse();
+  bias_ = variance_.cwiseProduct(w_still.cwiseProduct(still_.estimate()) +
+                                 w_moving.cwiseProduct(moving_.estimate()));
+}
+
+bool GyroBias::Filter::update(const Eigen::Vector3d& value, const Eigen::Vector3d& variance,
+                              double dt) {
+  const Eigen::Vector3d error = value - bias_;
   if (readings_ < kWarmUp) {
     const auto i = static_cast<std::size_t>(readings_++);
-    first_[i] = bias_ + error;
+    first_[i] = value;
     first_weight_[i] = variance.cwiseInverse();
     startFromFirst();
     return true;
   }
-  // A bias that walks, then the reading if it is one: tested against what a pair of the
-  // usual variance would scatter (a reading that states a larger variance is not given a
-  // wider gate for it), weighed by its own.
-  variance_.array() += kBiasRandomWalk * kBiasRandomWalk * dt;
+  // The reading if it is one: tested against what a pair of the usual variance would
+  // scatter (a reading that states a larger variance is not given a wider gate for it),
+  // weighed by its own.
   const Eigen::Vector3d usual = variance.cwiseMin(typical_weight_.cwiseInverse());
   const Eigen::Vector3d gate = scale() * usual + variance_;
   if (!((error.array().square() / gate.array()).maxCoeff() <= kGateSigmas * kGateSigmas))
@@ -63,7 +104,7 @@ bool GyroBias::update(const GyroBiasReading& reading, const Eigen::Matrix3d& cam
   return true;
 }
 
-void GyroBias::startFromFirst() {
+void GyroBias::Filter::startFromFirst() {
   const auto n = static_cast<std::size_t>(readings_);
   std::array<std::size_t, kWarmUp> order{};
   std::array<double, kWarmUp> normalized{};
@@ -110,7 +151,15 @@ void GyroBias::startFromFirst() {
   if (n > 3) variance_ *= static_cast<double>(n - 1) / static_cast<double>(n - 3);
 }
 
-double GyroBias::scale() const { return std::max(scatter_, 1.0); }
+void GyroBias::Filter::walk(double dt) {
+  if (readings_ > 0) variance_.array() += kBiasRandomWalk * kBiasRandomWalk * dt;
+}
+
+double GyroBias::Filter::scale() const { return std::max(scatter_, 1.0); }
+
+bool GyroBias::settled() const { return still_.settled() || moving_.settled(); }
+
+std::int64_t GyroBias::readings() const { return still_.readings() + moving_.readings(); }
 
 double GyroBias::sigma() const {
   if (!settled()) return std::numeric_limits<double>::infinity();

@@ -1,5 +1,6 @@
 #include "omnipose/odometry.hpp"
 
+#include <Eigen/Cholesky>
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -49,6 +50,29 @@ Eigen::Isometry3d orthonormalized(const Eigen::Isometry3d& T) {
   Eigen::Isometry3d out = T;
   out.linear() = Eigen::Quaterniond(T.linear()).normalized().toRotationMatrix();
   return out;
+}
+
+/// A pair translated when the fit's translation is both significant and large enough for the
+/// images' yaw to drift with it. Significant: tau^T C^-1 tau above the 99.9 % point of a
+/// chi-square with three degrees of freedom. Large enough: |tau| above a thousandth of the
+/// scene's distance a pair (2.5 mm a frame at 2.5 m); the drift, about 0.03 mrad a pair at
+/// |tau| 0.007 on the drift benchmark's rectangle, is then below a twentieth of a pair's
+/// noise. Turning in place with vibration and a rolling shutter the fit finds |tau| below
+/// 0.0003, often "significant"; driving at 2 cm a frame, 0.0065-0.009, tau^T C^-1 tau
+/// 800-4000.
+constexpr double kTranslatingChi2 = 16.3;
+constexpr double kTranslatingTau = 1e-3;
+
+/// Whether the pair of the fit `e` translated (above); by |tau| alone when its covariance
+/// does not tell (a method that gives none).
+bool translates(const MotionEstimate& e) {
+  if (!(e.tau.norm() > kTranslatingTau)) return false;
+  const Eigen::Matrix3d C = e.covariance.bottomRightCorner<3, 3>();
+  const Eigen::LDLT<Eigen::Matrix3d> ldlt(C);
+  if (!C.allFinite() || ldlt.info() != Eigen::Success || !ldlt.isPositive() ||
+      !(C.diagonal().minCoeff() > 0.0))
+    return true;
+  return !(e.tau.dot(ldlt.solve(e.tau)) <= kTranslatingChi2);
 }
 
 /// Angle between the z axes of two cameras whose relative rotation is R: their tilt.
@@ -258,11 +282,12 @@ struct Odometry::Impl {
                          time, gyroMaxGap());
   }
   /// The images' rotation from the last good frame to the current one (`images`, with the
-  /// covariance `images_covariance`), a reading of the gyro's bias and, when the pass took
-  /// the rows' turns from the gyro (`gyro_rows`), of the time the windows' yaw was captured
-  /// at (CaptureTimeOffset; the next frames' passes read it there).
+  /// covariance `images_covariance`; `translating`: translates() of the pair's fit), a
+  /// reading of the gyro's bias and, when the pass took the rows' turns from the gyro
+  /// (`gyro_rows`), of the time the windows' yaw was captured at (CaptureTimeOffset; the next
+  /// frames' passes read it there).
   void updateFromGyro(const Eigen::Matrix3d& images, const Eigen::Matrix3d& images_covariance,
-                      bool gyro_rows) {
+                      bool translating, bool gyro_rows) {
     const std::optional<Eigen::Matrix3d> G = gyroRotation(last_time);
     if (!G) return;
     if (gyro_rows && measure_yaw_capture_time &&
@@ -272,7 +297,7 @@ struct Odometry::Impl {
     const double dt = time - last_time;
     const pipeline::GyroBiasReading reading{
         images, images_covariance, *G,
-        pipeline::gyroRotationVariance(gyroNoiseDensity(), 0.0, dt), dt};
+        pipeline::gyroRotationVariance(gyroNoiseDensity(), 0.0, dt), dt, translating};
     if (gyro_bias.update(reading, gyro_calibration->rotation.normalized().toRotationMatrix()))
       ++gyro_counters.bias_readings;
   }
@@ -340,6 +365,7 @@ struct Odometry::Impl {
   struct PairRotation {
     Eigen::Matrix3d rotation;
     Eigen::Matrix3d covariance;
+    const MotionEstimate& estimate;  ///< the images' fit of the pair
   };
   /// Fills `out` for the current frame at pose `T` with the estimate `pass`.
   /// `images`: the pair's rotation as the images alone measured it, for the gyro's bias (the
@@ -481,7 +507,7 @@ void Odometry::Impl::finish(OdometryResult& out, const Eigen::Isometry3d& T_esti
         images != nullptr ? images->rotation : pose.linear().transpose() * T.linear(),
         images != nullptr ? images->covariance
                           : Eigen::Matrix3d(pass.estimate.covariance.topLeftCorner<3, 3>()),
-        pass.gyro_rows);
+        translates(images != nullptr ? images->estimate : pass.estimate), pass.gyro_rows);
   out.state = state;
   const FrameMotion keep_timing = out.relative;
   out.relative.estimate = pass.estimate;
@@ -717,7 +743,8 @@ Expected<OdometryResult> Odometry::Impl::process(const cv::Mat& frame, const Fra
                                         : last_sequence;
   if (keep_keyframe) useKeyframe(slot);
   r.advance();
-  const PairRotation images_alone{images, pass.estimate.covariance.topLeftCorner<3, 3>()};
+  const PairRotation images_alone{images, pass.estimate.covariance.topLeftCorner<3, 3>(),
+                                  pass.estimate};
   finish(out, T, fused, TrackState::kTracked, &images_alone);
   believe(out);
   // Before addKeyframe(), which takes the current panorama.
