@@ -44,12 +44,9 @@ bool GyroBias::update(const GyroBiasReading& reading, const Eigen::Matrix3d& cam
   still_.walk(dt);
   moving_.walk(dt);
   Filter& filter = reading.translating ? moving_ : still_;
-  if (!filter.update(value, variance, dt)) {
-    combine(camera_from_imu);
-    return false;
-  }
+  const bool used = filter.update(value, variance, dt);
   combine(camera_from_imu);
-  return true;
+  return used;
 }
 
 void GyroBias::combine(const Eigen::Matrix3d& camera_from_imu) {
@@ -58,14 +55,10 @@ void GyroBias::combine(const Eigen::Matrix3d& camera_from_imu) {
   const Eigen::Vector3d moving_variance =
       moving_.variance().array() +
       kDrivingYawSigma * kDrivingYawSigma * vertical.array().square();
-  if (!still_.settled() && !moving_.settled()) {
-    const Filter& more = still_.readings() >= moving_.readings() ? still_ : moving_;
-    bias_ = more.estimate();
-    variance_ = &more == &moving_ ? moving_variance : more.variance();
-    return;
-  }
   if (!still_.settled() || !moving_.settled()) {
-    const bool still = still_.settled();
+    // One alone: the settled one, or before either has settled the one with more readings.
+    const bool still = still_.settled() ||
+                       (!moving_.settled() && still_.readings() >= moving_.readings());
     bias_ = still ? still_.estimate() : moving_.estimate();
     variance_ = still ? still_.variance() : moving_variance;
     return;

@@ -281,13 +281,11 @@ struct Odometry::Impl {
     return integrateGyro(gyro.samples(), *gyro_calibration, gyro_bias.bias(), reference_time,
                          time, gyroMaxGap());
   }
-  /// The images' rotation from the last good frame to the current one (`images`, with the
-  /// covariance `images_covariance`; `translating`: translates() of the pair's fit), a
-  /// reading of the gyro's bias and, when the pass took the rows' turns from the gyro
-  /// (`gyro_rows`), of the time the windows' yaw was captured at (CaptureTimeOffset; the next
-  /// frames' passes read it there).
-  void updateFromGyro(const Eigen::Matrix3d& images, const Eigen::Matrix3d& images_covariance,
-                      bool translating, bool gyro_rows) {
+  /// The images' rotation from the last good frame to the current one (`images`, from the
+  /// fit `fit`, whose covariance and translation go with it), a reading of the gyro's bias
+  /// and, when the pass took the rows' turns from the gyro (`gyro_rows`), of the time the
+  /// windows' yaw was captured at (CaptureTimeOffset; the next frames' passes read it there).
+  void updateFromGyro(const Eigen::Matrix3d& images, const MotionEstimate& fit, bool gyro_rows) {
     const std::optional<Eigen::Matrix3d> G = gyroRotation(last_time);
     if (!G) return;
     if (gyro_rows && measure_yaw_capture_time &&
@@ -296,8 +294,8 @@ struct Odometry::Impl {
       registrar->setYawTimeOffset(capture_offset.offset());
     const double dt = time - last_time;
     const pipeline::GyroBiasReading reading{
-        images, images_covariance, *G,
-        pipeline::gyroRotationVariance(gyroNoiseDensity(), 0.0, dt), dt, translating};
+        images, fit.covariance.topLeftCorner<3, 3>(), *G,
+        pipeline::gyroRotationVariance(gyroNoiseDensity(), 0.0, dt), dt, translates(fit)};
     if (gyro_bias.update(reading, gyro_calibration->rotation.normalized().toRotationMatrix()))
       ++gyro_counters.bias_readings;
   }
@@ -360,16 +358,14 @@ struct Odometry::Impl {
     return readout_yaw.betweenTimestamps(pass.rotation, reference_time, time,
                                          key != nullptr ? &key->heading : nullptr);
   }
-  /// A pair's rotation as the images alone measured it, and its covariance (rad^2, right
-  /// perturbation, camera axes).
+  /// A pair's rotation as the images alone measured it, and their fit of the pair.
   struct PairRotation {
     Eigen::Matrix3d rotation;
-    Eigen::Matrix3d covariance;
-    const MotionEstimate& estimate;  ///< the images' fit of the pair
+    const MotionEstimate& estimate;
   };
   /// Fills `out` for the current frame at pose `T` with the estimate `pass`.
   /// `images`: the pair's rotation as the images alone measured it, for the gyro's bias (the
-  /// rotation of T from the last frame's pose and the covariance of `pass` when null).
+  /// rotation of T from the last frame's pose and the fit of `pass` when null).
   void finish(OdometryResult& out, const Eigen::Isometry3d& T, const pipeline::PassResult& pass,
               TrackState state, const PairRotation* images = nullptr);
 
@@ -503,11 +499,8 @@ void Odometry::Impl::finish(OdometryResult& out, const Eigen::Isometry3d& T_esti
                             const PairRotation* images) {
   const Eigen::Isometry3d T = orthonormalized(T_estimated);
   if (gyro_calibration && state == TrackState::kTracked && pass.estimate.status == FitStatus::kOk)
-    updateFromGyro(
-        images != nullptr ? images->rotation : pose.linear().transpose() * T.linear(),
-        images != nullptr ? images->covariance
-                          : Eigen::Matrix3d(pass.estimate.covariance.topLeftCorner<3, 3>()),
-        translates(images != nullptr ? images->estimate : pass.estimate), pass.gyro_rows);
+    updateFromGyro(images != nullptr ? images->rotation : pose.linear().transpose() * T.linear(),
+                   images != nullptr ? images->estimate : pass.estimate, pass.gyro_rows);
   out.state = state;
   const FrameMotion keep_timing = out.relative;
   out.relative.estimate = pass.estimate;
@@ -743,8 +736,7 @@ Expected<OdometryResult> Odometry::Impl::process(const cv::Mat& frame, const Fra
                                         : last_sequence;
   if (keep_keyframe) useKeyframe(slot);
   r.advance();
-  const PairRotation images_alone{images, pass.estimate.covariance.topLeftCorner<3, 3>(),
-                                  pass.estimate};
+  const PairRotation images_alone{images, pass.estimate};
   finish(out, T, fused, TrackState::kTracked, &images_alone);
   believe(out);
   // Before addKeyframe(), which takes the current panorama.
