@@ -159,6 +159,16 @@ class MotionFit {
     /// and tau keeps at least 98 % of its length; a turn in place keeps little or none
     /// (docs/results/ANALYSIS.md). 0: tau as fitted (the fit before 2026-12-05). [0, 100].
     double translation_shrinkage = 3.0;
+    /// The camera rides a ground robot (daemon.yaml `pipeline.planar_motion_deg`): between
+    /// two frames it translates within this angle of its own horizontal plane (camera z up:
+    /// a robot drives along its floor, and a ramp tilts the camera with it). The fit then
+    /// takes tau_z ~ N(0, sigma_z^2) as a prior, sigma_z = |tau| sin(angle) with |tau| from
+    /// its first pass, and at least a twentieth of the shifts' noise, so that turning in
+    /// place holds tau_z at 0: a free tau_z lets people walking by lend the fit a vertical
+    /// translation that the per-window depths turn into rotation. The covariance includes
+    /// the prior. 0: tau_z free (a hand-held camera, a drone, a robot that climbs steps).
+    /// [0, 45] degrees.
+    double planar_motion_deg = 10.0;
 
     /// Every problem, one message per bad field, each starting with the field's name
     /// ("median: 4 must be odd (or 0/1 = off)"); empty when valid.

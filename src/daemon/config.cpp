@@ -100,6 +100,7 @@ constexpr PipelineKey kPipelineKeys[] = {
     {"pipeline.plane_depth_prior", "fit.plane_depth_prior"},
     {"pipeline.ring_consensus", "fit.ring_consensus"},
     {"pipeline.translation_shrinkage", "fit.translation_shrinkage"},
+    {"pipeline.planar_motion_deg", "fit.planar_motion_deg"},
     {"pipeline.threads", "threads"},
     {"pipeline.fftw_wisdom", "fftw_wisdom"},
     {"input", "unwrap.input"},
@@ -140,6 +141,7 @@ void parsePipeline(Reader& r, const YAML::Node& node, const std::filesystem::pat
   r.get(node, "pipeline", "plane_depth_prior", p.fit.plane_depth_prior);
   r.get(node, "pipeline", "ring_consensus", p.fit.ring_consensus);
   r.get(node, "pipeline", "translation_shrinkage", p.fit.translation_shrinkage);
+  r.get(node, "pipeline", "planar_motion_deg", p.fit.planar_motion_deg);
   r.get(node, "pipeline", "threads", p.threads);
   std::string wisdom;
   r.get(node, "pipeline", "fftw_wisdom", wisdom);
@@ -403,7 +405,8 @@ std::string DaemonConfig::describe() const {
     << "\n  noise_weighting: " << p.registration.noise_weighting
     << "\n  plane_depth_prior: " << p.fit.plane_depth_prior
     << "\n  ring_consensus: " << p.fit.ring_consensus
-    << "\n  translation_shrinkage: " << p.fit.translation_shrinkage << "\n  threads: " << p.threads
+    << "\n  translation_shrinkage: " << p.fit.translation_shrinkage
+    << "\n  planar_motion_deg: " << p.fit.planar_motion_deg << "\n  threads: " << p.threads
     << "\n  fftw_wisdom: \"" << p.fftw_wisdom << "\"\n"
     << "keyframes:\n  slots: " << keyframes.slots
     << "\n  max_translation: " << keyframes.max_translation

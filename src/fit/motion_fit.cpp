@@ -66,6 +66,7 @@ std::vector<std::string> MotionFit::Options::validate() const {
   detail::checkRange(p, "scale_depth_gradient", scale_depth_gradient, 0.0, 1.0);
   detail::checkRange(p, "rotation_deformation", rotation_deformation, 0.0, 100.0);
   detail::checkRange(p, "translation_shrinkage", translation_shrinkage, 0.0, 100.0);
+  detail::checkRange(p, "planar_motion_deg", planar_motion_deg, 0.0, 45.0, " degrees");
   return p;
 }
 
@@ -249,6 +250,14 @@ struct MotionFit::Impl {
   /// The consensus's options; previous_axis_rad is the translation's axis of the last fit
   /// that moved the windows by more than its floor (NaN before any).
   RingConsensusOptions consensus;
+  /// Information of the prior tau_z ~ N(0, sigma_z^2) (Options::planar_motion_deg), in the
+  /// units of the rows' normal equations; 0 when there is none.
+  double tau_z_information = 0.0;
+  /// Sets tau_z_information from the first pass's x.
+  void planarMotionPrior(const Eigen::Matrix<double, 6, 1>& x, int n_rows);
+  /// irls(), and with Options::planar_motion_deg irls() again with the prior on tau_z its
+  /// result sets; `iterations` counts both.
+  Eigen::Matrix<double, 6, 1> firstPass(int n_rows, int& iterations, bool& ok);
   /// Leaves out the kept windows that no static scene explains (ring_consensus.hpp).
   void ringConsensus(std::span<const WindowMotion> windows, double forward_column);
   /// The depths' information matrix (max_windows square, so that its factorisation never
@@ -454,6 +463,29 @@ double MotionFit::Impl::shiftSigma(const Eigen::Matrix<double, 6, 1>& x, int n_r
                   0.01 * gamma);
 }
 
+Eigen::Matrix<double, 6, 1> MotionFit::Impl::firstPass(int n_rows, int& iterations, bool& ok) {
+  tau_z_information = 0.0;
+  const Eigen::Matrix<double, 6, 1> x = irls(n_rows, iterations, ok);
+  if (!ok || !(options.planar_motion_deg > 0)) return x;
+  planarMotionPrior(x, n_rows);
+  int more = 0;
+  const Eigen::Matrix<double, 6, 1> with_prior = irls(n_rows, more, ok);
+  iterations += more;
+  return with_prior;
+}
+
+void MotionFit::Impl::planarMotionPrior(const Eigen::Matrix<double, 6, 1>& x, int n_rows) {
+  // The rows' normal equations weigh a residual of sigma_t (the shifts' robust noise) as
+  // one; sigma_z in the same units: |tau| sin(angle), and at least kPlanarFloor sigma_t so
+  // that a translation of nothing (turning in place) pins tau_z instead of freeing it.
+  constexpr double kPlanarFloor = 0.05;
+  const double sigma_t = shiftSigma(x, n_rows);
+  const double sigma_z =
+      std::max(x.tail<3>().norm() * std::sin(options.planar_motion_deg * std::numbers::pi / 180.0),
+               kPlanarFloor * sigma_t);
+  tau_z_information = (sigma_t / sigma_z) * (sigma_t / sigma_z);
+}
+
 double MotionFit::Impl::robustSigma(int kind, const Eigen::Matrix<double, 6, 1>& x, int n_rows) {
   int m = 0;
   for (int i = 0; i < n_rows; ++i) {
@@ -479,6 +511,7 @@ Eigen::Matrix<double, 6, 1> MotionFit::Impl::irls(int n_rows, int& iterations, b
       N.noalias() += row.weight * row.a.transpose() * row.a;
       g.noalias() += row.weight * row.b * row.a.transpose();
     }
+    N(5, 5) += tau_z_information;
     const Eigen::LDLT<Mat6> ldlt(N);
     if (ldlt.info() != Eigen::Success || !ldlt.isPositive()) return x;
     const Vec6 x_new = ldlt.solve(g);
@@ -583,6 +616,7 @@ double MotionFit::Impl::depthCost(std::span<const WindowMotion> windows, int n_r
     const double e = depth[k] - planeDepth(k);
     cost += 0.5 * depth_plane_weight * windows[k].confidence * e * e;
   }
+  cost += 0.5 * tau_z_information * x(5) * x(5);
   return cost;
 }
 
@@ -617,6 +651,8 @@ void MotionFit::Impl::depthNormals(std::span<const WindowMotion> windows, int n_
     h[k] += row.weight * Jl * Jl;
     g_lambda[k] += row.weight * Jl * r;
   }
+  N(5, 5) += tau_z_information;
+  gx(5) -= tau_z_information * x(5);
 }
 
 double MotionFit::Impl::backtrackDepthStep(std::span<const WindowMotion> windows, int n_rows,
@@ -921,7 +957,7 @@ MotionEstimate MotionFit::Impl::fit(std::span<const WindowMotion> windows,
   if (n_rows < 2 * kMinWindows) return est;  // du and dv rows of too few windows: nothing to fit
 
   bool ok = false;
-  Vec6 x = irls(n_rows, est.iterations, ok);
+  Vec6 x = firstPass(n_rows, est.iterations, ok);
   if (!ok) return est;
 
   // In-window rotation and scale, weighted by their own noise relative to the shifts.
@@ -950,6 +986,7 @@ MotionEstimate MotionFit::Impl::fit(std::span<const WindowMotion> windows,
     g.noalias() += row.weight * row.b * row.a.transpose();
     ++used_rows;
   }
+  N(5, 5) += tau_z_information;
   const Eigen::SelfAdjointEigenSolver<Mat6> eig(N, Eigen::EigenvaluesOnly);
   const double lmin = eig.eigenvalues()(0), lmax = eig.eigenvalues()(5);
   if (used_rows < 8 || !(lmin > 0) || lmax / lmin > options.max_condition) return est;

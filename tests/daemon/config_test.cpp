@@ -170,6 +170,18 @@ TEST(DaemonConfig, TranslationShrinkage) {
         << bad;
 }
 
+TEST(DaemonConfig, PlanarMotion) {
+  EXPECT_DOUBLE_EQ(parseWith("").pipeline.fit.planar_motion_deg, 10.0);
+  const DaemonConfig off = parseWith("pipeline: {planar_motion_deg: 0}\n");
+  EXPECT_DOUBLE_EQ(off.pipeline.fit.planar_motion_deg, 0.0);
+  EXPECT_THAT(off.describe(), HasSubstr("planar_motion_deg: 0"));
+  for (const char* bad : {"-1", "46", "flat"})
+    EXPECT_TRUE(mentions(problemsOf(kFileSource + "pipeline: {planar_motion_deg: " +
+                                    std::string(bad) + "}\n"),
+                         "pipeline.planar_motion_deg"))
+        << bad;
+}
+
 TEST(DaemonConfig, PanoramaPicturesAreOffUnlessAChannelIsNamed) {
   const DaemonConfig defaults = parseWith("");
   EXPECT_EQ(defaults.lcm.panorama_channel, "");

@@ -5,6 +5,7 @@
 
 #include <cmath>
 #include <filesystem>
+#include <numbers>
 #include <string>
 
 #include "omnipose/io/trajectory.hpp"
@@ -55,6 +56,26 @@ inline FrameMotion estimatePair(const synth::Renderer& renderer, const Calibrati
                                 const PipelineOptions& options, const Eigen::Isometry3d& T1) {
   return estimatePair(renderFrame(renderer, Eigen::Isometry3d::Identity()), renderer, calibration,
                       options, T1);
+}
+
+/// Yaw (rad) of frame k of a slow turn of 0.3 to 0.6 deg per frame (the people and
+/// real-camera benchmarks' `slow_turn`).
+inline double slowTurnYaw(int k) {
+  double angle = 0.0;
+  for (int i = 1; i <= k; ++i) angle += (0.45 + 0.15 * std::sin(1.9 * i)) * std::numbers::pi / 180.0;
+  return angle;
+}
+
+/// `renderer`'s frame at `pose` and `time_s` (its walkers' clock) with Gaussian sensor noise
+/// of `sigma` grey levels drawn from `rng`, 8-bit.
+inline cv::Mat noisyFrame(const synth::Renderer& renderer, const Eigen::Isometry3d& pose,
+                          double time_s, cv::RNG& rng, double sigma = 3.0) {
+  cv::Mat image = renderer.render(pose, time_s);
+  cv::Mat noise(image.size(), CV_32FC1);
+  rng.fill(noise, cv::RNG::NORMAL, 0.0, sigma);
+  cv::Mat frame;
+  cv::Mat(image + noise).convertTo(frame, CV_8U);
+  return frame;
 }
 
 /// RMS rotation error angle (rad) of `pipeline` over a sequence of `frames` frames:

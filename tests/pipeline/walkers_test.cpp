@@ -20,28 +20,16 @@
 namespace omnipose {
 namespace {
 
-constexpr double kDeg = std::numbers::pi / 180.0;
 constexpr int kFrames = 13;
 constexpr double kFrameInterval = 1.0 / 30.0;
 
-/// Yaw of frame k: a slow turn of 0.3 to 0.6 deg per frame, the real-camera benchmark's
-/// `slow_turn`.
-double yaw(int k) {
-  double angle = 0.0;
-  for (int i = 1; i <= k; ++i) angle += (0.45 + 0.15 * std::sin(1.9 * i)) * kDeg;
-  return angle;
-}
+double yaw(int k) { return testing::slowTurnYaw(k); }
 
-/// Frame k of `renderer` along the slow turn, with sensor noise.
+/// Frame k of `renderer` along the slow turn at k / 30 s, with sensor noise.
 cv::Mat noisyFrame(const synth::Renderer& renderer, int k, cv::RNG& rng) {
   Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
   T.linear() = rotationFromVector(Eigen::Vector3d(0.0, 0.0, yaw(k)));
-  cv::Mat image = renderer.render(T, k * kFrameInterval);
-  cv::Mat noise(image.size(), CV_32FC1);
-  rng.fill(noise, cv::RNG::NORMAL, 0.0, 3.0);
-  cv::Mat frame;
-  cv::Mat(image + noise).convertTo(frame, CV_8U);
-  return frame;
+  return testing::noisyFrame(renderer, T, k * kFrameInterval, rng);
 }
 
 /// RMS rotation error angle (rad) of the pipeline over the sequence rendered by `renderer`

@@ -4,7 +4,10 @@
 # docs/results/ANALYSIS.md compares. Run it once without variables (the build as kept) and
 # once with them, on the same binaries.
 #
-# Usage: replay_with_env.sh KIND DIR [VAR=VALUE ...]
+# Usage: replay_with_env.sh KIND DIR [VAR=VALUE ...] [pipeline.KEY=VALUE ...]
+#   VAR=VALUE          an environment variable of the replays (an experiment's)
+#   pipeline.KEY=VALUE a key of daemon.yaml's `pipeline:` section added to the benchmark's
+#                      replay configuration (a setting compared with the defaults)
 #   KIND people    DIR from `tools/people_benchmark.sh DIR`: SCENE/SITUATION and the ratio
 #                  of its eps (mrad, the RMS of omnipose-eval's per-pair eps) to its twin's
 #                  (twin_straight for driving, twin_slow_turn for the others), every twin too
@@ -26,7 +29,15 @@ bin=${BUILD_DIR:-$repo/build}/bin
 work=$(mktemp -d "${TMPDIR:-/tmp}/replay_with_env.XXXXXX")
 trap 'rm -rf "$work"' EXIT
 
-vars=("$@")
+vars=()
+keys=()
+for arg in "$@"; do
+  case $arg in
+    pipeline.*=*) keys+=("  ${arg#pipeline.}") ;;
+    *) vars+=("$arg") ;;
+  esac
+done
+keys=("${keys[@]/=/: }")
 
 # eps_of GROUNDTRUTH TUM: omnipose-eval's RMS of the per-pair eps, mrad (as
 # tools/people_benchmark.sh reads it).
@@ -40,6 +51,13 @@ eps_of() {
 replay() {
   local dataset=$1 config=$2
   shift 2
+  if [ ${#keys[@]} -gt 0 ]; then
+    grep -q '^pipeline:' "$config" ||
+      { echo "replay_with_env.sh: $config has no pipeline: section" >&2; exit 1; }
+    { sed -n '0,/^pipeline:/p' "$config"; printf '%s\n' "${keys[@]}"; sed '0,/^pipeline:/d' "$config"; } \
+      > "$work/config.yaml"
+    config=$work/config.yaml
+  fi
   env "${vars[@]}" "$bin/omnipose-replay" "$dataset" --config "$config" --quiet "$@" \
     > /dev/null 2> "$work/replay.log" ||
     { echo "omnipose-replay failed on $dataset, see below" >&2; cat "$work/replay.log" >&2; exit 1; }
