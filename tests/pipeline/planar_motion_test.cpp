@@ -1,12 +1,13 @@
 // The ground robot's planar motion (MotionFit::Options::planar_motion_deg) against the exact
 // renderer: people around a robot that turns in place lend a free fit a vertical translation,
-// which its per-window depths turn into rotation; with the prior they cannot, and where
+// which its per-window depths turn into rotation; with the prior they lend it less, and where
 // nothing moves the prior changes nothing that matters, even when the camera's translation
 // leaves its horizontal plane by a few degrees.
 #include <gtest/gtest.h>
 
 #include <cmath>
 #include <numbers>
+#include <string>
 
 #include "omnipose/pipeline.hpp"
 #include "omnipose/so3.hpp"
@@ -67,7 +68,7 @@ TEST(PlanarMotion, AGroupAroundATurningRobotCannotLendTheFitAVerticalTranslation
   const double twin_planar =
       testing::recordFigure("twin_planar_rms_rad", rmsError(twin, 10.0, turning), 9);
   // On this photo the people lend the free fit little: the prior takes 2 % off (10-16 % off
-  // a third of the ring in three of the people benchmark's five scenes, docs/results/ANALYSIS.md).
+  // a third of the ring in four of the people benchmark's five scenes, docs/results/ANALYSIS.md).
   EXPECT_LT(planar, free) << "free " << free << " rad, planar " << planar;
   EXPECT_NEAR(twin_planar, twin_free, 0.03 * twin_free);
 }
