@@ -10,6 +10,7 @@
 //                                    [--odometry [--readout S [--gyro HZ]] [--keyframe-slots N]]
 //                                    [--no-moving-content] [--no-ring-consensus]
 //                                    [--noise-weighting] [--translation-shrinkage K]
+//                                    [--planar-motion-deg D]
 // --odometry processes the frames with Odometry (what omniposed and omnipose-replay run),
 // stamped at 30 fps, instead of Pipeline (its default keyframes: the first frame stays in
 // reach, so every frame is registered against it as well; --keyframe-slots 0 counts
@@ -21,7 +22,8 @@
 // fit's ring consensus off (MotionFit::Options::ring_consensus), likewise; --noise-weighting
 // turns the registration's signal-to-noise weighting on
 // (WindowRegistration::Options::noise_weighting); --translation-shrinkage K sets the fit's
-// MotionFit::Options::translation_shrinkage (0: off).
+// MotionFit::Options::translation_shrinkage (0: off); --planar-motion-deg D sets the fit's
+// MotionFit::Options::planar_motion_deg (0: tau_z free).
 // --save writes the two rendered frames to DIR/a.png, DIR/b.png; --load reads them instead
 // of rendering (an emulator then spends nothing on the renderer).
 #include <chrono>
@@ -61,6 +63,7 @@ struct Args {
   int keyframe_slots = omnipose::KeyframeOptions{}.slots;
   double readout = 0.0, gyro_hz = 0.0;
   double translation_shrinkage = omnipose::MotionFit::Options{}.translation_shrinkage;
+  double planar_motion_deg = omnipose::MotionFit::Options{}.planar_motion_deg;
   bool odometry = false, no_moving_content = false, no_ring_consensus = false,
        noise_weighting = false;
   std::string wisdom, save, load;
@@ -71,7 +74,8 @@ constexpr const char* kUsage =
     "                                   [--refine R] [--wisdom FILE] [--save DIR | --load DIR]\n"
     "                                   [--odometry [--readout S [--gyro HZ]] [--keyframe-slots N]]\n"
     "                                   [--no-moving-content] [--no-ring-consensus]\n"
-    "                                   [--noise-weighting] [--translation-shrinkage K]";
+    "                                   [--noise-weighting] [--translation-shrinkage K]\n"
+    "                                   [--planar-motion-deg D]";
 
 constexpr const char* kDescription =
     "Per-frame instruction counts of the pipeline, for valgrind --tool=callgrind\n"
@@ -125,6 +129,11 @@ void addOptions(CLI::App& app, Args& a) {
       ->type_name("K")
       ->check(CLI::Range(0.0, 100.0))
       ->capture_default_str();
+  app.add_option("--planar-motion-deg", a.planar_motion_deg,
+                 "the fit's MotionFit::Options::planar_motion_deg, degrees (0: tau_z free)")
+      ->type_name("D")
+      ->check(CLI::Range(0.0, 45.0))
+      ->capture_default_str();
 }
 
 /// The benchmark's two frames: read from --load, or rendered (3 degrees of roll + yaw apart)
@@ -163,6 +172,7 @@ int run(const Args& a) {
   options.moving_content = !a.no_moving_content;
   options.fit.ring_consensus = !a.no_ring_consensus;
   options.fit.translation_shrinkage = a.translation_shrinkage;
+  options.fit.planar_motion_deg = a.planar_motion_deg;
   options.registration.noise_weighting = a.noise_weighting;
   options.fftw_wisdom = a.wisdom;
   omnipose::Calibration calibration;

@@ -10,7 +10,6 @@
 #include <string>
 
 #include "omnipose/pipeline.hpp"
-#include "omnipose/so3.hpp"
 #include "omnipose/synth/synth.hpp"
 #include "render_fixture.hpp"
 #include "test_figures.hpp"
@@ -37,12 +36,6 @@ double rmsError(const synth::Renderer& renderer, double planar_motion_deg, PoseO
   return testing::rmsRotationError(pipeline, kFrames, frame, attitude);
 }
 
-Eigen::Isometry3d turning(int k) {
-  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
-  T.linear() = rotationFromVector(Eigen::Vector3d(0.0, 0.0, testing::slowTurnYaw(k)));
-  return T;
-}
-
 TEST(PlanarMotion, AGroupAroundATurningRobotCannotLendTheFitAVerticalTranslation) {
   if (!std::filesystem::exists(testing::indoorPhoto())) GTEST_SKIP() << "missing photo";
   synth::Scene scene = synth::Scene::load(testing::indoorPhoto(), synth::SceneKind::kSphere);
@@ -57,16 +50,17 @@ TEST(PlanarMotion, AGroupAroundATurningRobotCannotLendTheFitAVerticalTranslation
   for (const unsigned seed : {1061u, 1062u}) {
     scene.walkers.seed = seed;
     const synth::Renderer people(scene, Calibration{});
-    const double f = rmsError(people, 0.0, turning), p = rmsError(people, 10.0, turning);
+    const double f = rmsError(people, 0.0, testing::slowTurnPose),
+                 p = rmsError(people, 10.0, testing::slowTurnPose);
     free_sq += f * f;
     planar_sq += p * p;
   }
   const double free = testing::recordFigure("people_free_rms_rad", std::sqrt(free_sq / 2), 9);
   const double planar = testing::recordFigure("people_planar_rms_rad", std::sqrt(planar_sq / 2), 9);
   const double twin_free =
-      testing::recordFigure("twin_free_rms_rad", rmsError(twin, 0.0, turning), 9);
+      testing::recordFigure("twin_free_rms_rad", rmsError(twin, 0.0, testing::slowTurnPose), 9);
   const double twin_planar =
-      testing::recordFigure("twin_planar_rms_rad", rmsError(twin, 10.0, turning), 9);
+      testing::recordFigure("twin_planar_rms_rad", rmsError(twin, 10.0, testing::slowTurnPose), 9);
   // On this photo the people lend the free fit little: the prior takes 2 % off (10-16 % off
   // a third of the ring in four of the people benchmark's five scenes, docs/results/ANALYSIS.md).
   EXPECT_LT(planar, free) << "free " << free << " rad, planar " << planar;

@@ -62,8 +62,17 @@ inline FrameMotion estimatePair(const synth::Renderer& renderer, const Calibrati
 /// real-camera benchmarks' `slow_turn`).
 inline double slowTurnYaw(int k) {
   double angle = 0.0;
-  for (int i = 1; i <= k; ++i) angle += (0.45 + 0.15 * std::sin(1.9 * i)) * std::numbers::pi / 180.0;
+  for (int i = 1; i <= k; ++i) {
+    angle += (0.45 + 0.15 * std::sin(1.9 * i)) * std::numbers::pi / 180.0;
+  }
   return angle;
+}
+
+/// Pose of frame k of the slow turn: slowTurnYaw(k) about the camera's z axis, no translation.
+inline Eigen::Isometry3d slowTurnPose(int k) {
+  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+  T.linear() = rotationFromVector(Eigen::Vector3d(0.0, 0.0, slowTurnYaw(k)));
+  return T;
 }
 
 /// `renderer`'s frame at `pose` and `time_s` (its walkers' clock) with Gaussian sensor noise

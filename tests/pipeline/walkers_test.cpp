@@ -12,7 +12,6 @@
 
 #include "omnipose/odometry.hpp"
 #include "omnipose/pipeline.hpp"
-#include "omnipose/so3.hpp"
 #include "omnipose/synth/synth.hpp"
 #include "render_fixture.hpp"
 #include "test_figures.hpp"
@@ -23,13 +22,9 @@ namespace {
 constexpr int kFrames = 13;
 constexpr double kFrameInterval = 1.0 / 30.0;
 
-double yaw(int k) { return testing::slowTurnYaw(k); }
-
 /// Frame k of `renderer` along the slow turn at k / 30 s, with sensor noise.
 cv::Mat noisyFrame(const synth::Renderer& renderer, int k, cv::RNG& rng) {
-  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
-  T.linear() = rotationFromVector(Eigen::Vector3d(0.0, 0.0, yaw(k)));
-  return testing::noisyFrame(renderer, T, k * kFrameInterval, rng);
+  return testing::noisyFrame(renderer, testing::slowTurnPose(k), k * kFrameInterval, rng);
 }
 
 /// RMS rotation error angle (rad) of the pipeline over the sequence rendered by `renderer`
@@ -41,9 +36,7 @@ double rmsError(const synth::Renderer& renderer, bool moving_content, bool ring_
   options.fit.ring_consensus = ring_consensus;
   Pipeline pipeline(Calibration{}, options);
   cv::RNG rng(17);
-  const auto attitude = [](int k) -> Eigen::Matrix3d {
-    return rotationFromVector(Eigen::Vector3d(0.0, 0.0, yaw(k)));
-  };
+  const auto attitude = [](int k) -> Eigen::Matrix3d { return testing::slowTurnPose(k).linear(); };
   const auto frame = [&](int k) { return noisyFrame(renderer, k, rng); };
   return testing::rmsRotationError(pipeline, kFrames, frame, attitude);
 }
