@@ -4,7 +4,9 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <initializer_list>
 #include <numbers>
+#include <string>
 
 #include "omnipose/calibration.hpp"
 #include "runtime/worker_pool.hpp"
@@ -51,6 +53,22 @@ void expectBooleanPipelineKey(const std::string& key, bool default_value,
   EXPECT_THAT(set.describe(), HasSubstr(key + ": " + other));
   EXPECT_TRUE(mentions(problemsOf(kFileSource + "pipeline: {" + key + ": " + bad + "}\n"),
                        "pipeline." + key));
+}
+
+/// A numeric pipeline key whose 0 turns its mechanism off: its default, 0 parsed and
+/// described, and every value in `bad` refused with a problem naming pipeline.KEY.
+void expectNumericPipelineKey(const std::string& key, double default_value,
+                              double (*get)(const DaemonConfig&),
+                              std::initializer_list<const char*> bad) {
+  SCOPED_TRACE(key);
+  EXPECT_DOUBLE_EQ(get(parseWith("")), default_value);
+  const DaemonConfig off = parseWith("pipeline: {" + key + ": 0}\n");
+  EXPECT_DOUBLE_EQ(get(off), 0.0);
+  EXPECT_THAT(off.describe(), HasSubstr(key + ": 0"));
+  for (const char* value : bad)
+    EXPECT_TRUE(mentions(problemsOf(kFileSource + "pipeline: {" + key + ": " + value + "}\n"),
+                         "pipeline." + key))
+        << value;
 }
 
 TEST(DaemonConfig, DefaultsAreThePapersValues) {
@@ -159,27 +177,17 @@ TEST(DaemonConfig, RingConsensus) {
 }
 
 TEST(DaemonConfig, TranslationShrinkage) {
-  EXPECT_DOUBLE_EQ(parseWith("").pipeline.fit.translation_shrinkage, 3.0);
-  const DaemonConfig off = parseWith("pipeline: {translation_shrinkage: 0}\n");
-  EXPECT_DOUBLE_EQ(off.pipeline.fit.translation_shrinkage, 0.0);
-  EXPECT_THAT(off.describe(), HasSubstr("translation_shrinkage: 0"));
-  for (const char* bad : {"-1", "101", "much"})
-    EXPECT_TRUE(mentions(problemsOf(kFileSource + "pipeline: {translation_shrinkage: " +
-                                    std::string(bad) + "}\n"),
-                         "pipeline.translation_shrinkage"))
-        << bad;
+  expectNumericPipelineKey(
+      "translation_shrinkage", 3.0,
+      [](const DaemonConfig& c) { return c.pipeline.fit.translation_shrinkage; },
+      {"-1", "101", "much"});
 }
 
 TEST(DaemonConfig, PlanarMotion) {
-  EXPECT_DOUBLE_EQ(parseWith("").pipeline.fit.planar_motion_deg, 10.0);
-  const DaemonConfig off = parseWith("pipeline: {planar_motion_deg: 0}\n");
-  EXPECT_DOUBLE_EQ(off.pipeline.fit.planar_motion_deg, 0.0);
-  EXPECT_THAT(off.describe(), HasSubstr("planar_motion_deg: 0"));
-  for (const char* bad : {"-1", "46", "flat"})
-    EXPECT_TRUE(mentions(problemsOf(kFileSource + "pipeline: {planar_motion_deg: " +
-                                    std::string(bad) + "}\n"),
-                         "pipeline.planar_motion_deg"))
-        << bad;
+  expectNumericPipelineKey(
+      "planar_motion_deg", 10.0,
+      [](const DaemonConfig& c) { return c.pipeline.fit.planar_motion_deg; },
+      {"-1", "46", "flat"});
 }
 
 TEST(DaemonConfig, PanoramaPicturesAreOffUnlessAChannelIsNamed) {
