@@ -2,7 +2,9 @@
 """docs/results/experiments/segment_yaw.py on made-up trajectories: a straight of 10 pairs and a
 turn of 5 (0.02 rad a pair about z); the estimate's pairs err by +0.1 mrad of yaw on the straight
 and -0.2 mrad in the turn, and one estimated pose is missing (its two pairs must not count); a
-window-flow output gives +0.3 mrad a pair on the straight. The sums per segment must be those.
+window-flow output gives +0.3 mrad a pair on the straight, and in its named columns (the tool's
+--synthetic: "warp X affine Y similarity Z") -0.5 mrad a pair of warp on the straight and 0.1
+of similarity in the turn. The sums per segment must be those.
 Usage: segment_yaw_test.py SOURCE_DIR"""
 import math
 import os
@@ -47,7 +49,9 @@ with tempfile.TemporaryDirectory() as tmp:
         f.write("# pair  yaw error [mrad]: measured  exact-uv  exact-all  exact-phi  |  x\n")
         for k in range(1, 16):
             value = 0.3 if k <= 10 else 0.0
-            f.write("%5d  %+9.4f %+9.4f %+9.4f %+9.4f  |  0.001  -\n" % (k, value, 0, 0, 0))
+            warp, similarity = (-0.5, 0.0) if k <= 10 else (0.0, 0.1)
+            f.write("%5d  %+9.4f %+9.4f %+9.4f %+9.4f  |  0.001  -  |  warp %+9.4f affine %+9.4f"
+                    " similarity %+9.4f\n" % (k, value, 0, 0, 0, warp, 0, similarity))
     out = subprocess.run([sys.executable, script, gt, "--tum", est, "--window-flow", flow],
                          check=True, capture_output=True, text=True).stdout
 
@@ -60,4 +64,8 @@ assert abs(turn - math.degrees(5 * -2e-4)) < 1e-3, out
 assert abs(total - (straight + turn)) < 2e-3, out
 assert abs(cells["measured"][0] - math.degrees(10 * 3e-4)) < 1e-3, out
 assert cells["measured"][1] == 0.0 and cells["exact-uv"][0] == 0.0, out
-print("segment_yaw: straight and turn summed, the missing pose's pairs left out")
+assert abs(cells["warp"][0] - math.degrees(10 * -5e-4)) < 1e-3 and cells["warp"][1] == 0.0, out
+assert abs(cells["similarity"][1] - math.degrees(5 * 1e-4)) < 1e-3, out
+assert cells["affine"] == [0.0, 0.0, 0.0], out
+print("segment_yaw: straight and turn summed, the missing pose's pairs left out, the named "
+      "columns read")

@@ -10,7 +10,8 @@ Sources:
   --tum EST.tum        a trajectory (the odometry's: `omnipose-replay --out-odometry`, or the
                        per-room TUM `tools/drift_pool.sh` keeps as OUT/ROOM/default.tum)
   --window-flow OUT    the output of `omnipose-experiment-window-flow` (its per-pair lines; the
-                       columns measured, exact-uv, exact-all, exact-phi are summed alike)
+                       columns measured, exact-uv, exact-all, exact-phi are summed alike, and
+                       energy, warp and affine where the tool printed them)
 Standard library only. Run, on a room of `tools/drift_pool.sh OUT`:
   build/bin/omnipose-experiment-window-flow OUT/park_m240/dataset 1 460 > wf.txt
   python3 docs/results/experiments/segment_yaw.py OUT/park_m240/dataset/groundtruth.tum \\
@@ -81,6 +82,11 @@ def tum_yaw_errors(truth, estimate):
     return errors
 
 
+# The columns the tool names after its fixed ones (--energy, --synthetic, --preshift).
+NAMED_COLUMNS = ("energy", "warp", "affine", "similarity", "sim-uv", "sim-rs", "sim-known",
+                 "preshift", "fraction")
+
+
 def window_flow_yaw_errors(path):
     """Column name -> {pair k -> yaw error (rad)} from the tool's per-pair lines."""
     names = ("measured", "exact-uv", "exact-all", "exact-phi")
@@ -92,6 +98,11 @@ def window_flow_yaw_errors(path):
                 continue
             for name, value in zip(names, fields[1:5]):
                 columns[name][int(fields[0])] = float(value) * 1e-3
+            # Named columns after the fixed ones (--energy: "energy X"; --synthetic:
+            # "warp X affine Y ..."; --preshift: "preshift X fraction Y").
+            for i, field in enumerate(fields[6:-1], start=6):
+                if field in NAMED_COLUMNS:
+                    columns.setdefault(field, {})[int(fields[0])] = float(fields[i + 1]) * 1e-3
     return columns
 
 
