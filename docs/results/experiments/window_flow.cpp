@@ -37,7 +37,7 @@
 // correlation's peak weighs the texture. Printed: the yaw error of that fit ("energy"), and
 // the RMS over the windows of the measured du and dv less each of the two exact means.
 //
-// --synthetic (slow: 3 registrations of the whole panorama per window): the previous
+// --synthetic (slow: 4 registrations of the whole panorama per window): the previous
 // panorama moved by the exact flow ("warp": every pixel's flow, bicubic on a grid 4 times
 // finer, the panorama band-limited onto it), and per window by
 // that flow's taper-weighted affine fit over the window ("affine") or by its similarity part
@@ -46,7 +46,10 @@
 // windows: with du and dv replaced by the exact ones ("sim-uv"), and with the scale and
 // rotation replaced ("sim-rs"); and of the similarity's windows registered again with their
 // exact rotation and expansion given (measure()'s known_rotation_scale: the de-rotation and
-// de-scaling exact, the log-polar stage skipped; "sim-known"). What separates the render from the
+// de-scaling exact, the log-polar stage skipped; "sim-known"). Last, per window, the
+// similarity without its expansion (the shift and the rotation) registered, its scale set to
+// the similarity's expansion for the fit ("rigid"), and that with du and dv exact as well
+// ("rigid-uv"): whether a window that does not expand is read right. What separates the render from the
 // warp is the image's formation (the lens and the unwrapping, the renderer's sampling);
 // warp from affine, the flow bending within a window; affine from exact-uv, the
 // registration's response to a flow that is affine.
@@ -254,8 +257,9 @@ cv::Mat warpByFlow(const cv::Mat& fine, const cv::Mat& flow_u, const cv::Mat& fl
 /// extended over the whole panorama (u measured around the ring from centre_u): the flow
 /// that window would see if the scene's flow were affine across it; kSimilarity: only its
 /// similarity part (the mean shift, the isotropic expansion and the rotation: what the
-/// registration models), without the anisotropic expansion and the shear.
-enum class FlowPart { kAffine, kSimilarity };
+/// registration models), without the anisotropic expansion and the shear; kRigid: the mean
+/// shift and the rotation alone, without any expansion.
+enum class FlowPart { kAffine, kSimilarity, kRigid };
 void affineFlow(const cv::Mat& flow_u, const cv::Mat& flow_v, double centre_u, int top,
                 int length, FlowPart part, cv::Mat& affine_u, cv::Mat& affine_v) {
   const int width = flow_u.cols;
@@ -272,8 +276,9 @@ void affineFlow(const cv::Mat& flow_u, const cv::Mat& flow_v, double centre_u, i
       sxu += w * x * du, syu += w * y * du, sxv += w * x * dv, syv += w * y * dv;
     }
   double a = sxu / sxx, b = syu / syy, c = sxv / sxx, d = syv / syy;  // du/dx du/dy dv/dx dv/dy
-  if (part == FlowPart::kSimilarity) {
-    const double expansion = 0.5 * (a + d), rotation = 0.5 * (b - c);
+  if (part != FlowPart::kAffine) {
+    const double expansion = part == FlowPart::kSimilarity ? 0.5 * (a + d) : 0.0,
+                 rotation = 0.5 * (b - c);
     a = d = expansion, b = rotation, c = -rotation;
   }
   affine_u.create(flow_u.size(), CV_32F);
@@ -383,13 +388,14 @@ int run(int argc, char** argv) {
   // --synthetic: the previous panorama warped by the exact flow (every pixel's), and per
   // window by that flow's affine fit over the window; their registrations, fits and errors.
   std::vector<WindowMotion> warped_exact(n), warped_affine(n), warped_similarity(n),
-      similarity_uv(n), similarity_rs(n), similarity_known(n), known_rs(n), scratch(n);
+      similarity_uv(n), similarity_rs(n), similarity_known(n), known_rs(n), warped_rigid(n),
+      rigid_uv(n), scratch(n);
   // --preshift: the windows registered after the shift, and after its fractional part; the
   // sums above serve it (warp_*: the whole shift, affine_*: the fraction).
   std::vector<WindowMotion> preshifted(n), preshifted_fraction(n);
   cv::Mat flow_u, flow_v, affine_u, affine_v;
   double warp_du2 = 0, affine_du2 = 0, warp_yaw_sum = 0, affine_yaw_sum = 0;
-  double similarity_yaw_sums[4] = {0, 0, 0, 0};
+  double similarity_yaw_sums[4] = {0, 0, 0, 0}, rigid_yaw_sums[2] = {0, 0};
   long synthetic_windows = 0;
   std::vector<ExactWindow> exact(n);
 
@@ -475,7 +481,7 @@ int run(int argc, char** argv) {
     }
     double residual_rr = 0.0;
     int residuals = 0;
-    double synthetic_yaw[6] = {0, 0, 0, 0, 0, 0};
+    double synthetic_yaw[8] = {0, 0, 0, 0, 0, 0, 0, 0};
     if (with_preshift) {
       // Each window of the current panorama shifted along u by its exact mean du before it
       // is registered (the residual plus that shift), and by the fractional part of it.
@@ -509,12 +515,14 @@ int run(int argc, char** argv) {
       const cv::Mat fine = upsampled(previous);
       registration.measure(warpByFlow(fine, flow_u, flow_v), warped_exact, false);
       for (int w = 0; w < n; ++w) {
-        for (const FlowPart part : {FlowPart::kAffine, FlowPart::kSimilarity}) {
+        for (const FlowPart part : {FlowPart::kAffine, FlowPart::kSimilarity, FlowPart::kRigid}) {
           affineFlow(flow_u, flow_v, registration.windowCenter(w), registration.windowTop(),
                      length, part, affine_u, affine_v);
           const cv::Mat warped = warpByFlow(fine, affine_u, affine_v);
           registration.measure(warped, scratch, false);
-          (part == FlowPart::kAffine ? warped_affine : warped_similarity)[w] = scratch[w];
+          (part == FlowPart::kAffine       ? warped_affine
+           : part == FlowPart::kSimilarity ? warped_similarity
+                                           : warped_rigid)[w] = scratch[w];
           if (part != FlowPart::kSimilarity) continue;
           // Registered again, de-rotated and de-scaled by the similarity's own rotation and
           // expansion instead of the log-polar stage's.
@@ -530,15 +538,21 @@ int run(int argc, char** argv) {
         similarity_uv[w].dv = exact[w].dv;
         similarity_rs[w].scale = std::exp(exact[w].mix());
         similarity_rs[w].rotation = exact[w].phi;
+        // The rigid part's windows with the similarity's scale (what the fit expects of the
+        // translation), and that with the exact du and dv as well.
+        warped_rigid[w].scale = std::exp(exact[w].mix());
+        rigid_uv[w] = warped_rigid[w];
+        rigid_uv[w].du = exact[w].du;
+        rigid_uv[w].dv = exact[w].dv;
         if (!measured[w].valid || !warped_exact[w].valid || !warped_affine[w].valid) continue;
         warp_du2 += (warped_exact[w].du - exact[w].du) * (warped_exact[w].du - exact[w].du);
         affine_du2 += (warped_affine[w].du - exact[w].du) * (warped_affine[w].du - exact[w].du);
         ++synthetic_windows;
       }
-      const std::vector<WindowMotion>* warps[6] = {&warped_exact,      &warped_affine,
-                                                   &warped_similarity, &similarity_uv,
-                                                   &similarity_rs,     &similarity_known};
-      for (int i = 0; i < 6; ++i) {
+      const std::vector<WindowMotion>* warps[8] = {
+          &warped_exact,  &warped_affine,    &warped_similarity, &similarity_uv,
+          &similarity_rs, &similarity_known, &warped_rigid,      &rigid_uv};
+      for (int i = 0; i < 8; ++i) {
         const MotionEstimate e = fit.fit(*warps[i], g.forward_column);
         synthetic_yaw[i] =
             e.status != FitStatus::kLost ? e.omega.z() - omega_true.z() : std::nan("");
@@ -546,6 +560,7 @@ int run(int argc, char** argv) {
       warp_yaw_sum += synthetic_yaw[0];
       affine_yaw_sum += synthetic_yaw[1];
       for (int i = 0; i < 4; ++i) similarity_yaw_sums[i] += synthetic_yaw[2 + i];
+      for (int i = 0; i < 2; ++i) rigid_yaw_sums[i] += synthetic_yaw[6 + i];
     }
     if (with_dewarp) {
       dewarped = measured;
@@ -588,9 +603,10 @@ int run(int argc, char** argv) {
     if (with_energy) std::printf("  |  energy %+9.4f", yaw[4] * 1e3);
     if (with_synthetic)
       std::printf("  |  warp %+9.4f affine %+9.4f similarity %+9.4f sim-uv %+9.4f sim-rs %+9.4f"
-                  " sim-known %+9.4f",
+                  " sim-known %+9.4f rigid %+9.4f rigid-uv %+9.4f",
                   synthetic_yaw[0] * 1e3, synthetic_yaw[1] * 1e3, synthetic_yaw[2] * 1e3,
-                  synthetic_yaw[3] * 1e3, synthetic_yaw[4] * 1e3, synthetic_yaw[5] * 1e3);
+                  synthetic_yaw[3] * 1e3, synthetic_yaw[4] * 1e3, synthetic_yaw[5] * 1e3,
+                  synthetic_yaw[6] * 1e3, synthetic_yaw[7] * 1e3);
     if (with_preshift)
       std::printf("  |  preshift %+9.4f fraction %+9.4f", synthetic_yaw[0] * 1e3,
                   synthetic_yaw[1] * 1e3);
@@ -625,6 +641,9 @@ int run(int argc, char** argv) {
   if (with_synthetic)
     std::printf("  sim-uv %+.3f  sim-rs %+.3f  sim-known %+.3f", similarity_yaw_sums[1] * to_deg,
                 similarity_yaw_sums[2] * to_deg, similarity_yaw_sums[3] * to_deg);
+  if (with_synthetic)
+    std::printf("  rigid %+.3f  rigid-uv %+.3f", rigid_yaw_sums[0] * to_deg,
+                rigid_yaw_sums[1] * to_deg);
   if (with_preshift)
     std::printf("  preshift %+.3f  fraction %+.3f", warp_yaw_sum * to_deg,
                 affine_yaw_sum * to_deg);
