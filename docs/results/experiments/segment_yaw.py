@@ -84,7 +84,7 @@ def tum_yaw_errors(truth, estimate):
 
 # The columns the tool names after its fixed ones (--energy, --synthetic, --preshift).
 NAMED_COLUMNS = ("energy", "warp", "affine", "similarity", "sim-uv", "sim-rs", "sim-known",
-                 "rigid", "rigid-uv", "rigid-u", "rigid-v", "preshift", "fraction")
+                 "rigid", "rigid-uv", "preshift", "fraction")
 
 
 def window_flow_yaw_errors(path):

@@ -49,8 +49,7 @@
 // de-scaling exact, the log-polar stage skipped; "sim-known"). Last, per window, the
 // similarity without its expansion (the shift and the rotation) registered, its scale set to
 // the similarity's expansion for the fit ("rigid"), and that with du and dv exact as well
-// ("rigid-uv"), or only du ("rigid-u") or only dv ("rigid-v"): whether a window that does not
-// expand is read right, and in which of its shifts. What separates the render from the
+// ("rigid-uv"): whether a window that does not expand is read right. What separates the render from the
 // warp is the image's formation (the lens and the unwrapping, the renderer's sampling);
 // warp from affine, the flow bending within a window; affine from exact-uv, the
 // registration's response to a flow that is affine.
@@ -75,6 +74,7 @@
 
 #include <Eigen/Geometry>
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <complex>
 #include <cstdio>
@@ -210,8 +210,7 @@ constexpr int kUpsample = 4;
 /// `panorama` (H x W) band-limited onto a kUpsample times finer grid, with its rows mirrored
 /// below it (2 kUpsample H x kUpsample W; row kUpsample v, column kUpsample u is pixel (u, v)):
 /// zero-padding the spectrum of the ring and its mirror image, so the result is periodic in
-/// both axes with no edge, so a bicubic warp on it adds little of its own (on the panorama's
-/// own grid the straights' sums were the same within 0.02 deg: docs/results/ANALYSIS.md).
+/// both axes with no edge, so a bicubic warp on it adds little of its own.
 cv::Mat upsampled(const cv::Mat& panorama) {
   const int h = panorama.rows, w = panorama.cols;
   cv::Mat mirrored;
@@ -236,21 +235,38 @@ cv::Mat upsampled(const cv::Mat& panorama) {
   return out * static_cast<double>(kUpsample * kUpsample);
 }
 
+/// Keys' cubic convolution weights (a = -0.5) of the four samples around a point t in [0, 1)
+/// past the second.
+std::array<double, 4> cubicWeights(double t) {
+  const auto near = [](double x) { return (1.5 * x - 2.5) * x * x + 1.0; };           // |x| < 1
+  const auto far = [](double x) { return ((-0.5 * x + 2.5) * x - 4.0) * x + 2.0; };  // 1..2
+  return {far(1.0 + t), near(t), near(1.0 - t), far(2.0 - t)};
+}
+
 /// The panorama whose upsampled() image is `fine`, moved by the flow (flow_u, flow_v):
 /// out(u, v) = panorama(u + flow_u, v + flow_v), bicubic on the fine grid (periodic: around
-/// the ring, and mirrored above and below).
+/// the ring, and mirrored above and below), in double precision (cv::remap quantises its
+/// coordinates to 1/32 of a sample, which moved every window's du by about 0.004 px).
 cv::Mat warpByFlow(const cv::Mat& fine, const cv::Mat& flow_u, const cv::Mat& flow_v) {
-  cv::Mat map_u(flow_u.size(), CV_32F), map_v(flow_u.size(), CV_32F);
-  const int width = flow_u.cols;
+  cv::Mat out(flow_u.size(), CV_32F);
+  const int rows = fine.rows, cols = fine.cols, width = flow_u.cols;
   for (int v = 0; v < flow_u.rows; ++v)
     for (int u = 0; u < width; ++u) {
-      const double source = u + flow_u.at<float>(v, u);
-      map_u.at<float>(v, u) =
-          static_cast<float>(kUpsample * (source - width * std::floor(source / width)));
-      map_v.at<float>(v, u) = static_cast<float>(kUpsample * (v + flow_v.at<float>(v, u)));
+      const double x = kUpsample * (u + flow_u.at<float>(v, u));
+      const double y = kUpsample * (v + flow_v.at<float>(v, u));
+      const double x0 = std::floor(x), y0 = std::floor(y);
+      const std::array<double, 4> wx = cubicWeights(x - x0), wy = cubicWeights(y - y0);
+      double sum = 0.0;
+      for (int j = 0; j < 4; ++j) {
+        const int r = ((static_cast<int>(y0) - 1 + j) % rows + rows) % rows;
+        const float* row = fine.ptr<float>(r);
+        double line = 0.0;
+        for (int i = 0; i < 4; ++i)
+          line += wx[i] * row[((static_cast<int>(x0) - 1 + i) % cols + cols) % cols];
+        sum += wy[j] * line;
+      }
+      out.at<float>(v, u) = static_cast<float>(sum);
     }
-  cv::Mat out;
-  cv::remap(fine, out, map_u, map_v, cv::INTER_CUBIC, cv::BORDER_WRAP);
   return out;
 }
 
@@ -390,13 +406,13 @@ int run(int argc, char** argv) {
   // window by that flow's affine fit over the window; their registrations, fits and errors.
   std::vector<WindowMotion> warped_exact(n), warped_affine(n), warped_similarity(n),
       similarity_uv(n), similarity_rs(n), similarity_known(n), known_rs(n), warped_rigid(n),
-      rigid_uv(n), rigid_u(n), rigid_v(n), scratch(n);
+      rigid_uv(n), scratch(n);
   // --preshift: the windows registered after the shift, and after its fractional part; the
   // sums above serve it (warp_*: the whole shift, affine_*: the fraction).
   std::vector<WindowMotion> preshifted(n), preshifted_fraction(n);
   cv::Mat flow_u, flow_v, affine_u, affine_v;
   double warp_du2 = 0, affine_du2 = 0, warp_yaw_sum = 0, affine_yaw_sum = 0;
-  double similarity_yaw_sums[4] = {0, 0, 0, 0}, rigid_yaw_sums[4] = {0, 0, 0, 0};
+  double similarity_yaw_sums[4] = {0, 0, 0, 0}, rigid_yaw_sums[2] = {};
   long synthetic_windows = 0;
   std::vector<ExactWindow> exact(n);
 
@@ -482,7 +498,7 @@ int run(int argc, char** argv) {
     }
     double residual_rr = 0.0;
     int residuals = 0;
-    double synthetic_yaw[10] = {};
+    double synthetic_yaw[8] = {};
     if (with_preshift) {
       // Each window of the current panorama shifted along u by its exact mean du before it
       // is registered (the residual plus that shift), and by the fractional part of it.
@@ -545,18 +561,15 @@ int run(int argc, char** argv) {
         rigid_uv[w] = warped_rigid[w];
         rigid_uv[w].du = exact[w].du;
         rigid_uv[w].dv = exact[w].dv;
-        rigid_u[w] = rigid_v[w] = warped_rigid[w];
-        rigid_u[w].du = exact[w].du;
-        rigid_v[w].dv = exact[w].dv;
         if (!measured[w].valid || !warped_exact[w].valid || !warped_affine[w].valid) continue;
         warp_du2 += (warped_exact[w].du - exact[w].du) * (warped_exact[w].du - exact[w].du);
         affine_du2 += (warped_affine[w].du - exact[w].du) * (warped_affine[w].du - exact[w].du);
         ++synthetic_windows;
       }
-      const std::vector<WindowMotion>* warps[10] = {
-          &warped_exact,     &warped_affine, &warped_similarity, &similarity_uv, &similarity_rs,
-          &similarity_known, &warped_rigid,  &rigid_uv,          &rigid_u,       &rigid_v};
-      for (int i = 0; i < 10; ++i) {
+      const std::vector<WindowMotion>* warps[8] = {
+          &warped_exact,  &warped_affine,    &warped_similarity, &similarity_uv,
+          &similarity_rs, &similarity_known, &warped_rigid,      &rigid_uv};
+      for (int i = 0; i < 8; ++i) {
         const MotionEstimate e = fit.fit(*warps[i], g.forward_column);
         synthetic_yaw[i] =
             e.status != FitStatus::kLost ? e.omega.z() - omega_true.z() : std::nan("");
@@ -564,7 +577,7 @@ int run(int argc, char** argv) {
       warp_yaw_sum += synthetic_yaw[0];
       affine_yaw_sum += synthetic_yaw[1];
       for (int i = 0; i < 4; ++i) similarity_yaw_sums[i] += synthetic_yaw[2 + i];
-      for (int i = 0; i < 4; ++i) rigid_yaw_sums[i] += synthetic_yaw[6 + i];
+      for (int i = 0; i < 2; ++i) rigid_yaw_sums[i] += synthetic_yaw[6 + i];
     }
     if (with_dewarp) {
       dewarped = measured;
@@ -607,11 +620,10 @@ int run(int argc, char** argv) {
     if (with_energy) std::printf("  |  energy %+9.4f", yaw[4] * 1e3);
     if (with_synthetic)
       std::printf("  |  warp %+9.4f affine %+9.4f similarity %+9.4f sim-uv %+9.4f sim-rs %+9.4f"
-                  " sim-known %+9.4f rigid %+9.4f rigid-uv %+9.4f rigid-u %+9.4f rigid-v %+9.4f",
+                  " sim-known %+9.4f rigid %+9.4f rigid-uv %+9.4f",
                   synthetic_yaw[0] * 1e3, synthetic_yaw[1] * 1e3, synthetic_yaw[2] * 1e3,
                   synthetic_yaw[3] * 1e3, synthetic_yaw[4] * 1e3, synthetic_yaw[5] * 1e3,
-                  synthetic_yaw[6] * 1e3, synthetic_yaw[7] * 1e3, synthetic_yaw[8] * 1e3,
-                  synthetic_yaw[9] * 1e3);
+                  synthetic_yaw[6] * 1e3, synthetic_yaw[7] * 1e3);
     if (with_preshift)
       std::printf("  |  preshift %+9.4f fraction %+9.4f", synthetic_yaw[0] * 1e3,
                   synthetic_yaw[1] * 1e3);
@@ -647,9 +659,8 @@ int run(int argc, char** argv) {
     std::printf("  sim-uv %+.3f  sim-rs %+.3f  sim-known %+.3f", similarity_yaw_sums[1] * to_deg,
                 similarity_yaw_sums[2] * to_deg, similarity_yaw_sums[3] * to_deg);
   if (with_synthetic)
-    std::printf("  rigid %+.3f  rigid-uv %+.3f  rigid-u %+.3f  rigid-v %+.3f",
-                rigid_yaw_sums[0] * to_deg, rigid_yaw_sums[1] * to_deg,
-                rigid_yaw_sums[2] * to_deg, rigid_yaw_sums[3] * to_deg);
+    std::printf("  rigid %+.3f  rigid-uv %+.3f", rigid_yaw_sums[0] * to_deg,
+                rigid_yaw_sums[1] * to_deg);
   if (with_preshift)
     std::printf("  preshift %+.3f  fraction %+.3f", warp_yaw_sum * to_deg,
                 affine_yaw_sum * to_deg);
