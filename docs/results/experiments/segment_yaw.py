@@ -11,7 +11,7 @@ Sources:
                        per-room TUM `tools/drift_pool.sh` keeps as OUT/ROOM/default.tum)
   --window-flow OUT    the output of `omnipose-experiment-window-flow` (its per-pair lines; the
                        columns measured, exact-uv, exact-all, exact-phi are summed alike, and
-                       energy, warp and affine where the tool printed them)
+                       those of NAMED_COLUMNS where the tool printed them)
 Standard library only. Run, on a room of `tools/drift_pool.sh OUT`:
   build/bin/omnipose-experiment-window-flow OUT/park_m240/dataset 1 460 > wf.txt
   python3 docs/results/experiments/segment_yaw.py OUT/park_m240/dataset/groundtruth.tum \\

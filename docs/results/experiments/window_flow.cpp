@@ -38,21 +38,20 @@
 // the RMS over the windows of the measured du and dv less each of the two exact means.
 //
 // --synthetic (slow: 4 registrations of the whole panorama per window): the previous
-// panorama moved by the exact flow ("warp": every pixel's flow, bicubic on a grid 4 times
-// finer, the panorama band-limited onto it), and per window by
-// that flow's taper-weighted affine fit over the window ("affine") or by its similarity part
-// alone ("similarity": shift, isotropic expansion, rotation, what the registration models),
-// registered against itself; the yaw error of each fit, and of two more on the similarity's
-// windows: with du and dv replaced by the exact ones ("sim-uv"), and with the scale and
-// rotation replaced ("sim-rs"); and of the similarity's windows registered again with their
-// exact rotation and expansion given (measure()'s known_rotation_scale: the de-rotation and
-// de-scaling exact, the log-polar stage skipped; "sim-known"). Last, per window, the
-// similarity without its expansion (the shift and the rotation) registered, its scale set to
-// the similarity's expansion for the fit ("rigid"), and that with du and dv exact as well
-// ("rigid-uv"): whether a window that does not expand is read right. What separates the render from the
-// warp is the image's formation (the lens and the unwrapping, the renderer's sampling);
-// warp from affine, the flow bending within a window; affine from exact-uv, the
-// registration's response to a flow that is affine.
+// panorama moved by the exact flow and registered against itself ("warp": every pixel's flow;
+// bicubic in double precision on a grid 4 times finer, the panorama band-limited onto it), and
+// per window by that flow's taper-weighted affine fit over the window ("affine"), by its
+// similarity part alone ("similarity": shift, isotropic expansion, rotation, what the
+// registration models), and by the similarity without its expansion ("rigid": the shift and
+// the rotation, fitted with its scale set to the similarity's expansion; "rigid-uv": with du
+// and dv exact as well). On the similarity's windows three more fits: du and dv replaced by
+// the exact ones ("sim-uv"), the scale and rotation replaced ("sim-rs"), and the windows
+// registered again with their exact rotation and expansion given (measure()'s
+// known_rotation_scale: the de-rotation and de-scaling exact, the log-polar stage skipped;
+// "sim-known"). Printed: the yaw error of each fit. Render less warp is the image's formation
+// (the lens, the unwrapping, the renderer's sampling); warp less affine, the flow bending
+// within a window; affine less similarity, the anisotropic expansion and the shear;
+// similarity less rigid, the expansion; rigid less rigid-uv, a window that only moves.
 //
 // --preshift (slow): each window of the current panorama shifted along u, exactly (Fourier),
 // by its exact mean du ("preshift") or by the fractional part of it ("fraction") before it
