@@ -97,6 +97,8 @@ namespace {
 
 using namespace omnipose;
 
+double square(double x) { return x * x; }
+
 /// Exact motion of one window between the two frames (current -> previous panorama).
 struct ExactWindow {
   double du = 0.0, dv = 0.0;  ///< taper-weighted mean shift, pixels
@@ -448,6 +450,11 @@ int run(int argc, char** argv) {
         rotationVector(pose_prev.linear().transpose() * pose_cur.linear());
     const Eigen::Vector3d t_cam = pose_prev.inverse() * pose_cur.translation();
     const double travel_theta = std::atan2(t_cam.y(), t_cam.x());
+    // The yaw error of the default fit on `windows`, rad (NaN when the fit is lost).
+    const auto yawError = [&](const std::vector<WindowMotion>& windows) {
+      const MotionEstimate e = fit.fit(windows, g.forward_column);
+      return e.status != FitStatus::kLost ? e.omega.z() - omega_true.z() : std::nan("");
+    };
     double rr = 0.0, ratio = 0.0;
     int used = 0, travel = 0;
     for (int w = 0; w < n; ++w) {
@@ -462,11 +469,10 @@ int run(int argc, char** argv) {
         exact_energy[w].du = exact[w].du_energy;
         exact_energy[w].dv = exact[w].dv_energy;
         if (measured[w].valid) {
-          const auto sq = [](double x) { return x * x; };
-          taper_du2 += sq(measured[w].du - exact[w].du);
-          taper_dv2 += sq(measured[w].dv - exact[w].dv);
-          energy_du2 += sq(measured[w].du - exact[w].du_energy);
-          energy_dv2 += sq(measured[w].dv - exact[w].dv_energy);
+          taper_du2 += square(measured[w].du - exact[w].du);
+          taper_dv2 += square(measured[w].dv - exact[w].dv);
+          energy_du2 += square(measured[w].du - exact[w].du_energy);
+          energy_dv2 += square(measured[w].dv - exact[w].dv_energy);
           ++energy_windows;
         }
       }
@@ -512,17 +518,12 @@ int run(int argc, char** argv) {
         }
         if (!measured[w].valid || !preshifted[w].valid || !preshifted_fraction[w].valid)
           continue;
-        warp_du2 += (preshifted[w].du - exact[w].du) * (preshifted[w].du - exact[w].du);
-        affine_du2 += (preshifted_fraction[w].du - exact[w].du) *
-                      (preshifted_fraction[w].du - exact[w].du);
+        warp_du2 += square(preshifted[w].du - exact[w].du);
+        affine_du2 += square(preshifted_fraction[w].du - exact[w].du);
         ++synthetic_windows;
       }
-      const std::vector<WindowMotion>* shifted[2] = {&preshifted, &preshifted_fraction};
-      for (int i = 0; i < 2; ++i) {
-        const MotionEstimate e = fit.fit(*shifted[i], g.forward_column);
-        synthetic_yaw[i] =
-            e.status != FitStatus::kLost ? e.omega.z() - omega_true.z() : std::nan("");
-      }
+      synthetic_yaw[0] = yawError(preshifted);
+      synthetic_yaw[1] = yawError(preshifted_fraction);
       warp_yaw_sum += synthetic_yaw[0];
       affine_yaw_sum += synthetic_yaw[1];
     }
@@ -561,18 +562,14 @@ int run(int argc, char** argv) {
         rigid_uv[w].du = exact[w].du;
         rigid_uv[w].dv = exact[w].dv;
         if (!measured[w].valid || !warped_exact[w].valid || !warped_affine[w].valid) continue;
-        warp_du2 += (warped_exact[w].du - exact[w].du) * (warped_exact[w].du - exact[w].du);
-        affine_du2 += (warped_affine[w].du - exact[w].du) * (warped_affine[w].du - exact[w].du);
+        warp_du2 += square(warped_exact[w].du - exact[w].du);
+        affine_du2 += square(warped_affine[w].du - exact[w].du);
         ++synthetic_windows;
       }
       const std::vector<WindowMotion>* warps[8] = {
           &warped_exact,  &warped_affine,    &warped_similarity, &similarity_uv,
           &similarity_rs, &similarity_known, &warped_rigid,      &rigid_uv};
-      for (int i = 0; i < 8; ++i) {
-        const MotionEstimate e = fit.fit(*warps[i], g.forward_column);
-        synthetic_yaw[i] =
-            e.status != FitStatus::kLost ? e.omega.z() - omega_true.z() : std::nan("");
-      }
+      for (int i = 0; i < 8; ++i) synthetic_yaw[i] = yawError(*warps[i]);
       warp_yaw_sum += synthetic_yaw[0];
       affine_yaw_sum += synthetic_yaw[1];
       for (int i = 0; i < 4; ++i) similarity_yaw_sums[i] += synthetic_yaw[2 + i];
@@ -604,13 +601,11 @@ int run(int argc, char** argv) {
       attitude_sum[i] += error;
     }
     if (with_energy) {
-      const MotionEstimate e = fit.fit(exact_energy, g.forward_column);
-      yaw[4] = e.status != FitStatus::kLost ? e.omega.z() - omega_true.z() : std::nan("");
+      yaw[4] = yawError(exact_energy);
       energy_yaw_sum += yaw[4];
     }
     if (with_dewarp) {
-      const MotionEstimate e = fit.fit(dewarped, g.forward_column);
-      yaw[4] = e.status != FitStatus::kLost ? e.omega.z() - omega_true.z() : std::nan("");
+      yaw[4] = yawError(dewarped);
       dewarped_yaw_sum += yaw[4];
     }
     std::printf("%5d  %+9.4f %+9.4f %+9.4f %+9.4f  |  %.5f  %s", k, yaw[0] * 1e3, yaw[1] * 1e3,
