@@ -97,6 +97,7 @@ constexpr PipelineKey kPipelineKeys[] = {
     {"pipeline.yaw_capture_time", "yaw_capture_time"},
     {"pipeline.gyro_fusion", "gyro_fusion"},
     {"pipeline.noise_weighting", "registration.noise_weighting"},
+    {"pipeline.cubic_window_sampling", "registration.cubic_sampling"},
     {"pipeline.plane_depth_prior", "fit.plane_depth_prior"},
     {"pipeline.ring_consensus", "fit.ring_consensus"},
     {"pipeline.translation_shrinkage", "fit.translation_shrinkage"},
@@ -138,6 +139,7 @@ void parsePipeline(Reader& r, const YAML::Node& node, const std::filesystem::pat
   r.get(node, "pipeline", "yaw_capture_time", p.yaw_capture_time);
   r.get(node, "pipeline", "gyro_fusion", p.gyro_fusion);
   r.get(node, "pipeline", "noise_weighting", p.registration.noise_weighting);
+  r.get(node, "pipeline", "cubic_window_sampling", p.registration.cubic_sampling);
   r.get(node, "pipeline", "plane_depth_prior", p.fit.plane_depth_prior);
   r.get(node, "pipeline", "ring_consensus", p.fit.ring_consensus);
   r.get(node, "pipeline", "translation_shrinkage", p.fit.translation_shrinkage);
@@ -403,6 +405,7 @@ std::string DaemonConfig::describe() const {
     << "\n  yaw_capture_time: " << p.yaw_capture_time
     << "\n  gyro_fusion: " << p.gyro_fusion
     << "\n  noise_weighting: " << p.registration.noise_weighting
+    << "\n  cubic_window_sampling: " << p.registration.cubic_sampling
     << "\n  plane_depth_prior: " << p.fit.plane_depth_prior
     << "\n  ring_consensus: " << p.fit.ring_consensus
     << "\n  translation_shrinkage: " << p.fit.translation_shrinkage

@@ -3,13 +3,11 @@
 #include <algorithm>
 #include <cmath>
 
+#include "image/cubic_kernel.hpp"
 #include "runtime/simd.hpp"
 
 namespace omnipose {
-// Image sampling: cubic convolution (Keys kernel with a = -0.75, OpenCV's INTER_CUBIC). Of
-// the cubic kernels this one has the most linear phase: a = -0.5 leaves a shift bias of
-// about 0.03 px after resampling, which phase correlation reads as motion
-// (docs/results/experiments/resample_bias.cpp).
+// Image sampling: Keys cubic convolution, a = -0.75 (image/cubic_kernel.hpp says why).
 
 PanoramaWarp::PanoramaWarp(const PanoramaGeometry& geometry) : geometry_(geometry) {
   grid_cols_ = geometry.width / kGridStep + 2;
@@ -104,21 +102,6 @@ void PanoramaWarp::derotateRows(cv::Mat& out, int first, int last) const {
   const simd::F4 x_lo = simd::broadcast(1.0f), x_hi = simd::broadcast(static_cast<float>(PW - 2.001f));
   const simd::F4 lane{0.0f, 1.0f, 2.0f, 3.0f};
   const simd::F4 y_lo = simd::broadcast(-2.0f), y_hi = simd::broadcast(static_cast<float>(H));
-  // Keys cubic (a = -0.75) weights of the taps at -1, 0, 1, 2 for offsets t (lane-wise).
-  const auto weights = [&](simd::F4 t, simd::F4 w[4]) {
-    constexpr float a = -0.75f;
-    const auto near = [&](simd::F4 x) {
-      return ((simd::broadcast(a + 2) * x - simd::broadcast(a + 3)) * x * x) + one;
-    };
-    const auto far = [&](simd::F4 x) {
-      return ((simd::broadcast(a) * x - simd::broadcast(5 * a)) * x + simd::broadcast(8 * a)) * x -
-             simd::broadcast(4 * a);
-    };
-    w[0] = far(one + t);
-    w[1] = near(t);
-    w[2] = near(one - t);
-    w[3] = far(simd::broadcast(2.0f) - t);
-  };
   const float* origin = padded_.ptr<float>(0);
   const std::ptrdiff_t stride = static_cast<std::ptrdiff_t>(padded_.step1());
   for (int v = first; v < last; ++v) {
@@ -146,8 +129,8 @@ void PanoramaWarp::derotateRows(cv::Mat& out, int first, int last) const {
       const simd::I4 y0 = simd::floorToInt(y);
       const simd::F4 y_floor = __builtin_convertvector(y0, simd::F4);
       simd::F4 wx[4], wy[4];
-      weights(x - __builtin_convertvector(x0, simd::F4), wx);
-      weights(y - y_floor, wy);
+      image::keysCubicWeights(x - __builtin_convertvector(x0, simd::F4), wx);
+      image::keysCubicWeights(y - y_floor, wy);
       // Per lane l, acc[l][t] = column tap t weighted over the rows; the four lanes'
       // accumulators are transposed so that the column weights apply lane-wise:
       // out[l] = (acc[l][0] wx0 + acc[l][1] wx1) + (acc[l][2] wx2 + acc[l][3] wx3), the

@@ -14,6 +14,7 @@
 #include <vector>
 
 #include "common/problem_list.hpp"
+#include "image/cubic_kernel.hpp"
 #include "registration/column_spectra.hpp"
 #include "registration/log_polar.hpp"
 #include "registration/noise_estimate.hpp"
@@ -137,8 +138,8 @@ float taperRow(float* out, const float* in, const float* taper, float h, float m
 /// v0 + j dv), with u >= 0 and v clamped to [0, max_v] (both neighbours inside the image).
 /// Columns wrap modulo `width` (the panorama is periodic in u).
 OMNIPOSE_SIMD_CLONES
-void sampleRowWrapped(const float* image, std::size_t stride, int width, float u0, float du,
-                      float v0, float dv, float max_v, float* out, int count) {
+void sampleRowBilinearWrapped(const float* image, std::size_t stride, int width, float u0,
+                              float du, float v0, float dv, float max_v, float* out, int count) {
   for (int j = 0; j < count; ++j) {
     const float u = u0 + static_cast<float>(j) * du;
     const float v = std::min(std::max(v0 + static_cast<float>(j) * dv, 0.0f), max_v);
@@ -155,11 +156,11 @@ void sampleRowWrapped(const float* image, std::size_t stride, int width, float u
   }
 }
 
-/// As sampleRowWrapped() for a row whose columns stay inside the image (no wrap), four
+/// As sampleRowBilinearWrapped() for a row whose columns stay inside the image (no wrap), four
 /// pixels at a time.
 OMNIPOSE_SIMD_CLONES
-void sampleRow(const float* image, std::size_t stride, float u0, float du, float v0, float dv,
-               float max_v, float* out, int count) {
+void sampleRowBilinear(const float* image, std::size_t stride, float u0, float du, float v0,
+                       float dv, float max_v, float* out, int count) {
   namespace simd = runtime::simd;
   const simd::F4 lane{0.0f, 1.0f, 2.0f, 3.0f};
   const simd::F4 zero = simd::broadcast(0.0f), top = simd::broadcast(max_v);
@@ -187,8 +188,81 @@ void sampleRow(const float* image, std::size_t stride, float u0, float du, float
   }
   if (j < count) {  // the last count % 4 pixels; a width no column reaches means "no wrap"
     constexpr int kNoWrap = std::numeric_limits<int>::max() / 2;
-    sampleRowWrapped(image, stride, kNoWrap, u0 + static_cast<float>(j) * du, du,
-                     v0 + static_cast<float>(j) * dv, dv, max_v, out + j, count - j);
+    sampleRowBilinearWrapped(image, stride, kNoWrap, u0 + static_cast<float>(j) * du, du,
+                             v0 + static_cast<float>(j) * dv, dv, max_v, out + j, count - j);
+  }
+}
+
+/// One row of an affine resampling with Keys cubic interpolation (image/cubic_kernel.hpp):
+/// out[j] = image(u0 + j du, v0 + j dv) for j < count, with u >= 1 (the left taps inside the
+/// image). Rows beyond [0, height) replicate the edge rows; columns wrap modulo `width` (the
+/// panorama is periodic in u; u < 2 width).
+void sampleRowCubicWrapped(const float* image, std::size_t stride, int width, int height,
+                           float u0, float du, float v0, float dv, float* out, int count) {
+  const float v_lo = -2.0f, v_hi = static_cast<float>(height);
+  for (int j = 0; j < count; ++j) {
+    const float u = u0 + static_cast<float>(j) * du;
+    const float v = std::clamp(v0 + static_cast<float>(j) * dv, v_lo, v_hi);
+    const int iu = static_cast<int>(u), iv = static_cast<int>(std::floor(v));
+    runtime::simd::F4 w[4];  // lane 0: the column taps' weights, lane 1: the rows'
+    image::keysCubicWeights(
+        runtime::simd::F4{u - static_cast<float>(iu), v - static_cast<float>(iv), 0.0f, 0.0f}, w);
+    int c[4];
+    c[0] = iu - 1;
+    while (c[0] >= width) c[0] -= width;
+    for (int t = 1; t < 4; ++t) c[t] = c[t - 1] + 1 == width ? 0 : c[t - 1] + 1;
+    float sum = 0.0f;
+    for (int r = 0; r < 4; ++r) {
+      const int row = std::clamp(iv - 1 + r, 0, height - 1);
+      const float* p = image + static_cast<std::size_t>(row) * stride;
+      sum += w[r][1] * ((p[c[0]] * w[0][0] + p[c[1]] * w[1][0]) +
+                        (p[c[2]] * w[2][0] + p[c[3]] * w[3][0]));
+    }
+    out[j] = sum;
+  }
+}
+
+/// As sampleRowCubicWrapped() for a row whose taps stay inside the image's columns (no wrap),
+/// four pixels at a time: per pixel the 4 x 4 taps are four row vectors weighted by the row
+/// weights, then (the four pixels' sums transposed) by the column weights.
+OMNIPOSE_SIMD_CLONES
+void sampleRowCubic(const float* image, std::size_t stride, int height, float u0, float du,
+                    float v0, float dv, float* out, int count) {
+  namespace simd = runtime::simd;
+  const simd::F4 lane{0.0f, 1.0f, 2.0f, 3.0f};
+  const simd::F4 v_lo = simd::broadcast(-2.0f), v_hi = simd::broadcast(static_cast<float>(height));
+  const simd::I4 row_lo{0, 0, 0, 0}, row_hi{height - 1, height - 1, height - 1, height - 1};
+  int j = 0;
+  for (; j + 4 <= count; j += 4) {
+    const simd::F4 x = simd::broadcast(static_cast<float>(j)) + lane;
+    const simd::F4 u = simd::broadcast(u0) + x * du;
+    const simd::F4 v = simd::min(simd::max(simd::broadcast(v0) + x * dv, v_lo), v_hi);
+    const simd::I4 iu = __builtin_convertvector(u, simd::I4);  // truncation = floor (u >= 1)
+    const simd::I4 iv = simd::floorToInt(v);
+    simd::F4 wu[4], wv[4];
+    image::keysCubicWeights(u - __builtin_convertvector(iu, simd::F4), wu);
+    image::keysCubicWeights(v - __builtin_convertvector(iv, simd::F4), wv);
+    simd::I4 rows[4];  // the taps' rows, edge replicated
+    for (int r = 0; r < 4; ++r) {
+      const simd::I4 row = iv + (r - 1);
+      rows[r] = row < row_lo ? row_lo : (row > row_hi ? row_hi : row);
+    }
+    const auto taps = [&]<int l>() {
+      const float* p = image + (iu[l] - 1);
+      return simd::splat<l>(wv[0]) * simd::load(p + rows[0][l] * stride) +
+             simd::splat<l>(wv[1]) * simd::load(p + rows[1][l] * stride) +
+             simd::splat<l>(wv[2]) * simd::load(p + rows[2][l] * stride) +
+             simd::splat<l>(wv[3]) * simd::load(p + rows[3][l] * stride);
+    };
+    simd::F4 acc[4] = {taps.template operator()<0>(), taps.template operator()<1>(),
+                       taps.template operator()<2>(), taps.template operator()<3>()};
+    simd::transpose(acc[0], acc[1], acc[2], acc[3]);
+    simd::store(out + j, (acc[0] * wu[0] + acc[1] * wu[1]) + (acc[2] * wu[2] + acc[3] * wu[3]));
+  }
+  if (j < count) {  // the last count % 4 pixels; a width no column reaches means "no wrap"
+    constexpr int kNoWrap = std::numeric_limits<int>::max() / 2;
+    sampleRowCubicWrapped(image, stride, kNoWrap, height, u0 + static_cast<float>(j) * du, du,
+                          v0 + static_cast<float>(j) * dv, dv, out + j, count - j);
   }
 }
 
@@ -526,10 +600,12 @@ TaperedWindow WindowRegistration::Impl::loadWarpedWindow(Worker& w, const cv::Ma
   const int length = options.window;
   const double m00 = std::cos(rotation) / scale, m10 = std::sin(rotation) / scale;
   const double m01 = -m10, m11 = m00;
-  // Columns are addressed from `base`, a whole column left of every sample, so coordinates
-  // stay small and positive (float keeps ~1e-5 px); rows are clamped (edge replicated).
+  // Columns are addressed from `base`, whole columns left of every sample (two for the
+  // cubic's left tap), so coordinates stay small and positive (float keeps ~1e-5 px); rows
+  // beyond the panorama replicate its edge rows.
+  const bool cubic = options.cubic_sampling;
   const double centre_u = k * static_cast<double>(options.step) + half;  // may exceed W
-  const double reach = half * (std::abs(m00) + std::abs(m01)) + 1.0;
+  const double reach = half * (std::abs(m00) + std::abs(m01)) + (cubic ? 2.0 : 1.0);
   const double base = std::floor(centre_u - reach);
   const bool wraps = base < 0.0 || centre_u + reach + 1.0 >= width;
   const double wrapped_base = base - width * std::floor(base / width);  // in [0, W)
@@ -537,19 +613,22 @@ TaperedWindow WindowRegistration::Impl::loadWarpedWindow(Worker& w, const cv::Ma
   const std::size_t stride = panorama.step1();
   const double u_centre = centre_u - base + (wraps ? wrapped_base : 0.0);
   const double v_centre = top + half;
-  const float max_v = static_cast<float>(height - 1) - 1e-3f;
+  const float max_v = static_cast<float>(height - 1) - 1e-3f;  // bilinear: both rows inside
   for (int i = 0; i < length; ++i) {
     // Row i starts at y = (-half, i - half).
     const double yv = i - half;
     const float u0 = static_cast<float>(u_centre - m00 * half + m01 * yv);
     const float v0 = static_cast<float>(v_centre - m10 * half + m11 * yv);
+    const auto du = static_cast<float>(m00), dv = static_cast<float>(m10);
     float* dst = w.window.data() + static_cast<std::size_t>(i) * fft_size;
-    if (wraps)
-      sampleRowWrapped(origin, stride, width, u0, static_cast<float>(m00), v0,
-                       static_cast<float>(m10), max_v, dst, length);
+    if (cubic && wraps)
+      sampleRowCubicWrapped(origin, stride, width, height, u0, du, v0, dv, dst, length);
+    else if (cubic)
+      sampleRowCubic(origin, stride, height, u0, du, v0, dv, dst, length);
+    else if (wraps)
+      sampleRowBilinearWrapped(origin, stride, width, u0, du, v0, dv, max_v, dst, length);
     else
-      sampleRow(origin, stride, u0, static_cast<float>(m00), v0, static_cast<float>(m10), max_v,
-                dst, length);
+      sampleRowBilinear(origin, stride, u0, du, v0, dv, max_v, dst, length);
   }
   return taperWindow(w, k, bufferRows(w));
 }

@@ -164,6 +164,12 @@ TEST(DaemonConfig, NoiseWeighting) {
       [](const DaemonConfig& c) { return c.pipeline.registration.noise_weighting; }, "2");
 }
 
+TEST(DaemonConfig, CubicWindowSampling) {
+  expectBooleanPipelineKey(
+      "cubic_window_sampling", false,
+      [](const DaemonConfig& c) { return c.pipeline.registration.cubic_sampling; }, "cubic");
+}
+
 TEST(DaemonConfig, PlaneDepthPrior) {
   expectBooleanPipelineKey(
       "plane_depth_prior", true,

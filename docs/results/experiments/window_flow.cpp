@@ -62,6 +62,7 @@
 // root:
 //   build/bin/omnipose-experiment-window-flow DATASET FIRST LAST
 //       [--windows | --dewarp | --energy | --synthetic | --preshift] [--scatter-only]
+//       [--cubic]
 //     DATASET  a box-room dataset with groundtruth.tum (frames rendered without noise
 //              show the model's error alone); FIRST..LAST: the current frames K of the pairs
 //     --windows  also print every window of every pair
@@ -70,6 +71,8 @@
 //                --preshift
 //     --scatter-only  fit with MotionFit::Options::rotation_deformation 0: the in-window
 //                rotation equations weighted by their scatter alone (the fit before 2026-11-28)
+//     --cubic    de-warp the windows with the cubic sampler (WindowRegistration::Options::
+//                cubic_sampling; daemon.yaml's pipeline.cubic_window_sampling)
 
 #include <Eigen/Geometry>
 #include <algorithm>
@@ -351,12 +354,13 @@ cv::Mat dewarp(const cv::Mat& current, double u_c, double v_c, double ln_x, doub
 
 void usage() {
   std::fprintf(stderr, "usage: omnipose-experiment-window-flow DATASET FIRST LAST "
-                       "[--windows | --dewarp | --energy | --synthetic | --preshift] [--scatter-only]\n");
+                       "[--windows | --dewarp | --energy | --synthetic | --preshift] [--scatter-only] "
+                       "[--cubic]\n");
 }
 
 int run(int argc, char** argv) {
   bool print_windows = false, with_dewarp = false, scatter_only = false, with_energy = false,
-       with_synthetic = false, with_preshift = false, flags_known = true;
+       with_synthetic = false, with_preshift = false, cubic = false, flags_known = true;
   for (int i = 4; i < argc; ++i) {
     const std::string flag = argv[i];
     print_windows = print_windows || flag == "--windows";
@@ -365,9 +369,11 @@ int run(int argc, char** argv) {
     with_energy = with_energy || flag == "--energy";
     with_synthetic = with_synthetic || flag == "--synthetic";
     with_preshift = with_preshift || flag == "--preshift";
+    cubic = cubic || flag == "--cubic";
     flags_known = flags_known && (flag == "--windows" || flag == "--dewarp" ||
                                   flag == "--scatter-only" || flag == "--energy" ||
-                                  flag == "--synthetic" || flag == "--preshift");
+                                  flag == "--synthetic" || flag == "--preshift" ||
+                                  flag == "--cubic");
   }
   const int comparisons = int{with_dewarp} + int{with_energy} + int{with_synthetic} +
                           int{with_preshift};  // one at a time
@@ -392,6 +398,7 @@ int run(int argc, char** argv) {
 
   PipelineOptions options;
   if (scatter_only) options.fit.rotation_deformation = 0.0;
+  options.registration.cubic_sampling = cubic;
   Pipeline pipeline(dataset.calibration, options);
   WindowRegistration registration(g.size(), options.registration);
   const int n = registration.windowCount(), length = options.registration.window;
