@@ -62,8 +62,8 @@ class WindowRegistration {
     /// Re-sample a window that is de-rotated or de-scaled before its shift is measured with
     /// Keys cubic convolution (a = -0.75) instead of bilinear interpolation. Phase correlation
     /// reads the sampler's non-linear phase as a shift: given each window's exact scale and
-    /// rotation, bilinear leaves an RMS du of 0.0076 px (park) / 0.0117 (indoor), cubic 0.0049 /
-    /// 0.0090, and on exact warps of the drift benchmark's straights the expansion is then read
+    /// rotation, bilinear leaves an RMS du of 0.0076 px (park) / 0.0117 (indoor), cubic 0.0048 /
+    /// 0.0089, and on exact warps of the drift benchmark's straights the expansion is then read
     /// right. But cubic also applies a misread scale or rotation in full, where bilinear's
     /// smoothing damps it: on rendered sequences the straights' yaw is better in six rooms of the
     /// drift pool and worse in three, and a blurred auto-exposure sequence's yaw doubles

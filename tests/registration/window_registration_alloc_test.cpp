@@ -42,16 +42,18 @@ std::pair<cv::Mat, cv::Mat> framePair() {
   return {a, b};
 }
 
-/// (worker threads, Options::noise_weighting)
-class WindowRegistrationRealtime : public ::testing::TestWithParam<std::tuple<int, bool>> {};
+/// (worker threads, Options::noise_weighting, Options::cubic_sampling)
+class WindowRegistrationRealtime
+    : public ::testing::TestWithParam<std::tuple<int, bool, bool>> {};
 
 TEST_P(WindowRegistrationRealtime, MeasureAndAdvanceAllocateNothing) {
   if (!testing::AllocationCounter::available())
     GTEST_SKIP() << "sanitizer build: the sanitizer owns malloc, allocations are not counted";
   const auto [a, b] = framePair();
-  const auto [threads, noise_weighting] = GetParam();
+  const auto [threads, noise_weighting, cubic_sampling] = GetParam();
   WindowRegistration::Options options;
   options.noise_weighting = noise_weighting;  // the noise measurement's selection too
+  options.cubic_sampling = cubic_sampling;    // the de-rotation's sampler
   // 1 thread: the calling thread only; more: the worker pool.
   WindowRegistration reg(a.size(), options, threads);
   ASSERT_EQ(reg.threads(), threads);
@@ -82,7 +84,8 @@ TEST_P(WindowRegistrationRealtime, MeasureAndAdvanceAllocateNothing) {
 }
 
 INSTANTIATE_TEST_SUITE_P(Threads, WindowRegistrationRealtime,
-                         ::testing::Combine(::testing::Values(1, 2, 4), ::testing::Bool()));
+                         ::testing::Combine(::testing::Values(1, 2, 4), ::testing::Bool(),
+                                            ::testing::Bool()));
 
 }  // namespace
 }  // namespace omnipose
