@@ -134,6 +134,10 @@ float taperRow(float* out, const float* in, const float* taper, float h, float m
   return simd::sum(energy) + tail;
 }
 
+/// A width no column reaches: the wrapped samplers below without a wrap (the vector samplers'
+/// last count % 4 pixels).
+constexpr int kNoWrap = std::numeric_limits<int>::max() / 2;
+
 /// One row of an affine resampling with bilinear interpolation: out[j] = image(u0 + j du,
 /// v0 + j dv), with u >= 0 and v clamped to [0, max_v] (both neighbours inside the image).
 /// Columns wrap modulo `width` (the panorama is periodic in u).
@@ -186,8 +190,7 @@ void sampleRowBilinear(const float* image, std::size_t stride, float u0, float d
     const simd::F4 b = p10 + fu * (p11 - p10);
     simd::store(out + j, a + fv * (b - a));
   }
-  if (j < count) {  // the last count % 4 pixels; a width no column reaches means "no wrap"
-    constexpr int kNoWrap = std::numeric_limits<int>::max() / 2;
+  if (j < count) {  // the last count % 4 pixels
     sampleRowBilinearWrapped(image, stride, kNoWrap, u0 + static_cast<float>(j) * du, du,
                              v0 + static_cast<float>(j) * dv, dv, max_v, out + j, count - j);
   }
@@ -259,8 +262,7 @@ void sampleRowCubic(const float* image, std::size_t stride, int height, float u0
     simd::transpose(acc[0], acc[1], acc[2], acc[3]);
     simd::store(out + j, (acc[0] * wu[0] + acc[1] * wu[1]) + (acc[2] * wu[2] + acc[3] * wu[3]));
   }
-  if (j < count) {  // the last count % 4 pixels; a width no column reaches means "no wrap"
-    constexpr int kNoWrap = std::numeric_limits<int>::max() / 2;
+  if (j < count) {  // the last count % 4 pixels
     sampleRowCubicWrapped(image, stride, kNoWrap, height, u0 + static_cast<float>(j) * du, du,
                           v0 + static_cast<float>(j) * dv, dv, out + j, count - j);
   }
