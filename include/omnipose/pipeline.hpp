@@ -48,6 +48,15 @@ struct PipelineOptions {
   /// out from 6 % (src/pipeline/moving_content.hpp; DESIGN.md section 4). Costs about 3 %
   /// of a frame's instructions; without refinement (refine_iterations 0) it does nothing.
   bool moving_content = true;
+  /// In the refinement pass each window is de-rotated/de-scaled, before its shift is measured,
+  /// by the rotation and scale the last fit predicts for it (the rotation left after the
+  /// de-rotation, the translation at the window's inverse depth: smooth around the ring)
+  /// instead of by its own measured ones (noisy: at 0.1 px of corner motion the noise alone
+  /// decides whether a window is re-sampled). Not when the first pass's translation is within
+  /// what the pair's tilt a can make its first-order fit read (10 a^2, radians). The windows'
+  /// measured rotation and scale still go to the fit. Off by default (docs/results/ANALYSIS.md,
+  /// "De-warping by the fit's prediction").
+  bool dewarp_by_fit = false;
   /// With a rolling shutter (or an exposure) and the robot's gyro: measure, against the gyro,
   /// how much earlier or later than the model's capture times the windows' yaw was read (their
   /// texture sets it) and read it there (src/pipeline/capture_time_offset.hpp; DESIGN.md

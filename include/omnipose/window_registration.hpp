@@ -118,6 +118,10 @@ class WindowRegistration {
   int threads() const;
   /// Number of windows per panorama.
   int windowCount() const;
+  /// The smallest |in-window rotation| (radians) or |ln scale| by which measure() re-samples a
+  /// window before measuring its shift: below it, its corners move by at most 0.1 px and the
+  /// window is registered as it is.
+  double minDewarp() const;
   /// The panorama noise sigma (grey levels) measured on the last frame set as the
   /// reference or measured with keep_as_next (Options::noise_weighting); NaN without noise
   /// weighting, before any frame, or when too few pixels were usable.
@@ -187,9 +191,18 @@ class WindowRegistration {
   ///
   /// `against`: kPreviousFrame (the reference), or a keyframe slot (storeKeyframe()) to
   /// register against instead; false (nothing written) for an empty or unknown slot.
+  ///
+  /// `dewarp` (empty, or one entry per window): window k is de-rotated/de-scaled by
+  /// dewarp[k].rotation (radians) and dewarp[k].scale before its shift is measured, instead of
+  /// by the rotation and scale it measured (or was given in `known_rotation_scale`); `out`
+  /// still reports those. An entry whose rotation is not finite, or whose scale is not a finite
+  /// positive number, leaves its window to its own. The pipeline's refinement pass gives the rotation
+  /// and scale its last fit predicts (PipelineOptions::dewarp_by_fit): smooth around the ring,
+  /// where a window's own are noisy.
   bool measure(const cv::Mat& current, std::span<WindowMotion> out, bool keep_as_next = true,
                std::span<const WindowMotion> known_rotation_scale = {},
-               std::span<const double> expected_dv = {}, int against = kPreviousFrame);
+               std::span<const double> expected_dv = {}, int against = kPreviousFrame,
+               std::span<const WindowMotion> dewarp = {});
   /// Makes the last frame measured with keep_as_next the reference (a pointer swap, no
   /// recomputation). A no-op when no frame was measured with keep_as_next since the last
   /// setReference()/advance().

@@ -94,6 +94,7 @@ constexpr PipelineKey kPipelineKeys[] = {
     {"pipeline.min_confidence", "registration.min_confidence"},
     {"pipeline.inlier_sigmas", "fit.inlier_sigmas"},
     {"pipeline.moving_content", "moving_content"},
+    {"pipeline.dewarp_by_fit", "dewarp_by_fit"},
     {"pipeline.yaw_capture_time", "yaw_capture_time"},
     {"pipeline.gyro_fusion", "gyro_fusion"},
     {"pipeline.noise_weighting", "registration.noise_weighting"},
@@ -136,6 +137,7 @@ void parsePipeline(Reader& r, const YAML::Node& node, const std::filesystem::pat
   r.get(node, "pipeline", "min_confidence", p.registration.min_confidence);
   r.get(node, "pipeline", "inlier_sigmas", p.fit.inlier_sigmas);
   r.get(node, "pipeline", "moving_content", p.moving_content);
+  r.get(node, "pipeline", "dewarp_by_fit", p.dewarp_by_fit);
   r.get(node, "pipeline", "yaw_capture_time", p.yaw_capture_time);
   r.get(node, "pipeline", "gyro_fusion", p.gyro_fusion);
   r.get(node, "pipeline", "noise_weighting", p.registration.noise_weighting);
@@ -402,6 +404,7 @@ std::string DaemonConfig::describe() const {
     << "\n  min_confidence: " << p.registration.min_confidence
     << "\n  inlier_sigmas: " << p.fit.inlier_sigmas
     << "\n  moving_content: " << p.moving_content
+    << "\n  dewarp_by_fit: " << p.dewarp_by_fit
     << "\n  yaw_capture_time: " << p.yaw_capture_time
     << "\n  gyro_fusion: " << p.gyro_fusion
     << "\n  noise_weighting: " << p.registration.noise_weighting

@@ -36,6 +36,15 @@ constexpr double kTiltRateSignificance = 4.0;
 /// moves at most about 1 deg per frame at 30 fps).
 constexpr double kWholeColumnMaxTilt = 2.0 * std::numbers::pi / 180.0;
 
+/// predictDewarp(): the first pass's first-order fit reads a pair that tilts by a radians with
+/// a translation that is not there of up to about 2.5 a^2 (random-axis turns of 1-6 deg a
+/// frame; 0.003 at 5 deg of pitch); a translation under this many a^2 does not predict the
+/// windows' scale.
+constexpr double kSecondOrderMargin = 10.0;
+
+/// The angle (radians) by which R turns the camera's z axis.
+double tiltOf(const Eigen::Matrix3d& R) { return std::acos(std::clamp(R(2, 2), -1.0, 1.0)); }
+
 /// The registration's options: each window's shift covariance is measured when the fit
 /// uses it.
 WindowRegistration::Options registrationOptions(const PipelineOptions& o) {
@@ -115,6 +124,7 @@ FrameRegistrar::FrameRegistrar(const Calibration& c, const PipelineOptions& o, i
   blur_paths_.resize(windows * kBlurSamples);
   second_weights_.resize(windows);
   shifts_only_.resize(windows);  // rs_confidence 0: no rotation/scale
+  dewarp_.resize(windows);
   expected_dv_.resize(windows);
   moving_fraction_.resize(windows);
   expected_motion_.resize(windows);
@@ -506,7 +516,9 @@ PassResult FrameRegistrar::refineInto(const MotionEstimate& start, const Eigen::
     const Eigen::Matrix3d R_warp = wholeColumnYaw(R);
     derotate(R_warp);
     predictRefinementShifts(tau, last_fit);
-    if (!registration_.measure(warped_, windows, false, {}, expected_dv_, against)) break;
+    if (!registration_.measure(warped_, windows, false, {}, expected_dv_, against,
+                               predictDewarp(R, R_warp, tau, last_fit)))
+      break;
     if (options_.moving_content)
       discountMovingContent(windows, against, R * R_warp.transpose(), tau);
     const MotionEstimate residual = fitPass(windows, rotationVector(R_warp), rowsOf(against));
@@ -599,7 +611,7 @@ Eigen::Matrix3d FrameRegistrar::wholeColumnYaw(const Eigen::Matrix3d& R) const {
   // fraction is still the yaw's, and a turn swinging +-120 deg under 0.5 deg of vibration
   // read every turn 0.1 % long without it. Not under large tilts (kWholeColumnMaxTilt),
   // where rounding cost roll in the accuracy benchmark.
-  if (std::acos(std::clamp(R(2, 2), -1.0, 1.0)) > kWholeColumnMaxTilt) return R;
+  if (tiltOf(R) > kWholeColumnMaxTilt) return R;
   const double gamma = calibration_.panorama.gamma();
   const double yaw = std::atan2(R(1, 0), R(0, 0));
   const double rounded = std::round(yaw / gamma) * gamma;
@@ -626,6 +638,31 @@ void FrameRegistrar::predictRefinementShifts(const Eigen::Vector3d& tau, FitStat
                        WindowRegistration::kExpectedDvReachPx;
     expected_dv_[k] = tight ? dv : std::numeric_limits<double>::quiet_NaN();
   }
+}
+
+std::span<const WindowMotion> FrameRegistrar::predictDewarp(const Eigen::Matrix3d& R,
+                                                            const Eigen::Matrix3d& R_warp,
+                                                            const Eigen::Vector3d& tau,
+                                                            FitStatus last_fit) {
+  if (!options_.dewarp_by_fit || last_fit != FitStatus::kOk) return {};
+  // The translation the tilt can make the first pass read (kSecondOrderMargin) must be below
+  // the one it read, or below one too small to de-scale any window (its corners by 0.1 px).
+  double nearest = 0.0;  // the largest inverse depth
+  for (std::size_t k = 0; k < dewarp_.size(); ++k)
+    nearest = std::max(nearest, fit_.inverseDepth(static_cast<int>(k)));
+  const double negligible = nearest > 0.0 ? registration_.minDewarp() / (fit_.kappa() * nearest)
+                                          : std::numeric_limits<double>::infinity();
+  const double tilt = tiltOf(R);
+  if (kSecondOrderMargin * tilt * tilt > std::max(tau.norm(), negligible)) return {};
+  Eigen::Matrix<double, 6, 1> x;
+  x.head<3>() = rotationVector(R * R_warp.transpose());
+  for (std::size_t k = 0; k < dewarp_.size(); ++k) {
+    x.tail<3>() = fit_.inverseDepth(static_cast<int>(k)) * tau;
+    const ModelMotion m = predictMotion(x, window_azimuth_[k], fit_.kappa());
+    dewarp_[k].rotation = m.rotation;
+    dewarp_[k].scale = std::exp(m.log_scale);
+  }
+  return dewarp_;
 }
 
 void FrameRegistrar::derotate(const Eigen::Matrix3d& R) {

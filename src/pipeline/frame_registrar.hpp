@@ -207,6 +207,14 @@ class FrameRegistrar {
   /// Fills window_times_ from the calibration's capture times (start-up).
   void measureWindowTimes();
   void predictRefinementShifts(const Eigen::Vector3d& tau, FitStatus last_fit);
+  /// PipelineOptions::dewarp_by_fit: fills dewarp_ with the rotation and scale the motion
+  /// left after the de-rotation by R_warp (R R_warp^T, tau at the last fit's inverse depths)
+  /// makes in each window and returns the span for WindowRegistration::measure()'s `dewarp`;
+  /// empty (each window de-warped by its own) when the option is off, the last fit was not
+  /// kOk, or tau is within what R's tilt can make the first-order fit read (kSecondOrderMargin).
+  std::span<const WindowMotion> predictDewarp(const Eigen::Matrix3d& R,
+                                              const Eigen::Matrix3d& R_warp,
+                                              const Eigen::Vector3d& tau, FitStatus last_fit);
   /// The shift (du, dv), pixels, that the motion (omega, tau) makes in window k at the last
   /// fit's inverse depth of that window.
   Eigen::Vector2d predictedShift(int k, const Eigen::Vector3d& omega,
@@ -287,6 +295,7 @@ class FrameRegistrar {
   std::vector<double> weights_, refine_weights_, second_weights_;
   std::vector<WindowMotion> shifts_only_;  ///< "known" rotation/scale for a shift-only pass
   std::vector<double> expected_dv_;        ///< refinement pass: dv per window, or NaN
+  std::vector<WindowMotion> dewarp_;       ///< refinement pass: predictDewarp()'s per window
   std::vector<double> window_azimuth_;     ///< per window: azimuth of its centre, radians
   /// Per window: capture time of its pixels (taper-weighted mean, seconds after the frame's
   /// timestamp) and its change per panorama column and row; empty for a global shutter.

@@ -74,6 +74,11 @@ struct Tuning {
 
 constexpr Tuning kTuning{};
 
+/// WindowRegistration::minDewarp() for windows of `window` px.
+double minDewarpFor(int window) {
+  return kTuning.derotate_min_px / (std::numbers::sqrt2 * 0.5 * window);
+}
+
 /// A window is textureless when its taper-weighted standard deviation is at most this
 /// fraction of its mean brightness plus kTextureFloorAbs (grey levels): only rounding noise
 /// is left, and its phase carries no information.
@@ -500,8 +505,8 @@ struct WindowRegistration::Impl {
   void measureWindow(Worker& w, const cv::Mat& panorama, int k, const TaperedWindow& cur,
                      const runtime::Complex* cur_translation, reg::PhaseNoise cur_translation_noise,
                      const runtime::Complex* cur_log_polar,
-                     const WindowMotion* known, double expected_dv, const WindowSpectra& ref,
-                     WindowMotion& out) const;
+                     const WindowMotion* known, double expected_dv, const WindowMotion* dewarp,
+                     const WindowSpectra& ref, WindowMotion& out) const;
 };
 
 WindowRegistration::Impl::Impl(cv::Size panorama, const Options& o,
@@ -756,6 +761,7 @@ void WindowRegistration::Impl::measureWindow(Worker& w, const cv::Mat& panorama,
                                              reg::PhaseNoise cur_translation_noise,
                                              const runtime::Complex* cur_log_polar,
                                              const WindowMotion* known, double expected_dv,
+                                             const WindowMotion* dewarp,
                                              const WindowSpectra& ref, WindowMotion& out) const {
   out = WindowMotion{};
   out.center_u = windowCenter(k);
@@ -784,12 +790,17 @@ void WindowRegistration::Impl::measureWindow(Worker& w, const cv::Mat& panorama,
   }
   out.rotation = rotation;
   out.scale = scale;
+  // A given de-warp (measure()'s `dewarp`) replaces the window's own for step 3 only.
+  if (dewarp != nullptr && std::isfinite(dewarp->rotation) && dewarp->scale > 0.0 &&
+      std::isfinite(dewarp->scale)) {
+    rotation = dewarp->rotation;
+    scale = dewarp->scale;
+  }
 
   // Step 3: de-rotate/de-scale the current window (sampled from the panorama, so nothing is
   // lost at its border) when that moves its corners noticeably; else use F_c.
-  const double corner = std::numbers::sqrt2 * 0.5 * options.window;
   const runtime::Complex* translation_band_ptr = cur_translation;
-  if (corner * std::max(std::abs(rotation), std::abs(std::log(scale))) > kTuning.derotate_min_px) {
+  if (std::max(std::abs(rotation), std::abs(std::log(scale))) > minDewarpFor(options.window)) {
     const TaperedWindow tw = loadWarpedWindow(w, panorama, k, rotation, scale);
     w.window_fft.execute();
     cur_translation_noise = w.translation.whiten(w.spectrum.data(), tw.energy, w.derotated.data(),
@@ -861,6 +872,8 @@ cv::Size WindowRegistration::panoramaSize() const { return {impl_->width, impl_-
 int WindowRegistration::threads() const { return impl_->pool->size(); }
 
 int WindowRegistration::windowCount() const { return impl_->windows; }
+
+double WindowRegistration::minDewarp() const { return minDewarpFor(impl_->options.window); }
 
 double WindowRegistration::windowCenter(int k) const { return impl_->windowCenter(k); }
 int WindowRegistration::windowTop() const { return impl_->top; }
@@ -992,14 +1005,16 @@ int WindowRegistration::maskedWindowCount() const {
 bool WindowRegistration::measure(const cv::Mat& current, std::span<WindowMotion> out,
                                  bool keep_as_next,
                                  std::span<const WindowMotion> known_rotation_scale,
-                                 std::span<const double> expected_dv, int against) {
+                                 std::span<const double> expected_dv, int against,
+                                 std::span<const WindowMotion> dewarp) {
   Impl& s = *impl_;
   const bool known = !known_rotation_scale.empty();
   const auto windows = static_cast<std::size_t>(s.windows);
   if (against != kPreviousFrame && !hasKeyframe(against)) return false;
   if (!s.has_reference || !s.acceptsImage(current) || out.size() < windows ||
       (known && known_rotation_scale.size() < windows) ||
-      (!expected_dv.empty() && expected_dv.size() < windows))
+      (!expected_dv.empty() && expected_dv.size() < windows) ||
+      (!dewarp.empty() && dewarp.size() < windows))
     return false;
   WindowSpectra& next = *s.next;
   const WindowSpectra& ref = against == kPreviousFrame ? *s.reference : s.keyframe(against);
@@ -1030,7 +1045,7 @@ bool WindowRegistration::measure(const cv::Mat& current, std::span<WindowMotion>
     s.measureWindow(w, current, k, tw, cur_translation, translation_noise, cur_log_polar,
                     known ? &known_rotation_scale[k] : nullptr,
                     expected_dv.empty() ? std::numeric_limits<double>::quiet_NaN() : expected_dv[k],
-                    ref, out[k]);
+                    dewarp.empty() ? nullptr : &dewarp[k], ref, out[k]);
   };
   s.pool->run(s.windows, task);
   if (keep_as_next) s.next_ready = true;

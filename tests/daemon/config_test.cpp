@@ -170,6 +170,12 @@ TEST(DaemonConfig, CubicWindowSampling) {
       [](const DaemonConfig& c) { return c.pipeline.registration.cubic_sampling; }, "cubic");
 }
 
+TEST(DaemonConfig, DewarpByFit) {
+  expectBooleanPipelineKey(
+      "dewarp_by_fit", false, [](const DaemonConfig& c) { return c.pipeline.dewarp_by_fit; },
+      "predicted");
+}
+
 TEST(DaemonConfig, PlaneDepthPrior) {
   expectBooleanPipelineKey(
       "plane_depth_prior", true,

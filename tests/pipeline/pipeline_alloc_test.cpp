@@ -6,6 +6,7 @@
 #include <gtest/gtest.h>
 
 #include <cstdlib>
+#include <tuple>
 
 #include "allocation_counter.hpp"
 #include "omnipose/pipeline.hpp"
@@ -14,7 +15,8 @@
 namespace omnipose {
 namespace {
 
-class PipelineAllocation : public ::testing::TestWithParam<int> {};
+/// (threads, PipelineOptions::dewarp_by_fit).
+class PipelineAllocation : public ::testing::TestWithParam<std::tuple<int, bool>> {};
 
 TEST_P(PipelineAllocation, ProcessAllocatesNothingAfterWarmUp) {
   if (!testing::AllocationCounter::available())
@@ -35,9 +37,11 @@ TEST_P(PipelineAllocation, ProcessAllocatesNothingAfterWarmUp) {
   const cv::Mat wrong_size(100, 100, CV_8UC1, cv::Scalar(7));
 
   PipelineOptions options;
-  options.threads = GetParam();  // the worker pool's hand-off must not allocate either
+  const auto [threads, dewarp_by_fit] = GetParam();
+  options.threads = threads;  // the worker pool's hand-off must not allocate either
+  options.dewarp_by_fit = dewarp_by_fit;
   Pipeline pipeline(Calibration{}, options);
-  ASSERT_EQ(pipeline.threads(), GetParam());
+  ASSERT_EQ(pipeline.threads(), threads);
   for (int k = 0; k < 4; ++k) ASSERT_TRUE(pipeline.process(frames[k]).has_value());  // warm-up
   ASSERT_TRUE(pipeline.process(colour).has_value());
 
@@ -52,10 +56,11 @@ TEST_P(PipelineAllocation, ProcessAllocatesNothingAfterWarmUp) {
   const std::int64_t allocations = counter.stop();
   EXPECT_EQ(ok, 100);
   EXPECT_EQ(allocations, 0) << "heap allocations in 100 frames of Pipeline::process, "
-                            << GetParam() << " threads";
+                            << threads << " threads, dewarp_by_fit " << dewarp_by_fit;
 }
 
-INSTANTIATE_TEST_SUITE_P(Threads, PipelineAllocation, ::testing::Values(1, 2, 3));
+INSTANTIATE_TEST_SUITE_P(Threads, PipelineAllocation,
+                         ::testing::Combine(::testing::Values(1, 2, 3), ::testing::Bool()));
 
 }  // namespace
 }  // namespace omnipose

@@ -19,7 +19,6 @@ namespace {
 
 constexpr double kDeg = std::numbers::pi / 180.0;
 constexpr int kFrames = 25;
-constexpr double kFrameInterval = 1.0 / 30.0;
 
 /// RMS rotation error angle (rad) of the default pipeline with `planar_motion_deg` over
 /// kFrames frames of `renderer`, frame k at `pose(k)`.
@@ -27,13 +26,7 @@ template <class PoseOf>
 double rmsError(const synth::Renderer& renderer, double planar_motion_deg, PoseOf&& pose) {
   PipelineOptions options;
   options.fit.planar_motion_deg = planar_motion_deg;
-  Pipeline pipeline(Calibration{}, options);
-  cv::RNG rng(17);
-  const auto frame = [&](int k) {
-    return testing::noisyFrame(renderer, pose(k), k * kFrameInterval, rng);
-  };
-  const auto attitude = [&](int k) -> Eigen::Matrix3d { return pose(k).linear(); };
-  return testing::rmsRotationError(pipeline, kFrames, frame, attitude);
+  return testing::rmsRotationErrorOf(renderer, options, kFrames, pose, 17);
 }
 
 TEST(PlanarMotion, AGroupAroundATurningRobotCannotLendTheFitAVerticalTranslation) {

@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstdint>
 #include <filesystem>
 #include <numbers>
 #include <string>
@@ -103,6 +104,18 @@ double rmsRotationError(Pipeline& pipeline, int frames, FrameOf&& frame, Attitud
     sum_sq += rotationVector(truth.transpose() * m->rotation).squaredNorm();
   }
   return std::sqrt(sum_sq / (frames - 1));
+}
+
+/// rmsRotationError() of a pipeline with `options` over `frames` frames of `renderer` at 30 fps,
+/// frame k at `pose(k)` (an Eigen::Isometry3d) with noisyFrame()'s noise drawn from `seed`.
+template <class PoseOf>
+double rmsRotationErrorOf(const synth::Renderer& renderer, const PipelineOptions& options,
+                          int frames, PoseOf&& pose, std::uint64_t seed) {
+  Pipeline pipeline(Calibration{}, options);
+  cv::RNG rng(seed);
+  const auto frame = [&](int k) { return noisyFrame(renderer, pose(k), k / 30.0, rng); };
+  const auto attitude = [&](int k) -> Eigen::Matrix3d { return pose(k).linear(); };
+  return rmsRotationError(pipeline, frames, frame, attitude);
 }
 
 }  // namespace omnipose::testing

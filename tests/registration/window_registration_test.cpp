@@ -334,10 +334,13 @@ INSTANTIATE_TEST_SUITE_P(RealTexture, SubpixelShift,
 /// scaled by `s` about that window's own centre (4x supersampled warp, box-averaged): the
 /// current content appears in the reference rotated counter-clockwise by phi, scaled by s,
 /// so each window must report (phi, s) and no shift. Windows whose blocks do not overlap
-/// (around the circle) share one current panorama. With `known`, the registration is given
-/// (phi, s) and only de-rotates, de-scales and measures the shift.
+/// (around the circle) share one current panorama. With `given` kKnown the registration is
+/// given (phi, s) and only de-rotates, de-scales and measures the shift; with kDewarp it
+/// measures them and is given (phi, s) to de-warp by (measure()'s `dewarp`); with kNoDewarp
+/// it is given de-warp entries that leave every window to its own.
+enum class Given { kNothing, kKnown, kDewarp, kNoDewarp };
 std::vector<WindowMotion> similaritySweep(WindowRegistration& reg, const test::Supersampled& ss,
-                                          double phi, double s, bool known = false) {
+                                          double phi, double s, Given given = Given::kNothing) {
   const int n = reg.windowCount(), length = reg.options().window, step = reg.options().step;
   const int width = reg.panoramaSize().width;
   auto overlap = [&](int a, int b) {
@@ -362,14 +365,19 @@ std::vector<WindowMotion> similaritySweep(WindowRegistration& reg, const test::S
       const cv::Point2d centre(k * step + 0.5 * length - 0.5, 0.5 * length - 0.5);  // unwrapped
       test::pasteWrapped(ss.warpedBlock(k * step, length, centre, phi, s), k * step, current);
     }
-    std::vector<WindowMotion> given(known ? n : 0);
-    for (WindowMotion& w : given) {
+    std::vector<WindowMotion> values(given == Given::kNothing ? 0 : n);
+    for (WindowMotion& w : values) {
       w.rotation = phi;
-      w.scale = s;
+      w.scale = given == Given::kNoDewarp ? 0.0 : s;
       w.rs_confidence = 1.0;
     }
     std::vector<WindowMotion> out(n);
-    EXPECT_TRUE(reg.measure(current, out, false, given));
+    if (given == Given::kKnown) {
+      EXPECT_TRUE(reg.measure(current, out, false, values));
+    } else {
+      EXPECT_TRUE(reg.measure(current, out, false, {}, {}, WindowRegistration::kPreviousFrame,
+                              values));
+    }
     for (int k : group) all[k] = out[k];
   }
   return all;
@@ -465,7 +473,7 @@ double deScaledDuRms(const test::Supersampled& ss, bool cubic, double degrees) {
   double du2 = 0.0;
   int count = 0;
   for (double s : {0.97, 0.98, 0.99, 1.01, 1.02, 1.03}) {
-    for (const WindowMotion& w : similaritySweep(reg, ss, degrees * kDeg, s, true)) {
+    for (const WindowMotion& w : similaritySweep(reg, ss, degrees * kDeg, s, Given::kKnown)) {
       EXPECT_TRUE(w.valid) << s;
       EXPECT_DOUBLE_EQ(w.scale, s);  // the given scale was used, not searched
       du2 += w.du * w.du;
@@ -491,6 +499,34 @@ TEST_P(DeScalingSampler, TheCubicSamplerReadsADeScaledWindowsShiftCloserToZero) 
 }
 
 void PrintTo(const SamplerBounds& b, std::ostream* os) { *os << b.image; }
+
+TEST(WindowRegistrationDewarp, AGivenDewarpReplacesEachWindowsOwnForItsShiftOnly) {
+  const test::Supersampled ss = test::loadSupersampled(kPark, 1100, 110);
+  REQUIRE_IMAGE(ss.image, kPark);
+  WindowRegistration reg(kPaperPanorama, paperOptions());
+  const double phi = 0.5 * kDeg, s = 1.02;
+  const std::vector<WindowMotion> own = similaritySweep(reg, ss, phi, s);
+  const std::vector<WindowMotion> known = similaritySweep(reg, ss, phi, s, Given::kKnown);
+  const std::vector<WindowMotion> dewarp = similaritySweep(reg, ss, phi, s, Given::kDewarp);
+  const std::vector<WindowMotion> none = similaritySweep(reg, ss, phi, s, Given::kNoDewarp);
+  int differ = 0;
+  for (std::size_t k = 0; k < own.size(); ++k) {
+    ASSERT_TRUE(own[k].valid && dewarp[k].valid) << k;
+    // The rotation and scale reported are the window's own, as measured without a de-warp.
+    EXPECT_EQ(dewarp[k].rotation, own[k].rotation) << k;
+    EXPECT_EQ(dewarp[k].scale, own[k].scale) << k;
+    EXPECT_EQ(dewarp[k].rs_confidence, own[k].rs_confidence) << k;
+    // The shift is measured on the window de-warped by the given values, as when they are known.
+    EXPECT_EQ(dewarp[k].du, known[k].du) << k;
+    EXPECT_EQ(dewarp[k].dv, known[k].dv) << k;
+    differ += dewarp[k].du != own[k].du;
+    // Entries without a scale leave the window to its own.
+    EXPECT_EQ(none[k].du, own[k].du) << k;
+    EXPECT_EQ(none[k].dv, own[k].dv) << k;
+    EXPECT_EQ(none[k].scale, own[k].scale) << k;
+  }
+  EXPECT_GT(differ, static_cast<int>(own.size()) / 2);  // the own values are not exact
+}
 
 INSTANTIATE_TEST_SUITE_P(RealTexture, DeScalingSampler,
                          ::testing::Values(SamplerBounds{kPark, 0.0062},
