@@ -500,6 +500,13 @@ TEST_P(DeScalingSampler, TheCubicSamplerReadsADeScaledWindowsShiftCloserToZero) 
 
 void PrintTo(const SamplerBounds& b, std::ostream* os) { *os << b.image; }
 
+INSTANTIATE_TEST_SUITE_P(RealTexture, DeScalingSampler,
+                         ::testing::Values(SamplerBounds{kPark, 0.0062},
+                                           SamplerBounds{kIndoor, 0.0102}),
+                         [](const auto& info) {
+                           return std::string(info.param.image == kIndoor ? "Indoor" : "Park");
+                         });
+
 TEST(WindowRegistrationDewarp, AGivenDewarpReplacesEachWindowsOwnForItsShiftOnly) {
   const test::Supersampled ss = test::loadSupersampled(kPark, 1100, 110);
   REQUIRE_IMAGE(ss.image, kPark);
@@ -527,13 +534,6 @@ TEST(WindowRegistrationDewarp, AGivenDewarpReplacesEachWindowsOwnForItsShiftOnly
   }
   EXPECT_GT(differ, static_cast<int>(own.size()) / 2);  // the own values are not exact
 }
-
-INSTANTIATE_TEST_SUITE_P(RealTexture, DeScalingSampler,
-                         ::testing::Values(SamplerBounds{kPark, 0.0062},
-                                           SamplerBounds{kIndoor, 0.0102}),
-                         [](const auto& info) {
-                           return std::string(info.param.image == kIndoor ? "Indoor" : "Park");
-                         });
 
 // ---------------------------------------------------------------------------------------
 // (d) Whole panorama: windows wrap around u
