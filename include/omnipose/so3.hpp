@@ -14,6 +14,10 @@ Eigen::Vector3d rotationVector(const Eigen::Matrix3d& R);
 /// Rotation matrix of a rotation vector: exp([omega]x) (Rodrigues); the identity for
 /// |omega| < 1e-15.
 Eigen::Matrix3d rotationFromVector(const Eigen::Vector3d& omega);
+/// The angle (radians, in [0, pi]) by which R turns the z axis: between the z axes of two
+/// cameras whose relative rotation is R, their tilt. Yaw alone leaves it 0 (to within 2e-8:
+/// it is acos(R(2, 2))).
+double tiltAngle(const Eigen::Matrix3d& R);
 /// The cross-product matrix [v]x: skew(v) * w = v.cross(w).
 Eigen::Matrix3d skew(const Eigen::Vector3d& v);
 /// Right Jacobian of the exponential map: for a rotation vector phi(t),

@@ -1,6 +1,7 @@
 #include "omnipose/so3.hpp"
 
 #include <Eigen/Geometry>
+#include <algorithm>
 #include <cmath>
 
 namespace omnipose {
@@ -15,6 +16,8 @@ Eigen::Matrix3d rotationFromVector(const Eigen::Vector3d& omega) {
   if (angle < 1e-15) return Eigen::Matrix3d::Identity();
   return Eigen::AngleAxisd(angle, omega / angle).toRotationMatrix();
 }
+
+double tiltAngle(const Eigen::Matrix3d& R) { return std::acos(std::clamp(R(2, 2), -1.0, 1.0)); }
 
 Eigen::Matrix3d skew(const Eigen::Vector3d& v) {
   Eigen::Matrix3d K;

@@ -42,9 +42,6 @@ constexpr double kWholeColumnMaxTilt = 2.0 * std::numbers::pi / 180.0;
 /// windows' scale.
 constexpr double kSecondOrderMargin = 10.0;
 
-/// The angle (radians) by which R turns the camera's z axis.
-double tiltOf(const Eigen::Matrix3d& R) { return std::acos(std::clamp(R(2, 2), -1.0, 1.0)); }
-
 /// The registration's options: each window's shift covariance is measured when the fit
 /// uses it.
 WindowRegistration::Options registrationOptions(const PipelineOptions& o) {
@@ -611,7 +608,7 @@ Eigen::Matrix3d FrameRegistrar::wholeColumnYaw(const Eigen::Matrix3d& R) const {
   // fraction is still the yaw's, and a turn swinging +-120 deg under 0.5 deg of vibration
   // read every turn 0.1 % long without it. Not under large tilts (kWholeColumnMaxTilt),
   // where rounding cost roll in the accuracy benchmark.
-  if (tiltOf(R) > kWholeColumnMaxTilt) return R;
+  if (tiltAngle(R) > kWholeColumnMaxTilt) return R;
   const double gamma = calibration_.panorama.gamma();
   const double yaw = std::atan2(R(1, 0), R(0, 0));
   const double rounded = std::round(yaw / gamma) * gamma;
@@ -652,7 +649,7 @@ std::span<const WindowMotion> FrameRegistrar::predictDewarp(const Eigen::Matrix3
     nearest = std::max(nearest, fit_.inverseDepth(static_cast<int>(k)));
   const double negligible = nearest > 0.0 ? registration_.minDewarp() / (fit_.kappa() * nearest)
                                           : std::numeric_limits<double>::infinity();
-  const double tilt = tiltOf(R);
+  const double tilt = tiltAngle(R);
   if (kSecondOrderMargin * tilt * tilt > std::max(tau.norm(), negligible)) return {};
   Eigen::Matrix<double, 6, 1> x;
   x.head<3>() = rotationVector(R * R_warp.transpose());

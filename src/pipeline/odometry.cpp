@@ -75,9 +75,6 @@ bool translates(const MotionEstimate& e) {
   return !(e.tau.dot(ldlt.solve(e.tau)) <= kTranslatingChi2);
 }
 
-/// Angle between the z axes of two cameras whose relative rotation is R: their tilt.
-double tilt(const Eigen::Matrix3d& R) { return std::acos(std::clamp(R(2, 2), -1.0, 1.0)); }
-
 /// The motion `T` (pose of the frame in the reference) as a FrameMotion.
 void setMotion(FrameMotion& m, const Eigen::Isometry3d& T) {
   m.has_motion = true;
@@ -467,7 +464,7 @@ bool Odometry::Impl::inReach(const Keyframe& k, const Eigen::Isometry3d& predict
   if (!k.valid) return false;
   const Eigen::Isometry3d relative = k.pose.inverse() * predicted;
   return relative.translation().norm() <= keyframe_options.max_translation &&
-         tilt(relative.linear()) <= keyframe_options.max_tilt_rad;
+         tiltAngle(relative.linear()) <= keyframe_options.max_tilt_rad;
 }
 
 int Odometry::Impl::chooseKeyframe(const Eigen::Isometry3d& predicted) const {

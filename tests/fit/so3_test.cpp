@@ -13,6 +13,18 @@ TEST(RotationVector, RoundTripsAndHandlesZero) {
   EXPECT_TRUE(rotationFromVector(Eigen::Vector3d::Zero()).isIdentity());
 }
 
+TEST(TiltAngle, IsTheAngleTheZAxisTurnsByAndIgnoresYaw) {
+  // acos of R(2, 2): within sqrt(2 eps), 2e-8 rad, of 0 where the z axis does not turn.
+  EXPECT_NEAR(tiltAngle(rotationFromVector(Eigen::Vector3d(0.0, 0.0, 2.5))), 0.0, 3e-8);
+  EXPECT_NEAR(tiltAngle(rotationFromVector(Eigen::Vector3d(0.0, 0.07, 0.0))), 0.07, 1e-9);
+  // A tilt of 0.05 about any horizontal axis, before or after a yaw: still 0.05.
+  const Eigen::Matrix3d tilted = rotationFromVector(Eigen::Vector3d(0.03, -0.04, 0.0));
+  const Eigen::Matrix3d yaw = rotationFromVector(Eigen::Vector3d(0.0, 0.0, 1.2));
+  EXPECT_NEAR(tiltAngle(yaw * tilted), 0.05, 1e-9);
+  EXPECT_NEAR(tiltAngle(tilted * yaw), 0.05, 1e-9);
+  EXPECT_NEAR(tiltAngle(rotationFromVector(Eigen::Vector3d(3.1, 0.0, 0.0))), 3.1, 1e-7);
+}
+
 TEST(RightJacobian, IsTheBodyRateOfATimeVaryingRotationVector) {
   // phi(t) = phi0 + t * dphi: compare [Jr(phi0) dphi]x with R^T dR/dt by central
   // differences, for large, small and tiny angles (the series branch).
