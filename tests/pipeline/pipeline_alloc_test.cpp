@@ -1,12 +1,17 @@
 // The per-frame path allocates nothing: every heap allocation of the process (malloc
 // family and operator new, so FFTW's and OpenCV's count too) is counted while
 // Pipeline::process runs on 100 frames after warm-up, including a rejected frame, a reset
-// and a colour frame, which must not allocate either. (The counter itself is tested in
+// and a colour frame, which must not allocate either. The frames turn in place in a distant
+// scene, or drive through a box room (whose translation the fit predicts each window's
+// de-warp from with PipelineOptions::dewarp_by_fit). (The counter itself is tested in
 // tests/support/allocation_counter_test.cpp.)
 #include <gtest/gtest.h>
 
 #include <cstdlib>
+#include <ostream>
+#include <string>
 #include <tuple>
+#include <vector>
 
 #include "allocation_counter.hpp"
 #include "omnipose/pipeline.hpp"
@@ -15,29 +20,44 @@
 namespace omnipose {
 namespace {
 
-/// (threads, PipelineOptions::dewarp_by_fit).
-class PipelineAllocation : public ::testing::TestWithParam<std::tuple<int, bool>> {};
+enum class Motion { kTurning, kDriving };
+
+/// (threads, PipelineOptions::dewarp_by_fit, the frames' motion).
+class PipelineAllocation : public ::testing::TestWithParam<std::tuple<int, bool, Motion>> {};
+
+/// Four frames, 8-bit: turning about all three axes in a distant scene, or driving 3 cm a
+/// frame through a box room while turning 0.3 deg a frame (the pair from the last frame back
+/// to the first drives 9 cm back).
+std::vector<cv::Mat> renderFrames(Motion motion) {
+  synth::RenderOptions ro;
+  ro.supersample = 2;
+  const bool driving = motion == Motion::kDriving;
+  const synth::Renderer renderer(
+      synth::Scene::load(testing::indoorPhoto(),
+                         driving ? synth::SceneKind::kBox : synth::SceneKind::kSphere),
+      Calibration{}, ro);
+  std::vector<cv::Mat> frames(4);
+  for (int k = 0; k < 4; ++k) {
+    const Eigen::Isometry3d pose =
+        driving ? testing::relativePose(Eigen::Vector3d(0, 0, 0.005 * k), {0.03 * k, 0.01 * k, 0})
+                : testing::relativePose(Eigen::Vector3d(0.01 * k, -0.005 * k, 0.03 * k), {0, 0, 0});
+    frames[k] = testing::renderFrame(renderer, pose);
+  }
+  return frames;
+}
 
 TEST_P(PipelineAllocation, ProcessAllocatesNothingAfterWarmUp) {
   if (!testing::AllocationCounter::available())
     GTEST_SKIP() << "sanitizer build: the sanitizer owns malloc, allocations are not counted";
   if (!std::filesystem::exists(testing::indoorPhoto())) GTEST_SKIP() << "missing photo";
   cv::setNumThreads(1);  // OpenCV's thread pool would allocate its own task objects
-  synth::RenderOptions ro;
-  ro.supersample = 2;
-  const synth::Renderer renderer(synth::Scene::load(testing::indoorPhoto(), synth::SceneKind::kSphere),
-                                 Calibration{}, ro);
-  std::vector<cv::Mat> frames(4);
-  for (int k = 0; k < 4; ++k) {
-    renderer.render(testing::relativePose(Eigen::Vector3d(0.01 * k, -0.005 * k, 0.03 * k), {0, 0, 0}))
-        .convertTo(frames[k], CV_8U);
-  }
+  const auto [threads, dewarp_by_fit, motion] = GetParam();
+  const std::vector<cv::Mat> frames = renderFrames(motion);
   cv::Mat colour;
   cv::merge(std::vector<cv::Mat>{frames[0], frames[0], frames[0]}, colour);
   const cv::Mat wrong_size(100, 100, CV_8UC1, cv::Scalar(7));
 
   PipelineOptions options;
-  const auto [threads, dewarp_by_fit] = GetParam();
   options.threads = threads;  // the worker pool's hand-off must not allocate either
   options.dewarp_by_fit = dewarp_by_fit;
   Pipeline pipeline(Calibration{}, options);
@@ -45,22 +65,60 @@ TEST_P(PipelineAllocation, ProcessAllocatesNothingAfterWarmUp) {
   for (int k = 0; k < 4; ++k) ASSERT_TRUE(pipeline.process(frames[k]).has_value());  // warm-up
   ASSERT_TRUE(pipeline.process(colour).has_value());
 
+  // Each frame's rotation, to compare with a pipeline without the option (reserved here:
+  // push_back below does not allocate).
+  std::vector<Eigen::Matrix3d> rotations;
+  rotations.reserve(100);
+  const auto run = [&](Pipeline& p, std::vector<Eigen::Matrix3d>* out) {
+    int ok = 0;
+    for (int i = 0; i < 100; ++i) {
+      if (auto m = p.process(frames[i % 4])) {
+        ++ok;
+        if (out != nullptr) out->push_back(m->rotation);
+      }
+      if (i == 25) (void)p.process(wrong_size);  // rejected frame
+      if (i == 50) p.reset();
+      if (i == 75) (void)p.process(colour);
+    }
+    return ok;
+  };
   testing::AllocationCounter counter;  // every thread: the worker pool's too
-  int ok = 0;
-  for (int i = 0; i < 100; ++i) {
-    if (pipeline.process(frames[i % 4]).has_value()) ++ok;
-    if (i == 25) (void)pipeline.process(wrong_size);  // rejected frame
-    if (i == 50) pipeline.reset();
-    if (i == 75) (void)pipeline.process(colour);
-  }
+  const int ok = run(pipeline, &rotations);
   const std::int64_t allocations = counter.stop();
   EXPECT_EQ(ok, 100);
   EXPECT_EQ(allocations, 0) << "heap allocations in 100 frames of Pipeline::process, "
-                            << threads << " threads, dewarp_by_fit " << dewarp_by_fit;
+                            << threads << " threads, dewarp_by_fit " << dewarp_by_fit
+                            << (motion == Motion::kDriving ? ", driving" : ", turning");
+
+  if (dewarp_by_fit && motion == Motion::kDriving) {
+    // The windows were de-warped by the fit's prediction (predictDewarp()'s predicting
+    // branch ran under the counter): the same frames without the option read otherwise.
+    PipelineOptions own = options;
+    own.dewarp_by_fit = false;
+    Pipeline reference(Calibration{}, own);
+    for (int k = 0; k < 4; ++k) ASSERT_TRUE(reference.process(frames[k]).has_value());
+    ASSERT_TRUE(reference.process(colour).has_value());
+    std::vector<Eigen::Matrix3d> reference_rotations;
+    ASSERT_EQ(run(reference, &reference_rotations), 100);
+    int differing = 0;
+    for (std::size_t i = 0; i < rotations.size(); ++i)
+      differing += !rotations[i].isApprox(reference_rotations[i], 1e-12);
+    EXPECT_GT(differing, 50) << differing
+                             << " of 100 driving pairs read otherwise than without the option";
+  }
 }
 
-INSTANTIATE_TEST_SUITE_P(Threads, PipelineAllocation,
-                         ::testing::Combine(::testing::Values(1, 2, 3), ::testing::Bool()));
+std::string motionName(Motion motion) { return motion == Motion::kDriving ? "Driving" : "Turning"; }
+void PrintTo(Motion motion, std::ostream* os) { *os << motionName(motion); }
+
+INSTANTIATE_TEST_SUITE_P(
+    Threads, PipelineAllocation,
+    ::testing::Combine(::testing::Values(1, 2, 3), ::testing::Bool(),
+                       ::testing::Values(Motion::kTurning, Motion::kDriving)),
+    [](const ::testing::TestParamInfo<PipelineAllocation::ParamType>& info) {
+      return std::to_string(std::get<0>(info.param)) + "Threads" +
+             (std::get<1>(info.param) ? "DewarpByFit" : "") + motionName(std::get<2>(info.param));
+    });
 
 }  // namespace
 }  // namespace omnipose
