@@ -22,6 +22,9 @@ namespace {
 
 enum class Motion { kTurning, kDriving };
 
+std::string motionName(Motion motion) { return motion == Motion::kDriving ? "Driving" : "Turning"; }
+void PrintTo(Motion motion, std::ostream* os) { *os << motionName(motion); }
+
 /// (threads, PipelineOptions::dewarp_by_fit, the frames' motion).
 class PipelineAllocation : public ::testing::TestWithParam<std::tuple<int, bool, Motion>> {};
 
@@ -62,8 +65,12 @@ TEST_P(PipelineAllocation, ProcessAllocatesNothingAfterWarmUp) {
   options.dewarp_by_fit = dewarp_by_fit;
   Pipeline pipeline(Calibration{}, options);
   ASSERT_EQ(pipeline.threads(), threads);
-  for (int k = 0; k < 4; ++k) ASSERT_TRUE(pipeline.process(frames[k]).has_value());  // warm-up
-  ASSERT_TRUE(pipeline.process(colour).has_value());
+  const auto warmUp = [&](Pipeline& p) {
+    for (int k = 0; k < 4; ++k) ASSERT_TRUE(p.process(frames[k]).has_value());
+    ASSERT_TRUE(p.process(colour).has_value());
+  };
+  warmUp(pipeline);
+  if (HasFatalFailure()) return;
 
   // Each frame's rotation, to compare with a pipeline without the option (reserved here:
   // push_back below does not allocate).
@@ -88,7 +95,7 @@ TEST_P(PipelineAllocation, ProcessAllocatesNothingAfterWarmUp) {
   EXPECT_EQ(ok, 100);
   EXPECT_EQ(allocations, 0) << "heap allocations in 100 frames of Pipeline::process, "
                             << threads << " threads, dewarp_by_fit " << dewarp_by_fit
-                            << (motion == Motion::kDriving ? ", driving" : ", turning");
+                            << ", " << motionName(motion);
 
   if (dewarp_by_fit && motion == Motion::kDriving) {
     // The windows were de-warped by the fit's prediction (predictDewarp()'s predicting
@@ -96,8 +103,8 @@ TEST_P(PipelineAllocation, ProcessAllocatesNothingAfterWarmUp) {
     PipelineOptions own = options;
     own.dewarp_by_fit = false;
     Pipeline reference(Calibration{}, own);
-    for (int k = 0; k < 4; ++k) ASSERT_TRUE(reference.process(frames[k]).has_value());
-    ASSERT_TRUE(reference.process(colour).has_value());
+    warmUp(reference);
+    if (HasFatalFailure()) return;
     std::vector<Eigen::Matrix3d> reference_rotations;
     ASSERT_EQ(run(reference, &reference_rotations), 100);
     int differing = 0;
@@ -107,9 +114,6 @@ TEST_P(PipelineAllocation, ProcessAllocatesNothingAfterWarmUp) {
                              << " of 100 driving pairs read otherwise than without the option";
   }
 }
-
-std::string motionName(Motion motion) { return motion == Motion::kDriving ? "Driving" : "Turning"; }
-void PrintTo(Motion motion, std::ostream* os) { *os << motionName(motion); }
 
 INSTANTIATE_TEST_SUITE_P(
     Threads, PipelineAllocation,
