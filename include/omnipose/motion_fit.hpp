@@ -125,6 +125,15 @@ class MotionFit {
     /// depth and lets a robot driving along a wall turn (docs/results/ANALYSIS.md). With
     /// plane_depth_prior the scale weighs 0.01 and the term matters little. [0, 1].
     double scale_depth_gradient = 0.5;
+    /// With use_rotation_scale: the in-window scale equations take each window's vertical
+    /// scale (WindowMotion::vertical_scale, measured by the pipeline's passes) instead of its
+    /// log-polar one (daemon.yaml `pipeline.vertical_scale`). A translation's vertical
+    /// expansion is exactly the model's ln s, so scale_depth_gradient is not used; each
+    /// window's equation weighs (median sigma / its sigma)^2, within [0.05, 4], of what the
+    /// equations' scatter says, its sigma WindowMotion::vertical_scale_sigma and the median
+    /// over the pass's scale equations; a window without a vertical scale
+    /// (vertical_scale_sigma 0) has no scale equation, its rotation equation stays.
+    bool vertical_scale = false;
     /// With use_rotation_scale: the in-window rotation equations' error under translation,
     /// per unit of |tau| (the expansion a translation gives a window at the mean depth),
     /// added in quadrature to their scatter to make their sigma. The log-polar correlation

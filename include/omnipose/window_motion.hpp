@@ -46,6 +46,16 @@ struct WindowMotion {
   /// reports (OdometryResult::windows), 1 for a window its fit's ring consensus left out
   /// (MotionFit::judgedMoving: it moved as a whole, as no static scene does).
   double moving_fraction = 0.0;
+  /// The window's vertical scale alone, s_v: current row y (about the window centre) appears
+  /// at s_v y in the reference, from the window's column profiles (each row's taper-weighted
+  /// mean) in the two panoramas; the expansion the model's ln s describes, without the
+  /// horizontal one that a change of depth across the window adds (src/pipeline/
+  /// vertical_scale.hpp). Measured by the pipeline's passes when the fit uses it
+  /// (MotionFit::Options::vertical_scale), for windows with a rotation/scale peak; 1 otherwise.
+  double vertical_scale = 1.0;
+  /// Standard deviation of ln s_v from its fit's residuals; 0 = not measured (or the fit
+  /// failed), and vertical_scale is then 1.
+  double vertical_scale_sigma = 0.0;
   bool valid = false;       ///< false: window has no texture / no peak (confidence below
                             ///< min_confidence); ignore it. du, dv = 0 for a textureless window
   bool masked = false;      ///< mostly masked (setValidity): not measured, valid = false

@@ -101,6 +101,7 @@ constexpr PipelineKey kPipelineKeys[] = {
     {"pipeline.cubic_window_sampling", "registration.cubic_sampling"},
     {"pipeline.plane_depth_prior", "fit.plane_depth_prior"},
     {"pipeline.ring_consensus", "fit.ring_consensus"},
+    {"pipeline.vertical_scale", "fit.vertical_scale"},
     {"pipeline.translation_shrinkage", "fit.translation_shrinkage"},
     {"pipeline.planar_motion_deg", "fit.planar_motion_deg"},
     {"pipeline.threads", "threads"},
@@ -144,6 +145,7 @@ void parsePipeline(Reader& r, const YAML::Node& node, const std::filesystem::pat
   r.get(node, "pipeline", "cubic_window_sampling", p.registration.cubic_sampling);
   r.get(node, "pipeline", "plane_depth_prior", p.fit.plane_depth_prior);
   r.get(node, "pipeline", "ring_consensus", p.fit.ring_consensus);
+  r.get(node, "pipeline", "vertical_scale", p.fit.vertical_scale);
   r.get(node, "pipeline", "translation_shrinkage", p.fit.translation_shrinkage);
   r.get(node, "pipeline", "planar_motion_deg", p.fit.planar_motion_deg);
   r.get(node, "pipeline", "threads", p.threads);
@@ -411,6 +413,7 @@ std::string DaemonConfig::describe() const {
     << "\n  cubic_window_sampling: " << p.registration.cubic_sampling
     << "\n  plane_depth_prior: " << p.fit.plane_depth_prior
     << "\n  ring_consensus: " << p.fit.ring_consensus
+    << "\n  vertical_scale: " << p.fit.vertical_scale
     << "\n  translation_shrinkage: " << p.fit.translation_shrinkage
     << "\n  planar_motion_deg: " << p.fit.planar_motion_deg << "\n  threads: " << p.threads
     << "\n  fftw_wisdom: \"" << p.fftw_wisdom << "\"\n"

@@ -32,6 +32,14 @@ constexpr double kPlaneSigma = 0.15;
 constexpr double kPlanePullSigma = 4.0;
 constexpr double kPlaneScaleWeight = 0.01;
 
+/// Options::vertical_scale: a window's scale equation weighs (median sigma / its sigma)^2 of
+/// the equations' common weight, within these bounds (one window's fit cannot take over, nor
+/// vanish for a sigma that its few rows made small or large). Capped at 1 instead (as the du
+/// rows' own variance, kMinRelativeSigma) the drift pool's pairs gained about half as much
+/// (docs/results/ANALYSIS.md, "The vertical scale in the fit").
+constexpr double kMinOwnScaleWeight = 0.05;
+constexpr double kMaxOwnScaleWeight = 4.0;
+
 /// Median of a small array (modified in place).
 double medianOf(double* begin, int n) {
   std::nth_element(begin, begin + n / 2, begin + n);
@@ -775,7 +783,8 @@ Eigen::Matrix<double, 6, 1> MotionFit::Impl::depthGaussNewton(
 
 void MotionFit::Impl::depthGradientTerms(std::span<const WindowMotion> windows, int n_rows,
                                          const Eigen::Matrix<double, 6, 1>& x) {
-  const double alpha = options.scale_depth_gradient;
+  // A vertical scale has no horizontal expansion to take out (Options::vertical_scale).
+  const double alpha = options.vertical_scale ? 0.0 : options.scale_depth_gradient;
   if (alpha == 0.0) return;
   const int n = static_cast<int>(windows.size());
   for (int i = 0; i < n_rows; ++i) {
@@ -834,8 +843,12 @@ bool MotionFit::Impl::addRotationScaleRows(std::span<const WindowMotion> windows
     const int w = static_cast<int>(k);
     rows[n_rows++] =
         Row{m.rotation, m.rotation, windows[k].rotation, 1.0, conf, conf, kRotation, w};
-    rows[n_rows++] = Row{m.log_scale, m.log_scale, std::log(windows[k].scale), 1.0, conf,
-                          conf, kLogScale, w};
+    if (!options.vertical_scale)
+      rows[n_rows++] = Row{m.log_scale, m.log_scale, std::log(windows[k].scale), 1.0, conf,
+                           conf, kLogScale, w};
+    else if (windows[k].vertical_scale_sigma > 0 && windows[k].vertical_scale > 0)
+      rows[n_rows++] = Row{m.log_scale, m.log_scale, std::log(windows[k].vertical_scale), 1.0,
+                           conf, conf, kLogScale, w};
   }
   if (n_rows > n_trans) {
     const double floor_rs = 1e-4;
@@ -845,9 +858,22 @@ bool MotionFit::Impl::addRotationScaleRows(std::span<const WindowMotion> windows
     const double sigma_r = std::hypot(std::max(robustSigma(kRotation, x, n_rows), floor_rs),
                                       deformation);
     const double sigma_s = std::max(robustSigma(kLogScale, x, n_rows), floor_rs);
+    // Options::vertical_scale: each window's scale equation by its own fit's sigma.
+    double median_sigma = 0.0;
+    if (options.vertical_scale) {
+      int m = 0;
+      for (int i = n_trans; i < n_rows; ++i)
+        if (rows[i].kind == kLogScale)
+          scratch[m++] = windows[rows[i].window].vertical_scale_sigma;
+      if (m > 0) median_sigma = medianOf(scratch.data(), m);
+    }
     for (int i = n_trans; i < n_rows; ++i) {
       Row& row = rows[i];
       const double sigma = row.kind == kRotation ? sigma_r : sigma_s;
+      if (row.kind == kLogScale && median_sigma > 0) {
+        const double ratio = median_sigma / windows[row.window].vertical_scale_sigma;
+        row.prior_weight *= std::clamp(ratio * ratio, kMinOwnScaleWeight, kMaxOwnScaleWeight);
+      }
       // Residuals expressed in "equivalent shift pixels" for the loss, weights by 1/var.
       row.scale = sigma_t / sigma / gamma;
       row.prior_weight *= (sigma_t / sigma) * (sigma_t / sigma);

@@ -94,7 +94,9 @@ FrameRegistrar::FrameRegistrar(const Calibration& c, const PipelineOptions& o, i
       window_overlap_(windowOverlapFactor(o.registration.window, o.registration.step)),
       warp_(c.panorama),
       moving_(unwrapper_.validity(), o.registration.window, registration_.windowTop(),
-              windowCenters(registration_)) {
+              windowCenters(registration_)),
+      vertical_(unwrapper_.validity(), o.registration.window, registration_.windowTop(),
+                windowCenters(registration_), pool_.size()) {
   panorama_ = unwrapper_.makePanorama();
   warped_ = unwrapper_.makePanorama();
   previous_ = unwrapper_.makePanorama();
@@ -247,6 +249,7 @@ std::optional<MotionEstimate> FrameRegistrar::firstPass(double* fit_seconds) {
                              shifts_only ? std::span<const WindowMotion>(shifts_only_)
                                          : std::span<const WindowMotion>()))
     return std::nullopt;
+  if (!shifts_only) measureVerticalScale(windows_, WindowRegistration::kPreviousFrame, panorama_);
   const auto t_fit = std::chrono::steady_clock::now();
   MotionEstimate estimate = fitPass(windows_, Eigen::Vector3d::Zero(), previous_rows_);
   keepVerdicts(windows_, weights_);
@@ -264,6 +267,7 @@ std::optional<MotionEstimate> FrameRegistrar::alignedPass(const Eigen::Matrix3d&
                                          : std::span<const WindowMotion>(),
                              {}, slot))
     return std::nullopt;
+  if (!shifts_only) measureVerticalScale(windows_, slot, warped_);
   MotionEstimate estimate = fitPass(windows_, rotationVector(R), rowsOf(slot));
   keepVerdicts(windows_, weights_);
   start_gyro_ = last_pass_gyro_;
@@ -516,6 +520,7 @@ PassResult FrameRegistrar::refineInto(const MotionEstimate& start, const Eigen::
     if (!registration_.measure(warped_, windows, false, {}, expected_dv_, against,
                                predictDewarp(R, R_warp, tau, last_fit)))
       break;
+    measureVerticalScale(windows, against, warped_);
     if (options_.moving_content)
       discountMovingContent(windows, against, R * R_warp.transpose(), tau);
     const MotionEstimate residual = fitPass(windows, rotationVector(R_warp), rowsOf(against));
@@ -546,13 +551,22 @@ PassResult FrameRegistrar::refineInto(const MotionEstimate& start, const Eigen::
   return out;
 }
 
+const cv::Mat& FrameRegistrar::referencePanorama(int against) const {
+  return against == WindowRegistration::kPreviousFrame
+             ? previous_
+             : keyframe_panoramas_[static_cast<std::size_t>(against)];
+}
+
+void FrameRegistrar::measureVerticalScale(std::span<WindowMotion> windows, int against,
+                                          const cv::Mat& current) {
+  if (options_.fit.vertical_scale && options_.fit.use_rotation_scale)
+    vertical_.measure(referencePanorama(against), current, windows, pool_);
+}
+
 void FrameRegistrar::discountMovingContent(std::span<WindowMotion> windows, int against,
                                            const Eigen::Matrix3d& R_residual,
                                            const Eigen::Vector3d& tau) {
-  const cv::Mat& reference =
-      against == WindowRegistration::kPreviousFrame
-          ? previous_
-          : keyframe_panoramas_[static_cast<std::size_t>(against)];
+  const cv::Mat& reference = referencePanorama(against);
   // What the estimate so far predicts each window measured: the rotation the de-rotation
   // left, and the translation at the window's inverse depth of the last fit.
   const Eigen::Vector3d omega = rotationVector(R_residual);

@@ -26,6 +26,7 @@
 #include "pipeline/moving_content.hpp"
 #include "pipeline/panorama_warp.hpp"
 #include "pipeline/ring_alignment.hpp"
+#include "pipeline/vertical_scale.hpp"
 #include "runtime/worker_pool.hpp"
 
 namespace omnipose::pipeline {
@@ -220,10 +221,16 @@ class FrameRegistrar {
   Eigen::Vector2d predictedShift(int k, const Eigen::Vector3d& omega,
                                  const Eigen::Vector3d& tau) const;
   /// The current panorama becomes previous_, the reference of the pixel checks
-  /// (discountMovingContent()); nothing to keep when they are off.
+  /// (discountMovingContent(), measureVerticalScale()); nothing to keep when they are off.
   void keepPrevious() {
-    if (options_.moving_content) panorama_.copyTo(previous_);
+    if (options_.moving_content || options_.fit.vertical_scale) panorama_.copyTo(previous_);
   }
+  /// The panorama the windows of a pass `against` were registered against: previous_ or the
+  /// keyframe slot's.
+  const cv::Mat& referencePanorama(int against) const;
+  /// With MotionFit::Options::vertical_scale, each window's vertical scale (VerticalScale)
+  /// between referencePanorama(against) and `current`, the panorama the pass measured.
+  void measureVerticalScale(std::span<WindowMotion> windows, int against, const cv::Mat& current);
   /// `R` with its yaw (about the camera's z axis) rounded to whole panorama columns when its
   /// tilt is under one column's angle (else `R`): the de-rotation a refinement pass warps by.
   Eigen::Matrix3d wholeColumnYaw(const Eigen::Matrix3d& R) const;
@@ -283,8 +290,9 @@ class FrameRegistrar {
   PanoramaWarp warp_;
   std::optional<RingAlignment> ring_;
   MovingContentCheck moving_;
+  VerticalScale vertical_;
   /// The current panorama, its de-rotation, and the previous frame's panorama (the
-  /// reference of the pixel checks against the previous frame).
+  /// reference of the pixel checks and the vertical scale against the previous frame).
   cv::Mat panorama_, warped_, previous_;
   std::vector<double> moving_fraction_;  ///< per window, discountMovingContent()
   std::vector<Eigen::Vector2d> expected_motion_;  ///< per window, discountMovingContent()

@@ -113,9 +113,11 @@ bool MovingContentCheck::interpolateMotion(std::span<const WindowMotion> windows
   if (count < kMinWindows) return false;
   const auto at = [&](int k) {
     const WindowMotion& w = windows[static_cast<std::size_t>(k)];
+    // The stretch along v is the vertical scale where it was measured.
+    const double scale = w.vertical_scale_sigma > 0.0 ? w.vertical_scale : w.scale;
     return ColumnMotion{static_cast<float>(w.du), static_cast<float>(w.dv),
-                        static_cast<float>(w.scale * w.rotation),
-                        static_cast<float>(w.scale - 1.0), true};
+                        static_cast<float>(scale * w.rotation),
+                        static_cast<float>(scale - 1.0), true};
   };
   // Between consecutive measured windows a and b (around the ring), columns from a's centre
   // to b's.

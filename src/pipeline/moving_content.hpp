@@ -10,7 +10,8 @@
 /// leaves sensor noise; a person walking at a different speed leaves their outline and
 /// texture. Parallax is no trouble: the motion is the windows' own, not a global model's.
 ///
-/// The motion at pixel (u, v): each window's measured shift (du, dv), in-window scale s and
+/// The motion at pixel (u, v): each window's measured shift (du, dv), in-window scale s (its
+/// vertical scale where measured, WindowMotion::vertical_scale) and
 /// rotation phi give (du + s phi y, dv + (s - 1) y) at its centre column, y = v - the
 /// windows' centre row; between two window centres the four numbers are interpolated
 /// linearly in u (windows without a peak, and windows off their neighbours' shifts, see

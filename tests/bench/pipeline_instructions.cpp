@@ -21,7 +21,9 @@
 // (PipelineOptions::moving_content), to count what it costs; --no-ring-consensus turns the
 // fit's ring consensus off (MotionFit::Options::ring_consensus), likewise; --noise-weighting
 // turns the registration's signal-to-noise weighting on
-// (WindowRegistration::Options::noise_weighting); --translation-shrinkage K sets the fit's
+// (WindowRegistration::Options::noise_weighting); --vertical-scale takes the fit's scale
+// equations from each window's vertical scale (MotionFit::Options::vertical_scale);
+// --translation-shrinkage K sets the fit's
 // MotionFit::Options::translation_shrinkage (0: off); --planar-motion-deg D sets the fit's
 // MotionFit::Options::planar_motion_deg (0: tau_z free).
 // --save writes the two rendered frames to DIR/a.png, DIR/b.png; --load reads them instead
@@ -65,7 +67,7 @@ struct Args {
   double translation_shrinkage = omnipose::MotionFit::Options{}.translation_shrinkage;
   double planar_motion_deg = omnipose::MotionFit::Options{}.planar_motion_deg;
   bool odometry = false, no_moving_content = false, no_ring_consensus = false,
-       noise_weighting = false;
+       noise_weighting = false, vertical_scale = false;
   std::string wisdom, save, load;
 };
 
@@ -74,7 +76,8 @@ constexpr const char* kUsage =
     "                                   [--refine R] [--wisdom FILE] [--save DIR | --load DIR]\n"
     "                                   [--odometry [--readout S [--gyro HZ]] [--keyframe-slots N]]\n"
     "                                   [--no-moving-content] [--no-ring-consensus]\n"
-    "                                   [--noise-weighting] [--translation-shrinkage K]\n"
+    "                                   [--noise-weighting] [--vertical-scale]\n"
+    "                                   [--translation-shrinkage K]\n"
     "                                   [--planar-motion-deg D]";
 
 constexpr const char* kDescription =
@@ -124,6 +127,9 @@ void addOptions(CLI::App& app, Args& a) {
   app.add_flag("--noise-weighting", a.noise_weighting,
                "with the registration's signal-to-noise weighting "
                "(WindowRegistration::Options::noise_weighting)");
+  app.add_flag("--vertical-scale", a.vertical_scale,
+               "with the fit's scale equations from each window's vertical scale "
+               "(MotionFit::Options::vertical_scale)");
   app.add_option("--translation-shrinkage", a.translation_shrinkage,
                  "the fit's MotionFit::Options::translation_shrinkage (0: off)")
       ->type_name("K")
@@ -174,6 +180,7 @@ int run(const Args& a) {
   options.fit.translation_shrinkage = a.translation_shrinkage;
   options.fit.planar_motion_deg = a.planar_motion_deg;
   options.registration.noise_weighting = a.noise_weighting;
+  options.fit.vertical_scale = a.vertical_scale;
   options.fftw_wisdom = a.wisdom;
   omnipose::Calibration calibration;
   calibration.sensor.readout_s = a.readout;

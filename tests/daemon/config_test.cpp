@@ -188,6 +188,12 @@ TEST(DaemonConfig, RingConsensus) {
       [](const DaemonConfig& c) { return c.pipeline.fit.ring_consensus; }, "people");
 }
 
+TEST(DaemonConfig, VerticalScale) {
+  expectBooleanPipelineKey(
+      "vertical_scale", false,
+      [](const DaemonConfig& c) { return c.pipeline.fit.vertical_scale; }, "vertical");
+}
+
 TEST(DaemonConfig, TranslationShrinkage) {
   expectNumericPipelineKey(
       "translation_shrinkage", 3.0,

@@ -304,6 +304,62 @@ TEST(MotionFit, ThePlaneDepthPriorTakesAWallsDepthFromItsNeighboursNotFromTheSca
   EXPECT_LT(err_plane, err_scale);
 }
 
+// The vertical scale (MotionFit::Options::vertical_scale: WindowMotion::vertical_scale, each
+// window's expansion along v alone) is the model's ln s without the horizontal expansion's share
+// that the log-polar scale mixes in. On the drive along the wall above, with the depths taken from
+// the scale (plane_depth_prior off), the vertical scale leaves the yaw unbiased where the
+// log-polar scale's texture mix turns it; a window whose vertical fit failed (sigma 0) has no
+// scale equation and keeps its rotation one.
+TEST(MotionFit, TheVerticalScaleReadsTheWallsDepthWithoutTheTexturesMix) {
+  std::mt19937 rng(29);
+  const auto lambda = boxRoomInverseDepth(0.5, -1.5);
+  Vec6 x;
+  x << 0.0, 0.0, 0.002, 0.02, 0.0, 0.0;
+  MotionFit::Options log_polar, vertical;
+  log_polar.plane_depth_prior = false;
+  vertical.plane_depth_prior = false;
+  vertical.vertical_scale = true;
+  MotionFit fit_log_polar(log_polar, kGamma, kWindow, kWindows);
+  MotionFit fit_vertical(vertical, kGamma, kWindow, kWindows);
+  const double kappa = windowAttenuation(kWindow, kGamma);
+  std::uniform_real_distribution<double> mix(0.47, 1.07);
+  std::normal_distribution<double> noise(0.0, 1.0);
+  const int trials = 40;
+  double bias_log_polar = 0.0, bias_vertical = 0.0, err_log_polar = 0.0, err_vertical = 0.0;
+  for (int t = 0; t < trials; ++t) {
+    std::vector<double> scale_mix(kWindows);
+    for (double& m : scale_mix) m = mix(rng);
+    auto windows = synthesize(x, 0.05, 0.0, rng, 0.0, lambda, scale_mix);
+    for (int k = 0; k < kWindows; ++k) {
+      WindowMotion& w = windows[static_cast<std::size_t>(k)];
+      Vec6 xk = x;
+      xk.tail<3>() *= lambda[static_cast<std::size_t>(k)];
+      const double exact = predictMotion(xk, kGamma * w.center_u, kappa).log_scale;
+      w.vertical_scale = std::exp(exact + 0.0015 * noise(rng));
+      w.vertical_scale_sigma = 0.0015;
+      w.scale = std::pow(w.scale, 0.9);
+    }
+    // Two windows whose vertical fit failed.
+    windows[3].vertical_scale = 1.0;
+    windows[3].vertical_scale_sigma = 0.0;
+    windows[40].vertical_scale = 1.0;
+    windows[40].vertical_scale_sigma = 0.0;
+    const MotionEstimate b = fit_log_polar.fit(windows, 0.0), v = fit_vertical.fit(windows, 0.0);
+    ASSERT_NE(b.status, FitStatus::kLost);
+    ASSERT_NE(v.status, FitStatus::kLost);
+    bias_log_polar += (b.omega.z() - x[2]) / trials;
+    bias_vertical += (v.omega.z() - x[2]) / trials;
+    err_log_polar += (b.omega - x.head<3>()).squaredNorm() / trials;
+    err_vertical += (v.omega - x.head<3>()).squaredNorm() / trials;
+  }
+  testing::recordFigure("yaw_bias_rad_log_polar", bias_log_polar, 7);
+  testing::recordFigure("yaw_bias_rad_vertical", bias_vertical, 7);
+  testing::recordFigure("rotation_rmse_rad_log_polar", std::sqrt(err_log_polar), 7);
+  testing::recordFigure("rotation_rmse_rad_vertical", std::sqrt(err_vertical), 7);
+  EXPECT_LT(std::abs(bias_vertical), 0.5 * std::abs(bias_log_polar));  // 0.34 (2026-12-07)
+  EXPECT_LT(err_vertical, err_log_polar);
+}
+
 // Translation deforms a window otherwise than a rotation and a scale (a wall seen at an angle
 // expands it more across than up), and the log-polar correlation reads part of that as an
 // in-window rotation whose sign the window's texture sets: the same on every pair of a

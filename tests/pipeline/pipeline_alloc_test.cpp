@@ -7,6 +7,7 @@
 // tests/support/allocation_counter_test.cpp.)
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cstdlib>
 #include <ostream>
 #include <string>
@@ -112,6 +113,40 @@ TEST_P(PipelineAllocation, ProcessAllocatesNothingAfterWarmUp) {
       differing += !rotations[i].isApprox(reference_rotations[i], 1e-7);  // above rounding
     EXPECT_GT(differing, 50) << differing
                              << " of 100 driving pairs read otherwise than without the option";
+  }
+}
+
+// The scale equations from each window's vertical scale (MotionFit::Options::vertical_scale):
+// its profiles and fits allocate nothing either, on one worker or several, and they ran (the
+// driving pairs read otherwise than with the log-polar scale).
+TEST(PipelineAllocationVerticalScale, ProcessAllocatesNothingAfterWarmUp) {
+  if (!testing::AllocationCounter::available())
+    GTEST_SKIP() << "sanitizer build: the sanitizer owns malloc, allocations are not counted";
+  if (!std::filesystem::exists(testing::indoorPhoto())) GTEST_SKIP() << "missing photo";
+  cv::setNumThreads(1);
+  const std::vector<cv::Mat> frames = renderFrames(Motion::kDriving);
+  for (const int threads : {1, 2}) {
+    std::vector<Eigen::Matrix3d> rotations[2];
+    for (const bool vertical : {false, true}) {
+      PipelineOptions options;
+      options.threads = threads;
+      options.fit.vertical_scale = vertical;
+      Pipeline pipeline(Calibration{}, options);
+      for (int k = 0; k < 4; ++k) ASSERT_TRUE(pipeline.process(frames[k]).has_value());
+      std::vector<Eigen::Matrix3d>& out = rotations[vertical ? 1 : 0];
+      out.reserve(40);
+      testing::AllocationCounter counter;
+      for (int i = 0; i < 40; ++i)
+        if (auto m = pipeline.process(frames[i % 4])) out.push_back(m->rotation);
+      const std::int64_t allocations = counter.stop();
+      EXPECT_EQ(out.size(), 40u) << threads << " threads, vertical " << vertical;
+      EXPECT_EQ(allocations, 0) << "heap allocations in 40 frames, " << threads
+                                << " threads, vertical_scale " << vertical;
+    }
+    int differing = 0;
+    for (std::size_t i = 0; i < std::min(rotations[0].size(), rotations[1].size()); ++i)
+      differing += !rotations[0][i].isApprox(rotations[1][i], 1e-7);
+    EXPECT_GT(differing, 20) << threads << " threads";
   }
 }
 

@@ -130,7 +130,7 @@ class Odometry(_omnipose.Odometry):
     ``pipeline`` holds daemon.yaml's ``pipeline:`` keys (window, step, huber_delta_px,
     median, refine_iterations, use_rotation_scale, estimate_rotation_scale, min_confidence,
     inlier_sigmas, moving_content, dewarp_by_fit, yaw_capture_time, gyro_fusion,
-    noise_weighting, cubic_window_sampling, plane_depth_prior, ring_consensus,
+    noise_weighting, cubic_window_sampling, plane_depth_prior, ring_consensus, vertical_scale,
     translation_shrinkage, planar_motion_deg, threads, fftw_wisdom;
     a relative fftw_wisdom path is relative to the current directory); ``keyframes``,
     ``plausibility`` and ``loop_closure`` dicts of those sections' keys. Defaults are the daemon's (threads 0: every
