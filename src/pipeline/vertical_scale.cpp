@@ -201,8 +201,8 @@ void VerticalScale::measure(const cv::Mat& reference, const cv::Mat& current,
     return;
   auto one = [&](int worker, int k) {
     WindowMotion& m = windows[static_cast<std::size_t>(k)];
-    if (!m.valid || !(m.confidence > 0.0) || !(m.rs_confidence > 0.0) || !std::isfinite(m.du) ||
-        !std::isfinite(m.dv))
+    if (!m.valid || !(m.confidence > 0.0) || !(m.rs_confidence > 0.0) ||
+        !(std::abs(m.du) < width_) || !(std::abs(m.dv) < height_))
       return;
     const int first =
         static_cast<int>(std::lround(centers_[static_cast<std::size_t>(k)] - 0.5 * (window_ - 1)));

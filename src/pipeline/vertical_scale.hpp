@@ -26,10 +26,11 @@
 /// no sample.
 ///
 /// A window is measured when it is valid with a translation and a rotation/scale peak
-/// (confidence and rs_confidence above 0). Its WindowMotion::vertical_scale and
-/// vertical_scale_sigma are set when the fit converges to |ln s| <= kMaxLogScale with at least
-/// kMinSampleWeight of the rows' taper weight sampled; otherwise (and for the windows not
-/// measured) they are 1 and 0.
+/// (confidence and rs_confidence above 0) and a shift within the panorama (|du| < W,
+/// |dv| < H). Its WindowMotion::vertical_scale and vertical_scale_sigma are set when the fit
+/// ends (its steps below the tolerances, or kMaxIterations steps taken) at |ln s| <=
+/// kMaxLogScale with at least kMinSampleWeight of the rows' taper weight sampled and a finite,
+/// positive sigma; otherwise (a singular step, and the windows not measured) they are 1 and 0.
 ///
 /// Cost: two matrix-vector products over each window's pixels (the profiles) and a
 /// 4-parameter fit of L samples, 2-4 Gauss-Newton steps: about 4 M instructions per pass at the
