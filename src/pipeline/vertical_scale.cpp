@@ -19,8 +19,8 @@ using detail::wrapIndex;
 
 /// A row-major float matrix view: `rows` rows of `cols` columns from `data`, rows `stride`
 /// floats apart.
-using RowsView = Eigen::Map<const Eigen::Matrix<float, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>,
-                            Eigen::Unaligned, Eigen::OuterStride<>>;
+using RowMajorFloats = Eigen::Matrix<float, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
+using RowsView = Eigen::Map<const RowMajorFloats, Eigen::Unaligned, Eigen::OuterStride<>>;
 
 }  // namespace
 

@@ -110,7 +110,8 @@ TEST_F(VerticalScaleTest, RecoversAnExactVerticalScaleInEveryWindow) {
     meter().measure(reference, current, w, pool);
     for (std::size_t k = 0; k < w.size(); ++k) {
       ASSERT_GT(w[k].vertical_scale_sigma, 0.0) << "s " << s << " window " << k;
-      EXPECT_NEAR(std::log(w[k].vertical_scale), std::log(s), 1.5e-3) << "s " << s << " window " << k;
+      EXPECT_NEAR(std::log(w[k].vertical_scale), std::log(s), 1.5e-3)
+          << "s " << s << " window " << k;
       EXPECT_LT(w[k].vertical_scale_sigma, 2e-3) << "s " << s << " window " << k;
       // The registration's own fields are left as they were.
       EXPECT_EQ(w[k].scale, 1.0);
@@ -247,7 +248,8 @@ TEST(VerticalScaleRenderer, ReadsTheBoxRoomsExactVerticalExpansion) {
   std::vector<WindowMotion> w(static_cast<std::size_t>(registration.windowCount()));
   ASSERT_TRUE(registration.measure(current, w));
   std::vector<double> centers;
-  for (int k = 0; k < registration.windowCount(); ++k) centers.push_back(registration.windowCenter(k));
+  for (int k = 0; k < registration.windowCount(); ++k)
+    centers.push_back(registration.windowCenter(k));
   const cv::Mat validity(g.size(), CV_32FC1, cv::Scalar(1.0f));
   runtime::WorkerPool pool(1);
   VerticalScale(validity, ro.window, registration.windowTop(), centers, 1)
