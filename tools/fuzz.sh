@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# libFuzzer runs under ASan + UBSan, one target at a time (tests/fuzz), twelve targets:
+# libFuzzer runs under ASan + UBSan (tests/fuzz), twelve targets, JOBS of them at a time:
 #   fuzz_calibration_yaml   calibration.yaml (Calibration::parse)
 #   fuzz_daemon_yaml        daemon.yaml (DaemonConfig::parse)
 #   fuzz_frame_pipeline     frame decode (readFrame) + Pipeline::process on arbitrary bytes
@@ -26,9 +26,9 @@
 # build-fuzz/logs/summary.txt, logs in build-fuzz/logs/.
 # A crash found here is minimised (fuzzer -minimize_crash=1 -runs=10000 ARTIFACT), added to
 # tests/fuzz/regressions/<target>/ and becomes a regression test of the normal suite.
-# Environment: NICE (default 15), JOBS (build jobs, default nproc), KEEP_GOING=1 (fork mode:
-# a crash is recorded in build-fuzz/artifacts/ and fuzzing goes on for the full time; the run
-# still fails).
+# Environment: NICE (default 15), JOBS (build jobs and targets fuzzed at once, default nproc),
+# KEEP_GOING=1 (fork mode: a crash is recorded in build-fuzz/artifacts/ and fuzzing goes on for
+# the full time; the run still fails).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 seconds=${1:-600}
@@ -80,10 +80,13 @@ if [ -z "${ASAN_SYMBOLIZER_PATH:-}" ]; then
 fi
 
 mkdir -p "$dir/artifacts" "$dir/logs"
-failed=0
+rm -f "$dir"/logs/*.line "$dir"/logs/*.failed
 summary=$dir/logs/summary.txt
 : >"$summary"
-for t in "${targets[@]}"; do
+# One target: its regression inputs, then SECONDS of fuzzing. Its summary line goes to
+# $dir/logs/<target>.line and "1" to $dir/logs/<target>.failed when it failed.
+fuzz_one() {
+  local t=$1 failed=0
   mkdir -p "$dir/corpus/$t"
   log=$dir/logs/$t.log
   seeds=tests/fuzz/corpus/$t
@@ -134,7 +137,31 @@ for t in "${targets[@]}"; do
     line="$t: $status: ${runs:-?} runs in ${secs:-?} s (coverage ${cov:-?} edges, corpus $corpus inputs); $reg"
   fi
   echo "fuzz.sh: $line"
-  echo "$line" >>"$summary"
+  echo "$line" >"$dir/logs/$t.line"
+  echo "$failed" >"$dir/logs/$t.failed"
+}
+
+# The targets run $jobs at a time (each fuzzer is one process on one core); the summary keeps
+# the targets' order.
+running=0
+for t in "${targets[@]}"; do
+  fuzz_one "$t" &
+  running=$((running + 1))
+  if [ "$running" -ge "$jobs" ]; then
+    wait -n || true
+    running=$((running - 1))
+  fi
+done
+wait
+failed=0
+for t in "${targets[@]}"; do
+  if [ -s "$dir/logs/$t.line" ]; then
+    cat "$dir/logs/$t.line" >>"$summary"
+    [ "$(cat "$dir/logs/$t.failed" 2>/dev/null)" = 0 ] || failed=1
+  else
+    echo "$t: FAILED (no result; see $dir/logs/$t.log)" >>"$summary"
+    failed=1
+  fi
 done
 echo "fuzz.sh: $(date -u +%Y-%m-%dT%H:%MZ), $seconds s per target:"
 cat "$summary"
