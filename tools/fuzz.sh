@@ -80,13 +80,13 @@ if [ -z "${ASAN_SYMBOLIZER_PATH:-}" ]; then
 fi
 
 mkdir -p "$dir/artifacts" "$dir/logs"
-rm -f "$dir"/logs/*.line "$dir"/logs/*.failed
+rm -f "$dir"/logs/*.line
 summary=$dir/logs/summary.txt
 : >"$summary"
-# One target: its regression inputs, then SECONDS of fuzzing. Its summary line goes to
-# $dir/logs/<target>.line and "1" to $dir/logs/<target>.failed when it failed.
+# One target: its regression inputs, then SECONDS of fuzzing. Its summary line, which starts
+# "<target>: FAILED" when it failed, goes to $dir/logs/<target>.line.
 fuzz_one() {
-  local t=$1 failed=0
+  local t=$1
   mkdir -p "$dir/corpus/$t"
   log=$dir/logs/$t.log
   seeds=tests/fuzz/corpus/$t
@@ -119,26 +119,23 @@ fuzz_one() {
   secs=$(( $(date +%s) - start ))
   runs=$(sed -n 's/^stat::number_of_executed_units: *//p' "$log" | tail -1)
   # fork mode prints no final stats: the last status line "#RUNS: cov: ..." has the count.
-  [ -z "$runs" ] && runs=$(grep -oE '^#[0-9]+' "$log" | tail -1 | tr -d '#')
+  [ -z "$runs" ] && runs=$(grep -oE '^#[0-9]+' "$log" | tail -1 | tr -d '#' || true)
   found=$(( $(find "$dir/artifacts" -name "$t-*" | wc -l) - before ))
   [ "$found" -gt 0 ] && [ "$rc" -eq 0 ] && rc=1
-  cov=$(grep -o 'cov: [0-9]*' "$log" | tail -1 | cut -d' ' -f2)
+  cov=$(grep -o 'cov: [0-9]*' "$log" | tail -1 | cut -d' ' -f2 || true)
   corpus=$(find "$dir/corpus/$t" -type f | wc -l)
   reg="regressions $((reg_total - ${#reg_failed[@]}))/$reg_total pass"
   [ ${#reg_failed[@]} -gt 0 ] && reg="$reg (CRASHED: ${reg_failed[*]}; logs $dir/logs/$t.regression.*.log)"
   if [ "$rc" -ne 0 ]; then
-    failed=1
     line="$t: FAILED (exit $rc, $found new artifacts) after ${runs:-?} runs in $secs s; $reg; see $log and $dir/artifacts/"
     grep -m3 -E "ERROR|runtime error|deadly signal" "$log" || true
   else
-    [ ${#reg_failed[@]} -gt 0 ] && failed=1
     status="no crash"
     [ ${#reg_failed[@]} -gt 0 ] && status="FAILED"
     line="$t: $status: ${runs:-?} runs in ${secs:-?} s (coverage ${cov:-?} edges, corpus $corpus inputs); $reg"
   fi
   echo "fuzz.sh: $line"
   echo "$line" >"$dir/logs/$t.line"
-  echo "$failed" >"$dir/logs/$t.failed"
 }
 
 # The targets run $jobs at a time (each fuzzer is one process on one core); the summary keeps
@@ -157,7 +154,7 @@ failed=0
 for t in "${targets[@]}"; do
   if [ -s "$dir/logs/$t.line" ]; then
     cat "$dir/logs/$t.line" >>"$summary"
-    [ "$(cat "$dir/logs/$t.failed" 2>/dev/null)" = 0 ] || failed=1
+    if grep -q "^$t: FAILED" "$dir/logs/$t.line"; then failed=1; fi
   else
     echo "$t: FAILED (no result; see $dir/logs/$t.log)" >>"$summary"
     failed=1
