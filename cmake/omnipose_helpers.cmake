@@ -14,6 +14,18 @@ function(omnipose_add_subdirectories)
   endforeach()
 endfunction()
 
+# omnipose_precompile_library(TARGET [header...]): a precompiled header of the library's own
+# (PRIVATE: its users never see it) with OpenCV's core, Eigen and the standard headers nearly
+# every source includes, plus the given ones. GCC parses them once per library instead of once
+# per source: 1.5 s of a core source's 6 s (CI compiles the library four times: Release,
+# sanitizers, fuzzers, Python).
+function(omnipose_precompile_library target)
+  target_precompile_headers(${target} PRIVATE
+    <opencv2/core.hpp> <Eigen/Core> <Eigen/Geometry>
+    <algorithm> <array> <cmath> <cstdint> <limits> <numbers> <optional> <span> <stdexcept>
+    <string> <vector> ${ARGN})
+endfunction()
+
 # omnipose_add_test(NAME src... [LIBS lib...]): one GoogleTest binary, run by ctest.
 # Tests run with the source tree as working directory so they find tests/data. Every test
 # may use the renderer (the referee of every sign), datasets and the evaluation.
