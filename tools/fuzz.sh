@@ -21,9 +21,11 @@
 # Per target: first every input of tests/fuzz/regressions/<target>/ (each input that ever
 # crashed it) is run once, then the target fuzzes for SECONDS on build-fuzz/corpus/<target>/
 # (where the corpus grows, outside the source tree) seeded from tests/fuzz/corpus/<target>/
-# (read only). A crashing regression input or a crash found while fuzzing (saved in
-# build-fuzz/artifacts/) fails the run; one summary line per target at the end, also in
-# build-fuzz/logs/summary.txt, logs in build-fuzz/logs/.
+# (read only). A crashing regression input or a crash, leak, out-of-memory or timeout (over
+# 30 s) found while fuzzing (saved in build-fuzz/artifacts/) fails the run; an input slower
+# than libFuzzer's 10 s report threshold (its slow-unit-* file) is counted in the summary but
+# is no failure: on a busy machine a heavy seed takes that long. One summary line per target
+# at the end, also in build-fuzz/logs/summary.txt, logs in build-fuzz/logs/.
 # A crash found here is minimised (fuzzer -minimize_crash=1 -runs=10000 ARTIFACT), added to
 # tests/fuzz/regressions/<target>/ and becomes a regression test of the normal suite.
 # Environment: NICE (default 15), JOBS (build jobs and targets fuzzed at once, default nproc),
@@ -111,7 +113,8 @@ fuzz_one() {
   [ "${KEEP_GOING:-0}" = 1 ] && keep=(-fork=1 -ignore_crashes=1 -ignore_ooms=1 -ignore_timeouts=1)
   corpora=("$dir/corpus/$t")
   [ -d "$seeds" ] && corpora+=("$seeds")
-  before=$(find "$dir/artifacts" -name "$t-*" | wc -l)
+  before=$(find "$dir/artifacts" -name "$t-*" ! -name "$t-slow-unit-*" | wc -l)
+  slow_before=$(find "$dir/artifacts" -name "$t-slow-unit-*" | wc -l)
   start=$(date +%s)
   nice -n "$nice_level" "$dir/fuzz/$t" "${keep[@]}" -max_total_time="$seconds" -timeout=30 \
     -rss_limit_mb=2048 -print_final_stats=1 -artifact_prefix="$dir/artifacts/$t-" \
@@ -120,7 +123,8 @@ fuzz_one() {
   runs=$(sed -n 's/^stat::number_of_executed_units: *//p' "$log" | tail -1)
   # fork mode prints no final stats: the last status line "#RUNS: cov: ..." has the count.
   [ -z "$runs" ] && runs=$(grep -oE '^#[0-9]+' "$log" | tail -1 | tr -d '#' || true)
-  found=$(( $(find "$dir/artifacts" -name "$t-*" | wc -l) - before ))
+  found=$(( $(find "$dir/artifacts" -name "$t-*" ! -name "$t-slow-unit-*" | wc -l) - before ))
+  slow=$(( $(find "$dir/artifacts" -name "$t-slow-unit-*" | wc -l) - slow_before ))
   [ "$found" -gt 0 ] && [ "$rc" -eq 0 ] && rc=1
   cov=$(grep -o 'cov: [0-9]*' "$log" | tail -1 | cut -d' ' -f2 || true)
   corpus=$(find "$dir/corpus/$t" -type f | wc -l)
@@ -134,6 +138,7 @@ fuzz_one() {
     [ ${#reg_failed[@]} -gt 0 ] && status="FAILED"
     line="$t: $status: ${runs:-?} runs in ${secs:-?} s (coverage ${cov:-?} edges, corpus $corpus inputs); $reg"
   fi
+  [ "$slow" -gt 0 ] && line="$line; $slow input(s) slower than 10 s in $dir/artifacts/$t-slow-unit-*"
   echo "fuzz.sh: $line"
   echo "$line" >"$dir/logs/$t.line"
 }

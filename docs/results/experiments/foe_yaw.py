@@ -9,7 +9,8 @@ translation's axis (the fit's, or the ground truth's with direction=gt) are fitt
 common intercept and a slope in sin(theta - theta_t) of their own at each end (quad=1: and a
 term in sin^2, a depth that changes across the end), weighted by the fit's window weights. The
 intercept less the fit's own (the constant of the fitted model_du) is that reading's
-correction of the fit's yaw.
+correction of the fit's yaw; with fuse=1 the correction is the inverse-variance mean's (the band's
+variance from its residuals, the fit's from the published covariance).
 
 Printed: over the pairs with translation and no true yaw (|omega_z| < 1e-5 rad), the summed
 yaw error of the fit and of the fit corrected by the focus windows (degrees: what each adds to
@@ -18,7 +19,7 @@ the correction; then the same sums per straight (runs of at least 10 such pairs)
 
 Usage (the package installed by tools/python_test.sh):
   build-python/venv/bin/python3 docs/results/experiments/foe_yaw.py DATASET \
-      [foe_deg=20] [quad=0|1] [direction=fit|gt] [wisdom=FILE] [pipeline key=value ...]
+      [foe_deg=20] [quad=0|1] [fuse=0|1] [direction=fit|gt] [wisdom=FILE] [pipeline key=value ...]
 """
 import sys
 
@@ -39,7 +40,7 @@ def parse(argv):
         key, value = arg.split("=", 1)
         opts[key] = {"true": True, "false": False}.get(value, value)
     exp = {"foe_deg": float(opts.pop("foe_deg", 20)), "quad": opts.pop("quad", "0") == "1",
-           "direction": opts.pop("direction", "fit")}
+           "direction": opts.pop("direction", "fit"), "fuse": opts.pop("fuse", "0") == "1"}
     if "wisdom" in opts:
         opts["fftw_wisdom"] = opts.pop("wisdom")
     return exp, opts
@@ -64,11 +65,18 @@ def focus_correction(w, result, t_true, exp):
         columns += [s ** 2 * front, s ** 2 * ~front]
     if focus.sum() < len(columns) + 2:
         return np.nan, int(focus.sum())
-    A = np.column_stack(columns)[focus]
-    root_w = np.sqrt(weight[focus])
-    du = np.asarray(w.du)[focus] * gamma
-    intercept = np.linalg.lstsq(A * root_w[:, None], du * root_w, rcond=None)[0][0]
-    return intercept - fit_yaw, int(focus.sum())
+    A = np.column_stack(columns)[focus] * np.sqrt(weight[focus])[:, None]
+    b = np.asarray(w.du)[focus] * gamma * np.sqrt(weight[focus])
+    x = np.linalg.lstsq(A, b, rcond=None)[0]
+    correction = x[0] - fit_yaw
+    if exp["fuse"]:
+        # Inverse-variance mean of the two readings: the band's from its residuals, the fit's
+        # from its published covariance (the focus windows are in both: a probe, not a model).
+        dof = max(1, len(b) - len(columns))
+        var_band = (np.sum((b - A @ x) ** 2) / dof) * np.linalg.pinv(A.T @ A)[0, 0]
+        var_fit = np.asarray(result.covariance)[2, 2]
+        correction *= var_fit / (var_fit + var_band)
+    return correction, int(focus.sum())
 
 
 def main():
