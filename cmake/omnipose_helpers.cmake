@@ -17,8 +17,8 @@ endfunction()
 # omnipose_precompile_library(TARGET [header...]): a precompiled header of the library's own
 # (PRIVATE: its users never see it) with OpenCV's core, Eigen and the standard headers nearly
 # every source includes, plus the given ones. GCC parses them once per library instead of once
-# per source: 1.5 s of a core source's 6 s (CI compiles the library four times: Release,
-# sanitizers, fuzzers, Python).
+# per source: the three libraries that use it compile in 356 CPU s instead of 426 in Release
+# (CI compiles them four times: Release, sanitizers, fuzzers, Python).
 function(omnipose_precompile_library target)
   target_precompile_headers(${target} PRIVATE
     <opencv2/core.hpp> <Eigen/Core> <Eigen/Geometry>
