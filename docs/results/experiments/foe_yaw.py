@@ -12,20 +12,22 @@ intercept less the fit's own (the constant of the fitted model_du) is that readi
 correction of the fit's yaw; with fuse=1 the correction is the inverse-variance mean's (the band's
 variance from its residuals, the fit's from the published covariance).
 
-Printed: over the pairs with translation and no true yaw (|omega_z| < 1e-5 rad), the summed
-yaw error of the fit and of the fit corrected by the focus windows (degrees: what each adds to
-the chained heading), their RMS per pair (mrad) and the correlation of the fit's error with
-the correction; then the same sums per straight (runs of at least 10 such pairs).
+Printed: over the straights' pairs (segment_yaw.py's segments of the ground truth: a run of
+pairs whose camera moves), the summed yaw error of the fit and of the fit corrected by the focus
+windows (degrees: what each adds to the chained heading), their RMS per pair (mrad) and the
+correlation of the fit's error with the correction; then the same sums per straight.
 
 Usage (the package installed by tools/python_test.sh):
   build-python/venv/bin/python3 docs/results/experiments/foe_yaw.py DATASET \
       [foe_deg=20] [quad=0|1] [fuse=0|1] [direction=fit|gt] [wisdom=FILE] [pipeline key=value ...]
 """
+import os
 import sys
 
 import numpy as np
 
 import omnipose
+from segment_yaw import load_tum, segments  # beside this script
 
 
 def rotation_vector(R):
@@ -46,8 +48,9 @@ def parse(argv):
     return exp, opts
 
 
-def focus_correction(w, result, t_true, exp):
+def focus_correction(result, t_true, exp):
     """The focus windows' yaw less the fit's (radians), or NaN when too few windows are near."""
+    w = result.windows
     gamma = w.gamma
     az = gamma * (np.asarray(w.center_u) - w.forward_column)
     weight = np.asarray(w.weight)
@@ -82,43 +85,37 @@ def focus_correction(w, result, t_true, exp):
 def main():
     exp, opts = parse(sys.argv[2:])
     ds = omnipose.open_dataset(sys.argv[1])
+    straights = [(first, last) for kind, first, last in
+                 segments(load_tum(os.path.join(ds.root, "groundtruth.tum"))) if kind == "S"]
     odometry = omnipose.Odometry(ds.calibration, keyframes={"slots": 0}, **opts)
     gt = ds.groundtruth["poses"]
-    err, corr, straight, focus_n = [], [], [], []
+    err, corr, focus_n = {}, {}, {}  # pair k (frames k-1 -> k) -> value
     for k, (path, t) in enumerate(zip(ds.frames, ds.timestamps)):
         result = odometry.process(omnipose.read_frame(path), t, sequence=k)
         if k == 0 or not result.has_motion:
             continue
         R_true = gt[k - 1][:3, :3].T @ gt[k][:3, :3]
         t_true = gt[k - 1][:3, :3].T @ (gt[k][:3, 3] - gt[k - 1][:3, 3])
-        yaw_true = rotation_vector(R_true)[2]
+        err[k] = result.rotation_vector[2] - rotation_vector(R_true)[2]
         moving = np.linalg.norm(t_true[:2]) > 1e-6
-        c, n = focus_correction(result.windows, result, t_true, exp) if moving else (np.nan, 0)
-        err.append(result.rotation_vector[2] - yaw_true)
-        corr.append(c)
-        focus_n.append(n)
-        straight.append(moving and abs(yaw_true) < 1e-5)
-    err, corr, straight = np.array(err), np.array(corr), np.array(straight)
-    corrected = err + np.nan_to_num(corr)
-    es, cs = err[straight], corr[straight]
+        corr[k], focus_n[k] = focus_correction(result, t_true, exp) if moving else (np.nan, 0)
+    pairs = [k for first, last in straights for k in range(first, last + 1) if k in err]
+    es = np.array([err[k] for k in pairs])
+    cs = np.array([corr[k] for k in pairs])
     known = ~np.isnan(cs)
-    print(f"pairs {len(err)}, straight {straight.sum()}, focus windows per straight pair median "
-          f"{np.median(np.array(focus_n)[straight]):.0f}, without a reading {(~known).sum()}")
+    print(f"pairs {len(err)}, straight {len(pairs)}, focus windows per straight pair median "
+          f"{np.median([focus_n[k] for k in pairs]):.0f}, without a reading {(~known).sum()}")
     print(f"straights: yaw error summed: fit {np.degrees(es.sum()):+.4f} deg, corrected "
-          f"{np.degrees(corrected[straight].sum()):+.4f} deg; RMS per pair: fit "
+          f"{np.degrees((es + np.nan_to_num(cs)).sum()):+.4f} deg; RMS per pair: fit "
           f"{1e3 * np.sqrt(np.mean(es ** 2)):.4f} mrad, corrected "
           f"{1e3 * np.sqrt(np.mean((es[known] + cs[known]) ** 2)):.4f} mrad; "
           f"corr(error, -correction) {np.corrcoef(es[known], -cs[known])[0, 1]:+.3f}")
-    start = None
-    for i in range(len(err) + 1):
-        inside = i < len(err) and straight[i]
-        if inside and start is None:
-            start = i
-        elif not inside and start is not None:
-            if i - start >= 10:
-                print(f"  straight pairs {start + 1}-{i}: fit {np.degrees(err[start:i].sum()):+.4f}"
-                      f" deg, corrected {np.degrees(corrected[start:i].sum()):+.4f} deg")
-            start = None
+    for first, last in straights:
+        ks = [k for k in range(first, last + 1) if k in err]
+        fit = sum(err[k] for k in ks)
+        corrected = fit + sum(np.nan_to_num(corr[k]) for k in ks)
+        print(f"  straight pairs {first}-{last}: fit {np.degrees(fit):+.4f} deg, corrected "
+              f"{np.degrees(corrected):+.4f} deg")
 
 
 if __name__ == "__main__":
