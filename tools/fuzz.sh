@@ -23,7 +23,7 @@
 # (where the corpus grows, outside the source tree) seeded from tests/fuzz/corpus/<target>/
 # (read only). A crashing regression input or a crash, leak, out-of-memory or timeout (over
 # 30 s) found while fuzzing (saved in build-fuzz/artifacts/) fails the run; an input slower
-# than libFuzzer's 10 s report threshold (its slow-unit-* file) is counted in the summary but
+# than 10 s (libFuzzer's -report_slow_units; its slow-unit-* file) is counted in the summary but
 # is no failure: on a busy machine a heavy seed takes that long. One summary line per target
 # at the end, also in build-fuzz/logs/summary.txt, logs in build-fuzz/logs/.
 # A crash found here is minimised (fuzzer -minimize_crash=1 -runs=10000 ARTIFACT), added to
@@ -85,6 +85,8 @@ mkdir -p "$dir/artifacts" "$dir/logs"
 rm -f "$dir"/logs/*.line
 summary=$dir/logs/summary.txt
 : >"$summary"
+# An input slower than this is listed (libFuzzer's slow-unit-* file), not failed.
+slow_s=10
 # One target: its regression inputs, then SECONDS of fuzzing. Its summary line, which starts
 # "<target>: FAILED" when it failed, goes to $dir/logs/<target>.line.
 fuzz_one() {
@@ -117,7 +119,8 @@ fuzz_one() {
   slow_before=$(find "$dir/artifacts" -name "$t-slow-unit-*" | wc -l)
   start=$(date +%s)
   nice -n "$nice_level" "$dir/fuzz/$t" "${keep[@]}" -max_total_time="$seconds" -timeout=30 \
-    -rss_limit_mb=2048 -print_final_stats=1 -artifact_prefix="$dir/artifacts/$t-" \
+    -report_slow_units="$slow_s" -rss_limit_mb=2048 -print_final_stats=1 \
+    -artifact_prefix="$dir/artifacts/$t-" \
     "${corpora[@]}" >"$log" 2>&1 || rc=$?
   secs=$(( $(date +%s) - start ))
   runs=$(sed -n 's/^stat::number_of_executed_units: *//p' "$log" | tail -1)
@@ -138,7 +141,7 @@ fuzz_one() {
     [ ${#reg_failed[@]} -gt 0 ] && status="FAILED"
     line="$t: $status: ${runs:-?} runs in ${secs:-?} s (coverage ${cov:-?} edges, corpus $corpus inputs); $reg"
   fi
-  [ "$slow" -gt 0 ] && line="$line; $slow input(s) slower than 10 s in $dir/artifacts/$t-slow-unit-*"
+  [ "$slow" -gt 0 ] && line="$line; $slow input(s) slower than $slow_s s in $dir/artifacts/$t-slow-unit-*"
   echo "fuzz.sh: $line"
   echo "$line" >"$dir/logs/$t.line"
 }
